@@ -1,0 +1,50 @@
+"""tail_beam: one ament_python package holding tail_beam_sim and tail_beam_id."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "tail_beam"
+ROS_WHEELS = [
+    "ros-rclpy",
+    "ros-std-msgs",
+    "ros-sensor-msgs",
+    "ros-geometry-msgs",
+    "ros-rosgraph-msgs",
+    "ros-rmw-fastrtps-cpp",
+]
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    description="Emulated instrumented tail beam of a top-coal-caving support, with coal-gangue identification",
+    packages=find_packages(include=["tail_beam_sim", "tail_beam_sim.*", "tail_beam_id", "tail_beam_id.*"]),
+    package_data={"tail_beam_id": ["models/*.json"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
+    ],
+    python_requires=">=3.10",
+    install_requires=["numpy>=1.24", "scipy>=1.10", "rosbags>=0.10", "PyYAML>=6"],
+    extras_require={
+        "ros": ROS_WHEELS,
+        "plot": ["matplotlib>=3.7"],
+        "test": ["pytest>=8", "pytest-xdist>=3", "mcap>=1.1", "mcap-ros2-support>=0.5"],
+        "colcon": [
+            "colcon-core", "colcon-ros", "colcon-python-setup-py", "colcon-package-selection",
+            "colcon-recursive-crawl", "colcon-library-path", "colcon-bash", "ros-ament-package",
+            "setuptools<80",
+        ],
+    },
+    zip_safe=False,
+    entry_points={
+        "console_scripts": [
+            "sim_node = tail_beam_sim.sim_node:main",
+            "id_node = tail_beam_id.id_node:main",
+            "bag_recorder = tail_beam_sim.recorder_node:main",
+            "bag_replay = tail_beam_sim.replay_node:main",
+            "tail-beam = tail_beam_sim.cli:main",
+        ],
+    },
+)

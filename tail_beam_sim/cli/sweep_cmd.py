@@ -1,0 +1,65 @@
+"""``tail-beam sweep``: one impact parameter varied, a table of noise-free results (the
+study's figures: restitution against height, response against position and material)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from tail_beam_sim.cli.common import add_impact_options, scene_from_args
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.scene import Impact
+from tail_beam_sim.simulate import simulate
+
+SWEEPABLE = ("drop_height_m", "impact_speed_mps", "position_m", "radius_m", "material", "restitution")
+COLUMNS = (
+    "impact_speed_mps", "rebound_speed_mps", "restitution", "contact_duration_s", "peak_contact_force_n",
+    "peak_jack_pressure_change_pa", "peak_beam_angular_velocity_radps", "peak_imu_dynamic_accel_mps2", "n_contacts",
+)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("sweep", help="vary one impact parameter and tabulate the results")
+    parser.add_argument("parameter", choices=SWEEPABLE, help="the impact field to vary")
+    parser.add_argument("values", nargs="+", help="its values (numbers, or material names)")
+    add_impact_options(parser)
+    parser.add_argument("--json", action="store_true", help="print one JSON object per value instead of a table")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    base = scene_from_args(args)
+    rows = []
+    for value in args.values:
+        fields = {
+            "material": base.impact.material.name, "radius_m": base.impact.radius_m,
+            "position_m": base.impact.position_m, "restitution": base.impact.restitution,
+        }
+        if args.parameter in ("drop_height_m", "impact_speed_mps"):
+            fields[args.parameter] = value
+        else:
+            fields["impact_speed_mps"] = base.impact.impact_speed_mps
+            fields[args.parameter] = value
+        if args.parameter == "material":
+            fields["restitution"] = None
+        if args.parameter != "restitution" and args.parameter != "material" and args.restitution is None:
+            fields["restitution"] = None
+        try:
+            impact = Impact.from_mapping(fields, base.materials, base.support)
+        except InputError as exc:
+            raise InputError(f"values ({args.parameter})", value, exc.allowed) from None
+        summary = simulate(base.with_impact(**impact.__dict__)).summary
+        rows.append({args.parameter: value, **{c: summary[c] for c in COLUMNS}})
+    if args.json:
+        for row in rows:
+            print(json.dumps(row))
+        return 0
+    header = f"{args.parameter:>16} {'v0 m/s':>8} {'v1 m/s':>8} {'e':>7} {'t_c us':>7} {'F kN':>8} {'dp kPa':>8} {'w mrad/s':>9} {'a m/s2':>8} {'n':>3}"
+    print(header)
+    for r in rows:
+        print(
+            f"{r[args.parameter]:>16} {r['impact_speed_mps']:8.3f} {r['rebound_speed_mps']:8.3f} {r['restitution']:7.4f} "
+            f"{r['contact_duration_s'] * 1e6:7.1f} {r['peak_contact_force_n'] / 1e3:8.2f} {r['peak_jack_pressure_change_pa'] / 1e3:8.2f} "
+            f"{r['peak_beam_angular_velocity_radps'] * 1e3:9.4f} {r['peak_imu_dynamic_accel_mps2']:8.2f} {r['n_contacts']:3d}"
+        )
+    return 0

@@ -1,0 +1,126 @@
+"""Loading the suite's parameters from ROS 2 parameter files in ``config/``.
+
+A ROS 2 parameter file maps a node pattern (``/**`` or ``/ns/node``) to
+``{ros__parameters: {...}}``. The physics core reads the same files as the nodes, merges the
+parameters of every node pattern in file order, and lets later files override earlier ones.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from tail_beam_sim.errors import InputError
+
+DEFAULT_FILES = ("support.yaml", "materials.yaml", "sensors.yaml", "scene.yaml")
+CONFIG_DIR_ENV = "TAIL_BEAM_CONFIG_DIR"
+
+
+def default_config_dir() -> Path:
+    """Find the shipped ``config/`` directory.
+
+    Looked for in order: ``$TAIL_BEAM_CONFIG_DIR``; the source tree (editable installs and
+    tests); ``share/tail_beam/config`` under the Python prefix (pip install) or under the
+    colcon install prefix of this package.
+    """
+    here = Path(__file__).resolve().parent
+    candidates = []
+    if os.environ.get(CONFIG_DIR_ENV):
+        candidates.append(Path(os.environ[CONFIG_DIR_ENV]))
+    candidates.append(here.parent / "config")
+    candidates.append(Path(sys.prefix) / "share" / "tail_beam" / "config")
+    # colcon: <prefix>/lib/python3.X/site-packages/tail_beam_sim -> <prefix>/share/tail_beam
+    if len(here.parents) > 3:
+        candidates.append(here.parents[3] / "share" / "tail_beam" / "config")
+    for candidate in candidates:
+        if (candidate / "support.yaml").is_file():
+            return candidate
+    raise InputError(
+        "config_dir", str(candidates[0]), f"no support.yaml found; set {CONFIG_DIR_ENV}"
+    )
+
+
+def read_parameter_file(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read one ROS 2 parameter file and return its merged ``ros__parameters``."""
+    file_path = Path(path)
+    try:
+        text = file_path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError("config", str(path), f"must be a readable file ({exc.strerror})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        first_line = str(exc).splitlines()[0] if str(exc) else "syntax error"
+        raise InputError("config", str(path), f"must be valid YAML ({first_line})") from None
+    if data is None:
+        return {}
+    if not isinstance(data, Mapping):
+        raise InputError("config", str(path), "must map node names to {ros__parameters: ...}")
+    merged: dict[str, Any] = {}
+    for node_pattern, body in data.items():
+        if not isinstance(body, Mapping) or "ros__parameters" not in body:
+            raise InputError(
+                "config", f"{path}: {node_pattern}", "each entry must hold ros__parameters"
+            )
+        deep_merge(merged, body["ros__parameters"] or {})
+    return merged
+
+
+def deep_merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    """Merge ``extra`` into ``base`` in place, recursing into nested mappings."""
+    for key, value in extra.items():
+        if isinstance(value, Mapping) and isinstance(base.get(key), dict):
+            deep_merge(base[key], value)
+        elif isinstance(value, Mapping):
+            base[key] = deep_merge({}, value)
+        else:
+            base[key] = value
+    return base
+
+
+def load_parameters(extra_files: Iterable[str | os.PathLike[str]] = ()) -> dict[str, Any]:
+    """Return the shipped defaults merged with ``extra_files`` (later files win)."""
+    config_dir = default_config_dir()
+    params: dict[str, Any] = {}
+    for name in DEFAULT_FILES:
+        deep_merge(params, read_parameter_file(config_dir / name))
+    for path in extra_files:
+        deep_merge(params, read_parameter_file(path))
+    return params
+
+
+def flatten(params: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Flatten nested parameters to ROS-style dotted names (``support.beam_length_m``)."""
+    flat: dict[str, Any] = {}
+    for key, value in params.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, name + "."))
+        else:
+            flat[name] = value
+    return flat
+
+
+def unflatten(flat: Mapping[str, Any]) -> dict[str, Any]:
+    """Inverse of :func:`flatten`: dotted names back to nested mappings."""
+    nested: dict[str, Any] = {}
+    for name, value in flat.items():
+        node = nested
+        *parents, leaf = name.split(".")
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = value
+    return nested
+
+
+def section(params: Mapping[str, Any], name: str) -> Mapping[str, Any]:
+    """Return ``params[name]`` as a mapping, or raise InputError naming the section."""
+    value = params.get(name)
+    if not isinstance(value, Mapping):
+        raise InputError(name, value, "missing parameter section in the config files")
+    return value

@@ -1,0 +1,181 @@
+"""What a solver is given (:class:`ImpactProblem`) and what it returns (:class:`Trajectory`).
+
+Times are seconds from the first contact (t = 0), when the particle, falling at
+``impact_speed_mps``, touches the undeformed plate. The particle's position ``z_m`` is its
+lowest point along the plate's outward normal, zero at the undeformed plate; the plate under
+it is displaced by ``contact_shape @ q`` away from it, so the penetration is
+``delta = -(contact_shape @ q) - z``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tail_beam_sim.structure import LinearStructure
+
+
+@dataclass(frozen=True)
+class ImpactProblem:
+    """One particle striking a linear structure through a Hertz contact with hysteresis."""
+
+    structure: LinearStructure
+    contact_shape: np.ndarray
+    mass_kg: float
+    hertz_stiffness: float
+    damping_factor: float
+    impact_speed_mps: float
+    gravity_mps2: float
+    window_s: float
+    q0: np.ndarray
+    qd0: np.ndarray
+
+    def contact_force(self, delta_m: float, rate_mps: float, approach_speed_mps: float) -> float:
+        """Hertz force with hysteresis, N; zero out of contact and never pulling."""
+        if delta_m <= 0.0:
+            return 0.0
+        force = self.hertz_stiffness * delta_m**1.5 * (1.0 + self.damping_factor * rate_mps / approach_speed_mps)
+        return force if force > 0.0 else 0.0
+
+
+@dataclass(frozen=True)
+class ContactRecord:
+    """One contact as it happened: start and end (s), speeds (m/s) and peak force (N)."""
+
+    start_s: float
+    end_s: float
+    approach_speed_mps: float
+    separation_speed_mps: float
+    peak_force_n: float
+
+    @property
+    def duration_s(self) -> float:
+        return self.end_s - self.start_s
+
+
+@dataclass
+class ContactSegment:
+    """Dense solution through a contact: states at the solver's steps, for interpolation."""
+
+    t_s: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    z_m: np.ndarray
+    zd_mps: np.ndarray
+    force_n: np.ndarray
+
+    @property
+    def start_s(self) -> float:
+        return float(self.t_s[0])
+
+
+@dataclass
+class FreeSegment:
+    """No contact: the structure rings freely and the particle flies under gravity.
+
+    The state is known exactly at ``anchor_s``; the segment covers [start_s, end_s).
+    """
+
+    start_s: float
+    end_s: float
+    anchor_s: float
+    q: np.ndarray
+    qd: np.ndarray
+    z_m: float
+    zd_mps: float
+
+
+@dataclass
+class Samples:
+    """The system's state at a set of times (arrays over time; q-like ones are (n, T))."""
+
+    t_s: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    force_n: np.ndarray
+    z_m: np.ndarray
+    zd_mps: np.ndarray
+
+
+@dataclass
+class Trajectory:
+    """The piecewise solution of an impact, evaluable at any time (before, during, after).
+
+    ``segments`` are ordered by start time and cover the whole real line; ``contacts`` lists
+    each contact; ``solver`` names what produced it and ``stats`` holds its counters.
+    """
+
+    problem: ImpactProblem
+    segments: list[ContactSegment | FreeSegment]
+    contacts: list[ContactRecord]
+    solver: str
+    stats: dict[str, float] = field(default_factory=dict)
+    particle_at_rest: bool = False
+
+    @property
+    def rebound_velocity_mps(self) -> float:
+        """The particle's normal velocity as it last left the plate (outward positive), m/s."""
+        last = self.contacts[-1] if self.contacts else None
+        return last.separation_speed_mps if last else -self.problem.impact_speed_mps
+
+    @property
+    def final_separation_s(self) -> float:
+        """When the particle last left the plate, s (nan if it never left)."""
+        return self.contacts[-1].end_s if self.contacts else math.nan
+
+    def sample(self, t_s: np.ndarray) -> Samples:
+        """Evaluate the state at times ``t_s`` (any order, any range)."""
+        times = np.atleast_1d(np.asarray(t_s, dtype=float))
+        n = self.problem.structure.size
+        out = Samples(
+            t_s=times,
+            q=np.zeros((n, times.size)),
+            qd=np.zeros((n, times.size)),
+            qdd=np.zeros((n, times.size)),
+            force_n=np.zeros(times.size),
+            z_m=np.zeros(times.size),
+            zd_mps=np.zeros(times.size),
+        )
+        starts = np.array([seg.start_s for seg in self.segments])
+        which = np.clip(np.searchsorted(starts, times, side="right") - 1, 0, len(self.segments) - 1)
+        for index in np.unique(which):
+            mask = which == index
+            segment = self.segments[index]
+            if isinstance(segment, FreeSegment):
+                self._sample_free(segment, times[mask], out, mask)
+            else:
+                self._sample_contact(segment, times[mask], out, mask)
+        return out
+
+    def _sample_free(self, seg: FreeSegment, times: np.ndarray, out: Samples, mask: np.ndarray) -> None:
+        structure = self.problem.structure
+        dt = times - seg.anchor_s
+        q, qd = structure.propagate(seg.q, seg.qd, dt)
+        out.q[:, mask], out.qd[:, mask] = q, qd
+        out.qdd[:, mask] = structure.acceleration(q, qd, np.zeros(times.size), self.problem.contact_shape)
+        g = self.problem.gravity_mps2
+        out.z_m[mask] = seg.z_m + seg.zd_mps * dt - 0.5 * g * dt * dt
+        out.zd_mps[mask] = seg.zd_mps - g * dt
+
+    @staticmethod
+    def _sample_contact(seg: ContactSegment, times: np.ndarray, out: Samples, mask: np.ndarray) -> None:
+        k = np.clip(np.searchsorted(seg.t_s, times, side="right") - 1, 0, seg.t_s.size - 2)
+        h = seg.t_s[k + 1] - seg.t_s[k]
+        s = np.where(h > 0, (times - seg.t_s[k]) / np.where(h > 0, h, 1.0), 0.0)
+        h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+        h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+
+        def hermite(y: np.ndarray, dy: np.ndarray) -> np.ndarray:
+            return h00 * y[..., k] + h10 * h * dy[..., k] + h01 * y[..., k + 1] + h11 * h * dy[..., k + 1]
+
+        out.q[:, mask] = hermite(seg.q, seg.qd)
+        out.qd[:, mask] = hermite(seg.qd, seg.qdd)
+        out.qdd[:, mask] = seg.qdd[:, k] * (1 - s) + seg.qdd[:, k + 1] * s
+        out.force_n[mask] = seg.force_n[k] * (1 - s) + seg.force_n[k + 1] * s
+        zdd = np.gradient(seg.zd_mps, seg.t_s) if seg.t_s.size > 1 else np.zeros(1)
+        out.z_m[mask] = hermite(seg.z_m, seg.zd_mps)
+        out.zd_mps[mask] = hermite(seg.zd_mps, zdd)
