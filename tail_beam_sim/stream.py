@@ -1,0 +1,359 @@
+"""A continuous stream simulator: simulation time and the beam's motion carried across impacts.
+
+The offline :func:`tail_beam_sim.simulate.simulate` solves one impact on a beam at rest. A
+support in service is struck again and again while the beam still rings (its 40 Hz mode
+decays over about half a second), and its data acquisition samples noise between impacts.
+:class:`StreamSimulator` keeps that state:
+
+* Each submitted impact is given a contact stamp (the requested one, or as soon as allowed:
+  ``command_lead_s`` after the samples already produced and ``min_impact_gap_s`` after the
+  previous particle left the plate), solved at once, and queued until the clock reaches it.
+  The queue is bounded (``max_queued_impacts``): a command beyond it is refused with an
+  :class:`InputError` that says so, never silently dropped.
+* The beam's motion is linear between contacts, so each impact's trajectory is the motion
+  carried in (the free response of the beam's displacement at the contact stamp) plus the
+  solution of the impact with the beam's carried velocity as its initial velocity
+  (:class:`CarriedTrajectory`). The particle meets the plate where the plate is at the
+  contact stamp, so the solver's convention (contact at zero penetration) holds exactly.
+* :meth:`StreamSimulator.advance` produces every sample of a time span at once (vectorised
+  per chunk): jack pressure and IMU on their absolute grids ``k / rate``, the rebounds and
+  truths whose stamps fall in the span. Noise is drawn per fixed block of sample indices, so
+  the output depends only on the seed and the impacts, never on how the time was chunked
+  (a real-time run and an as-fast-as-possible run give identical data).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from tail_beam_sim.config import section
+from tail_beam_sim.contact import CONTACT_LAWS
+from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.materials import Material, material_table
+from tail_beam_sim.scene import Impact, Scene, SensorSpec
+from tail_beam_sim.sensors import ImuStream, PressureStream, Rebound, SensorSuite, imu_samples
+from tail_beam_sim.simulate import SimulationResult, build_problem, histories, summarise
+from tail_beam_sim.solvers import DEFAULT_SOLVER, ImpactProblem, Samples, Trajectory, solve
+from tail_beam_sim.solvers.problem import FreeSegment
+from tail_beam_sim.structure import LinearStructure, rigid_beam
+from tail_beam_sim.support import Support
+
+NOISE_BLOCK_SAMPLES = 4096  # noise is drawn per block of this many sample indices (any size works)
+_PRESSURE_NOISE_STREAM, _IMU_NOISE_STREAM = 0, 1  # keys of the two noise streams under one seed
+
+
+@dataclass(frozen=True)
+class StreamParams:
+    """Timing of the stream (s) and the bound of its impact queue."""
+
+    min_impact_gap_s: float
+    command_lead_s: float
+    max_queued_impacts: int
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> StreamParams:
+        """Validate the ``stream`` parameter section."""
+        depth = params.get("max_queued_impacts")
+        if isinstance(depth, bool) or not isinstance(depth, int) or depth < 1:
+            raise InputError("stream.max_queued_impacts", depth, "must be an integer >= 1")
+        return cls(
+            min_impact_gap_s=require_range("stream.min_impact_gap_s", params.get("min_impact_gap_s"), 0.0, 60.0, unit="s"),
+            command_lead_s=require_range("stream.command_lead_s", params.get("command_lead_s"), 0.0, 60.0, low_open=True, unit="s"),
+            max_queued_impacts=depth,
+        )
+
+
+@dataclass
+class CarriedTrajectory(Trajectory):
+    """An impact's trajectory plus the free motion of the displacement carried in.
+
+    The base trajectory was solved from the carried velocity with zero displacement; the
+    carried displacement ``carried_q`` (generalised coordinates at t = 0) rings freely on
+    top of it. The structure is linear, so the sum is the beam's exact motion.
+    """
+
+    carried_q: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @classmethod
+    def carry(cls, trajectory: Trajectory, carried_q: np.ndarray) -> CarriedTrajectory:
+        values = {f.name: getattr(trajectory, f.name) for f in fields(Trajectory)}
+        return cls(**values, carried_q=np.asarray(carried_q, dtype=float))
+
+    def sample(self, t_s: np.ndarray) -> Samples:
+        out = super().sample(t_s)
+        structure = self.problem.structure
+        q, qd = structure.propagate(self.carried_q, np.zeros_like(self.carried_q), out.t_s)
+        out.q = out.q + q
+        out.qd = out.qd + qd
+        out.qdd = out.qdd + structure.acceleration(q, qd, np.zeros(out.t_s.size), self.problem.contact_shape)
+        return out
+
+
+def rest_trajectory(structure: LinearStructure, gravity_mps2: float) -> Trajectory:
+    """The beam at rest with no particle: the motion before the first impact."""
+    zeros = np.zeros(structure.size)
+    problem = ImpactProblem(
+        structure=structure, contact_shape=zeros, mass_kg=0.0, hertz_stiffness=0.0, damping_factor=0.0,
+        impact_speed_mps=0.0, gravity_mps2=gravity_mps2, window_s=0.0, q0=zeros, qd0=zeros,
+    )
+    return Trajectory(problem, [FreeSegment(-math.inf, math.inf, 0.0, zeros, zeros, 0.0, 0.0)], [], "rest")
+
+
+def _relative(stamp_s: np.ndarray, epoch_start_s: float) -> np.ndarray:
+    """Stamps as times of an epoch's trajectory (the rest epoch, starting at -inf, has no origin)."""
+    return stamp_s - epoch_start_s if math.isfinite(epoch_start_s) else stamp_s
+
+
+class BlockNoise:
+    """Standard normal noise indexed by sample number, independent of how it is requested.
+
+    Block ``k`` (indices ``k*B .. k*B+B-1``) comes from its own generator seeded with
+    ``(seed, stream, k)``, so samples ``i..j`` are the same whether asked for at once or in
+    pieces.
+    """
+
+    def __init__(self, seed: int, stream: int, width: int, block_samples: int = NOISE_BLOCK_SAMPLES) -> None:
+        self._key = (seed, stream)
+        self._width = width
+        self._block = block_samples
+        self._cache: dict[int, np.ndarray] = {}
+
+    def _get_block(self, k: int) -> np.ndarray:
+        if k not in self._cache:
+            if len(self._cache) > 2:
+                self._cache.pop(min(self._cache))
+            rng = np.random.default_rng([*self._key, k])
+            self._cache[k] = rng.standard_normal((self._block, self._width))
+        return self._cache[k]
+
+    def take(self, first: int, count: int) -> np.ndarray:
+        """Noise of sample indices ``first .. first+count-1``, shape (count, width)."""
+        out = np.empty((count, self._width))
+        done = 0
+        while done < count:
+            k, offset = divmod(first + done, self._block)
+            n = min(count - done, self._block - offset)
+            out[done : done + n] = self._get_block(k)[offset : offset + n]
+            done += n
+        return out
+
+
+@dataclass(frozen=True)
+class ScheduledImpact:
+    """An impact given its contact stamp (s), solved, with its rebound and truth."""
+
+    impact: Impact
+    contact_stamp_s: float
+    trajectory: CarriedTrajectory
+    rebound: Rebound
+    truth: dict[str, Any]
+
+    @property
+    def impact_id(self) -> str:
+        return self.impact.impact_id
+
+    @property
+    def free_after_s(self) -> float:
+        """When the particle last left the plate, s of simulation time."""
+        return self.contact_stamp_s + self.trajectory.final_separation_s
+
+    @property
+    def truth_stamp_s(self) -> float:
+        """When the truth is published: the end of the impact's simulated window, s."""
+        return self.contact_stamp_s + self.trajectory.problem.window_s
+
+
+@dataclass
+class Chunk:
+    """Everything the sensors produced in the span (start_s, end_s] of simulation time."""
+
+    start_s: float
+    end_s: float
+    pressure: PressureStream
+    imu: ImuStream
+    rebounds: list[tuple[str, Rebound]]  # (impact_id, rebound), in stamp order
+    truths: list[tuple[float, dict[str, Any]]]  # (stamp s, impact_truth JSON object), in stamp order
+    started: list[ScheduledImpact]  # impacts whose contact stamp fell in the span
+
+
+class StreamSimulator:
+    """Simulation time, the beam's state and the impact queue of one support."""
+
+    def __init__(
+        self,
+        support: Support,
+        materials: Mapping[str, Material],
+        sensors: SensorSpec,
+        stream: StreamParams,
+        contact_model: str,
+        window_s: float,
+        structure: LinearStructure | None = None,
+        solver: str = DEFAULT_SOLVER,
+        id_prefix: str = "sim",
+    ) -> None:
+        self.support = support
+        self.materials = materials
+        self.sensors = sensors
+        self.params = stream
+        self.contact_model = contact_model
+        self.window_s = window_s
+        self.structure = structure or rigid_beam(support)
+        self.solver = solver
+        self.id_prefix = id_prefix
+        self._suite = SensorSuite(sensors)
+        self._pressure_noise = BlockNoise(sensors.seed, _PRESSURE_NOISE_STREAM, 1)
+        self._imu_noise = BlockNoise(sensors.seed, _IMU_NOISE_STREAM, 6)
+        self._epoch_starts: list[float] = [-math.inf]
+        self._epochs: list[Trajectory] = [rest_trajectory(self.structure, support.gravity_mps2)]
+        self._queue: deque[ScheduledImpact] = deque()  # solved, contact stamp not yet reached
+        self._pending_events: list[ScheduledImpact] = []  # started, rebound or truth not yet out
+        self._next_pressure_index = 0
+        self._next_imu_index = 0
+        self._time_s = 0.0
+        self._count = 0
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any], **options: Any) -> StreamSimulator:
+        """Build from merged parameters: support, materials, sensors, scene, stream sections."""
+        materials = material_table(params)
+        scene = section(params, "scene")
+        contact_model = scene.get("contact_model")
+        if contact_model not in CONTACT_LAWS:
+            raise InputError("scene.contact_model", contact_model, f"must be one of {', '.join(CONTACT_LAWS)}")
+        return cls(
+            support=Support.from_params(section(params, "support"), materials),
+            materials=materials,
+            sensors=SensorSpec.from_params(section(params, "sensors")),
+            stream=StreamParams.from_params(section(params, "stream")),
+            contact_model=contact_model,
+            window_s=require_range("scene.window_s", scene.get("window_s"), 0.0, 10.0, low_open=True, unit="s"),
+            **options,
+        )
+
+    @property
+    def time_s(self) -> float:
+        """Simulation time up to which samples have been produced, s."""
+        return self._time_s
+
+    @property
+    def queued(self) -> int:
+        """Impacts accepted whose contact has not started yet."""
+        return len(self._queue)
+
+    @property
+    def earliest_contact_s(self) -> float:
+        """The earliest contact stamp a new impact can get now, s."""
+        last = self._queue[-1] if self._queue else (self._pending_events[-1] if self._pending_events else None)
+        after_last = last.free_after_s + self.params.min_impact_gap_s if last else -math.inf
+        return max(self._time_s + self.params.command_lead_s, after_last)
+
+    def submit(self, command: Mapping[str, Any], contact_stamp_s: float | None = None) -> ScheduledImpact:
+        """Validate, schedule and solve one impact (``impact_cmd`` JSON object).
+
+        Raises InputError naming the field for a bad command, or when the queue is full.
+        ``contact_stamp_s`` asks for a contact time; it is moved later if not allowed yet.
+        """
+        impact = Impact.from_mapping(command, self.materials, self.support)
+        if len(self._queue) >= self.params.max_queued_impacts:
+            raise InputError(
+                "impact_cmd", impact.impact_id or dict(command),
+                f"refused: {len(self._queue)} impacts already queued, the limit stream.max_queued_impacts; "
+                "send impacts more slowly or raise the limit",
+            )
+        self._count += 1
+        if not impact.impact_id:
+            impact = Impact(**{**impact.__dict__, "impact_id": f"{self.id_prefix}-{self._count:04d}"})
+        stamp = max(contact_stamp_s if contact_stamp_s is not None else -math.inf, self.earliest_contact_s)
+        scheduled = self._solve(impact, stamp)
+        self._queue.append(scheduled)
+        return scheduled
+
+    def _solve(self, impact: Impact, stamp_s: float) -> ScheduledImpact:
+        """Solve ``impact`` at ``stamp_s`` on the beam as the previous impacts leave it."""
+        before = self._epochs[-1].sample(_relative(np.array([stamp_s]), self._epoch_starts[-1]))
+        q0, qd0 = before.q[:, 0], before.qd[:, 0]
+        problem = build_problem(self.support, impact, self.contact_model, self.window_s, self.structure, qd0=qd0)
+        trajectory = CarriedTrajectory.carry(solve(problem, self.solver), q0)
+        self._epoch_starts.append(stamp_s)
+        self._epochs.append(trajectory)
+        rebound = self._suite.rebound(trajectory, stamp_s)
+        scene = Scene(self.support, impact, self.sensors, self.materials, self.contact_model, self.window_s, 0.0)
+        history = histories(scene, trajectory)
+        result = SimulationResult(
+            scene, trajectory, stamp_s, history,
+            PressureStream(np.empty(0), np.empty(0), 0.0), ImuStream(np.empty(0), np.empty((0, 3)), np.empty((0, 3)), 0.0, 0.0),
+            rebound, summarise(scene, trajectory, history),
+        )
+        return ScheduledImpact(impact, stamp_s, trajectory, rebound, result.truth())
+
+    def advance(self, until_s: float) -> Chunk:
+        """Produce every sample, rebound and truth in (time_s, until_s]; the clock moves on."""
+        start = self._time_s
+        until = max(float(until_s), start)
+        spec = self.sensors
+        pressure_index = self._grid(self._next_pressure_index, until, spec.pressure_rate_hz)
+        imu_index = self._grid(self._next_imu_index, until, spec.imu_rate_hz)
+        pressure = self._pressure(pressure_index)
+        imu = self._imu(imu_index)
+        self._next_pressure_index += pressure_index.size
+        self._next_imu_index += imu_index.size
+        started = []
+        while self._queue and self._queue[0].contact_stamp_s <= until:
+            started.append(self._queue.popleft())
+        self._pending_events.extend(started)
+        rebounds = [(s.impact_id, s.rebound) for s in self._pending_events if start < s.rebound.stamp_s <= until]
+        truths = [(s.truth_stamp_s, s.truth) for s in self._pending_events if start < s.truth_stamp_s <= until]
+        rebounds.sort(key=lambda r: r[1].stamp_s)
+        truths.sort(key=lambda t: t[0])
+        self._pending_events = [s for s in self._pending_events if max(s.rebound.stamp_s, s.truth_stamp_s) > until]
+        self._time_s = until
+        self._prune()
+        return Chunk(start, until, pressure, imu, rebounds, truths, started)
+
+    @staticmethod
+    def _grid(first_index: int, until_s: float, rate_hz: float) -> np.ndarray:
+        last = math.floor(until_s * rate_hz + 1e-9)
+        return np.arange(first_index, max(last + 1, first_index))
+
+    def _by_epoch(self, stamp_s: np.ndarray) -> list[tuple[Trajectory, float, np.ndarray]]:
+        """Split stamps by the epoch (trajectory and its start, s) they fall in."""
+        which = np.searchsorted(np.array(self._epoch_starts), stamp_s, side="right") - 1
+        return [(self._epochs[k], self._epoch_starts[k], which == k) for k in np.unique(which)]
+
+    def _pressure(self, index: np.ndarray) -> PressureStream:
+        spec = self.sensors
+        stamps = index / spec.pressure_rate_hz
+        clean = np.empty(stamps.size)
+        for trajectory, start, mask in self._by_epoch(stamps):
+            state = trajectory.sample(_relative(stamps[mask], start))
+            clean[mask] = self.structure.pressure_pa(state.q, state.qd)
+        noise = self._pressure_noise.take(int(index[0]), index.size)[:, 0] if index.size else np.empty(0)
+        noisy = np.clip(clean + spec.pressure_noise_pa * noise, spec.pressure_range_min_pa, spec.pressure_range_max_pa)
+        return PressureStream(stamps, noisy, spec.pressure_noise_pa**2)
+
+    def _imu(self, index: np.ndarray) -> ImuStream:
+        spec = self.sensors
+        stamps = index / spec.imu_rate_hz
+        gyro, accel = np.empty((stamps.size, 3)), np.empty((stamps.size, 3))
+        for trajectory, start, mask in self._by_epoch(stamps):
+            gyro[mask], accel[mask] = imu_samples(trajectory, _relative(stamps[mask], start), 1.0 / spec.imu_rate_hz)
+        gyro_sigma = spec.imu_gyro_noise_radps * spec.imu_noise_scale
+        accel_sigma = spec.imu_accel_noise_mps2 * spec.imu_noise_scale
+        if index.size:
+            noise = self._imu_noise.take(int(index[0]), index.size)
+            gyro += gyro_sigma * noise[:, :3]
+            accel += accel_sigma * noise[:, 3:]
+        return ImuStream(stamps, gyro, accel, gyro_sigma**2, accel_sigma**2)
+
+    def _prune(self) -> None:
+        """Forget epochs that no future sample can fall in (keep one IMU period of history)."""
+        horizon = self._time_s - 2.0 / self.sensors.imu_rate_hz
+        while len(self._epoch_starts) > 1 and self._epoch_starts[1] <= horizon:
+            self._epoch_starts.pop(0)
+            self._epochs.pop(0)
