@@ -9,15 +9,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from tail_beam_sim.contact import damping_factor, hertz_stiffness
+from tail_beam_sim.fidelity import DEFAULT_TIER, get_tier, structure_for
 from tail_beam_sim.scene import Impact, Scene
 from tail_beam_sim.sensors import ImuStream, PressureStream, Rebound, SensorSuite, sample_grid, specific_force_z
-from tail_beam_sim.solvers import DEFAULT_SOLVER, ImpactProblem, Trajectory, solve
-from tail_beam_sim.structure import LinearStructure, rigid_beam
+from tail_beam_sim.solvers import ImpactProblem, Trajectory, solve
+from tail_beam_sim.structure import BendingMode, LinearStructure, rigid_beam
 from tail_beam_sim.support import Support
 
 HISTORY_RATE_HZ = 20000.0
@@ -133,10 +135,24 @@ def histories(scene: Scene, trajectory: Trajectory) -> dict[str, np.ndarray]:
     }
 
 
-def simulate(scene: Scene, solver: str = DEFAULT_SOLVER, **solver_options: Any) -> SimulationResult:
-    """Simulate one impact of ``scene`` and sample its sensors (reproducible by seed)."""
-    problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s)
-    trajectory = solve(problem, solver, **solver_options)
+def simulate(
+    scene: Scene,
+    solver: str | None = None,
+    *,
+    tier: str = DEFAULT_TIER,
+    modes: Sequence[BendingMode] | None = None,
+    **solver_options: Any,
+) -> SimulationResult:
+    """Simulate one impact of ``scene`` and sample its sensors (reproducible by seed).
+
+    ``tier`` picks the model (``tail_beam_sim.fidelity.TIERS``; default the study's rigid
+    beam), ``modes`` the bending modes of the modal tiers (default: config/modes.yaml) and
+    ``solver`` the method (default: the tier's).
+    """
+    chosen = get_tier(tier)
+    structure = structure_for(chosen, scene.support, modes)
+    problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure)
+    trajectory = solve(problem, solver or chosen.default_solver, **solver_options)
     spec = scene.sensors
     suite = SensorSuite(spec)
     # The contact falls at a seeded instant within the first sample period after pre_contact_s,
@@ -156,6 +172,7 @@ def simulate(scene: Scene, solver: str = DEFAULT_SOLVER, **solver_options: Any) 
         rebound=suite.rebound(trajectory, contact_stamp),
     )
     result.summary = summarise(scene, trajectory, history)
+    result.summary["tier"] = chosen.name
     return result
 
 
