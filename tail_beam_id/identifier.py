@@ -1,0 +1,367 @@
+"""Streaming coal-gangue identification: buffers the three sensor streams, detects impacts,
+and labels each one once the data it needs has arrived.
+
+Determinism: every decision depends only on message stamps and contents. An impact is decided
+once every live continuous stream (jack pressure, IMU) has passed its onset plus ``window_s``
+and the camera has either delivered the impact's rebound or has had ``camera_timeout_s`` of
+stamp time beyond the rebound window to do so. A continuous stream whose newest stamp lags the
+newest of the others by more than ``stream_timeout_s`` is declared stopped; labels then say
+which ``signals`` they used, and the methods' confidence falls with the signals they lose.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from tail_beam_id.detection import DetectionConfig, Pulse, PulseDetector
+from tail_beam_id.features import BeamModel, PressureFit, fit_pressure, impact_features, pulse_duration_s
+from tail_beam_id.methods import Decision, Method, load_model
+from tail_beam_sim.config import load_parameters
+from tail_beam_sim.errors import InputError, require_range
+
+
+def _threshold(model: Mapping[str, Any]) -> Method:
+    from tail_beam_id.methods.threshold import ThresholdMethod
+
+    return ThresholdMethod.from_model(model)
+
+
+# name -> factory building the method from its trained model dict.
+METHODS: dict[str, Callable[[Mapping[str, Any]], Method]] = {"threshold": _threshold}
+
+
+def available_methods() -> list[str]:
+    """Names the ``method`` parameter accepts."""
+    return list(METHODS)
+
+
+def build_method(name: str, model_path: str | None = None) -> Method:
+    """The method ``name`` with its shipped (or given) trained parameters."""
+    if name not in METHODS:
+        raise InputError("identification.method", name, f"must be one of {', '.join(METHODS)}")
+    return METHODS[name](load_model(name, model_path))
+
+
+@dataclass(frozen=True)
+class IdentifierConfig:
+    """The ``identification`` parameter section, validated (times in s of stamp time)."""
+
+    method: str
+    window_s: float
+    pressure_pre_s: float
+    stream_timeout_s: float
+    camera_timeout_s: float
+    overlap_window_s: float
+    overlap_confidence_cap: float
+    detection: DetectionConfig
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> IdentifierConfig:
+        if not isinstance(params, Mapping):
+            raise InputError("identification", params, "missing parameter section")
+
+        def seconds(name: str) -> float:
+            return require_range(f"identification.{name}", params.get(name), 0.0, 10.0, low_open=True, unit="s")
+
+        method = params.get("method")
+        if method not in METHODS:
+            raise InputError("identification.method", method, f"must be one of {', '.join(METHODS)}")
+        window = seconds("window_s")
+        overlap = seconds("overlap_window_s")
+        if overlap > window:
+            raise InputError("identification.overlap_window_s", overlap, f"must be <= window_s ({window:g} s)")
+        return cls(
+            method=method,
+            window_s=window,
+            pressure_pre_s=seconds("pressure_pre_s"),
+            stream_timeout_s=seconds("stream_timeout_s"),
+            camera_timeout_s=seconds("camera_timeout_s"),
+            overlap_window_s=overlap,
+            overlap_confidence_cap=require_range("identification.overlap_confidence_cap", params.get("overlap_confidence_cap"), 0.5, 1.0),
+            detection=DetectionConfig.from_params(params.get("detection") or {}),
+        )
+
+
+class _Series:
+    """One continuous stream's samples, appended in chunks and joined lazily."""
+
+    def __init__(self) -> None:
+        self.chunks_t: list[np.ndarray] = []
+        self.chunks_v: list[np.ndarray] = []
+        self.stamp_s = np.zeros(0)
+        self.values = np.zeros((0, 1))
+        self.base_index = 0  # absolute index of element 0 (after trimming)
+
+    @property
+    def seen(self) -> bool:
+        return bool(self.chunks_t) or self.stamp_s.size > 0
+
+    def append(self, stamp_s: np.ndarray, values: np.ndarray) -> None:
+        last = self.latest_s
+        keep = stamp_s > last  # per-topic order is preserved; drop repeats
+        if keep.any():
+            self.chunks_t.append(stamp_s[keep])
+            self.chunks_v.append(values[keep])
+
+    @property
+    def latest_s(self) -> float:
+        if self.chunks_t:
+            return float(self.chunks_t[-1][-1])
+        return float(self.stamp_s[-1]) if self.stamp_s.size else -math.inf
+
+    def join(self) -> None:
+        if self.chunks_t:
+            self.stamp_s = np.concatenate([self.stamp_s, *self.chunks_t])
+            width = self.chunks_v[0].shape[1]
+            old = self.values if self.values.shape[1] == width else np.zeros((0, width))
+            self.values = np.concatenate([old, *self.chunks_v])
+            self.chunks_t, self.chunks_v = [], []
+
+    def trim_before(self, stamp_s: float) -> None:
+        """Forget samples older than ``stamp_s`` (keeps absolute indices valid)."""
+        drop = int(np.searchsorted(self.stamp_s, stamp_s))
+        if drop > 0:
+            self.stamp_s = self.stamp_s[drop:]
+            self.values = self.values[drop:]
+            self.base_index += drop
+
+
+@dataclass
+class _Impact:
+    """A detected impact waiting for its data."""
+
+    onset_s: float
+    pulse: Pulse | None
+    rebound: tuple[float, np.ndarray] | None = None
+    overlap: bool = False
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+class StreamIdentifier:
+    """Labels each impact in continuous sensor streams coal or gangue (interface.md ``label``)."""
+
+    def __init__(
+        self,
+        method: str | None = None,
+        params: Mapping[str, Any] | None = None,
+        model_params: Mapping[str, Any] | None = None,
+        model_path: str | None = None,
+    ) -> None:
+        """``params``: the ``identification`` section (None: shipped defaults); ``method``
+        overrides its ``method``; ``model_params``: merged parameters holding the nominal
+        ``support`` and ``materials`` (None: shipped defaults)."""
+        defaults = None
+        if params is None or model_params is None:
+            defaults = load_parameters()
+        section = dict(params if params is not None else defaults["identification"])  # type: ignore[index]
+        if method is not None:
+            section["method"] = method
+        self.config = IdentifierConfig.from_params(section)
+        self.method = build_method(self.config.method, model_path)
+        self.model = BeamModel.from_params(model_params if model_params is not None else defaults)  # type: ignore[arg-type]
+        self.pressure = _Series()
+        self.imu = _Series()
+        self.rebounds: list[tuple[float, np.ndarray]] = []
+        self.detector = PulseDetector(self.config.detection)
+        self.pending: list[_Impact] = []
+        self.imu_stop_s = math.inf  # stamp after which the IMU was declared stopped
+        self._used_rebounds: set[float] = set()  # stamps of rebounds given to an impact
+        self._decided: list[float] = []  # onsets of recently decided impacts (overlap check)
+
+    # ---- input -------------------------------------------------------------------------------
+    def add_pressure(self, stamp_s: np.ndarray, pressure_pa: np.ndarray) -> None:
+        """Jack pressure samples: stamps (s), absolute pressure (Pa)."""
+        stamps = np.atleast_1d(np.asarray(stamp_s, dtype=float))
+        values = np.atleast_1d(np.asarray(pressure_pa, dtype=float)).reshape(-1, 1)
+        if stamps.size != values.shape[0]:
+            raise InputError("pressure_pa", values.shape, f"must hold one value per stamp ({stamps.size})")
+        self.pressure.append(stamps, values)
+
+    def add_imu(self, stamp_s: np.ndarray, angular_velocity_radps: np.ndarray, linear_acceleration_mps2: np.ndarray) -> None:
+        """IMU samples: stamps (s), angular velocity (T, 3) rad/s, specific force (T, 3) m/s^2."""
+        stamps = np.atleast_1d(np.asarray(stamp_s, dtype=float))
+        gyro = np.asarray(angular_velocity_radps, dtype=float).reshape(-1, 3)
+        accel = np.asarray(linear_acceleration_mps2, dtype=float).reshape(-1, 3)
+        if gyro.shape[0] != stamps.size or accel.shape[0] != stamps.size:
+            raise InputError("imu", (gyro.shape, accel.shape), f"must hold (T, 3) arrays for T = {stamps.size} stamps")
+        self.imu.append(stamps, np.hstack([gyro, accel]))
+
+    def add_rebound(self, stamp_s: float, velocity_mps: np.ndarray) -> None:
+        """One rebound: the camera's stamp (s) and the particle's velocity (3,) in the plate frame."""
+        velocity = np.asarray(velocity_mps, dtype=float).reshape(3)
+        if self.rebounds and stamp_s <= self.rebounds[-1][0]:
+            return
+        self.rebounds.append((float(stamp_s), velocity))
+
+    # ---- output ------------------------------------------------------------------------------
+    def poll(self) -> list[dict[str, Any]]:
+        """Labels of the impacts now decidable, in impact_stamp order."""
+        return self._run(final=False)
+
+    def flush(self) -> list[dict[str, Any]]:
+        """End of data: decide everything pending from what there is."""
+        return self._run(final=True)
+
+    # ---- internals ---------------------------------------------------------------------------
+    def _newest_s(self) -> float:
+        return max(self.pressure.latest_s, self.imu.latest_s)
+
+    def _live(self, series: _Series, final: bool) -> bool:
+        """A continuous stream is live unless never seen or lagging by more than the timeout."""
+        if not series.seen:
+            return False
+        return final or series.latest_s >= self._newest_s() - self.config.stream_timeout_s
+
+    def _run(self, final: bool) -> list[dict[str, Any]]:
+        self.pressure.join()
+        self.imu.join()
+        imu_live = self._live(self.imu, final)
+        if self.imu.seen and not imu_live and self.imu_stop_s == math.inf:
+            self.imu_stop_s = self.imu.latest_s
+        if self.imu.stamp_s.size:
+            for pulse in self.detector.scan(self.imu.stamp_s, self.imu.values[:, 5], self.imu.base_index, final):
+                self.pending.append(_Impact(onset_s=pulse.onset_s, pulse=pulse))
+        self._rebound_impacts(final)
+        self.pending.sort(key=lambda impact: impact.onset_s)
+        labels: list[dict[str, Any]] = []
+        while self.pending and (final or self._ready(self.pending[0])):
+            impact = self.pending.pop(0)
+            label = self._decide(impact, final)
+            if label is not None:
+                labels.append(label)
+        self._trim()
+        return labels
+
+    def _rebound_impacts(self, final: bool) -> None:
+        """Without a live IMU, each rebound is an impact of its own (onset from its stamp)."""
+        c = self.config.detection
+        for stamp, velocity in self.rebounds:
+            if stamp in self._used_rebounds:
+                continue
+            imu_gone = stamp > self.imu_stop_s + c.max_contact_s
+            imu_absent = not self.imu.seen and (final or self._newest_s() >= stamp + self.config.stream_timeout_s)
+            if imu_gone or imu_absent:
+                self._used_rebounds.add(stamp)
+                self.pending.append(_Impact(onset_s=stamp - c.max_contact_s, pulse=None, rebound=(stamp, velocity)))
+
+    def _rebound_window(self, impact: _Impact) -> tuple[float, float]:
+        """Stamps a rebound of this impact may carry, s."""
+        c = self.config.detection
+        if impact.pulse is None:
+            return impact.onset_s, impact.onset_s + c.max_contact_s
+        return impact.pulse.centroid_s - c.rebound_early_tolerance_s, impact.pulse.onset_s + c.max_contact_s
+
+    def _matching_rebound(self, impact: _Impact) -> tuple[float, np.ndarray] | None:
+        lo, hi = self._rebound_window(impact)
+        for stamp, velocity in self.rebounds:
+            if lo <= stamp <= hi and stamp not in self._used_rebounds:
+                return stamp, velocity
+        return None
+
+    def _neighbours(self, impact: _Impact) -> list[_Impact]:
+        return [o for o in self.pending if o is not impact and abs(o.onset_s - impact.onset_s) < self.config.overlap_window_s]
+
+    def _ready(self, impact: _Impact) -> bool:
+        cfg = self.config
+        horizon = impact.onset_s + cfg.window_s
+        for series in (self.pressure, self.imu):
+            if self._live(series, False) and series.latest_s < horizon:
+                return False
+        if self._live(self.imu, False) and self._imu_scanned_s() < impact.onset_s + cfg.overlap_window_s:
+            return False
+        if impact.rebound is not None:
+            return True
+        _, rebound_end = self._rebound_window(impact)
+        camera_passed = bool(self.rebounds) and self.rebounds[-1][0] > rebound_end
+        if self._matching_rebound(impact) is not None and not self._neighbours(impact):
+            return True
+        return camera_passed or self._newest_s() >= rebound_end + cfg.camera_timeout_s
+
+    def _imu_scanned_s(self) -> float:
+        """Stamp up to which the detector has examined the IMU, s."""
+        local = self.detector.cursor - self.imu.base_index - 1
+        if local < 0 or not self.imu.stamp_s.size:
+            return -math.inf
+        return float(self.imu.stamp_s[min(local, self.imu.stamp_s.size - 1)])
+
+    def _decide(self, impact: _Impact, final: bool) -> dict[str, Any] | None:
+        started = time.perf_counter()
+        cfg = self.config
+        if impact.rebound is None:
+            impact.rebound = self._matching_rebound(impact)
+        if impact.rebound is not None:
+            self._used_rebounds.add(impact.rebound[0])
+        overlap = bool(self._neighbours(impact)) or any(abs(t - impact.onset_s) < cfg.overlap_window_s for t in self._decided)
+        onset = self._impact_stamp(impact)
+        fit: PressureFit | None = None
+        if self.pressure.stamp_s.size:
+            fit = fit_pressure(self.model, self.pressure.stamp_s, self.pressure.values[:, 0], onset, cfg.pressure_pre_s, cfg.window_s)
+        if impact.pulse is not None and impact.rebound is None and not self._pressure_confirms(fit):
+            if impact.pulse.peak_sigma < cfg.detection.unconfirmed_pulse_sigma:
+                return None  # noise-only event: nothing else saw an impact
+        features = impact_features(self.model, impact.pulse, fit, impact.rebound)
+        signals = []
+        if fit is not None and not fit.saturated:
+            signals.append("jack_pressure")
+        if impact.pulse is not None:
+            signals.append("imu")
+        if impact.rebound is not None:
+            signals.append("rebound_velocity")
+        decision: Decision = self.method.decide(features)
+        confidence = decision.confidence
+        if overlap:
+            confidence = min(confidence, cfg.overlap_confidence_cap)
+        self._decided.append(impact.onset_s)
+        horizon = self._data_horizon(impact)
+        label = {
+            "impact_stamp": onset,
+            "label": decision.label,
+            "confidence": round(float(confidence), 6),
+            "method": self.method.name,
+            "latency_ms": (time.perf_counter() - started) * 1e3,
+            "data_latency_ms": (horizon - onset) * 1e3,
+            "signals": signals,
+            "overlap": overlap,
+            "features": {**{k: float(v) for k, v in features.items()}, **decision.estimates},
+        }
+        if fit is not None and fit.saturated:
+            label["saturated"] = ["jack_pressure"]
+        return label
+
+    def _data_horizon(self, impact: _Impact) -> float:
+        """The latest stamp of data this decision needed (s): the data latency's end."""
+        horizon = impact.onset_s + self.config.window_s
+        if impact.rebound is not None:
+            horizon = max(horizon, impact.rebound[0])
+        else:
+            horizon = max(horizon, self._rebound_window(impact)[1] + self.config.camera_timeout_s)
+        return horizon
+
+    @staticmethod
+    def _pressure_confirms(fit: PressureFit | None) -> bool:
+        return fit is not None and not fit.saturated and fit.moment_impulse_nms > 3.0 * fit.sigma_nms
+
+    def _impact_stamp(self, impact: _Impact) -> float:
+        """Best estimate of the contact start, s."""
+        pulse = impact.pulse
+        if pulse is None:
+            return impact.onset_s
+        return max(pulse.onset_s, pulse.centroid_s - 0.5 * pulse_duration_s(pulse))
+
+    def _trim(self) -> None:
+        """Drop data no pending or future decision can need (bounded memory on long streams)."""
+        keep_s = 4.0 * max(self.config.detection.noise_block_s, self.config.pressure_pre_s + self.config.window_s)
+        oldest_needed = min([i.onset_s for i in self.pending], default=self._newest_s()) - keep_s
+        if self.imu.stamp_s.size and self.imu.stamp_s[0] < oldest_needed - keep_s:
+            self.imu.trim_before(oldest_needed)
+        if self.pressure.stamp_s.size and self.pressure.stamp_s[0] < oldest_needed - keep_s:
+            self.pressure.trim_before(oldest_needed)
+        self.rebounds = [r for r in self.rebounds if r[0] >= oldest_needed]
+        self._decided = [t for t in self._decided if t >= oldest_needed]
+        self._used_rebounds = {t for t in self._used_rebounds if t >= oldest_needed}
