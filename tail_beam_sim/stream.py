@@ -35,6 +35,7 @@ import numpy as np
 from tail_beam_sim.config import section
 from tail_beam_sim.contact import CONTACT_LAWS
 from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.fidelity import DEFAULT_TIER, get_tier, modes_from_params, structure_for
 from tail_beam_sim.materials import Material, material_table
 from tail_beam_sim.scene import Impact, Scene, SensorSpec
 from tail_beam_sim.sensors import ImuStream, PressureStream, Rebound, SensorSuite, imu_samples
@@ -46,6 +47,10 @@ from tail_beam_sim.support import Support
 
 NOISE_BLOCK_SAMPLES = 4096  # noise is drawn per block of this many sample indices (any size works)
 _PRESSURE_NOISE_STREAM, _IMU_NOISE_STREAM = 0, 1  # keys of the two noise streams under one seed
+
+
+class QueueFull(InputError):
+    """An impact refused because ``stream.max_queued_impacts`` impacts are already waiting."""
 
 
 @dataclass(frozen=True)
@@ -220,19 +225,27 @@ class StreamSimulator:
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], **options: Any) -> StreamSimulator:
-        """Build from merged parameters: support, materials, sensors, scene, stream sections."""
+        """Build from merged parameters: support, materials, sensors, scene, stream sections.
+
+        ``stream.tier`` picks the model (``tail_beam_sim.fidelity.TIERS``): its structure
+        (bending modes from the ``modes`` section) and its solver.
+        """
         materials = material_table(params)
+        support = Support.from_params(section(params, "support"), materials)
+        tier = get_tier(section(params, "stream").get("tier", DEFAULT_TIER))
         scene = section(params, "scene")
         contact_model = scene.get("contact_model")
         if contact_model not in CONTACT_LAWS:
             raise InputError("scene.contact_model", contact_model, f"must be one of {', '.join(CONTACT_LAWS)}")
         return cls(
-            support=Support.from_params(section(params, "support"), materials),
+            support=support,
             materials=materials,
             sensors=SensorSpec.from_params(section(params, "sensors")),
             stream=StreamParams.from_params(section(params, "stream")),
             contact_model=contact_model,
             window_s=require_range("scene.window_s", scene.get("window_s"), 0.0, 10.0, low_open=True, unit="s"),
+            structure=structure_for(tier, support, modes_from_params(params)),
+            solver=tier.default_solver,
             **options,
         )
 
@@ -261,7 +274,7 @@ class StreamSimulator:
         """
         impact = Impact.from_mapping(command, self.materials, self.support)
         if len(self._queue) >= self.params.max_queued_impacts:
-            raise InputError(
+            raise QueueFull(
                 "impact_cmd", impact.impact_id or dict(command),
                 f"refused: {len(self._queue)} impacts already queued, the limit stream.max_queued_impacts; "
                 "send impacts more slowly or raise the limit",

@@ -1,0 +1,149 @@
+"""``sim_node``: a ROS 2 node over :class:`tail_beam_sim.stream.StreamSimulator`.
+
+Takes impacts on ``impact_cmd`` (and a start-up scenario), publishes ``jack_pressure`` and
+``imu`` as continuous streams, ``rebound_velocity`` and ``impact_truth`` once per impact, and
+``/clock`` on request. A timer advances simulation time by the wall-clock time elapsed times
+``realtime_factor`` (0: as fast as possible); when it falls behind it produces at most
+``max_chunk_s`` per tick and runs slower than real time, never skipping a sample.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+from geometry_msgs.msg import TwistStamped
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import FluidPressure, Imu
+from std_msgs.msg import String
+
+from tail_beam_sim import ros_messages, topics
+from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.node_params import config_defaults, declare_and_read
+from tail_beam_sim.scenario import load_scenario
+from tail_beam_sim.stream import Chunk, QueueFull, StreamSimulator
+
+EVENT_QOS_DEPTH = 100  # rebound, truth and command topics: one message per impact
+
+
+class SimNode(Node):
+    """The simulated support: impacts in, sensor streams out."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("tail_beam_sim", **kwargs)
+        params = declare_and_read(self, config_defaults(["sim_node.yaml"], with_physics=True))
+        node = params["sim_node"]
+        self.realtime_factor = require_range("sim_node.realtime_factor", node.get("realtime_factor"), 0.0, 1e6)
+        period = require_range("sim_node.publish_period_s", node.get("publish_period_s"), 0.0, 10.0, low_open=True, unit="s")
+        self.max_chunk_s = require_range("sim_node.max_chunk_s", node.get("max_chunk_s"), 0.0, 10.0, low_open=True, unit="s")
+        self.exit_after_idle_s = require_range("sim_node.exit_after_idle_s", node.get("exit_after_idle_s"), 0.0, None, unit="s")
+        depth = int(require_range("sim_node.qos_depth", node.get("qos_depth"), 1, 1e6))
+        self.stream = StreamSimulator.from_params(params)
+        for planned in load_scenario(params["scenario"], self.stream.materials, self.stream.support):
+            self.stream.submit(planned.command, planned.contact_stamp_s)
+        self.finished = Future()
+        sensor_qos = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
+        event_qos = QoSProfile(depth=EVENT_QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+        self._pressure_pub = self.create_publisher(FluidPressure, topics.JACK_PRESSURE, sensor_qos)
+        self._imu_pub = self.create_publisher(Imu, topics.IMU, sensor_qos)
+        self._rebound_pub = self.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, event_qos)
+        self._truth_pub = self.create_publisher(String, topics.IMPACT_TRUTH, event_qos)
+        self._clock_pub = self.create_publisher(Clock, "/clock", 10) if node.get("publish_clock") else None
+        self.create_subscription(String, topics.IMPACT_CMD, self._on_command, event_qos)
+        self._anchor: tuple[float, float] | None = None  # (wall s, simulation s) pacing origin
+        self._last_activity_s = 0.0
+        self.create_timer(0.0 if self.realtime_factor == 0.0 else period, self._tick)
+        self.get_logger().info(
+            f"simulating at realtime_factor {self.realtime_factor:g}: pressure {self.stream.sensors.pressure_rate_hz:g} Hz, "
+            f"IMU {self.stream.sensors.imu_rate_hz:g} Hz, {self.stream.queued} impact(s) scheduled"
+        )
+
+    def _on_command(self, msg: String) -> None:
+        """One impact_cmd: queue it, or log why not (the node keeps running either way)."""
+        try:
+            command = json.loads(msg.data)
+        except json.JSONDecodeError as exc:
+            self.get_logger().error(f"impact_cmd rejected: not valid JSON ({exc.msg} at char {exc.pos}): {msg.data[:200]!r}")
+            return
+        try:
+            scheduled = self.stream.submit(command)
+        except QueueFull as exc:
+            self.get_logger().warning(f"impact_cmd {exc}")
+            return
+        except InputError as exc:
+            self.get_logger().error(f"impact_cmd rejected: {exc}")
+            return
+        self.get_logger().info(
+            f"impact {scheduled.impact_id} queued: contact at {scheduled.contact_stamp_s:.4f} s ({self.stream.queued} queued)"
+        )
+
+    def _target_time_s(self, now_s: float) -> float:
+        """Simulation time to reach this tick, s."""
+        current = self.stream.time_s
+        if self.realtime_factor == 0.0:
+            return current + self.max_chunk_s
+        if self._anchor is None:
+            self._anchor = (now_s, current)
+        wall0, sim0 = self._anchor
+        target = sim0 + (now_s - wall0) * self.realtime_factor
+        if target > current + self.max_chunk_s:  # behind: run slower than real time from here on
+            target = current + self.max_chunk_s
+            self._anchor = (now_s, target)
+        return target
+
+    def _tick(self) -> None:
+        chunk = self.stream.advance(self._target_time_s(time.monotonic()))
+        self.publish(chunk)
+        if self.exit_after_idle_s > 0.0 and self.stream.queued == 0 and not self.finished.done():
+            if self.stream.time_s >= self._last_activity_s + self.exit_after_idle_s:
+                self.get_logger().info(f"idle for {self.exit_after_idle_s:g} s of simulation time: done")
+                self.finished.set_result(True)
+
+    def publish(self, chunk: Chunk) -> None:
+        """Publish one chunk: streams in stamp order, then its rebounds and truths."""
+        for scheduled in chunk.started:
+            self._last_activity_s = max(self._last_activity_s, scheduled.truth_stamp_s)
+            self.get_logger().info(
+                f"impact {scheduled.impact_id}: {scheduled.impact.material.name} R {scheduled.impact.radius_m * 1e3:.0f} mm "
+                f"at {scheduled.contact_stamp_s:.4f} s"
+            )
+        for msg in ros_messages.pressure_messages(chunk.pressure):
+            self._pressure_pub.publish(msg)
+        for msg in ros_messages.imu_messages(chunk.imu):
+            self._imu_pub.publish(msg)
+        for _, rebound in chunk.rebounds:
+            self._rebound_pub.publish(ros_messages.rebound_message(rebound))
+        for _, truth in chunk.truths:
+            self._truth_pub.publish(ros_messages.string_message(truth))
+        if self._clock_pub is not None and math.isfinite(chunk.end_s):
+            self._clock_pub.publish(ros_messages.clock_message(chunk.end_s))
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run sim_node until shut down (or idle, with sim_node.exit_after_idle_s)."""
+    rclpy.init(args=args)
+    try:
+        node = SimNode()
+    except InputError as exc:
+        print(f"sim_node: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin_until_future_complete(node, node.finished)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
