@@ -141,18 +141,21 @@ def simulate(
     *,
     tier: str = DEFAULT_TIER,
     modes: Sequence[BendingMode] | None = None,
+    trajectory: Trajectory | None = None,
     **solver_options: Any,
 ) -> SimulationResult:
     """Simulate one impact of ``scene`` and sample its sensors (reproducible by seed).
 
     ``tier`` picks the model (``tail_beam_sim.fidelity.TIERS``; default the study's rigid
     beam), ``modes`` the bending modes of the modal tiers (default: config/modes.yaml) and
-    ``solver`` the method (default: the tier's).
+    ``solver`` the method (default: the tier's). ``trajectory``: one already solved for this
+    scene's impact and tier, to sample it again at other sensor settings without solving.
     """
     chosen = get_tier(tier)
-    structure = structure_for(chosen, scene.support, modes)
-    problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure)
-    trajectory = solve(problem, solver or chosen.default_solver, **solver_options)
+    if trajectory is None:
+        structure = structure_for(chosen, scene.support, modes)
+        problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure)
+        trajectory = solve(problem, solver or chosen.default_solver, **solver_options)
     spec = scene.sensors
     suite = SensorSuite(spec)
     # The contact falls at a seeded instant within the first sample period after pre_contact_s,
