@@ -1,11 +1,13 @@
 """Impact detection in the continuous IMU stream: onsets, pulses, noise and overlap.
 
 A particle's contact lasts 0.1-1 ms, far shorter than the beam's 40 Hz sway, and the IMU
-reports the mean specific force over each sample period: the contact shows as a short
-negative pulse (the plate is pushed away from the particle) on top of a slow background
-(gravity, the beam still ringing from earlier impacts). The detector predicts each sample
-from a quadratic fitted to the samples before it, and starts a pulse where the sample falls
-below the prediction by ``accel_threshold_sigma`` noise RMS. The noise RMS is a robust (MAD)
+reports the mean specific force over each sample period: the contact shows as a sudden
+departure from a slow background (gravity, the beam still swaying from earlier impacts):
+negative when the plate is pushed away, positive when a bending mode answers first with the
+opposite sign. The detector predicts each sample from a quadratic fitted to the samples
+before it, and starts a pulse where a sample leaves the prediction by
+``accel_threshold_sigma`` noise RMS; while the bending modes ring after a pulse the
+threshold is raised in proportion to it. The noise RMS is a robust (MAD)
 estimate over fixed blocks of samples, so that the result depends only on the samples, never
 on how they were chunked on arrival.
 """
@@ -36,6 +38,10 @@ class DetectionConfig:
     rebound_early_tolerance_s: float
     unconfirmed_pulse_sigma: float
     pressure_threshold_sigma: float
+    ring_fraction: float
+    ring_decay_s: float
+    ring_window_s: float
+    rebound_onset_lead_s: float
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> DetectionConfig:
@@ -54,25 +60,30 @@ class DetectionConfig:
             rebound_early_tolerance_s=get("rebound_early_tolerance_s", 0.0, 1.0, "s"),
             unconfirmed_pulse_sigma=get("unconfirmed_pulse_sigma", 0.0, 1e6),
             pressure_threshold_sigma=get("pressure_threshold_sigma", 0.0, 1e3),
+            ring_fraction=get("ring_fraction", 0.0, 100.0),
+            ring_decay_s=get("ring_decay_s", 0.0, 10.0, "s"),
+            ring_window_s=get("ring_window_s", 0.0, 10.0, "s"),
+            rebound_onset_lead_s=get("rebound_onset_lead_s", 0.0, 1.0, "s"),
         )
 
 
 @dataclass(frozen=True)
 class Pulse:
-    """One contact as the IMU saw it.
+    """One contact as the IMU saw it: where the specific force first left its background.
 
-    ``onset_s``: start of the first sample period holding the pulse (the contact began at or
-    after it); ``centroid_s``: impulse-weighted mean time of the pulse; ``width_s``: RMS
-    duration of the pulse beyond the sample averaging's own (0 when it fits in one sample);
-    ``impulse_mps``: velocity change of the plate at the IMU, away from the particle, m/s;
-    ``peak_sigma``: the deepest sample's deviation in noise RMS; ``noise_mps2``: that RMS;
-    ``period_s``: the IMU sample period read from the stamps.
+    ``first_stamp_s``: stamp of the first sample deviating (the contact began within that
+    sample's averaging period); ``onset_s``: the middle of that period, the contact-start
+    estimate; ``polarity``: +1 when that sample shows the plate pushed away from the particle
+    (a rigid beam's answer), -1 when the bending modes answer first with the opposite sign
+    (impacts between the hinge and the jack pin); ``width_s``: RMS duration of the deviating
+    run of samples; ``peak_sigma``: the largest deviation in noise RMS; ``noise_mps2``: that
+    RMS, m/s^2; ``period_s``: the IMU sample period read from the stamps.
     """
 
     onset_s: float
-    centroid_s: float
+    first_stamp_s: float
+    polarity: int
     width_s: float
-    impulse_mps: float
     peak_sigma: float
     noise_mps2: float
     period_s: float
@@ -117,6 +128,7 @@ class PulseDetector:
         self.config = config
         self.cursor = 0  # next sample index (absolute) to examine
         self.spans: list[tuple[int, int]] = []  # absolute (first, last) sample of each pulse found
+        self.last_pulse: tuple[float, float] | None = None  # (end stamp s, deepest deviation m/s^2)
         self._sigma_cache: dict[int, float] = {}  # noise RMS per block, by its first absolute index
 
     def geometry(self, period_s: float) -> tuple[int, int, int]:
@@ -177,51 +189,59 @@ class PulseDetector:
                 deviation = accel_z[k] - background_fit(accel_z, k - baseline, k, mask)[0]
             else:
                 deviation = residual[k - start]
-            if sigma > 0.0 and deviation < -c.accel_threshold_sigma * sigma:
+            if sigma > 0.0 and abs(deviation) > self._threshold(float(stamp_s[k]), sigma):
                 pulse = self._grow(stamp_s, accel_z, mask, k, baseline, span, sigma, period, base_index)
                 pulses.append(pulse)
                 mask[pulse.first_index - base_index:pulse.last_index - base_index + 1] = True
                 self.spans.append((pulse.first_index, pulse.last_index))
+                self.last_pulse = (float(stamp_s[pulse.last_index - base_index]), pulse.peak_sigma * sigma)
                 k = pulse.last_index - base_index + 1
             else:
                 k += 1
         self.cursor = base_index + max(k, stop)
         return pulses
 
+    def _threshold(self, stamp_s: float, sigma: float) -> float:
+        """Detection threshold (m/s^2): the noise's, raised while the beam's bending modes
+        still ring from the last pulse (``ring_fraction`` of its depth, decaying)."""
+        c = self.config
+        threshold = c.accel_threshold_sigma * sigma
+        if self.last_pulse is not None:
+            end_s, depth = self.last_pulse
+            threshold = max(threshold, c.ring_fraction * depth * math.exp(-(stamp_s - end_s) / c.ring_decay_s))
+        return threshold
+
     def _grow(
         self, stamp_s: np.ndarray, accel_z: np.ndarray, mask: np.ndarray, k: int, baseline: int,
         span: int, sigma: float, period: float, base_index: int,
     ) -> Pulse:
-        """The whole pulse around its first over-threshold sample ``k``."""
+        """The whole deviating run of samples from its first over-threshold sample ``k``."""
         c = self.config
         first = k
         coeffs = background_fit(accel_z, k - baseline, k, mask)
-        # A pulse may have begun one sample earlier, below the detection threshold.
+        # The contact may have begun one sample earlier, below the detection threshold.
         if k - 1 - baseline >= 0 and not mask[k - 1]:
             previous = background_fit(accel_z, k - 1 - baseline, k - 1, mask)
-            if accel_z[k - 1] - previous[0] < -c.extend_threshold_sigma * sigma:
+            if abs(accel_z[k - 1] - previous[0]) > c.extend_threshold_sigma * sigma:
                 first, coeffs = k - 1, previous
         end = min(first + span, accel_z.size)
         x = np.arange(first, end) - first
-        predicted = coeffs[0] + coeffs[1] * x + coeffs[2] * x * x
-        deviation = accel_z[first:end] - predicted
+        deviation = accel_z[first:end] - (coeffs[0] + coeffs[1] * x + coeffs[2] * x * x)
         last = first
         for j in range(1, deviation.size):
-            if deviation[j] >= -c.extend_threshold_sigma * sigma or mask[first + j]:
+            if abs(deviation[j]) <= c.extend_threshold_sigma * sigma or mask[first + j]:
                 break
             last = first + j
-        dev = -deviation[: last - first + 1]
+        weight = np.abs(deviation[: last - first + 1])
         times = stamp_s[first:last + 1] - 0.5 * period  # middle of each sample's averaging period
-        weight = np.clip(dev, 0.0, None)
-        total = float(weight.sum()) or 1.0
-        centroid = float(np.sum(weight * times) / total)
-        variance = float(np.sum(weight * (times - centroid) ** 2) / total)
+        centre = float(np.sum(weight * times) / weight.sum())
+        variance = float(np.sum(weight * (times - centre) ** 2) / weight.sum())
         return Pulse(
-            onset_s=float(stamp_s[first] - period),
-            centroid_s=centroid,
+            onset_s=float(stamp_s[first] - 0.5 * period),
+            first_stamp_s=float(stamp_s[first]),
+            polarity=1 if deviation[0] < 0.0 else -1,
             width_s=math.sqrt(max(variance, 0.0)),
-            impulse_mps=float(dev.sum() * period),
-            peak_sigma=float(dev.max() / sigma),
+            peak_sigma=float(weight.max() / sigma),
             noise_mps2=sigma,
             period_s=period,
             first_index=base_index + first,

@@ -22,8 +22,6 @@ from tail_beam_sim.structure import LinearStructure, rigid_beam
 from tail_beam_sim.support import Support
 
 SIGNALS = ("jack_pressure", "imu", "rebound_velocity")
-# RMS width of a half-sine pulse over its duration: sqrt(1/4 - 2/pi^2).
-HALF_SINE_WIDTH_RATIO = math.sqrt(0.25 - 2.0 / math.pi**2)
 
 
 @dataclass(frozen=True)
@@ -43,6 +41,17 @@ class BeamModel:
     def imu_moment_per_velocity(self) -> float:
         """Moment impulse about the hinge per m/s of plate velocity at the IMU, N m s / (m/s)."""
         return self.support.beam_inertia_about_hinge_kgm2 / self.support.imu_from_hinge_m
+
+    def imu_velocity_response(self, t_s: np.ndarray) -> np.ndarray:
+        """Plate velocity at the IMU (away from the particle) per m/s given to it at t = 0 by an
+        impulse, on the rigid beam: 1 just after, then the 40 Hz sway; 0 before."""
+        s = self.structure
+        unit_moment = np.zeros(s.size)
+        unit_moment[0] = 1.0
+        qd0 = s.inv_mass @ unit_moment
+        _, qd = s.propagate(np.zeros(s.size), qd0, np.clip(t_s, 0.0, None))
+        response = (s.imu_shape @ qd) / (s.imu_shape @ qd0)
+        return np.where(t_s >= 0.0, response, 0.0)
 
     def pressure_response(self, t_s: np.ndarray) -> np.ndarray:
         """Jack pressure change per unit moment impulse at t = 0, Pa / (N m s); 0 before it."""
@@ -96,31 +105,69 @@ def _flat_lined(values: np.ndarray) -> bool:
     return bool(np.sum(values == values.max()) >= 2 or np.sum(values == values.min()) >= 2)
 
 
-def pulse_duration_s(pulse: Pulse) -> float:
-    """Contact duration from the IMU pulse's RMS width (half-sine force), s; 0 if unresolved."""
-    excess = pulse.width_s**2 - pulse.period_s**2 / 12.0
-    return math.sqrt(excess) / HALF_SINE_WIDTH_RATIO if excess > 0.0 else 0.0
+@dataclass(frozen=True)
+class ImuImpulse:
+    """Velocity given to the plate at the IMU by the contact (m/s), its standard error, and the
+    RMS of what the rigid beam does not explain after it (bending modes ringing), m/s."""
+
+    velocity_mps: float
+    sigma_mps: float
+    ring_mps: float
+
+
+def imu_impulse(
+    model: BeamModel, stamp_s: np.ndarray, accel_z: np.ndarray, pulse: Pulse, pre_s: float, post_s: float
+) -> ImuImpulse | None:
+    """The pulse's velocity change, fitted in the velocity domain so the bending modes' ringing
+    averages out: the specific force before the pulse gives the background (constant plus the
+    beam's free sway); the plate velocity after it, integrated from the samples, is fitted with
+    the rigid beam's response to an impulse at the onset."""
+    period = pulse.period_s
+    before = (stamp_s >= pulse.onset_s - pre_s) & (stamp_s < pulse.onset_s)
+    after = (stamp_s >= pulse.onset_s) & (stamp_s <= pulse.onset_s + post_s)
+    if before.sum() < 4 or after.sum() < 2:
+        return None
+    omega = 2.0 * math.pi * model.support.rigid_mode_frequency_hz
+    t_before = stamp_s[before] - pulse.onset_s
+    basis = np.vstack([np.ones_like(t_before), np.cos(omega * t_before), np.sin(omega * t_before)]).T
+    coeffs, *_ = np.linalg.lstsq(basis, accel_z[before], rcond=None)
+    t_after = stamp_s[after] - pulse.onset_s
+    background = coeffs[0] + coeffs[1] * np.cos(omega * t_after) + coeffs[2] * np.sin(omega * t_after)
+    # Plate velocity change at the end of each sample: specific force = g - plate acceleration.
+    velocity = -np.cumsum(accel_z[after] - background) * period
+    response = model.imu_velocity_response(stamp_s[after] - pulse.onset_s)
+    # Only samples ending after the deviating run (contact and first ringing).
+    use = stamp_s[after] > pulse.first_stamp_s + (pulse.last_index - pulse.first_index) * period
+    if not use.any():
+        return None
+    r, v = response[use], velocity[use]
+    fitted = float(np.dot(r, v) / np.dot(r, r))
+    residual = v - fitted * r
+    ring = float(math.sqrt(np.mean(residual**2)))
+    sigma = pulse.noise_mps2 * period * math.sqrt(max(after.sum(), 1) / 2.0)
+    return ImuImpulse(fitted, sigma, ring)
 
 
 def impact_features(
     model: BeamModel,
     pulse: Pulse | None,
+    impulse: ImuImpulse | None,
     pressure: PressureFit | None,
     rebound: tuple[float, np.ndarray] | None,
 ) -> dict[str, float]:
     """The feature dict of one impact from whatever signals there are (missing ones absent)."""
     features: dict[str, float] = {}
     estimates = []
-    if pulse is not None:
-        moment = pulse.impulse_mps * model.imu_moment_per_velocity
-        sigma = pulse.noise_mps2 * pulse.period_s * math.sqrt(max(pulse.last_index - pulse.first_index + 1, 1))
+    if pulse is not None and impulse is not None:
+        moment = impulse.velocity_mps * model.imu_moment_per_velocity
         features["moment_impulse_imu_nms"] = moment
-        features["imu_impulse_mps"] = pulse.impulse_mps
+        features["imu_impulse_mps"] = impulse.velocity_mps
+        features["imu_ring_ratio"] = impulse.ring_mps / max(abs(impulse.velocity_mps), 1e-12)
         features["imu_pulse_sigma"] = pulse.peak_sigma
+        features["imu_pulse_polarity"] = float(pulse.polarity)
         features["imu_pulse_width_s"] = pulse.width_s
-        features["imu_pulse_duration_s"] = pulse_duration_s(pulse)
         features["imu_period_s"] = pulse.period_s
-        estimates.append((moment, sigma * model.imu_moment_per_velocity))
+        estimates.append((moment, max(impulse.sigma_mps, impulse.ring_mps) * model.imu_moment_per_velocity))
     if pressure is not None and not pressure.saturated:
         features["moment_impulse_pressure_nms"] = pressure.moment_impulse_nms
         features["pressure_swing_pa"] = pressure.swing_pa
@@ -134,5 +181,7 @@ def impact_features(
         stamp, velocity = rebound
         features["rebound_speed_mps"] = float(velocity[2])
         if pulse is not None:
-            features["rebound_delay_s"] = float(stamp - pulse.centroid_s)
+            # From the start of the first deviating IMU sample to the camera's end-of-contact
+            # stamp: the contact duration plus up to one IMU period and one camera frame.
+            features["rebound_delay_s"] = float(stamp - (pulse.first_stamp_s - pulse.period_s))
     return features

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from tail_beam_id.detection import DetectionConfig, Pulse, PulseDetector
-from tail_beam_id.features import BeamModel, PressureFit, fit_pressure, impact_features, pulse_duration_s
+from tail_beam_id.features import BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
 from tail_beam_id.methods import Decision, Method, load_model
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, require_range
@@ -55,6 +55,8 @@ class IdentifierConfig:
     method: str
     window_s: float
     pressure_pre_s: float
+    impulse_pre_s: float
+    impulse_post_s: float
     stream_timeout_s: float
     camera_timeout_s: float
     overlap_window_s: float
@@ -74,12 +76,16 @@ class IdentifierConfig:
             raise InputError("identification.method", method, f"must be one of {', '.join(METHODS)}")
         window = seconds("window_s")
         overlap = seconds("overlap_window_s")
+        if seconds("impulse_post_s") > window:
+            raise InputError("identification.impulse_post_s", params.get("impulse_post_s"), f"must be <= window_s ({window:g} s)")
         if overlap > window:
             raise InputError("identification.overlap_window_s", overlap, f"must be <= window_s ({window:g} s)")
         return cls(
             method=method,
             window_s=window,
             pressure_pre_s=seconds("pressure_pre_s"),
+            impulse_pre_s=seconds("impulse_pre_s"),
+            impulse_post_s=seconds("impulse_post_s"),
             stream_timeout_s=seconds("stream_timeout_s"),
             camera_timeout_s=seconds("camera_timeout_s"),
             overlap_window_s=overlap,
@@ -239,23 +245,31 @@ class StreamIdentifier:
         return labels
 
     def _rebound_impacts(self, final: bool) -> None:
-        """Without a live IMU, each rebound is an impact of its own (onset from its stamp)."""
+        """A rebound no IMU pulse can claim is an impact of its own (IMU stopped or absent, or
+        the pulse lost in noise); its onset is put ``rebound_onset_lead_s`` before its stamp."""
         c = self.config.detection
+        scanned = math.inf if final else self._imu_scanned_s()
         for stamp, velocity in self.rebounds:
             if stamp in self._used_rebounds:
                 continue
             imu_gone = stamp > self.imu_stop_s + c.max_contact_s
             imu_absent = not self.imu.seen and (final or self._newest_s() >= stamp + self.config.stream_timeout_s)
-            if imu_gone or imu_absent:
+            claimable = any(
+                i.pulse is not None and i.rebound is None and self._rebound_window(i)[0] <= stamp <= self._rebound_window(i)[1]
+                for i in self.pending
+            )
+            orphan = self.imu.seen and scanned >= stamp + c.rebound_early_tolerance_s and not claimable
+            if imu_gone or imu_absent or orphan:
                 self._used_rebounds.add(stamp)
-                self.pending.append(_Impact(onset_s=stamp - c.max_contact_s, pulse=None, rebound=(stamp, velocity)))
+                onset = stamp - c.rebound_onset_lead_s
+                self.pending.append(_Impact(onset_s=onset, pulse=None, rebound=(stamp, velocity)))
 
     def _rebound_window(self, impact: _Impact) -> tuple[float, float]:
         """Stamps a rebound of this impact may carry, s."""
         c = self.config.detection
         if impact.pulse is None:
-            return impact.onset_s, impact.onset_s + c.max_contact_s
-        return impact.pulse.centroid_s - c.rebound_early_tolerance_s, impact.pulse.onset_s + c.max_contact_s
+            return impact.onset_s, impact.rebound[0] if impact.rebound else impact.onset_s + c.max_contact_s
+        return impact.pulse.onset_s - c.rebound_early_tolerance_s, impact.pulse.onset_s + c.max_contact_s
 
     def _matching_rebound(self, impact: _Impact) -> tuple[float, np.ndarray] | None:
         lo, hi = self._rebound_window(impact)
@@ -298,14 +312,21 @@ class StreamIdentifier:
         if impact.rebound is not None:
             self._used_rebounds.add(impact.rebound[0])
         overlap = bool(self._neighbours(impact)) or any(abs(t - impact.onset_s) < cfg.overlap_window_s for t in self._decided)
-        onset = self._impact_stamp(impact)
+        onset = impact.onset_s
         fit: PressureFit | None = None
         if self.pressure.stamp_s.size:
             fit = fit_pressure(self.model, self.pressure.stamp_s, self.pressure.values[:, 0], onset, cfg.pressure_pre_s, cfg.window_s)
-        if impact.pulse is not None and impact.rebound is None and not self._pressure_confirms(fit):
-            if impact.pulse.peak_sigma < cfg.detection.unconfirmed_pulse_sigma:
-                return None  # noise-only event: nothing else saw an impact
-        features = impact_features(self.model, impact.pulse, fit, impact.rebound)
+        if impact.pulse is not None and impact.rebound is None:
+            ringing = any(0.0 < impact.onset_s - t < cfg.detection.ring_window_s for t in self._decided)
+            weak = impact.pulse.peak_sigma < cfg.detection.unconfirmed_pulse_sigma and not self._pressure_confirms(fit)
+            if ringing or weak:
+                return None  # the beam still ringing, or noise: nothing else saw an impact
+        impulse = None
+        if impact.pulse is not None:
+            impulse = imu_impulse(
+                self.model, self.imu.stamp_s, self.imu.values[:, 5], impact.pulse, cfg.impulse_pre_s, cfg.impulse_post_s
+            )
+        features = impact_features(self.model, impact.pulse, impulse, fit, impact.rebound)
         signals = []
         if fit is not None and not fit.saturated:
             signals.append("jack_pressure")
@@ -346,13 +367,6 @@ class StreamIdentifier:
     @staticmethod
     def _pressure_confirms(fit: PressureFit | None) -> bool:
         return fit is not None and not fit.saturated and fit.moment_impulse_nms > 3.0 * fit.sigma_nms
-
-    def _impact_stamp(self, impact: _Impact) -> float:
-        """Best estimate of the contact start, s."""
-        pulse = impact.pulse
-        if pulse is None:
-            return impact.onset_s
-        return max(pulse.onset_s, pulse.centroid_s - 0.5 * pulse_duration_s(pulse))
 
     def _trim(self) -> None:
         """Drop data no pending or future decision can need (bounded memory on long streams)."""

@@ -1,0 +1,128 @@
+"""Labelled impacts from the project's own simulator: the scene sets of the evaluation
+(paper, stream, mismatch) and the training set, each drawn from its own seed.
+
+Each impact is solved once and sampled at every sensor setting asked for (noise factor x
+sample rates), each impact with its own pre-contact baseline, as one short stream.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from tail_beam_sim.config import section
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.scene import Scene
+from tail_beam_sim.simulate import SimulationResult, simulate
+
+SCENE_SETS = ("paper", "stream", "mismatch")
+PERTURBED_SUPPORT = ("beam_inertia_about_hinge_kgm2", "jack_damping_nspm", "oil_bulk_modulus_pa")
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One sensor setting: noise factor (x nominal RMS) and named sample rates (Hz)."""
+
+    noise_factor: float
+    rate_name: str
+    rates_hz: Mapping[str, float]
+
+    @property
+    def key(self) -> str:
+        return f"{self.rate_name}/x{self.noise_factor:g}"
+
+
+@dataclass
+class LabelledImpact:
+    """One simulated impact: its command, support and contact law, and each setting's result."""
+
+    index: int
+    command: dict[str, Any]
+    support_scale: dict[str, float]
+    contact_model: str
+    results: dict[str, SimulationResult]
+
+    @property
+    def is_coal(self) -> bool:
+        return next(iter(self.results.values())).scene.impact.material.is_coal
+
+
+def evaluation_params(params: Mapping[str, Any]) -> Mapping[str, Any]:
+    """The ``identification.evaluation`` parameter section."""
+    return section(section(params, "identification"), "evaluation")
+
+
+def settings(params: Mapping[str, Any], noise_factors: Sequence[float] | None = None, rate_names: Sequence[str] | None = None) -> list[Setting]:
+    """Every (noise factor, rates) combination asked for (default: all in the config)."""
+    ev = evaluation_params(params)
+    rates = ev["rates"]
+    names = list(rate_names) if rate_names else list(rates)
+    for name in names:
+        if name not in rates:
+            raise InputError("rates", name, f"must be one of {', '.join(rates)}")
+    factors = list(noise_factors) if noise_factors else [float(f) for f in ev["noise_factors"]]
+    for factor in factors:
+        if not (factor >= 0.0 and math.isfinite(factor)):
+            raise InputError("noise", factor, "must be a finite factor >= 0")
+    return [Setting(float(f), name, rates[name]) for name in names for f in factors]
+
+
+def draw_commands(params: Mapping[str, Any], scene_set: str, count: int, seed: int) -> Iterator[tuple[dict[str, Any], dict[str, float], str]]:
+    """(impact command, support scale factors, contact law) for ``count`` impacts of a set."""
+    if scene_set not in SCENE_SETS:
+        raise InputError("scene_set", scene_set, f"must be one of {', '.join(SCENE_SETS)}")
+    ev = evaluation_params(params)
+    ranges = ev["paper" if scene_set == "paper" else "stream"]
+    mix = ev["material_mix"]
+    names = sorted(mix)
+    weights = np.array([float(mix[n]) for n in names])
+    materials = params["materials"]
+    rng = np.random.default_rng(seed)
+    for _ in range(count):
+        material = names[int(rng.choice(len(names), p=weights / weights.sum()))]
+        low_r, high_r = ranges["radius_m"]
+        radius = float(math.exp(rng.uniform(math.log(low_r), math.log(high_r))))
+        height = float(rng.uniform(*ranges["drop_height_m"]))
+        position = float(rng.uniform(*ranges["position_m"]))
+        command: dict[str, Any] = {"material": material, "radius_m": radius, "drop_height_m": height, "position_m": position}
+        if ranges["restitution"] == "range":
+            command["restitution"] = float(rng.uniform(*materials[material]["restitution_range"]))
+        scale = {name: 1.0 for name in PERTURBED_SUPPORT}
+        law = "calibrated"
+        if scene_set == "mismatch":
+            span = float(ev["support_perturbation"])
+            scale = {name: float(rng.uniform(1.0 - span, 1.0 + span)) for name in PERTURBED_SUPPORT}
+            laws = ev["mismatch_contact_models"]
+            law = laws[int(rng.integers(len(laws)))]
+        yield command, scale, law
+
+
+def simulate_set(
+    params: Mapping[str, Any], scene_set: str, count: int, seed: int, chosen: Sequence[Setting], tier: str | None = None
+) -> Iterator[LabelledImpact]:
+    """Simulate ``count`` impacts of ``scene_set`` at every setting in ``chosen``."""
+    ev = evaluation_params(params)
+    tier = tier or ev["tier"]
+    noise_seeds = np.random.SeedSequence(seed).spawn(count)
+    for index, (command, scale, law) in enumerate(draw_commands(params, scene_set, count, seed)):
+        varied = copy.deepcopy(dict(params))
+        for name, factor in scale.items():
+            varied["support"][name] = float(params["support"][name]) * factor
+        trajectory = None
+        results = {}
+        noise_seed = int(noise_seeds[index].generate_state(1)[0])
+        for setting in chosen:
+            varied["sensors"] = {**params["sensors"], **setting.rates_hz, "seed": noise_seed}
+            scene = Scene.from_params(varied, {
+                **command, "contact_model": law, "pre_contact_s": ev["pre_contact_s"], "window_s": ev["window_s"],
+            })
+            scene = replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor))
+            result = simulate(scene, tier=tier, trajectory=trajectory)
+            trajectory = result.trajectory
+            results[setting.key] = result
+        yield LabelledImpact(index, command, scale, law, results)

@@ -1,0 +1,62 @@
+"""Feed recorded or simulated sensor streams to a StreamIdentifier, as the node would receive
+them: in chunks of stamp time, each topic in order, the rebound when its stamp is reached."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+
+
+from tail_beam_id.identifier import StreamIdentifier
+from tail_beam_sim.sensors import ImuStream, PressureStream, Rebound
+
+
+def replay(
+    identifier: StreamIdentifier,
+    pressure: PressureStream | None,
+    imu: ImuStream | None,
+    rebounds: Sequence[Rebound] = (),
+    chunk_s: float = 0.01,
+) -> list[dict[str, Any]]:
+    """Every label the identifier gives for these streams (polled per chunk, then flushed).
+
+    A stream passed as None is absent (a sensor gone); ``chunk_s`` is the stamp-time span of
+    each delivery.
+    """
+    starts = [s.stamp_s[0] for s in (pressure, imu) if s is not None and s.stamp_s.size]
+    ends = [s.stamp_s[-1] for s in (pressure, imu) if s is not None and s.stamp_s.size]
+    labels: list[dict[str, Any]] = []
+    if not starts:
+        for rebound in rebounds:
+            identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
+        return identifier.flush()
+    pending = sorted(rebounds, key=lambda r: r.stamp_s)
+    edge = min(starts) + chunk_s
+    while True:
+        if pressure is not None:
+            take = (pressure.stamp_s >= edge - chunk_s) & (pressure.stamp_s < edge)
+            if take.any():
+                identifier.add_pressure(pressure.stamp_s[take], pressure.pressure_pa[take])
+        if imu is not None:
+            take = (imu.stamp_s >= edge - chunk_s) & (imu.stamp_s < edge)
+            if take.any():
+                identifier.add_imu(imu.stamp_s[take], imu.angular_velocity_radps[take], imu.linear_acceleration_mps2[take])
+        while pending and pending[0].stamp_s < edge:
+            rebound = pending.pop(0)
+            identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
+        labels += identifier.poll()
+        if edge > max(ends):
+            break
+        edge += chunk_s
+    for rebound in pending:
+        identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
+    return labels + identifier.flush()
+
+
+def stream_arrays(result: Any) -> tuple[PressureStream, ImuStream, list[Rebound]]:
+    """The sensor streams of a SimulationResult, for :func:`replay`."""
+    return result.pressure, result.imu, [result.rebound]
+
+
+
