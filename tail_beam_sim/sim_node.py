@@ -45,6 +45,7 @@ class SimNode(Node):
         self.max_chunk_s = require_range("sim_node.max_chunk_s", node.get("max_chunk_s"), 0.0, 10.0, low_open=True, unit="s")
         self.exit_after_idle_s = require_range("sim_node.exit_after_idle_s", node.get("exit_after_idle_s"), 0.0, None, unit="s")
         depth = int(require_range("sim_node.qos_depth", node.get("qos_depth"), 1, 1e6))
+        self.wait_for_subscribers = int(require_range("sim_node.wait_for_subscribers", node.get("wait_for_subscribers"), 0, 1000))
         self.stream = StreamSimulator.from_params(params)
         for planned in load_scenario(params["scenario"], self.stream.materials, self.stream.support):
             self.stream.submit(planned.command, planned.contact_stamp_s)
@@ -59,6 +60,7 @@ class SimNode(Node):
         self.create_subscription(String, topics.IMPACT_CMD, self._on_command, event_qos)
         self._anchor: tuple[float, float] | None = None  # (wall s, simulation s) pacing origin
         self._last_activity_s = 0.0
+        self._started = False  # simulation time held at 0 until the subscribers are there
         self.create_timer(0.0 if self.realtime_factor == 0.0 else period, self._tick)
         self.get_logger().info(
             f"simulating at realtime_factor {self.realtime_factor:g}: pressure {self.stream.sensors.pressure_rate_hz:g} Hz, "
@@ -98,7 +100,16 @@ class SimNode(Node):
             self._anchor = (now_s, target)
         return target
 
+    def _subscribers_ready(self) -> bool:
+        """True once every sensor topic has ``wait_for_subscribers`` subscribers."""
+        publishers = (self._pressure_pub, self._imu_pub, self._rebound_pub)
+        return all(p.get_subscription_count() >= self.wait_for_subscribers for p in publishers)  # 0: at once
+
     def _tick(self) -> None:
+        if not self._started:
+            if not self._subscribers_ready():
+                return
+            self._started = True
         chunk = self.stream.advance(self._target_time_s(time.monotonic()))
         self.publish(chunk)
         if self.exit_after_idle_s > 0.0 and self.stream.queued == 0 and not self.finished.done():

@@ -1,0 +1,66 @@
+"""Test helpers for real rclpy nodes: a private context, a probe node that records topics and
+sends commands, and spinning until a condition holds (with a deadline, never a timed assert)."""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import rclpy
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
+
+
+@contextmanager
+def ros_context() -> Iterator[tuple[rclpy.Context, EventsExecutor]]:
+    """A fresh rclpy context and an EventsExecutor on it; everything is torn down after."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = EventsExecutor(context=context)
+    try:
+        yield context, executor
+    finally:
+        executor.shutdown()
+        for node in list(executor.get_nodes()):
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+class Probe(Node):
+    """Records every message of the given topics and publishes impact commands."""
+
+    def __init__(self, context: rclpy.Context, topics: dict[str, type], namespace: str = "", name: str = "probe") -> None:
+        super().__init__(name, namespace=namespace, context=context)
+        self.messages: dict[str, list[Any]] = {topic: [] for topic in topics}
+        for topic, msg_type in topics.items():
+            self.create_subscription(msg_type, topic, lambda msg, t=topic: self.messages[t].append(msg), RELIABLE)
+        self.command_pub = self.create_publisher(String, "impact_cmd", RELIABLE)
+
+    def send(self, command: dict[str, Any] | str) -> None:
+        text = command if isinstance(command, str) else json.dumps(command)
+        self.command_pub.publish(String(data=text))
+
+    def json(self, topic: str) -> list[dict[str, Any]]:
+        return [json.loads(m.data) for m in self.messages[topic]]
+
+
+def spin_until(executor: EventsExecutor, condition: Callable[[], bool], timeout_s: float = 30.0) -> bool:
+    """Spin until ``condition()`` holds or the deadline passes; returns the condition."""
+    deadline = time.monotonic() + timeout_s
+    while not condition() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    return condition()
+
+
+def spin_for(executor: EventsExecutor, duration_s: float) -> None:
+    """Spin for ``duration_s`` of wall time."""
+    deadline = time.monotonic() + duration_s
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.02)

@@ -1,0 +1,211 @@
+"""sim_node and id_node in one rclpy context, spun by an EventsExecutor in the test, over the
+real middleware: commands in, the contract's messages out; bad commands; a stream that stops."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import TwistStamped
+from rcl_interfaces.msg import Log
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import FluidPressure, Imu
+from std_msgs.msg import String
+
+from rosprobe import Probe, ros_context, spin_for, spin_until
+from tail_beam_sim import ros_messages, topics
+from tail_beam_sim.config import default_config_dir, deep_merge, load_parameters
+from tail_beam_sim.stream import StreamSimulator
+
+pytestmark = pytest.mark.ros
+
+COAL = {"material": "coal", "radius_m": 0.06, "drop_height_m": 3.0, "position_m": 1.0}
+MARBLE = {"material": "marble", "radius_m": 0.06, "drop_height_m": 3.0, "position_m": 1.0}
+SIM_TOPICS = {
+    topics.JACK_PRESSURE: FluidPressure, topics.IMU: Imu, topics.REBOUND_VELOCITY: TwistStamped,
+    topics.IMPACT_TRUTH: String,
+}
+
+
+def sim_node(context, **overrides):
+    from tail_beam_sim.sim_node import SimNode
+
+    values = {"sim_node.realtime_factor": 0.0, **overrides}
+    return SimNode(context=context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
+
+
+def id_node(context, **overrides):
+    from tail_beam_id.id_node import IdNode
+
+    values = {"method": "threshold", "id_node.flush_after_idle_s": 0.3, **overrides}
+    return IdNode(context=context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
+
+
+def connected(probe: Probe, node) -> bool:
+    return probe.command_pub.get_subscription_count() >= 1 and all(
+        node.count_publishers(probe.resolve_topic_name(t)) >= 1 for t in probe.messages if t != "/rosout"
+    )
+
+
+def test_sim_node_turns_commands_into_the_contract_messages():
+    with ros_context() as (context, executor):
+        sim = sim_node(context, **{"sim_node.wait_for_subscribers": 1})
+        probe = Probe(context, SIM_TOPICS)
+        executor.add_node(sim)
+        executor.add_node(probe)
+        assert spin_until(executor, lambda: connected(probe, sim))
+        probe.send({**COAL, "impact_id": "c-1"})
+        probe.send(MARBLE)
+        assert spin_until(executor, lambda: len(probe.messages[topics.IMPACT_TRUTH]) == 2)
+        spec = sim.stream.sensors
+        truths = probe.json(topics.IMPACT_TRUTH)
+        assert [t["impact_id"] for t in truths] == ["c-1", "sim-0002"]
+        assert [t["label"] for t in truths] == ["coal", "gangue"]
+        pressure = probe.messages[topics.JACK_PRESSURE]
+        stamps = np.array([ros_messages.stamp_s(m.header.stamp) for m in pressure])
+        # Every sample from t = 0 on, none lost or repeated: consecutive k / rate stamps.
+        assert stamps[0] == 0.0
+        np.testing.assert_allclose(np.diff(stamps), 1.0 / spec.pressure_rate_hz, atol=1e-9)
+        assert stamps[-1] >= truths[-1]["contact_end_stamp"]
+        assert {m.header.frame_id for m in pressure} == {"tail_beam_jack"}
+        assert {m.variance for m in pressure} == {spec.pressure_noise_pa**2}
+        # Pa, not MPa: the static setting pressure before the first impact.
+        before = np.array([m.fluid_pressure for m in pressure])[stamps < truths[0]["contact_start_stamp"]]
+        assert before.mean() == pytest.approx(sim.stream.support.setting_pressure_pa, abs=3 * spec.pressure_noise_pa)
+        imu = probe.messages[topics.IMU]
+        imu_stamps = np.array([ros_messages.stamp_s(m.header.stamp) for m in imu])
+        np.testing.assert_allclose(np.diff(imu_stamps), 1.0 / spec.imu_rate_hz, atol=1e-9)
+        assert {m.header.frame_id for m in imu} == {"tail_beam_imu"}
+        assert all(m.orientation_covariance[0] == -1.0 for m in imu)
+        accel_z = np.array([m.linear_acceleration.z for m in imu])[imu_stamps < truths[0]["contact_start_stamp"]]
+        assert accel_z.mean() == pytest.approx(9.81, abs=0.05)  # m/s^2, specific force of a plate at rest
+        rebounds = probe.messages[topics.REBOUND_VELOCITY]
+        assert len(rebounds) == 2 and {m.header.frame_id for m in rebounds} == {"tail_beam_plate"}
+        for msg, truth in zip(rebounds, truths):
+            stamp = ros_messages.stamp_s(msg.header.stamp)
+            assert truth["final_separation_stamp"] <= stamp <= truth["final_separation_stamp"] + 1.0 / spec.camera_frame_rate_hz + 1e-9
+            assert msg.twist.linear.z == pytest.approx(truth["rebound_speed_mps"], abs=0.05 + 4 * 0.02 * truth["rebound_speed_mps"])
+        # Coal rebounds faster than marble of the same size, speed and point (physics.md).
+        assert rebounds[0].twist.linear.z > rebounds[1].twist.linear.z
+
+
+def test_malformed_commands_are_logged_with_the_field_and_lose_no_valid_impact():
+    bad = {
+        "not json": "{material: coal",
+        "material": json.dumps({**COAL, "material": "granite"}),
+        "position_m": json.dumps({**COAL, "position_m": float("nan")}),
+        "radius_m": json.dumps({**COAL, "radius_m": -0.02}),
+        "position_m ": json.dumps({**COAL, "position_m": 3.0}),  # off the 1.6 m plate
+        "drop_height_m/impact_speed_mps": json.dumps({k: v for k, v in COAL.items() if k != "drop_height_m"}),
+        "colour": json.dumps({**COAL, "colour": "black"}),
+        "impact": json.dumps([1, 2, 3]),
+    }
+    with ros_context() as (context, executor):
+        sim = sim_node(context)
+        probe = Probe(context, {topics.IMPACT_TRUTH: String, "/rosout": Log})
+        executor.add_node(sim)
+        executor.add_node(probe)
+        assert spin_until(executor, lambda: connected(probe, sim))
+        probe.send({**COAL, "impact_id": "ok-before"})
+        for text in bad.values():
+            probe.send(text)
+        probe.send({**MARBLE, "impact_id": "ok-after"})
+        assert spin_until(executor, lambda: len(probe.messages[topics.IMPACT_TRUTH]) == 2)
+        spin_for(executor, 0.3)
+        assert [t["impact_id"] for t in probe.json(topics.IMPACT_TRUTH)] == ["ok-before", "ok-after"]
+        errors = [m.msg for m in probe.messages["/rosout"] if m.name == "tail_beam_sim" and m.level >= Log.ERROR]
+        assert len(errors) == len(bad)
+        assert "not valid JSON" in errors[0]
+        for error, field in zip(errors[1:], list(bad)[1:]):
+            assert error.startswith(f"impact_cmd rejected: {field.strip()} = ")
+        assert "must be one of coal, marble, mudstone, sandstone" in errors[1]
+        assert "must be in (0, " in errors[3]  # a radius must be positive
+        assert "must be in [0, 1.6] m" in errors[4]  # the plate is 1.6 m long (physics.md)
+
+
+def test_queue_overflow_is_a_warning_and_the_queued_impacts_all_happen():
+    with ros_context() as (context, executor):
+        sim = sim_node(context, **{"stream.max_queued_impacts": 2, "sim_node.realtime_factor": 1.0})
+        probe = Probe(context, {topics.IMPACT_TRUTH: String, "/rosout": Log})
+        executor.add_node(sim)
+        executor.add_node(probe)
+        assert spin_until(executor, lambda: connected(probe, sim))
+        for i in range(3):
+            probe.send({**COAL, "impact_id": f"q{i}"})
+        assert spin_until(executor, lambda: len(probe.messages[topics.IMPACT_TRUTH]) == 2)
+        warnings = [m.msg for m in probe.messages["/rosout"] if m.name == "tail_beam_sim" and m.level == Log.WARN]
+        assert len(warnings) == 1 and "stream.max_queued_impacts" in warnings[0] and "'q2'" in warnings[0]
+        assert [t["impact_id"] for t in probe.json(topics.IMPACT_TRUTH)] == ["q0", "q1"]
+
+
+def test_id_node_labels_each_impact_of_a_live_sim_node():
+    with ros_context() as (context, executor):
+        sim = sim_node(context, **{"sim_node.wait_for_subscribers": 2, "scenario.source": "generated", "scenario.count": 4})
+        ident = id_node(context)
+        probe = Probe(context, {topics.LABEL: String, topics.IMPACT_TRUTH: String, topics.JACK_PRESSURE: FluidPressure})
+        for node in (sim, ident, probe):
+            executor.add_node(node)
+        assert spin_until(executor, lambda: len(probe.messages[topics.IMPACT_TRUTH]) == 4, timeout_s=60)
+        assert spin_until(executor, lambda: len(probe.messages[topics.LABEL]) >= 4, timeout_s=10)
+        # Zero loss: the identifier got every sample the simulator published up to now.
+        assert ident.received[topics.JACK_PRESSURE] >= len(probe.messages[topics.JACK_PRESSURE]) - 200
+        truths = probe.json(topics.IMPACT_TRUTH)
+        labels = probe.json(topics.LABEL)
+        for truth in truths:
+            near = [lab for lab in labels if abs(lab["impact_stamp"] - truth["contact_start_stamp"]) < 2e-3]
+            assert near, f"no label within 2 ms of {truth['impact_id']}"
+            assert near[0]["label"] in ("coal", "gangue") and 0.0 <= near[0]["confidence"] <= 1.0
+            assert near[0]["method"] == "threshold"
+        stamps = [lab["impact_stamp"] for lab in labels]
+        assert stamps == sorted(stamps)
+
+
+def offline_chunk(count: int = 3, duration_s: float = 2.5):
+    params = load_parameters([default_config_dir() / "sim_node.yaml"])
+    deep_merge(params, {"scenario": {"source": "generated", "count": count}})
+    from tail_beam_sim.scenario import load_scenario
+
+    stream = StreamSimulator.from_params(params)
+    planned = load_scenario(params["scenario"], stream.materials, stream.support)
+    for item in planned:
+        stream.submit(item.command, item.contact_stamp_s)
+    return stream.advance(duration_s)
+
+
+def test_id_node_labels_from_what_remains_when_a_stream_stops():
+    chunk = offline_chunk()
+    starts = [t["contact_start_stamp"] for _, t in chunk.truths]
+    stop_s = 0.5 * (starts[0] + starts[1])  # the IMU stops between the first and second impact
+    with ros_context() as (context, executor):
+        ident = id_node(context)
+        feeder = Probe(context, {topics.LABEL: String}, name="feeder")
+        pubs = {
+            topics.JACK_PRESSURE: feeder.create_publisher(FluidPressure, topics.JACK_PRESSURE, 10000),
+            topics.IMU: feeder.create_publisher(Imu, topics.IMU, 10000),
+            topics.REBOUND_VELOCITY: feeder.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, 100),
+        }
+        executor.add_node(ident)
+        executor.add_node(feeder)
+        assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()))
+        imu_kept = chunk.imu.stamp_s <= stop_s
+        from tail_beam_sim.sensors import ImuStream
+
+        imu = ImuStream(chunk.imu.stamp_s[imu_kept], chunk.imu.angular_velocity_radps[imu_kept],
+                        chunk.imu.linear_acceleration_mps2[imu_kept], chunk.imu.gyro_variance, chunk.imu.accel_variance)
+        for msg in ros_messages.pressure_messages(chunk.pressure):
+            pubs[topics.JACK_PRESSURE].publish(msg)
+        for msg in ros_messages.imu_messages(imu):
+            pubs[topics.IMU].publish(msg)
+        for _, rebound in chunk.rebounds:
+            pubs[topics.REBOUND_VELOCITY].publish(ros_messages.rebound_message(rebound))
+        assert spin_until(executor, lambda: len(feeder.messages[topics.LABEL]) >= 3, timeout_s=20)
+        labels = feeder.json(topics.LABEL)
+        for start in starts[1:]:
+            later = [lab for lab in labels if abs(lab["impact_stamp"] - start) < 3e-3]
+            assert later, f"impact at {start:.4f} s after the IMU stopped was not labelled"
+            assert "imu" not in later[0]["signals"] and "jack_pressure" in later[0]["signals"]
+        first = [lab for lab in labels if abs(lab["impact_stamp"] - starts[0]) < 2e-3]
+        assert first and "imu" in first[0]["signals"]
+        assert all(math.isfinite(lab["confidence"]) for lab in labels)
