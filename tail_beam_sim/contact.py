@@ -125,3 +125,60 @@ def calibrated_chi(restitution: float) -> float:
         raise InputError("restitution", restitution, f"must be >= {e_grid[-1]:.3f} for the calibrated law")
     # e_grid decreases with chi: interpolate chi against e in increasing order.
     return float(np.interp(restitution, e_grid[::-1], chi_grid[::-1]))
+
+
+class CrushingContact:
+    """Brittle contact: Hertz until the contact pressure reaches ``crushing_pressure_pa``, then crushing.
+
+    Thornton (1997, J. Appl. Mech. 64:383) elastic-perfectly-plastic sphere: Hertz loading
+    F = K delta^1.5 until the peak Hertz pressure 2 E* a / (pi R) reaches the limit p_y, i.e.
+    up to delta_y = R (pi p_y / 2 E*)^2; past it the pressure is capped, so the force grows
+    only linearly, F = F_y + pi p_y R (delta - delta_y). Unloading is Hertzian on the flattened
+    tip: F = 4/3 E* sqrt(R_p) (delta - delta_p)^1.5 with R_p = 4 E* a^3 / (3 F_max),
+    a^2 = (2 F_max + F_y) / (2 pi p_y), so the crushed volume keeps the energy it absorbed and
+    the particle leaves when delta falls back to delta_p. Forces in N, lengths in m.
+    """
+
+    def __init__(self, effective_modulus_pa: float, radius_m: float, crushing_pressure_pa: float) -> None:
+        self.modulus = effective_modulus_pa
+        self.radius = radius_m
+        self.pressure = crushing_pressure_pa
+        self.stiffness = 4.0 / 3.0 * effective_modulus_pa * math.sqrt(radius_m)
+        self.yield_penetration_m = radius_m * (math.pi * crushing_pressure_pa / (2.0 * effective_modulus_pa)) ** 2
+        self.yield_force_n = self.stiffness * self.yield_penetration_m**1.5
+
+    def loading(self, delta_m: float) -> float:
+        """Force while the penetration grows past its previous maximum, N."""
+        if delta_m <= self.yield_penetration_m:
+            return self.stiffness * delta_m**1.5 if delta_m > 0.0 else 0.0
+        return self.yield_force_n + math.pi * self.pressure * self.radius * (delta_m - self.yield_penetration_m)
+
+    def unloading_curve(self, max_penetration_m: float) -> tuple[float, float]:
+        """(4/3 E* sqrt(R_p), delta_p) of the unloading branch from ``max_penetration_m``."""
+        if max_penetration_m <= self.yield_penetration_m:
+            return self.stiffness, 0.0
+        peak = self.loading(max_penetration_m)
+        contact_radius = math.sqrt((2.0 * peak + self.yield_force_n) / (2.0 * math.pi * self.pressure))
+        radius_p = 4.0 * self.modulus * contact_radius**3 / (3.0 * peak)
+        stiffness_p = 4.0 / 3.0 * self.modulus * math.sqrt(radius_p)
+        return stiffness_p, max_penetration_m - (peak / stiffness_p) ** (2.0 / 3.0)
+
+    def force(self, delta_m: float, max_penetration_m: float) -> float:
+        """Force at ``delta_m`` given the largest penetration reached so far in this contact, N."""
+        if delta_m >= max_penetration_m:
+            return self.loading(delta_m)
+        stiffness_p, offset = self.unloading_curve(max_penetration_m)
+        return stiffness_p * (delta_m - offset) ** 1.5 if delta_m > offset else 0.0
+
+    def rebound_energy_ratio(self, impact_energy_j: float) -> float:
+        """Energy given back over energy brought, on a rigid wall (closed form, no gravity): e^2."""
+        k, dy, fy = self.stiffness, self.yield_penetration_m, self.yield_force_n
+        elastic_j = 0.4 * k * dy**2.5
+        if impact_energy_j <= elastic_j:
+            return 1.0
+        slope = math.pi * self.pressure * self.radius
+        # impact energy = elastic_j + fy s + slope s^2 / 2, s = delta_max - delta_y
+        s = (-fy + math.sqrt(fy * fy + 2.0 * slope * (impact_energy_j - elastic_j))) / slope
+        delta_max = dy + s
+        _, offset = self.unloading_curve(delta_max)
+        return 0.4 * self.loading(delta_max) * (delta_max - offset) / impact_energy_j

@@ -10,10 +10,31 @@ from collections.abc import Callable
 from typing import Any
 
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.solvers import hybrid
-from tail_beam_sim.solvers.problem import ContactRecord, ImpactProblem, Samples, Trajectory
+from tail_beam_sim.solvers import fixed_step, hybrid, scipy_ivp
+from tail_beam_sim.solvers.problem import ContactRecord, ImpactProblem, Samples, SolverError, Trajectory
 
-SOLVERS: dict[str, Callable[..., Trajectory]] = {"hybrid": hybrid.solve}
+
+def _scipy(method: str) -> Callable[..., Trajectory]:
+    def solve_with(problem: ImpactProblem, rtol: float = 1e-8) -> Trajectory:
+        return scipy_ivp.solve(problem, method, rtol)
+
+    solve_with.__doc__ = f"scipy.integrate.solve_ivp(method={method!r}) with contact events; option rtol."
+    return solve_with
+
+
+def _fixed(method: str) -> Callable[..., Trajectory]:
+    def solve_with(problem: ImpactProblem, dt_s: float = 1e-6, guard: bool = True) -> Trajectory:
+        return fixed_step.solve(problem, method, dt_s, guard)
+
+    solve_with.__doc__ = f"fixed-step {method} over the whole window; options dt_s, guard."
+    return solve_with
+
+
+SOLVERS: dict[str, Callable[..., Trajectory]] = {
+    "hybrid": hybrid.solve,
+    **{name: _fixed(name) for name in fixed_step.STEPPERS},
+    **{name: _scipy(name) for name in scipy_ivp.METHODS},
+}
 DEFAULT_SOLVER = "hybrid"
 
 
@@ -23,7 +44,12 @@ def solve(problem: ImpactProblem, method: str = DEFAULT_SOLVER, **options: Any) 
         solver = SOLVERS[method]
     except KeyError:
         raise InputError("solver", method, f"must be one of {', '.join(SOLVERS)}") from None
-    return solver(problem, **options)
+    try:
+        return solver(problem, **options)
+    except TypeError as exc:
+        if "unexpected keyword" not in str(exc):
+            raise
+        raise InputError("solver options", sorted(options), f"not all accepted by {method}: {exc}") from None
 
 
-__all__ = ["ContactRecord", "ImpactProblem", "Samples", "Trajectory", "SOLVERS", "DEFAULT_SOLVER", "solve"]
+__all__ = ["ContactRecord", "ImpactProblem", "Samples", "SolverError", "Trajectory", "SOLVERS", "DEFAULT_SOLVER", "solve"]

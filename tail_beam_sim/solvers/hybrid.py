@@ -1,12 +1,24 @@
-"""The default solver: RK4 through each short nonlinear contact, exact free motion between.
+"""The default solver: each short nonlinear contact on its own, exact free motion between.
 
-A contact lasts 0.1-1 ms while the beam's modes are tens to hundreds of Hz, so almost all the
-window is linear and unforced: it is propagated in closed form (eigen-decomposition), and only
-the contact is integrated, with a fixed number of RK4 steps scaled to the Hertz duration of
-that contact. The end of contact is located inside the last step by cubic Hermite
-interpolation and reached with one partial RK4 step; the next contact, if the beam catches the
-particle again, is found by scanning the gap on a grid finer than the fastest mode and
-refining the root.
+A contact lasts 0.1-1 ms while the beam's modes are tens to a few thousand Hz, so almost all
+the window is linear and unforced: it is propagated in closed form (eigen-decomposition).
+Each contact is solved in one of two ways (option ``contact``):
+
+* ``pulse``: the pre-integrated universal contact pulse of :mod:`~tail_beam_sim.solvers.pulse`,
+  scaled to the impact, drives the structure exactly. It neglects the plate's spring and
+  damping forces and gravity during the contact and estimates what that costs;
+* ``rk4``: the coupled equations integrated with a fixed number of RK4 steps scaled to the
+  Hertz duration of that contact, in plain floats (:mod:`~tail_beam_sim.solvers.dynamics`);
+  the end of contact is located inside the last step by cubic Hermite interpolation and
+  reached with one partial step. Always used for the crushing contact.
+
+``auto`` (default) takes the pulse when its own error estimate is under ``pulse_tolerance``
+and integrates otherwise (large soft particles, particles settling on the plate). The next contact, if the beam can catch the particle again at all (a bound on the
+plate's speed decides), is found by scanning the gap on a grid finer than the fastest mode
+and refining the root.
+
+A contact that gains energy (the particle leaving faster, relative to the plate, than it
+came) is refined with twice the steps, up to ``MAX_REFINEMENTS`` times, then refused.
 """
 
 from __future__ import annotations
@@ -17,18 +29,39 @@ import numpy as np
 from scipy.optimize import brentq
 
 from tail_beam_sim.contact import hertz_elastic_impact
-from tail_beam_sim.solvers.problem import ContactRecord, ContactSegment, FreeSegment, ImpactProblem, Trajectory
+from tail_beam_sim.solvers.dynamics import FloatDynamics
+from tail_beam_sim.solvers.problem import ContactRecord, ContactSegment, FreeSegment, ImpactProblem, SolverError, Trajectory
+from tail_beam_sim.solvers.pulse import contact_pulse, max_chi, structure_response
 
-DEFAULT_STEPS_PER_CONTACT = 200
+DEFAULT_STEPS_PER_CONTACT = 48
 REST_SPEED_MPS = 1e-4  # relative approach speed below which a particle is taken to lie on the plate
 MAX_CONTACTS = 500
+MAX_REFINEMENTS = 3
+ENERGY_GAIN_TOLERANCE = 0.01  # relative: separation faster than approach by more than this is a failure
+DEFAULT_PULSE_TOLERANCE = 5e-3  # relative error estimate (conservative) the pulse may cost before a contact is integrated
+CONTACT_METHODS = ("auto", "pulse", "rk4")
 
 
-def solve(problem: ImpactProblem, steps_per_contact: int = DEFAULT_STEPS_PER_CONTACT) -> Trajectory:
-    """Solve ``problem`` over its window; see the module docstring for the method."""
-    if steps_per_contact < 4:
-        raise ValueError(f"steps_per_contact = {steps_per_contact}: must be >= 4")
+def solve(
+    problem: ImpactProblem,
+    steps_per_contact: int = DEFAULT_STEPS_PER_CONTACT,
+    contact: str = "auto",
+    pulse_tolerance: float = DEFAULT_PULSE_TOLERANCE,
+) -> Trajectory:
+    """Solve ``problem`` over its window; see the module docstring for the methods.
+
+    ``stats``: ``pulse_contacts``, ``rk4_contacts``, ``rk4_steps`` and ``pulse_error_estimate``
+    (the largest relative error estimate of the contacts taken as pulses; 0 if none).
+    """
+    if isinstance(steps_per_contact, bool) or not isinstance(steps_per_contact, int) or steps_per_contact < 4:
+        raise SolverError("steps_per_contact", steps_per_contact, "must be an integer >= 4")
+    if contact not in CONTACT_METHODS:
+        raise SolverError("contact", contact, f"must be one of {', '.join(CONTACT_METHODS)}")
+    pulse_ok = problem.crushing is None and problem.damping_factor <= max_chi()
+    if contact == "pulse" and not pulse_ok:
+        raise SolverError("contact", contact, "the pulse covers Hertz contacts with hysteresis factor <= 40 only; use rk4")
     structure = problem.structure
+    dynamics: FloatDynamics | None = None  # built on the first integrated contact
     b = problem.contact_shape
     g = problem.gravity_mps2
     q, qd = problem.q0.astype(float), problem.qd0.astype(float)
@@ -37,10 +70,19 @@ def solve(problem: ImpactProblem, steps_per_contact: int = DEFAULT_STEPS_PER_CON
     contacts: list[ContactRecord] = []
     t = 0.0
     at_rest = False
-    rk4_steps = 0
+    stats = {"pulse_contacts": 0, "rk4_contacts": 0, "rk4_steps": 0, "pulse_error_estimate": 0.0}
     while True:
-        segment, record = _contact_phase(problem, t, q, qd, z, zd, steps_per_contact)
-        rk4_steps += segment.t_s.size - 1
+        segment, record, estimate = None, None, math.inf
+        if pulse_ok and contact != "rk4":
+            segment, record, estimate = pulse_contact(problem, t, q, qd, z, zd)
+        if contact == "pulse" or estimate <= pulse_tolerance:
+            stats["pulse_contacts"] += 1
+            stats["pulse_error_estimate"] = max(stats["pulse_error_estimate"], estimate)
+        else:
+            dynamics = dynamics or FloatDynamics(problem)
+            segment, record = contact_phase(problem, dynamics, t, dynamics.state(q, qd, z, zd), steps_per_contact)
+            stats["rk4_contacts"] += 1
+            stats["rk4_steps"] += segment.t_s.size - 1
         segments.append(segment)
         contacts.append(record)
         t = record.end_s
@@ -51,7 +93,7 @@ def solve(problem: ImpactProblem, steps_per_contact: int = DEFAULT_STEPS_PER_CON
             at_rest = True
             segments.append(FreeSegment(t, math.inf, t, q, qd, z, zd))
             break
-        next_contact = _next_contact(problem, t, q, qd, z, zd)
+        next_contact = next_contact_time(problem, t, q, qd, z, zd)
         if next_contact is None:
             segments.append(FreeSegment(t, math.inf, t, q, qd, z, zd))
             break
@@ -61,89 +103,116 @@ def solve(problem: ImpactProblem, steps_per_contact: int = DEFAULT_STEPS_PER_CON
         z, zd = z + zd * dt - 0.5 * g * dt * dt, zd - g * dt
         z = -float(b @ q)  # on the surface exactly at the root
         t = next_contact
-    return Trajectory(problem, segments, contacts, "hybrid", {"rk4_steps": rk4_steps}, at_rest)
+    return Trajectory(problem, segments, contacts, "hybrid", stats, at_rest)
 
 
-def _contact_phase(
-    problem: ImpactProblem, t0: float, q0: np.ndarray, qd0: np.ndarray, z0: float, zd0: float, steps: int
-) -> tuple[ContactSegment, ContactRecord]:
-    """Integrate one contact from its first touch until the penetration returns to zero."""
+def pulse_contact(
+    problem: ImpactProblem, t0: float, q0: np.ndarray, qd0: np.ndarray, z0: float, zd0: float
+) -> tuple[ContactSegment, ContactRecord, float]:
+    """One contact as the universal pulse driving the structure, with its relative error estimate."""
     structure = problem.structure
     b = problem.contact_shape
     n = structure.size
-    inv_mass, damping, stiffness = structure.inv_mass, structure.damping, structure.stiffness
-    mass, g, k_hertz, chi = problem.mass_kg, problem.gravity_mps2, problem.hertz_stiffness, problem.damping_factor
-    approach = max(-float(b @ qd0) - zd0, 1e-12)
-    duration = hertz_elastic_impact(k_hertz, mass, approach)["duration_s"]
+    load = structure.inv_mass @ b
+    effective_mass = 1.0 / float(b @ load)
+    reduced_mass = problem.mass_kg * effective_mass / (problem.mass_kg + effective_mass)
+    approach = max(-zd0 - float(b @ qd0), 1e-12)
+    pulse = contact_pulse(problem.damping_factor, problem.hertz_stiffness, reduced_mass, approach)
+    t = pulse.t_s + t0
+    x = structure_response(structure._eigen, load, np.concatenate([q0, qd0]), t, pulse.force_n)
+    q, qd = x[:n], x[n:]
+    internal = structure.inv_mass @ (structure.damping @ qd + structure.stiffness @ q)
+    # Relative acceleration the pulse leaves out: gravity on the particle and the plate's own forces.
+    neglected = float(np.abs(b @ internal + problem.gravity_mps2).max())
+    duration = float(pulse.t_s[-1])
+    estimate = neglected * max(duration / approach, duration * duration / (2.0 * float(pulse.penetration_m.max())))
+    zd = -(b @ qd) - pulse.rate_mps
+    segment = ContactSegment(
+        t_s=t, q=q, qd=qd, qdd=load[:, None] * pulse.force_n - internal,
+        z_m=-(b @ q) - pulse.penetration_m, zd_mps=zd, force_n=pulse.force_n,
+    )
+    record = ContactRecord(t0, float(t[-1]), approach, float(zd[-1]), pulse.peak_force_n)
+    return segment, record, estimate
+
+
+def contact_phase(
+    problem: ImpactProblem, dynamics: FloatDynamics, t0: float, y0: list[float], steps: int
+) -> tuple[ContactSegment, ContactRecord]:
+    """One contact from first touch until the particle leaves, refined if it gains energy."""
+    approach = max(dynamics.penetration(y0)[1], 1e-12)
+    for _ in range(MAX_REFINEMENTS + 1):
+        segment, record = _integrate_contact(problem, dynamics, t0, y0, steps, approach)
+        if not math.isfinite(record.separation_speed_mps):
+            gained = math.inf
+        else:
+            final = [float(v) for v in (*segment.q[:, -1], *segment.qd[:, -1], segment.z_m[-1], segment.zd_mps[-1])]
+            gained = -dynamics.penetration(final)[1] / approach - 1.0
+        if gained <= ENERGY_GAIN_TOLERANCE:
+            return segment, record
+        steps *= 2
+    raise SolverError(
+        "solver", "hybrid",
+        f"contact at t = {t0:.6g} s gained energy (leaves {100 * gained:.1f} % faster than it came) even with "
+        f"{steps // 2} RK4 steps: the contact law or the problem is ill-posed",
+    )
+
+
+def _rk4(dynamics: FloatDynamics, y: list[float], h: float, k1: list[float], approach: float, peak: float) -> list[float]:
+    """One classical RK4 step of length ``h`` from ``y`` whose derivative is ``k1``."""
+    half = 0.5 * h
+    k2, _ = dynamics.derivative([a + half * d for a, d in zip(y, k1)], approach, peak)
+    k3, _ = dynamics.derivative([a + half * d for a, d in zip(y, k2)], approach, peak)
+    k4, _ = dynamics.derivative([a + h * d for a, d in zip(y, k3)], approach, peak)
+    sixth = h / 6.0
+    return [a + sixth * (d1 + 2.0 * d2 + 2.0 * d3 + d4) for a, d1, d2, d3, d4 in zip(y, k1, k2, k3, k4)]
+
+
+def _integrate_contact(
+    problem: ImpactProblem, dynamics: FloatDynamics, t0: float, y0: list[float], steps: int, approach: float
+) -> tuple[ContactSegment, ContactRecord]:
+    """Fixed-step RK4 through one contact (``steps`` per elastic Hertz duration)."""
+    n = dynamics.n
+    crushing = dynamics.crushing
+    duration = hertz_elastic_impact(problem.hertz_stiffness, problem.mass_kg, approach)["duration_s"]
     dt = duration / steps
     t_end = problem.window_s
-
-    def rhs(y: np.ndarray) -> tuple[np.ndarray, float]:
-        q, qd, z, zd = y[:n], y[n : 2 * n], y[2 * n], y[2 * n + 1]
-        delta = -float(b @ q) - z
-        force = 0.0
-        if delta > 0.0:
-            rate = -float(b @ qd) - zd
-            force = k_hertz * delta**1.5 * (1.0 + chi * rate / approach)
-            force = force if force > 0.0 else 0.0
-        out = np.empty_like(y)
-        out[:n] = qd
-        out[n : 2 * n] = inv_mass @ (b * force - damping @ qd - stiffness @ q)
-        out[2 * n] = zd
-        out[2 * n + 1] = -g + force / mass
-        return out, force
-
-    def rk4(y: np.ndarray, h: float) -> np.ndarray:
-        k1, _ = rhs(y)
-        k2, _ = rhs(y + 0.5 * h * k1)
-        k3, _ = rhs(y + 0.5 * h * k2)
-        k4, _ = rhs(y + h * k3)
-        return y + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-
-    def penetration(y: np.ndarray) -> tuple[float, float]:
-        return -float(b @ y[:n]) - y[2 * n], -float(b @ y[n : 2 * n]) - y[2 * n + 1]
-
-    y = np.concatenate([q0, qd0, [z0, zd0]])
-    times, states, derivs, forces = [t0], [y], [], []
-    d0, _ = rhs(y)
-    derivs.append(d0)
-    forces.append(0.0)
-    t = t0
-    max_steps = int(1e6)
-    for _ in range(max_steps):
-        y_new = rk4(y, dt)
-        delta_new, _ = penetration(y_new)
-        if delta_new <= 0.0 and t > t0:
-            theta = _crossing_fraction(penetration(y), penetration(y_new), dt)
-            y_new = rk4(y, theta * dt)
+    peak = 0.0
+    offset = 0.0
+    y, t = y0, t0
+    k1, force = dynamics.derivative(y, approach, peak)
+    times, states, derivs, forces = [t0], [y0], [k1], [force]
+    for _ in range(int(math.ceil((t_end - t0) / dt)) + steps + 2):
+        y_new = _rk4(dynamics, y, dt, k1, approach, peak)
+        delta_new, rate_new = dynamics.penetration(y_new)
+        left = delta_new <= offset and t > t0
+        if left:
+            delta_old, rate_old = dynamics.penetration(y)
+            theta = _crossing_fraction((delta_old - offset, rate_old), (delta_new - offset, rate_new), dt)
+            y_new = _rk4(dynamics, y, theta * dt, k1, approach, peak)
             t_new = t + theta * dt
         else:
             t_new = t + dt
-        deriv, force = rhs(y_new)
+            if delta_new > peak:
+                peak = delta_new
+                if crushing is not None:
+                    offset = crushing.unloading_curve(peak)[1]
+        k1, force = dynamics.derivative(y_new, approach, peak)
         times.append(t_new)
         states.append(y_new)
-        derivs.append(deriv)
+        derivs.append(k1)
         forces.append(force)
         y, t = y_new, t_new
-        if (delta_new <= 0.0 and t > t0) or t >= t_end + duration:
+        if left or t >= t_end or not math.isfinite(delta_new):
             break
     ys = np.array(states).T
     ds = np.array(derivs).T
     segment = ContactSegment(
-        t_s=np.array(times),
-        q=ys[:n],
-        qd=ys[n : 2 * n],
-        qdd=ds[n : 2 * n],
-        z_m=ys[2 * n],
-        zd_mps=ys[2 * n + 1],
-        force_n=np.array(forces),
+        t_s=np.array(times), q=ys[:n], qd=ys[n : 2 * n], qdd=ds[n : 2 * n],
+        z_m=ys[2 * n], zd_mps=ys[2 * n + 1], force_n=np.array(forces),
     )
     record = ContactRecord(
-        start_s=t0,
-        end_s=float(times[-1]),
-        approach_speed_mps=approach,
-        separation_speed_mps=float(ys[2 * n + 1, -1]),
-        peak_force_n=float(np.max(forces)),
+        start_s=t0, end_s=float(times[-1]), approach_speed_mps=approach,
+        separation_speed_mps=float(ys[2 * n + 1, -1]), peak_force_n=float(np.max(forces)),
     )
     return segment, record
 
@@ -162,14 +231,30 @@ def _crossing_fraction(before: tuple[float, float], after: tuple[float, float], 
     return float(brentq(cubic, 0.0, 1.0, xtol=1e-13))
 
 
-def _next_contact(problem: ImpactProblem, t0: float, q0: np.ndarray, qd0: np.ndarray, z0: float, zd0: float) -> float | None:
+def plate_speed_bound_mps(problem: ImpactProblem, q0: np.ndarray, qd0: np.ndarray) -> float:
+    """An upper bound on the plate's speed at the contact point for all later free motion, m/s.
+
+    The free response is a sum of decaying modes, b . qd(t) = Re sum_k r_k exp(lambda_k t) xi_k,
+    so sum |r_k xi_k| bounds it for all t >= 0.
+    """
+    eigenvalues, vectors, inverse = problem.structure._eigen
+    n = problem.structure.size
+    modal = inverse @ np.concatenate([q0, qd0])
+    rows = problem.contact_shape @ vectors[n:]
+    return float(np.sum(np.abs(rows * modal)))
+
+
+def next_contact_time(problem: ImpactProblem, t0: float, q0: np.ndarray, qd0: np.ndarray, z0: float, zd0: float) -> float | None:
     """First time in (t0, window] at which the free particle meets the moving plate, or None."""
     t_end = problem.window_s
     if t0 >= t_end:
         return None
+    g = problem.gravity_mps2
+    # gap' >= zd0 - V - g (t - t0), so the gap stays open over the window if this holds:
+    if zd0 - plate_speed_bound_mps(problem, q0, qd0) > 0.5 * g * (t_end - t0):
+        return None
     structure = problem.structure
     b = problem.contact_shape
-    g = problem.gravity_mps2
     frequencies = structure.natural_frequencies_hz()
     fastest = float(frequencies.max()) if frequencies.size else 1.0
     spacing = min(1.0 / (32.0 * fastest), (t_end - t0) / 8.0)

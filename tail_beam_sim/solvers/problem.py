@@ -10,16 +10,31 @@ it is displaced by ``contact_shape @ q`` away from it, so the penetration is
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from tail_beam_sim.contact import CrushingContact
+from tail_beam_sim.errors import InputError
 from tail_beam_sim.structure import LinearStructure
+
+
+class SolverError(InputError):
+    """A solver could not deliver a trustworthy result with the options it was given.
+
+    Raised instead of returning a wrong answer (a diverged step, energy gained in a contact,
+    a step limit hit); the message names the solver and what to change.
+    """
 
 
 @dataclass(frozen=True)
 class ImpactProblem:
-    """One particle striking a linear structure through a Hertz contact with hysteresis."""
+    """One particle striking a linear structure through a Hertz contact with hysteresis.
+
+    ``crushing`` (None by default) switches the contact to the brittle law of
+    :class:`~tail_beam_sim.contact.CrushingContact`, which replaces the hysteresis.
+    """
 
     structure: LinearStructure
     contact_shape: np.ndarray
@@ -31,6 +46,7 @@ class ImpactProblem:
     window_s: float
     q0: np.ndarray
     qd0: np.ndarray
+    crushing: CrushingContact | None = None
 
     def contact_force(self, delta_m: float, rate_mps: float, approach_speed_mps: float) -> float:
         """Hertz force with hysteresis, N; zero out of contact and never pulling."""
@@ -57,7 +73,8 @@ class ContactRecord:
 
 @dataclass
 class ContactSegment:
-    """Dense solution through a contact: states at the solver's steps, for interpolation."""
+    """Dense solution of an integrated span (a contact, or a fixed-step solver's whole window):
+    states at the solver's steps, sampled by cubic Hermite interpolation."""
 
     t_s: np.ndarray
     q: np.ndarray
@@ -89,6 +106,20 @@ class FreeSegment:
 
 
 @dataclass
+class OdeSegment:
+    """A free-flight span integrated by an adaptive solver, sampled through its dense output
+    (``dense(t)`` returns the states [q, qd, z, zd] as columns) so that long steps of a
+    high-order method are interpolated at the method's own order."""
+
+    t_s: np.ndarray
+    dense: Callable[[np.ndarray], np.ndarray]
+
+    @property
+    def start_s(self) -> float:
+        return float(self.t_s[0])
+
+
+@dataclass
 class Samples:
     """The system's state at a set of times (arrays over time; q-like ones are (n, T))."""
 
@@ -110,7 +141,7 @@ class Trajectory:
     """
 
     problem: ImpactProblem
-    segments: list[ContactSegment | FreeSegment]
+    segments: list[ContactSegment | FreeSegment | OdeSegment]
     contacts: list[ContactRecord]
     solver: str
     stats: dict[str, float] = field(default_factory=dict)
@@ -147,6 +178,8 @@ class Trajectory:
             segment = self.segments[index]
             if isinstance(segment, FreeSegment):
                 self._sample_free(segment, times[mask], out, mask)
+            elif isinstance(segment, OdeSegment):
+                self._sample_ode(segment, times[mask], out, mask)
             else:
                 self._sample_contact(segment, times[mask], out, mask)
         return out
@@ -160,6 +193,14 @@ class Trajectory:
         g = self.problem.gravity_mps2
         out.z_m[mask] = seg.z_m + seg.zd_mps * dt - 0.5 * g * dt * dt
         out.zd_mps[mask] = seg.zd_mps - g * dt
+
+    def _sample_ode(self, seg: OdeSegment, times: np.ndarray, out: Samples, mask: np.ndarray) -> None:
+        n = self.problem.structure.size
+        states = seg.dense(np.clip(times, seg.t_s[0], seg.t_s[-1]))
+        q, qd = states[:n], states[n : 2 * n]
+        out.q[:, mask], out.qd[:, mask] = q, qd
+        out.qdd[:, mask] = self.problem.structure.acceleration(q, qd, np.zeros(times.size), self.problem.contact_shape)
+        out.z_m[mask], out.zd_mps[mask] = states[2 * n], states[2 * n + 1]
 
     @staticmethod
     def _sample_contact(seg: ContactSegment, times: np.ndarray, out: Samples, mask: np.ndarray) -> None:
