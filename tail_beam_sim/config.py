@@ -17,7 +17,7 @@ import yaml
 
 from tail_beam_sim.errors import InputError
 
-DEFAULT_FILES = ("support.yaml", "materials.yaml", "sensors.yaml", "scene.yaml", "identification.yaml", "modes.yaml")
+DEFAULT_FILES = ("support.yaml", "materials.yaml", "sensors.yaml", "scene.yaml", "identification.yaml", "modes.yaml", "fidelity.yaml")
 CONFIG_DIR_ENV = "TAIL_BEAM_CONFIG_DIR"
 
 

@@ -1,24 +1,47 @@
-"""Fidelity tiers: how much model a scene gets, from an impulse to bending modes and crushing.
+"""Fidelity tiers: how much model a scene gets, and the automatic choice of the cheapest.
 
 Tiers, cheapest first:
 
-* ``impulse``: rigid beam, each contact replaced by an instantaneous impulse (closed form);
-* ``rigid``: the study's model, rigid beam on the jack, contact integrated;
+* ``impulse``: rigid beam, each contact an instantaneous impulse (closed form);
+* ``rigid``: the study's model, rigid beam on the jack, contact resolved (hybrid solver);
 * ``modal``: rigid beam plus the bending modes of ``config/modes.yaml``;
-* ``brittle``: ``modal`` with the crushing contact for coal (past the study; off by default).
+* ``brittle``: ``modal`` with the crushing contact for coal (past the study; never chosen
+  automatically, only on request: it changes the physics, not the accuracy).
+
+A scene states what it needs (:class:`Needs`: outputs among rebound, contact, pressure, imu,
+and a relative tolerance; the sensors' bandwidth comes from their sample rates).
+:func:`model_errors` estimates each tier's error against the richest one, cheaply:
+
+* impulse vs rigid: an impulse at the pulse's centroid instead of the pulse changes a mode of
+  angular frequency omega by about (omega sigma)^2 / 2 (sigma the pulse's RMS width), and the
+  pulse leaves out gravity and the plate's forces during the contact (see solvers/pulse.py);
+* rigid vs modal: both structures' responses to the same impulse, sampled as the sensors
+  sample them (point pressure samples, period-averaged IMU), compared in relative L2 over the
+  window; and for the rebound, the change in the plate's effective mass at the contact point.
+
+The errors add up the ladder (the impulse tier errs by its own step plus the rigid one's), and
+:func:`plan` picks the first tier within tolerance. :func:`check_against_next` simulates the
+next tier up and reports the measured differences.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
 
+import numpy as np
+
 from tail_beam_sim.config import load_parameters
-from tail_beam_sim.errors import InputError
+from tail_beam_sim.contact import damping_factor, hertz_stiffness
+from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.structure import BendingMode, LinearStructure, beam_with_modes, load_bending_modes, rigid_beam
 from tail_beam_sim.support import Support
+
+OUTPUTS = ("rebound", "contact", "pressure", "imu")
+WAVEFORM_OUTPUTS = ("pressure", "imu")
 
 
 @dataclass(frozen=True)
@@ -37,7 +60,9 @@ TIERS: dict[str, Tier] = {
     "modal": Tier("modal", True, "hybrid", False),
     "brittle": Tier("brittle", True, "hybrid", True),
 }
+ACCURACY_LADDER = ("impulse", "rigid", "modal")
 DEFAULT_TIER = "rigid"
+TIER_CHOICES = ("auto", *TIERS)
 
 
 def get_tier(name: str) -> Tier:
@@ -45,24 +70,192 @@ def get_tier(name: str) -> Tier:
     try:
         return TIERS[name]
     except KeyError:
-        raise InputError("tier", name, f"must be one of {', '.join(TIERS)}") from None
+        raise InputError("tier", name, f"must be one of {', '.join(TIER_CHOICES)}") from None
+
+
+@dataclass(frozen=True)
+class Needs:
+    """What a scene asks of the simulation: which outputs, to what relative tolerance."""
+
+    outputs: frozenset[str] = frozenset(OUTPUTS)
+    tolerance: float = 0.01
+
+    @classmethod
+    def of(cls, outputs: Iterable[str], tolerance: float) -> Needs:
+        """Validated needs (InputError naming the field)."""
+        chosen = frozenset(outputs)
+        unknown = sorted(chosen - set(OUTPUTS))
+        if unknown or not chosen:
+            raise InputError("fidelity.outputs", sorted(chosen), f"must be a non-empty subset of {', '.join(OUTPUTS)}")
+        return cls(chosen, require_range("fidelity.tolerance", tolerance, 0.0, 1.0, low_open=True))
+
+
+@dataclass(frozen=True)
+class FidelitySettings:
+    """The ``fidelity`` and ``modes`` parameter sections: default tier and needs, bending modes,
+    and the confinement factor of the crushing contact (dimensionless)."""
+
+    tier: str
+    needs: Needs
+    modes: tuple[BendingMode, ...]
+    crushing_confinement_factor: float
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> FidelitySettings:
+        section = params.get("fidelity") or {}
+        if not isinstance(section, Mapping):
+            raise InputError("fidelity", section, "must be a parameter section")
+        tier = section.get("tier", "auto")
+        if tier not in TIER_CHOICES:
+            raise InputError("fidelity.tier", tier, f"must be one of {', '.join(TIER_CHOICES)}")
+        return cls(
+            tier=tier,
+            needs=Needs.of(section.get("outputs", OUTPUTS), section.get("tolerance", 0.01)),
+            modes=load_bending_modes(params),
+            crushing_confinement_factor=require_range(
+                "fidelity.crushing_confinement_factor", section.get("crushing_confinement_factor", 3.0), 0.0, 100.0, low_open=True
+            ),
+        )
 
 
 @lru_cache(maxsize=1)
-def shipped_modes() -> tuple[BendingMode, ...]:
-    """The bending modes of the shipped ``config/modes.yaml`` (read once)."""
-    return load_bending_modes(load_parameters())
+def shipped_settings() -> FidelitySettings:
+    """The settings of the shipped config/ files (read once)."""
+    return FidelitySettings.from_params(load_parameters())
 
 
-def modes_from_params(params: Mapping[str, Any] | None) -> tuple[BendingMode, ...]:
-    """Bending modes of ``params`` if it holds a ``modes`` section, else the shipped ones."""
-    if params is not None and "modes" in params:
-        return load_bending_modes(params)
-    return shipped_modes()
+def structure_for(tier: Tier, support: Support, modes: Sequence[BendingMode]) -> LinearStructure:
+    """The linear structure ``tier`` uses on ``support``."""
+    return beam_with_modes(support, modes) if tier.bending_modes else rigid_beam(support)
 
 
-def structure_for(tier: Tier, support: Support, modes: Sequence[BendingMode] | None = None) -> LinearStructure:
-    """The linear structure ``tier`` uses on ``support`` (``modes`` default: the shipped ones)."""
-    if not tier.bending_modes:
-        return rigid_beam(support)
-    return beam_with_modes(support, shipped_modes() if modes is None else modes)
+@dataclass
+class Plan:
+    """The tier and solver chosen for a scene, with every tier's estimated model error."""
+
+    tier: Tier
+    solver: str
+    solver_options: dict[str, Any]
+    model_error: float
+    estimates: dict[str, float] = field(default_factory=dict)
+
+
+def plan(scene: Any, tier: str, needs: Needs, settings: FidelitySettings) -> Plan:
+    """Choose (``tier='auto'``) or take the tier, its solver and options, with error estimates."""
+    estimates = model_errors(scene, needs, settings.modes)
+    if tier == "auto":
+        name = next((t for t in ACCURACY_LADDER if estimates[t] <= needs.tolerance), ACCURACY_LADDER[-1])
+    else:
+        name = get_tier(tier).name
+    chosen = TIERS[name]
+    options: dict[str, Any] = {}
+    if chosen.default_solver == "hybrid" and not chosen.brittle:
+        from tail_beam_sim.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
+
+        options["pulse_tolerance"] = min(DEFAULT_PULSE_TOLERANCE, needs.tolerance)
+    return Plan(chosen, chosen.default_solver, options, estimates.get(name, 0.0), estimates)
+
+
+def model_errors(scene: Any, needs: Needs, modes: Sequence[BendingMode]) -> dict[str, float]:
+    """Estimated relative error of each tier of the accuracy ladder against the richest (module docstring)."""
+    from tail_beam_sim.solvers.pulse import contact_pulse
+
+    support, impact = scene.support, scene.impact
+    rigid = rigid_beam(support)
+    modal = beam_with_modes(support, modes)
+    shape_rigid = rigid.contact_shape(impact.position_m)
+    shape_modal = modal.contact_shape(impact.position_m)
+    m_rigid = 1.0 / float(shape_rigid @ rigid.inv_mass @ shape_rigid)
+    m_modal = 1.0 / float(shape_modal @ modal.inv_mass @ shape_modal)
+    mass = impact.mass_kg
+    reduced = mass * m_rigid / (mass + m_rigid)
+    chi = damping_factor(scene.contact_model, impact.restitution)
+    stiffness = hertz_stiffness(impact.material, support.plate, impact.radius_m)
+    pulse = contact_pulse(min(chi, 40.0), stiffness, reduced, impact.impact_speed_mps)
+    weights = pulse.force_n / pulse.force_n.sum()
+    centroid = float(weights @ pulse.t_s)
+    width = math.sqrt(float(weights @ (pulse.t_s - centroid) ** 2))
+    duration = float(pulse.t_s[-1])
+    gravity = support.gravity_mps2 * duration / impact.impact_speed_mps
+    waveform = needs.outputs & set(WAVEFORM_OUTPUTS)
+    omega_rigid = 2 * math.pi * float(rigid.natural_frequencies_hz().max())
+    impulse_step = max(gravity, (omega_rigid * width) ** 2 / 2 if waveform else 0.0)
+    restitution = max(pulse.separation_mps / impact.impact_speed_mps, 1e-3)
+    rebound_step = (1 + restitution) / restitution * abs(mass / (mass + m_modal) - mass / (mass + m_rigid))
+    rigid_step = rebound_step if needs.outputs & {"rebound", "contact"} else 0.0
+    if waveform and modes:
+        rigid_step = max(rigid_step, _sampled_difference(scene, rigid, modal, waveform))
+    return {"impulse": impulse_step + rigid_step, "rigid": rigid_step, "modal": 0.0, "brittle": 0.0}
+
+
+def _sampled_difference(scene: Any, rigid: LinearStructure, modal: LinearStructure, outputs: set[str]) -> float:
+    """Relative L2 difference of the two structures' impulse responses as the sensors sample them."""
+    spec, x = scene.sensors, scene.impact.position_m
+    worst = 0.0
+    for output in outputs:
+        rate = spec.pressure_rate_hz if output == "pressure" else spec.imu_rate_hz
+        times = np.arange(1, int(scene.window_s * rate) + 1) / rate
+        signals = []
+        for structure in (rigid, modal):
+            qd0 = structure.inv_mass @ structure.contact_shape(x)
+            zero = np.zeros(structure.size)
+            q, qd = structure.propagate(zero, qd0, times)
+            if output == "pressure":
+                signals.append(structure.pressure_pa(q, qd) - structure.setting_pressure_pa)
+            else:
+                before_q, before_qd = structure.propagate(zero, qd0, times - 1.0 / rate)
+                signals.append(np.concatenate([structure.imu_shape @ (qd - before_qd), structure.imu_slope_shape @ (q - before_q)]) * rate)
+        reference = float(np.linalg.norm(signals[1]))
+        worst = max(worst, float(np.linalg.norm(signals[1] - signals[0])) / reference if reference > 0 else 0.0)
+    return worst
+
+
+def next_tier_up(name: str) -> str | None:
+    """The tier above ``name`` on the accuracy ladder (None at the top)."""
+    if name in ACCURACY_LADDER[:-1]:
+        return ACCURACY_LADDER[ACCURACY_LADDER.index(name) + 1]
+    return None
+
+
+def sensor_view(result: Any) -> dict[str, np.ndarray]:
+    """Noise-free pressure change (Pa) and dynamic IMU readings (m/s^2, rad/s) at the streams'
+    stamps, sampled as the sensors sample them (IMU averaged over its period)."""
+    from tail_beam_sim.sensors import imu_samples
+
+    trajectory, start = result.trajectory, result.contact_stamp_s
+    structure = trajectory.problem.structure
+    state = trajectory.sample(result.pressure.stamp_s - start)
+    gyro, accel = imu_samples(trajectory, result.imu.stamp_s - start, 1.0 / result.scene.sensors.imu_rate_hz)
+    return {
+        "pressure": structure.pressure_pa(state.q, state.qd) - structure.setting_pressure_pa,
+        "imu": np.concatenate([accel[:, 0], accel[:, 2] - structure.gravity_mps2, gyro[:, 1]]),
+    }
+
+
+def compare(lower: Any, upper: Any, outputs: Iterable[str]) -> dict[str, float]:
+    """Measured relative differences between two simulations of one scene, per requested output.
+
+    rebound: rebound speed; contact: peak contact force and duration; pressure: peak jack
+    pressure change and the sampled pressure stream (relative L2); imu: the sampled IMU
+    stream (relative L2). Streams are noise-free, at the sensors' stamps.
+    """
+    a, b = lower.summary, upper.summary
+
+    def rel(x: float, y: float) -> float:
+        return abs(x - y) / abs(y) if y else abs(x - y)
+
+    chosen = set(outputs)
+    out: dict[str, float] = {}
+    if "rebound" in chosen:
+        out["rebound"] = rel(a["rebound_speed_mps"], b["rebound_speed_mps"])
+    if "contact" in chosen:
+        out["contact_peak_force"] = rel(a["peak_contact_force_n"], b["peak_contact_force_n"])
+        out["contact_duration"] = rel(a["contact_duration_s"], b["contact_duration_s"])
+    if chosen & set(WAVEFORM_OUTPUTS):
+        view_a, view_b = sensor_view(lower), sensor_view(upper)
+        if "pressure" in chosen:
+            out["peak_pressure_change"] = rel(a["peak_jack_pressure_change_pa"], b["peak_jack_pressure_change_pa"])
+        for key in chosen & set(WAVEFORM_OUTPUTS):
+            norm = float(np.linalg.norm(view_b[key]))
+            out[f"{key}_stream"] = float(np.linalg.norm(view_a[key] - view_b[key])) / norm if norm else 0.0
+    return out

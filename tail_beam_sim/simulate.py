@@ -9,20 +9,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-from tail_beam_sim.contact import damping_factor, hertz_stiffness
-from tail_beam_sim.fidelity import DEFAULT_TIER, get_tier, structure_for
+from tail_beam_sim.contact import CrushingContact, damping_factor, effective_modulus_pa, hertz_stiffness
+from tail_beam_sim.fidelity import DEFAULT_TIER, FidelitySettings, Needs, compare, next_tier_up, plan, shipped_settings, structure_for
 from tail_beam_sim.scene import Impact, Scene
 from tail_beam_sim.sensors import ImuStream, PressureStream, Rebound, SensorSuite, sample_grid, specific_force_z
 from tail_beam_sim.solvers import ImpactProblem, Trajectory, solve
-from tail_beam_sim.structure import BendingMode, LinearStructure, rigid_beam
+from tail_beam_sim.structure import LinearStructure, rigid_beam
 from tail_beam_sim.support import Support
 
 HISTORY_RATE_HZ = 20000.0
+RK4_CONTACT_ERROR = 1e-4  # relative error bound of a hybrid contact integrated with >= 48 RK4 steps (measured, test_solvers.py)
 
 
 def build_problem(
@@ -33,8 +33,10 @@ def build_problem(
     structure: LinearStructure | None = None,
     q0: np.ndarray | None = None,
     qd0: np.ndarray | None = None,
+    crushing: CrushingContact | None = None,
 ) -> ImpactProblem:
-    """Assemble the impact problem of ``impact`` on ``support`` (rigid beam by default)."""
+    """Assemble the impact problem of ``impact`` on ``support`` (rigid beam by default;
+    ``crushing`` replaces the hysteresis law by the brittle contact)."""
     structure = structure or rigid_beam(support)
     n = structure.size
     return ImpactProblem(
@@ -48,6 +50,7 @@ def build_problem(
         window_s=window_s,
         q0=np.zeros(n) if q0 is None else np.asarray(q0, dtype=float),
         qd0=np.zeros(n) if qd0 is None else np.asarray(qd0, dtype=float),
+        crushing=crushing,
     )
 
 
@@ -140,22 +143,28 @@ def simulate(
     solver: str | None = None,
     *,
     tier: str = DEFAULT_TIER,
-    modes: Sequence[BendingMode] | None = None,
-    trajectory: Trajectory | None = None,
+    needs: Needs | None = None,
+    settings: FidelitySettings | None = None,
+    check: bool = False,
     **solver_options: Any,
 ) -> SimulationResult:
     """Simulate one impact of ``scene`` and sample its sensors (reproducible by seed).
 
-    ``tier`` picks the model (``tail_beam_sim.fidelity.TIERS``; default the study's rigid
-    beam), ``modes`` the bending modes of the modal tiers (default: config/modes.yaml) and
-    ``solver`` the method (default: the tier's). ``trajectory``: one already solved for this
-    scene's impact and tier, to sample it again at other sensor settings without solving.
+    ``tier`` picks the model (``tail_beam_sim.fidelity``: impulse, rigid (default: the study's
+    model), modal, brittle, or auto: the cheapest that meets ``needs``); ``settings`` holds the
+    bending modes and defaults (default: config/); ``solver`` the method (default: the tier's).
+    The summary reports ``tier``, ``solver`` and ``error_estimate`` (relative, of the model and
+    the solver together); ``check=True`` also simulates the next tier up and adds the measured
+    differences as ``check``.
     """
-    chosen = get_tier(tier)
-    if trajectory is None:
-        structure = structure_for(chosen, scene.support, modes)
-        problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure)
-        trajectory = solve(problem, solver or chosen.default_solver, **solver_options)
+    settings = settings or shipped_settings()
+    needs = needs or settings.needs
+    chosen = plan(scene, tier, needs, settings)
+    structure = structure_for(chosen.tier, scene.support, settings.modes)
+    crushing = crushing_contact(scene.support, scene.impact, settings.crushing_confinement_factor) if chosen.tier.brittle else None
+    problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure, crushing=crushing)
+    options = {**chosen.solver_options, **solver_options} if solver in (None, chosen.solver) else solver_options
+    trajectory = solve(problem, solver or chosen.solver, **options)
     spec = scene.sensors
     suite = SensorSuite(spec)
     # The contact falls at a seeded instant within the first sample period after pre_contact_s,
@@ -175,8 +184,34 @@ def simulate(
         rebound=suite.rebound(trajectory, contact_stamp),
     )
     result.summary = summarise(scene, trajectory, history)
-    result.summary["tier"] = chosen.name
+    result.summary["tier"] = chosen.tier.name
+    result.summary["error_estimate"] = max(chosen.model_error, solver_error_estimate(trajectory))
+    if check:
+        upper = next_tier_up(chosen.tier.name)
+        if upper is not None:
+            reference = simulate(scene, tier=upper, needs=needs, settings=settings)
+            result.summary["check"] = {"against": upper, **compare(result, reference, needs.outputs)}
     return result
+
+
+def solver_error_estimate(trajectory: Trajectory) -> float:
+    """The solver's own relative error estimate: the pulse's (hybrid, impulse), ``rtol`` for
+    scipy's methods, RK4_CONTACT_ERROR for integrated hybrid contacts, nan when unknown."""
+    stats = trajectory.stats
+    if trajectory.solver in ("hybrid", "impulse"):
+        estimate = stats.get("pulse_error_estimate", 0.0)
+        return max(estimate, RK4_CONTACT_ERROR if stats.get("rk4_contacts") else 0.0)
+    return stats.get("rtol", math.nan)
+
+
+def crushing_contact(support: Support, impact: Impact, confinement_factor: float) -> CrushingContact | None:
+    """The crushing contact of a coal particle (None for gangue, which stays elastic)."""
+    if not impact.material.is_coal:
+        return None
+    return CrushingContact(
+        effective_modulus_pa(impact.material, support.plate), impact.radius_m,
+        impact.material.crushing_strength_pa * confinement_factor,
+    )
 
 
 def impact_speed_from_height(height_m: float, gravity_mps2: float) -> float:

@@ -10,7 +10,7 @@ from scipy.linalg import eigh
 
 from tail_beam_sim.config import deep_merge, load_parameters
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.fidelity import shipped_modes
+from tail_beam_sim.fidelity import shipped_settings
 from tail_beam_sim.scene import Scene
 from tail_beam_sim.simulate import simulate
 from tail_beam_sim.structure import beam_with_modes, euler_bernoulli_modes, load_bending_modes, rigid_beam
@@ -72,7 +72,7 @@ def test_coupled_model_matches_full_finite_element_beam(params):
     """Rigid rotation + 2 held modes (Rayleigh-Ritz) gives the jack mode and the first two bending
     modes of the full beam on its jack within 1 %."""
     support = Scene.from_params(params).support
-    structure = beam_with_modes(support, shipped_modes())
+    structure = beam_with_modes(support, shipped_settings().modes)
     reference = _full_beam_on_jack_spring_hz(params, 2)
     np.testing.assert_allclose(structure.natural_frequencies_hz(), reference, rtol=0.01)
     # the jack mode is the study's 39 Hz rigid mode

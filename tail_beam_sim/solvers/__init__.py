@@ -10,7 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.solvers import fixed_step, hybrid, scipy_ivp
+from tail_beam_sim.solvers import fixed_step, hybrid, impulse, scipy_ivp
 from tail_beam_sim.solvers.problem import ContactRecord, ImpactProblem, Samples, SolverError, Trajectory
 
 
@@ -32,6 +32,7 @@ def _fixed(method: str) -> Callable[..., Trajectory]:
 
 SOLVERS: dict[str, Callable[..., Trajectory]] = {
     "hybrid": hybrid.solve,
+    "impulse": impulse.solve,
     **{name: _fixed(name) for name in fixed_step.STEPPERS},
     **{name: _scipy(name) for name in scipy_ivp.METHODS},
 }

@@ -112,6 +112,7 @@ def solve(problem: ImpactProblem, method: str = "rk4", dt_s: float = 1e-6, guard
                 frac = _fraction(delta_old - offset, delta - offset)
                 zd_end = y[2 * n + 1] + frac * (y_new[2 * n + 1] - y[2 * n + 1])
                 contacts.append(ContactRecord(start, t_new - (1 - frac) * dt_s, approach, zd_end, contact_peak_force))
+                y_new[2 * n] += offset  # a crushed cap breaks away: the particle's lowest point moves up
                 in_contact, peak, offset, contact_peak_force = False, 0.0, 0.0, 0.0
         elif delta > 0.0:
             frac = _fraction(-delta_old, -delta)

@@ -88,6 +88,8 @@ def solve(
         t = record.end_s
         q, qd = segment.q[:, -1].copy(), segment.qd[:, -1].copy()
         z, zd = float(segment.z_m[-1]), float(segment.zd_mps[-1])
+        if problem.crushing is not None:
+            z = -float(b @ q)  # the crushed cap breaks away: the particle's new lowest point is on the surface
         separating = zd + float(b @ qd)
         if separating < REST_SPEED_MPS or len(contacts) >= MAX_CONTACTS:
             at_rest = True
@@ -271,4 +273,6 @@ def next_contact_time(problem: ImpactProblem, t0: float, q0: np.ndarray, qd0: np
     if below.size == 0:
         return None
     i = int(below[0]) + 1
+    if i == 1 and gap(grid[:1])[0] <= 0.0:
+        return float(grid[0])  # touching already (rounding at the end of the last contact)
     return float(brentq(lambda s: float(gap(np.array([s]))[0]), grid[i - 1], grid[i], xtol=1e-14))

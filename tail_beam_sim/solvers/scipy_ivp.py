@@ -90,7 +90,7 @@ def solve(problem: ImpactProblem, method: str = "Radau", rtol: float = 1e-8) -> 
     q, qd = y[:n], y[n : 2 * n]
     # Beyond the window the beam rings freely and the particle flies (or rests, if still in contact).
     segments.append(FreeSegment(t, math.inf, t, q, qd, float(y[-2]), float(y[-1])))
-    return Trajectory(problem, segments, contacts, method, {"rhs_evaluations": evaluations}, particle_at_rest=in_contact and t >= window)
+    return Trajectory(problem, segments, contacts, method, {"rhs_evaluations": evaluations, "rtol": rtol}, particle_at_rest=in_contact and t >= window)
 
 
 def _segment(dynamics: FloatDynamics, times: np.ndarray, states: np.ndarray, approach: float) -> ContactSegment:
