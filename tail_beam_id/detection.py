@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -98,6 +99,7 @@ def robust_sigma(values: np.ndarray) -> float:
     return float(MAD_TO_SIGMA * np.median(np.abs(values - np.median(values))))
 
 
+@lru_cache(maxsize=16)
 def extrapolation_weights(length: int) -> np.ndarray:
     """Weights w such that w @ y[-length:] is a quadratic least-squares fit's value one step on."""
     x = np.arange(-length, 0, dtype=float)
@@ -150,6 +152,18 @@ class PulseDetector:
             self._sigma_cache[start] = robust_sigma(self._residual(accel_z, lo, lo + block, baseline))
         return self._sigma_cache[start]
 
+    def _block_sigmas(self, accel_z: np.ndarray, start: int, stop: int, baseline: int, block: int, base_index: int) -> np.ndarray:
+        """Noise RMS for every sample in [start, stop), one value per aligned block."""
+        sigma = np.empty(stop - start)
+        k = start
+        while k < stop:
+            absolute = base_index + k
+            block_end = ((absolute - baseline) // block + 1) * block + baseline - base_index
+            end = min(block_end, stop)
+            sigma[k - start:end - start] = self.noise(accel_z, k, baseline, block, base_index)
+            k = end
+        return sigma
+
     @staticmethod
     def _residual(accel_z: np.ndarray, lo: int, hi: int, baseline: int) -> np.ndarray:
         """Residuals of samples lo..hi-1 from the one-step quadratic prediction."""
@@ -180,21 +194,31 @@ class PulseDetector:
         if stop <= start:
             return []
         residual = self._residual(accel_z, start, stop, baseline)
+        # Samples over the plain noise threshold (ringing only raises it): the only candidates
+        # outside the few samples after a pulse, which are checked one by one.
+        sigma = self._block_sigmas(accel_z, start, stop, baseline, block, base_index)
+        candidates = np.flatnonzero(np.abs(residual) > self.config.accel_threshold_sigma * sigma) + start
         pulses: list[Pulse] = []
-        c = self.config
         k = start
         while k < stop:
-            sigma = self.noise(accel_z, k, baseline, block, base_index)
-            if mask[k - baseline:k].any():
-                deviation = accel_z[k] - background_fit(accel_z, k - baseline, k, mask)[0]
-            else:
+            dirty = mask[max(k - baseline, 0):k].any()
+            if not dirty:
+                following = int(np.searchsorted(candidates, k))
+                if following == candidates.size:
+                    break
+                k = int(candidates[following])
+                if k >= stop:
+                    break
                 deviation = residual[k - start]
-            if sigma > 0.0 and abs(deviation) > self._threshold(float(stamp_s[k]), sigma):
-                pulse = self._grow(stamp_s, accel_z, mask, k, baseline, span, sigma, period, base_index)
+            else:
+                deviation = accel_z[k] - background_fit(accel_z, k - baseline, k, mask)[0]
+            noise = sigma[k - start]
+            if noise > 0.0 and abs(deviation) > self._threshold(float(stamp_s[k]), noise):
+                pulse = self._grow(stamp_s, accel_z, mask, k, baseline, span, noise, period, base_index)
                 pulses.append(pulse)
                 mask[pulse.first_index - base_index:pulse.last_index - base_index + 1] = True
                 self.spans.append((pulse.first_index, pulse.last_index))
-                self.last_pulse = (float(stamp_s[pulse.last_index - base_index]), pulse.peak_sigma * sigma)
+                self.last_pulse = (float(stamp_s[pulse.last_index - base_index]), pulse.peak_sigma * noise)
                 k = pulse.last_index - base_index + 1
             else:
                 k += 1

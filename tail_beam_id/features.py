@@ -164,6 +164,7 @@ def impact_features(
         features["imu_impulse_mps"] = impulse.velocity_mps
         features["imu_ring_ratio"] = impulse.ring_mps / max(abs(impulse.velocity_mps), 1e-12)
         features["imu_pulse_sigma"] = pulse.peak_sigma
+        features["imu_noise_mps2"] = pulse.noise_mps2
         features["imu_pulse_polarity"] = float(pulse.polarity)
         features["imu_pulse_width_s"] = pulse.width_s
         features["imu_period_s"] = pulse.period_s
@@ -177,9 +178,13 @@ def impact_features(
         weights = np.array([1.0 / max(s, 1e-12) ** 2 for _, s in estimates])
         values = np.array([m for m, _ in estimates])
         features["moment_impulse_nms"] = float(np.sum(weights * values) / weights.sum())
+        features["moment_impulse_sigma_nms"] = float(1.0 / math.sqrt(weights.sum()))
     if rebound is not None:
         stamp, velocity = rebound
         features["rebound_speed_mps"] = float(velocity[2])
+        # Across the plate the true rebound is zero (a normal impact): what the camera reads
+        # there is its noise, m/s.
+        features["rebound_cross_mps"] = float(math.hypot(velocity[0], velocity[1]))
         if pulse is not None:
             # From the start of the first deviating IMU sample to the camera's end-of-contact
             # stamp: the contact duration plus up to one IMU period and one camera frame.

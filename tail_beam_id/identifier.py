@@ -26,14 +26,30 @@ from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, require_range
 
 
-def _threshold(model: Mapping[str, Any]) -> Method:
+def _threshold(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
     from tail_beam_id.methods.threshold import ThresholdMethod
 
     return ThresholdMethod.from_model(model)
 
 
-# name -> factory building the method from its trained model dict.
-METHODS: dict[str, Callable[[Mapping[str, Any]], Method]] = {"threshold": _threshold}
+def _statistical(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
+    from tail_beam_id.methods.statistical import StatisticalMethod
+
+    return StatisticalMethod.from_model(model)
+
+
+def _physics(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
+    from tail_beam_id.methods.physics import PhysicsMethod
+
+    return PhysicsMethod.from_model(model, params)
+
+
+# name -> factory building the method from its trained model dict and the merged parameters.
+METHODS: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any]], Method]] = {
+    "threshold": _threshold,
+    "statistical": _statistical,
+    "physics": _physics,
+}
 
 
 def available_methods() -> list[str]:
@@ -41,11 +57,12 @@ def available_methods() -> list[str]:
     return list(METHODS)
 
 
-def build_method(name: str, model_path: str | None = None) -> Method:
-    """The method ``name`` with its shipped (or given) trained parameters."""
+def build_method(name: str, params: Mapping[str, Any], model_path: str | None = None) -> Method:
+    """The method ``name`` with its shipped (or given) trained parameters; ``params``: the
+    merged parameters (support, materials, identification)."""
     if name not in METHODS:
         raise InputError("identification.method", name, f"must be one of {', '.join(METHODS)}")
-    return METHODS[name](load_model(name, model_path))
+    return METHODS[name](load_model(name, model_path), params)
 
 
 @dataclass(frozen=True)
@@ -158,10 +175,12 @@ class StreamIdentifier:
         params: Mapping[str, Any] | None = None,
         model_params: Mapping[str, Any] | None = None,
         model_path: str | None = None,
+        prebuilt: Method | None = None,
     ) -> None:
         """``params``: the ``identification`` section (None: shipped defaults); ``method``
         overrides its ``method``; ``model_params``: merged parameters holding the nominal
-        ``support`` and ``materials`` (None: shipped defaults)."""
+        ``support`` and ``materials`` (None: shipped defaults); ``prebuilt``: a method
+        instance to reuse (many short streams) when its name is the method asked for."""
         defaults = None
         if params is None or model_params is None:
             defaults = load_parameters()
@@ -169,8 +188,13 @@ class StreamIdentifier:
         if method is not None:
             section["method"] = method
         self.config = IdentifierConfig.from_params(section)
-        self.method = build_method(self.config.method, model_path)
-        self.model = BeamModel.from_params(model_params if model_params is not None else defaults)  # type: ignore[arg-type]
+        merged = dict(model_params if model_params is not None else defaults)  # type: ignore[arg-type]
+        merged["identification"] = section
+        if prebuilt is not None and prebuilt.name == self.config.method:
+            self.method = prebuilt
+        else:
+            self.method = build_method(self.config.method, merged, model_path)
+        self.model = BeamModel.from_params(merged)
         self.pressure = _Series()
         self.imu = _Series()
         self.rebounds: list[tuple[float, np.ndarray]] = []
