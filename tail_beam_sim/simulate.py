@@ -120,7 +120,7 @@ def summarise(scene: Scene, trajectory: Trajectory, history: dict[str, np.ndarra
 def histories(scene: Scene, trajectory: Trajectory) -> dict[str, np.ndarray]:
     """Noise-free response histories from -pre_contact_s to window_s, time from first contact."""
     uniform = np.arange(-scene.pre_contact_s, scene.window_s + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ)
-    contact_times = np.concatenate([seg.t_s for seg in trajectory.segments if hasattr(seg, "force_n")])
+    contact_times = np.concatenate([np.empty(0)] + [seg.t_s for seg in trajectory.segments if hasattr(seg, "force_n")])
     times = np.unique(np.concatenate([uniform, contact_times[contact_times <= scene.window_s]]))
     state = trajectory.sample(times)
     structure = trajectory.problem.structure
@@ -185,7 +185,8 @@ def simulate(
     )
     result.summary = summarise(scene, trajectory, history)
     result.summary["tier"] = chosen.tier.name
-    result.summary["error_estimate"] = max(chosen.model_error, solver_error_estimate(trajectory))
+    solver_error = solver_error_estimate(trajectory)
+    result.summary["error_estimate"] = max(chosen.model_error, solver_error) if math.isfinite(solver_error) else math.nan
     if check:
         upper = next_tier_up(chosen.tier.name)
         if upper is not None:

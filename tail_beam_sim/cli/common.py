@@ -7,7 +7,9 @@ from typing import Any
 
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.contact import CONTACT_LAWS
+from tail_beam_sim.fidelity import OUTPUTS, TIER_CHOICES, FidelitySettings, Needs
 from tail_beam_sim.scene import Scene
+from tail_beam_sim.solvers import SOLVERS
 
 
 def add_config_option(parser: argparse.ArgumentParser) -> None:
@@ -47,3 +49,19 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
         "seed": args.seed,
     }
     return Scene.from_params(params, overrides)
+
+
+def add_fidelity_options(parser: argparse.ArgumentParser) -> None:
+    """--tier, --solver, --outputs, --tolerance, --check (defaults from config/fidelity.yaml)."""
+    parser.add_argument("--tier", choices=TIER_CHOICES, help="model fidelity (default from config: auto, the cheapest that meets the needs)")
+    parser.add_argument("--solver", choices=sorted(SOLVERS), help="solver (default: the tier's; hybrid for rigid/modal/brittle)")
+    parser.add_argument("--outputs", nargs="+", choices=OUTPUTS, help="what the scene needs, for --tier auto (default: all)")
+    parser.add_argument("--tolerance", type=str, help="relative error the scene accepts, for --tier auto (default 0.01)")
+    parser.add_argument("--check", action="store_true", help="also simulate the next tier up and report the measured differences")
+
+
+def fidelity_from_args(args: argparse.Namespace) -> tuple[str, Needs, FidelitySettings]:
+    """The tier, needs and settings that the options and config files give."""
+    settings = FidelitySettings.from_params(load_parameters(args.config))
+    needs = Needs.of(args.outputs or settings.needs.outputs, settings.needs.tolerance if args.tolerance is None else args.tolerance)
+    return args.tier or settings.tier, needs, settings

@@ -4,16 +4,18 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
 from tail_beam_sim import bagio
-from tail_beam_sim.cli.common import add_impact_options, scene_from_args
+from tail_beam_sim.cli.common import add_fidelity_options, add_impact_options, fidelity_from_args, scene_from_args
 from tail_beam_sim.simulate import simulate
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("simulate", help="simulate one impact and report what the sensors see")
     add_impact_options(parser)
+    add_fidelity_options(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON object of noise-free results")
     parser.add_argument("--bag", metavar="PATH", help="write the sensor streams, rebound and truth as a rosbag2 bag")
     parser.add_argument("--storage", choices=sorted(bagio.STORAGES), default="mcap", help="bag storage (default mcap)")
@@ -23,7 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     scene = scene_from_args(args)
-    result = simulate(scene)
+    tier, needs, settings = fidelity_from_args(args)
+    result = simulate(scene, args.solver, tier=tier, needs=needs, settings=settings, check=args.check)
     summary = result.summary
     if args.bag:
         command = {
@@ -46,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
 
         print(f"wrote {plot_response(result, args.plot)}", file=sys.stderr)
     if args.json:
-        print(json.dumps(summary))
+        print(json.dumps({k: None if isinstance(v, float) and math.isnan(v) else v for k, v in summary.items()}))
     else:
         print(format_summary(summary))
     return 0
@@ -63,5 +66,9 @@ def format_summary(s: dict) -> str:
         f"  jack pressure swing  {s['peak_jack_pressure_change_pa'] / 1e3:.2f} kPa above setting",
         f"  beam rate            {s['peak_beam_angular_velocity_radps'] * 1e3:.3f} mrad/s peak",
         f"  IMU dynamic accel    {s['peak_imu_dynamic_accel_mps2']:.2f} m/s^2 peak (instantaneous)",
+        f"  fidelity             {s['tier']} tier, {s['solver']} solver, estimated relative error {s['error_estimate']:.2g}",
     ]
+    if "check" in s:
+        check = s["check"]
+        lines.append(f"  check vs {check['against']:<11} " + ", ".join(f"{k} {v:.2g}" for k, v in check.items() if k != "against"))
     return "\n".join(lines)
