@@ -1,8 +1,8 @@
 """Labelled impacts from the project's own simulator: the scene sets of the evaluation
 (paper, stream, mismatch) and the training set, each drawn from its own seed.
 
-Each impact is solved once and sampled at every sensor setting asked for (noise factor x
-sample rates), each impact with its own pre-contact baseline, as one short stream.
+Each impact is simulated at every sensor setting asked for (noise factor x sample rates),
+each with its own pre-contact baseline, as one short stream.
 """
 
 from __future__ import annotations
@@ -113,7 +113,6 @@ def simulate_set(
         varied = copy.deepcopy(dict(params))
         for name, factor in scale.items():
             varied["support"][name] = float(params["support"][name]) * factor
-        trajectory = None
         results = {}
         noise_seed = int(noise_seeds[index].generate_state(1)[0])
         for setting in chosen:
@@ -122,7 +121,5 @@ def simulate_set(
                 **command, "contact_model": law, "pre_contact_s": ev["pre_contact_s"], "window_s": ev["window_s"],
             })
             scene = replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor))
-            result = simulate(scene, tier=tier, trajectory=trajectory)
-            trajectory = result.trajectory
-            results[setting.key] = result
+            results[setting.key] = simulate(scene, tier=tier)
         yield LabelledImpact(index, command, scale, law, results)
