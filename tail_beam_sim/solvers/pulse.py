@@ -32,13 +32,16 @@ MAX_SPAN = 40.0  # dimensionless time limit of the first pass (chi = 40 lasts ab
 class PulseTable:
     """Dimensionless contact pulses on a grid of chi. ``rows[i]`` holds, at the fractions
     ``fractions`` of row i's duration, the penetration u, its rate u' and the force
-    f = u^1.5 (1 + chi u') (shape (chi, 3, PULSE_NODES + 1))."""
+    f = u^1.5 (1 + chi u') (shape (chi, 3, PULSE_NODES + 1)); per row also the duration, the
+    delivered restitution, the peak force and the force centroid as a fraction of the duration."""
 
     chi: np.ndarray
     duration: np.ndarray
     restitution: np.ndarray
     rows: np.ndarray
     fractions: np.ndarray
+    peak_force: np.ndarray
+    centroid: np.ndarray
 
 
 def _rk4_rows(chi: np.ndarray, u: np.ndarray, v: np.ndarray, dt: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
@@ -84,7 +87,9 @@ def pulse_table() -> PulseTable:
     u_nodes[:, -1] = 0.0  # the end of contact, by construction
     force = np.maximum(0.0, np.maximum(u_nodes, 0.0) ** 1.5 * (1.0 + chi[:, None] * v_nodes))
     rows = np.stack([u_nodes, v_nodes, force], axis=1)
-    return PulseTable(chi, duration, -v_nodes[:, -1], rows, np.linspace(0.0, 1.0, PULSE_NODES + 1))
+    fractions = np.linspace(0.0, 1.0, PULSE_NODES + 1)
+    peaks = np.array([_parabolic_peak(row) for row in force])
+    return PulseTable(chi, duration, -v_nodes[:, -1], rows, fractions, peaks, force @ fractions / force.sum(axis=1))
 
 
 def _hermite_zero(u0: float, v0: float, u1: float, v1: float, h: float) -> float:
