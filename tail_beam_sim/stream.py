@@ -35,14 +35,14 @@ import numpy as np
 from tail_beam_sim.config import section
 from tail_beam_sim.contact import CONTACT_LAWS
 from tail_beam_sim.errors import InputError, require_range
-from tail_beam_sim.fidelity import DEFAULT_TIER, get_tier, modes_from_params, structure_for
+from tail_beam_sim.fidelity import DEFAULT_TIER, get_tier, structure_for
 from tail_beam_sim.materials import Material, material_table
 from tail_beam_sim.scene import Impact, Scene, SensorSpec
 from tail_beam_sim.sensors import ImuStream, PressureStream, Rebound, SensorSuite, imu_samples
 from tail_beam_sim.simulate import SimulationResult, build_problem, histories, summarise
 from tail_beam_sim.solvers import DEFAULT_SOLVER, ImpactProblem, Samples, Trajectory, solve
 from tail_beam_sim.solvers.problem import FreeSegment
-from tail_beam_sim.structure import LinearStructure, rigid_beam
+from tail_beam_sim.structure import LinearStructure, load_bending_modes, rigid_beam
 from tail_beam_sim.support import Support
 
 NOISE_BLOCK_SAMPLES = 4096  # noise is drawn per block of this many sample indices (any size works)
@@ -244,7 +244,7 @@ class StreamSimulator:
             stream=StreamParams.from_params(section(params, "stream")),
             contact_model=contact_model,
             window_s=require_range("scene.window_s", scene.get("window_s"), 0.0, 10.0, low_open=True, unit="s"),
-            structure=structure_for(tier, support, modes_from_params(params)),
+            structure=structure_for(tier, support, load_bending_modes(params)),
             solver=tier.default_solver,
             **options,
         )
