@@ -31,7 +31,7 @@ from scipy.optimize import brentq
 from tail_beam_sim.contact import hertz_elastic_impact
 from tail_beam_sim.solvers.dynamics import FloatDynamics
 from tail_beam_sim.solvers.problem import ContactRecord, ContactSegment, FreeSegment, ImpactProblem, SolverError, Trajectory
-from tail_beam_sim.solvers.pulse import contact_pulse, max_chi, structure_response
+from tail_beam_sim.solvers.pulse import contact_pulse, max_chi, parabolic_peak, structure_response
 
 DEFAULT_STEPS_PER_CONTACT = 48
 REST_SPEED_MPS = 1e-4  # relative approach speed below which a particle is taken to lie on the plate
@@ -214,7 +214,7 @@ def _integrate_contact(
     )
     record = ContactRecord(
         start_s=t0, end_s=float(times[-1]), approach_speed_mps=approach,
-        separation_speed_mps=float(ys[2 * n + 1, -1]), peak_force_n=float(np.max(forces)),
+        separation_speed_mps=float(ys[2 * n + 1, -1]), peak_force_n=parabolic_peak(np.array(forces[:-1])),
     )
     return segment, record
 

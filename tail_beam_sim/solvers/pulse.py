@@ -88,7 +88,7 @@ def pulse_table() -> PulseTable:
     force = np.maximum(0.0, np.maximum(u_nodes, 0.0) ** 1.5 * (1.0 + chi[:, None] * v_nodes))
     rows = np.stack([u_nodes, v_nodes, force], axis=1)
     fractions = np.linspace(0.0, 1.0, PULSE_NODES + 1)
-    peaks = np.array([_parabolic_peak(row) for row in force])
+    peaks = np.array([parabolic_peak(row) for row in force])
     return PulseTable(chi, duration, -v_nodes[:, -1], rows, fractions, peaks, force @ fractions / force.sum(axis=1))
 
 
@@ -138,7 +138,7 @@ def contact_pulse(chi: float, hertz_stiffness: float, reduced_mass_kg: float, ap
         rate_mps=rows[1],
         force_n=force,
         separation_mps=approach_mps * ((1 - w) * float(table.restitution[i]) + w * float(table.restitution[i + 1])),
-        peak_force_n=_parabolic_peak(force),
+        peak_force_n=parabolic_peak(force),
     )
 
 
@@ -147,7 +147,7 @@ def _chi_list() -> list[float]:
     return pulse_table().chi.tolist()
 
 
-def _parabolic_peak(values: np.ndarray) -> float:
+def parabolic_peak(values: np.ndarray) -> float:
     """Peak of a smooth sampled curve: the parabola through the largest sample and its neighbours."""
     k = int(values.argmax())
     if k == 0 or k == values.size - 1:

@@ -19,6 +19,7 @@ from scipy.integrate import solve_ivp
 from tail_beam_sim.contact import hertz_elastic_impact
 from tail_beam_sim.solvers.dynamics import FloatDynamics
 from tail_beam_sim.solvers.problem import ContactRecord, ContactSegment, FreeSegment, ImpactProblem, OdeSegment, SolverError, Trajectory
+from tail_beam_sim.solvers.pulse import parabolic_peak
 
 METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 IMPLICIT = ("Radau", "BDF", "LSODA")
@@ -76,7 +77,7 @@ def solve(problem: ImpactProblem, method: str = "Radau", rtol: float = 1e-8) -> 
         if in_contact:
             segment = _segment(dynamics, times, states, approach)
             dense = sol.sol(np.linspace(times[0], times[-1], PEAK_SAMPLES))
-            peak = max(dynamics.derivative(list(column), approach, 0.0)[1] for column in dense.T)
+            peak = parabolic_peak(np.array([dynamics.derivative(list(column), approach, 0.0)[1] for column in dense.T]))
             contacts.append(ContactRecord(t, float(times[-1]), approach, float(states[-1, -1]), max(peak, float(segment.force_n.max()))))
             segments.append(segment)
         else:
