@@ -43,6 +43,7 @@ class DetectionConfig:
     ring_decay_s: float
     ring_window_s: float
     rebound_onset_lead_s: float
+    pressure_onset_uncertainty_s: float
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> DetectionConfig:
@@ -65,6 +66,7 @@ class DetectionConfig:
             ring_decay_s=get("ring_decay_s", 0.0, 10.0, "s"),
             ring_window_s=get("ring_window_s", 0.0, 10.0, "s"),
             rebound_onset_lead_s=get("rebound_onset_lead_s", 0.0, 1.0, "s"),
+            pressure_onset_uncertainty_s=get("pressure_onset_uncertainty_s", 0.0, 1.0, "s"),
         )
 
 
@@ -108,14 +110,20 @@ def extrapolation_weights(length: int) -> np.ndarray:
 
 
 def background_fit(values: np.ndarray, lo: int, hi: int, excluded: np.ndarray) -> np.ndarray:
-    """Quadratic (in sample index, about ``hi``) fitted to values[lo:hi] outside ``excluded``."""
+    """Polynomial (in sample index, about ``hi``) fitted to values[lo:hi] outside ``excluded``:
+    quadratic with 12 samples or more, linear with 8 or more, else constant (a high degree on
+    few samples extrapolates wildly). Returns 3 coefficients, constant first."""
     index = np.arange(lo, hi)
     keep = ~excluded[lo:hi]
     x = (index[keep] - hi).astype(float)
-    if x.size < 3:
-        return np.array([float(np.mean(values[lo:hi])) if hi > lo else 0.0, 0.0, 0.0])
-    basis = np.vstack([np.ones(x.size), x, x * x]).T
-    coeffs, *_ = np.linalg.lstsq(basis, values[lo:hi][keep], rcond=None)
+    coeffs = np.zeros(3)
+    if x.size == 0:
+        coeffs[0] = float(np.mean(values[lo:hi])) if hi > lo else 0.0
+        return coeffs
+    degree = 2 if x.size >= 12 else (1 if x.size >= 8 else 0)
+    basis = np.vstack([x**p for p in range(degree + 1)]).T
+    fitted, *_ = np.linalg.lstsq(basis, values[lo:hi][keep], rcond=None)
+    coeffs[: degree + 1] = fitted
     return coeffs
 
 
@@ -130,7 +138,7 @@ class PulseDetector:
         self.config = config
         self.cursor = 0  # next sample index (absolute) to examine
         self.spans: list[tuple[int, int]] = []  # absolute (first, last) sample of each pulse found
-        self.last_pulse: tuple[float, float] | None = None  # (end stamp s, deepest deviation m/s^2)
+        self.ring: tuple[float, float] | None = None  # ringing envelope: (stamp s, level m/s^2)
         self._sigma_cache: dict[int, float] = {}  # noise RMS per block, by its first absolute index
 
     def geometry(self, period_s: float) -> tuple[int, int, int]:
@@ -201,8 +209,9 @@ class PulseDetector:
         pulses: list[Pulse] = []
         k = start
         while k < stop:
+            ringing = self.ring is not None and stamp_s[k] - self.ring[0] < self.config.ring_window_s
             dirty = mask[max(k - baseline, 0):k].any()
-            if not dirty:
+            if not dirty and not ringing:
                 following = int(np.searchsorted(candidates, k))
                 if following == candidates.size:
                     break
@@ -210,30 +219,42 @@ class PulseDetector:
                 if k >= stop:
                     break
                 deviation = residual[k - start]
-            else:
+            elif dirty:
                 deviation = accel_z[k] - background_fit(accel_z, k - baseline, k, mask)[0]
+            else:
+                deviation = residual[k - start]
             noise = sigma[k - start]
             if noise > 0.0 and abs(deviation) > self._threshold(float(stamp_s[k]), noise):
                 pulse = self._grow(stamp_s, accel_z, mask, k, baseline, span, noise, period, base_index)
                 pulses.append(pulse)
                 mask[pulse.first_index - base_index:pulse.last_index - base_index + 1] = True
                 self.spans.append((pulse.first_index, pulse.last_index))
-                self.last_pulse = (float(stamp_s[pulse.last_index - base_index]), pulse.peak_sigma * noise)
+                self.ring = (float(stamp_s[pulse.last_index - base_index]), pulse.peak_sigma * noise)
                 k = pulse.last_index - base_index + 1
             else:
+                if ringing:
+                    self._follow_ring(float(stamp_s[k]), abs(deviation))
                 k += 1
         self.cursor = base_index + max(k, stop)
         return pulses
 
     def _threshold(self, stamp_s: float, sigma: float) -> float:
         """Detection threshold (m/s^2): the noise's, raised while the beam's bending modes
-        still ring from the last pulse (``ring_fraction`` of its depth, decaying)."""
+        ring after a pulse to ``ring_fraction`` times their envelope, which decays with
+        ``ring_decay_s`` and follows every ringing sample (ringing is not a new impact)."""
         c = self.config
         threshold = c.accel_threshold_sigma * sigma
-        if self.last_pulse is not None:
-            end_s, depth = self.last_pulse
-            threshold = max(threshold, c.ring_fraction * depth * math.exp(-(stamp_s - end_s) / c.ring_decay_s))
+        if self.ring is not None:
+            stamp, level = self.ring
+            threshold = max(threshold, c.ring_fraction * level * math.exp(-(stamp_s - stamp) / c.ring_decay_s))
         return threshold
+
+    def _follow_ring(self, stamp_s: float, magnitude: float) -> None:
+        """Raise the ringing envelope to a sample's deviation (m/s^2) if it exceeds it."""
+        stamp, level = self.ring  # type: ignore[misc]
+        decayed = level * math.exp(-(stamp_s - stamp) / self.config.ring_decay_s)
+        if magnitude > decayed:
+            self.ring = (stamp_s, magnitude)
 
     def _grow(
         self, stamp_s: np.ndarray, accel_z: np.ndarray, mask: np.ndarray, k: int, baseline: int,

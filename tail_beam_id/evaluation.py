@@ -39,6 +39,7 @@ class Summary:
     scene_set: str
     setting: str
     method: str
+    window_s: float
     n: int
     accuracy: float
     accuracy_ci: tuple[float, float]
@@ -92,7 +93,7 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
     data_latency = [(r.label["impact_stamp"] + r.label["data_latency_ms"] / 1e3 - r.contact_stamp_s) * 1e3 for r in labelled]
     wrong_conf = [r.label["confidence"] for r in labelled if not r.correct]
     return Summary(
-        scene_set=first.scene_set, setting=first.setting, method=first.method, n=n,
+        scene_set=first.scene_set, setting=first.setting, method=first.method, window_s=first.window_s, n=n,
         accuracy=correct / n, accuracy_ci=wilson(correct, n), balanced_accuracy=balanced,
         balanced_ci=(max(0.0, balanced - half), min(1.0, balanced + half)),
         detected=len(labelled), false_labels=sum(r.extra_labels for r in records), confusion=confusion,
@@ -102,11 +103,11 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
     )
 
 
-def group(records: Iterable[Record]) -> dict[tuple[str, str, str], list[Record]]:
-    """Records by (scene set, setting, method)."""
-    groups: dict[tuple[str, str, str], list[Record]] = {}
+def group(records: Iterable[Record]) -> dict[tuple[str, str, str, float], list[Record]]:
+    """Records by (scene set, setting, method, data window)."""
+    groups: dict[tuple[str, str, str, float], list[Record]] = {}
     for r in records:
-        groups.setdefault((r.scene_set, r.setting, r.method), []).append(r)
+        groups.setdefault((r.scene_set, r.setting, r.method, r.window_s), []).append(r)
     return groups
 
 
@@ -124,12 +125,12 @@ def large_particle_accuracy(records: Sequence[Record], min_radius_m: float) -> t
 def format_table(items: Sequence[Summary]) -> str:
     """A plain-text table of the main figures, one line per group."""
     lines = [
-        f"{'set':9} {'setting':12} {'method':11} {'n':>4} {'acc %':>6} {'95% CI':>13} {'bal %':>6} {'95% CI':>13} "
+        f"{'set':9} {'setting':12} {'method':11} {'win ms':>6} {'n':>4} {'acc %':>6} {'95% CI':>13} {'bal %':>6} {'95% CI':>13} "
         f"{'det':>4} {'fp':>3} {'data ms med/p95':>16} {'cpu ms med/p95':>15}"
     ]
     for s in items:
         lines.append(
-            f"{s.scene_set:9} {s.setting:12} {s.method:11} {s.n:4d} {100 * s.accuracy:6.1f} "
+            f"{s.scene_set:9} {s.setting:12} {s.method:11} {1e3 * s.window_s:6.1f} {s.n:4d} {100 * s.accuracy:6.1f} "
             f"{100 * s.accuracy_ci[0]:5.1f}-{100 * s.accuracy_ci[1]:5.1f}  {100 * s.balanced_accuracy:6.1f} "
             f"{100 * s.balanced_ci[0]:5.1f}-{100 * s.balanced_ci[1]:5.1f}  {s.detected:4d} {s.false_labels:3d} "
             f"{s.data_latency_ms['median']:7.1f}/{s.data_latency_ms['p95']:6.1f}  {s.compute_ms['median']:6.2f}/{s.compute_ms['p95']:6.2f}"
@@ -140,7 +141,7 @@ def format_table(items: Sequence[Summary]) -> str:
 def format_confusion(s: Summary) -> str:
     c = s.confusion
     return (
-        f"{s.scene_set} {s.setting} {s.method}: truth coal -> coal {c['coal']['coal']}, gangue {c['coal']['gangue']}, "
+        f"{s.scene_set} {s.setting} {s.method} {1e3 * s.window_s:g} ms: truth coal -> coal {c['coal']['coal']}, gangue {c['coal']['gangue']}, "
         f"missed {c['coal']['missed']}; truth gangue -> coal {c['gangue']['coal']}, gangue {c['gangue']['gangue']}, "
         f"missed {c['gangue']['missed']}"
     )
@@ -148,7 +149,7 @@ def format_confusion(s: Summary) -> str:
 
 def format_sizes(s: Summary) -> str:
     parts = [f"{1e3 * b['radius_m'][0]:.0f}-{1e3 * b['radius_m'][1]:.0f} mm: {100 * b['accuracy']:.0f}% (n {b['n']})" for b in s.by_size]
-    return f"{s.scene_set} {s.setting} {s.method}: " + "; ".join(parts)
+    return f"{s.scene_set} {s.setting} {s.method} {1e3 * s.window_s:g} ms: " + "; ".join(parts)
 
 
 def stamp_summary(items: Sequence[Summary]) -> list[dict[str, Any]]:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -22,6 +22,7 @@ import numpy as np
 from tail_beam_id.detection import DetectionConfig, Pulse, PulseDetector
 from tail_beam_id.features import BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
 from tail_beam_id.methods import Decision, Method, load_model
+from tail_beam_id.pressure_detection import PressureDetector
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, require_range
 
@@ -162,8 +163,7 @@ class _Impact:
     onset_s: float
     pulse: Pulse | None
     rebound: tuple[float, np.ndarray] | None = None
-    overlap: bool = False
-    extra: dict[str, Any] = field(default_factory=dict)
+    source: str = "imu"  # what detected it: imu | rebound | pressure
 
 
 class StreamIdentifier:
@@ -199,6 +199,10 @@ class StreamIdentifier:
         self.imu = _Series()
         self.rebounds: list[tuple[float, np.ndarray]] = []
         self.detector = PulseDetector(self.config.detection)
+        c = self.config
+        self.pressure_detector = PressureDetector(
+            self.model, c.detection.pressure_threshold_sigma, c.pressure_pre_s, c.window_s, c.detection.ring_window_s
+        )
         self.pending: list[_Impact] = []
         self.imu_stop_s = math.inf  # stamp after which the IMU was declared stopped
         self._used_rebounds: set[float] = set()  # stamps of rebounds given to an impact
@@ -258,6 +262,7 @@ class StreamIdentifier:
             for pulse in self.detector.scan(self.imu.stamp_s, self.imu.values[:, 5], self.imu.base_index, final):
                 self.pending.append(_Impact(onset_s=pulse.onset_s, pulse=pulse))
         self._rebound_impacts(final)
+        self._pressure_impacts(final)
         self.pending.sort(key=lambda impact: impact.onset_s)
         labels: list[dict[str, Any]] = []
         while self.pending and (final or self._ready(self.pending[0])):
@@ -279,18 +284,37 @@ class StreamIdentifier:
             imu_gone = stamp > self.imu_stop_s + c.max_contact_s
             imu_absent = not self.imu.seen and (final or self._newest_s() >= stamp + self.config.stream_timeout_s)
             claimable = any(
-                i.pulse is not None and i.rebound is None and self._rebound_window(i)[0] <= stamp <= self._rebound_window(i)[1]
-                for i in self.pending
+                i.rebound is None and self._rebound_window(i)[0] <= stamp <= self._rebound_window(i)[1] for i in self.pending
             )
-            orphan = self.imu.seen and scanned >= stamp + c.rebound_early_tolerance_s and not claimable
-            if imu_gone or imu_absent or orphan:
+            orphan = self.imu.seen and scanned >= stamp + c.rebound_early_tolerance_s
+            if (imu_gone or imu_absent or orphan) and not claimable:
                 self._used_rebounds.add(stamp)
                 onset = stamp - c.rebound_onset_lead_s
-                self.pending.append(_Impact(onset_s=onset, pulse=None, rebound=(stamp, velocity)))
+                self.pending.append(_Impact(onset_s=onset, pulse=None, rebound=(stamp, velocity), source="rebound"))
+
+    def _imu_absent(self, final: bool) -> bool:
+        """No IMU at all, after the pressure has run ``stream_timeout_s`` without one."""
+        if self.imu.seen or not self.pressure.stamp_s.size:
+            return False
+        return final or self.pressure.latest_s >= self.pressure.stamp_s[0] + self.config.stream_timeout_s
+
+    def _pressure_impacts(self, final: bool) -> None:
+        """With the IMU stopped or absent, impacts found in the pressure (unless a rebound
+        already stands for them)."""
+        if self.imu_stop_s == math.inf and not self._imu_absent(final):
+            return
+        start = self.imu_stop_s if self.imu_stop_s < math.inf else -math.inf
+        margin = self.config.detection.pressure_onset_uncertainty_s
+        for onset in self.pressure_detector.scan(self.pressure.stamp_s, self.pressure.values[:, 0], start, final):
+            known = [i.onset_s for i in self.pending if i.source == "rebound"] + self._decided
+            if all(abs(onset.onset_s - t) > margin for t in known):
+                self.pending.append(_Impact(onset_s=onset.onset_s, pulse=None, source="pressure"))
 
     def _rebound_window(self, impact: _Impact) -> tuple[float, float]:
         """Stamps a rebound of this impact may carry, s."""
         c = self.config.detection
+        if impact.source == "pressure":
+            return impact.onset_s - c.pressure_onset_uncertainty_s, impact.onset_s + c.max_contact_s + c.pressure_onset_uncertainty_s
         if impact.pulse is None:
             return impact.onset_s, impact.rebound[0] if impact.rebound else impact.onset_s + c.max_contact_s
         return impact.pulse.onset_s - c.rebound_early_tolerance_s, impact.pulse.onset_s + c.max_contact_s
@@ -303,7 +327,20 @@ class StreamIdentifier:
         return None
 
     def _neighbours(self, impact: _Impact) -> list[_Impact]:
+        """Pending impacts whose onsets fall within the overlap window of this one's."""
         return [o for o in self.pending if o is not impact and abs(o.onset_s - impact.onset_s) < self.config.overlap_window_s]
+
+    def _overlapping(self, impact: _Impact) -> bool:
+        """Another impact within the overlap window that something besides the IMU confirms (its
+        own rebound, or detected from a rebound or the pressure), or one already labelled."""
+        own = impact.rebound[0] if impact.rebound else None
+        for other in self._neighbours(impact):
+            if other.source != "imu" or other.rebound is not None:
+                return True
+            lo, hi = self._rebound_window(other)
+            if any(lo <= stamp <= hi and stamp != own and stamp not in self._used_rebounds for stamp, _ in self.rebounds):
+                return True
+        return any(abs(t - impact.onset_s) < self.config.overlap_window_s for t in self._decided)
 
     def _ready(self, impact: _Impact) -> bool:
         cfg = self.config
@@ -335,7 +372,7 @@ class StreamIdentifier:
             impact.rebound = self._matching_rebound(impact)
         if impact.rebound is not None:
             self._used_rebounds.add(impact.rebound[0])
-        overlap = bool(self._neighbours(impact)) or any(abs(t - impact.onset_s) < cfg.overlap_window_s for t in self._decided)
+        overlap = self._overlapping(impact)
         onset = impact.onset_s
         fit: PressureFit | None = None
         if self.pressure.stamp_s.size:

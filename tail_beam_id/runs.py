@@ -23,6 +23,7 @@ class Record:
     scene_set: str
     setting: str
     method: str
+    window_s: float
     index: int
     material: str
     is_coal: bool
@@ -54,23 +55,37 @@ def run_set(
     methods: Sequence[str],
     tolerance_s: float,
     tier: str | None = None,
+    windows_s: Sequence[float] = (),
 ) -> Iterator[Record]:
-    """Simulate ``count`` impacts of ``scene_set`` and identify each with every method."""
+    """Simulate ``count`` impacts of ``scene_set`` and identify each with every method, at the
+    configured data window and at each of ``windows_s`` (s) as well."""
     built: dict[str, Any] = {}
+    sections = [dict(params["identification"])] + [with_window(params["identification"], w) for w in windows_s]
     for impact in simulate_set(params, scene_set, count, seed, chosen, tier):
         for key, result in impact.results.items():
             truth = result.truth()
             for method in methods:
-                identifier = StreamIdentifier(method, params["identification"], params, prebuilt=built.get(method))
-                built[method] = identifier.method
-                started = time.perf_counter()
-                labels = replay(identifier, result.pressure, result.imu, [result.rebound])
-                wall = time.perf_counter() - started
-                label, extra = match(labels, result.contact_stamp_s, tolerance_s)
-                yield Record(
-                    scene_set=scene_set, setting=key, method=method, index=impact.index,
-                    material=truth["material"], is_coal=truth["label"] == "coal", radius_m=truth["radius_m"],
-                    contact_stamp_s=result.contact_stamp_s,
-                    duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
-                    label=label, extra_labels=extra, wall_s=wall,
-                )
+                for section in sections:
+                    identifier = StreamIdentifier(method, section, params, prebuilt=built.get(method))
+                    built[method] = identifier.method
+                    started = time.perf_counter()
+                    labels = replay(identifier, result.pressure, result.imu, [result.rebound])
+                    wall = time.perf_counter() - started
+                    label, extra = match(labels, result.contact_stamp_s, tolerance_s)
+                    yield Record(
+                        scene_set=scene_set, setting=key, method=method, window_s=float(section["window_s"]), index=impact.index,
+                        material=truth["material"], is_coal=truth["label"] == "coal", radius_m=truth["radius_m"],
+                        contact_stamp_s=result.contact_stamp_s,
+                        duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
+                        label=label, extra_labels=extra, wall_s=wall,
+                    )
+
+
+def with_window(section: Mapping[str, Any], window_s: float) -> dict[str, Any]:
+    """The identification section with another data window (s); the windows that must fit in
+    it shrink with it."""
+    changed = dict(section)
+    changed["window_s"] = window_s
+    changed["impulse_post_s"] = min(float(section["impulse_post_s"]), window_s)
+    changed["overlap_window_s"] = min(float(section["overlap_window_s"]), window_s)
+    return changed

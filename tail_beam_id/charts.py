@@ -1,0 +1,97 @@
+"""PNG charts of an evaluation: accuracy against latency (every method, setting and data
+window), accuracy against particle size, and accuracy against noise."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from tail_beam_id.evaluation import Summary
+from tail_beam_sim.plotting import pyplot
+
+MARKERS = {"threshold": "s", "statistical": "o", "physics": "^"}
+
+
+def _noise(setting: str) -> float:
+    """The noise factor of a setting key 'rates/xN'."""
+    return float(setting.split("/x")[1])
+
+
+def accuracy_vs_latency(items: Sequence[Summary], path: Path) -> Path:
+    """Accuracy (95 % CI bars) against median data latency plus median compute time, ms."""
+    plt = pyplot()
+    sets = sorted({s.scene_set for s in items})
+    fig, axes = plt.subplots(1, len(sets), figsize=(5.0 * len(sets), 4.2), squeeze=False, constrained_layout=True)
+    colours = {}
+    for ax, scene_set in zip(axes[0], sets):
+        for s in (i for i in items if i.scene_set == scene_set):
+            x = s.data_latency_ms["median"] + s.compute_ms["median"]
+            colour = colours.setdefault(s.setting, f"C{len(colours) % 10}")
+            ax.errorbar(
+                x, 100 * s.accuracy, yerr=[[100 * (s.accuracy - s.accuracy_ci[0])], [100 * (s.accuracy_ci[1] - s.accuracy)]],
+                fmt=MARKERS.get(s.method, "x"), color=colour, ms=6, capsize=2, alpha=0.85,
+            )
+        ax.set_title(f"{scene_set}")
+        ax.set_xlabel("latency after contact: data + compute, median (ms)")
+        ax.set_ylabel("accuracy (%)")
+        ax.grid(alpha=0.3)
+    handles = [plt.Line2D([], [], marker=m, ls="", color="k", label=name) for name, m in MARKERS.items()]
+    handles += [plt.Line2D([], [], marker="o", ls="", color=c, label=k) for k, c in colours.items()]
+    axes[0][-1].legend(handles=handles, fontsize=7, loc="lower right")
+    fig.suptitle("accuracy against latency (shape: method, colour: rates/noise; one point per data window)")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def accuracy_vs_size(items: Sequence[Summary], path: Path) -> Path:
+    """Accuracy per radius bin, per method and setting (noise x1 only, scene sets with sizes)."""
+    plt = pyplot()
+    chosen = [s for s in items if _noise(s.setting) == 1.0 and len(s.by_size) > 1]
+    fig, ax = plt.subplots(figsize=(7.5, 4.5), constrained_layout=True)
+    for i, s in enumerate(chosen):
+        centres = [1e3 * (b["radius_m"][0] * b["radius_m"][1]) ** 0.5 for b in s.by_size]
+        ax.plot(centres, [100 * b["accuracy"] for b in s.by_size], marker=MARKERS.get(s.method, "x"), color=f"C{i % 10}",
+                label=f"{s.scene_set} {s.setting} {s.method} {1e3 * s.window_s:g} ms")
+    ax.set_xscale("log")
+    ax.set_xlabel("particle radius (mm, bin centre)")
+    ax.set_ylabel("accuracy (%)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=6)
+    ax.set_title("accuracy against particle size (nominal noise)")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def accuracy_vs_noise(items: Sequence[Summary], path: Path) -> Path:
+    """Accuracy against the noise factor, one line per scene set, rates, method and window."""
+    plt = pyplot()
+    lines: dict[tuple[str, str, str, float], list[tuple[float, float]]] = {}
+    for s in items:
+        rates = s.setting.split("/x")[0]
+        lines.setdefault((s.scene_set, rates, s.method, s.window_s), []).append((_noise(s.setting), 100 * s.accuracy))
+    fig, ax = plt.subplots(figsize=(7.5, 4.5), constrained_layout=True)
+    for i, (key, points) in enumerate(sorted(lines.items())):
+        points.sort()
+        ax.plot([p[0] for p in points], [p[1] for p in points], marker=MARKERS.get(key[2], "x"), color=f"C{i % 10}",
+                ls="-" if key[1] == "nominal" else "--", label=f"{key[0]} {key[1]} {key[2]} {1e3 * key[3]:g} ms")
+    ax.set_xscale("log")
+    ax.set_xlabel("sensor noise (x nominal RMS)")
+    ax.set_ylabel("accuracy (%)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=6, ncol=2)
+    ax.set_title("accuracy against noise")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def write_all(items: Sequence[Summary], directory: Path) -> list[Path]:
+    """All three charts into ``directory``."""
+    directory.mkdir(parents=True, exist_ok=True)
+    return [
+        accuracy_vs_latency(items, directory / "accuracy_vs_latency.png"),
+        accuracy_vs_size(items, directory / "accuracy_vs_size.png"),
+        accuracy_vs_noise(items, directory / "accuracy_vs_noise.png"),
+    ]

@@ -1,0 +1,143 @@
+"""``tail-beam evaluate``: simulate the scene sets, identify every impact with every method, and
+print accuracy, balanced accuracy (95 % intervals), confusion tables, accuracy by size,
+data latency and compute time (median, p95), and whether each target of issue 4 is met;
+optionally write the figures as JSON and the charts as PNG."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from tail_beam_id.dataset import SCENE_SETS, evaluation_params, settings
+from tail_beam_id.evaluation import (
+    Summary, format_confusion, format_sizes, format_table, group, large_particle_accuracy, summaries,
+)
+from tail_beam_id.identifier import available_methods
+from tail_beam_id.runs import Record, run_set
+from tail_beam_sim.cli.common import add_config_option
+from tail_beam_sim.config import load_parameters
+from tail_beam_sim.errors import InputError, require_range
+
+MATCH_TOLERANCE_S = 0.002  # a label within this of the true contact is that impact's
+
+
+def _names(text: str, allowed: Sequence[str], field: str) -> list[str]:
+    names = [n for n in text.split(",") if n]
+    for name in names:
+        if name not in allowed:
+            raise InputError(field, name, f"must be among {', '.join(allowed)}")
+    return names
+
+
+def _numbers(text: str, field: str, low: float, high: float) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v]
+    except ValueError:
+        raise InputError(field, text, "must be comma-separated numbers") from None
+    return [require_range(field, v, low, high, low_open=True) for v in values]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("evaluate", help="accuracy and latency of the identification methods on simulated scene sets")
+    parser.add_argument("--sets", default=",".join(SCENE_SETS), help="scene sets, comma-separated (default: all)")
+    parser.add_argument("--methods", default=None, help="methods, comma-separated (default: all)")
+    parser.add_argument("--noise", default=None, help="noise factors, comma-separated (default: config, 1,3,10)")
+    parser.add_argument("--rates", default=None, help="sensor-rate settings, comma-separated (default: config: nominal,fast)")
+    parser.add_argument("--count", type=int, default=None, help="impacts per scene set (default: config)")
+    parser.add_argument("--windows-ms", default="", help="extra data windows to run each method at, ms (accuracy-latency trade-off)")
+    parser.add_argument("--tier", default=None, help="simulation tier (default: config, modal)")
+    parser.add_argument("--out", default=None, help="directory for summary.json and the PNG charts")
+    parser.add_argument("--plot", action="store_true", help="write the PNG charts into --out")
+    add_config_option(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    params = load_parameters(args.config)
+    ev = evaluation_params(params)
+    sets = _names(args.sets, SCENE_SETS, "--sets")
+    methods = _names(args.methods, available_methods(), "--methods") if args.methods else available_methods()
+    chosen = settings(
+        params,
+        _numbers(args.noise, "--noise", 0.0, 1e3) if args.noise else None,
+        args.rates.split(",") if args.rates else None,
+    )
+    windows = [w / 1e3 for w in _numbers(args.windows_ms, "--windows-ms", 0.0, 1e3)] if args.windows_ms else []
+    count = args.count if args.count is not None else int(ev["impacts_per_set"])
+    if count < 1:
+        raise InputError("--count", count, "must be >= 1")
+    if args.plot and not args.out:
+        raise InputError("--plot", True, "needs --out DIR for the PNG files")
+    started = time.monotonic()
+    records: list[Record] = []
+    for scene_set in sets:
+        records += run_set(params, scene_set, count, int(ev["seeds"][scene_set]), chosen, methods, MATCH_TOLERANCE_S, args.tier, windows)
+    items = summaries(records, ev["size_bins_m"])
+    print(f"{count} impacts per set, {len(chosen)} settings, tier {args.tier or ev['tier']}, {time.monotonic() - started:.0f} s")
+    print(format_table(items))
+    print("\nconfusion (nominal noise):")
+    for s in items:
+        if s.setting.endswith("/x1"):
+            print("  " + format_confusion(s))
+    print("\naccuracy by radius (nominal noise):")
+    for s in items:
+        if s.setting.endswith("/x1") and len(s.by_size) > 1:
+            print("  " + format_sizes(s))
+    print("\ntargets (issue 4):")
+    for line in targets(records, items):
+        print("  " + line)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "summary.json").write_text(json.dumps([s.as_dict() for s in items], indent=1) + "\n", encoding="utf-8")
+        print(f"\nwrote {out / 'summary.json'}")
+        if args.plot:
+            from tail_beam_id.charts import write_all
+
+            for path in write_all(items, out):
+                print(f"wrote {path}")
+    return 0
+
+
+def targets(records: Sequence[Record], items: Sequence[Summary]) -> list[str]:
+    """One line per target of issue 4: the best method's figure and whether it is met."""
+    lines = []
+    groups = group(records)
+
+    def best(scene_set: str, setting: str, min_radius: float = 0.0) -> tuple[str, float, tuple[float, float], int] | None:
+        found = []
+        for (s, st, method, window), rs in groups.items():
+            if s == scene_set and st == setting:
+                acc, ci, n = large_particle_accuracy(rs, min_radius)
+                if n:
+                    found.append((f"{method} {1e3 * window:g} ms", acc, ci, n))
+        return max(found, key=lambda f: f[1]) if found else None
+
+    settings_x1 = sorted({r.setting for r in records if r.setting.endswith("/x1")})
+    for setting in settings_x1:
+        paper = best("paper", setting)
+        if paper:
+            lines.append(f"paper {setting}: best {paper[0]} {100 * paper[1]:.1f}% (CI {100 * paper[2][0]:.1f}-{100 * paper[2][1]:.1f}, n {paper[3]}) "
+                         f"-> target >= 99.5%: {'met' if paper[1] >= 0.995 else 'NOT met'}")
+        stream = best("stream", setting, 0.05)
+        if stream:
+            lines.append(f"stream {setting}, radius >= 50 mm: best {stream[0]} {100 * stream[1]:.1f}% (CI {100 * stream[2][0]:.1f}-{100 * stream[2][1]:.1f}, n {stream[3]}) "
+                         f"-> target >= 95%: {'met' if stream[1] >= 0.95 else 'NOT met'}")
+        for s in items:
+            if s.scene_set == "stream" and s.setting == setting:
+                twin = next((m for m in items if m.scene_set == "mismatch" and m.setting == setting and m.method == s.method and m.window_s == s.window_s), None)
+                if twin:
+                    gap = 100 * (s.accuracy - twin.accuracy)
+                    lines.append(f"mismatch {setting} {s.method} {1e3 * s.window_s:g} ms: {100 * twin.accuracy:.1f}% vs stream {100 * s.accuracy:.1f}% "
+                                 f"({gap:+.1f} points) -> within 3 points: {'met' if gap <= 3.0 else 'NOT met'}")
+    compute = [s.compute_ms["median"] for s in items if not math.isnan(s.compute_ms["median"])]
+    latency = [s.data_latency_ms["max"] for s in items if not math.isnan(s.data_latency_ms["max"])]
+    if compute:
+        lines.append(f"compute per impact, worst group median {max(compute):.2f} ms -> target < 5 ms: {'met' if max(compute) < 5.0 else 'NOT met'}")
+    if latency:
+        lines.append(f"label after contact (data latency), worst case {max(latency):.1f} ms -> target <= 50 ms: {'met' if max(latency) <= 50.0 else 'NOT met'}")
+    return lines
