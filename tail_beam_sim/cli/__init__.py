@@ -18,6 +18,7 @@ from tail_beam_sim.errors import InputError
 SUBCOMMANDS = {
     "simulate": "tail_beam_sim.cli.simulate_cmd",
     "sweep": "tail_beam_sim.cli.sweep_cmd",
+    "evaluate": "tail_beam_id.cli.evaluate_cmd",
     "bench": "tail_beam_sim.cli.bench_cmd",
 }
 
