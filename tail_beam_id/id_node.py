@@ -16,8 +16,6 @@ import time
 
 import rclpy
 from geometry_msgs.msg import TwistStamped
-from rclpy.executors import ExternalShutdownException
-from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, Imu
@@ -27,6 +25,7 @@ from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_sim import ros_messages, topics
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
+from tail_beam_sim.ros_spin import spin
 
 EVENT_QOS_DEPTH = 100  # rebound and label topics: one message per impact
 
@@ -108,14 +107,9 @@ def main(args: list[str] | None = None) -> int:
         print(f"id_node: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    executor = EventsExecutor()
-    executor.add_node(node)
     try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin(node)
     finally:
-        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

@@ -8,6 +8,7 @@ covariance conventions follow interface.md: no orientation estimate on the IMU
 
 from __future__ import annotations
 
+import importlib
 import json
 from collections.abc import Sequence
 from typing import Any
@@ -23,6 +24,12 @@ from tail_beam_sim import topics
 from tail_beam_sim.sensors import ImuStream, PressureStream, Rebound
 
 NO_ORIENTATION = [-1.0] + [0.0] * 8  # REP 145: element 0 = -1, the estimate is not provided
+
+
+def message_class(msgtype: str) -> type:
+    """The rclpy class of a ``pkg/msg/Name`` type."""
+    package, _, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{package}.msg"), name)
 
 
 def time_msg(stamp_s: float) -> Time:

@@ -19,6 +19,8 @@ SUBCOMMANDS = {
     "simulate": "tail_beam_sim.cli.simulate_cmd",
     "sweep": "tail_beam_sim.cli.sweep_cmd",
     "evaluate": "tail_beam_id.cli.evaluate_cmd",
+    "identify": "tail_beam_id.cli.identify_cmd",
+    "bag": "tail_beam_sim.cli.bag_cmd",
     "bench": "tail_beam_sim.cli.bench_cmd",
 }
 

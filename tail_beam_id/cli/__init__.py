@@ -1,0 +1,1 @@
+"""``tail-beam`` subcommands of the identification package."""
