@@ -33,6 +33,7 @@ class DetectionConfig:
 
     accel_threshold_sigma: float
     extend_threshold_sigma: float
+    onset_threshold_sigma: float
     baseline_window_s: float
     noise_block_s: float
     max_contact_s: float
@@ -56,6 +57,7 @@ class DetectionConfig:
         return cls(
             accel_threshold_sigma=get("accel_threshold_sigma", 0.0, 1e3),
             extend_threshold_sigma=get("extend_threshold_sigma", 0.0, 1e3),
+            onset_threshold_sigma=get("onset_threshold_sigma", 0.0, 1e3),
             baseline_window_s=get("baseline_window_s", 0.0, 1.0, "s"),
             noise_block_s=get("noise_block_s", 0.0, 100.0, "s"),
             max_contact_s=get("max_contact_s", 0.0, 1.0, "s"),
@@ -262,15 +264,19 @@ class PulseDetector:
     ) -> Pulse:
         """The whole deviating run of samples from its first over-threshold sample ``k``."""
         c = self.config
-        first = k
-        coeffs = background_fit(accel_z, k - baseline, k, mask)
-        # The contact may have begun one sample earlier, below the detection threshold.
-        if k - 1 - baseline >= 0 and not mask[k - 1]:
-            previous = background_fit(accel_z, k - 1 - baseline, k - 1, mask)
-            if abs(accel_z[k - 1] - previous[0]) > c.extend_threshold_sigma * sigma:
-                first, coeffs = k - 1, previous
+        # The contact may have begun earlier, below the detection threshold (the bending modes
+        # can build the response up over several samples): look back over one longest contact
+        # against the background before it for the first sample past onset_threshold_sigma.
+        lo = max(k - span + 1, baseline)
+        while mask[lo - baseline:k].any() and lo < k:
+            lo += 1
+        coeffs = background_fit(accel_z, lo - baseline, lo, mask)
+        x = np.arange(lo, k + 1) - lo
+        before = accel_z[lo:k + 1] - (coeffs[0] + coeffs[1] * x + coeffs[2] * x * x)
+        past = np.abs(before) > c.onset_threshold_sigma * sigma
+        first = lo + int(np.argmax(past)) if past.any() else k
         end = min(first + span, accel_z.size)
-        x = np.arange(first, end) - first
+        x = np.arange(first, end) - lo
         deviation = accel_z[first:end] - (coeffs[0] + coeffs[1] * x + coeffs[2] * x * x)
         last = first
         for j in range(1, deviation.size):

@@ -116,12 +116,13 @@ class ImuImpulse:
 
 
 def imu_impulse(
-    model: BeamModel, stamp_s: np.ndarray, accel_z: np.ndarray, pulse: Pulse, pre_s: float, post_s: float
+    model: BeamModel, stamp_s: np.ndarray, accel_z: np.ndarray, pulse: Pulse, pre_s: float, skip_s: float, post_s: float
 ) -> ImuImpulse | None:
     """The pulse's velocity change, fitted in the velocity domain so the bending modes' ringing
     averages out: the specific force before the pulse gives the background (constant plus the
     beam's free sway); the plate velocity after it, integrated from the samples, is fitted with
-    the rigid beam's response to an impulse at the onset."""
+    the rigid beam's response to an impulse at the onset, from ``skip_s`` (the contact is
+    over) to ``post_s`` after the onset."""
     period = pulse.period_s
     before = (stamp_s >= pulse.onset_s - pre_s) & (stamp_s < pulse.onset_s)
     after = (stamp_s >= pulse.onset_s) & (stamp_s <= pulse.onset_s + post_s)
@@ -136,8 +137,7 @@ def imu_impulse(
     # Plate velocity change at the end of each sample: specific force = g - plate acceleration.
     velocity = -np.cumsum(accel_z[after] - background) * period
     response = model.imu_velocity_response(stamp_s[after] - pulse.onset_s)
-    # Only samples ending after the deviating run (contact and first ringing).
-    use = stamp_s[after] > pulse.first_stamp_s + (pulse.last_index - pulse.first_index) * period
+    use = stamp_s[after] >= pulse.onset_s + skip_s
     if not use.any():
         return None
     r, v = response[use], velocity[use]

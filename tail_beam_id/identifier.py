@@ -74,6 +74,7 @@ class IdentifierConfig:
     window_s: float
     pressure_pre_s: float
     impulse_pre_s: float
+    impulse_skip_s: float
     impulse_post_s: float
     stream_timeout_s: float
     camera_timeout_s: float
@@ -103,6 +104,7 @@ class IdentifierConfig:
             window_s=window,
             pressure_pre_s=seconds("pressure_pre_s"),
             impulse_pre_s=seconds("impulse_pre_s"),
+            impulse_skip_s=seconds("impulse_skip_s"),
             impulse_post_s=seconds("impulse_post_s"),
             stream_timeout_s=seconds("stream_timeout_s"),
             camera_timeout_s=seconds("camera_timeout_s"),
@@ -385,7 +387,7 @@ class StreamIdentifier:
         impulse = None
         if impact.pulse is not None:
             impulse = imu_impulse(
-                self.model, self.imu.stamp_s, self.imu.values[:, 5], impact.pulse, cfg.impulse_pre_s, cfg.impulse_post_s
+                self.model, self.imu.stamp_s, self.imu.values[:, 5], impact.pulse, cfg.impulse_pre_s, cfg.impulse_skip_s, cfg.impulse_post_s
             )
         features = impact_features(self.model, impact.pulse, impulse, fit, impact.rebound)
         signals = []

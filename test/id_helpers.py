@@ -1,0 +1,26 @@
+"""Shared helpers of the identification tests: one simulated impact as a short stream."""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+from tail_beam_sim.scene import Scene
+from tail_beam_sim.simulate import SimulationResult, simulate
+
+# Long enough before contact for the detector's noise estimate (0.1 s blocks), after it for
+# the camera timeout.
+PRE_CONTACT_S = 0.25
+WINDOW_S = 0.08
+
+
+def impact(params: dict[str, Any], tier: str = "modal", noise: float = 1.0, sensors: dict[str, Any] | None = None, **fields: Any) -> SimulationResult:
+    """Simulate one impact (impact fields as in impact_cmd) with its own baseline."""
+    varied = copy.deepcopy(params)
+    varied["sensors"].update(sensors or {})
+    scene = Scene.from_params(varied, {"pre_contact_s": PRE_CONTACT_S, "window_s": WINDOW_S, **fields})
+    if noise != 1.0:
+        from dataclasses import replace
+
+        scene = replace(scene, sensors=scene.sensors.scaled_noise(noise))
+    return simulate(scene, tier=tier)
