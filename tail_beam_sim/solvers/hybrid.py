@@ -259,7 +259,9 @@ def next_contact_time(problem: ImpactProblem, t0: float, q0: np.ndarray, qd0: np
     b = problem.contact_shape
     frequencies = structure.natural_frequencies_hz()
     fastest = float(frequencies.max()) if frequencies.size else 1.0
-    spacing = min(1.0 / (32.0 * fastest), (t_end - t0) / 8.0)
+    separating = max(zd0 + float(b @ qd0), REST_SPEED_MPS)
+    # finer than the fastest mode and than the particle's own flight back to the plate (2 u / g)
+    spacing = min(1.0 / (32.0 * fastest), (t_end - t0) / 8.0, separating / max(g, 1e-9))
     grid = np.linspace(t0, t_end, int(math.ceil((t_end - t0) / spacing)) + 1)
 
     def gap(times: np.ndarray) -> np.ndarray:
@@ -268,11 +270,14 @@ def next_contact_time(problem: ImpactProblem, t0: float, q0: np.ndarray, qd0: np
         return z0 + zd0 * dt - 0.5 * g * dt * dt + b @ q
 
     values = gap(grid)
-    values[0] = abs(values[0]) + 1e-15
     below = np.nonzero(values[1:] <= 0.0)[0]
     if below.size == 0:
         return None
     i = int(below[0]) + 1
-    if i == 1 and gap(grid[:1])[0] <= 0.0:
-        return float(grid[0])  # touching already (rounding at the end of the last contact)
-    return float(brentq(lambda s: float(gap(np.array([s]))[0]), grid[i - 1], grid[i], xtol=1e-14))
+    low = float(grid[i - 1])
+    if i == 1:
+        # the gap starts at zero (to rounding): step off the surface until it is open
+        low = next((t0 + d for d in np.geomspace(1e-10, grid[1] - t0, 24) if gap(np.array([t0 + d]))[0] > 0.0), None)
+        if low is None:
+            return float(grid[1])
+    return float(brentq(lambda s: float(gap(np.array([s]))[0]), low, float(grid[i]), xtol=1e-14))
