@@ -1,0 +1,150 @@
+"""Segmented bag writing, reading with clear errors, repair; read back by two readers."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+
+from tail_beam_sim import bagio, topics
+from tail_beam_sim.bagread import read_sensors
+from tail_beam_sim.bagwrite import PARTIAL_DIR, SegmentedBagWriter, repair
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.sensors import ImuStream, PressureStream
+
+RATE_HZ = 1000.0
+TAIL_BEAM = str(Path(sys.executable).parent / "tail-beam")  # the installed console script
+
+
+def records(n: int, start_s: float = 0.0):
+    """n pressure and n IMU samples as bag records (topic, log ns, CDR bytes), stamp order."""
+    stamps = start_s + np.arange(n) / RATE_HZ
+    pressure = PressureStream(stamps, 20e6 + np.arange(n), 1e8)
+    imu = ImuStream(stamps, np.zeros((n, 3)), np.tile([0.0, 0.0, 9.81], (n, 1)), 1e-6, 1e-4)
+    out = list(bagio.pressure_msgs(pressure.stamp_s, pressure.pressure_pa, pressure.variance_pa2))
+    out += list(bagio.imu_msgs(imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 1e-6, 1e-4))
+    out.sort(key=lambda r: r[1])
+    return [(topic, ns, bytes(bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic]))) for topic, ns, msg in out]
+
+
+def write_segments(path, segments: list[list], storage: str = "mcap", close: bool = True) -> SegmentedBagWriter:
+    writer = SegmentedBagWriter(path, storage)
+    for index, segment in enumerate(segments):
+        for topic, ns, data in segment:
+            writer.write(topic, ns, data)
+        if close or index < len(segments) - 1:
+            writer.close_segment()
+    if close:
+        writer.close()
+    return writer
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_segments_make_one_bag_that_any_reader_reads_whole(tmp_path, storage):
+    data = records(300)
+    write_segments(tmp_path / "bag", [data[:200], data[200:450], data[450:]], storage)
+    assert not (tmp_path / "bag" / PARTIAL_DIR).exists()
+    with AnyReader([tmp_path / "bag"], default_typestore=bagio.TYPESTORE) as reader:
+        got = [(c.topic, ns) for c, ns, _ in reader.messages()]
+        assert reader.message_count == 600
+        assert {c.topic: c.msgtype for c in reader.connections} == topics.MSG_TYPES
+    assert got == [(t, ns) for t, ns, _ in data]
+    sensors = read_sensors(tmp_path / "bag", required=(topics.JACK_PRESSURE, topics.IMU))
+    np.testing.assert_array_equal(sensors.pressure_pa, 20e6 + np.arange(300))
+    np.testing.assert_allclose(np.diff(sensors.imu_stamp_s), 1.0 / RATE_HZ)
+
+
+def test_an_independent_mcap_reader_decodes_every_segment(tmp_path):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    data = records(100)
+    write_segments(tmp_path / "bag", [data[:120], data[120:]])
+    values = []
+    for path in sorted((tmp_path / "bag").glob("*.mcap")):
+        with path.open("rb") as stream:
+            for _, channel, _, msg in make_reader(stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+                if channel.topic == topics.JACK_PRESSURE:
+                    values.append(msg.fluid_pressure)
+    assert values == list(20e6 + np.arange(100))
+
+
+def test_a_killed_writer_leaves_the_closed_segments_readable_and_repair_adds_the_rest(tmp_path):
+    data = records(2000)
+    bag = tmp_path / "bag"
+    writer = write_segments(bag, [data[:1000], data[1000:2000], data[2000:]], close=False)
+    # The process dies here, with the third segment open (whatever rosbags has flushed of it).
+    closed = read_sensors(bag, required=(topics.JACK_PRESSURE,))
+    assert closed.partial
+    assert closed.pressure_stamp_s.size == 1000  # both closed segments, nothing else
+    segments, salvaged = repair(bag)
+    after = read_sensors(bag, required=(topics.JACK_PRESSURE,))
+    assert not after.partial
+    assert after.pressure_stamp_s.size + after.imu_stamp_s.size == 2000 + salvaged
+    np.testing.assert_array_equal(after.pressure_stamp_s[:1000], closed.pressure_stamp_s)
+
+
+def test_repair_rebuilds_a_bag_whose_metadata_is_missing(tmp_path):
+    data = records(100)
+    write_segments(tmp_path / "bag", [data])
+    (tmp_path / "bag" / "metadata.yaml").unlink()
+    with pytest.raises(InputError, match="bag repair"):
+        read_sensors(tmp_path / "bag")
+    assert repair(tmp_path / "bag") == (1, 200)
+    assert read_sensors(tmp_path / "bag", required=(topics.IMU,)).imu_stamp_s.size == 100
+
+
+def bag_without_messages(path):
+    write_segments(path, [])
+
+
+def truncated_bag(path):
+    write_segments(path, [records(3000)])
+    storage = next(path.glob("*.mcap"))
+    storage.write_bytes(storage.read_bytes()[: storage.stat().st_size // 2])
+
+
+def pressure_only_bag(path):
+    write_segments(path, [[r for r in records(50) if r[0] == topics.JACK_PRESSURE]])
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (None, "does not exist"),
+        (lambda p: p.mkdir(), "not a rosbag2 bag"),
+        (lambda p: p.write_text("x"), "not a rosbag2 bag directory"),
+        (bag_without_messages, "holds no messages"),
+        (truncated_bag, "truncated or damaged"),
+        (pressure_only_bag, "lacks messages on topic 'imu'"),
+    ],
+)
+def test_a_bad_bag_is_one_clear_error(tmp_path, make, message):
+    path = tmp_path / "bag"
+    if make is not None:
+        make(path)
+    with pytest.raises(InputError, match=message) as info:
+        read_sensors(path)
+    assert info.value.field == "bag"
+    result = subprocess.run(
+        [TAIL_BEAM, "identify", str(path)], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message.split("'")[0] in lines[0] and "Traceback" not in result.stderr
+
+
+def test_bag_info_lists_topics_and_counts(tmp_path):
+    write_segments(tmp_path / "bag", [records(40)])
+    result = subprocess.run([TAIL_BEAM, "bag", "info", str(tmp_path / "bag")],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0
+    assert "80 messages" in result.stdout
+    rows = {line.split()[0]: int(line.split()[-1]) for line in result.stdout.splitlines()[1:]}
+    assert rows == {topics.IMU: 40, topics.JACK_PRESSURE: 40}
+    shutil.rmtree(tmp_path / "bag")
