@@ -25,6 +25,7 @@ import numpy as np
 from tail_beam_sim.errors import require_range
 
 MAD_TO_SIGMA = 1.4826  # median absolute deviation of a Gaussian times this = its RMS
+PERIOD_SAMPLES = 64  # the sample period is read from the first this many stamps
 
 
 @dataclass(frozen=True)
@@ -140,6 +141,7 @@ class PulseDetector:
         self.config = config
         self.cursor = 0  # next sample index (absolute) to examine
         self.spans: list[tuple[int, int]] = []  # absolute (first, last) sample of each pulse found
+        self.period_s: float | None = None  # the IMU sample period, s, read from the stamps
         self.ring: tuple[float, float] | None = None  # ringing envelope: (stamp s, level m/s^2)
         self._sigma_cache: dict[int, float] = {}  # noise RMS per block, by its first absolute index
 
@@ -186,9 +188,12 @@ class PulseDetector:
         Unless ``final``, only samples whose pulse is fully in the buffer are examined.
         """
         n = accel_z.size
-        if n < 8:
+        if n < 8 or (n < PERIOD_SAMPLES and not final):
             return []
-        period = float(np.median(np.diff(stamp_s[-min(n, 64):])))
+        if self.period_s is None:
+            # Read once from the first samples and kept: the same for any chunking.
+            self.period_s = float(np.median(np.diff(stamp_s[:PERIOD_SAMPLES])))
+        period = self.period_s
         baseline, block, span = self.geometry(period)
         self.spans = [span for span in self.spans if span[1] >= base_index]
         self._sigma_cache = {k: v for k, v in self._sigma_cache.items() if k >= base_index}

@@ -6,6 +6,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
+
 
 
 from tail_beam_id.identifier import StreamIdentifier
@@ -32,23 +34,24 @@ def replay(
             identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
         return identifier.flush()
     pending = sorted(rebounds, key=lambda r: r.stamp_s)
-    edge = min(starts) + chunk_s
-    while True:
+    first, last = min(starts), max(ends)
+    count = int((last - first) / chunk_s) + 2
+    # Chunk edges by multiplication, so consecutive chunks share one float edge exactly: no
+    # sample is delivered twice or lost between them.
+    edges = first + chunk_s * np.arange(count + 1)
+    for low, high in zip(edges[:-1], edges[1:]):
         if pressure is not None:
-            take = (pressure.stamp_s >= edge - chunk_s) & (pressure.stamp_s < edge)
+            take = (pressure.stamp_s >= low) & (pressure.stamp_s < high)
             if take.any():
                 identifier.add_pressure(pressure.stamp_s[take], pressure.pressure_pa[take])
         if imu is not None:
-            take = (imu.stamp_s >= edge - chunk_s) & (imu.stamp_s < edge)
+            take = (imu.stamp_s >= low) & (imu.stamp_s < high)
             if take.any():
                 identifier.add_imu(imu.stamp_s[take], imu.angular_velocity_radps[take], imu.linear_acceleration_mps2[take])
-        while pending and pending[0].stamp_s < edge:
+        while pending and pending[0].stamp_s < high:
             rebound = pending.pop(0)
             identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
         labels += identifier.poll()
-        if edge > max(ends):
-            break
-        edge += chunk_s
     for rebound in pending:
         identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
     return labels + identifier.flush()
