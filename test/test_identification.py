@@ -196,3 +196,13 @@ def test_bad_parameters_name_the_field(params, change, field):
     with pytest.raises(InputError) as caught:
         StreamIdentifier(None, section, params)
     assert caught.value.field == field
+
+
+def test_impact_lost_in_imu_noise_is_still_labelled_from_the_camera(params):
+    # Ten times the noise hides the smallest, slowest impact near the hinge from the IMU
+    # (test_detection); its rebound still tells the identifier that an impact happened.
+    result = impact(params, noise=10.0, material="coal", radius_m=0.025, drop_height_m=1.5, position_m=0.2, restitution=0.3)
+    labels = identify(params, "statistical", result.pressure, result.imu, [result.rebound])
+    assert len(labels) == 1
+    assert "imu" not in labels[0]["signals"] and "rebound_velocity" in labels[0]["signals"]
+    assert abs(labels[0]["impact_stamp"] - result.contact_stamp_s) < 0.002

@@ -1,0 +1,82 @@
+"""Evaluation figures (intervals, balanced accuracy, confusion), training fits, and the
+`tail-beam evaluate` command line."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tail_beam_id.evaluation import summarise, wilson
+from tail_beam_id.runs import Record, match
+from tail_beam_id.training import fit_logistic, fit_temperature
+from tail_beam_sim.cli import main
+
+
+def record(is_coal: bool, said: str | None, radius_m: float = 0.03) -> Record:
+    label = None if said is None else {"label": said, "confidence": 0.9, "impact_stamp": 1.0, "data_latency_ms": 12.0, "latency_ms": 1.0}
+    return Record("stream", "nominal/x1", "physics", 0.012, 0, "coal" if is_coal else "marble", is_coal, radius_m, 0.999, 3e-4, label, 0, 0.01)
+
+
+def test_wilson_interval_matches_the_textbook_values():
+    # Wilson 95 % interval: 10/10 -> [0.7225, 1]; 0/10 -> [0, 0.2775]; 5/10 -> [0.2366, 0.7634].
+    assert wilson(10, 10)[0] == pytest.approx(0.7225, abs=1e-4)
+    assert wilson(0, 10)[1] == pytest.approx(0.2775, abs=1e-4)
+    assert wilson(5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)
+
+
+def test_missed_impacts_count_as_wrong_and_classes_weigh_equally():
+    records = [record(True, "coal"), record(True, "coal"), record(True, "coal"), record(True, None),
+               record(False, "gangue", 0.08), record(False, "coal", 0.08)]
+    s = summarise(records, [0.025, 0.05, 0.1])
+    assert s.accuracy == pytest.approx(4 / 6)
+    assert s.balanced_accuracy == pytest.approx((3 / 4 + 1 / 2) / 2)
+    assert s.confusion == {"coal": {"coal": 3, "gangue": 0, "missed": 1}, "gangue": {"coal": 1, "gangue": 1, "missed": 0}}
+    assert s.detected == 5
+    assert [b["n"] for b in s.by_size] == [4, 2]
+    assert s.by_size[1]["accuracy"] == pytest.approx(0.5)
+    # Data latency: from the true contact (0.999 s) to the newest stamp used (1.012 s).
+    assert s.data_latency_ms["median"] == pytest.approx(13.0)
+
+
+def test_match_takes_the_nearest_label_and_counts_the_rest():
+    labels = [{"impact_stamp": 1.0005}, {"impact_stamp": 1.3}, {"impact_stamp": 0.9995}]
+    best, extra = match(labels, 1.0, 0.002)
+    assert best["impact_stamp"] in (1.0005, 0.9995)
+    assert extra == 2
+    assert match(labels, 2.0, 0.002) == (None, 3)
+
+
+def test_logistic_fit_finds_the_boundary_and_temperature_undoes_overconfidence():
+    rng = np.random.default_rng(0)
+    x = rng.normal(0.0, 1.0, (2000, 1))
+    p = 1.0 / (1.0 + np.exp(-(2.0 * x[:, 0] - 1.0)))
+    y = (rng.uniform(size=p.size) < p).astype(float)
+    w = fit_logistic(x, y, l2=0.0)
+    assert w[0] == pytest.approx(2.0, rel=0.15)
+    assert w[1] == pytest.approx(-1.0, abs=0.2)
+    # Logits five times too large: the calibrating temperature is about five.
+    assert fit_temperature(5.0 * (2.0 * x[:, 0] - 1.0), y) == pytest.approx(5.0, rel=0.2)
+
+
+def test_evaluate_command_prints_figures_and_targets(capsys, tmp_path):
+    code = main(["evaluate", "--sets", "paper", "--count", "2", "--noise", "1", "--rates", "nominal",
+                 "--methods", "threshold,physics", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "paper" in out and "targets (issue 4)" in out
+    assert (tmp_path / "summary.json").is_file()
+    assert not math.isnan(float(out.split("compute per impact, worst group median ")[1].split(" ms")[0]))
+
+
+@pytest.mark.parametrize(("argv", "field"), [
+    (["evaluate", "--sets", "quarry"], "--sets"),
+    (["evaluate", "--methods", "svm"], "--methods"),
+    (["evaluate", "--noise", "-1"], "--noise"),
+    (["evaluate", "--plot"], "--plot"),
+])
+def test_evaluate_rejects_bad_options_in_one_line(capsys, argv, field):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and field in err
