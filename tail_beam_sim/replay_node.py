@@ -40,11 +40,15 @@ class ReplayNode(Node):
         period = require_range("replay.publish_period_s", params.get("publish_period_s"), 0.0, 10.0, low_open=True, unit="s")
         self.wait_for_subscribers = int(require_range("replay.wait_for_subscribers", params.get("wait_for_subscribers"), 0, 1000))
         depth = int(require_range("replay.qos_depth", params.get("qos_depth"), 1, 1e6))
-        self._messages: Iterator[RawMessage] = raw_messages(params["bag_path"], topics.MSG_TYPES)
+        chosen = list(params.get("topics") or [])
+        unknown = sorted(set(chosen) - set(topics.MSG_TYPES))
+        if unknown or not chosen:
+            raise InputError("replay.topics", chosen, f"must name some of {', '.join(topics.MSG_TYPES)}")
+        self._messages: Iterator[RawMessage] = raw_messages(params["bag_path"], chosen)
         self._next: RawMessage | None = next(self._messages)  # opens the bag: errors surface here
         qos = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
         self._pubs = {
-            topic: self.create_publisher(ros_messages.message_class(msgtype), topic, qos) for topic, msgtype in topics.MSG_TYPES.items()
+            topic: self.create_publisher(ros_messages.message_class(topics.MSG_TYPES[topic]), topic, qos) for topic in chosen
         }
         self._clock_pub = self.create_publisher(Clock, "/clock", 10) if params.get("publish_clock") else None
         self._origin: tuple[float, int] | None = None  # (wall s, log ns) of the first message
@@ -54,7 +58,8 @@ class ReplayNode(Node):
         self.get_logger().info(f"replaying {params['bag_path']} at rate {self.rate:g}")
 
     def _ready(self) -> bool:
-        return all(self._pubs[t].get_subscription_count() >= self.wait_for_subscribers for t in WAITED_TOPICS)
+        waited = [self._pubs[t] for t in WAITED_TOPICS if t in self._pubs]
+        return all(p.get_subscription_count() >= self.wait_for_subscribers for p in waited)
 
     def _tick(self) -> None:
         if self._next is None or not (self._origin or self._ready()):

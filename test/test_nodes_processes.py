@@ -1,0 +1,172 @@
+"""The installed executables as subprocesses (what ``ros2 run`` starts), in this run's own
+ROS_DOMAIN_ID (set by conftest, inherited by the children): record, replay, identify offline;
+a recorder killed with SIGKILL; SIGTERM; two supports in one domain."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from std_msgs.msg import String
+
+from rosprobe import Probe, ros_context, spin_until
+from tail_beam_id.cli.identify_cmd import identify_bag
+from tail_beam_id.identifier import available_methods
+from tail_beam_sim import topics
+from tail_beam_sim.bagread import raw_messages, read_sensors
+from tail_beam_sim.bagwrite import PARTIAL_DIR
+from tail_beam_sim.config import load_parameters
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+BIN = Path(sys.executable).parent
+COMPARED = ("impact_stamp", "label", "confidence", "method")
+
+
+def method() -> str:
+    """The configured identification method if registered, else the first registered one."""
+    configured = load_parameters()["identification"]["method"]
+    return configured if configured in available_methods() else available_methods()[0]
+
+
+class Processes:
+    """Starts executables with logs in a directory; stops whatever is left at the end."""
+
+    def __init__(self, log_dir: Path) -> None:
+        self.log_dir = log_dir
+        self.running: list[subprocess.Popen] = []
+
+    def start(self, exe: str, *params: str, ns: str = "") -> subprocess.Popen:
+        args = [str(BIN / exe), "--ros-args"] + [a for p in params for a in ("-p", p)]
+        if ns:
+            args += ["-r", f"__ns:={ns}"]
+        log = (self.log_dir / f"{exe}{ns.replace('/', '_')}_{len(self.running)}.log").open("w")
+        proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
+        self.running.append(proc)
+        return proc
+
+    def stop(self, proc: subprocess.Popen, sig: int = signal.SIGINT, timeout_s: float = 20.0) -> int:
+        proc.send_signal(sig)
+        return proc.wait(timeout=timeout_s)
+
+    def close(self) -> None:
+        for proc in self.running:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+
+
+@pytest.fixture
+def procs(tmp_path):
+    manager = Processes(tmp_path)
+    yield manager
+    manager.close()
+
+
+def short_scenario(count: int, *extra: str) -> list[str]:
+    return ["scenario.source:=generated", f"scenario.count:={count}", "sim_node.exit_after_idle_s:=0.5", *extra]
+
+
+def compared(labels):
+    return [tuple(label[k] for k in COMPARED) for label in labels]
+
+
+def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, procs):
+    bag = tmp_path / "live"
+    recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}")
+    ident = procs.start("id_node", f"method:={method()}", "id_node.flush_after_idle_s:=0.5")
+    sim = procs.start("sim_node", *short_scenario(4, "sim_node.wait_for_subscribers:=2"))
+    assert sim.wait(timeout=60) == 0
+    time.sleep(1.5)  # the last labels follow the data's end by flush_after_idle_s
+    assert procs.stop(ident) == 0
+    assert procs.stop(recorder) == 0  # SIGINT: the bag is closed
+    assert not (bag / PARTIAL_DIR).exists()
+    recorded = read_sensors(bag)
+    offline = identify_bag(str(bag), method())
+    live = recorded.json_topics[topics.LABEL]
+    assert len(recorded.json_topics[topics.IMPACT_TRUTH]) == 4
+    assert len(offline) >= 1
+    assert compared(live) == compared(offline)
+    # Every sample from stamp 0 on reached the recorder: consecutive stamps, none missing.
+    rate = load_parameters()["sensors"]["pressure_rate_hz"]
+    assert recorded.pressure_stamp_s[0] == 0.0
+    np.testing.assert_allclose(np.diff(recorded.pressure_stamp_s), 1.0 / rate, atol=1e-9)
+
+    # Replay the sensor topics (not the recorded labels) into a fresh id_node.
+    with ros_context() as (context, executor):
+        probe = Probe(context, {topics.LABEL: String})
+        executor.add_node(probe)
+        ident2 = procs.start("id_node", f"method:={method()}", "id_node.flush_after_idle_s:=0.5")
+        replay = procs.start(
+            "bag_replay", f"replay.bag_path:={bag}", "replay.rate:=2.0", "replay.wait_for_subscribers:=1",
+            "replay.topics:=[jack_pressure, imu, rebound_velocity]",
+        )
+        assert spin_until(executor, lambda: replay.poll() is not None, timeout_s=60) and replay.returncode == 0
+        assert spin_until(executor, lambda: len(probe.messages[topics.LABEL]) >= len(offline), timeout_s=20)
+        replayed = probe.json(topics.LABEL)
+        procs.stop(ident2)
+    assert compared(replayed) == compared(offline)
+
+
+def test_recorder_killed_with_sigkill_leaves_all_but_the_last_seconds_readable(tmp_path, procs):
+    bag = tmp_path / "killed"
+    recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}", "recorder.segment_s:=0.5")
+    sim = procs.start("sim_node", *short_scenario(30, "sim_node.wait_for_subscribers:=1"))
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and not any((bag / PARTIAL_DIR).glob("*")) if bag.exists() else True:
+        time.sleep(0.1)
+    time.sleep(4.0)  # a few segments of real-time data
+    killed_ns = time.time_ns()
+    recorder.kill()
+    recorder.wait()
+    procs.stop(sim)
+    log_times = [raw.log_time_ns for raw in raw_messages(bag, [topics.JACK_PRESSURE])]
+    assert killed_ns - log_times[-1] < 2e9, "more than the last 2 s was lost"
+    data = read_sensors(bag, required=(topics.JACK_PRESSURE, topics.IMU))
+    rate = load_parameters()["sensors"]["pressure_rate_hz"]
+    assert data.pressure_stamp_s.size > 2.0 * rate
+    np.testing.assert_allclose(np.diff(data.pressure_stamp_s), 1.0 / rate, atol=1e-9)  # no hole in what is there
+    result = subprocess.run([str(BIN / "tail-beam"), "bag", "repair", str(bag)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    repaired = read_sensors(bag, required=(topics.JACK_PRESSURE,))
+    assert repaired.pressure_stamp_s.size >= data.pressure_stamp_s.size and not repaired.partial
+
+
+def test_sigterm_closes_a_valid_sqlite3_bag(tmp_path, procs):
+    bag = tmp_path / "terminated"
+    recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}", "recorder.storage:=sqlite3")
+    sim = procs.start("sim_node", *short_scenario(2, "sim_node.wait_for_subscribers:=1"))
+    assert sim.wait(timeout=60) == 0
+    time.sleep(0.5)
+    assert procs.stop(recorder, signal.SIGTERM) == 0
+    assert sorted(p.suffix for p in bag.iterdir() if p.is_file()) == [".db3"] * (len(list(bag.glob("*.db3")))) + [".yaml"]
+    data = read_sensors(bag)
+    assert len(data.json_topics[topics.IMPACT_TRUTH]) == 2 and len(data.rebounds) == 2
+
+
+def test_two_supports_in_one_domain_do_not_mix(procs):
+    supports = {"/support_01": ("0.5", 2), "/support_02": ("0.8", 3)}
+    watched = {f"{ns}/{topic}": String for ns in supports for topic in (topics.IMPACT_TRUTH, topics.LABEL)}
+    with ros_context() as (context, executor):
+        probe = Probe(context, watched)
+        executor.add_node(probe)
+        for ns, (start, count) in supports.items():
+            procs.start("id_node", f"method:={method()}", "id_node.flush_after_idle_s:=0.5", ns=ns)
+            procs.start("sim_node", *short_scenario(count, f"scenario.start_s:={start}", "sim_node.wait_for_subscribers:=1"), ns=ns)
+        total = sum(count for _, count in supports.values())
+        assert spin_until(executor, lambda: sum(len(probe.messages[f"{ns}/{topics.IMPACT_TRUTH}"]) for ns in supports) == total, 60)
+        spin_until(executor, lambda: sum(len(probe.messages[f"{ns}/{topics.LABEL}"]) for ns in supports) >= total, 15)
+        for ns, (start, count) in supports.items():
+            truths = probe.json(f"{ns}/{topics.IMPACT_TRUTH}")
+            assert len(truths) == count
+            assert truths[0]["contact_start_stamp"] == pytest.approx(float(start))
+            own = [t["contact_start_stamp"] for t in truths]
+            labels = probe.json(f"{ns}/{topics.LABEL}")
+            assert labels, f"no label in {ns}"
+            for label in labels:  # every label is of this support's own impacts (the other's are >= 0.2 s away)
+                assert min(abs(label["impact_stamp"] - s) for s in own) < 0.02, (ns, label["impact_stamp"], own)
