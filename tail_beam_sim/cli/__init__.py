@@ -21,6 +21,7 @@ SUBCOMMANDS = {
     "evaluate": "tail_beam_id.cli.evaluate_cmd",
     "identify": "tail_beam_id.cli.identify_cmd",
     "bag": "tail_beam_sim.cli.bag_cmd",
+    "demo": "tail_beam_sim.cli.demo_cmd",
     "bench": "tail_beam_sim.cli.bench_cmd",
 }
 
