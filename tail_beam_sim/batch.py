@@ -1,12 +1,14 @@
 """Many impacts at once, vectorised with numpy: summaries and full sensor streams for data sets.
 
-Each impact is taken as the impulse tier takes it (see solvers/impulse.py): the contact's
-duration, peak force and restitution come from the pre-integrated pulse table (interpolated in
-chi for every impact at once), the particle leaves with the relative restitution the contact
-law delivers, and the structure (rigid, or with bending modes) rings from the impulse
-J = mu (1 + e) v applied at the pulse's centroid, evaluated in closed form on its eigenvalues.
-A structure response is linear in J and in the contact shape, so the per-impact work is a
-handful of array operations and one small complex matrix product per sensor.
+Each impact's contact comes from the pre-integrated pulse table (interpolated in chi for every
+impact at once): duration, peak force and the relative restitution the contact law delivers,
+so the impulse J = mu (1 + e) v. Summaries take the structure's response to J as an impulse
+(the peak jack pressure is the rigid mode's, which sees any 0.1-1 ms pulse as one). Streams
+feed each mode the pulse's own spectrum at that mode (:func:`pulse_spectrum`), so that bending
+modes as fast as the contact ring after it exactly as the pulse leaves them. Both evaluate the
+structure in closed form on its eigenvalues; the response is linear in J and in the contact
+shape, so the per-impact work is a handful of array operations and one small complex matrix
+product per signal.
 
 What the batch leaves out: re-contacts (flagged in ``recontact_possible``, by the same bound on
 the plate's speed as the hybrid solver uses: re-run those with ``simulate``) and the crushing
@@ -119,6 +121,8 @@ class Contacts:
     relative_restitution: np.ndarray
     impulse_ns: np.ndarray
     rebound_mps: np.ndarray
+    table_row: np.ndarray
+    table_weight: np.ndarray
 
 
 def contact_chi(restitution: np.ndarray, contact_model: str) -> np.ndarray:
@@ -156,7 +160,7 @@ def contacts(
     return Contacts(
         chi=chi, reduced_mass_kg=reduced, duration_s=duration, centroid_s=blend(table.centroid) * duration,
         peak_force_n=blend(table.peak_force) * batch.hertz_stiffness * length**1.5, relative_restitution=relative,
-        impulse_ns=impulse, rebound_mps=impulse / batch.mass_kg - speed,
+        impulse_ns=impulse, rebound_mps=impulse / batch.mass_kg - speed, table_row=i, table_weight=w,
     )
 
 
@@ -196,6 +200,21 @@ class PositionTable:
 
     def shape(self, position_m: np.ndarray) -> np.ndarray:
         return np.stack([self._at(self.shapes[:, j], position_m) for j in range(self.shapes.shape[1])], axis=1)
+
+
+def pulse_spectrum(c: Contacts, eigenvalues: np.ndarray, chunk: int = 4096) -> np.ndarray:
+    """(N, 2n): int F(s) e^{-lambda_k s} ds / int F(s) ds over each impact's pulse (s from contact
+    start). A mode fed this instead of the bare impulse J rings after the contact exactly as the
+    pulse leaves it (1 for slow modes, less for modes as fast as the contact)."""
+    table = pulse_table()
+    out = np.empty((c.duration_s.size, eigenvalues.size), dtype=complex)
+    for start in range(0, c.duration_s.size, chunk):
+        rows, w = c.table_row[start : start + chunk], c.table_weight[start : start + chunk, None]
+        force = (1 - w) * table.rows[rows, 2] + w * table.rows[rows + 1, 2]
+        times = c.duration_s[start : start + chunk, None] * table.fractions[None, :]
+        phase = np.exp(-eigenvalues[None, :, None] * times[:, None, :])
+        out[start : start + chunk] = np.einsum("nj,nkj->nk", force, phase) / force.sum(axis=1)[:, None]
+    return out
 
 
 def _modal_start(structure: LinearStructure, shapes: np.ndarray, impulse: np.ndarray) -> np.ndarray:
@@ -247,13 +266,14 @@ def streams(
     modal = _modal_start(structure, shapes, c.impulse_ns)
     slowest_period = 1.0 / min(sensors.pressure_rate_hz, sensors.imu_rate_hz)
     offset = rng.uniform(0.0, slowest_period, batch.size)
-    impulse_time = offset + c.centroid_s
-    shifted = modal * np.exp(np.outer(-impulse_time, eigenvalues))  # (N, 2n): each impact's own clock
+    contact_end = offset + c.duration_s
+    shifted = modal * pulse_spectrum(c, eigenvalues) * np.exp(np.outer(-offset, eigenvalues))  # (N, 2n): each impact's own clock
 
     def rows(weights: np.ndarray, times: np.ndarray) -> np.ndarray:
-        """sum_k weights_k x_k(t) of every impact at ``times`` (zero before its impulse), (N, T)."""
+        """sum_k weights_k x_k(t) of every impact at ``times``, (N, T): exact after its contact,
+        zero before it, and during it (0.1-1 ms) the response as if the contact had ended."""
         values = ((shifted * weights) @ np.exp(np.outer(eigenvalues, times))).real
-        return values * (times[None, :] >= impulse_time[:, None])
+        return values * (times[None, :] >= contact_end[:, None] - c.duration_s[:, None])
 
     out: dict[str, np.ndarray] = {"contact_offset_s": offset}
     times = np.arange(int(round(window_s * sensors.pressure_rate_hz))) / sensors.pressure_rate_hz
