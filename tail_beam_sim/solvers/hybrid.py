@@ -24,6 +24,7 @@ came) is refined with twice the steps, up to ``MAX_REFINEMENTS`` times, then ref
 from __future__ import annotations
 
 import math
+from functools import cached_property
 
 import numpy as np
 from scipy.optimize import brentq
@@ -31,7 +32,7 @@ from scipy.optimize import brentq
 from tail_beam_sim.contact import hertz_elastic_impact
 from tail_beam_sim.solvers.dynamics import FloatDynamics
 from tail_beam_sim.solvers.problem import ContactRecord, ContactSegment, FreeSegment, ImpactProblem, SolverError, Trajectory
-from tail_beam_sim.solvers.pulse import contact_pulse, max_chi, parabolic_peak, structure_response
+from tail_beam_sim.solvers.pulse import Pulse, contact_pulse, max_chi, parabolic_peak, pulse_integral, structure_response
 
 DEFAULT_STEPS_PER_CONTACT = 48
 REST_SPEED_MPS = 1e-4  # relative approach speed below which a particle is taken to lie on the plate
@@ -66,7 +67,7 @@ def solve(
     g = problem.gravity_mps2
     q, qd = problem.q0.astype(float), problem.qd0.astype(float)
     z, zd = 0.0, -problem.impact_speed_mps
-    segments: list[ContactSegment | FreeSegment] = [FreeSegment(-math.inf, 0.0, 0.0, q, qd, z, zd)]
+    segments: list[ContactSegment | PulseSegment | FreeSegment] = [FreeSegment(-math.inf, 0.0, 0.0, q, qd, z, zd)]
     contacts: list[ContactRecord] = []
     t = 0.0
     at_rest = False
@@ -86,8 +87,11 @@ def solve(
         segments.append(segment)
         contacts.append(record)
         t = record.end_s
-        q, qd = segment.q[:, -1].copy(), segment.qd[:, -1].copy()
-        z, zd = float(segment.z_m[-1]), float(segment.zd_mps[-1])
+        if isinstance(segment, PulseSegment):
+            q, qd, z, zd = segment.end_state
+        else:
+            q, qd = segment.q[:, -1].copy(), segment.qd[:, -1].copy()
+            z, zd = float(segment.z_m[-1]), float(segment.zd_mps[-1])
         if problem.crushing is not None:
             z = -float(b @ q)  # the crushed cap breaks away: the particle's new lowest point is on the surface
         separating = zd + float(b @ qd)
@@ -110,31 +114,80 @@ def solve(
 
 def pulse_contact(
     problem: ImpactProblem, t0: float, q0: np.ndarray, qd0: np.ndarray, z0: float, zd0: float
-) -> tuple[ContactSegment, ContactRecord, float]:
-    """One contact as the universal pulse driving the structure, with its relative error estimate."""
+) -> tuple[PulseSegment, ContactRecord, float]:
+    """One contact as the universal pulse driving the structure, with its relative error estimate.
+
+    Only the state at the end of the contact is computed here (exactly, from the pulse's
+    integral against each mode); the states through the contact wait until someone samples
+    them (:class:`PulseSegment`). The estimate bounds the relative acceleration the pulse leaves
+    out, gravity plus the plate's spring and damping forces, by g + sum_k |r_k| (|xi_k(0)| +
+    |beta_k| J) (modes never grow), and turns it into relative errors of the separation speed
+    (a T / v) and of the penetration (a T^2 / 2 delta_max).
+    """
     structure = problem.structure
     b = problem.contact_shape
     n = structure.size
+    eigenvalues, vectors, inverse = structure._eigen
     load = structure.inv_mass @ b
     effective_mass = 1.0 / float(b @ load)
     reduced_mass = problem.mass_kg * effective_mass / (problem.mass_kg + effective_mass)
     approach = max(-zd0 - float(b @ qd0), 1e-12)
     pulse = contact_pulse(problem.damping_factor, problem.hertz_stiffness, reduced_mass, approach)
-    t = pulse.t_s + t0
-    x = structure_response(structure._eigen, load, np.concatenate([q0, qd0]), t, pulse.force_n)
-    q, qd = x[:n], x[n:]
-    internal = structure.inv_mass @ (structure.damping @ qd + structure.stiffness @ q)
-    # Relative acceleration the pulse leaves out: gravity on the particle and the plate's own forces.
-    neglected = float(np.abs(b @ internal + problem.gravity_mps2).max())
-    duration = float(pulse.t_s[-1])
-    estimate = neglected * max(duration / approach, duration * duration / (2.0 * float(pulse.penetration_m.max())))
-    zd = -(b @ qd) - pulse.rate_mps
-    segment = ContactSegment(
-        t_s=t, q=q, qd=qd, qdd=load[:, None] * pulse.force_n - internal,
-        z_m=-(b @ q) - pulse.penetration_m, zd_mps=zd, force_n=pulse.force_n,
-    )
-    record = ContactRecord(t0, float(t[-1]), approach, float(zd[-1]), pulse.peak_force_n)
+    x0 = np.concatenate([q0, qd0])
+    modal0 = inverse @ x0
+    beta = inverse[:, n:] @ load
+    duration = pulse.duration_s
+    modal_end = np.exp(eigenvalues * duration) * (modal0 + beta * pulse_integral(eigenvalues, pulse.t_s, pulse.force_n))
+    x_end = (vectors @ modal_end).real
+    q, qd = x_end[:n], x_end[n:]
+    internal_rows = b @ (structure.inv_mass @ (structure.stiffness @ vectors[:n] + structure.damping @ vectors[n:]))
+    impulse = reduced_mass * (approach + pulse.separation_mps)
+    neglected = abs(problem.gravity_mps2) + float(np.abs(internal_rows) @ (np.abs(modal0) + np.abs(beta) * impulse))
+    estimate = neglected * max(duration / approach, duration * duration / (2.0 * pulse.max_penetration_m))
+    t_end = t0 + duration
+    segment = PulseSegment(problem, t0, x0, pulse)
+    zd_end = -float(b @ qd) + pulse.separation_mps
+    record = ContactRecord(t0, t_end, approach, zd_end, pulse.peak_force_n)
+    end_state = (q, qd, -float(b @ q), zd_end)
+    segment.end_state = end_state
     return segment, record, estimate
+
+
+class PulseSegment:
+    """The states through a contact taken as a pulse, computed when first sampled: the same
+    attributes as :class:`ContactSegment` (``t_s``, ``q``, ``qd``, ``qdd``, ``z_m``, ``zd_mps``,
+    ``force_n``), from the exact response of the structure to the piecewise-linear pulse."""
+
+    end_state: tuple[np.ndarray, np.ndarray, float, float]
+
+    def __init__(self, problem: ImpactProblem, t0: float, x0: np.ndarray, pulse: Pulse) -> None:
+        self.problem, self.x0, self.pulse = problem, x0, pulse
+        self.start_s = t0
+
+    @cached_property
+    def t_s(self) -> np.ndarray:
+        return self.pulse.t_s + self.start_s
+
+    @property
+    def force_n(self) -> np.ndarray:
+        return self.pulse.force_n
+
+    @cached_property
+    def _states(self) -> tuple[np.ndarray, ...]:
+        structure = self.problem.structure
+        b = self.problem.contact_shape
+        n = structure.size
+        load = structure.inv_mass @ b
+        x = structure_response(structure._eigen, load, self.x0, self.t_s, self.pulse.force_n)
+        q, qd = x[:n], x[n:]
+        qdd = load[:, None] * self.pulse.force_n - structure.inv_mass @ (structure.damping @ qd + structure.stiffness @ q)
+        return q, qd, qdd, -(b @ q) - self.pulse.penetration_m, -(b @ qd) - self.pulse.rate_mps
+
+    q = property(lambda self: self._states[0])
+    qd = property(lambda self: self._states[1])
+    qdd = property(lambda self: self._states[2])
+    z_m = property(lambda self: self._states[3])
+    zd_mps = property(lambda self: self._states[4])
 
 
 def contact_phase(

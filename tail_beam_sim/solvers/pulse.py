@@ -18,7 +18,7 @@ from __future__ import annotations
 import cmath
 from bisect import bisect_right
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -33,7 +33,8 @@ class PulseTable:
     """Dimensionless contact pulses on a grid of chi. ``rows[i]`` holds, at the fractions
     ``fractions`` of row i's duration, the penetration u, its rate u' and the force
     f = u^1.5 (1 + chi u') (shape (chi, 3, PULSE_NODES + 1)); per row also the duration, the
-    delivered restitution, the peak force and the force centroid as a fraction of the duration."""
+    delivered restitution, the peak force, the force centroid as a fraction of the duration and
+    the largest sampled penetration."""
 
     chi: np.ndarray
     duration: np.ndarray
@@ -42,6 +43,7 @@ class PulseTable:
     fractions: np.ndarray
     peak_force: np.ndarray
     centroid: np.ndarray
+    peak_penetration: np.ndarray
 
 
 def _rk4_rows(chi: np.ndarray, u: np.ndarray, v: np.ndarray, dt: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
@@ -89,7 +91,7 @@ def pulse_table() -> PulseTable:
     rows = np.stack([u_nodes, v_nodes, force], axis=1)
     fractions = np.linspace(0.0, 1.0, PULSE_NODES + 1)
     peaks = np.array([parabolic_peak(row) for row in force])
-    return PulseTable(chi, duration, -v_nodes[:, -1], rows, fractions, peaks, force @ fractions / force.sum(axis=1))
+    return PulseTable(chi, duration, -v_nodes[:, -1], rows, fractions, peaks, force @ fractions / force.sum(axis=1), u_nodes.max(axis=1))
 
 
 def _hermite_zero(u0: float, v0: float, u1: float, v1: float, h: float) -> float:
@@ -102,23 +104,50 @@ def _hermite_zero(u0: float, v0: float, u1: float, v1: float, h: float) -> float
     return 0.5 * (low + high)
 
 
+@lru_cache(maxsize=1)
 def max_chi() -> float:
     """The largest hysteresis factor the table covers."""
     return float(pulse_table().chi[-1])
 
 
-@dataclass(frozen=True)
 class Pulse:
-    """A contact pulse in physical units: times from contact start (s), relative penetration (m)
-    and its rate (m/s), force (N), the relative separation speed (m/s) and the peak force (N),
-    refined between the samples by a parabola."""
+    """A contact pulse in physical units, blended from the table rows ``row`` and ``row + 1``
+    with weight ``weight``: its scalars at once (duration s, relative separation speed m/s, peak
+    force N, refined between samples by a parabola, largest penetration m) and its samples on demand (times
+    from contact start s, relative penetration m and its rate m/s, force N)."""
 
-    t_s: np.ndarray
-    penetration_m: np.ndarray
-    rate_mps: np.ndarray
-    force_n: np.ndarray
-    separation_mps: float
-    peak_force_n: float
+    def __init__(self, row: int, weight: float, length_m: float, approach_mps: float, hertz_stiffness: float) -> None:
+        table = pulse_table()
+        self.row, self.weight = row, weight
+        self.length_m, self.approach_mps = length_m, approach_mps
+        self.force_scale_n = hertz_stiffness * length_m**1.5
+        self.duration_s = self._blend(table.duration) * length_m / approach_mps
+        self.separation_mps = approach_mps * self._blend(table.restitution)
+        self.peak_force_n = self.force_scale_n * self._blend(table.peak_force)
+        self.max_penetration_m = length_m * self._blend(table.peak_penetration)
+
+    def _blend(self, values: np.ndarray) -> float:
+        return (1 - self.weight) * float(values[self.row]) + self.weight * float(values[self.row + 1])
+
+    def _rows(self, k: int) -> np.ndarray:
+        rows = pulse_table().rows
+        return (1 - self.weight) * rows[self.row, k] + self.weight * rows[self.row + 1, k]
+
+    @cached_property
+    def t_s(self) -> np.ndarray:
+        return pulse_table().fractions * self.duration_s
+
+    @cached_property
+    def force_n(self) -> np.ndarray:
+        return self._rows(2) * self.force_scale_n
+
+    @cached_property
+    def penetration_m(self) -> np.ndarray:
+        return self._rows(0) * self.length_m
+
+    @cached_property
+    def rate_mps(self) -> np.ndarray:
+        return self._rows(1) * self.approach_mps
 
 
 def contact_pulse(chi: float, hertz_stiffness: float, reduced_mass_kg: float, approach_mps: float) -> Pulse:
@@ -126,20 +155,8 @@ def contact_pulse(chi: float, hertz_stiffness: float, reduced_mass_kg: float, ap
     table = pulse_table()
     i = min(max(bisect_right(_chi_list(), chi) - 1, 0), table.chi.size - 2)
     lo, hi = float(table.chi[i]), float(table.chi[i + 1])
-    w = (chi - lo) / (hi - lo)
     length = (reduced_mass_kg * approach_mps**2 / hertz_stiffness) ** 0.4
-    duration_s = ((1 - w) * float(table.duration[i]) + w * float(table.duration[i + 1])) * length / approach_mps
-    scale = np.array([[length], [approach_mps], [hertz_stiffness * length**1.5]])
-    rows = ((1 - w) * table.rows[i] + w * table.rows[i + 1]) * scale
-    force = rows[2]
-    return Pulse(
-        t_s=table.fractions * duration_s,
-        penetration_m=rows[0],
-        rate_mps=rows[1],
-        force_n=force,
-        separation_mps=approach_mps * ((1 - w) * float(table.restitution[i]) + w * float(table.restitution[i + 1])),
-        peak_force_n=parabolic_peak(force),
-    )
+    return Pulse(i, (chi - lo) / (hi - lo), length, approach_mps, hertz_stiffness)
 
 
 @lru_cache(maxsize=1)
@@ -167,6 +184,16 @@ def _segment_weights(lam_h: complex, h: float) -> tuple[complex, complex]:
         total = h * grown / lam_h
         phi_b = h * (grown - lam_h) / lam_h**2
     return total - phi_b, phi_b
+
+
+def pulse_integral(eigenvalues: np.ndarray, t_s: np.ndarray, force_n: np.ndarray) -> np.ndarray:
+    """int_0^T F(s) e^{-lambda_k s} ds per eigenvalue, F piecewise linear on uniform ``t_s``
+    from 0 (exact, the same quadrature as :func:`structure_response`)."""
+    h = float(t_s[1] - t_s[0])
+    # on [t_j, t_j + h]: e^{-lam t_j} (F_j int e^{-lam u}(1 - u/h) du + F_{j+1} int e^{-lam u} u/h du)
+    weights = np.array([_segment_weights(-complex(lam) * h, h) for lam in eigenvalues])
+    decay = np.exp(np.outer(-eigenvalues, t_s[:-1]))
+    return decay @ force_n[1:] * weights[:, 0] + decay @ force_n[:-1] * weights[:, 1]
 
 
 def structure_response(
