@@ -59,8 +59,13 @@ class LinearStructure:
         system[n:, :n] = -inv_mass @ self.stiffness
         system[n:, n:] = -inv_mass @ self.damping
         eigenvalues, vectors = np.linalg.eig(system)
-        object.__setattr__(self, "_eigen", (eigenvalues, vectors, np.linalg.inv(vectors)))
+        inverse = np.linalg.inv(vectors)
+        object.__setattr__(self, "_eigen", (eigenvalues, vectors, inverse))
         object.__setattr__(self, "inv_mass", inv_mass)
+        # Per-structure products the solvers need for every impact (modal coordinates xi, x = V xi):
+        # xi gained per unit generalised force, and q'' from the structure's own forces per unit xi.
+        object.__setattr__(self, "modal_input", inverse[:, n:] @ inv_mass)
+        object.__setattr__(self, "modal_internal", inv_mass @ (self.stiffness @ vectors[:n] + self.damping @ vectors[n:]))
 
     @property
     def size(self) -> int:

@@ -135,12 +135,12 @@ def pulse_contact(
     pulse = contact_pulse(problem.damping_factor, problem.hertz_stiffness, reduced_mass, approach)
     x0 = np.concatenate([q0, qd0])
     modal0 = inverse @ x0
-    beta = inverse[:, n:] @ load
+    beta = structure.modal_input @ b
     duration = pulse.duration_s
     modal_end = np.exp(eigenvalues * duration) * (modal0 + beta * pulse_integral(eigenvalues, pulse.t_s, pulse.force_n))
     x_end = (vectors @ modal_end).real
     q, qd = x_end[:n], x_end[n:]
-    internal_rows = b @ (structure.inv_mass @ (structure.stiffness @ vectors[:n] + structure.damping @ vectors[n:]))
+    internal_rows = b @ structure.modal_internal
     impulse = reduced_mass * (approach + pulse.separation_mps)
     neglected = abs(problem.gravity_mps2) + float(np.abs(internal_rows) @ (np.abs(modal0) + np.abs(beta) * impulse))
     estimate = neglected * max(duration / approach, duration * duration / (2.0 * pulse.max_penetration_m))
