@@ -31,6 +31,8 @@ from tail_beam_sim.solvers import ImpactProblem, Trajectory, solve
 REFERENCE_RTOL = 1e-11
 BASELINE = ("Radau", {"rtol": 1e-8})
 METRICS = ("rebound", "peak_force", "peak_pressure", "imu_l2")
+MIN_TIMED_S = 0.3  # time spent timing a fast setting, s
+MAX_RUNS = 2000
 
 # (solver, options) of the default run and the extra settings of --full.
 QUICK_SETTINGS: list[tuple[str, dict[str, Any]]] = [
@@ -72,12 +74,13 @@ class Row:
 
     @property
     def spread(self) -> float:
-        """(max - min) / median of the repeated timings."""
-        return (max(self.times_s) - min(self.times_s)) / self.median_s if self.median_s > 0 else 0.0
+        """Spread of the repeated timings over their median: 10-90 % range (max - min under 10 runs)."""
+        low, high = np.percentile(self.times_s, [10, 90]) if len(self.times_s) >= 10 else (min(self.times_s), max(self.times_s))
+        return float(high - low) / self.median_s if self.median_s > 0 else 0.0
 
     def as_dict(self) -> dict[str, Any]:
         return {
-            "name": self.name, "setting": self.setting, "median_s": self.median_s, "spread": self.spread,
+            "name": self.name, "setting": self.setting, "median_s": self.median_s, "spread": self.spread, "runs": len(self.times_s),
             "ratio_to_radau_1e-8": self.ratio, "pareto": self.pareto, **{f"err_{k}": v for k, v in self.errors.items()}, **self.extra,
         }
 
@@ -87,10 +90,12 @@ def describe(options: dict[str, Any]) -> str:
 
 
 def timed(function: Callable[[], Any], repeats: int) -> tuple[list[float], Any]:
-    """Wall times of ``repeats`` calls (after one warm-up call) and the last result."""
+    """Wall times of at least ``repeats`` calls after one warm-up call, more for fast functions
+    (until MIN_TIMED_S of timing or MAX_RUNS), so that one preempted run cannot move the
+    median; and the last result."""
     result = function()
-    times = []
-    for _ in range(repeats):
+    times: list[float] = []
+    while len(times) < repeats or (sum(times) < MIN_TIMED_S and len(times) < MAX_RUNS):
         start = time.perf_counter()
         result = function()
         times.append(time.perf_counter() - start)

@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("bench", help="time and error of every solver and tier against a converged reference, charted")
     add_impact_options(parser)
     parser.add_argument("--full", action="store_true", help="more settings (finer steps, looser and tighter tolerances) and 5 repeats")
-    parser.add_argument("--repeats", type=int, help="timed runs per setting after a warm-up (default 3, 5 with --full)")
+    parser.add_argument("--repeats", type=int, help="at least this many timed runs per setting after a warm-up, more for fast ones (default 3, 5 with --full)")
     parser.add_argument("--structure", choices=("rigid", "modal"), default="rigid", help="structure of the solver comparison (default rigid)")
     parser.add_argument("--solvers", nargs="+", metavar="NAME", help="only these solvers (Radau at rtol 1e-8 is always kept as the baseline)")
     parser.add_argument("--batch-impacts", type=int, default=100_000, help="impacts in the batch summaries run (streams: a tenth); 0 skips the batch")
@@ -98,7 +98,7 @@ def print_report(report: dict[str, Any], rows: list[bench.Row], tier_rows: list[
     scene = report["scene"]
     print(
         f"{scene['material']} R = {scene['radius_m'] * 1e3:g} mm at {scene['impact_speed_mps']:.3f} m/s, {scene['position_m']:g} m from the hinge; "
-        f"{report['structure']} structure; median of {report['repeats']} runs; errors against Radau rtol {report['reference_rtol']:g} "
+        f"{report['structure']} structure; median of >= {report['repeats']} runs (fast settings: {bench.MIN_TIMED_S:g} s of runs); errors against Radau rtol {report['reference_rtol']:g} "
         f"(its own error bound {report['reference_error_bound']:.1e}); Radau rtol 1e-8 took {report['radau_1e-8_median_s'] * 1e3:.1f} ms"
     )
     print(_table(rows))
