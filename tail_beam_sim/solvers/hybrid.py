@@ -32,7 +32,7 @@ from scipy.optimize import brentq
 from tail_beam_sim.contact import hertz_elastic_impact
 from tail_beam_sim.solvers.dynamics import FloatDynamics
 from tail_beam_sim.solvers.problem import ContactRecord, ContactSegment, FreeSegment, ImpactProblem, SolverError, Trajectory
-from tail_beam_sim.solvers.pulse import Pulse, contact_pulse, max_chi, parabolic_peak, pulse_integral, structure_response
+from tail_beam_sim.solvers.pulse import Pulse, contact_pulse, max_chi, parabolic_peak, structure_response
 
 DEFAULT_STEPS_PER_CONTACT = 48
 REST_SPEED_MPS = 1e-4  # relative approach speed below which a particle is taken to lie on the plate
@@ -87,8 +87,10 @@ def solve(
         segments.append(segment)
         contacts.append(record)
         t = record.end_s
+        modal = None
         if isinstance(segment, PulseSegment):
             q, qd, z, zd = segment.end_state
+            modal = segment.end_modal
         else:
             q, qd = segment.q[:, -1].copy(), segment.qd[:, -1].copy()
             z, zd = float(segment.z_m[-1]), float(segment.zd_mps[-1])
@@ -99,7 +101,7 @@ def solve(
             at_rest = True
             segments.append(FreeSegment(t, math.inf, t, q, qd, z, zd))
             break
-        next_contact = next_contact_time(problem, t, q, qd, z, zd)
+        next_contact = next_contact_time(problem, t, q, qd, z, zd, modal)
         if next_contact is None:
             segments.append(FreeSegment(t, math.inf, t, q, qd, z, zd))
             break
@@ -137,7 +139,7 @@ def pulse_contact(
     modal0 = inverse @ x0
     beta = structure.modal_input @ b
     duration = pulse.duration_s
-    modal_end = np.exp(eigenvalues * duration) * (modal0 + beta * pulse_integral(eigenvalues, pulse.t_s, pulse.force_n))
+    modal_end = np.exp(eigenvalues * duration) * (modal0 + beta * pulse.spectrum(eigenvalues))
     x_end = (vectors @ modal_end).real
     q, qd = x_end[:n], x_end[n:]
     internal_rows = b @ structure.modal_internal
@@ -148,8 +150,8 @@ def pulse_contact(
     segment = PulseSegment(problem, t0, x0, pulse)
     zd_end = -float(b @ qd) + pulse.separation_mps
     record = ContactRecord(t0, t_end, approach, zd_end, pulse.peak_force_n)
-    end_state = (q, qd, -float(b @ q), zd_end)
-    segment.end_state = end_state
+    segment.end_state = (q, qd, -float(b @ q), zd_end)
+    segment.end_modal = modal_end
     return segment, record, estimate
 
 
@@ -158,7 +160,8 @@ class PulseSegment:
     attributes as :class:`ContactSegment` (``t_s``, ``q``, ``qd``, ``qdd``, ``z_m``, ``zd_mps``,
     ``force_n``), from the exact response of the structure to the piecewise-linear pulse."""
 
-    end_state: tuple[np.ndarray, np.ndarray, float, float]
+    end_state: tuple[np.ndarray, np.ndarray, float, float]  # q, qd, z (m), zd (m/s) as the contact ends
+    end_modal: np.ndarray  # the same state in the structure's modal coordinates
 
     def __init__(self, problem: ImpactProblem, t0: float, x0: np.ndarray, pulse: Pulse) -> None:
         self.problem, self.x0, self.pulse = problem, x0, pulse
@@ -286,27 +289,30 @@ def _crossing_fraction(before: tuple[float, float], after: tuple[float, float], 
     return float(brentq(cubic, 0.0, 1.0, xtol=1e-13))
 
 
-def plate_speed_bound_mps(problem: ImpactProblem, q0: np.ndarray, qd0: np.ndarray) -> float:
+def plate_speed_bound_mps(problem: ImpactProblem, q0: np.ndarray, qd0: np.ndarray, modal: np.ndarray | None = None) -> float:
     """An upper bound on the plate's speed at the contact point for all later free motion, m/s.
 
     The free response is a sum of decaying modes, b . qd(t) = Re sum_k r_k exp(lambda_k t) xi_k,
-    so sum |r_k xi_k| bounds it for all t >= 0.
+    so sum |r_k xi_k| bounds it for all t >= 0 (``modal``: the xi of (q0, qd0), if known).
     """
     eigenvalues, vectors, inverse = problem.structure._eigen
     n = problem.structure.size
-    modal = inverse @ np.concatenate([q0, qd0])
+    if modal is None:
+        modal = inverse @ np.concatenate([q0, qd0])
     rows = problem.contact_shape @ vectors[n:]
     return float(np.sum(np.abs(rows * modal)))
 
 
-def next_contact_time(problem: ImpactProblem, t0: float, q0: np.ndarray, qd0: np.ndarray, z0: float, zd0: float) -> float | None:
+def next_contact_time(
+    problem: ImpactProblem, t0: float, q0: np.ndarray, qd0: np.ndarray, z0: float, zd0: float, modal: np.ndarray | None = None
+) -> float | None:
     """First time in (t0, window] at which the free particle meets the moving plate, or None."""
     t_end = problem.window_s
     if t0 >= t_end:
         return None
     g = problem.gravity_mps2
     # gap' >= zd0 - V - g (t - t0), so the gap stays open over the window if this holds:
-    if zd0 - plate_speed_bound_mps(problem, q0, qd0) > 0.5 * g * (t_end - t0):
+    if zd0 - plate_speed_bound_mps(problem, q0, qd0, modal) > 0.5 * g * (t_end - t0):
         return None
     structure = problem.structure
     b = problem.contact_shape

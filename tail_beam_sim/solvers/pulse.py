@@ -21,11 +21,14 @@ from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
 import numpy as np
+from scipy.special import factorial
 
 PULSE_NODES = 64  # samples per contact: enough for cubic Hermite sampling to 1e-6 of the peak
 SUBSTEPS = 8  # RK4 steps between samples in the second pass
 FIRST_PASS_STEP = 0.02  # dimensionless RK4 step of the first pass (duration ~3.2 units elastic; 2e-6 relative)
 MAX_SPAN = 40.0  # dimensionless time limit of the first pass (chi = 40 lasts about 25 units)
+MOMENTS = 40  # moments of each pulse kept for its spectrum's power series
+SERIES_RADIUS = 6.0  # |lambda T| up to which the series is used (terms then fall below 1e-14 by m = 40)
 
 
 @dataclass(frozen=True)
@@ -44,6 +47,7 @@ class PulseTable:
     peak_force: np.ndarray
     centroid: np.ndarray
     peak_penetration: np.ndarray
+    moments: np.ndarray
 
 
 def _rk4_rows(chi: np.ndarray, u: np.ndarray, v: np.ndarray, dt: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
@@ -91,7 +95,20 @@ def pulse_table() -> PulseTable:
     rows = np.stack([u_nodes, v_nodes, force], axis=1)
     fractions = np.linspace(0.0, 1.0, PULSE_NODES + 1)
     peaks = np.array([parabolic_peak(row) for row in force])
-    return PulseTable(chi, duration, -v_nodes[:, -1], rows, fractions, peaks, force @ fractions / force.sum(axis=1), u_nodes.max(axis=1))
+    return PulseTable(
+        chi, duration, -v_nodes[:, -1], rows, fractions, peaks, force @ fractions / force.sum(axis=1), u_nodes.max(axis=1),
+        _moments(force, fractions) / factorial(np.arange(MOMENTS)),
+    )
+
+
+def _moments(force: np.ndarray, fractions: np.ndarray) -> np.ndarray:
+    """int_0^1 f(s) s^m ds, m < MOMENTS, of the piecewise-linear interpolant of each row (exact)."""
+    a, b = fractions[:-1], fractions[1:]
+    h = b - a
+    m = np.arange(MOMENTS)[:, None]
+    first = (b ** (m + 1) - a ** (m + 1)) / (m + 1)
+    second = (b ** (m + 2) - a ** (m + 2)) / (m + 2)
+    return force[:, :-1] @ ((b * first - second) / h).T + force[:, 1:] @ ((second - a * first) / h).T
 
 
 def _hermite_zero(u0: float, v0: float, u1: float, v1: float, h: float) -> float:
@@ -108,6 +125,9 @@ def _hermite_zero(u0: float, v0: float, u1: float, v1: float, h: float) -> float
 def max_chi() -> float:
     """The largest hysteresis factor the table covers."""
     return float(pulse_table().chi[-1])
+
+
+_POWERS = np.arange(MOMENTS)
 
 
 class Pulse:
@@ -132,6 +152,16 @@ class Pulse:
     def _rows(self, k: int) -> np.ndarray:
         rows = pulse_table().rows
         return (1 - self.weight) * rows[self.row, k] + self.weight * rows[self.row + 1, k]
+
+    def spectrum(self, eigenvalues: np.ndarray) -> np.ndarray:
+        """int_0^T F(s) e^{-lambda_k s} ds per eigenvalue, N s: a power series in lambda T over the
+        pulse's moments while |lambda T| <= SERIES_RADIUS, the quadrature beyond; both exact for
+        the piecewise-linear pulse, as :func:`structure_response` is."""
+        mu = eigenvalues * self.duration_s
+        if np.abs(mu).max() > SERIES_RADIUS:
+            return pulse_integral(eigenvalues, self.t_s, self.force_n)
+        moments = (1 - self.weight) * pulse_table().moments[self.row] + self.weight * pulse_table().moments[self.row + 1]
+        return (np.power.outer(-mu, _POWERS) @ moments) * (self.force_scale_n * self.duration_s)
 
     @cached_property
     def t_s(self) -> np.ndarray:
