@@ -35,6 +35,7 @@ class DetectionConfig:
     accel_threshold_sigma: float
     extend_threshold_sigma: float
     onset_threshold_sigma: float
+    onset_lookback_s: float
     baseline_window_s: float
     noise_block_s: float
     max_contact_s: float
@@ -59,6 +60,7 @@ class DetectionConfig:
             accel_threshold_sigma=get("accel_threshold_sigma", 0.0, 1e3),
             extend_threshold_sigma=get("extend_threshold_sigma", 0.0, 1e3),
             onset_threshold_sigma=get("onset_threshold_sigma", 0.0, 1e3),
+            onset_lookback_s=get("onset_lookback_s", 0.0, 1.0, "s"),
             baseline_window_s=get("baseline_window_s", 0.0, 1.0, "s"),
             noise_block_s=get("noise_block_s", 0.0, 100.0, "s"),
             max_contact_s=get("max_contact_s", 0.0, 1.0, "s"),
@@ -112,10 +114,11 @@ def extrapolation_weights(length: int) -> np.ndarray:
     return np.linalg.pinv(basis)[0]
 
 
-def background_fit(values: np.ndarray, lo: int, hi: int, excluded: np.ndarray) -> np.ndarray:
+def background_fit(values: np.ndarray, lo: int, hi: int, excluded: np.ndarray, max_degree: int = 2) -> np.ndarray:
     """Polynomial (in sample index, about ``hi``) fitted to values[lo:hi] outside ``excluded``:
     quadratic with 12 samples or more, linear with 8 or more, else constant (a high degree on
-    few samples extrapolates wildly). Returns 3 coefficients, constant first."""
+    few samples extrapolates wildly), at most ``max_degree``. Returns 3 coefficients, constant
+    first."""
     index = np.arange(lo, hi)
     keep = ~excluded[lo:hi]
     x = (index[keep] - hi).astype(float)
@@ -123,7 +126,7 @@ def background_fit(values: np.ndarray, lo: int, hi: int, excluded: np.ndarray) -
     if x.size == 0:
         coeffs[0] = float(np.mean(values[lo:hi])) if hi > lo else 0.0
         return coeffs
-    degree = 2 if x.size >= 12 else (1 if x.size >= 8 else 0)
+    degree = min(max_degree, 2 if x.size >= 12 else (1 if x.size >= 8 else 0))
     basis = np.vstack([x**p for p in range(degree + 1)]).T
     fitted, *_ = np.linalg.lstsq(basis, values[lo:hi][keep], rcond=None)
     coeffs[: degree + 1] = fitted
@@ -270,14 +273,16 @@ class PulseDetector:
         """The whole deviating run of samples from its first over-threshold sample ``k``."""
         c = self.config
         # The contact may have begun earlier, below the detection threshold (the bending modes
-        # can build the response up over several samples): look back over one longest contact
-        # against the background before it for the first sample past onset_threshold_sigma.
-        lo = max(k - span + 1, baseline)
+        # can build the response up over several samples): look back ``onset_lookback_s``
+        # against a straight line fitted before that (a quadratic would extrapolate the noise
+        # too far) for the first sample past onset_threshold_sigma.
+        lookback = max(1, int(round(c.onset_lookback_s / period)))
+        lo = max(k - lookback, baseline)
         while mask[lo - baseline:k].any() and lo < k:
             lo += 1
-        coeffs = background_fit(accel_z, lo - baseline, lo, mask)
+        coeffs = background_fit(accel_z, lo - baseline, lo, mask, max_degree=1)
         x = np.arange(lo, k + 1) - lo
-        before = accel_z[lo:k + 1] - (coeffs[0] + coeffs[1] * x + coeffs[2] * x * x)
+        before = accel_z[lo:k + 1] - (coeffs[0] + coeffs[1] * x)
         past = np.abs(before) > c.onset_threshold_sigma * sigma
         first = lo + int(np.argmax(past)) if past.any() else k
         end = min(first + span, accel_z.size)
