@@ -26,6 +26,9 @@ from tail_beam_sim.errors import require_range
 
 MAD_TO_SIGMA = 1.4826  # median absolute deviation of a Gaussian times this = its RMS
 PERIOD_SAMPLES = 64  # the sample period is read from the first this many stamps
+# The onset look-back spans at least this many samples: at low rates the bending modes can
+# take a few samples to build the response past the detection threshold.
+ONSET_LOOKBACK_MIN_SAMPLES = 4
 
 
 @dataclass(frozen=True)
@@ -276,7 +279,7 @@ class PulseDetector:
         # can build the response up over several samples): look back ``onset_lookback_s``
         # against a straight line fitted before that (a quadratic would extrapolate the noise
         # too far) for the first sample past onset_threshold_sigma.
-        lookback = max(1, int(round(c.onset_lookback_s / period)))
+        lookback = max(ONSET_LOOKBACK_MIN_SAMPLES, int(round(c.onset_lookback_s / period)))
         lo = max(k - lookback, baseline)
         while mask[lo - baseline:k].any() and lo < k:
             lo += 1
