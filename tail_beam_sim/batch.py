@@ -116,7 +116,6 @@ class Contacts:
     chi: np.ndarray
     reduced_mass_kg: np.ndarray
     duration_s: np.ndarray
-    centroid_s: np.ndarray
     peak_force_n: np.ndarray
     relative_restitution: np.ndarray
     impulse_ns: np.ndarray
@@ -158,7 +157,7 @@ def contacts(
     relative = blend(table.restitution)
     impulse = reduced * (1 + relative) * speed
     return Contacts(
-        chi=chi, reduced_mass_kg=reduced, duration_s=duration, centroid_s=blend(table.centroid) * duration,
+        chi=chi, reduced_mass_kg=reduced, duration_s=duration,
         peak_force_n=blend(table.peak_force) * batch.hertz_stiffness * length**1.5, relative_restitution=relative,
         impulse_ns=impulse, rebound_mps=impulse / batch.mass_kg - speed, table_row=i, table_weight=w,
     )

@@ -38,6 +38,9 @@ import numpy as np
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.contact import damping_factor, hertz_stiffness
 from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.sensors import imu_samples
+from tail_beam_sim.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
+from tail_beam_sim.solvers.pulse import contact_pulse
 from tail_beam_sim.structure import BendingMode, LinearStructure, beam_with_modes, load_bending_modes, rigid_beam
 from tail_beam_sim.support import Support
 
@@ -166,16 +169,12 @@ def plan(scene: Any, tier: str, needs: Needs, settings: FidelitySettings) -> Pla
     chosen = TIERS[name]
     options: dict[str, Any] = {}
     if chosen.default_solver == "hybrid" and not chosen.brittle:
-        from tail_beam_sim.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
-
         options["pulse_tolerance"] = min(DEFAULT_PULSE_TOLERANCE, needs.tolerance)
     return Plan(chosen, chosen.default_solver, options, estimates.get(name, 0.0), estimates)
 
 
 def model_errors(scene: Any, needs: Needs, modes: Sequence[BendingMode]) -> dict[str, float]:
     """Estimated relative error of each tier of the accuracy ladder against the richest (module docstring)."""
-    from tail_beam_sim.solvers.pulse import contact_pulse
-
     support, impact = scene.support, scene.impact
     rigid = structure_for(TIERS["rigid"], support, modes)
     modal = structure_for(TIERS["modal"], support, modes)
@@ -188,10 +187,8 @@ def model_errors(scene: Any, needs: Needs, modes: Sequence[BendingMode]) -> dict
     chi = damping_factor(scene.contact_model, impact.restitution)
     stiffness = hertz_stiffness(impact.material, support.plate, impact.radius_m)
     pulse = contact_pulse(min(chi, 40.0), stiffness, reduced, impact.impact_speed_mps)
-    weights = pulse.force_n / pulse.force_n.sum()
-    centroid = float(weights @ pulse.t_s)
-    width = math.sqrt(float(weights @ (pulse.t_s - centroid) ** 2))
-    duration = float(pulse.t_s[-1])
+    width = pulse.width_s
+    duration = pulse.duration_s
     gravity = support.gravity_mps2 * duration / impact.impact_speed_mps
     waveform = needs.outputs & set(WAVEFORM_OUTPUTS)
     omega_rigid = 2 * math.pi * float(rigid.natural_frequencies_hz().max())
@@ -242,8 +239,6 @@ def next_tier_up(name: str) -> str | None:
 def sensor_view(result: Any) -> dict[str, np.ndarray]:
     """Noise-free pressure change (Pa) and dynamic IMU readings (m/s^2, rad/s) at the streams'
     stamps, sampled as the sensors sample them (IMU averaged over its period)."""
-    from tail_beam_sim.sensors import imu_samples
-
     trajectory, start = result.trajectory, result.contact_stamp_s
     structure = trajectory.problem.structure
     state = trajectory.sample(result.pressure.stamp_s - start)

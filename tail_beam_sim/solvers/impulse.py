@@ -45,16 +45,15 @@ def solve(problem: ImpactProblem) -> Trajectory:
             at_rest = True
             break
         pulse = contact_pulse(problem.damping_factor, problem.hertz_stiffness, reduced_mass, approach)
-        weights = pulse.force_n / pulse.force_n.sum()
-        centroid = float(weights @ pulse.t_s)
-        width = max(width, math.sqrt(float(weights @ (pulse.t_s - centroid) ** 2)))
+        centroid = pulse.centroid_s
+        width = max(width, pulse.width_s)
         impulse = reduced_mass * (approach + pulse.separation_mps)
         segments.append(FreeSegment(previous, t + centroid, t, q, qd, z, zd))
         q, qd = structure.propagate(q, qd, centroid)
         z, zd = z + zd * centroid - 0.5 * g * centroid**2, zd - g * centroid
         qd = qd + load * impulse
         zd = zd + impulse / problem.mass_kg
-        end = t + float(pulse.t_s[-1])
+        end = t + pulse.duration_s
         contacts.append(ContactRecord(t, end, approach, zd, pulse.peak_force_n))
         t = t + centroid
         previous = t

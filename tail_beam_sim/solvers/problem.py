@@ -48,13 +48,6 @@ class ImpactProblem:
     qd0: np.ndarray
     crushing: CrushingContact | None = None
 
-    def contact_force(self, delta_m: float, rate_mps: float, approach_speed_mps: float) -> float:
-        """Hertz force with hysteresis, N; zero out of contact and never pulling."""
-        if delta_m <= 0.0:
-            return 0.0
-        force = self.hertz_stiffness * delta_m**1.5 * (1.0 + self.damping_factor * rate_mps / approach_speed_mps)
-        return force if force > 0.0 else 0.0
-
 
 @dataclass(frozen=True)
 class ContactRecord:

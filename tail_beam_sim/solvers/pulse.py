@@ -16,6 +16,7 @@ returned as an error estimate so that a caller can fall back to integrating the 
 from __future__ import annotations
 
 import cmath
+import math
 from bisect import bisect_right
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
@@ -36,8 +37,7 @@ class PulseTable:
     """Dimensionless contact pulses on a grid of chi. ``rows[i]`` holds, at the fractions
     ``fractions`` of row i's duration, the penetration u, its rate u' and the force
     f = u^1.5 (1 + chi u') (shape (chi, 3, PULSE_NODES + 1)); per row also the duration, the
-    delivered restitution, the peak force, the force centroid as a fraction of the duration and
-    the largest sampled penetration."""
+    delivered restitution, the peak force and the largest sampled penetration."""
 
     chi: np.ndarray
     duration: np.ndarray
@@ -45,7 +45,6 @@ class PulseTable:
     rows: np.ndarray
     fractions: np.ndarray
     peak_force: np.ndarray
-    centroid: np.ndarray
     peak_penetration: np.ndarray
     moments: np.ndarray
 
@@ -96,7 +95,7 @@ def pulse_table() -> PulseTable:
     fractions = np.linspace(0.0, 1.0, PULSE_NODES + 1)
     peaks = np.array([parabolic_peak(row) for row in force])
     return PulseTable(
-        chi, duration, -v_nodes[:, -1], rows, fractions, peaks, force @ fractions / force.sum(axis=1), u_nodes.max(axis=1),
+        chi, duration, -v_nodes[:, -1], rows, fractions, peaks, u_nodes.max(axis=1),
         _moments(force, fractions) / factorial(np.arange(MOMENTS)),
     )
 
@@ -166,6 +165,16 @@ class Pulse:
     @cached_property
     def t_s(self) -> np.ndarray:
         return pulse_table().fractions * self.duration_s
+
+    @cached_property
+    def centroid_s(self) -> float:
+        """Force-weighted mean time of the pulse, s."""
+        return float(self.force_n @ self.t_s) / float(self.force_n.sum())
+
+    @cached_property
+    def width_s(self) -> float:
+        """Force-weighted RMS spread of the pulse about its centroid, s."""
+        return math.sqrt(float(self.force_n @ (self.t_s - self.centroid_s) ** 2) / float(self.force_n.sum()))
 
     @cached_property
     def force_n(self) -> np.ndarray:
