@@ -1,11 +1,19 @@
 """Solvers of an impact problem, one interface, pluggable (in the spirit of ``solve_ivp``).
 
 ``solve(problem, method="hybrid", **options)`` returns a :class:`Trajectory`. Every method
-takes the same :class:`ImpactProblem` and returns the same kind of result.
+takes the same :class:`ImpactProblem` and returns the same kind of result:
+
+* ``hybrid`` (default): each contact alone (pre-integrated pulse, or RK4), exact between;
+  options ``contact`` (auto, pulse, rk4), ``steps_per_contact``, ``pulse_tolerance``;
+* ``impulse``: each contact an instantaneous impulse (closed form);
+* ``euler``, ``verlet``, ``rk4``: fixed steps over the whole window; options ``dt_s``, ``guard``;
+* ``RK45``, ``DOP853``, ``Radau``, ``BDF``, ``LSODA``: scipy's adaptive methods with contact
+  events; option ``rtol``.
 """
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 from typing import Any
 
@@ -46,11 +54,10 @@ def solve(problem: ImpactProblem, method: str = DEFAULT_SOLVER, **options: Any) 
     except KeyError:
         raise InputError("solver", method, f"must be one of {', '.join(SOLVERS)}") from None
     try:
-        return solver(problem, **options)
+        inspect.signature(solver).bind(problem, **options)
     except TypeError as exc:
-        if "unexpected keyword" not in str(exc):
-            raise
         raise InputError("solver options", sorted(options), f"not all accepted by {method}: {exc}") from None
+    return solver(problem, **options)
 
 
 __all__ = ["ContactRecord", "ImpactProblem", "Samples", "SolverError", "Trajectory", "SOLVERS", "DEFAULT_SOLVER", "solve"]
