@@ -14,7 +14,6 @@ from __future__ import annotations
 import sys
 import time
 
-import rclpy
 from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -23,9 +22,9 @@ from std_msgs.msg import String
 
 from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_sim import ros_messages, topics
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
-from tail_beam_sim.ros_spin import spin
+from tail_beam_sim.ros_spin import run_node
 
 EVENT_QOS_DEPTH = 100  # rebound and label topics: one message per impact
 
@@ -100,19 +99,7 @@ class IdNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run id_node until shut down."""
-    rclpy.init(args=args)
-    try:
-        node = IdNode()
-    except InputError as exc:
-        print(f"id_node: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        spin(node)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(IdNode, "id_node", args)
 
 
 if __name__ == "__main__":

@@ -13,16 +13,15 @@ import sys
 import time
 from pathlib import Path
 
-import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from tail_beam_sim import topics
 from tail_beam_sim.ros_messages import message_class
 from tail_beam_sim.bagwrite import SegmentedBagWriter
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
-from tail_beam_sim.ros_spin import spin
+from tail_beam_sim.ros_spin import run_node
 
 
 def default_bag_path() -> Path:
@@ -52,25 +51,12 @@ class RecorderNode(Node):
     def close(self) -> None:
         """Close the bag (every message received so far is in it)."""
         self.writer.close()
+        print(f"bag_recorder: closed {self.bag_path}: {self.writer.message_count} messages", file=sys.stderr)
 
 
 def main(args: list[str] | None = None) -> int:
     """Record until SIGINT or SIGTERM, then close the bag."""
-    rclpy.init(args=args)
-    try:
-        node = RecorderNode()
-    except InputError as exc:
-        print(f"bag_recorder: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        spin(node)
-    finally:
-        node.close()
-        print(f"bag_recorder: closed {node.bag_path}: {node.writer.message_count} messages", file=sys.stderr)
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(RecorderNode, "bag_recorder", args)
 
 
 if __name__ == "__main__":

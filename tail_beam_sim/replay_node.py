@@ -13,7 +13,6 @@ import sys
 import time
 from collections.abc import Iterator
 
-import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
@@ -23,7 +22,7 @@ from tail_beam_sim import ros_messages, topics
 from tail_beam_sim.bagread import RawMessage, raw_messages
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
-from tail_beam_sim.ros_spin import spin
+from tail_beam_sim.ros_spin import run_node
 
 WAITED_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.REBOUND_VELOCITY)
 
@@ -83,19 +82,7 @@ class ReplayNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Replay the bag, then exit."""
-    rclpy.init(args=args)
-    try:
-        node = ReplayNode()
-    except InputError as exc:
-        print(f"bag_replay: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        spin(node, node.finished)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(ReplayNode, "bag_replay", args)
 
 
 if __name__ == "__main__":

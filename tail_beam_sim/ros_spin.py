@@ -1,4 +1,4 @@
-"""Spinning a node until the process is told to stop, for the suite's executables.
+"""Running a node as an executable: init, spin until told to stop, shut down.
 
 ``EventsExecutor.spin()`` (rclpy 9) does not return when SIGINT or SIGTERM shuts the context
 down, so the nodes spin in short slices and check the context between them.
@@ -6,11 +6,16 @@ down, so the nodes spin in short slices and check the context between them.
 
 from __future__ import annotations
 
+import sys
+from collections.abc import Callable, Sequence
+
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.task import Future
+
+from tail_beam_sim.errors import InputError
 
 SLICE_S = 0.1  # longest wait between two checks of the context, s
 
@@ -26,3 +31,27 @@ def spin(node: Node, done: Future | None = None) -> None:
         pass
     finally:
         executor.shutdown()
+
+
+def run_node(make: Callable[[], Node], executable: str, args: Sequence[str] | None = None) -> int:
+    """The ``main`` of every executable: build the node, spin it, close and shut down.
+
+    The node may have a ``finished`` future (spinning stops when it is done) and a ``close()``
+    method (called on the way out). Bad parameters end it with one line and exit status 2.
+    """
+    rclpy.init(args=args)
+    try:
+        node = make()
+    except InputError as exc:
+        print(f"{executable}: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        spin(node, getattr(node, "finished", None))
+    finally:
+        close = getattr(node, "close", None)
+        if close is not None:
+            close()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

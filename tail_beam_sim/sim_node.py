@@ -14,7 +14,6 @@ import math
 import sys
 import time
 
-import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
@@ -26,7 +25,7 @@ from std_msgs.msg import String
 from tail_beam_sim import ros_messages, topics
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
-from tail_beam_sim.ros_spin import spin
+from tail_beam_sim.ros_spin import run_node
 from tail_beam_sim.scenario import load_scenario
 from tail_beam_sim.stream import Chunk, QueueFull, StreamSimulator
 
@@ -139,19 +138,7 @@ class SimNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run sim_node until shut down (or idle, with sim_node.exit_after_idle_s)."""
-    rclpy.init(args=args)
-    try:
-        node = SimNode()
-    except InputError as exc:
-        print(f"sim_node: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        spin(node, node.finished)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(SimNode, "sim_node", args)
 
 
 if __name__ == "__main__":

@@ -222,6 +222,7 @@ class StreamSimulator:
         self._next_imu_index = 0
         self._time_s = 0.0
         self._count = 0
+        self._last_free_after_s = -math.inf  # when the latest scheduled particle leaves the plate, s
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], **options: Any) -> StreamSimulator:
@@ -262,8 +263,7 @@ class StreamSimulator:
     @property
     def earliest_contact_s(self) -> float:
         """The earliest contact stamp a new impact can get now, s."""
-        last = self._queue[-1] if self._queue else (self._pending_events[-1] if self._pending_events else None)
-        after_last = last.free_after_s + self.params.min_impact_gap_s if last else -math.inf
+        after_last = self._last_free_after_s + self.params.min_impact_gap_s
         return max(self._time_s + self.params.command_lead_s, after_last)
 
     def submit(self, command: Mapping[str, Any], contact_stamp_s: float | None = None) -> ScheduledImpact:
@@ -285,6 +285,7 @@ class StreamSimulator:
         stamp = max(contact_stamp_s if contact_stamp_s is not None else -math.inf, self.earliest_contact_s)
         scheduled = self._solve(impact, stamp)
         self._queue.append(scheduled)
+        self._last_free_after_s = scheduled.free_after_s
         return scheduled
 
     def _solve(self, impact: Impact, stamp_s: float) -> ScheduledImpact:

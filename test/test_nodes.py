@@ -142,7 +142,7 @@ def test_queue_overflow_is_a_warning_and_the_queued_impacts_all_happen():
 
 def test_id_node_labels_each_impact_of_a_live_sim_node():
     with ros_context() as (context, executor):
-        sim = sim_node(context, **{"sim_node.wait_for_subscribers": 2, "scenario.source": "generated", "scenario.count": 4})
+        sim = sim_node(context, **{"sim_node.wait_for_subscribers": 1, "scenario.source": "generated", "scenario.count": 4})
         ident = id_node(context)
         probe = Probe(context, {topics.LABEL: String, topics.IMPACT_TRUTH: String, topics.JACK_PRESSURE: FluidPressure})
         for node in (sim, ident, probe):
@@ -154,8 +154,9 @@ def test_id_node_labels_each_impact_of_a_live_sim_node():
         truths = probe.json(topics.IMPACT_TRUTH)
         labels = probe.json(topics.LABEL)
         for truth in truths:
-            near = [lab for lab in labels if abs(lab["impact_stamp"] - truth["contact_start_stamp"]) < 2e-3]
-            assert near, f"no label within 2 ms of {truth['impact_id']}"
+            # The onset is the identifier's estimate: a few IMU samples either way (5 ms << 0.4 s apart).
+            near = [lab for lab in labels if abs(lab["impact_stamp"] - truth["contact_start_stamp"]) < 5e-3]
+            assert near, f"no label within 5 ms of {truth['impact_id']}"
             assert near[0]["label"] in ("coal", "gangue") and 0.0 <= near[0]["confidence"] <= 1.0
             assert near[0]["method"] == "threshold"
         stamps = [lab["impact_stamp"] for lab in labels]
@@ -200,12 +201,64 @@ def test_id_node_labels_from_what_remains_when_a_stream_stops():
             pubs[topics.IMU].publish(msg)
         for _, rebound in chunk.rebounds:
             pubs[topics.REBOUND_VELOCITY].publish(ros_messages.rebound_message(rebound))
-        assert spin_until(executor, lambda: len(feeder.messages[topics.LABEL]) >= 3, timeout_s=20)
+        def labelled(start: float) -> bool:
+            return any(abs(lab["impact_stamp"] - start) < 5e-3 for lab in feeder.json(topics.LABEL))
+
+        spin_until(executor, lambda: all(labelled(s) for s in starts), timeout_s=20)
         labels = feeder.json(topics.LABEL)
         for start in starts[1:]:
-            later = [lab for lab in labels if abs(lab["impact_stamp"] - start) < 3e-3]
+            later = [lab for lab in labels if abs(lab["impact_stamp"] - start) < 5e-3]
             assert later, f"impact at {start:.4f} s after the IMU stopped was not labelled"
             assert "imu" not in later[0]["signals"] and "jack_pressure" in later[0]["signals"]
-        first = [lab for lab in labels if abs(lab["impact_stamp"] - starts[0]) < 2e-3]
+        first = [lab for lab in labels if abs(lab["impact_stamp"] - starts[0]) < 5e-3]
         assert first and "imu" in first[0]["signals"]
         assert all(math.isfinite(lab["confidence"]) for lab in labels)
+
+
+def test_publish_clock_gives_the_simulation_time_on_slash_clock():
+    from rosgraph_msgs.msg import Clock
+
+    with ros_context() as (context, executor):
+        sim = sim_node(context, **{"sim_node.publish_clock": True, "sim_node.wait_for_subscribers": 1, "sim_node.exit_after_idle_s": 0.5})
+        probe = Probe(context, {"/clock": Clock, topics.JACK_PRESSURE: FluidPressure, topics.IMU: Imu, topics.REBOUND_VELOCITY: TwistStamped})
+        executor.add_node(sim)
+        executor.add_node(probe)
+        assert spin_until(executor, lambda: sim.finished.done())
+        spin_for(executor, 0.3)
+        clocks = np.array([ros_messages.stamp_s(m.clock) for m in probe.messages["/clock"]])
+        stamps = np.array([ros_messages.stamp_s(m.header.stamp) for m in probe.messages[topics.JACK_PRESSURE]])
+        assert clocks.size > 1 and np.all(np.diff(clocks) > 0)
+        # Each /clock tick is the end of a published chunk: never behind the samples, at most one chunk ahead.
+        assert stamps[-1] <= clocks[-1] <= stamps[-1] + sim.max_chunk_s
+        assert clocks[-1] >= 0.5
+
+
+def test_replay_publishes_a_bag_in_log_time_order_with_its_clock(tmp_path, default_scene):
+    from rosgraph_msgs.msg import Clock
+
+    from tail_beam_sim import bagio
+    from tail_beam_sim.replay_node import ReplayNode
+    from tail_beam_sim.simulate import simulate
+
+    result = simulate(default_scene)
+    bag = tmp_path / "one"
+    count = bagio.write_bag(bag, bagio.result_records(result, {"material": "coal"}))
+    with ros_context() as (context, executor):
+        probe = Probe(context, {"/clock": Clock, **SIM_TOPICS, topics.IMPACT_CMD: String})
+        replay = ReplayNode(context=context, parameter_overrides=[
+            Parameter("replay.bag_path", value=str(bag)), Parameter("replay.rate", value=4.0),
+            Parameter("replay.publish_clock", value=True), Parameter("replay.wait_for_subscribers", value=1),
+        ])
+        executor.add_node(probe)
+        executor.add_node(replay)
+        assert spin_until(executor, lambda: replay.finished.done())
+        spin_for(executor, 0.3)
+    assert replay.published == count
+    pressure = probe.messages[topics.JACK_PRESSURE]
+    np.testing.assert_array_equal([m.fluid_pressure for m in pressure], result.pressure.pressure_pa)
+    assert len(probe.messages[topics.IMU]) == result.imu.stamp_s.size
+    assert probe.json(topics.IMPACT_TRUTH)[0]["peak_contact_force_n"] == result.truth()["peak_contact_force_n"]
+    # bagio logs each message at its header stamp, so /clock replays the simulation time.
+    clocks = [ros_messages.stamp_s(m.clock) for m in probe.messages["/clock"]]
+    assert clocks == sorted(clocks) and len(clocks) == count
+    assert clocks[-1] == pytest.approx(result.contact_stamp_s + default_scene.window_s, abs=1e-9)

@@ -4,7 +4,6 @@ a recorder killed with SIGKILL; SIGTERM; two supports in one domain."""
 
 from __future__ import annotations
 
-import json
 import signal
 import subprocess
 import sys
