@@ -61,3 +61,13 @@ class FloatDynamics:
     def state(self, q: np.ndarray, qd: np.ndarray, z_m: float, zd_mps: float) -> list[float]:
         """A list state from arrays."""
         return [*map(float, q), *map(float, qd), float(z_m), float(zd_mps)]
+
+
+def rk4_step(dynamics: FloatDynamics, y: list[float], h: float, k1: list[float], approach: float, peak: float) -> list[float]:
+    """One classical RK4 step of length ``h`` from ``y``, whose derivative ``k1`` is known."""
+    half = 0.5 * h
+    k2, _ = dynamics.derivative([a + half * d for a, d in zip(y, k1)], approach, peak)
+    k3, _ = dynamics.derivative([a + half * d for a, d in zip(y, k2)], approach, peak)
+    k4, _ = dynamics.derivative([a + h * d for a, d in zip(y, k3)], approach, peak)
+    sixth = h / 6.0
+    return [a + sixth * (d1 + 2.0 * d2 + 2.0 * d3 + d4) for a, d1, d2, d3, d4 in zip(y, k1, k2, k3, k4)]

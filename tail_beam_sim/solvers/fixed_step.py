@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 
 from tail_beam_sim.contact import hertz_elastic_impact
-from tail_beam_sim.solvers.dynamics import FloatDynamics
+from tail_beam_sim.solvers.dynamics import FloatDynamics, rk4_step
 from tail_beam_sim.solvers.problem import ContactRecord, ContactSegment, FreeSegment, ImpactProblem, SolverError, Trajectory
 
 # omega * dt bound of linear stability on an undamped oscillator (imaginary-axis reach).
@@ -62,11 +62,7 @@ def _verlet(dyn: FloatDynamics, y: list, h: float, approach: float, peak: float)
 
 def _rk4(dyn: FloatDynamics, y: list, h: float, approach: float, peak: float) -> list:
     """Classical fourth-order Runge-Kutta."""
-    k1, _ = dyn.derivative(y, approach, peak)
-    k2, _ = dyn.derivative([a + 0.5 * h * d for a, d in zip(y, k1)], approach, peak)
-    k3, _ = dyn.derivative([a + 0.5 * h * d for a, d in zip(y, k2)], approach, peak)
-    k4, _ = dyn.derivative([a + h * d for a, d in zip(y, k3)], approach, peak)
-    return [a + h / 6.0 * (d1 + 2 * d2 + 2 * d3 + d4) for a, d1, d2, d3, d4 in zip(y, k1, k2, k3, k4)]
+    return rk4_step(dyn, y, h, dyn.derivative(y, approach, peak)[0], approach, peak)
 
 
 STEPPERS: dict[str, Stepper] = {"euler": _euler, "verlet": _verlet, "rk4": _rk4}

@@ -30,7 +30,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from tail_beam_sim.contact import hertz_elastic_impact
-from tail_beam_sim.solvers.dynamics import FloatDynamics
+from tail_beam_sim.solvers.dynamics import FloatDynamics, rk4_step
 from tail_beam_sim.solvers.problem import ContactRecord, ContactSegment, FreeSegment, ImpactProblem, SolverError, Trajectory
 from tail_beam_sim.solvers.pulse import Pulse, contact_pulse, max_chi, parabolic_peak, structure_response
 
@@ -215,16 +215,6 @@ def contact_phase(
     )
 
 
-def _rk4(dynamics: FloatDynamics, y: list[float], h: float, k1: list[float], approach: float, peak: float) -> list[float]:
-    """One classical RK4 step of length ``h`` from ``y`` whose derivative is ``k1``."""
-    half = 0.5 * h
-    k2, _ = dynamics.derivative([a + half * d for a, d in zip(y, k1)], approach, peak)
-    k3, _ = dynamics.derivative([a + half * d for a, d in zip(y, k2)], approach, peak)
-    k4, _ = dynamics.derivative([a + h * d for a, d in zip(y, k3)], approach, peak)
-    sixth = h / 6.0
-    return [a + sixth * (d1 + 2.0 * d2 + 2.0 * d3 + d4) for a, d1, d2, d3, d4 in zip(y, k1, k2, k3, k4)]
-
-
 def _integrate_contact(
     problem: ImpactProblem, dynamics: FloatDynamics, t0: float, y0: list[float], steps: int, approach: float
 ) -> tuple[ContactSegment, ContactRecord]:
@@ -240,13 +230,13 @@ def _integrate_contact(
     k1, force = dynamics.derivative(y, approach, peak)
     times, states, derivs, forces = [t0], [y0], [k1], [force]
     for _ in range(int(math.ceil((t_end - t0) / dt)) + steps + 2):
-        y_new = _rk4(dynamics, y, dt, k1, approach, peak)
+        y_new = rk4_step(dynamics, y, dt, k1, approach, peak)
         delta_new, rate_new = dynamics.penetration(y_new)
         left = delta_new <= offset and t > t0
         if left:
             delta_old, rate_old = dynamics.penetration(y)
             theta = _crossing_fraction((delta_old - offset, rate_old), (delta_new - offset, rate_new), dt)
-            y_new = _rk4(dynamics, y, theta * dt, k1, approach, peak)
+            y_new = rk4_step(dynamics, y, theta * dt, k1, approach, peak)
             t_new = t + theta * dt
         else:
             t_new = t + dt
