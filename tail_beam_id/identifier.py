@@ -30,7 +30,7 @@ from tail_beam_sim.errors import InputError, require_range
 def _threshold(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
     from tail_beam_id.methods.threshold import ThresholdMethod
 
-    return ThresholdMethod.from_model(model)
+    return ThresholdMethod.from_model(model, params)
 
 
 def _statistical(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:

@@ -13,7 +13,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import pickle
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -68,7 +70,8 @@ def fit_temperature(logits: np.ndarray, y: np.ndarray) -> float:
 
 
 def train_statistical(records: Sequence[Record], seed: int) -> dict[str, Any]:
-    """One calibrated logistic model per subset of signals (every non-empty subset)."""
+    """One calibrated logistic model per subset of signals (every non-empty subset) and, for
+    subsets with the IMU, per IMU sample period."""
     rng = np.random.default_rng(seed)
     impacts = sorted({(r.scene_set, r.index) for r in records})
     chosen = rng.choice(len(impacts), size=max(1, int(len(impacts) * HOLDOUT_FRACTION)), replace=False)
@@ -76,23 +79,33 @@ def train_statistical(records: Sequence[Record], seed: int) -> dict[str, Any]:
     subsets: dict[str, Any] = {}
     for mask in range(1, 2 ** len(SIGNAL_ORDER)):
         signals = tuple(s for i, s in enumerate(SIGNAL_ORDER) if mask >> i & 1)
-        names = feature_list(signals)
         usable = [r for r in records if set(signals) <= set(signals_of(r.label["features"]))]
-        if len(usable) < 50:
-            continue
-        x = expand(np.array([base_vector(r.label["features"], names) for r in usable]))
-        y = np.array([1.0 if r.is_coal else 0.0 for r in usable])
-        train = np.array([(r.scene_set, r.index) not in held for r in usable])
-        mean, scale = x[train].mean(axis=0), x[train].std(axis=0) + 1e-9
-        z = (x - mean) / scale
-        w = fit_logistic(z[train], y[train])
-        temperature = fit_temperature(z[~train] @ w[:-1] + w[-1], y[~train])
-        subsets[subset_key(signals)] = {
-            "features": [[n, f] for n, f in names], "mean": mean.tolist(), "scale": scale.tolist(),
-            "weights": w[:-1].tolist(), "bias": float(w[-1]), "temperature": temperature,
-            "trained_on": int(train.sum()), "calibrated_on": int((~train).sum()),
-        }
+        groups: dict[str, list[Record]] = {subset_key(signals): usable}
+        if "imu" in signals:
+            groups = {}
+            for r in usable:
+                groups.setdefault(f"{subset_key(signals)}@{round(r.label['features']['imu_period_s'], 7):g}", []).append(r)
+        for key, group in groups.items():
+            if len(group) >= 50:
+                subsets[key] = fit_subset(group, feature_list(signals), held)
     return {"subsets": subsets}
+
+
+def fit_subset(records: Sequence[Record], names: Sequence[tuple[str, float | None]], held: set[tuple[str, int]]) -> dict[str, Any]:
+    """Standardise, fit the logistic weights on the training impacts, the temperature on the
+    held-out ones."""
+    x = expand(np.array([base_vector(r.label["features"], names) for r in records]))
+    y = np.array([1.0 if r.is_coal else 0.0 for r in records])
+    train = np.array([(r.scene_set, r.index) not in held for r in records])
+    mean, scale = x[train].mean(axis=0), x[train].std(axis=0) + 1e-9
+    z = (x - mean) / scale
+    w = fit_logistic(z[train], y[train])
+    temperature = fit_temperature(z[~train] @ w[:-1] + w[-1], y[~train])
+    return {
+        "features": [[n, f] for n, f in names], "mean": mean.tolist(), "scale": scale.tolist(),
+        "weights": w[:-1].tolist(), "bias": float(w[-1]), "temperature": temperature,
+        "trained_on": int(train.sum()), "calibrated_on": int((~train).sum()),
+    }
 
 
 def train_threshold(records: Sequence[Record]) -> dict[str, Any]:
@@ -109,7 +122,11 @@ def train_threshold(records: Sequence[Record]) -> dict[str, Any]:
         slope, threshold = float(w[0]), float(math.exp(-w[1] / w[0]))
         predicted = (slope * (x[:, 0] - math.log(threshold))) > 0
         balanced = 0.5 * (np.mean(predicted[y == 1]) + np.mean(~predicted[y == 0]))
-        rules.append({"feature": name, "threshold": threshold, "slope": slope, "training_balanced_accuracy": float(balanced)})
+        values = [r.label["features"][name] for r in usable]
+        rules.append({
+            "feature": name, "threshold": threshold, "slope": slope, "seen": [float(min(values)), float(max(values))],
+            "training_balanced_accuracy": float(balanced),
+        })
     rules.sort(key=lambda r: -r["training_balanced_accuracy"])
     return {"rules": rules}
 
@@ -151,16 +168,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="train the identification methods (writes tail_beam_id/models/*.json)")
     parser.add_argument("--count", type=int, default=400, help="training impacts (each at every setting)")
     parser.add_argument("--tier", default=None, help="simulation tier (default: the evaluation's)")
+    parser.add_argument("--cache", default=None, help="pickle file keeping the simulated training records (reused if present)")
     args = parser.parse_args(argv)
     params = load_parameters()
     seed = int(evaluation_params(params)["training_seed"])
     if {seed, seed + 1} & set(evaluation_params(params)["seeds"].values()):
         raise SystemExit("training_seed must differ from every evaluation seed")
-    records = collect(params, "stream", args.count, seed, args.tier)
+    paper_count = max(args.count // 4, 60)
+    cache = Path(args.cache) if args.cache else None
+    if cache is not None and cache.is_file():
+        records, paper = pickle.loads(cache.read_bytes())
+    else:
+        records = collect(params, "stream", args.count, seed, args.tier)
+        # The threshold is the study's idea for the study's scene: tuned on paper-scene impacts.
+        paper = collect(params, "paper", paper_count, seed + 1, args.tier)
+        if cache is not None:
+            cache.write_bytes(pickle.dumps((records, paper)))
     provenance = {"training_seed": seed, "impacts": args.count, "records": len(records), "scene_set": "stream"}
-    # The threshold is the study's idea for the study's scene: tuned on paper-scene impacts.
-    paper = collect(params, "paper", max(args.count // 4, 60), seed + 1, args.tier)
-    paper_provenance = {"training_seed": seed + 1, "impacts": max(args.count // 4, 60), "records": len(paper), "scene_set": "paper"}
+    paper_provenance = {"training_seed": seed + 1, "impacts": paper_count, "records": len(paper), "scene_set": "paper"}
     outputs = {
         "threshold": {**train_threshold(paper), "provenance": paper_provenance},
         "statistical": {**train_statistical(records + paper, seed), "provenance": [provenance, paper_provenance]},

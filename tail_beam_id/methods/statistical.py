@@ -1,7 +1,7 @@
 """A statistical classifier trained on the project's own simulations: logistic regression on
 the logarithms of the physical features and their pairwise products, one model per set of
-signals available (so it still labels when a stream is gone), with temperature-scaled
-(calibrated) probabilities.
+signals available (so it still labels when a stream is gone) and, with the IMU, per IMU sample
+period, with temperature-scaled (calibrated) probabilities.
 
 Why logarithms: the physics is a product of powers (moment impulse = m v0 (1 + e) x,
 contact duration ~ R (rho / E*)^0.4 v0^-0.2, rebound speed = e v0), so the material shows as a
@@ -85,9 +85,20 @@ class StatisticalMethod:
     def from_model(cls, model: Mapping[str, Any]) -> StatisticalMethod:
         return cls(model["subsets"])
 
-    def decide(self, features: Mapping[str, float]) -> Decision:
+    def _model(self, features: Mapping[str, float]) -> Mapping[str, Any] | None:
+        """The model for these signals; with the IMU, the one trained at the nearest IMU
+        sample period (its timing features mean different things at 2 and 20 kHz)."""
         key = subset_key(signals_of(features))
-        model = self.subsets.get(key)
+        if "imu_period_s" not in features:
+            return self.subsets.get(key)
+        periods = [float(k.split("@")[1]) for k in self.subsets if k.split("@")[0] == key and "@" in k]
+        if not periods:
+            return self.subsets.get(key)
+        nearest = min(periods, key=lambda p: abs(math.log(p / features["imu_period_s"])))
+        return self.subsets[f"{key}@{nearest:g}"]
+
+    def decide(self, features: Mapping[str, float]) -> Decision:
+        model = self._model(features)
         if model is None:
             return Decision(0.5, {})
         names = [(n, f) for n, f in model["features"]]

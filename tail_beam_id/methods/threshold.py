@@ -3,7 +3,8 @@
 The model lists rules in order of preference (feature, threshold, slope); the first rule whose
 feature the impact has decides, so the method still labels when a stream is gone. The
 confidence is a logistic in log(feature / threshold), fitted on training impacts, so it is
-as calibrated as a single feature allows.
+as calibrated as a single feature allows there; outside the feature values it was tuned on
+the confidence is capped (``identification.threshold.extrapolation_confidence_cap``).
 """
 
 from __future__ import annotations
@@ -14,33 +15,45 @@ from dataclasses import dataclass
 from typing import Any
 
 from tail_beam_id.methods import Decision, sigmoid
+from tail_beam_sim.errors import require_range
 
 FLOOR = 1e-9  # features are positive physical magnitudes; a noisy reading below this is clipped
 
 
 @dataclass(frozen=True)
 class Rule:
-    """P(coal) = sigmoid(slope * (ln(feature) - ln(threshold))); slope < 0: coal below."""
+    """P(coal) = sigmoid(slope * (ln(feature) - ln(threshold))); slope < 0: coal below.
+    ``seen``: the feature's range in the training impacts (its unit)."""
 
     feature: str
     threshold: float
     slope: float
+    seen: tuple[float, float]
 
 
 class ThresholdMethod:
     name = "threshold"
 
-    def __init__(self, rules: list[Rule]) -> None:
+    def __init__(self, rules: list[Rule], extrapolation_cap: float) -> None:
         self.rules = rules
+        self.extrapolation_cap = extrapolation_cap
 
     @classmethod
-    def from_model(cls, model: Mapping[str, Any]) -> ThresholdMethod:
-        return cls([Rule(r["feature"], float(r["threshold"]), float(r["slope"])) for r in model["rules"]])
+    def from_model(cls, model: Mapping[str, Any], params: Mapping[str, Any]) -> ThresholdMethod:
+        section = params["identification"].get("threshold") or {}
+        cap = require_range("identification.threshold.extrapolation_confidence_cap", section.get("extrapolation_confidence_cap"), 0.5, 1.0)
+        rules = [Rule(r["feature"], float(r["threshold"]), float(r["slope"]), tuple(r["seen"])) for r in model["rules"]]
+        return cls(rules, cap)
 
     def decide(self, features: Mapping[str, float]) -> Decision:
         for rule in self.rules:
             if rule.feature in features:
-                value = max(features[rule.feature], FLOOR)
-                p = sigmoid(rule.slope * (math.log(value) - math.log(rule.threshold)))
-                return Decision(p, {"threshold_feature": rule.feature, "threshold_value": rule.threshold})
+                value = features[rule.feature]
+                p = sigmoid(rule.slope * (math.log(max(value, FLOOR)) - math.log(rule.threshold)))
+                estimates = {"threshold_value": rule.threshold}
+                # A threshold tuned on one scene says nothing outside the values it was tuned on.
+                if not rule.seen[0] <= value <= rule.seen[1]:
+                    p = min(max(p, 1.0 - self.extrapolation_cap), self.extrapolation_cap)
+                    estimates["extrapolated"] = 1.0
+                return Decision(p, estimates)
         return Decision(0.5, {})
