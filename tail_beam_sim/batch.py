@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -27,7 +28,7 @@ from tail_beam_sim.contact import CONTACT_LAWS, effective_modulus_pa
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.materials import Material
 from tail_beam_sim.scene import Impact, SensorSpec
-from tail_beam_sim.solvers.pulse import pulse_table
+from tail_beam_sim.solvers.pulse import SERIES_RADIUS, pulse_table
 from tail_beam_sim.structure import LinearStructure
 from tail_beam_sim.support import Support
 
@@ -148,7 +149,7 @@ def contacts(
     def blend(values: np.ndarray) -> np.ndarray:
         return (1 - w) * values[i] + w * values[i + 1]
 
-    positions = positions or PositionTable.of(structure, batch.position_m)
+    positions = positions or PositionTable(structure, batch.position_m)
     effective = positions.effective_mass(batch.position_m)
     reduced = batch.mass_kg * effective / (batch.mass_kg + effective)
     speed = batch.impact_speed_mps
@@ -163,33 +164,38 @@ def contacts(
     )
 
 
-@dataclass(frozen=True)
 class PositionTable:
     """What depends on the impact position only, tabulated along the plate and interpolated:
-    contact shape (m per unit q), effective mass at the contact point (kg), the peak jack
-    pressure change (Pa) and a bound on the plate's later speed (m/s), both per unit impulse
-    (N s), the peak read off a fine time grid over the window."""
+    contact shape (m per unit q) and effective mass at the contact point (kg); on demand, the
+    peak jack pressure change (Pa) and a bound on the plate's later speed (m/s), both per unit
+    impulse (N s), the peak read off a fine time grid over the window."""
 
-    stations_m: np.ndarray
-    shapes: np.ndarray
-    effective_mass_kg: np.ndarray
-    peak_pressure_per_impulse: np.ndarray
-    plate_speed_per_impulse: np.ndarray
-
-    @classmethod
-    def of(cls, structure: LinearStructure, position_m: np.ndarray, window_s: float = 0.05) -> PositionTable:
+    def __init__(self, structure: LinearStructure, position_m: np.ndarray, window_s: float = 0.05) -> None:
         low, high = (float(position_m.min()), float(position_m.max())) if position_m.size else (0.0, 0.0)
-        stations = np.linspace(low, high, POSITION_STATIONS) if high > low else np.array([low, low + 1e-9])
-        shapes = np.array([structure.contact_shape(float(x)) for x in stations])
-        effective = 1.0 / np.einsum("si,ij,sj->s", shapes, structure.inv_mass, shapes)
-        eigenvalues, vectors, inverse = structure._eigen
+        self.stations_m = np.linspace(low, high, POSITION_STATIONS) if high > low else np.array([low, low + 1e-9])
+        self.shapes = np.array([structure.contact_shape(float(x)) for x in self.stations_m])
+        self.effective_mass_kg = 1.0 / np.einsum("si,ij,sj->s", self.shapes, structure.inv_mass, self.shapes)
+        self.structure, self.window_s = structure, window_s
+
+    @cached_property
+    def _unit_modal(self) -> np.ndarray:
+        """(S, 2n): modal amplitudes of the state [0, M^-1 b] per unit impulse at each station."""
+        return self.shapes @ self.structure.modal_input.T
+
+    @cached_property
+    def peak_pressure_per_impulse(self) -> np.ndarray:
+        structure = self.structure
+        eigenvalues, vectors, _ = structure._eigen
         n = structure.size
-        times = np.linspace(0.0, window_s, PEAK_TIME_SAMPLES)
+        times = np.linspace(0.0, self.window_s, PEAK_TIME_SAMPLES)
         jack = structure.jack_stiffness_npm * (structure.jack_shape @ vectors[:n]) + structure.jack_damping_nspm * (structure.jack_shape @ vectors[n:])
-        modal = (shapes @ structure.inv_mass.T) @ inverse[:, n:].T  # (S, 2n): the state [0, M^-1 b] per unit impulse
-        pressure = ((modal * jack) @ np.exp(np.outer(eigenvalues, times))).real / structure.piston_area_m2
-        plate_speed = np.abs(modal * (shapes @ vectors[n:])).sum(axis=1)
-        return cls(stations, shapes, effective, pressure.max(axis=1), plate_speed)
+        pressure = ((self._unit_modal * jack) @ np.exp(np.outer(eigenvalues, times))).real / structure.piston_area_m2
+        return pressure.max(axis=1)
+
+    @cached_property
+    def plate_speed_per_impulse(self) -> np.ndarray:
+        vectors = self.structure._eigen[1]
+        return np.abs(self._unit_modal * (self.shapes @ vectors[self.structure.size :])).sum(axis=1)
 
     def _at(self, values: np.ndarray, position_m: np.ndarray) -> np.ndarray:
         return np.interp(position_m, self.stations_m, values)
@@ -204,28 +210,35 @@ class PositionTable:
 def pulse_spectrum(c: Contacts, eigenvalues: np.ndarray, chunk: int = 4096) -> np.ndarray:
     """(N, 2n): int F(s) e^{-lambda_k s} ds / int F(s) ds over each impact's pulse (s from contact
     start). A mode fed this instead of the bare impulse J rings after the contact exactly as the
-    pulse leaves it (1 for slow modes, less for modes as fast as the contact)."""
+    pulse leaves it (1 for slow modes, less for modes as fast as the contact). The power series
+    over the table's moments (Horner) where |lambda T| <= SERIES_RADIUS, the quadrature beyond."""
     table = pulse_table()
-    out = np.empty((c.duration_s.size, eigenvalues.size), dtype=complex)
-    for start in range(0, c.duration_s.size, chunk):
-        rows, w = c.table_row[start : start + chunk], c.table_weight[start : start + chunk, None]
-        force = (1 - w) * table.rows[rows, 2] + w * table.rows[rows + 1, 2]
-        times = c.duration_s[start : start + chunk, None] * table.fractions[None, :]
+    rows, w = c.table_row, c.table_weight[:, None]
+    coefficients = (1 - w) * table.moments[rows] + w * table.moments[rows + 1]  # (N, moments)
+    mu = np.outer(c.duration_s, eigenvalues)
+    total = coefficients[:, -1:].astype(complex)
+    for m in range(coefficients.shape[1] - 2, -1, -1):
+        total = total * -mu + coefficients[:, m : m + 1]
+    out = total / coefficients[:, :1]
+    far = np.nonzero(np.abs(mu).max(axis=1) > SERIES_RADIUS)[0]
+    for start in range(0, far.size, chunk):
+        k = far[start : start + chunk]
+        force = (1 - w[k]) * table.rows[rows[k], 2] + w[k] * table.rows[rows[k] + 1, 2]
+        times = c.duration_s[k, None] * table.fractions[None, :]
         phase = np.exp(-eigenvalues[None, :, None] * times[:, None, :])
-        out[start : start + chunk] = np.einsum("nj,nkj->nk", force, phase) / force.sum(axis=1)[:, None]
+        out[k] = np.einsum("nj,nkj->nk", force, phase) / force.sum(axis=1)[:, None]
     return out
 
 
 def _modal_start(structure: LinearStructure, shapes: np.ndarray, impulse: np.ndarray) -> np.ndarray:
     """Modal amplitudes (N, 2n) of the state [0, M^-1 b J] just after each impulse."""
-    n = structure.size
-    return (shapes @ structure.inv_mass.T * impulse[:, None]) @ structure._eigen[2][:, n:].T
+    return shapes @ structure.modal_input.T * impulse[:, None]
 
 
 def summaries(support: Support, structure: LinearStructure, batch: ImpactBatch, contact_model: str = "calibrated", window_s: float = 0.05) -> dict[str, np.ndarray]:
     """Rebound, restitution, contact duration and peak force, peak jack pressure change (Pa)
     and whether a re-contact may follow, for every impact (arrays over impacts)."""
-    positions = PositionTable.of(structure, batch.position_m, window_s)
+    positions = PositionTable(structure, batch.position_m, window_s)
     c = contacts(structure, batch, contact_model, positions)
     x = batch.position_m
     plate_speed = c.impulse_ns * positions._at(positions.plate_speed_per_impulse, x)
@@ -257,7 +270,7 @@ def streams(
     mean over the period before its stamp), ``pressure_time_s`` and ``imu_time_s`` (T,).
     """
     rng = np.random.default_rng(seed)
-    positions = PositionTable.of(structure, batch.position_m, window_s)
+    positions = PositionTable(structure, batch.position_m, window_s)
     c = contacts(structure, batch, contact_model, positions)
     shapes = positions.shape(batch.position_m)
     eigenvalues, vectors, _ = structure._eigen

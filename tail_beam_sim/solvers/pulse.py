@@ -28,8 +28,8 @@ PULSE_NODES = 64  # samples per contact: enough for cubic Hermite sampling to 1e
 SUBSTEPS = 8  # RK4 steps between samples in the second pass
 FIRST_PASS_STEP = 0.02  # dimensionless RK4 step of the first pass (duration ~3.2 units elastic; 2e-6 relative)
 MAX_SPAN = 40.0  # dimensionless time limit of the first pass (chi = 40 lasts about 25 units)
-MOMENTS = 40  # moments of each pulse kept for its spectrum's power series
-SERIES_RADIUS = 6.0  # |lambda T| up to which the series is used (terms then fall below 1e-14 by m = 40)
+MOMENTS = 64  # moments of each pulse kept for its spectrum's power series
+SERIES_RADIUS = 12.0  # |lambda T| up to which the series is used (largest term ~2e4, last ~1e-20: about 1e-11 relative)
 
 
 @dataclass(frozen=True)
