@@ -89,13 +89,13 @@ def describe(options: dict[str, Any]) -> str:
     return " ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in options.items()) or "default"
 
 
-def timed(function: Callable[[], Any], repeats: int) -> tuple[list[float], Any]:
+def timed(function: Callable[[], Any], repeats: int, min_time_s: float = MIN_TIMED_S) -> tuple[list[float], Any]:
     """Wall times of at least ``repeats`` calls after one warm-up call, more for fast functions
-    (until MIN_TIMED_S of timing or MAX_RUNS), so that one preempted run cannot move the
+    (until ``min_time_s`` of timing or MAX_RUNS), so that one preempted run cannot move the
     median; and the last result."""
     result = function()
     times: list[float] = []
-    while len(times) < repeats or (sum(times) < MIN_TIMED_S and len(times) < MAX_RUNS):
+    while len(times) < repeats or (sum(times) < min_time_s and len(times) < MAX_RUNS):
         start = time.perf_counter()
         result = function()
         times.append(time.perf_counter() - start)
@@ -167,13 +167,13 @@ def reference_solution(problem: ImpactProblem, imu_rate_hz: float) -> tuple[Meas
 
 def solver_rows(
     problem: ImpactProblem, reference: Measures, imu_rate_hz: float, settings: Sequence[tuple[str, dict[str, Any]]], repeats: int,
-    progress: Callable[[str], None] = lambda _: None,
+    progress: Callable[[str], None] = lambda _: None, min_time_s: float = MIN_TIMED_S,
 ) -> list[Row]:
     """Every solver setting timed ``repeats`` times and measured against ``reference``."""
     rows = []
     for name, options in settings:
         progress(f"{name} {describe(options)}")
-        times, trajectory = timed(lambda: solve(problem, name, **options), repeats)
+        times, trajectory = timed(lambda: solve(problem, name, **options), repeats, min_time_s)
         rows.append(Row(name, describe(options), times, errors(measure(trajectory, imu_rate_hz), reference)))
     baseline = next((r for r in rows if (r.name, r.setting) == (BASELINE[0], describe(BASELINE[1]))), None)
     for row in rows:
@@ -183,7 +183,7 @@ def solver_rows(
     return rows
 
 
-def tier_rows(scene: Scene, settings: FidelitySettings, repeats: int, baseline_s: float) -> tuple[list[Row], float]:
+def tier_rows(scene: Scene, settings: FidelitySettings, repeats: int, baseline_s: float, min_time_s: float = MIN_TIMED_S) -> tuple[list[Row], float]:
     """Each tier with its default solver against the richest model (modal) solved by Radau."""
     imu_rate = scene.sensors.imu_rate_hz
     modal = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure_for(TIERS["modal"], scene.support, settings.modes))
@@ -193,7 +193,7 @@ def tier_rows(scene: Scene, settings: FidelitySettings, repeats: int, baseline_s
     for name in ("impulse", "rigid", "modal"):
         tier = TIERS[name]
         problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure_for(tier, scene.support, settings.modes))
-        times, trajectory = timed(lambda: solve(problem, tier.default_solver), repeats)
+        times, trajectory = timed(lambda: solve(problem, tier.default_solver), repeats, min_time_s)
         row = Row(name, tier.default_solver, times, errors(measure(trajectory, imu_rate), reference))
         row.ratio = row.median_s / baseline_s
         rows.append(row)
@@ -202,7 +202,7 @@ def tier_rows(scene: Scene, settings: FidelitySettings, repeats: int, baseline_s
     return rows, max(errors(check, reference).values())
 
 
-def batch_throughput(scene: Scene, settings: FidelitySettings, impacts: int, repeats: int, seed: int = 0) -> dict[str, float]:
+def batch_throughput(scene: Scene, settings: FidelitySettings, impacts: int, repeats: int, seed: int = 0, min_time_s: float = MIN_TIMED_S) -> dict[str, float]:
     """Impacts per second of the batch path: summaries and full noisy streams, rigid and modal."""
     rng = np.random.default_rng(seed)
     names = [n for n, m in scene.materials.items() if m.material_class != "structure"]
@@ -218,14 +218,14 @@ def batch_throughput(scene: Scene, settings: FidelitySettings, impacts: int, rep
     summaries_batch, streams_batch = draw(impacts), draw(max(impacts // 10, 1))
     for name in ("rigid", "modal"):
         structure = structure_for(TIERS[name], support, settings.modes)
-        times, _ = timed(lambda: batch_path.summaries(support, structure, summaries_batch, scene.contact_model, scene.window_s), repeats)
+        times, _ = timed(lambda: batch_path.summaries(support, structure, summaries_batch, scene.contact_model, scene.window_s), repeats, min_time_s)
         out[f"{name}_summaries_per_s"] = summaries_batch.size / statistics.median(times)
-        times, _ = timed(lambda: batch_path.streams(support, structure, streams_batch, scene.sensors, scene.contact_model, scene.window_s), repeats)
+        times, _ = timed(lambda: batch_path.streams(support, structure, streams_batch, scene.sensors, scene.contact_model, scene.window_s), repeats, min_time_s)
         out[f"{name}_streams_per_s"] = streams_batch.size / statistics.median(times)
     return out
 
 
-def real_time_factor(scene: Scene, settings: FidelitySettings, repeats: int) -> dict[str, float]:
+def real_time_factor(scene: Scene, settings: FidelitySettings, repeats: int, min_time_s: float = MIN_TIMED_S) -> dict[str, float]:
     """Simulated seconds per wall second for one impact's window of sensor streams at the
     default rates (solve, then sample pressure, IMU and camera), per tier's default solver."""
     spec = scene.sensors
@@ -242,6 +242,6 @@ def real_time_factor(scene: Scene, settings: FidelitySettings, repeats: int) -> 
             suite.imu(trajectory, sample_grid(0.0, scene.window_s, spec.imu_rate_hz), 0.0)
             suite.rebound(trajectory, 0.0)
 
-        times, _ = timed(one_impact, repeats)
+        times, _ = timed(one_impact, repeats, min_time_s)
         out[f"{name}_real_time_factor"] = scene.window_s / statistics.median(times)
     return out

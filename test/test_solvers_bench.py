@@ -11,7 +11,7 @@ from tail_beam_sim.cli import main
 
 def test_bench_prints_figures_marks_the_front_and_writes_charts(tmp_path, capsys):
     code = main([
-        "bench", "--solvers", "hybrid", "impulse", "DOP853", "--repeats", "1", "--batch-impacts", "2000",
+        "bench", "--solvers", "hybrid", "impulse", "DOP853", "--repeats", "1", "--min-time-s", "0", "--batch-impacts", "2000",
         "--no-tiers", "--out", str(tmp_path), "--json",
     ])
     assert code == 0

@@ -30,6 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_impact_options(parser)
     parser.add_argument("--full", action="store_true", help="more settings (finer steps, looser and tighter tolerances) and 5 repeats")
     parser.add_argument("--repeats", type=int, help="at least this many timed runs per setting after a warm-up, more for fast ones (default 3, 5 with --full)")
+    parser.add_argument("--min-time-s", type=float, default=bench.MIN_TIMED_S, help="keep timing a fast setting until this much time is spent, s (default 0.3)")
     parser.add_argument("--structure", choices=("rigid", "modal"), default="rigid", help="structure of the solver comparison (default rigid)")
     parser.add_argument("--solvers", nargs="+", metavar="NAME", help="only these solvers (Radau at rtol 1e-8 is always kept as the baseline)")
     parser.add_argument("--batch-impacts", type=int, default=100_000, help="impacts in the batch summaries run (streams: a tenth); 0 skips the batch")
@@ -67,24 +68,24 @@ def run(args: argparse.Namespace) -> int:
     imu_rate = scene.sensors.imu_rate_hz
     progress(f"reference: Radau rtol {bench.REFERENCE_RTOL:g} on the {args.structure} structure")
     reference, reference_error = bench.reference_solution(problem, imu_rate)
-    rows = bench.solver_rows(problem, reference, imu_rate, settings_list, repeats, progress)
+    rows = bench.solver_rows(problem, reference, imu_rate, settings_list, repeats, progress, args.min_time_s)
     baseline_s = next(r.median_s for r in rows if (r.name, r.setting) == (bench.BASELINE[0], bench.describe(bench.BASELINE[1])))
     report: dict[str, Any] = {
         "scene": {k: scene.impact.__dict__[k] for k in ("radius_m", "impact_speed_mps", "position_m", "restitution")} | {"material": scene.impact.material.name},
-        "structure": args.structure, "repeats": repeats, "reference_rtol": bench.REFERENCE_RTOL, "reference_error_bound": reference_error,
+        "structure": args.structure, "repeats": repeats, "min_time_s": args.min_time_s, "reference_rtol": bench.REFERENCE_RTOL, "reference_error_bound": reference_error,
         "radau_1e-8_median_s": baseline_s, "solvers": [r.as_dict() for r in rows],
     }
     tier_rows: list[bench.Row] = []
     if not args.no_tiers:
         progress("tiers against a modal Radau reference")
-        tier_rows, tier_reference_error = bench.tier_rows(scene, settings, repeats, baseline_s)
+        tier_rows, tier_reference_error = bench.tier_rows(scene, settings, repeats, baseline_s, args.min_time_s)
         report["tiers"] = [r.as_dict() for r in tier_rows]
         report["tier_reference_error_bound"] = tier_reference_error
     if args.batch_impacts:
         progress(f"batch path, {args.batch_impacts} impacts")
-        report["batch"] = bench.batch_throughput(scene, settings, args.batch_impacts, repeats)
+        report["batch"] = bench.batch_throughput(scene, settings, args.batch_impacts, repeats, min_time_s=args.min_time_s)
     progress("real-time factor")
-    report["real_time"] = bench.real_time_factor(scene, settings, repeats)
+    report["real_time"] = bench.real_time_factor(scene, settings, repeats, args.min_time_s)
     if not args.no_plot:
         report["charts"] = [str(p) for p in write_charts(Path(args.out), rows, tier_rows)]
     if args.json:
@@ -98,7 +99,7 @@ def print_report(report: dict[str, Any], rows: list[bench.Row], tier_rows: list[
     scene = report["scene"]
     print(
         f"{scene['material']} R = {scene['radius_m'] * 1e3:g} mm at {scene['impact_speed_mps']:.3f} m/s, {scene['position_m']:g} m from the hinge; "
-        f"{report['structure']} structure; median of >= {report['repeats']} runs (fast settings: {bench.MIN_TIMED_S:g} s of runs); errors against Radau rtol {report['reference_rtol']:g} "
+        f"{report['structure']} structure; median of >= {report['repeats']} runs (fast settings: {report['min_time_s']:g} s of runs); errors against Radau rtol {report['reference_rtol']:g} "
         f"(its own error bound {report['reference_error_bound']:.1e}); Radau rtol 1e-8 took {report['radau_1e-8_median_s'] * 1e3:.1f} ms"
     )
     print(_table(rows))
