@@ -16,7 +16,6 @@ import time
 
 from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, Imu
 from std_msgs.msg import String
 
@@ -25,9 +24,6 @@ from tail_beam_sim import ros_messages, topics
 from tail_beam_sim.errors import require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
 from tail_beam_sim.ros_spin import run_node
-
-EVENT_QOS_DEPTH = 100  # rebound and label topics: one message per impact
-
 
 class IdNode(Node):
     """Labels each impact in the sensor streams coal or gangue."""
@@ -38,7 +34,7 @@ class IdNode(Node):
         node = params["id_node"]
         period = require_range("id_node.poll_period_s", node.get("poll_period_s"), 0.0, 10.0, low_open=True, unit="s")
         self.flush_after_idle_s = require_range("id_node.flush_after_idle_s", node.get("flush_after_idle_s"), 0.0, None, low_open=True, unit="s")
-        depth = int(require_range("id_node.qos_depth", node.get("qos_depth"), 1, 1e6))
+        depth = int(require_range("id_node.qos_depth", node.get("qos_depth"), 0, 1e6))
         self.identifier = StreamIdentifier(params.get("method") or None, params=params["identification"], model_params=params)
         self._pressure: list[FluidPressure] = []
         self._imu: list[Imu] = []
@@ -47,8 +43,8 @@ class IdNode(Node):
         self._unflushed = False
         self.received = {topics.JACK_PRESSURE: 0, topics.IMU: 0, topics.REBOUND_VELOCITY: 0}
         self.published = 0
-        sensor_qos = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
-        event_qos = QoSProfile(depth=EVENT_QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+        sensor_qos = ros_messages.stream_qos(depth)
+        event_qos = ros_messages.EVENT_QOS
         self._label_pub = self.create_publisher(String, topics.LABEL, event_qos)
         self.create_subscription(FluidPressure, topics.JACK_PRESSURE, self._on_pressure, sensor_qos)
         self.create_subscription(Imu, topics.IMU, self._on_imu, sensor_qos)

@@ -14,10 +14,8 @@ import time
 from pathlib import Path
 
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from tail_beam_sim import topics
-from tail_beam_sim.ros_messages import message_class
+from tail_beam_sim import ros_messages, topics
 from tail_beam_sim.bagwrite import SegmentedBagWriter
 from tail_beam_sim.errors import require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
@@ -36,12 +34,12 @@ class RecorderNode(Node):
         super().__init__("tail_beam_recorder", **kwargs)
         params = declare_and_read(self, config_defaults(["recorder.yaml"], with_physics=False))["recorder"]
         segment_s = require_range("recorder.segment_s", params.get("segment_s"), 0.0, 3600.0, low_open=True, unit="s")
-        depth = int(require_range("recorder.qos_depth", params.get("qos_depth"), 1, 1e6))
+        depth = int(require_range("recorder.qos_depth", params.get("qos_depth"), 0, 1e6))
         self.bag_path = Path(params.get("bag_path") or default_bag_path())
         self.writer = SegmentedBagWriter(self.bag_path, params.get("storage", "mcap"))
-        qos = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
+        qos = ros_messages.stream_qos(depth)
         for topic, msgtype in topics.MSG_TYPES.items():
-            self.create_subscription(message_class(msgtype), topic, lambda data, t=topic: self._write(t, data), qos, raw=True)
+            self.create_subscription(ros_messages.message_class(msgtype), topic, lambda data, t=topic: self._write(t, data), qos, raw=True)
         self.create_timer(segment_s, self.writer.close_segment)
         self.get_logger().info(f"recording {', '.join(topics.MSG_TYPES)} to {self.bag_path} ({self.writer.storage})")
 

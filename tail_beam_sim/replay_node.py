@@ -13,8 +13,8 @@ import sys
 import time
 from collections.abc import Iterator
 
+from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
@@ -38,14 +38,14 @@ class ReplayNode(Node):
         self.rate = require_range("replay.rate", params.get("rate"), 0.0, 1e6, low_open=True)
         period = require_range("replay.publish_period_s", params.get("publish_period_s"), 0.0, 10.0, low_open=True, unit="s")
         self.wait_for_subscribers = int(require_range("replay.wait_for_subscribers", params.get("wait_for_subscribers"), 0, 1000))
-        depth = int(require_range("replay.qos_depth", params.get("qos_depth"), 1, 1e6))
+        depth = int(require_range("replay.qos_depth", params.get("qos_depth"), 0, 1e6))
         chosen = list(params.get("topics") or [])
         unknown = sorted(set(chosen) - set(topics.MSG_TYPES))
         if unknown or not chosen:
             raise InputError("replay.topics", chosen, f"must name some of {', '.join(topics.MSG_TYPES)}")
         self._messages: Iterator[RawMessage] = raw_messages(params["bag_path"], chosen)
         self._next: RawMessage | None = next(self._messages)  # opens the bag: errors surface here
-        qos = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
+        qos = ros_messages.stream_qos(depth)
         self._pubs = {
             topic: self.create_publisher(ros_messages.message_class(topics.MSG_TYPES[topic]), topic, qos) for topic in chosen
         }
@@ -78,6 +78,15 @@ class ReplayNode(Node):
         if self._next is None:
             self.get_logger().info(f"replay done: {self.published} messages")
             self.finished.set_result(True)
+
+
+    def close(self) -> None:
+        """Before exiting: wait until the subscribers have every message published (unless the
+        process was told to stop, which shuts the middleware down)."""
+        if not self.context.ok():
+            return
+        for publisher in self._pubs.values():
+            publisher.wait_for_all_acked(Duration(seconds=ros_messages.ACK_TIMEOUT_S))
 
 
 def main(args: list[str] | None = None) -> int:

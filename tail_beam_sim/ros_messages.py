@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TwistStamped
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Imu
 from std_msgs.msg import Header, String
@@ -24,6 +25,18 @@ from tail_beam_sim import topics
 from tail_beam_sim.sensors import ImuStream, PressureStream, Rebound
 
 NO_ORIENTATION = [-1.0] + [0.0] * 8  # REP 145: element 0 = -1, the estimate is not provided
+
+
+EVENT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)  # one message per impact or command
+ACK_TIMEOUT_S = 10.0  # how long a closing publisher waits for its subscribers to have everything, s
+
+
+def stream_qos(depth: int) -> QoSProfile:
+    """Reliable QoS of a sensor stream; ``depth`` 0 keeps all, so that a slow subscriber slows
+    the publisher down (reliable flow control) instead of losing samples."""
+    if depth == 0:
+        return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def message_class(msgtype: str) -> type:

@@ -14,8 +14,9 @@ import math
 import sys
 import time
 
+import numpy as np
+from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from geometry_msgs.msg import TwistStamped
 from rosgraph_msgs.msg import Clock
@@ -29,9 +30,6 @@ from tail_beam_sim.ros_spin import run_node
 from tail_beam_sim.scenario import load_scenario
 from tail_beam_sim.stream import Chunk, QueueFull, StreamSimulator
 
-EVENT_QOS_DEPTH = 100  # rebound, truth and command topics: one message per impact
-
-
 class SimNode(Node):
     """The simulated support: impacts in, sensor streams out."""
 
@@ -43,14 +41,14 @@ class SimNode(Node):
         period = require_range("sim_node.publish_period_s", node.get("publish_period_s"), 0.0, 10.0, low_open=True, unit="s")
         self.max_chunk_s = require_range("sim_node.max_chunk_s", node.get("max_chunk_s"), 0.0, 10.0, low_open=True, unit="s")
         self.exit_after_idle_s = require_range("sim_node.exit_after_idle_s", node.get("exit_after_idle_s"), 0.0, None, unit="s")
-        depth = int(require_range("sim_node.qos_depth", node.get("qos_depth"), 1, 1e6))
+        depth = int(require_range("sim_node.qos_depth", node.get("qos_depth"), 0, 1e6))
         self.wait_for_subscribers = int(require_range("sim_node.wait_for_subscribers", node.get("wait_for_subscribers"), 0, 1000))
         self.stream = StreamSimulator.from_params(params)
         for planned in load_scenario(params["scenario"], self.stream.materials, self.stream.support):
             self.stream.submit(planned.command, planned.contact_stamp_s)
         self.finished = Future()
-        sensor_qos = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
-        event_qos = QoSProfile(depth=EVENT_QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+        sensor_qos = ros_messages.stream_qos(depth)
+        event_qos = ros_messages.EVENT_QOS
         self._pressure_pub = self.create_publisher(FluidPressure, topics.JACK_PRESSURE, sensor_qos)
         self._imu_pub = self.create_publisher(Imu, topics.IMU, sensor_qos)
         self._rebound_pub = self.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, event_qos)
@@ -116,6 +114,14 @@ class SimNode(Node):
                 self.get_logger().info(f"idle for {self.exit_after_idle_s:g} s of simulation time: done")
                 self.finished.set_result(True)
 
+    def close(self) -> None:
+        """Before exiting: wait until the subscribers have every message published (unless the
+        process was told to stop, which shuts the middleware down)."""
+        if not self.context.ok():
+            return
+        for publisher in (self._pressure_pub, self._imu_pub, self._rebound_pub, self._truth_pub):
+            publisher.wait_for_all_acked(Duration(seconds=ros_messages.ACK_TIMEOUT_S))
+
     def publish(self, chunk: Chunk) -> None:
         """Publish one chunk: streams in stamp order, then its rebounds and truths."""
         for scheduled in chunk.started:
@@ -124,10 +130,13 @@ class SimNode(Node):
                 f"impact {scheduled.impact_id}: {scheduled.impact.material.name} R {scheduled.impact.radius_m * 1e3:.0f} mm "
                 f"at {scheduled.contact_stamp_s:.4f} s"
             )
-        for msg in ros_messages.pressure_messages(chunk.pressure):
-            self._pressure_pub.publish(msg)
-        for msg in ros_messages.imu_messages(chunk.imu):
-            self._imu_pub.publish(msg)
+        # Both streams in one stamp order, so that a consumer never sees one run ahead of the other.
+        outgoing = [(self._pressure_pub, m) for m in ros_messages.pressure_messages(chunk.pressure)]
+        outgoing += [(self._imu_pub, m) for m in ros_messages.imu_messages(chunk.imu)]
+        stamps = np.concatenate([chunk.pressure.stamp_s, chunk.imu.stamp_s])
+        for index in np.argsort(stamps, kind="stable"):
+            publisher, msg = outgoing[index]
+            publisher.publish(msg)
         for _, rebound in chunk.rebounds:
             self._rebound_pub.publish(ros_messages.rebound_message(rebound))
         for _, truth in chunk.truths:

@@ -36,7 +36,7 @@ def start_sim(rate_hz: float, duration_s: float, factor: float, count: int) -> s
     params = {
         "sensors.pressure_rate_hz": rate_hz, "sensors.imu_rate_hz": rate_hz, "sim_node.realtime_factor": factor,
         "sim_node.wait_for_subscribers": 1, "sim_node.exit_after_idle_s": duration_s, "scenario.source": "generated",
-        "scenario.count": count, "sim_node.qos_depth": int(4 * rate_hz),
+        "scenario.count": count,
     }
     args = [str(BIN / "sim_node"), "--ros-args"] + [a for k, v in params.items() for a in ("-p", f"{k}:={v}")]
     return subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -60,7 +60,6 @@ def run_identification(rate_hz: float, duration_s: float) -> dict[str, float | s
     context = rclpy.Context()
     rclpy.init(context=context)
     executor = EventsExecutor(context=context)
-    depth = int(4 * rate_hz)
     # No end-of-data flush within the run: only labels decided while the data streams count.
     arrivals: list[tuple[float, float]] = []  # (stamp s, wall s) of the pressure samples, as they reach id_node
 
@@ -69,8 +68,7 @@ def run_identification(rate_hz: float, duration_s: float) -> dict[str, float | s
             arrivals.append((ros_messages.stamp_s(msg.header.stamp), time.monotonic()))
             super()._on_pressure(msg)
 
-    ident = TimedIdNode(context=context, parameter_overrides=[Parameter("id_node.flush_after_idle_s", value=100.0),
-                                                             Parameter("id_node.qos_depth", value=depth)])
+    ident = TimedIdNode(context=context, parameter_overrides=[Parameter("id_node.flush_after_idle_s", value=100.0)])
     watch = rclpy.create_node("bench_watch", context=context)
     truths, labels = [], []
     watch.create_subscription(String, "impact_truth", lambda m: truths.append(json.loads(m.data)), 100)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from std_msgs.msg import String
 
-from rosprobe import Probe, ros_context, spin_until
+from rosprobe import Probe, ros_context, spin_for, spin_until
 from tail_beam_id.cli.identify_cmd import identify_bag
 from tail_beam_id.identifier import available_methods
 from tail_beam_sim import topics
@@ -79,6 +79,12 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
     bag = tmp_path / "live"
     recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}")
     ident = procs.start("id_node", f"method:={method()}", "id_node.flush_after_idle_s:=0.5")
+    with ros_context() as (context, executor):  # the label topic, id_node -> recorder, is up
+        watcher = Probe(context, {}, name="watcher")
+        executor.add_node(watcher)
+        label_topic = watcher.resolve_topic_name(topics.LABEL)
+        assert spin_until(executor, lambda: watcher.count_publishers(label_topic) >= 1 and watcher.count_subscribers(label_topic) >= 1)
+        spin_for(executor, 1.0)
     sim = procs.start("sim_node", *short_scenario(4, "sim_node.wait_for_subscribers:=2"))
     assert sim.wait(timeout=60) == 0
     time.sleep(1.5)  # the last labels follow the data's end by flush_after_idle_s
@@ -101,6 +107,9 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
         probe = Probe(context, {topics.LABEL: String})
         executor.add_node(probe)
         ident2 = procs.start("id_node", f"method:={method()}", "id_node.flush_after_idle_s:=0.5")
+        # Start the replay once the probe has discovered the new id_node's label publisher.
+        assert spin_until(executor, lambda: probe.count_publishers(probe.resolve_topic_name(topics.LABEL)) >= 1, timeout_s=30)
+        spin_for(executor, 0.5)
         replay = procs.start(
             "bag_replay", f"replay.bag_path:={bag}", "replay.rate:=2.0", "replay.wait_for_subscribers:=1",
             "replay.topics:=[jack_pressure, imu, rebound_velocity]",
