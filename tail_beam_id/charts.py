@@ -44,54 +44,66 @@ def accuracy_vs_latency(items: Sequence[Summary], path: Path) -> Path:
     return path
 
 
-def accuracy_vs_size(items: Sequence[Summary], path: Path) -> Path:
-    """Accuracy per radius bin, per method and setting (noise x1 only, scene sets with sizes)."""
-    plt = pyplot()
-    chosen = [s for s in items if _noise(s.setting) == 1.0 and len(s.by_size) > 1]
-    fig, ax = plt.subplots(figsize=(7.5, 4.5), constrained_layout=True)
-    for i, s in enumerate(chosen):
-        centres = [1e3 * (b["radius_m"][0] * b["radius_m"][1]) ** 0.5 for b in s.by_size]
-        ax.plot(centres, [100 * b["accuracy"] for b in s.by_size], marker=MARKERS.get(s.method, "x"), color=f"C{i % 10}",
-                label=f"{s.scene_set} {s.setting} {s.method} {1e3 * s.window_s:g} ms")
-    ax.set_xscale("log")
-    ax.set_xlabel("particle radius (mm, bin centre)")
-    ax.set_ylabel("accuracy (%)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=6)
-    ax.set_title("accuracy against particle size (nominal noise)")
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+def _panels(plt, items: Sequence[Summary]):  # type: ignore[no-untyped-def]
+    """One subplot per scene set, side by side."""
+    sets = sorted({s.scene_set for s in items})
+    fig, axes = plt.subplots(1, len(sets), figsize=(4.6 * len(sets), 4.2), squeeze=False, constrained_layout=True)
+    return fig, dict(zip(sets, axes[0]))
 
 
-def accuracy_vs_noise(items: Sequence[Summary], path: Path) -> Path:
-    """Accuracy against the noise factor, one line per scene set, rates, method and window."""
+def accuracy_vs_size(items: Sequence[Summary], path: Path, window_s: float) -> Path:
+    """Accuracy per radius bin at nominal noise and the configured data window: one panel per
+    scene set with sizes, one line per rates and method."""
     plt = pyplot()
-    lines: dict[tuple[str, str, str, float], list[tuple[float, float]]] = {}
-    for s in items:
+    chosen = [s for s in items if _noise(s.setting) == 1.0 and len(s.by_size) > 1 and s.window_s == window_s]
+    fig, axes = _panels(plt, chosen)
+    for s in chosen:
         rates = s.setting.split("/x")[0]
-        lines.setdefault((s.scene_set, rates, s.method, s.window_s), []).append((_noise(s.setting), 100 * s.accuracy))
-    fig, ax = plt.subplots(figsize=(7.5, 4.5), constrained_layout=True)
-    for i, (key, points) in enumerate(sorted(lines.items())):
-        points.sort()
-        ax.plot([p[0] for p in points], [p[1] for p in points], marker=MARKERS.get(key[2], "x"), color=f"C{i % 10}",
-                ls="-" if key[1] == "nominal" else "--", label=f"{key[0]} {key[1]} {key[2]} {1e3 * key[3]:g} ms")
-    ax.set_xscale("log")
-    ax.set_xlabel("sensor noise (x nominal RMS)")
-    ax.set_ylabel("accuracy (%)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=6, ncol=2)
-    ax.set_title("accuracy against noise")
+        centres = [1e3 * (b["radius_m"][0] * b["radius_m"][1]) ** 0.5 for b in s.by_size]
+        axes[s.scene_set].plot(centres, [100 * b["accuracy"] for b in s.by_size], marker=MARKERS.get(s.method, "x"),
+                               ls="-" if rates == "nominal" else "--", label=f"{rates} {s.method}")
+    for name, ax in axes.items():
+        ax.set_xscale("log")
+        ax.set_title(f"{name} (noise x1, window {1e3 * window_s:g} ms)")
+        ax.set_xlabel("particle radius (mm, bin centre)")
+        ax.set_ylabel("accuracy (%)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
 
 
-def write_all(items: Sequence[Summary], directory: Path) -> list[Path]:
-    """All three charts into ``directory``."""
+def accuracy_vs_noise(items: Sequence[Summary], path: Path, window_s: float) -> Path:
+    """Accuracy against the noise factor at the configured data window: one panel per scene
+    set, one line per rates and method."""
+    plt = pyplot()
+    chosen = [s for s in items if s.window_s == window_s]
+    fig, axes = _panels(plt, chosen)
+    lines: dict[tuple[str, str, str], list[tuple[float, float]]] = {}
+    for s in chosen:
+        lines.setdefault((s.scene_set, s.setting.split("/x")[0], s.method), []).append((_noise(s.setting), 100 * s.accuracy))
+    for (scene_set, rates, method), points in sorted(lines.items()):
+        points.sort()
+        axes[scene_set].plot([p[0] for p in points], [p[1] for p in points], marker=MARKERS.get(method, "x"),
+                             ls="-" if rates == "nominal" else "--", label=f"{rates} {method}")
+    for name, ax in axes.items():
+        ax.set_xscale("log")
+        ax.set_title(f"{name} (window {1e3 * window_s:g} ms)")
+        ax.set_xlabel("sensor noise (x nominal RMS)")
+        ax.set_ylabel("accuracy (%)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def write_all(items: Sequence[Summary], directory: Path, window_s: float) -> list[Path]:
+    """All three charts into ``directory`` (size and noise charts at data window ``window_s``)."""
     directory.mkdir(parents=True, exist_ok=True)
     return [
         accuracy_vs_latency(items, directory / "accuracy_vs_latency.png"),
-        accuracy_vs_size(items, directory / "accuracy_vs_size.png"),
-        accuracy_vs_noise(items, directory / "accuracy_vs_noise.png"),
+        accuracy_vs_size(items, directory / "accuracy_vs_size.png", window_s),
+        accuracy_vs_noise(items, directory / "accuracy_vs_noise.png", window_s),
     ]

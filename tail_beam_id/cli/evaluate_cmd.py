@@ -98,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
         if args.plot:
             from tail_beam_id.charts import write_all
 
-            for path in write_all(items, out):
+            for path in write_all(items, out, float(params["identification"]["window_s"])):
                 print(f"wrote {path}")
     return 0
 
