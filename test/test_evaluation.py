@@ -80,3 +80,18 @@ def test_evaluate_rejects_bad_options_in_one_line(capsys, argv, field):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and field in err
+
+
+def test_charts_are_written(tmp_path):
+    pytest.importorskip("matplotlib")
+    from tail_beam_id.charts import write_all
+
+    items = []
+    for noise in ("1", "10"):
+        records = [record(True, "coal", 0.03), record(False, "gangue", 0.08), record(False, "coal", 0.04)]
+        for r in records:
+            r.setting = f"nominal/x{noise}"
+        items.append(summarise(records, [0.025, 0.05, 0.1]))
+    paths = write_all(items, tmp_path, 0.012)
+    assert [p.name for p in paths] == ["accuracy_vs_latency.png", "accuracy_vs_size.png", "accuracy_vs_noise.png"]
+    assert all(p.stat().st_size > 1000 and p.read_bytes()[:4] == b"\x89PNG" for p in paths)
