@@ -57,11 +57,14 @@ def evaluation_params(params: Mapping[str, Any]) -> Mapping[str, Any]:
     return section(section(params, "identification"), "evaluation")
 
 
-def settings(params: Mapping[str, Any], noise_factors: Sequence[float] | None = None, rate_names: Sequence[str] | None = None) -> list[Setting]:
-    """Every (noise factor, rates) combination asked for (default: all in the config)."""
+def settings(
+    params: Mapping[str, Any], noise_factors: Sequence[float] | None = None, rate_names: Sequence[str] | None = None, every_rate: bool = False
+) -> list[Setting]:
+    """Every (noise factor, rates) combination asked for (default: the config's noise factors
+    and default rates, or every rate with ``every_rate``)."""
     ev = evaluation_params(params)
     rates = ev["rates"]
-    names = list(rate_names) if rate_names else list(rates)
+    names = list(rate_names) if rate_names else (list(rates) if every_rate else list(ev["default_rates"]))
     for name in names:
         if name not in rates:
             raise InputError("rates", name, f"must be one of {', '.join(rates)}")

@@ -41,7 +41,7 @@ THRESHOLD_FEATURES = ("rebound_speed_mps", "moment_impulse_nms", "pressure_swing
 
 def collect(params: Mapping[str, Any], scene_set: str, count: int, seed: int, tier: str | None) -> list[Record]:
     """Feature records of ``count`` training impacts at every setting (detected ones only)."""
-    records = run_set(params, scene_set, count, seed, settings(params), ["threshold"], MATCH_TOLERANCE_S, tier)
+    records = run_set(params, scene_set, count, seed, settings(params, every_rate=True), ["threshold"], MATCH_TOLERANCE_S, tier)
     return [r for r in records if r.label is not None]
 
 
