@@ -208,3 +208,18 @@ def test_impact_lost_in_imu_noise_is_still_labelled_from_the_camera(params):
     assert len(labels) == 1
     assert "imu" not in labels[0]["signals"] and "rebound_velocity" in labels[0]["signals"]
     assert abs(labels[0]["impact_stamp"] - result.contact_stamp_s) < 0.002
+
+
+def test_long_noise_only_stream_gives_no_label_and_bounded_buffers(params):
+    # 20 s of sensor noise alone (2 kHz), delivered in 10 ms chunks: no impact may be
+    # reported, and the identifier keeps only the last second or so of samples.
+    identifier = StreamIdentifier("statistical", params["identification"], params)
+    rng = np.random.default_rng(5)
+    for k in range(2000):
+        t = (np.arange(20) + 20 * k + 1) / 2000.0
+        identifier.add_pressure(t, 20e6 + rng.normal(0.0, 1e4, 20))
+        accel = np.column_stack([rng.normal(0, 0.05, 20), rng.normal(0, 0.05, 20), 9.81 + rng.normal(0, 0.05, 20)])
+        identifier.add_imu(t, rng.normal(0.0, 0.005, (20, 3)), accel)
+        assert identifier.poll() == []
+    assert identifier.flush() == []
+    assert identifier.imu.stamp_s.size < 2 * 2000 and identifier.pressure.stamp_s.size < 2 * 2000
