@@ -44,6 +44,7 @@ class DetectionConfig:
     max_contact_s: float
     rebound_early_tolerance_s: float
     unconfirmed_pulse_sigma: float
+    pressure_confirm_sigma: float
     pressure_threshold_sigma: float
     ring_fraction: float
     ring_decay_s: float
@@ -69,6 +70,7 @@ class DetectionConfig:
             max_contact_s=get("max_contact_s", 0.0, 1.0, "s"),
             rebound_early_tolerance_s=get("rebound_early_tolerance_s", 0.0, 1.0, "s"),
             unconfirmed_pulse_sigma=get("unconfirmed_pulse_sigma", 0.0, 1e6),
+            pressure_confirm_sigma=get("pressure_confirm_sigma", 0.0, 1e3),
             pressure_threshold_sigma=get("pressure_threshold_sigma", 0.0, 1e3),
             ring_fraction=get("ring_fraction", 0.0, 100.0),
             ring_decay_s=get("ring_decay_s", 0.0, 10.0, "s"),

@@ -269,7 +269,7 @@ class StreamIdentifier:
         labels: list[dict[str, Any]] = []
         while self.pending and (final or self._ready(self.pending[0])):
             impact = self.pending.pop(0)
-            label = self._decide(impact, final)
+            label = self._decide(impact)
             if label is not None:
                 labels.append(label)
         self._trim()
@@ -367,7 +367,7 @@ class StreamIdentifier:
             return -math.inf
         return float(self.imu.stamp_s[min(local, self.imu.stamp_s.size - 1)])
 
-    def _decide(self, impact: _Impact, final: bool) -> dict[str, Any] | None:
+    def _decide(self, impact: _Impact) -> dict[str, Any] | None:
         started = time.perf_counter()
         cfg = self.config
         if impact.rebound is None:
@@ -427,12 +427,16 @@ class StreamIdentifier:
             horizon = max(horizon, self._rebound_window(impact)[1] + self.config.camera_timeout_s)
         return horizon
 
-    @staticmethod
-    def _pressure_confirms(fit: PressureFit | None) -> bool:
-        return fit is not None and not fit.saturated and fit.moment_impulse_nms > 3.0 * fit.sigma_nms
+    def _pressure_confirms(self, fit: PressureFit | None) -> bool:
+        """The jack pressure saw a moment impulse ``pressure_confirm_sigma`` standard errors
+        above zero at this onset."""
+        threshold = self.config.detection.pressure_confirm_sigma
+        return fit is not None and not fit.saturated and fit.moment_impulse_nms > threshold * fit.sigma_nms
 
     def _trim(self) -> None:
-        """Drop data no pending or future decision can need (bounded memory on long streams)."""
+        """Drop data no pending or future decision can need (bounded memory on long streams):
+        keeps four times the longest look-back (noise block, pressure fit) before the oldest
+        pending onset."""
         keep_s = 4.0 * max(self.config.detection.noise_block_s, self.config.pressure_pre_s + self.config.window_s)
         oldest_needed = min([i.onset_s for i in self.pending], default=self._newest_s()) - keep_s
         if self.imu.stamp_s.size and self.imu.stamp_s[0] < oldest_needed - keep_s:
