@@ -100,6 +100,9 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
         by_size=by_size, data_latency_ms=_percentiles(data_latency),
         compute_ms=_percentiles([r.label["latency_ms"] for r in labelled]),
         mean_confidence_wrong=float(np.mean(wrong_conf)) if wrong_conf else math.nan,
+        # Wall-clock to process each impact's whole stream (detection over every sample, then
+        # features and decision): what the per-label compute time leaves out.
+        extra={"stream_processing_ms": _percentiles([1e3 * r.wall_s for r in records])},
     )
 
 
