@@ -3,8 +3,9 @@
 Takes impacts on ``impact_cmd`` (and a start-up scenario), publishes ``jack_pressure`` and
 ``imu`` as continuous streams, ``rebound_velocity`` and ``impact_truth`` once per impact, and
 ``/clock`` on request. A timer advances simulation time by the wall-clock time elapsed times
-``realtime_factor`` (0: as fast as possible); when it falls behind it produces at most
-``max_chunk_s`` per tick and runs slower than real time, never skipping a sample.
+``realtime_factor`` (0: as fast as possible), at most ``max_chunk_s`` per tick: a short stall
+is caught up; when it falls more than ``max_lag_s`` behind it runs slower than real time from
+there on. It never skips a sample.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ class SimNode(Node):
         self.realtime_factor = require_range("sim_node.realtime_factor", node.get("realtime_factor"), 0.0, 1e6)
         period = require_range("sim_node.publish_period_s", node.get("publish_period_s"), 0.0, 10.0, low_open=True, unit="s")
         self.max_chunk_s = require_range("sim_node.max_chunk_s", node.get("max_chunk_s"), 0.0, 10.0, low_open=True, unit="s")
+        self.max_lag_s = require_range("sim_node.max_lag_s", node.get("max_lag_s"), 0.0, 3600.0, unit="s")
         self.exit_after_idle_s = require_range("sim_node.exit_after_idle_s", node.get("exit_after_idle_s"), 0.0, None, unit="s")
         depth = int(require_range("sim_node.qos_depth", node.get("qos_depth"), 0, 1e6))
         self.wait_for_subscribers = int(require_range("sim_node.wait_for_subscribers", node.get("wait_for_subscribers"), 0, 1000))
@@ -92,10 +94,9 @@ class SimNode(Node):
             self._anchor = (now_s, current)
         wall0, sim0 = self._anchor
         target = sim0 + (now_s - wall0) * self.realtime_factor
-        if target > current + self.max_chunk_s:  # behind: run slower than real time from here on
-            target = current + self.max_chunk_s
-            self._anchor = (now_s, target)
-        return target
+        if target > current + self.max_lag_s:  # too far behind to catch up: slower than real time from here
+            self._anchor = (now_s, current)
+        return min(target, current + self.max_chunk_s)  # a short stall is caught up, a chunk at a time
 
     def _subscribers_ready(self) -> bool:
         """True once every sensor topic has ``wait_for_subscribers`` subscribers."""
