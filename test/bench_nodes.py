@@ -174,7 +174,8 @@ def main() -> None:
     for rate in args.rates:
         runs = [run_identification(rate, args.duration) for _ in range(args.repeats)]
         med = {k: statistics.median(r[k] for r in runs) for k in runs[0] if k != "error"}
-        worst = max(r["lost"] for r in runs)
+        # A run whose identifier failed stopped counting there: its loss means nothing.
+        worst = max(r["lost"] for r in runs) if not any(r["error"] for r in runs) else float("nan")
         print(f"{rate:8.0f} {2 * rate:8.0f} {worst:6.0f} {med['ratio']:9.3f} "
               f"{med['latency_ms']:11.1f} {med['labelled']:4.0f}/{med['impacts']:<4.0f}", flush=True)
         for error in sorted({r["error"] for r in runs if r["error"]}):

@@ -126,9 +126,9 @@ def test_recorder_killed_with_sigkill_leaves_all_but_the_last_seconds_readable(t
     recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}", "recorder.segment_s:=0.5")
     sim = procs.start("sim_node", *short_scenario(30, "sim_node.wait_for_subscribers:=1"))
     deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and not any((bag / PARTIAL_DIR).glob("*")) if bag.exists() else True:
-        time.sleep(0.1)
-    time.sleep(4.0)  # a few segments of real-time data
+    while time.monotonic() < deadline and not (bag.exists() and any(bag.glob("*.mcap"))):
+        time.sleep(0.1)  # until the first segment is closed: the data flows
+    time.sleep(3.5)  # a few more segments of real-time data
     killed_ns = time.time_ns()
     recorder.kill()
     recorder.wait()
