@@ -13,7 +13,6 @@ import sys
 import time
 from collections.abc import Iterator
 
-from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
@@ -22,7 +21,7 @@ from tail_beam_sim import ros_messages, topics
 from tail_beam_sim.bagread import RawMessage, raw_messages
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
-from tail_beam_sim.ros_spin import run_node
+from tail_beam_sim.ros_spin import drain, run_node
 
 WAITED_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.REBOUND_VELOCITY)
 
@@ -79,14 +78,9 @@ class ReplayNode(Node):
             self.get_logger().info(f"replay done: {self.published} messages")
             self.finished.set_result(True)
 
-
     def close(self) -> None:
-        """Before exiting: wait until the subscribers have every message published (unless the
-        process was told to stop, which shuts the middleware down)."""
-        if not self.context.ok():
-            return
-        for publisher in self._pubs.values():
-            publisher.wait_for_all_acked(Duration(seconds=ros_messages.ACK_TIMEOUT_S))
+        """Before exiting: let the subscribers have every message published."""
+        drain(self, self._pubs.values())
 
 
 def main(args: list[str] | None = None) -> int:

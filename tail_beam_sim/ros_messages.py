@@ -28,7 +28,6 @@ NO_ORIENTATION = [-1.0] + [0.0] * 8  # REP 145: element 0 = -1, the estimate is 
 
 
 EVENT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)  # one message per impact or command
-ACK_TIMEOUT_S = 10.0  # how long a closing publisher waits for its subscribers to have everything, s
 
 
 def stream_qos(depth: int) -> QoSProfile:

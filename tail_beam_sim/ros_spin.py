@@ -7,17 +7,20 @@ down, so the nodes spin in short slices and check the context between them.
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental import EventsExecutor
+from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.task import Future
 
 from tail_beam_sim.errors import InputError
 
 SLICE_S = 0.1  # longest wait between two checks of the context, s
+ACK_TIMEOUT_S = 10.0  # how long a closing publisher waits for its subscribers to have everything, s
 
 
 def spin(node: Node, done: Future | None = None) -> None:
@@ -31,6 +34,15 @@ def spin(node: Node, done: Future | None = None) -> None:
         pass
     finally:
         executor.shutdown()
+
+
+def drain(node: Node, publishers: Iterable[Publisher]) -> None:
+    """Before exiting: wait until the subscribers have every message published (unless the
+    process was told to stop, which shuts the middleware down)."""
+    if not node.context.ok():
+        return
+    for publisher in publishers:
+        publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
 
 
 def run_node(make: Callable[[], Node], executable: str, args: Sequence[str] | None = None) -> int:

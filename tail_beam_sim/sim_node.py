@@ -16,7 +16,6 @@ import sys
 import time
 
 import numpy as np
-from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.task import Future
 from geometry_msgs.msg import TwistStamped
@@ -27,7 +26,7 @@ from std_msgs.msg import String
 from tail_beam_sim import ros_messages, topics
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
-from tail_beam_sim.ros_spin import run_node
+from tail_beam_sim.ros_spin import drain, run_node
 from tail_beam_sim.scenario import load_scenario
 from tail_beam_sim.stream import Chunk, QueueFull, StreamSimulator
 
@@ -116,12 +115,8 @@ class SimNode(Node):
                 self.finished.set_result(True)
 
     def close(self) -> None:
-        """Before exiting: wait until the subscribers have every message published (unless the
-        process was told to stop, which shuts the middleware down)."""
-        if not self.context.ok():
-            return
-        for publisher in (self._pressure_pub, self._imu_pub, self._rebound_pub, self._truth_pub):
-            publisher.wait_for_all_acked(Duration(seconds=ros_messages.ACK_TIMEOUT_S))
+        """Before exiting: let the subscribers have every message published."""
+        drain(self, (self._pressure_pub, self._imu_pub, self._rebound_pub, self._truth_pub))
 
     def publish(self, chunk: Chunk) -> None:
         """Publish one chunk: streams in stamp order, then its rebounds and truths."""
