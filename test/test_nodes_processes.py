@@ -38,15 +38,21 @@ class Processes:
     def __init__(self, log_dir: Path) -> None:
         self.log_dir = log_dir
         self.running: list[subprocess.Popen] = []
+        self.logs: dict[int, Path] = {}
 
     def start(self, exe: str, *params: str, ns: str = "") -> subprocess.Popen:
         args = [str(BIN / exe), "--ros-args"] + [a for p in params for a in ("-p", p)]
         if ns:
             args += ["-r", f"__ns:={ns}"]
-        log = (self.log_dir / f"{exe}{ns.replace('/', '_')}_{len(self.running)}.log").open("w")
-        proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
+        path = self.log_dir / f"{exe}{ns.replace('/', '_')}_{len(self.running)}.log"
+        with path.open("w") as log:
+            proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
         self.running.append(proc)
+        self.logs[proc.pid] = path
         return proc
+
+    def log(self, proc: subprocess.Popen) -> str:
+        return self.logs[proc.pid].read_text()
 
     def stop(self, proc: subprocess.Popen, sig: int = signal.SIGINT, timeout_s: float = 20.0) -> int:
         proc.send_signal(sig)
@@ -127,9 +133,10 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
             "replay.topics:=[jack_pressure, imu, rebound_velocity]",
         )
         assert spin_until(executor, lambda: replay.poll() is not None, timeout_s=60) and replay.returncode == 0
-        assert spin_until(executor, lambda: len(probe.messages[topics.LABEL]) >= len(offline), timeout_s=20)
+        spin_until(executor, lambda: len(probe.messages[topics.LABEL]) >= len(offline), timeout_s=30)
         replayed = probe.json(topics.LABEL)
         procs.stop(ident2)
+    assert len(replayed) == len(offline), f"id_node on the replay said: {procs.log(ident2)[-2000:]}"
     assert_same_labels(replayed, offline)
 
 

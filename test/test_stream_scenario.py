@@ -31,7 +31,7 @@ def test_generated_stream_has_the_exact_gangue_share_and_stays_in_its_ranges(nod
     for p in planned:
         c = p.command
         material = materials[c["material"]]
-        assert 0.05 <= c["radius_m"] <= 0.10 and 1.5 <= c["drop_height_m"] <= 4.0 and 0.2 <= c["position_m"] <= 1.4
+        assert 0.025 <= c["radius_m"] <= 0.10 and 1.5 <= c["drop_height_m"] <= 4.0 and 0.2 <= c["position_m"] <= 1.4
         assert material.restitution_range[0] <= c["restitution"] <= material.restitution_range[1]
     gaps = [b.contact_stamp_s - a.contact_stamp_s for a, b in zip(planned, planned[1:])]
     assert planned[0].contact_stamp_s == 0.5 and all(0.4 <= g <= 0.7 for g in gaps)
