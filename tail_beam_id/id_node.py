@@ -25,6 +25,7 @@ from tail_beam_sim.errors import require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
 from tail_beam_sim.ros_spin import run_node
 
+
 class IdNode(Node):
     """Labels each impact in the sensor streams coal or gangue."""
 

@@ -30,6 +30,7 @@ from tail_beam_sim.ros_spin import drain, run_node
 from tail_beam_sim.scenario import load_scenario
 from tail_beam_sim.stream import Chunk, QueueFull, StreamSimulator
 
+
 class SimNode(Node):
     """The simulated support: impacts in, sensor streams out."""
 
