@@ -73,7 +73,11 @@ class ReplayNode(Node):
             self.published += 1
             if self._clock_pub is not None:
                 self._clock_pub.publish(Clock(clock=ros_messages.time_msg(message.log_time_ns * 1e-9)))
-            self._next = next(self._messages, None)
+            try:
+                self._next = next(self._messages, None)
+            except InputError as exc:  # damaged past its start: say so and stop
+                self.get_logger().error(f"replay stopped: {exc}")
+                self._next = None
         if self._next is None:
             self.get_logger().info(f"replay done: {self.published} messages")
             self.finished.set_result(True)
