@@ -168,7 +168,9 @@ class PulseDetector:
         absolute = base_index + k
         start = max((absolute - baseline) // block - 1, 0) * block + baseline
         if start not in self._sigma_cache:
-            lo = start - base_index
+            # A stream that resumed after a gap may have had that block trimmed away: use the
+            # oldest whole block still buffered instead.
+            lo = min(max(start - base_index, baseline), max(accel_z.size - block, baseline))
             self._sigma_cache[start] = robust_sigma(self._residual(accel_z, lo, lo + block, baseline))
         return self._sigma_cache[start]
 

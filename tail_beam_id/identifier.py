@@ -436,9 +436,14 @@ class StreamIdentifier:
     def _trim(self) -> None:
         """Drop data no pending or future decision can need (bounded memory on long streams):
         keeps four times the longest look-back (noise block, pressure fit) before the oldest
-        pending onset."""
+        pending onset, and never trims past what the IMU detector has not examined yet (a
+        backlogged IMU may lag the pressure by more than that look-back: trimming by the newest
+        stamp of any topic would cut into it and make the result depend on arrival order)."""
         keep_s = 4.0 * max(self.config.detection.noise_block_s, self.config.pressure_pre_s + self.config.window_s)
-        oldest_needed = min([i.onset_s for i in self.pending], default=self._newest_s()) - keep_s
+        horizon = self._newest_s()
+        if self.imu.seen and self.imu_stop_s == math.inf:
+            horizon = min(horizon, self._imu_scanned_s())
+        oldest_needed = min([i.onset_s for i in self.pending], default=horizon) - keep_s
         if self.imu.stamp_s.size and self.imu.stamp_s[0] < oldest_needed - keep_s:
             self.imu.trim_before(oldest_needed)
         if self.pressure.stamp_s.size and self.pressure.stamp_s[0] < oldest_needed - keep_s:
