@@ -37,18 +37,25 @@ def require_range(
     low_open: bool = False,
     unit: str = "",
 ) -> float:
-    """Return ``value`` as a float within [low, high] (``(low, high]`` if low_open)."""
-    number = require_finite(field, value)
+    """Return ``value`` as a float within [low, high] (``(low, high]`` if low_open).
+
+    Any failure, a NaN or a string included, names the allowed range.
+    """
+    suffix = f" {unit}" if unit else ""
+    if high is None and low is None:
+        allowed = "must be a finite number"
+    elif high is None:
+        allowed = f"must be {'>' if low_open else '>='} {low:g}{suffix}"
+    elif low is None:
+        allowed = f"must be <= {high:g}{suffix}"
+    else:
+        allowed = f"must be in {'(' if low_open else '['}{low:g}, {high:g}]{suffix}"
+    try:
+        number = require_finite(field, value)
+    except InputError:
+        raise InputError(field, value, allowed if allowed.endswith("finite number") else f"{allowed} (a finite number)") from None
     too_low = low is not None and (number <= low if low_open else number < low)
     too_high = high is not None and number > high
     if too_low or too_high:
-        suffix = f" {unit}" if unit else ""
-        if high is None:
-            allowed = f"must be {'>' if low_open else '>='} {low:g}{suffix}"
-        elif low is None:
-            allowed = f"must be <= {high:g}{suffix}"
-        else:
-            bracket = "(" if low_open else "["
-            allowed = f"must be in {bracket}{low:g}, {high:g}]{suffix}"
         raise InputError(field, value, allowed)
     return number

@@ -131,7 +131,7 @@ def test_plot_writes_a_png(tmp_path, capsys):
 
 BAD_INPUT = [
     (["--radius-m", "-0.01"], "radius_m", "(0, 0.5]"),
-    (["--radius-m", "nan"], "radius_m", "finite"),
+    (["--radius-m", "nan"], "radius_m", "(0, 0.5] m (a finite number)"),
     (["--material", "granite"], "material", "coal"),
     (["--position-m", "1.7"], "position_m", "[0, 1.6]"),
     (["--drop-height-m", "0"], "drop_height_m", "(0, 50]"),
