@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from tail_beam_id.evaluation import Summary
 from tail_beam_sim.plotting import pyplot
@@ -62,16 +63,7 @@ def accuracy_vs_size(items: Sequence[Summary], path: Path, window_s: float) -> P
         centres = [1e3 * (b["radius_m"][0] * b["radius_m"][1]) ** 0.5 for b in s.by_size]
         axes[s.scene_set].plot(centres, [100 * b["accuracy"] for b in s.by_size], marker=MARKERS.get(s.method, "x"),
                                ls="-" if rates == "nominal" else "--", label=f"{rates} {s.method}")
-    for name, ax in axes.items():
-        ax.set_xscale("log")
-        ax.set_title(f"{name} (noise x1, window {1e3 * window_s:g} ms)")
-        ax.set_xlabel("particle radius (mm, bin centre)")
-        ax.set_ylabel("accuracy (%)")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _save_log_x_panels(plt, fig, axes, path, f"noise x1, window {1e3 * window_s:g} ms", "particle radius (mm, bin centre)")
 
 
 def accuracy_vs_noise(items: Sequence[Summary], path: Path, window_s: float) -> Path:
@@ -87,10 +79,15 @@ def accuracy_vs_noise(items: Sequence[Summary], path: Path, window_s: float) -> 
         points.sort()
         axes[scene_set].plot([p[0] for p in points], [p[1] for p in points], marker=MARKERS.get(method, "x"),
                              ls="-" if rates == "nominal" else "--", label=f"{rates} {method}")
+    return _save_log_x_panels(plt, fig, axes, path, f"window {1e3 * window_s:g} ms", "sensor noise (x nominal RMS)")
+
+
+def _save_log_x_panels(plt: Any, fig: Any, axes: dict[str, Any], path: Path, subtitle: str, xlabel: str) -> Path:
+    """Finish accuracy panels on a log x axis, titled ``<scene set> (<subtitle>)``, and save."""
     for name, ax in axes.items():
         ax.set_xscale("log")
-        ax.set_title(f"{name} (window {1e3 * window_s:g} ms)")
-        ax.set_xlabel("sensor noise (x nominal RMS)")
+        ax.set_title(f"{name} ({subtitle})")
+        ax.set_xlabel(xlabel)
         ax.set_ylabel("accuracy (%)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
