@@ -21,7 +21,7 @@ from tail_beam_sim import ros_messages, topics
 from tail_beam_sim.bagread import RawMessage, raw_messages
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
-from tail_beam_sim.ros_spin import drain, run_node
+from tail_beam_sim.ros_spin import PublishBacklog, drain, run_node
 
 WAITED_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.REBOUND_VELOCITY)
 
@@ -51,6 +51,7 @@ class ReplayNode(Node):
         self._clock_pub = self.create_publisher(Clock, "/clock", 10) if params.get("publish_clock") else None
         self._origin: tuple[float, int] | None = None  # (wall s, log ns) of the first message
         self.published = 0
+        self._backlog = PublishBacklog(self)
         self.finished = Future()
         self.create_timer(period, self._tick)
         self.get_logger().info(f"replaying {params['bag_path']} at rate {self.rate:g}")
@@ -60,7 +61,14 @@ class ReplayNode(Node):
         return all(p.get_subscription_count() >= self.wait_for_subscribers for p in waited)
 
     def _tick(self) -> None:
-        if self._next is None or not (self._origin or self._ready()):
+        if not self._backlog.flush():
+            return  # a subscriber is behind: wait for it (the timing catches up afterwards)
+        if self._next is None:
+            if not self.finished.done():
+                self.get_logger().info(f"replay done: {self.published} messages")
+                self.finished.set_result(True)
+            return
+        if not (self._origin or self._ready()):
             return
         now = time.monotonic()
         if self._origin is None:
@@ -69,18 +77,17 @@ class ReplayNode(Node):
         due_ns = log0 + int((now - wall0) * self.rate * 1e9)
         while self._next is not None and self._next.log_time_ns <= due_ns:
             message = self._next
-            self._pubs[message.topic].publish(message.data)
+            self._backlog.publish(self._pubs[message.topic], message.data)
             self.published += 1
             if self._clock_pub is not None:
-                self._clock_pub.publish(Clock(clock=ros_messages.time_msg(message.log_time_ns * 1e-9)))
+                self._backlog.publish(self._clock_pub, Clock(clock=ros_messages.time_msg(message.log_time_ns * 1e-9)))
             try:
                 self._next = next(self._messages, None)
             except InputError as exc:  # damaged past its start: say so and stop
                 self.get_logger().error(f"replay stopped: {exc}")
                 self._next = None
-        if self._next is None:
-            self.get_logger().info(f"replay done: {self.published} messages")
-            self.finished.set_result(True)
+            if not self._backlog.flush():
+                return
 
     def close(self) -> None:
         """Before exiting: let the subscribers have every message published."""

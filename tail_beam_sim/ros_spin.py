@@ -7,7 +7,9 @@ down, so the nodes spin in short slices and check the context between them.
 from __future__ import annotations
 
 import sys
+from collections import deque
 from collections.abc import Callable, Iterable, Sequence
+from typing import Any
 
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException
@@ -16,6 +18,7 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.task import Future
+from rclpy._rclpy_pybind11 import RCLError
 
 from tail_beam_sim.errors import InputError
 
@@ -34,6 +37,43 @@ def spin(node: Node, done: Future | None = None) -> None:
         pass
     finally:
         executor.shutdown()
+
+
+class PublishBacklog:
+    """Publishes messages in order; when a reliable keep-all writer is full (a slow subscriber on
+    a busy machine: Fast DDS then fails the publish after its blocking time), keeps the rest for
+    the next ``flush``, so that the caller's timer returns, the executor spins, and nothing is
+    lost or reordered. Callers stop producing while ``pending`` is not zero."""
+
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._queue: deque[tuple[Publisher, Any]] = deque()
+        self._held = False  # whether the last flush was refused (warned once per episode)
+
+    @property
+    def pending(self) -> int:
+        return len(self._queue)
+
+    def publish(self, publisher: Publisher, msg: Any) -> None:
+        """Queue ``msg`` behind everything pending (call ``flush`` to send)."""
+        self._queue.append((publisher, msg))
+
+    def flush(self) -> bool:
+        """Send what the writers accept, in order; True when nothing is left."""
+        while self._queue:
+            publisher, msg = self._queue[0]
+            try:
+                publisher.publish(msg)
+            except RCLError:
+                if not self._held:
+                    self._node.get_logger().warning(
+                        f"a subscriber of {publisher.topic_name} is behind: holding {len(self._queue)} messages until it catches up"
+                    )
+                self._held = True
+                return False
+            self._queue.popleft()
+        self._held = False
+        return True
 
 
 def drain(node: Node, publishers: Iterable[Publisher]) -> None:

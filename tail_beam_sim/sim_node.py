@@ -26,7 +26,7 @@ from std_msgs.msg import String
 from tail_beam_sim import ros_messages, topics
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
-from tail_beam_sim.ros_spin import drain, run_node
+from tail_beam_sim.ros_spin import ACK_TIMEOUT_S, PublishBacklog, drain, run_node
 from tail_beam_sim.scenario import load_scenario
 from tail_beam_sim.stream import Chunk, QueueFull, StreamSimulator
 
@@ -60,6 +60,7 @@ class SimNode(Node):
         self._anchor: tuple[float, float] | None = None  # (wall s, simulation s) pacing origin
         self._last_activity_s = 0.0
         self._started = False  # simulation time held at 0 until the subscribers are there
+        self._backlog = PublishBacklog(self)  # messages a full writer has not taken yet, in order
         self.create_timer(0.0 if self.realtime_factor == 0.0 else period, self._tick)
         self.get_logger().info(
             f"simulating at realtime_factor {self.realtime_factor:g}: pressure {self.stream.sensors.pressure_rate_hz:g} Hz, "
@@ -108,6 +109,8 @@ class SimNode(Node):
             if not self._subscribers_ready():
                 return
             self._started = True
+        if not self._backlog.flush():
+            return  # a subscriber is behind: simulate no further until it has caught up
         chunk = self.stream.advance(self._target_time_s(time.monotonic()))
         self.publish(chunk)
         if self.exit_after_idle_s > 0.0 and self.stream.queued == 0 and not self.finished.done():
@@ -117,6 +120,9 @@ class SimNode(Node):
 
     def close(self) -> None:
         """Before exiting: let the subscribers have every message published."""
+        deadline = time.monotonic() + ACK_TIMEOUT_S
+        while self.context.ok() and not self._backlog.flush() and time.monotonic() < deadline:
+            time.sleep(0.01)
         drain(self, (self._pressure_pub, self._imu_pub, self._rebound_pub, self._truth_pub))
 
     def publish(self, chunk: Chunk) -> None:
@@ -131,15 +137,16 @@ class SimNode(Node):
         outgoing = [(self._pressure_pub, m) for m in ros_messages.pressure_messages(chunk.pressure)]
         outgoing += [(self._imu_pub, m) for m in ros_messages.imu_messages(chunk.imu)]
         stamps = np.concatenate([chunk.pressure.stamp_s, chunk.imu.stamp_s])
+        backlog = self._backlog
         for index in np.argsort(stamps, kind="stable"):
-            publisher, msg = outgoing[index]
-            publisher.publish(msg)
+            backlog.publish(*outgoing[index])
         for _, rebound in chunk.rebounds:
-            self._rebound_pub.publish(ros_messages.rebound_message(rebound))
+            backlog.publish(self._rebound_pub, ros_messages.rebound_message(rebound))
         for _, truth in chunk.truths:
-            self._truth_pub.publish(ros_messages.string_message(truth))
+            backlog.publish(self._truth_pub, ros_messages.string_message(truth))
         if self._clock_pub is not None and math.isfinite(chunk.end_s):
-            self._clock_pub.publish(ros_messages.clock_message(chunk.end_s))
+            backlog.publish(self._clock_pub, ros_messages.clock_message(chunk.end_s))
+        backlog.flush()
 
 
 def main(args: list[str] | None = None) -> int:
