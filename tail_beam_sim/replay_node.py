@@ -21,7 +21,7 @@ from tail_beam_sim import ros_messages, topics
 from tail_beam_sim.bagread import RawMessage, raw_messages
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
-from tail_beam_sim.ros_spin import PublishBacklog, drain, run_node
+from tail_beam_sim.ros_spin import PublishBacklog, SubscriberGate, drain, run_node
 
 WAITED_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.REBOUND_VELOCITY)
 
@@ -36,7 +36,8 @@ class ReplayNode(Node):
             raise InputError("replay.bag_path", params.get("bag_path"), "required: the bag directory to publish")
         self.rate = require_range("replay.rate", params.get("rate"), 0.0, 1e6, low_open=True)
         period = require_range("replay.publish_period_s", params.get("publish_period_s"), 0.0, 10.0, low_open=True, unit="s")
-        self.wait_for_subscribers = int(require_range("replay.wait_for_subscribers", params.get("wait_for_subscribers"), 0, 1000))
+        wait_for = int(require_range("replay.wait_for_subscribers", params.get("wait_for_subscribers"), 0, 1000))
+        settle = require_range("replay.subscriber_settle_s", params.get("subscriber_settle_s"), 0.0, 60.0, unit="s")
         depth = int(require_range("replay.qos_depth", params.get("qos_depth"), 0, 1e6))
         chosen = list(params.get("topics") or [])
         unknown = sorted(set(chosen) - set(topics.MSG_TYPES))
@@ -49,16 +50,14 @@ class ReplayNode(Node):
             topic: self.create_publisher(ros_messages.message_class(topics.MSG_TYPES[topic]), topic, qos) for topic in chosen
         }
         self._clock_pub = self.create_publisher(Clock, "/clock", 10) if params.get("publish_clock") else None
+        waited = [self._pubs[t] for t in WAITED_TOPICS if t in self._pubs]
+        self._gate = SubscriberGate(waited, wait_for, settle)
         self._origin: tuple[float, int] | None = None  # (wall s, log ns) of the first message
         self.published = 0
         self._backlog = PublishBacklog(self)
         self.finished = Future()
         self.create_timer(period, self._tick)
         self.get_logger().info(f"replaying {params['bag_path']} at rate {self.rate:g}")
-
-    def _ready(self) -> bool:
-        waited = [self._pubs[t] for t in WAITED_TOPICS if t in self._pubs]
-        return all(p.get_subscription_count() >= self.wait_for_subscribers for p in waited)
 
     def _tick(self) -> None:
         if not self._backlog.flush():
@@ -68,7 +67,7 @@ class ReplayNode(Node):
                 self.get_logger().info(f"replay done: {self.published} messages")
                 self.finished.set_result(True)
             return
-        if not (self._origin or self._ready()):
+        if not (self._origin or self._gate.open()):
             return
         now = time.monotonic()
         if self._origin is None:

@@ -7,6 +7,7 @@ down, so the nodes spin in short slices and check the context between them.
 from __future__ import annotations
 
 import sys
+import time
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
@@ -74,6 +75,27 @@ class PublishBacklog:
             self._queue.popleft()
         self._held = False
         return True
+
+
+class SubscriberGate:
+    """Opens once every publisher has ``count`` subscribers and ``settle_s`` (wall clock) has
+    passed since: DDS discovery is asymmetric, so a publisher counts a subscriber before that
+    subscriber has matched the publisher, and a volatile reader loses what is sent in between."""
+
+    def __init__(self, publishers: Sequence[Publisher], count: int, settle_s: float) -> None:
+        self._publishers = publishers
+        self._count = count
+        self._settle_s = settle_s
+        self._seen_at: float | None = None
+
+    def open(self) -> bool:
+        if self._count == 0:
+            return True
+        if self._seen_at is None:
+            if not all(p.get_subscription_count() >= self._count for p in self._publishers):
+                return False
+            self._seen_at = time.monotonic()
+        return time.monotonic() - self._seen_at >= self._settle_s
 
 
 def drain(node: Node, publishers: Iterable[Publisher]) -> None:

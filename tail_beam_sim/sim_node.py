@@ -26,7 +26,7 @@ from std_msgs.msg import String
 from tail_beam_sim import ros_messages, topics
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.node_params import config_defaults, declare_and_read
-from tail_beam_sim.ros_spin import ACK_TIMEOUT_S, PublishBacklog, drain, run_node
+from tail_beam_sim.ros_spin import ACK_TIMEOUT_S, PublishBacklog, SubscriberGate, drain, run_node
 from tail_beam_sim.scenario import load_scenario
 from tail_beam_sim.stream import Chunk, QueueFull, StreamSimulator
 
@@ -44,7 +44,8 @@ class SimNode(Node):
         self.max_lag_s = require_range("sim_node.max_lag_s", node.get("max_lag_s"), 0.0, 3600.0, unit="s")
         self.exit_after_idle_s = require_range("sim_node.exit_after_idle_s", node.get("exit_after_idle_s"), 0.0, None, unit="s")
         depth = int(require_range("sim_node.qos_depth", node.get("qos_depth"), 0, 1e6))
-        self.wait_for_subscribers = int(require_range("sim_node.wait_for_subscribers", node.get("wait_for_subscribers"), 0, 1000))
+        wait_for = int(require_range("sim_node.wait_for_subscribers", node.get("wait_for_subscribers"), 0, 1000))
+        settle = require_range("sim_node.subscriber_settle_s", node.get("subscriber_settle_s"), 0.0, 60.0, unit="s")
         self.stream = StreamSimulator.from_params(params)
         for planned in load_scenario(params["scenario"], self.stream.materials, self.stream.support):
             self.stream.submit(planned.command, planned.contact_stamp_s)
@@ -54,6 +55,7 @@ class SimNode(Node):
         self._pressure_pub = self.create_publisher(FluidPressure, topics.JACK_PRESSURE, sensor_qos)
         self._imu_pub = self.create_publisher(Imu, topics.IMU, sensor_qos)
         self._rebound_pub = self.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, event_qos)
+        self._gate = SubscriberGate((self._pressure_pub, self._imu_pub, self._rebound_pub), wait_for, settle)
         self._truth_pub = self.create_publisher(String, topics.IMPACT_TRUTH, event_qos)
         self._clock_pub = self.create_publisher(Clock, "/clock", 10) if node.get("publish_clock") else None
         self.create_subscription(String, topics.IMPACT_CMD, self._on_command, event_qos)
@@ -99,14 +101,9 @@ class SimNode(Node):
             self._anchor = (now_s, current)
         return min(target, current + self.max_chunk_s)  # a short stall is caught up, a chunk at a time
 
-    def _subscribers_ready(self) -> bool:
-        """True once every sensor topic has ``wait_for_subscribers`` subscribers."""
-        publishers = (self._pressure_pub, self._imu_pub, self._rebound_pub)
-        return all(p.get_subscription_count() >= self.wait_for_subscribers for p in publishers)  # 0: at once
-
     def _tick(self) -> None:
         if not self._started:
-            if not self._subscribers_ready():
+            if not self._gate.open():
                 return
             self._started = True
         if not self._backlog.flush():
