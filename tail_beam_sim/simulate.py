@@ -216,7 +216,3 @@ def crushing_contact(support: Support, impact: Impact, confinement_factor: float
         impact.material.crushing_strength_pa * confinement_factor,
     )
 
-
-def impact_speed_from_height(height_m: float, gravity_mps2: float) -> float:
-    """Free-fall speed at the end of a drop of ``height_m``, m/s: sqrt(2 g h)."""
-    return math.sqrt(2.0 * gravity_mps2 * height_m)

@@ -7,6 +7,7 @@ from typing import Any
 
 from tail_beam_sim.scene import Scene
 from tail_beam_sim.simulate import SimulationResult, simulate
+from tail_beam_sim.stream import StreamSimulator
 
 # Long enough before contact for the detector's noise estimate (0.1 s blocks), after it for
 # the camera timeout.
@@ -24,3 +25,14 @@ def impact(params: dict[str, Any], tier: str = "modal", noise: float = 1.0, sens
 
         scene = replace(scene, sensors=scene.sensors.scaled_noise(noise))
     return simulate(scene, tier=tier)
+
+
+def stream(params, commands, until_s, **stream_options):
+    """A continuous stream of impacts at given contact stamps (the beam carries its motion)."""
+    varied = copy.deepcopy(params)
+    varied["stream"] = {"tier": "modal", "min_impact_gap_s": 0.0, "command_lead_s": 0.001, "max_queued_impacts": 20, **stream_options}
+    simulator = StreamSimulator.from_params(varied)
+    for stamp, command in commands:
+        simulator.submit(command, contact_stamp_s=stamp)
+    chunk = simulator.advance(until_s)
+    return chunk.pressure, chunk.imu, [r for _, r in chunk.rebounds], [t for _, t in chunk.truths]

@@ -3,16 +3,13 @@ when streams drop out, the transducer saturates or impacts overlap (issue 4, sta
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 import pytest
 
-from id_helpers import impact
+from id_helpers import impact, stream
 from tail_beam_id.identifier import StreamIdentifier, available_methods, build_method
 from tail_beam_id.replay import replay
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.stream import StreamSimulator
 
 METHODS = ("threshold", "statistical", "physics")
 KEYS = ("impact_stamp", "label", "confidence", "method")
@@ -26,17 +23,6 @@ def identify(params, method, pressure, imu, rebounds, chunk_s=0.01):
 def paper(params):
     """The study's scene: one coal and one sandstone sphere, 25 mm, 3.5 m, 1.0 m."""
     return {m: impact(params, material=m, seed=11) for m in ("coal", "sandstone")}
-
-
-def stream(params, commands, until_s, **stream_options):
-    """A continuous stream of impacts at given contact stamps (the beam carries its motion)."""
-    varied = copy.deepcopy(params)
-    varied["stream"] = {"tier": "modal", "min_impact_gap_s": 0.0, "command_lead_s": 0.001, "max_queued_impacts": 20, **stream_options}
-    simulator = StreamSimulator.from_params(varied)
-    for stamp, command in commands:
-        simulator.submit(command, contact_stamp_s=stamp)
-    chunk = simulator.advance(until_s)
-    return chunk.pressure, chunk.imu, [r for _, r in chunk.rebounds], [t for _, t in chunk.truths]
 
 
 def test_methods_are_registered():
