@@ -5,21 +5,25 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tail_beam_sim.config import deep_merge, load_parameters
 from tail_beam_sim.scene import Scene
 from tail_beam_sim.simulate import simulate
 
 STUDY_SPEEDS_MPS = {2.0: 6.261, 2.5: 7.000, 3.0: 7.668, 3.5: 8.368, 4.0: 8.854}
 
 
-def test_study_contact_speeds_follow_from_heights_except_3_5_m(params):
-    """With g = 9.8 the study's speeds are sqrt(2 g h), except the 3.5 m one (8.283, not 8.368):
-    reproducing it needs --impact-speed-mps, which the model accepts."""
-    g = 9.8
+def test_study_contact_speeds_from_heights_and_commanded_speed():
+    """With the study's g = 9.8 (set through the config), the model turns the study's heights into its
+    contact speeds, except 3.5 m (8.283, not the study's 8.368): that one must be commanded as a speed."""
+    params = deep_merge(load_parameters(), {"support": {"gravity_mps2": 9.8}})
     for height, speed in STUDY_SPEEDS_MPS.items():
+        scene = Scene.from_params(params, {"drop_height_m": height})
         if height == 3.5:
-            assert abs(np.sqrt(2 * g * height) - speed) > 0.05
+            assert scene.impact.impact_speed_mps == pytest.approx(8.283, abs=1e-3)
+            commanded = Scene.from_params(params, {"impact_speed_mps": speed})
+            assert commanded.impact.impact_speed_mps == speed and commanded.impact.drop_height_m is None
         else:
-            assert np.sqrt(2 * g * height) == pytest.approx(speed, abs=1e-3)
+            assert scene.impact.impact_speed_mps == pytest.approx(speed, abs=1e-3)
 
 
 def test_coal_restitution_independent_of_height(params):
