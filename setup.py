@@ -40,11 +40,23 @@ setup(
     zip_safe=False,
     entry_points={
         "console_scripts": [
-            "sim_node = tail_beam_sim.sim_node:main",
+            "sim_node = tail_beam_sim.ros.sim_node:main",
             "id_node = tail_beam_id.id_node:main",
-            "bag_recorder = tail_beam_sim.recorder_node:main",
-            "bag_replay = tail_beam_sim.replay_node:main",
+            "bag_recorder = tail_beam_sim.ros.recorder_node:main",
+            "bag_replay = tail_beam_sim.ros.replay_node:main",
             "tail-beam = tail_beam_sim.cli:main",
+        ],
+        # The verbs of ``tail-beam``: each package contributes its own (as ros2cli and colcon do),
+        # so the simulator's command line never names the identifier.
+        "tail_beam.verbs": [
+            "simulate = tail_beam_sim.cli.simulate_cmd:register",
+            "sweep = tail_beam_sim.cli.sweep_cmd:register",
+            "bag = tail_beam_sim.cli.bag_cmd:register",
+            "bench = tail_beam_sim.cli.bench_cmd:register",
+            "identify = tail_beam_id.cli.identify_cmd:register",
+            "evaluate = tail_beam_id.cli.evaluate_cmd:register",
+            "demo = tail_beam_id.cli.demo_cmd:register",
+            "calibrate = tail_beam_id.cli.calibrate_cmd:register",
         ],
     },
 )

@@ -17,10 +17,19 @@ import numpy as np
 
 from tail_beam_sim.config import section
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.scene import Scene
-from tail_beam_sim.simulate import SimulationResult, simulate
+from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.fidelity import FidelitySettings
+from tail_beam_sim.physics.simulate import SimulationResult, simulate
+from tail_beam_sim.physics.stream import StreamSimulator
+from tail_beam_id.supports import SupportDraw, draw_support, support_ranges
 
-SCENE_SETS = ("paper", "stream", "mismatch")
+# Evaluation scene sets. ``foreign`` records drawn supports as continuous streams
+# (support_streams; tail_beam_id.runs.run_foreign evaluates it), the others are single impacts.
+SCENE_SETS = ("paper", "stream", "mismatch", "foreign")
+# Training scene sets whose every impact strikes its own drawn support, with its own sensor
+# rates and noise (tail_beam_id.supports), from these ranges.
+DRAWN_SETS = {"varied": "training"}
+DRAWN_SETTING = "drawn"
 PERTURBED_SUPPORT = ("beam_inertia_about_hinge_kgm2", "jack_damping_nspm", "oil_bulk_modulus_pa")
 
 
@@ -46,6 +55,7 @@ class LabelledImpact:
     support_scale: dict[str, float]
     contact_model: str
     results: dict[str, SimulationResult]
+    support: SupportDraw | None = None
 
     @property
     def is_coal(self) -> bool:
@@ -77,7 +87,7 @@ def settings(
 
 def draw_commands(params: Mapping[str, Any], scene_set: str, count: int, seed: int) -> Iterator[tuple[dict[str, Any], dict[str, float], str]]:
     """(impact command, support scale factors, contact law) for ``count`` impacts of a set."""
-    if scene_set not in SCENE_SETS:
+    if scene_set not in SCENE_SETS and scene_set not in DRAWN_SETS:
         raise InputError("scene_set", scene_set, f"must be one of {', '.join(SCENE_SETS)}")
     ev = evaluation_params(params)
     ranges = ev["paper" if scene_set == "paper" else "stream"]
@@ -108,9 +118,13 @@ def draw_commands(params: Mapping[str, Any], scene_set: str, count: int, seed: i
 def simulate_set(
     params: Mapping[str, Any], scene_set: str, count: int, seed: int, chosen: Sequence[Setting], tier: str | None = None
 ) -> Iterator[LabelledImpact]:
-    """Simulate ``count`` impacts of ``scene_set`` at every setting in ``chosen``."""
+    """Simulate ``count`` impacts of ``scene_set`` at every setting in ``chosen`` (a drawn set:
+    once, on its own support at its own rates and noise; ``chosen`` does not apply)."""
     ev = evaluation_params(params)
     tier = tier or ev["tier"]
+    if scene_set in DRAWN_SETS:
+        yield from _simulate_drawn(params, scene_set, count, seed, tier)
+        return
     noise_seeds = np.random.SeedSequence(seed).spawn(count)
     for index, (command, scale, law) in enumerate(draw_commands(params, scene_set, count, seed)):
         varied = copy.deepcopy(dict(params))
@@ -126,3 +140,57 @@ def simulate_set(
             scene = replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor))
             results[setting.key] = simulate(scene, tier=tier)
         yield LabelledImpact(index, command, scale, law, results)
+
+
+def _simulate_drawn(params: Mapping[str, Any], scene_set: str, count: int, seed: int, tier: str) -> Iterator[LabelledImpact]:
+    """Impacts of the stream scene, each on its own support drawn from the set's ranges."""
+    ev = evaluation_params(params)
+    ranges = support_ranges(ev, DRAWN_SETS[scene_set])
+    support_rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
+    noise_seeds = np.random.SeedSequence(seed).spawn(count)
+    for index, (command, _, _) in enumerate(draw_commands(params, "stream", count, seed)):
+        draw = draw_support(ranges, support_rng)
+        varied = draw.apply(params)
+        varied["sensors"]["seed"] = int(noise_seeds[index].generate_state(1)[0])
+        scene = Scene.from_params(varied, {
+            **command, "contact_model": draw.contact_model, "pre_contact_s": ev["pre_contact_s"], "window_s": ev["window_s"],
+        })
+        result = simulate(scene, tier=tier, settings=FidelitySettings.from_params(varied))
+        yield LabelledImpact(index, command, {}, draw.contact_model, {DRAWN_SETTING: result}, draw)
+
+
+@dataclass
+class SupportStream:
+    """A continuous recording of one drawn support: its streams and every impact's truth."""
+
+    support: SupportDraw
+    params: dict[str, Any]  # the merged parameters describing the support (what a perfect profile would hold)
+    pressure: Any
+    imu: Any
+    rebounds: list[Any]
+    truths: list[dict[str, Any]]
+
+
+def support_streams(
+    params: Mapping[str, Any], supports: int, impacts_per_support: int, seed: int, which: str = "foreign", tier: str | None = None,
+) -> Iterator[SupportStream]:
+    """``supports`` drawn supports, each recorded as one continuous stream of
+    ``impacts_per_support`` stream-scene impacts (the beam still swaying from the earlier ones,
+    as on a face), like the bags a user records: what self-calibration works from."""
+    ev = evaluation_params(params)
+    ranges = support_ranges(ev, which)
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 2]))
+    gap_s = float(ev["stream_gap_s"])
+    for index in range(supports):
+        draw = draw_support(ranges, rng)
+        varied = draw.apply(params)
+        varied["sensors"]["seed"] = int(rng.integers(2**31))
+        varied["stream"] = {**varied.get("stream", {}), "tier": tier or ev["tier"], "min_impact_gap_s": 0.0,
+                            "command_lead_s": 0.001, "max_queued_impacts": impacts_per_support + 1}
+        simulator = StreamSimulator.from_params(varied)
+        commands = [c for c, _, _ in draw_commands(params, "stream", impacts_per_support, seed + 1000 * index)]
+        start = float(ev["pre_contact_s"]) * 2.0
+        for k, command in enumerate(commands):
+            simulator.submit(command, contact_stamp_s=start + k * gap_s * (1.0 + 0.5 * rng.uniform()))
+        chunk = simulator.advance(start + impacts_per_support * gap_s * 1.5 + 0.2)
+        yield SupportStream(draw, varied, chunk.pressure, chunk.imu, [r for _, r in chunk.rebounds], [t for _, t in chunk.truths])

@@ -19,6 +19,8 @@ import numpy as np
 from tail_beam_id.runs import Record
 
 Z95 = 1.959964  # two-sided 95 % normal quantile
+CONFIDENT = 0.9  # a wrong label at or above this confidence counts as confidently wrong
+RELIABILITY_BINS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0)  # confidence bins of the calibration figures
 
 
 def wilson(successes: int, total: int) -> tuple[float, float]:
@@ -65,6 +67,27 @@ def _percentiles(values: Sequence[float]) -> dict[str, float]:
     return {"median": float(np.median(array)), "p95": float(np.percentile(array, 95)), "max": float(array.max())}
 
 
+def reliability(records: Sequence[Record]) -> tuple[float, list[dict[str, float]]]:
+    """Expected calibration error of the stated confidences (the count-weighted mean of
+    |accuracy - mean confidence| over RELIABILITY_BINS) and the bins, for a reliability diagram.
+    Only labelled impacts have a confidence; missed and extra labels count in the accuracy."""
+    labelled = [r for r in records if r.label]
+    if not labelled:
+        return math.nan, []
+    confidence = np.array([r.label["confidence"] for r in labelled])
+    correct = np.array([r.correct for r in labelled], dtype=float)
+    index = np.clip(np.searchsorted(RELIABILITY_BINS, confidence, side="right") - 1, 0, len(RELIABILITY_BINS) - 2)
+    bins, ece = [], 0.0
+    for b in range(len(RELIABILITY_BINS) - 1):
+        inside = index == b
+        if inside.any():
+            accuracy, mean_conf = float(correct[inside].mean()), float(confidence[inside].mean())
+            ece += inside.sum() / confidence.size * abs(accuracy - mean_conf)
+            bins.append({"low": RELIABILITY_BINS[b], "high": RELIABILITY_BINS[b + 1], "n": int(inside.sum()),
+                         "accuracy": accuracy, "confidence": mean_conf})
+    return float(ece), bins
+
+
 def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summary:
     """The figures of one group of records (same scene set, setting and method)."""
     first = records[0]
@@ -92,6 +115,7 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
     labelled = [r for r in records if r.label]
     data_latency = [(r.label["impact_stamp"] + r.label["data_latency_ms"] / 1e3 - r.contact_stamp_s) * 1e3 for r in labelled]
     wrong_conf = [r.label["confidence"] for r in labelled if not r.correct]
+    calibration = reliability(records)
     return Summary(
         scene_set=first.scene_set, setting=first.setting, method=first.method, window_s=first.window_s, n=n,
         accuracy=correct / n, accuracy_ci=wilson(correct, n), balanced_accuracy=balanced,
@@ -102,7 +126,14 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
         mean_confidence_wrong=float(np.mean(wrong_conf)) if wrong_conf else math.nan,
         # Wall-clock to process each impact's whole stream (detection over every sample, then
         # features and decision): what the per-label compute time leaves out.
-        extra={"stream_processing_ms": _percentiles([1e3 * r.wall_s for r in records])},
+        extra={
+            "stream_processing_ms": _percentiles([1e3 * r.wall_s for r in records]),
+            "confident_wrong": sum(1 for r in labelled if not r.correct and r.label["confidence"] >= CONFIDENT),
+            "outside_training": sum(1 for r in labelled if r.label.get("outside_training")),
+            # Extra labels count against accuracy too: correct / (impacts + labels with no impact).
+            "accuracy_with_extras": correct / (n + sum(r.extra_labels for r in records)),
+            "ece": calibration[0], "reliability": calibration[1],
+        },
     )
 
 
@@ -129,13 +160,14 @@ def format_table(items: Sequence[Summary]) -> str:
     """A plain-text table of the main figures, one line per group."""
     lines = [
         f"{'set':9} {'setting':12} {'method':11} {'win ms':>6} {'n':>4} {'acc %':>6} {'95% CI':>13} {'bal %':>6} {'95% CI':>13} "
-        f"{'det':>4} {'fp':>3} {'data ms med/p95':>16} {'cpu ms med/p95':>15}"
+        f"{'det':>4} {'fp':>3} {'wrong>=.9':>9} {'ECE':>5} {'data ms med/p95':>16} {'cpu ms med/p95':>15}"
     ]
     for s in items:
         lines.append(
             f"{s.scene_set:9} {s.setting:12} {s.method:11} {1e3 * s.window_s:6.1f} {s.n:4d} {100 * s.accuracy:6.1f} "
             f"{100 * s.accuracy_ci[0]:5.1f}-{100 * s.accuracy_ci[1]:5.1f}  {100 * s.balanced_accuracy:6.1f} "
             f"{100 * s.balanced_ci[0]:5.1f}-{100 * s.balanced_ci[1]:5.1f}  {s.detected:4d} {s.false_labels:3d} "
+            f"{s.extra.get('confident_wrong', 0):9d} {s.extra.get('ece', math.nan):5.3f} "
             f"{s.data_latency_ms['median']:7.1f}/{s.data_latency_ms['p95']:6.1f}  {s.compute_ms['median']:6.2f}/{s.compute_ms['p95']:6.2f}"
         )
     return "\n".join(lines)

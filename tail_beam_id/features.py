@@ -1,6 +1,6 @@
 """Features of one detected impact, from the three signals, in physical units.
 
-What the sensors can carry about a particle (physics.md): the rigid beam answers to the
+What the sensors can carry about a particle (docs/physics.md): the rigid beam answers to the
 moment of the contact impulse about the hinge, M = J x (N m s), which both the IMU pulse and
 the jack pressure measure; the camera gives the rebound speed; the time from the IMU pulse
 to the camera's end-of-contact stamp, and the IMU pulse's own width at high IMU rates, carry
@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.detection import Pulse
-from tail_beam_sim.materials import material_table
-from tail_beam_sim.structure import LinearStructure, rigid_beam
-from tail_beam_sim.support import Support
+from tail_beam_id.detection.imu import Pulse
+from tail_beam_sim.physics.materials import material_table
+from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
+from tail_beam_sim.physics.support import Support
 
 SIGNALS = ("jack_pressure", "imu", "rebound_velocity")
 

@@ -7,6 +7,13 @@ and the camera has either delivered the impact's rebound or has had ``camera_tim
 stamp time beyond the rebound window to do so. A continuous stream whose newest stamp lags the
 newest of the others by more than ``stream_timeout_s`` is declared stopped; labels then say
 which ``signals`` they used, and the methods' confidence falls with the signals they lose.
+
+Acceleration channel: impacts are detected in the specific force along the plate normal. That
+is the IMU's ``linear_acceleration.z`` unless a high-rate tail-beam accelerometer
+(:meth:`StreamIdentifier.add_vibration`) is fed: while that vibration stream is live it is the
+channel for pulse detection and the IMU impulse (labels name ``vibration`` in ``signals``
+instead of ``imu``); the IMU's pulses count only before the vibration stream began and after
+it stopped. The vibration stream is a continuous stream for liveness and timeouts.
 """
 
 from __future__ import annotations
@@ -19,10 +26,10 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.detection import DetectionConfig, Pulse, PulseDetector
+from tail_beam_id.detection.imu import DetectionConfig, Pulse, PulseDetector
 from tail_beam_id.features import BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
 from tail_beam_id.methods import Decision, Method, load_model
-from tail_beam_id.pressure_detection import PressureDetector
+from tail_beam_id.detection.pressure import PressureDetector
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, require_range
 
@@ -36,7 +43,7 @@ def _threshold(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
 def _statistical(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
     from tail_beam_id.methods.statistical import StatisticalMethod
 
-    return StatisticalMethod.from_model(model)
+    return StatisticalMethod.from_model(model, params)
 
 
 def _physics(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
@@ -114,6 +121,9 @@ class IdentifierConfig:
         )
 
 
+MOUNT_SAMPLES = 16  # IMU samples whose median gravity reading gives the mounting's sign
+
+
 class _Series:
     """One continuous stream's samples, appended in chunks and joined lazily."""
 
@@ -165,11 +175,12 @@ class _Impact:
     onset_s: float
     pulse: Pulse | None
     rebound: tuple[float, np.ndarray] | None = None
-    source: str = "imu"  # what detected it: imu | rebound | pressure
+    source: str = "imu"  # what detected it: imu (a pulse in an acceleration channel) | rebound | pressure
+    channel: str = "imu"  # the acceleration channel of its pulse: imu | vibration
 
 
 class StreamIdentifier:
-    """Labels each impact in continuous sensor streams coal or gangue (interface.md ``label``)."""
+    """Labels each impact in continuous sensor streams coal or gangue (docs/interface.md ``label``)."""
 
     def __init__(
         self,
@@ -197,16 +208,25 @@ class StreamIdentifier:
         else:
             self.method = build_method(self.config.method, merged, model_path)
         self.model = BeamModel.from_params(merged)
+        # Whether the support parameters are a profile measured on this support (tail-beam
+        # calibrate) rather than the nominal config/: the methods then use their calibrated models.
+        self.calibrated = bool((merged.get("calibration") or {}).get("rigid_mode_frequency_hz"))
         self.pressure = _Series()
         self.imu = _Series()
+        self.vibration = _Series()  # high-rate accelerometer, specific force along the plate normal
         self.rebounds: list[tuple[float, np.ndarray]] = []
         self.detector = PulseDetector(self.config.detection)
+        self.vibration_detector = PulseDetector(self.config.detection)
         c = self.config
         self.pressure_detector = PressureDetector(
             self.model, c.detection.pressure_threshold_sigma, c.pressure_pre_s, c.window_s, c.detection.ring_window_s
         )
         self.pending: list[_Impact] = []
         self.imu_stop_s = math.inf  # stamp after which the IMU was declared stopped
+        self.mount_sign: float | None = None  # +1: IMU z along the plate normal; -1: mounted upside down
+        self.vibration_start_s = math.inf  # first vibration stamp seen
+        self.vibration_stop_s = math.inf  # stamp after which the vibration stream was declared stopped
+        self._held: list[Pulse] = []  # IMU pulses the vibration stream may yet cover
         self._used_rebounds: set[float] = set()  # stamps of rebounds given to an impact
         self._decided: list[float] = []  # onsets of recently decided impacts (overlap check)
 
@@ -228,6 +248,18 @@ class StreamIdentifier:
             raise InputError("imu", (gyro.shape, accel.shape), f"must hold (T, 3) arrays for T = {stamps.size} stamps")
         self.imu.append(stamps, np.hstack([gyro, accel]))
 
+    def add_vibration(self, stamp_s: np.ndarray, accel_mps2: np.ndarray) -> None:
+        """High-rate tail-beam accelerometer samples: stamps (s, in order) and specific force
+        along the plate normal (z of the plate frame), m/s^2. While this stream is live it
+        replaces the IMU's linear_acceleration z for pulse detection and the IMU impulse."""
+        stamps = np.atleast_1d(np.asarray(stamp_s, dtype=float))
+        values = np.atleast_1d(np.asarray(accel_mps2, dtype=float)).reshape(-1, 1)
+        if stamps.size != values.shape[0]:
+            raise InputError("vibration accel_mps2", values.shape, f"must hold one value per stamp ({stamps.size})")
+        if stamps.size and self.vibration_start_s == math.inf:
+            self.vibration_start_s = float(stamps[0])
+        self.vibration.append(stamps, values)
+
     def add_rebound(self, stamp_s: float, velocity_mps: np.ndarray) -> None:
         """One rebound: the camera's stamp (s) and the particle's velocity (3,) in the plate frame."""
         velocity = np.asarray(velocity_mps, dtype=float).reshape(3)
@@ -246,7 +278,22 @@ class StreamIdentifier:
 
     # ---- internals ---------------------------------------------------------------------------
     def _newest_s(self) -> float:
-        return max(self.pressure.latest_s, self.imu.latest_s)
+        return max(self.pressure.latest_s, self.imu.latest_s, self.vibration.latest_s)
+
+    def _continuous(self) -> tuple[_Series, ...]:
+        return (self.pressure, self.imu, self.vibration)
+
+    def _vibration_in_use(self) -> bool:
+        """The vibration stream is the acceleration channel (seen and not declared stopped)."""
+        return self.vibration.seen and self.vibration_stop_s == math.inf
+
+    def _accel_seen(self) -> bool:
+        return self.imu.seen or self.vibration.seen
+
+    def _accel_stop_s(self) -> float:
+        """Stamp after which no acceleration channel is live (inf while one is), s."""
+        stops = [stop for series, stop in ((self.imu, self.imu_stop_s), (self.vibration, self.vibration_stop_s)) if series.seen]
+        return max(stops, default=math.inf)
 
     def _live(self, series: _Series, final: bool) -> bool:
         """A continuous stream is live unless never seen or lagging by more than the timeout."""
@@ -255,14 +302,13 @@ class StreamIdentifier:
         return final or series.latest_s >= self._newest_s() - self.config.stream_timeout_s
 
     def _run(self, final: bool) -> list[dict[str, Any]]:
-        self.pressure.join()
-        self.imu.join()
-        imu_live = self._live(self.imu, final)
-        if self.imu.seen and not imu_live and self.imu_stop_s == math.inf:
+        for series in self._continuous():
+            series.join()
+        if self.imu.seen and not self._live(self.imu, final) and self.imu_stop_s == math.inf:
             self.imu_stop_s = self.imu.latest_s
-        if self.imu.stamp_s.size:
-            for pulse in self.detector.scan(self.imu.stamp_s, self.imu.values[:, 5], self.imu.base_index, final):
-                self.pending.append(_Impact(onset_s=pulse.onset_s, pulse=pulse))
+        if self.vibration.seen and not self._live(self.vibration, final) and self.vibration_stop_s == math.inf:
+            self.vibration_stop_s = self.vibration.latest_s
+        self._detect_pulses(final)
         self._rebound_impacts(final)
         self._pressure_impacts(final)
         self.pending.sort(key=lambda impact: impact.onset_s)
@@ -275,6 +321,43 @@ class StreamIdentifier:
         self._trim()
         return labels
 
+    def _accel_z(self) -> np.ndarray | None:
+        """The IMU's specific force along the plate normal, the right way up (+g at rest).
+
+        Self-calibration of the mounting: an IMU bolted upside down reads -g and every pulse with
+        the opposite sign; the sign is read once, from gravity in the first ``MOUNT_SAMPLES``
+        samples (their median: an impact among them cannot move it). None until then."""
+        if self.mount_sign is None:
+            if self.imu.stamp_s.size < MOUNT_SAMPLES:
+                return None
+            self.mount_sign = -1.0 if float(np.median(self.imu.values[:MOUNT_SAMPLES, 5])) < 0.0 else 1.0
+        return self.imu.values[:, 5] * self.mount_sign
+
+    def _detect_pulses(self, final: bool) -> None:
+        """Pulses of the acceleration channels: the vibration stream's, and the IMU's where the
+        vibration stream does not cover them (before it began, after it stopped); an IMU pulse
+        the vibration stream has not yet passed is held until it does or is declared stopped."""
+        if self.vibration.stamp_s.size:
+            for pulse in self.vibration_detector.scan(self.vibration.stamp_s, self.vibration.values[:, 0], self.vibration.base_index, final):
+                self.pending.append(_Impact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration"))
+        if self.vibration.seen:
+            # IMU pulses already waiting from before the vibration stream was first seen.
+            covered = [i for i in self.pending if i.channel == "imu" and i.pulse is not None and i.onset_s >= self.vibration_start_s]
+            self.pending = [i for i in self.pending if not any(i is c for c in covered)]
+            self._held += [i.pulse for i in covered]  # type: ignore[misc]
+        accel_z = self._accel_z()
+        if accel_z is not None:
+            self._held += self.detector.scan(self.imu.stamp_s, accel_z, self.imu.base_index, final)
+        held, self._held = self._held, []
+        for pulse in held:
+            covered = self.vibration.seen and self.vibration_start_s <= pulse.onset_s <= min(self.vibration_stop_s, self.vibration.latest_s)
+            if covered:
+                continue
+            if self._vibration_in_use() and pulse.onset_s > self.vibration.latest_s and not final:
+                self._held.append(pulse)  # the vibration stream may yet cover it, or stop first
+            else:
+                self.pending.append(_Impact(onset_s=pulse.onset_s, pulse=pulse))
+
     def _rebound_impacts(self, final: bool) -> None:
         """A rebound no IMU pulse can claim is an impact of its own (IMU stopped or absent, or
         the pulse lost in noise); its onset is put ``rebound_onset_lead_s`` before its stamp."""
@@ -283,29 +366,31 @@ class StreamIdentifier:
         for stamp, velocity in self.rebounds:
             if stamp in self._used_rebounds:
                 continue
-            imu_gone = stamp > self.imu_stop_s + c.max_contact_s
-            imu_absent = not self.imu.seen and (final or self._newest_s() >= stamp + self.config.stream_timeout_s)
+            imu_gone = stamp > self._accel_stop_s() + c.max_contact_s
+            imu_absent = not self._accel_seen() and (final or self._newest_s() >= stamp + self.config.stream_timeout_s)
             claimable = any(
                 i.rebound is None and self._rebound_window(i)[0] <= stamp <= self._rebound_window(i)[1] for i in self.pending
             )
-            orphan = self.imu.seen and scanned >= stamp + c.rebound_early_tolerance_s
+            orphan = self._accel_seen() and scanned >= stamp + c.rebound_early_tolerance_s
             if (imu_gone or imu_absent or orphan) and not claimable:
                 self._used_rebounds.add(stamp)
                 onset = stamp - c.rebound_onset_lead_s
                 self.pending.append(_Impact(onset_s=onset, pulse=None, rebound=(stamp, velocity), source="rebound"))
 
     def _imu_absent(self, final: bool) -> bool:
-        """No IMU at all, after the pressure has run ``stream_timeout_s`` without one."""
-        if self.imu.seen or not self.pressure.stamp_s.size:
+        """No acceleration channel (IMU, vibration) at all, after the pressure has run
+        ``stream_timeout_s`` without one."""
+        if self._accel_seen() or not self.pressure.stamp_s.size:
             return False
         return final or self.pressure.latest_s >= self.pressure.stamp_s[0] + self.config.stream_timeout_s
 
     def _pressure_impacts(self, final: bool) -> None:
         """With the IMU stopped or absent, impacts found in the pressure (unless a rebound
         already stands for them)."""
-        if self.imu_stop_s == math.inf and not self._imu_absent(final):
+        stop = self._accel_stop_s()
+        if stop == math.inf and not self._imu_absent(final):
             return
-        start = self.imu_stop_s if self.imu_stop_s < math.inf else -math.inf
+        start = stop if stop < math.inf else -math.inf
         margin = self.config.detection.pressure_onset_uncertainty_s
         for onset in self.pressure_detector.scan(self.pressure.stamp_s, self.pressure.values[:, 0], start, final):
             known = [i.onset_s for i in self.pending if i.source == "rebound"] + self._decided
@@ -347,10 +432,13 @@ class StreamIdentifier:
     def _ready(self, impact: _Impact) -> bool:
         cfg = self.config
         horizon = impact.onset_s + cfg.window_s
-        for series in (self.pressure, self.imu):
+        for series in self._continuous():
             if self._live(series, False) and series.latest_s < horizon:
                 return False
-        if self._live(self.imu, False) and self._imu_scanned_s() < impact.onset_s + cfg.overlap_window_s:
+        accel = self.vibration if self._vibration_in_use() else self.imu
+        if self._live(accel, False) and self._imu_scanned_s() < impact.onset_s + cfg.overlap_window_s:
+            return False
+        if any(p.onset_s < impact.onset_s + cfg.overlap_window_s for p in self._held):
             return False
         if impact.rebound is not None:
             return True
@@ -361,11 +449,19 @@ class StreamIdentifier:
         return camera_passed or self._newest_s() >= rebound_end + cfg.camera_timeout_s
 
     def _imu_scanned_s(self) -> float:
-        """Stamp up to which the detector has examined the IMU, s."""
-        local = self.detector.cursor - self.imu.base_index - 1
-        if local < 0 or not self.imu.stamp_s.size:
+        """Stamp up to which the detector has examined the acceleration channel in use (the
+        vibration stream while it is live, else the IMU), s."""
+        if self._vibration_in_use():
+            return self._scanned_s(self.vibration, self.vibration_detector)
+        return self._scanned_s(self.imu, self.detector)
+
+    @staticmethod
+    def _scanned_s(series: _Series, detector: PulseDetector) -> float:
+        """Stamp up to which ``detector`` has examined ``series``, s."""
+        local = detector.cursor - series.base_index - 1
+        if local < 0 or not series.stamp_s.size:
             return -math.inf
-        return float(self.imu.stamp_s[min(local, self.imu.stamp_s.size - 1)])
+        return float(series.stamp_s[min(local, series.stamp_s.size - 1)])
 
     def _decide(self, impact: _Impact) -> dict[str, Any] | None:
         started = time.perf_counter()
@@ -376,6 +472,8 @@ class StreamIdentifier:
             self._used_rebounds.add(impact.rebound[0])
         overlap = self._overlapping(impact)
         onset = impact.onset_s
+        if impact.rebound is not None:
+            onset = max(onset, impact.rebound[0] - cfg.detection.onset_before_rebound_max_s)
         fit: PressureFit | None = None
         if self.pressure.stamp_s.size:
             fit = fit_pressure(self.model, self.pressure.stamp_s, self.pressure.values[:, 0], onset, cfg.pressure_pre_s, cfg.window_s)
@@ -386,17 +484,20 @@ class StreamIdentifier:
                 return None  # the beam still ringing, or noise: nothing else saw an impact
         impulse = None
         if impact.pulse is not None:
+            series, column = (self.vibration, 0) if impact.channel == "vibration" else (self.imu, 5)
             impulse = imu_impulse(
-                self.model, self.imu.stamp_s, self.imu.values[:, 5], impact.pulse, cfg.impulse_pre_s, cfg.impulse_skip_s, cfg.impulse_post_s
+                self.model, series.stamp_s, series.values[:, column] if series is self.vibration else self._accel_z(), impact.pulse, cfg.impulse_pre_s, cfg.impulse_skip_s, cfg.impulse_post_s
             )
         features = impact_features(self.model, impact.pulse, impulse, fit, impact.rebound)
         signals = []
         if fit is not None and not fit.saturated:
             signals.append("jack_pressure")
         if impact.pulse is not None:
-            signals.append("imu")
+            signals.append(impact.channel)
         if impact.rebound is not None:
             signals.append("rebound_velocity")
+        if self.calibrated:
+            features["support_calibrated"] = 1.0
         decision: Decision = self.method.decide(features)
         confidence = decision.confidence
         if overlap:
@@ -412,10 +513,15 @@ class StreamIdentifier:
             "data_latency_ms": (horizon - onset) * 1e3,
             "signals": signals,
             "overlap": overlap,
+            "calibrated": self.calibrated,
             "features": {**{k: float(v) for k, v in features.items()}, **decision.estimates},
         }
         if fit is not None and fit.saturated:
             label["saturated"] = ["jack_pressure"]
+        if self.mount_sign is not None and self.mount_sign < 0:
+            label["imu_mount"] = "inverted"
+        if decision.outside_training:
+            label["outside_training"] = list(decision.outside_training)
         return label
 
     def _data_horizon(self, impact: _Impact) -> float:
@@ -442,12 +548,16 @@ class StreamIdentifier:
         keep_s = 4.0 * max(self.config.detection.noise_block_s, self.config.pressure_pre_s + self.config.window_s)
         horizon = self._newest_s()
         if self.imu.seen and self.imu_stop_s == math.inf:
-            horizon = min(horizon, self._imu_scanned_s())
-        oldest_needed = min([i.onset_s for i in self.pending], default=horizon) - keep_s
+            horizon = min(horizon, self._scanned_s(self.imu, self.detector))
+        if self._vibration_in_use():
+            horizon = min(horizon, self._scanned_s(self.vibration, self.vibration_detector))
+        oldest_needed = min([i.onset_s for i in self.pending] + [p.onset_s for p in self._held], default=horizon) - keep_s
         if self.imu.stamp_s.size and self.imu.stamp_s[0] < oldest_needed - keep_s:
             self.imu.trim_before(oldest_needed)
         if self.pressure.stamp_s.size and self.pressure.stamp_s[0] < oldest_needed - keep_s:
             self.pressure.trim_before(oldest_needed)
+        if self.vibration.stamp_s.size and self.vibration.stamp_s[0] < oldest_needed - keep_s:
+            self.vibration.trim_before(oldest_needed)
         self.rebounds = [r for r in self.rebounds if r[0] >= oldest_needed]
         self._decided = [t for t in self._decided if t >= oldest_needed]
         self._used_rebounds = {t for t in self._used_rebounds if t >= oldest_needed}

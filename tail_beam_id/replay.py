@@ -11,7 +11,7 @@ import numpy as np
 
 
 from tail_beam_id.identifier import StreamIdentifier
-from tail_beam_sim.sensors import ImuStream, PressureStream, Rebound
+from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, VibrationBlocks
 
 
 def replay(
@@ -20,12 +20,15 @@ def replay(
     imu: ImuStream | None,
     rebounds: Sequence[Rebound] = (),
     chunk_s: float = 0.01,
+    vibration: VibrationBlocks | None = None,
 ) -> list[dict[str, Any]]:
     """Every label the identifier gives for these streams (polled per chunk, then flushed).
 
     A stream passed as None is absent (a sensor gone); ``chunk_s`` is the stamp-time span of
-    each delivery.
+    each delivery. ``vibration`` (blocks in index order) goes to ``identifier.add_vibration``
+    sample by sample stamp, each chunk's samples with the other streams'.
     """
+    vib_stamps = vibration.sample_stamps_s() if vibration is not None and vibration.count else None
     starts = [s.stamp_s[0] for s in (pressure, imu) if s is not None and s.stamp_s.size]
     ends = [s.stamp_s[-1] for s in (pressure, imu) if s is not None and s.stamp_s.size]
     labels: list[dict[str, Any]] = []
@@ -48,6 +51,10 @@ def replay(
             take = (imu.stamp_s >= low) & (imu.stamp_s < high)
             if take.any():
                 identifier.add_imu(imu.stamp_s[take], imu.angular_velocity_radps[take], imu.linear_acceleration_mps2[take])
+        if vib_stamps is not None:
+            take = (vib_stamps >= low) & (vib_stamps < high)
+            if take.any():
+                identifier.add_vibration(vib_stamps[take], vibration.accel_mps2[take].astype(float))
         while pending and pending[0].stamp_s < high:
             rebound = pending.pop(0)
             identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)

@@ -8,7 +8,10 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from tail_beam_id.dataset import Setting, simulate_set
+import copy
+
+from tail_beam_id.dataset import Setting, simulate_set, support_streams
+from tail_beam_sim.config import deep_merge
 from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_id.replay import replay
 
@@ -33,6 +36,7 @@ class Record:
     label: dict[str, Any] | None
     extra_labels: int
     wall_s: float
+    calibrated: bool = False  # identified with the support's own profile instead of config/
 
     @property
     def correct(self) -> bool:
@@ -56,18 +60,27 @@ def run_set(
     tolerance_s: float,
     tier: str | None = None,
     windows_s: Sequence[float] = (),
+    true_profile: bool = False,
 ) -> Iterator[Record]:
     """Simulate ``count`` impacts of ``scene_set`` and identify each with every method, at the
-    configured data window and at each of ``windows_s`` (s) as well."""
+    configured data window and at each of ``windows_s`` (s) as well. With ``true_profile`` an
+    impact on a drawn support is identified knowing that support (a perfect calibration: what
+    the calibrated models are trained on)."""
     built: dict[str, Any] = {}
     sections = [dict(params["identification"])] + [with_window(params["identification"], w) for w in windows_s]
     for impact in simulate_set(params, scene_set, count, seed, chosen, tier):
+        model_params = params
+        if true_profile and impact.support is not None:
+            model_params = impact.support.apply(params)
+            model_params["calibration"] = {"rigid_mode_frequency_hz": "known"}
         for key, result in impact.results.items():
             truth = result.truth()
             for method in methods:
                 for section in sections:
-                    identifier = StreamIdentifier(method, section, params, prebuilt=built.get(method))
-                    built[method] = identifier.method
+                    reuse = built.get(method) if model_params is params or method != "physics" else None
+                    identifier = StreamIdentifier(method, section, model_params, prebuilt=reuse)
+                    if model_params is params:
+                        built[method] = identifier.method
                     started = time.perf_counter()
                     labels = replay(identifier, result.pressure, result.imu, [result.rebound])
                     wall = time.perf_counter() - started
@@ -77,7 +90,7 @@ def run_set(
                         material=truth["material"], is_coal=truth["label"] == "coal", radius_m=truth["radius_m"],
                         contact_stamp_s=result.contact_stamp_s,
                         duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
-                        label=label, extra_labels=extra, wall_s=wall,
+                        label=label, extra_labels=extra, wall_s=wall, calibrated=identifier.calibrated,
                     )
 
 
@@ -89,3 +102,74 @@ def with_window(section: Mapping[str, Any], window_s: float) -> dict[str, Any]:
     changed["impulse_post_s"] = min(float(section["impulse_post_s"]), window_s)
     changed["overlap_window_s"] = min(float(section["overlap_window_s"]), window_s)
     return changed
+
+
+FOREIGN_PROFILES = ("nominal", "self-calibrated", "true")  # how the identifier knows the support
+
+
+def run_foreign(
+    params: Mapping[str, Any],
+    supports: int,
+    impacts_per_support: int,
+    seed: int,
+    methods: Sequence[str],
+    tolerance_s: float,
+    tier: str | None = None,
+    profiles: Sequence[str] = FOREIGN_PROFILES[:2],
+) -> Iterator[Record]:
+    """The ``foreign`` scene set: drawn supports each recorded as one stream, identified with
+    the nominal config/, after self-calibration on the stream itself (no labels), and (for
+    reference) knowing the true support; the setting names which. Labels that match no impact
+    count as extra on the stream's first record."""
+    from tail_beam_id.calibration import calibrate
+
+    section = dict(params["identification"])
+    for number, recorded in enumerate(support_streams(params, supports, impacts_per_support, seed, tier=tier)):
+
+        def identify(model_params: Mapping[str, Any], method: str) -> tuple[list[dict[str, Any]], float]:
+            identifier = StreamIdentifier(method, section, model_params)
+            started = time.perf_counter()
+            labels = replay(identifier, recorded.pressure, recorded.imu, recorded.rebounds)
+            return labels, time.perf_counter() - started
+
+        for profile in profiles:
+            model_params: Mapping[str, Any] = params
+            if profile == "true":
+                model_params = {**recorded.params, "calibration": {"rigid_mode_frequency_hz": "known"}}
+            elif profile == "self-calibrated":
+                found = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
+                                  (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
+                                  lambda calibrated: identify(calibrated, "statistical")[0])
+                model_params = merge_profile(params, found.parameters())
+            for method in methods:
+                labels, wall = identify(model_params, method)
+                used = 0
+                for k, truth in enumerate(recorded.truths):
+                    label, _ = match(labels, truth["contact_start_stamp"], tolerance_s)
+                    used += label is not None
+                    yield Record(
+                        scene_set="foreign", setting=profile, method=method, window_s=float(section["window_s"]),
+                        index=number * impacts_per_support + k, material=truth["material"], is_coal=truth["label"] == "coal",
+                        radius_m=truth["radius_m"], contact_stamp_s=truth["contact_start_stamp"],
+                        duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"], label=label,
+                        extra_labels=(len(labels) - used_labels(labels, recorded.truths, tolerance_s)) if k == 0 else 0,
+                        wall_s=wall / max(len(recorded.truths), 1), calibrated=profile != "nominal",
+                    )
+
+
+def used_labels(labels: Sequence[Mapping[str, Any]], truths: Sequence[Mapping[str, Any]], tolerance_s: float) -> int:
+    """How many labels match some impact (each impact claims its nearest label)."""
+    claimed = set()
+    for truth in truths:
+        near = [(abs(l["impact_stamp"] - truth["contact_start_stamp"]), i) for i, l in enumerate(labels)
+                if abs(l["impact_stamp"] - truth["contact_start_stamp"]) <= tolerance_s]
+        if near:
+            claimed.add(min(near)[1])
+    return len(claimed)
+
+
+def merge_profile(params: Mapping[str, Any], profile_file: Mapping[str, Any]) -> dict[str, Any]:
+    """``params`` with a profile's parameter-file content merged in."""
+    merged = copy.deepcopy(dict(params))
+    deep_merge(merged, profile_file["/**"]["ros__parameters"])
+    return merged

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import dataclasses
 import math
-import pickle
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -23,25 +23,27 @@ from scipy.optimize import minimize, minimize_scalar
 
 from tail_beam_id.dataset import evaluation_params, settings
 from tail_beam_id.methods import MODELS_DIR
-from tail_beam_id.methods.statistical import SIGNAL_ORDER, base_vector, expand, feature_list, signals_of, subset_key
+from tail_beam_id.methods.statistical import SIGNAL_ORDER, base_vector, feature_list, network_logit, signals_of, subset_key
 from tail_beam_id.runs import Record, run_set
 from tail_beam_sim.config import load_parameters
-from tail_beam_sim.contact import hertz_elastic_impact, hertz_stiffness
-from tail_beam_sim.scene import Impact
-from tail_beam_sim.simulate import build_problem
-from tail_beam_sim.solvers import solve
-from tail_beam_sim.materials import material_table
-from tail_beam_sim.support import Support
+from tail_beam_sim.physics.contact import hertz_elastic_impact, hertz_stiffness
+from tail_beam_sim.physics.scene import Impact
+from tail_beam_sim.physics.simulate import build_problem
+from tail_beam_sim.physics.solvers import solve
+from tail_beam_sim.physics.materials import material_table
+from tail_beam_sim.physics.support import Support
 
 MATCH_TOLERANCE_S = 0.002  # a label within this of the true contact is that impact's
 L2_PENALTY = 1e-3  # ridge penalty on the standardised logistic weights
 HOLDOUT_FRACTION = 0.25  # share of training impacts kept aside to fit the temperature
+ENVELOPE_PERCENTILES = (0.1, 99.9)  # a model's training envelope: these percentiles of each input
 THRESHOLD_FEATURES = ("rebound_speed_mps", "moment_impulse_nms", "pressure_swing_pa")
 
 
-def collect(params: Mapping[str, Any], scene_set: str, count: int, seed: int, tier: str | None) -> list[Record]:
+def collect(params: Mapping[str, Any], scene_set: str, count: int, seed: int, tier: str | None, true_profile: bool = False) -> list[Record]:
     """Feature records of ``count`` training impacts at every setting (detected ones only)."""
-    records = run_set(params, scene_set, count, seed, settings(params, every_rate=True), ["threshold"], MATCH_TOLERANCE_S, tier)
+    records = run_set(params, scene_set, count, seed, settings(params, every_rate=True), ["threshold"], MATCH_TOLERANCE_S, tier,
+                      true_profile=true_profile)
     return [r for r in records if r.label is not None]
 
 
@@ -60,6 +62,39 @@ def fit_logistic(x: np.ndarray, y: np.ndarray, l2: float = L2_PENALTY) -> np.nda
     return result.x
 
 
+HIDDEN_UNITS = 16  # the statistical method's hidden layer
+
+
+def _mlp_unpack(theta: np.ndarray, d: int, h: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    w1 = theta[: h * d].reshape(h, d)
+    b1 = theta[h * d: h * d + h]
+    w2 = theta[h * d + h: h * d + 2 * h]
+    return w1, b1, w2, float(theta[-1])
+
+
+def _mlp_loss(theta: np.ndarray, z: np.ndarray, y: np.ndarray, h: int, l2: float) -> tuple[float, np.ndarray]:
+    """Mean logistic loss of a one-hidden-layer tanh network plus ridge penalty, and its gradient."""
+    n, d = z.shape
+    w1, b1, w2, b2 = _mlp_unpack(theta, d, h)
+    hidden = np.tanh(z @ w1.T + b1)
+    s = hidden @ w2 + b2
+    loss = float(np.mean(np.logaddexp(0.0, s) - y * s) + l2 * (np.sum(w1**2) + np.sum(w2**2)))
+    ds = (1.0 / (1.0 + np.exp(-s)) - y) / n
+    dhidden = np.outer(ds, w2) * (1.0 - hidden**2)
+    grad = np.concatenate([(dhidden.T @ z + 2 * l2 * w1).ravel(), dhidden.sum(axis=0), hidden.T @ ds + 2 * l2 * w2, [ds.sum()]])
+    return loss, grad
+
+
+def fit_network(z: np.ndarray, y: np.ndarray, seed: int, hidden: int = HIDDEN_UNITS, l2: float = L2_PENALTY) -> dict[str, Any]:
+    """Weights of the statistical method's network (L-BFGS from a seeded small start)."""
+    d = z.shape[1]
+    rng = np.random.default_rng(seed)
+    theta = np.concatenate([rng.normal(0.0, 1.0 / math.sqrt(d), hidden * d), np.zeros(hidden), rng.normal(0.0, 0.1, hidden), [0.0]])
+    result = minimize(_mlp_loss, theta, args=(z, y, hidden, l2), jac=True, method="L-BFGS-B", options={"maxiter": 3000})
+    w1, b1, w2, b2 = _mlp_unpack(result.x, d, hidden)
+    return {"w1": w1.tolist(), "b1": b1.tolist(), "w2": w2.tolist(), "b2": b2}
+
+
 def fit_temperature(logits: np.ndarray, y: np.ndarray) -> float:
     """The temperature T that makes sigmoid(logit / T) best calibrated on held-out impacts."""
     def loss(log_t: float) -> float:
@@ -70,8 +105,17 @@ def fit_temperature(logits: np.ndarray, y: np.ndarray) -> float:
 
 
 def train_statistical(records: Sequence[Record], seed: int) -> dict[str, Any]:
-    """One calibrated logistic model per subset of signals (every non-empty subset) and, for
-    subsets with the IMU, per IMU sample period."""
+    """The statistical method's two families of models: ``subsets`` from the records identified
+    with the nominal config/, ``calibrated_subsets`` from those identified on a known profile."""
+    return {
+        "subsets": train_family([r for r in records if not r.calibrated], seed),
+        "calibrated_subsets": train_family([r for r in records if r.calibrated], seed),
+    }
+
+
+def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
+    """One temperature-calibrated network per subset of signals (every non-empty subset), across
+    every support and sensor rate in ``records`` (the IMU period is a continuous feature)."""
     rng = np.random.default_rng(seed)
     impacts = sorted({(r.scene_set, r.index) for r in records})
     chosen = rng.choice(len(impacts), size=max(1, int(len(impacts) * HOLDOUT_FRACTION)), replace=False)
@@ -80,30 +124,26 @@ def train_statistical(records: Sequence[Record], seed: int) -> dict[str, Any]:
     for mask in range(1, 2 ** len(SIGNAL_ORDER)):
         signals = tuple(s for i, s in enumerate(SIGNAL_ORDER) if mask >> i & 1)
         usable = [r for r in records if set(signals) <= set(signals_of(r.label["features"]))]
-        groups: dict[str, list[Record]] = {subset_key(signals): usable}
-        if "imu" in signals:
-            groups = {}
-            for r in usable:
-                groups.setdefault(f"{subset_key(signals)}@{round(r.label['features']['imu_period_s'], 7):g}", []).append(r)
-        for key, group in groups.items():
-            if len(group) >= 50:
-                subsets[key] = fit_subset(group, feature_list(signals), held)
-    return {"subsets": subsets}
+        if len(usable) >= 50:
+            subsets[subset_key(signals)] = fit_subset(usable, feature_list(signals), held)
+    return subsets
 
 
 def fit_subset(records: Sequence[Record], names: Sequence[tuple[str, float | None]], held: set[tuple[str, int]]) -> dict[str, Any]:
     """Standardise, fit the logistic weights on the training impacts, the temperature on the
     held-out ones."""
-    x = expand(np.array([base_vector(r.label["features"], names) for r in records]))
+    base = np.array([base_vector(r.label["features"], names) for r in records])
     y = np.array([1.0 if r.is_coal else 0.0 for r in records])
     train = np.array([(r.scene_set, r.index) not in held for r in records])
+    envelope = np.percentile(base[train], ENVELOPE_PERCENTILES, axis=0)
+    x = np.clip(base, envelope[0], envelope[1])
     mean, scale = x[train].mean(axis=0), x[train].std(axis=0) + 1e-9
     z = (x - mean) / scale
-    w = fit_logistic(z[train], y[train])
-    temperature = fit_temperature(z[~train] @ w[:-1] + w[-1], y[~train])
+    network = fit_network(z[train], y[train], seed=len(names))
+    temperature = fit_temperature(network_logit(network, z[~train]), y[~train])
     return {
         "features": [[n, f] for n, f in names], "mean": mean.tolist(), "scale": scale.tolist(),
-        "weights": w[:-1].tolist(), "bias": float(w[-1]), "temperature": temperature,
+        **network, "temperature": temperature, "envelope": envelope.tolist(),
         "trained_on": int(train.sum()), "calibrated_on": int((~train).sum()),
     }
 
@@ -149,42 +189,78 @@ def duration_ratio_table(params: Mapping[str, Any]) -> dict[str, list[float]]:
     return {"restitution": grid.tolist(), "ratio": [float(r) for r in ratios]}
 
 
+TIMING_BIN_EDGES_S = tuple(float(x) for x in np.geomspace(1.0 / 60000.0, 1.0 / 800.0, 9))  # IMU periods, s
+
+
 def timing_table(records: Sequence[Record]) -> list[dict[str, float]]:
-    """Per IMU period: median and robust spread of (camera stamp - IMU onset) - true duration."""
-    by_period: dict[float, list[float]] = {}
+    """Per band of IMU periods (log-spaced; the physics method interpolates between them): the
+    median and robust spread of (camera stamp - IMU onset) - true duration."""
+    by_band: dict[int, list[tuple[float, float]]] = {}
     for r in records:
         f = r.label["features"]
         if "rebound_delay_s" in f:
-            by_period.setdefault(round(f["imu_period_s"], 7), []).append(f["rebound_delay_s"] - r.duration_s)
+            band = int(np.searchsorted(TIMING_BIN_EDGES_S, f["imu_period_s"]))
+            by_band.setdefault(band, []).append((f["imu_period_s"], f["rebound_delay_s"] - r.duration_s))
     table = []
-    for period, lags in sorted(by_period.items()):
-        lag = np.array(lags)
+    for _, rows in sorted(by_band.items()):
+        if len(rows) < 10:
+            continue
+        periods, lag = (np.array(v) for v in zip(*rows))
         median = float(np.median(lag))
-        table.append({"imu_period_s": period, "mean_s": median, "std_s": float(1.4826 * np.median(np.abs(lag - median))), "count": len(lags)})
+        table.append({"imu_period_s": float(np.exp(np.mean(np.log(periods)))), "mean_s": median,
+                      "std_s": float(1.4826 * np.median(np.abs(lag - median))), "count": len(rows)})
     return table
+
+
+CACHE_FORMAT = "tail_beam training records 1"
+
+
+def save_cache(path: Path, records: Sequence[Record], paper: Sequence[Record]) -> None:
+    """Keep the simulated training records as JSON: data only, nothing a reader executes
+    (a pickle would run any code a tampered cache holds)."""
+    payload = {"format": CACHE_FORMAT, "stream": [dataclasses.asdict(r) for r in records], "paper": [dataclasses.asdict(r) for r in paper]}
+    path.write_text(json.dumps(payload), encoding="utf-8")
+
+
+def load_cache(path: Path) -> tuple[list[Record], list[Record]]:
+    """The records :func:`save_cache` wrote; anything else is refused with one line."""
+    try:
+        payload = json.loads(path.read_text(encoding="utf-8"))
+        if payload.get("format") != CACHE_FORMAT:
+            raise ValueError(f"not a {CACHE_FORMAT!r} file")
+        return [Record(**r) for r in payload["stream"]], [Record(**r) for r in payload["paper"]]
+    except (ValueError, TypeError, KeyError, AttributeError) as exc:
+        raise SystemExit(f"training: error: --cache {path}: cannot be read ({exc}); delete it to simulate afresh") from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="train the identification methods (writes tail_beam_id/models/*.json)")
     parser.add_argument("--count", type=int, default=400, help="training impacts (each at every setting)")
+    parser.add_argument("--varied-count", type=int, default=1500, help="training impacts on drawn supports (each once)")
     parser.add_argument("--tier", default=None, help="simulation tier (default: the evaluation's)")
-    parser.add_argument("--cache", default=None, help="pickle file keeping the simulated training records (reused if present)")
+    parser.add_argument("--cache", default=None, help="JSON file keeping the simulated training records (reused if present)")
     args = parser.parse_args(argv)
     params = load_parameters()
     seed = int(evaluation_params(params)["training_seed"])
-    if {seed, seed + 1} & set(evaluation_params(params)["seeds"].values()):
+    if {seed, seed + 1, seed + 2} & set(evaluation_params(params)["seeds"].values()):
         raise SystemExit("training_seed must differ from every evaluation seed")
     paper_count = max(args.count // 4, 60)
+    varied_count = args.varied_count
     cache = Path(args.cache) if args.cache else None
     if cache is not None and cache.is_file():
-        records, paper = pickle.loads(cache.read_bytes())
+        records, paper = load_cache(cache)
     else:
         records = collect(params, "stream", args.count, seed, args.tier)
+        # Supports other than the nominal one, at sensor rates drawn from 1-50 kHz.
+        records += collect(params, "varied", varied_count, seed + 2, args.tier)
+        # The same impacts as a calibrated identifier sees them (the support's profile known).
+        records += collect(params, "varied", varied_count, seed + 2, args.tier, true_profile=True)
         # The threshold is the study's idea for the study's scene: tuned on paper-scene impacts.
         paper = collect(params, "paper", paper_count, seed + 1, args.tier)
         if cache is not None:
-            cache.write_bytes(pickle.dumps((records, paper)))
-    provenance = {"training_seed": seed, "impacts": args.count, "records": len(records), "scene_set": "stream"}
+            save_cache(cache, records, paper)
+    provenance = {"training_seed": seed, "impacts": args.count, "varied_impacts": varied_count, "varied_seed": seed + 2,
+                  "records": len(records), "scene_set": "stream+varied"}
     paper_provenance = {"training_seed": seed + 1, "impacts": paper_count, "records": len(paper), "scene_set": "paper"}
     outputs = {
         "threshold": {**train_threshold(paper), "provenance": paper_provenance},

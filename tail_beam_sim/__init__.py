@@ -5,7 +5,7 @@ the ROS nodes, the offline ``tail-beam`` command line and the benchmarks alike.
 """
 
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.scene import Impact, Scene
-from tail_beam_sim.simulate import SimulationResult, simulate
+from tail_beam_sim.physics.scene import Impact, Scene
+from tail_beam_sim.physics.simulate import SimulationResult, simulate
 
 __all__ = ["InputError", "Impact", "Scene", "SimulationResult", "simulate"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from tail_beam_sim.errors import InputError
+from tail_beam_sim.errors import InputError, open_output_file
 
 
 def pyplot() -> Any:
@@ -18,6 +18,19 @@ def pyplot() -> Any:
     except ImportError:
         raise InputError("--plot", "matplotlib", "plots need matplotlib: pip install 'tail_beam[plot]'") from None
     return plt
+
+
+def save_figure(fig: Any, path: str | Path, dpi: int, field: str = "--plot") -> Path:
+    """Write ``fig`` to ``path`` (format from the suffix, PNG by default) and close it; a symbolic
+    link at ``path`` is refused, never written through."""
+    plt = pyplot()
+    out = Path(path)
+    try:
+        with open_output_file(field, out) as stream:
+            fig.savefig(stream, dpi=dpi, format=out.suffix.lstrip(".").lower() or "png")
+    finally:
+        plt.close(fig)
+    return out
 
 
 def plot_response(result: Any, path: str | Path) -> Path:
@@ -63,7 +76,4 @@ def plot_response(result: Any, path: str | Path) -> Path:
     )
     for ax in axes:
         ax.grid(alpha=0.3)
-    out = Path(path)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_figure(fig, path, 110)

@@ -1,10 +1,11 @@
-"""The topic contract (interface.md): names, message types and frames, in one place."""
+"""The topic contract (docs/interface.md): names, message types and frames, in one place."""
 
 from __future__ import annotations
 
 IMPACT_CMD = "impact_cmd"
 JACK_PRESSURE = "jack_pressure"
 IMU = "imu"
+VIBRATION = "vibration"
 REBOUND_VELOCITY = "rebound_velocity"
 IMPACT_TRUTH = "impact_truth"
 LABEL = "label"
@@ -13,14 +14,46 @@ MSG_TYPES: dict[str, str] = {
     IMPACT_CMD: "std_msgs/msg/String",
     JACK_PRESSURE: "sensor_msgs/msg/FluidPressure",
     IMU: "sensor_msgs/msg/Imu",
+    VIBRATION: "sensor_msgs/msg/LaserScan",
     REBOUND_VELOCITY: "geometry_msgs/msg/TwistStamped",
     IMPACT_TRUTH: "std_msgs/msg/String",
     LABEL: "std_msgs/msg/String",
 }
 
+def qualified(namespace: str, name: str) -> str:
+    """The fully qualified name of contract topic ``name`` in ``namespace`` (``/`` or
+    ``/support_07``), as rosbag2 stores it: ``/imu``, ``/support_07/imu``."""
+    return f"{namespace.rstrip('/')}/{name}" if namespace.strip("/") else f"/{name}"
+
+
+def namespace_of(topic: str) -> str:
+    """The namespace of a recorded topic name: ``/support_07/imu`` -> ``/support_07``,
+    ``/imu`` and a relative ``imu`` -> ``/``."""
+    head = topic.strip("/").rpartition("/")[0]
+    return f"/{head}" if head else "/"
+
+
 FRAME_JACK = "tail_beam_jack"
 FRAME_IMU = "tail_beam_imu"
 FRAME_PLATE = "tail_beam_plate"
+FRAME_ACCELEROMETER = "tail_beam_accelerometer"
+
+# A vibration block's running sample index travels exactly as two float32 integer words in
+# LaserScan's angle_min (high) and angle_max (low): each word < 2**24 is exact in float32.
+INDEX_WORD = 2**24
+
+
+def index_words(first_index: int) -> tuple[float, float]:
+    """(angle_min, angle_max) carrying a block's first sample index (0 <= index < 2**48)."""
+    if not 0 <= first_index < INDEX_WORD**2:
+        raise ValueError(f"sample index {first_index} outside [0, 2**48)")
+    high, low = divmod(int(first_index), INDEX_WORD)
+    return float(high), float(low)
+
+
+def index_from_words(angle_min: float, angle_max: float) -> int:
+    """The first sample index a vibration block carries in (angle_min, angle_max)."""
+    return int(angle_min) * INDEX_WORD + int(angle_max)
 
 
 def stamp_ns(stamp_s: float) -> int:

@@ -55,7 +55,7 @@ def run_identification(rate_hz: float, duration_s: float) -> dict[str, float | s
     from std_msgs.msg import String
 
     from tail_beam_id.id_node import IdNode
-    from tail_beam_sim import ros_messages
+    from tail_beam_sim.ros import messages as ros_messages
 
     context = rclpy.Context()
     rclpy.init(context=context)
@@ -114,8 +114,8 @@ def run_recorder(duration_s: float) -> dict[str, float]:
     from rclpy.experimental import EventsExecutor
     from rclpy.parameter import Parameter
 
-    from tail_beam_sim.bagread import read_sensors
-    from tail_beam_sim.recorder_node import RecorderNode
+    from tail_beam_sim.bags.read import read_sensors
+    from tail_beam_sim.ros.recorder_node import RecorderNode
 
     bag = Path(tempfile.mkdtemp()) / "bench"
     context = rclpy.Context()
@@ -149,8 +149,9 @@ def run_recorder(duration_s: float) -> dict[str, float]:
 
 def run_writer(count: int = 50_000) -> float:
     """The recorder's writer alone: serialized messages written per second (no middleware)."""
-    from tail_beam_sim import bagio, topics
-    from tail_beam_sim.bagwrite import SegmentedBagWriter
+    from tail_beam_sim import topics
+    from tail_beam_sim.bags import records as bagio
+    from tail_beam_sim.bags.write import SegmentedBagWriter
 
     stamps = np.arange(1) / 2000.0
     record = next(bagio.pressure_msgs(stamps, np.full(1, 20e6), 1e8))

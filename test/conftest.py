@@ -13,9 +13,10 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def _domain_id() -> int:
-    """1..100: a per-run base (from xdist's run id or this process) plus the worker index."""
+    """A per-run base plus the worker index: ``$TAIL_BEAM_TEST_DOMAIN_BASE`` (for runs side by
+    side on one machine that must never meet), else 1..48 from xdist's run id or this process."""
     run = os.environ.get("PYTEST_XDIST_TESTRUNUID") or f"{os.getpid()}"
-    base = int(hashlib.sha256(run.encode()).hexdigest(), 16) % 24 * 4 + 1
+    base = int(os.environ.get("TAIL_BEAM_TEST_DOMAIN_BASE") or int(hashlib.sha256(run.encode()).hexdigest(), 16) % 12 * 4 + 1)
     worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
     return base + int(worker.removeprefix("gw") or 0) % 4
 
@@ -38,6 +39,6 @@ def params() -> dict:
 @pytest.fixture(scope="session")
 def default_scene(params):
     """The default scene: 25 mm coal, 3.5 m drop, 1.0 m from the hinge."""
-    from tail_beam_sim.scene import Scene
+    from tail_beam_sim.physics.scene import Scene
 
     return Scene.from_params(params)

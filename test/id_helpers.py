@@ -5,9 +5,9 @@ from __future__ import annotations
 import copy
 from typing import Any
 
-from tail_beam_sim.scene import Scene
-from tail_beam_sim.simulate import SimulationResult, simulate
-from tail_beam_sim.stream import StreamSimulator
+from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.simulate import SimulationResult, simulate
+from tail_beam_sim.physics.stream import StreamSimulator
 
 # Long enough before contact for the detector's noise estimate (0.1 s blocks), after it for
 # the camera timeout.

@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 
-from tail_beam_sim import bagio, topics
-from tail_beam_sim.bagread import read_sensors
-from tail_beam_sim.bagwrite import PARTIAL_DIR, SegmentedBagWriter, repair
+from tail_beam_sim import topics
+from tail_beam_sim.bags import records as bagio
+from tail_beam_sim.bags.read import read_sensors
+from tail_beam_sim.bags.write import PARTIAL_DIR, SegmentedBagWriter, repair
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.sensors import ImuStream, PressureStream
+from tail_beam_sim.physics.sensors import ImuStream, PressureStream
 
 RATE_HZ = 1000.0
 TAIL_BEAM = str(Path(sys.executable).parent / "tail-beam")  # the installed console script
@@ -46,6 +47,7 @@ def write_segments(path, segments: list[list], storage: str = "mcap", close: boo
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_segments_make_one_bag_that_any_reader_reads_whole(tmp_path, storage):
+    """Three closed segments read as one bag, by rosbags' AnyReader and our reader: every message once, in order, with the contract's topic types."""
     data = records(300)
     write_segments(tmp_path / "bag", [data[:200], data[200:450], data[450:]], storage)
     assert not (tmp_path / "bag" / PARTIAL_DIR).exists()
@@ -60,6 +62,7 @@ def test_segments_make_one_bag_that_any_reader_reads_whole(tmp_path, storage):
 
 
 def test_an_independent_mcap_reader_decodes_every_segment(tmp_path):
+    """The mcap library's own reader, not rosbags, decodes every pressure value across both segments."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
@@ -75,6 +78,7 @@ def test_an_independent_mcap_reader_decodes_every_segment(tmp_path):
 
 
 def test_a_killed_writer_leaves_the_closed_segments_readable_and_repair_adds_the_rest(tmp_path):
+    """A writer that dies mid-segment leaves its closed segments readable (flagged partial); repair adds what the open one salvaged, keeping the rest as it was."""
     data = records(2000)
     bag = tmp_path / "bag"
     writer = write_segments(bag, [data[:1000], data[1000:2000], data[2000:]], close=False)
@@ -82,7 +86,7 @@ def test_a_killed_writer_leaves_the_closed_segments_readable_and_repair_adds_the
     closed = read_sensors(bag, required=(topics.JACK_PRESSURE,))
     assert closed.partial
     assert closed.pressure_stamp_s.size == 1000  # both closed segments, nothing else
-    segments, salvaged = repair(bag)
+    salvaged = repair(bag).salvaged_messages
     after = read_sensors(bag, required=(topics.JACK_PRESSURE,))
     assert not after.partial
     assert after.pressure_stamp_s.size + after.imu_stamp_s.size == 2000 + salvaged
@@ -90,12 +94,14 @@ def test_a_killed_writer_leaves_the_closed_segments_readable_and_repair_adds_the
 
 
 def test_repair_rebuilds_a_bag_whose_metadata_is_missing(tmp_path):
+    """A bag without metadata.yaml is refused with a hint to repair; repair rebuilds it and every message reads back."""
     data = records(100)
     write_segments(tmp_path / "bag", [data])
     (tmp_path / "bag" / "metadata.yaml").unlink()
     with pytest.raises(InputError, match="bag repair"):
         read_sensors(tmp_path / "bag")
-    assert repair(tmp_path / "bag") == (1, 200)
+    report = repair(tmp_path / "bag")
+    assert (report.rewritten, report.salvaged_messages, report.lost) == (1, 200, [])
     assert read_sensors(tmp_path / "bag", required=(topics.IMU,)).imu_stamp_s.size == 100
 
 
@@ -125,6 +131,7 @@ def pressure_only_bag(path):
     ],
 )
 def test_a_bad_bag_is_one_clear_error(tmp_path, make, message):
+    """Each kind of bad bag is an InputError on field 'bag' saying what is wrong, and `tail-beam identify` on it exits 2 with that one line."""
     path = tmp_path / "bag"
     if make is not None:
         make(path)
@@ -140,6 +147,7 @@ def test_a_bad_bag_is_one_clear_error(tmp_path, make, message):
 
 
 def test_bag_info_lists_topics_and_counts(tmp_path):
+    """`tail-beam bag info` prints the total and one row per topic with its message count."""
     write_segments(tmp_path / "bag", [records(40)])
     result = subprocess.run([TAIL_BEAM, "bag", "info", str(tmp_path / "bag")],
                             capture_output=True, text=True, timeout=60)

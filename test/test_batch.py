@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tail_beam_sim.batch import ImpactBatch, streams, summaries
+from tail_beam_sim.physics.batch import ImpactBatch, streams, summaries
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.fidelity import TIERS, shipped_settings, structure_for
-from tail_beam_sim.scene import Impact, Scene
-from tail_beam_sim.sensors import imu_samples
-from tail_beam_sim.simulate import build_problem
-from tail_beam_sim.solvers import solve
+from tail_beam_sim.physics.fidelity import TIERS, shipped_settings, structure_for
+from tail_beam_sim.physics.scene import Impact, Scene
+from tail_beam_sim.physics.sensors import imu_samples
+from tail_beam_sim.physics.simulate import build_problem
+from tail_beam_sim.physics.solvers import solve
 
 KEYS = ("rebound_speed_mps", "contact_duration_s", "peak_contact_force_n", "peak_jack_pressure_change_pa")
 
@@ -79,6 +79,7 @@ def test_batch_streams_match_the_sensors_sampling_of_a_solved_impact(default_sce
 
 
 def test_batch_stream_noise_has_the_configured_rms(default_scene):
+    """The batch streams' pressure noise (noisy minus noise-free, same seed) has the configured RMS within 2 %."""
     scene = default_scene
     structure = structure_for(TIERS["rigid"], scene.support, ())
     impacts = _random_impacts(scene, 200, seed=5)
@@ -90,6 +91,7 @@ def test_batch_stream_noise_has_the_configured_rms(default_scene):
 
 
 def test_low_speed_impacts_are_flagged_for_a_possible_re_contact(default_scene):
+    """A 0.25 m/s impact is flagged for a possible re-contact (and the hybrid solver indeed finds more than one contact); an 8 m/s one is not."""
     scene = default_scene
     structure = structure_for(TIERS["rigid"], scene.support, ())
     batch = ImpactBatch.from_arrays(scene.support, scene.materials, ["coal", "coal"], np.array([0.025, 0.025]), np.array([0.25, 8.0]), np.array([1.0, 1.0]))
@@ -99,6 +101,7 @@ def test_low_speed_impacts_are_flagged_for_a_possible_re_contact(default_scene):
 
 
 def test_batch_input_errors_name_the_field_and_the_impact(default_scene):
+    """A bad radius, material or position in a batch is an InputError naming the field and the index of the first bad impact."""
     scene = default_scene
     with pytest.raises(InputError, match=r"radius_m\[1\]"):
         ImpactBatch.from_arrays(scene.support, scene.materials, ["coal", "coal"], np.array([0.02, -1.0]), np.array([5.0, 5.0]), np.array([1.0, 1.0]))

@@ -39,6 +39,7 @@ def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
 
 
 def test_json_summary_has_the_documented_keys(capsys):
+    """`simulate --json` prints one object with every documented key, and its restitution is rebound over impact speed."""
     code, out, _ = run_cli(capsys, "simulate", "--material", "coal", "--radius-m", "0.025", "--drop-height-m", "3.5", "--position-m", "1.0", "--json")
     assert code == 0
     summary = json.loads(out)
@@ -59,15 +60,17 @@ def _read_bag(path: Path) -> dict[str, list]:
     store = get_typestore(Stores.ROS2_KILTED)
     messages: dict[str, list] = {}
     with AnyReader([path], default_typestore=store) as reader:
-        types = {c.topic: c.msgtype for c in reader.connections}
+        assert all(c.topic.startswith("/") for c in reader.connections)  # fully qualified, as rosbag2 stores them
+        types = {c.topic[1:]: c.msgtype for c in reader.connections}
         for connection, log_ns, raw in reader.messages():
-            messages.setdefault(connection.topic, []).append((log_ns, reader.deserialize(raw, connection.msgtype)))
+            messages.setdefault(connection.topic[1:], []).append((log_ns, reader.deserialize(raw, connection.msgtype)))
     messages["_types"] = types  # type: ignore[assignment]
     return messages
 
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_bag_reads_back_with_contract_topics_types_units_and_stamps(tmp_path, capsys, storage):
+    """A simulated bag reads back with the contract's topics and types, pressure in Pa at 2 kHz stamps, IMU per REP 145, one rebound and a truth agreeing with the summary."""
     bag = tmp_path / "impact"
     code, out, _ = run_cli(capsys, "simulate", "--material", "sandstone", "--bag", str(bag), "--storage", storage, "--json")
     assert code == 0
@@ -117,12 +120,13 @@ def test_bag_decodes_with_an_independent_mcap_reader(tmp_path, capsys):
         reader = mcap_reader.make_reader(stream, decoder_factories=[decoder.DecoderFactory()])
         for _, channel, _, msg in reader.iter_decoded_messages():
             counts[channel.topic] = counts.get(channel.topic, 0) + 1
-            if channel.topic == "jack_pressure":
+            if channel.topic == "/jack_pressure":
                 assert 19e6 < msg.fluid_pressure < 21e6
-    assert counts["jack_pressure"] > 100 and counts["rebound_velocity"] == 1
+    assert counts["/jack_pressure"] > 100 and counts["/rebound_velocity"] == 1 and counts["/vibration"] > 5
 
 
 def test_plot_writes_a_png(tmp_path, capsys):
+    """`simulate --plot` writes a real PNG file (signature and non-trivial size)."""
     png = tmp_path / "response.png"
     assert run_cli(capsys, "simulate", "--plot", str(png))[0] == 0
     data = png.read_bytes()
@@ -130,11 +134,11 @@ def test_plot_writes_a_png(tmp_path, capsys):
 
 
 BAD_INPUT = [
-    (["--radius-m", "-0.01"], "radius_m", "(0, 0.5]"),
-    (["--radius-m", "nan"], "radius_m", "(0, 0.5] m (a finite number)"),
+    (["--radius-m", "-0.01"], "radius_m", "[0.001, 0.5]"),
+    (["--radius-m", "nan"], "radius_m", "[0.001, 0.5] m (a finite number)"),
     (["--material", "granite"], "material", "coal"),
     (["--position-m", "1.7"], "position_m", "[0, 1.6]"),
-    (["--drop-height-m", "0"], "drop_height_m", "(0, 50]"),
+    (["--drop-height-m", "0"], "drop_height_m", "[0.001, 50]"),
     (["--drop-height-m", "2", "--impact-speed-mps", "6"], "impact-speed-mps", "not allowed"),
     (["--config", "/nonexistent/params.yaml"], "config", "readable"),
 ]
@@ -142,6 +146,7 @@ BAD_INPUT = [
 
 @pytest.mark.parametrize(("argv", "field", "allowed"), BAD_INPUT)
 def test_bad_input_exits_2_with_one_line_naming_field_and_range(capsys, argv, field, allowed):
+    """Each bad option exits 2 with one stderr line naming the field and its allowed range, no traceback."""
     code, _, err = run_cli(capsys, "simulate", *argv)
     assert code == 2
     lines = err.strip().splitlines()
@@ -158,6 +163,7 @@ def test_missing_height_and_speed_is_an_error(tmp_path, capsys):
 
 
 def test_unreadable_yaml_config_is_reported(tmp_path, capsys):
+    """A --config file that is not valid YAML exits 2 with one line saying so."""
     config = tmp_path / "broken.yaml"
     config.write_text("/**: [unclosed\n")
     code, _, err = run_cli(capsys, "simulate", "--config", str(config))
@@ -169,4 +175,4 @@ def test_installed_console_script_reports_bad_input_without_traceback():
     exe = Path(sys.executable).parent / "tail-beam"
     proc = subprocess.run([str(exe), "simulate", "--radius-m", "-1"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
-    assert proc.stderr.strip() == "tail-beam simulate: error: radius_m = '-1': must be in (0, 0.5] m"
+    assert proc.stderr.strip() == "tail-beam simulate: error: radius_m = '-1': must be in [0.001, 0.5] m"

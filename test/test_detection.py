@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from id_helpers import impact
-from tail_beam_id.detection import DetectionConfig, PulseDetector
+from tail_beam_id.detection.imu import DetectionConfig, PulseDetector
 from tail_beam_id.features import BeamModel, imu_impulse
 
 
@@ -18,6 +18,7 @@ def detector(params):
 def test_noise_and_sway_alone_give_no_pulse(detector):
     # 2 s of accelerometer noise (0.05 m/s^2 RMS) on gravity plus a 40 Hz sway of 0.5 m/s^2
     # (the beam still moving): a 7-sigma detector must find nothing in 4000 samples.
+    """Accelerometer noise and a 40 Hz sway of a still-ringing beam alone trigger no pulse in 2 s."""
     rng = np.random.default_rng(1)
     t = np.arange(1, 4001) / 2000.0
     accel = 9.81 + 0.5 * np.sin(2 * np.pi * 40.0 * t) + rng.normal(0.0, 0.05, t.size)
@@ -25,6 +26,7 @@ def test_noise_and_sway_alone_give_no_pulse(detector):
 
 
 def test_one_impact_gives_one_pulse_at_its_contact(params, detector):
+    """One simulated impact gives exactly one pulse, whose first deviating sample's period holds the true contact start."""
     result = impact(params, material="coal")
     pulses = detector.scan(result.imu.stamp_s, result.imu.linear_acceleration_mps2[:, 2], 0, final=True)
     assert len(pulses) == 1
@@ -33,6 +35,7 @@ def test_one_impact_gives_one_pulse_at_its_contact(params, detector):
 
 
 def test_chunking_does_not_change_what_is_found(params):
+    """Scanning the IMU in chunks of 37 samples finds the same pulse onsets as scanning it whole."""
     result = impact(params, material="marble", radius_m=0.06, position_m=0.3)
     t, a = result.imu.stamp_s, result.imu.linear_acceleration_mps2[:, 2]
     config = DetectionConfig.from_params(params["identification"]["detection"])
@@ -48,6 +51,7 @@ def test_chunking_does_not_change_what_is_found(params):
 def test_small_impact_is_lost_in_tenfold_noise(params, detector):
     # The smallest, slowest particle near the hinge: about 10 sigma at nominal noise, about
     # 1 sigma at ten times the noise, where no detector can see it in the IMU.
+    """The weakest impact is found at nominal noise and, honestly, not found at ten times the noise."""
     fields = {"material": "coal", "radius_m": 0.025, "drop_height_m": 1.5, "position_m": 0.2, "restitution": 0.3}
     nominal = impact(params, **fields)
     noisy = impact(params, noise=10.0, **fields)
@@ -59,6 +63,7 @@ def test_small_impact_is_lost_in_tenfold_noise(params, detector):
 
 def test_imu_impulse_is_the_contact_impulse_moment(params, detector):
     # Rigid beam: the plate velocity at the IMU jumps by J x x_imu / I_C, J = m (v0 + v1).
+    """On the rigid beam the IMU's velocity jump gives the contact's impulse moment m (v0 + v1) x within 5 %."""
     result = impact(params, tier="rigid", material="sandstone", radius_m=0.04, position_m=1.2)
     model = BeamModel.from_params(params)
     pulse = detector.scan(result.imu.stamp_s, result.imu.linear_acceleration_mps2[:, 2], 0, final=True)[0]

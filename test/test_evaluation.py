@@ -21,12 +21,14 @@ def record(is_coal: bool, said: str | None, radius_m: float = 0.03) -> Record:
 
 def test_wilson_interval_matches_the_textbook_values():
     # Wilson 95 % interval: 10/10 -> [0.7225, 1]; 0/10 -> [0, 0.2775]; 5/10 -> [0.2366, 0.7634].
+    """The Wilson 95 % interval matches the textbook bounds for 10/10, 0/10 and 5/10."""
     assert wilson(10, 10)[0] == pytest.approx(0.7225, abs=1e-4)
     assert wilson(0, 10)[1] == pytest.approx(0.2775, abs=1e-4)
     assert wilson(5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)
 
 
 def test_missed_impacts_count_as_wrong_and_classes_weigh_equally():
+    """A missed impact counts as wrong, balanced accuracy weighs coal and gangue equally, and the confusion, size bins and data latency add up by hand."""
     records = [record(True, "coal"), record(True, "coal"), record(True, "coal"), record(True, None),
                record(False, "gangue", 0.08), record(False, "coal", 0.08)]
     s = summarise(records, [0.025, 0.05, 0.1])
@@ -41,6 +43,7 @@ def test_missed_impacts_count_as_wrong_and_classes_weigh_equally():
 
 
 def test_match_takes_the_nearest_label_and_counts_the_rest():
+    """A truth takes the nearest label within the tolerance and counts the others as extra; none within it gives no match."""
     labels = [{"impact_stamp": 1.0005}, {"impact_stamp": 1.3}, {"impact_stamp": 0.9995}]
     best, extra = match(labels, 1.0, 0.002)
     assert best["impact_stamp"] in (1.0005, 0.9995)
@@ -49,6 +52,7 @@ def test_match_takes_the_nearest_label_and_counts_the_rest():
 
 
 def test_logistic_fit_finds_the_boundary_and_temperature_undoes_overconfidence():
+    """The logistic fit recovers a known slope and offset, and temperature scaling finds a fivefold overconfidence."""
     rng = np.random.default_rng(0)
     x = rng.normal(0.0, 1.0, (2000, 1))
     p = 1.0 / (1.0 + np.exp(-(2.0 * x[:, 0] - 1.0)))
@@ -61,6 +65,7 @@ def test_logistic_fit_finds_the_boundary_and_temperature_undoes_overconfidence()
 
 
 def test_evaluate_command_prints_figures_and_targets(capsys, tmp_path):
+    """`tail-beam evaluate` prints the set, the targets and a finite compute time, and writes summary.json."""
     code = main(["evaluate", "--sets", "paper", "--count", "2", "--noise", "1", "--rates", "nominal",
                  "--methods", "threshold,physics", "--out", str(tmp_path)])
     out = capsys.readouterr().out
@@ -74,15 +79,25 @@ def test_evaluate_command_prints_figures_and_targets(capsys, tmp_path):
     (["evaluate", "--sets", "quarry"], "--sets"),
     (["evaluate", "--methods", "svm"], "--methods"),
     (["evaluate", "--noise", "-1"], "--noise"),
-    (["evaluate", "--plot"], "--plot"),
 ])
 def test_evaluate_rejects_bad_options_in_one_line(capsys, argv, field):
+    """Each bad evaluate option exits 2 with one line naming the option."""
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and field in err
 
 
+def test_evaluate_plot_defaults_to_out_evaluate(tmp_path, monkeypatch, capsys):
+    """--plot without --out writes summary.json and the charts under out/evaluate of the working directory (ignored by git)."""
+    pytest.importorskip("matplotlib")
+    monkeypatch.chdir(tmp_path)
+    assert main(["evaluate", "--sets", "paper,stream", "--count", "2", "--noise", "1,10", "--rates", "nominal", "--methods", "threshold", "--plot"]) == 0
+    written = sorted(p.name for p in (tmp_path / "out" / "evaluate").iterdir())
+    assert written == ["accuracy_vs_latency.png", "accuracy_vs_noise.png", "accuracy_vs_size.png", "reliability.png", "summary.json"]
+
+
 def test_charts_are_written(tmp_path):
+    """The three evaluation charts are written as real PNG files, under their documented names."""
     pytest.importorskip("matplotlib")
     from tail_beam_id.charts import write_all
 
@@ -93,5 +108,5 @@ def test_charts_are_written(tmp_path):
             r.setting = f"nominal/x{noise}"
         items.append(summarise(records, [0.025, 0.05, 0.1]))
     paths = write_all(items, tmp_path, 0.012)
-    assert [p.name for p in paths] == ["accuracy_vs_latency.png", "accuracy_vs_size.png", "accuracy_vs_noise.png"]
+    assert [p.name for p in paths] == ["reliability.png", "accuracy_vs_latency.png", "accuracy_vs_size.png", "accuracy_vs_noise.png"]
     assert all(p.stat().st_size > 1000 and p.read_bytes()[:4] == b"\x89PNG" for p in paths)

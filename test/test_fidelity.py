@@ -11,10 +11,11 @@ import pytest
 from tail_beam_sim.cli import main
 from tail_beam_sim.config import deep_merge, load_parameters
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.fidelity import BRITTLE_STEPS_PER_CONTACT, Needs, plan, shipped_settings
-from tail_beam_sim.scene import Scene
-from tail_beam_sim.simulate import RK4_CONTACT_ERROR, build_problem, crushing_contact, simulate
-from tail_beam_sim.solvers import solve
+from tail_beam_sim.physics.fidelity import BRITTLE_STEPS_PER_CONTACT, Needs, plan, shipped_settings
+from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.simulate import build_problem, crushing_contact, simulate
+from tail_beam_sim.physics.solvers.hybrid import RK4_CONTACT_ERROR
+from tail_beam_sim.physics.solvers import solve
 
 
 def _choice(scene, outputs, tolerance):
@@ -99,6 +100,7 @@ def _run_json(capsys, *argv):
 
 
 def test_simulate_json_reports_tier_solver_and_error_estimate(capsys):
+    """--json reports the auto-chosen tier and solver with an estimate within tolerance, --check's measured differences, and null (not a guess) for a fixed-step solver."""
     summary = _run_json(capsys, "--outputs", "rebound")
     assert (summary["tier"], summary["solver"]) == ("impulse", "impulse")
     assert 0 < summary["error_estimate"] <= 0.01
@@ -112,6 +114,7 @@ def test_simulate_json_reports_tier_solver_and_error_estimate(capsys):
 
 
 def test_bad_needs_are_reported_with_field_and_range(capsys):
+    """Unknown outputs and a zero tolerance are refused naming fidelity.outputs or fidelity.tolerance and the range, in one line from the CLI."""
     with pytest.raises(InputError, match="fidelity.outputs"):
         Needs.of(["sound"], 0.01)
     code = main(["simulate", "--tolerance", "0"])

@@ -26,11 +26,13 @@ def paper(params):
 
 
 def test_methods_are_registered():
+    """The threshold, statistical and physics methods are all available by name."""
     assert set(METHODS) <= set(available_methods())
 
 
 @pytest.mark.parametrize("method", METHODS)
 def test_paper_scene_is_labelled_right(params, paper, method):
+    """Each method labels each study material right, confidently, from all three signals, stamped at the contact and decided within 50 ms."""
     for material, result in paper.items():
         labels = identify(params, method, result.pressure, result.imu, [result.rebound])
         assert len(labels) == 1
@@ -43,6 +45,7 @@ def test_paper_scene_is_labelled_right(params, paper, method):
 
 
 def test_labels_depend_on_stamps_not_on_chunking_or_arrival(params):
+    """Three impacts get the same labels whether fed in 3 ms or 25 ms chunks or with the camera 20 ms late."""
     commands = [
         (0.30, {"material": "coal", "radius_m": 0.06, "drop_height_m": 3.0, "position_m": 1.1}),
         (0.55, {"material": "marble", "radius_m": 0.04, "drop_height_m": 2.0, "position_m": 0.4}),
@@ -73,6 +76,7 @@ def test_labels_depend_on_stamps_not_on_chunking_or_arrival(params):
 
 
 def test_camera_gone_still_labels_from_pressure_and_imu(params, paper):
+    """Without the camera the impact is still labelled, from pressure and IMU, within 50 ms of the contact after the camera timeout."""
     result = paper["sandstone"]
     labels = identify(params, "statistical", result.pressure, result.imu, [])
     assert len(labels) == 1
@@ -83,6 +87,7 @@ def test_camera_gone_still_labels_from_pressure_and_imu(params, paper):
 
 
 def test_imu_gone_still_labels_from_pressure_and_camera(params, paper):
+    """Without the IMU the physics method still labels the impact, from pressure and the camera, and says so in signals."""
     result = paper["coal"]
     labels = identify(params, "physics", result.pressure, None, [result.rebound])
     assert len(labels) == 1
@@ -100,6 +105,7 @@ def medium(params):
 def test_pressure_alone_never_gives_a_confident_label(params, medium, method):
     # The jack pressure carries only the moment impulse, which size, speed and position trade
     # off against material: no method may claim much from it.
+    """From the jack pressure alone every method labels each impact with confidence at most 0.75."""
     for result in medium:
         labels = identify(params, method, result.pressure, None, [])
         assert len(labels) == 1
@@ -108,6 +114,7 @@ def test_pressure_alone_never_gives_a_confident_label(params, medium, method):
 
 
 def test_imu_stopping_midstream_moves_to_the_camera(params):
+    """When the IMU stops mid-stream, the later impacts are labelled from pressure and the camera, at their true contact times."""
     commands = [
         (0.30, {"material": "coal", "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 1.0}),
         (0.60, {"material": "sandstone", "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 1.0}),
@@ -128,6 +135,7 @@ def test_imu_stopping_midstream_moves_to_the_camera(params):
 
 def test_saturated_pressure_is_left_out(params):
     # A transducer whose range ends 5 kPa above the setting pressure clips every impact.
+    """A clipped pressure transducer is reported as saturated and left out: the label is the one given with no pressure stream."""
     result = impact(params, material="marble", seed=4, sensors={"pressure_range_max_pa": 20.005e6})
     labels = identify(params, "statistical", result.pressure, result.imu, [result.rebound])
     assert len(labels) == 1
@@ -139,6 +147,7 @@ def test_saturated_pressure_is_left_out(params):
 
 
 def test_two_impacts_3_ms_apart_are_flagged_and_not_trusted(params):
+    """Two impacts 3 ms apart are both labelled, flagged overlap, with confidence at most the configured cap."""
     commands = [
         (0.300, {"material": "coal", "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 1.2}),
         (0.303, {"material": "marble", "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 0.5}),
@@ -152,6 +161,7 @@ def test_two_impacts_3_ms_apart_are_flagged_and_not_trusted(params):
 
 
 def test_physics_caps_confidence_when_no_particle_explains_the_impact(params):
+    """Observations no prior particle can give are called an outlier and capped at the configured confidence."""
     method = build_method("physics", params)
     # A 20 m/s rebound from a tiny impulse: no particle of any material does that.
     decision = method.decide({"moment_impulse_nms": 0.05, "moment_impulse_sigma_nms": 0.005, "rebound_speed_mps": 20.0, "rebound_cross_mps": 0.0})
@@ -161,6 +171,7 @@ def test_physics_caps_confidence_when_no_particle_explains_the_impact(params):
 
 def test_physics_estimates_the_particle(params, paper):
     # Posterior means: coal is light and soft, sandstone dense and stiff (materials.yaml).
+    """The physics method's posterior means rank coal lighter, softer and bouncier than sandstone."""
     estimates = {}
     for material, result in paper.items():
         label = identify(params, "physics", result.pressure, result.imu, [result.rebound])[0]
@@ -180,6 +191,7 @@ def test_physics_estimates_the_particle(params, paper):
     ],
 )
 def test_bad_parameters_name_the_field(params, change, field):
+    """Each bad identification parameter is an InputError whose field names it."""
     section = {**params["identification"], **change}
     with pytest.raises(InputError) as caught:
         StreamIdentifier(None, section, params)
@@ -189,6 +201,7 @@ def test_bad_parameters_name_the_field(params, change, field):
 def test_impact_lost_in_imu_noise_is_still_labelled_from_the_camera(params):
     # Ten times the noise hides the smallest, slowest impact near the hinge from the IMU
     # (test_detection); its rebound still tells the identifier that an impact happened.
+    """An impact the IMU cannot see in tenfold noise is still labelled from the camera, near its contact time."""
     result = impact(params, noise=10.0, material="coal", radius_m=0.025, drop_height_m=1.5, position_m=0.2, restitution=0.3)
     labels = identify(params, "statistical", result.pressure, result.imu, [result.rebound])
     assert len(labels) == 1
@@ -199,6 +212,7 @@ def test_impact_lost_in_imu_noise_is_still_labelled_from_the_camera(params):
 def test_long_noise_only_stream_gives_no_label_and_bounded_buffers(params):
     # 20 s of sensor noise alone (2 kHz), delivered in 10 ms chunks: no impact may be
     # reported, and the identifier keeps only the last second or so of samples.
+    """20 s of noise alone gives no label, and the identifier's buffers stay under two seconds of samples."""
     identifier = StreamIdentifier("statistical", params["identification"], params)
     rng = np.random.default_rng(5)
     for k in range(2000):

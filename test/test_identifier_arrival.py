@@ -48,6 +48,7 @@ def test_imu_declared_stopped_then_resuming_does_not_break_the_identifier(params
 
 
 def test_in_order_delivery_gives_the_same_labels_for_any_chunking(params):
+    """In-order delivery in 3, 10 or 25 ms chunks gives the same three labels and confidences."""
     fast, (pressure, imu, rebounds, _) = _caving_stream(params)
     runs = [
         [(l["impact_stamp"], l["label"], l["confidence"]) for l in replay(StreamIdentifier(params=fast["identification"]), pressure, imu, rebounds, chunk_s=c)]

@@ -11,26 +11,27 @@ import pytest
 from geometry_msgs.msg import TwistStamped
 from rcl_interfaces.msg import Log
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import FluidPressure, Imu
+from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
 
 from rosprobe import Probe, ros_context, spin_for, spin_until
-from tail_beam_sim import ros_messages, topics
+from tail_beam_sim import topics
+from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.config import default_config_dir, deep_merge, load_parameters
-from tail_beam_sim.stream import StreamSimulator
+from tail_beam_sim.physics.stream import StreamSimulator
 
 pytestmark = pytest.mark.ros
 
 COAL = {"material": "coal", "radius_m": 0.06, "drop_height_m": 3.0, "position_m": 1.0}
 MARBLE = {"material": "marble", "radius_m": 0.06, "drop_height_m": 3.0, "position_m": 1.0}
 SIM_TOPICS = {
-    topics.JACK_PRESSURE: FluidPressure, topics.IMU: Imu, topics.REBOUND_VELOCITY: TwistStamped,
+    topics.JACK_PRESSURE: FluidPressure, topics.IMU: Imu, topics.VIBRATION: LaserScan, topics.REBOUND_VELOCITY: TwistStamped,
     topics.IMPACT_TRUTH: String,
 }
 
 
 def sim_node(context, **overrides):
-    from tail_beam_sim.sim_node import SimNode
+    from tail_beam_sim.ros.sim_node import SimNode
 
     values = {"sim_node.realtime_factor": 0.0, **overrides}
     return SimNode(context=context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
@@ -50,6 +51,7 @@ def connected(probe: Probe, node) -> bool:
 
 
 def test_sim_node_turns_commands_into_the_contract_messages():
+    """Two commands give two truths with their ids and labels, every pressure and IMU sample from t = 0 at k / rate with the contract's frames, units and variances, and rebounds at the camera's frame after separation."""
     with ros_context() as (context, executor):
         sim = sim_node(context, **{"sim_node.wait_for_subscribers": 1})
         probe = Probe(context, SIM_TOPICS)
@@ -87,11 +89,12 @@ def test_sim_node_turns_commands_into_the_contract_messages():
             stamp = ros_messages.stamp_s(msg.header.stamp)
             assert truth["final_separation_stamp"] <= stamp <= truth["final_separation_stamp"] + 1.0 / spec.camera_frame_rate_hz + 1e-9
             assert msg.twist.linear.z == pytest.approx(truth["rebound_speed_mps"], abs=0.05 + 4 * 0.02 * truth["rebound_speed_mps"])
-        # Coal rebounds faster than marble of the same size, speed and point (physics.md).
+        # Coal rebounds faster than marble of the same size, speed and point (docs/physics.md).
         assert rebounds[0].twist.linear.z > rebounds[1].twist.linear.z
 
 
 def test_malformed_commands_are_logged_with_the_field_and_lose_no_valid_impact():
+    """Each malformed impact_cmd is one error line naming the field and range, and the valid commands around them are all simulated."""
     bad = {
         "not json": "{material: coal",
         "material": json.dumps({**COAL, "material": "granite"}),
@@ -121,11 +124,12 @@ def test_malformed_commands_are_logged_with_the_field_and_lose_no_valid_impact()
         for error, field in zip(errors[1:], list(bad)[1:]):
             assert error.startswith(f"impact_cmd rejected: {field.strip()} = ")
         assert "must be one of coal, marble, mudstone, sandstone" in errors[1]
-        assert "must be in (0, " in errors[3]  # a radius must be positive
-        assert "must be in [0, 1.6] m" in errors[4]  # the plate is 1.6 m long (physics.md)
+        assert "must be in [0.001, 0.5] m" in errors[3]  # a radius of at least 1 mm (config/support.yaml)
+        assert "must be in [0, 1.6] m" in errors[4]  # the plate is 1.6 m long (docs/physics.md)
 
 
 def test_queue_overflow_is_a_warning_and_the_queued_impacts_all_happen():
+    """A command beyond stream.max_queued_impacts is one warning naming the limit and the impact; the queued impacts all happen."""
     with ros_context() as (context, executor):
         sim = sim_node(context, **{"stream.max_queued_impacts": 2, "sim_node.realtime_factor": 1.0})
         probe = Probe(context, {topics.IMPACT_TRUTH: String, "/rosout": Log})
@@ -141,6 +145,7 @@ def test_queue_overflow_is_a_warning_and_the_queued_impacts_all_happen():
 
 
 def test_id_node_labels_each_impact_of_a_live_sim_node():
+    """id_node labels each of a live sim_node's impacts within 5 ms of its contact, in stamp order, missing no sample."""
     with ros_context() as (context, executor):
         sim = sim_node(context, **{"sim_node.wait_for_subscribers": 1, "scenario.source": "generated", "scenario.count": 4})
         ident = id_node(context)
@@ -166,7 +171,7 @@ def test_id_node_labels_each_impact_of_a_live_sim_node():
 def offline_chunk(count: int = 3, duration_s: float = 2.5):
     params = load_parameters([default_config_dir() / "sim_node.yaml"])
     deep_merge(params, {"scenario": {"source": "generated", "count": count}})
-    from tail_beam_sim.scenario import load_scenario
+    from tail_beam_sim.physics.scenario import load_scenario
 
     stream = StreamSimulator.from_params(params)
     planned = load_scenario(params["scenario"], stream.materials, stream.support)
@@ -176,6 +181,7 @@ def offline_chunk(count: int = 3, duration_s: float = 2.5):
 
 
 def test_id_node_labels_from_what_remains_when_a_stream_stops():
+    """When the IMU stream stops between impacts, id_node labels the later ones from pressure and the camera, and says so in signals."""
     chunk = offline_chunk()
     starts = [t["contact_start_stamp"] for _, t in chunk.truths]
     stop_s = 0.5 * (starts[0] + starts[1])  # the IMU stops between the first and second impact
@@ -191,7 +197,7 @@ def test_id_node_labels_from_what_remains_when_a_stream_stops():
         executor.add_node(feeder)
         assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()))
         imu_kept = chunk.imu.stamp_s <= stop_s
-        from tail_beam_sim.sensors import ImuStream
+        from tail_beam_sim.physics.sensors import ImuStream
 
         imu = ImuStream(chunk.imu.stamp_s[imu_kept], chunk.imu.angular_velocity_radps[imu_kept],
                         chunk.imu.linear_acceleration_mps2[imu_kept], chunk.imu.gyro_variance, chunk.imu.accel_variance)
@@ -216,11 +222,12 @@ def test_id_node_labels_from_what_remains_when_a_stream_stops():
 
 
 def test_publish_clock_gives_the_simulation_time_on_slash_clock():
+    """/clock ticks forward with simulation time, ending within one chunk of the last published sample."""
     from rosgraph_msgs.msg import Clock
 
     with ros_context() as (context, executor):
         sim = sim_node(context, **{"sim_node.publish_clock": True, "sim_node.wait_for_subscribers": 1, "sim_node.exit_after_idle_s": 0.5})
-        probe = Probe(context, {"/clock": Clock, topics.JACK_PRESSURE: FluidPressure, topics.IMU: Imu, topics.REBOUND_VELOCITY: TwistStamped})
+        probe = Probe(context, {"/clock": Clock, **SIM_TOPICS})
         executor.add_node(sim)
         executor.add_node(probe)
         assert spin_until(executor, lambda: sim.finished.done())
@@ -235,11 +242,12 @@ def test_publish_clock_gives_the_simulation_time_on_slash_clock():
 
 
 def test_replay_publishes_a_bag_in_log_time_order_with_its_clock(tmp_path, default_scene):
+    """bag_replay publishes every message of a simulated bag, the pressure values exactly as simulated, with /clock."""
     from rosgraph_msgs.msg import Clock
 
-    from tail_beam_sim import bagio
-    from tail_beam_sim.replay_node import ReplayNode
-    from tail_beam_sim.simulate import simulate
+    from tail_beam_sim.bags import records as bagio
+    from tail_beam_sim.ros.replay_node import ReplayNode
+    from tail_beam_sim.physics.simulate import simulate
 
     result = simulate(default_scene)
     bag = tmp_path / "one"
@@ -249,6 +257,7 @@ def test_replay_publishes_a_bag_in_log_time_order_with_its_clock(tmp_path, defau
         replay = ReplayNode(context=context, parameter_overrides=[
             Parameter("replay.bag_path", value=str(bag)), Parameter("replay.rate", value=4.0),
             Parameter("replay.publish_clock", value=True), Parameter("replay.wait_for_subscribers", value=1),
+            Parameter("replay.topics", value=list(topics.MSG_TYPES)),  # every topic, not the sensors only (the default)
         ])
         executor.add_node(probe)
         executor.add_node(replay)

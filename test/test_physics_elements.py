@@ -9,13 +9,13 @@ import pytest
 from scipy.integrate import quad
 
 from tail_beam_sim.config import deep_merge, load_parameters
-from tail_beam_sim.scene import Impact, Scene
-from tail_beam_sim.simulate import build_problem, simulate
-from tail_beam_sim.solvers import solve
+from tail_beam_sim.physics.scene import Impact, Scene
+from tail_beam_sim.physics.simulate import build_problem, simulate
+from tail_beam_sim.physics.solvers import solve
 
 
 def test_impact_speed_is_free_fall_speed(default_scene):
-    """v0 = sqrt(2 g h), the definition of drop_height_m in interface.md."""
+    """v0 = sqrt(2 g h), the definition of drop_height_m in docs/interface.md."""
     support = default_scene.support
     for height in (0.005, 1.5, 2.0, 3.5, 4.0):
         impact = Impact.from_mapping(
@@ -26,13 +26,13 @@ def test_impact_speed_is_free_fall_speed(default_scene):
 
 
 def test_jack_stiffness_matches_hand_calculation(default_scene):
-    """K_Q = beta_eff S / L with the thin wall's hoop compliance in series (physics.md), worked by hand
+    """K_Q = beta_eff S / L with the thin wall's hoop compliance in series (docs/physics.md), worked by hand
     for the nominal jack: bore 160 mm, column 0.20 m, wall 20 mm, E 206 GPa, beta 1.95 GPa."""
     beta_eff = 1.0 / (1.0 / 1.95e9 + 0.160 / (0.020 * 206e9))
     k_hand = beta_eff * math.pi * 0.080**2 / 0.20
     support = default_scene.support
     assert support.jack_stiffness_npm == pytest.approx(k_hand, rel=1e-9)
-    # physics.md: "stiffness comes out near 1.8e8 N/m"; lever arm 0.70 sin 60 = 0.606 m.
+    # docs/physics.md: "stiffness comes out near 1.8e8 N/m"; lever arm 0.70 sin 60 = 0.606 m.
     assert support.jack_stiffness_npm == pytest.approx(1.8e8, rel=0.02)
     assert support.jack_lever_arm_m == pytest.approx(0.606, abs=5e-4)
 

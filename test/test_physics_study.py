@@ -1,4 +1,4 @@
-"""The study's findings (physics.md, "What the study found") reproduced by the model."""
+"""The study's findings (docs/physics.md, "What the study found") reproduced by the model."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from tail_beam_sim.config import deep_merge, load_parameters
-from tail_beam_sim.scene import Scene
-from tail_beam_sim.simulate import simulate
+from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.simulate import simulate
 
 STUDY_SPEEDS_MPS = {2.0: 6.261, 2.5: 7.000, 3.0: 7.668, 3.5: 8.368, 4.0: 8.854}
 

@@ -10,15 +10,16 @@ import numpy as np
 import pytest
 from scipy.integrate import quad, solve_ivp
 
-from tail_beam_sim.benchmark import errors, measure
+from tail_beam_sim.physics.benchmark import errors, measure
 from tail_beam_sim.config import deep_merge, load_parameters
-from tail_beam_sim.contact import delivered_restitution
+from tail_beam_sim.physics.contact import delivered_restitution
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.fidelity import TIERS, shipped_settings, structure_for
-from tail_beam_sim.scene import Scene
-from tail_beam_sim.simulate import RK4_CONTACT_ERROR, build_problem
-from tail_beam_sim.solvers import SOLVERS, SolverError, solve
-from tail_beam_sim.solvers.pulse import pulse_table, structure_response
+from tail_beam_sim.physics.fidelity import TIERS, shipped_settings, structure_for
+from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.simulate import build_problem
+from tail_beam_sim.physics.solvers.hybrid import RK4_CONTACT_ERROR
+from tail_beam_sim.physics.solvers import SOLVERS, SolverError, solve
+from tail_beam_sim.physics.solvers.pulse import pulse_table, structure_response
 
 IMU_RATE_HZ = 2000.0
 
@@ -55,6 +56,7 @@ CASES = [
 
 @pytest.mark.parametrize("name, options, bound", CASES, ids=[f"{c[0]}-{'-'.join(map(str, c[1].values()))}" for c in CASES])
 def test_solver_agrees_with_converged_reference(rigid_reference, name, options, bound):
+    """Each solver's rebound, peak force, peak pressure and IMU waveform are within its stated bound of converged Radau, with one contact."""
     problem, reference = rigid_reference
     trajectory = solve(problem, name, **options)
     measured = errors(measure(trajectory, IMU_RATE_HZ), reference)
@@ -151,6 +153,7 @@ def test_trajectory_is_continuous_and_defined_everywhere(params):
 
 
 def test_unknown_solver_and_bad_options_name_the_field(params):
+    """An unknown solver, an option out of range or one the solver does not take is an InputError naming it (bad input, not a failed solve)."""
     problem = _problem(params)
     with pytest.raises(InputError, match="solver = 'nope'"):
         solve(problem, "nope")
@@ -158,13 +161,14 @@ def test_unknown_solver_and_bad_options_name_the_field(params):
         solve(problem, "Radau", rtol=2.0)
     with pytest.raises(InputError, match="not all accepted by RK45"):
         solve(problem, "RK45", dt_s=1e-6)
-    with pytest.raises(SolverError, match="steps_per_contact"):
+    with pytest.raises(InputError, match="steps_per_contact"):
         solve(problem, "hybrid", steps_per_contact=2)
     assert {"hybrid", "impulse", "euler", "verlet", "rk4", "RK45", "DOP853", "Radau", "BDF", "LSODA"} <= set(SOLVERS)
 
 
 def test_scipy_methods_refuse_the_history_dependent_crushing_contact(params):
-    from tail_beam_sim.simulate import crushing_contact
+    """scipy's methods refuse the crushing contact (its force depends on the peak so far) with a SolverError saying why."""
+    from tail_beam_sim.physics.simulate import crushing_contact
 
     scene = Scene.from_params(deep_merge(load_parameters(), {}))
     crushing = crushing_contact(scene.support, scene.impact, 3.0)

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import json
 
-from tail_beam_sim.benchmark import Row, mark_pareto
+from tail_beam_sim.physics.benchmark import Row, mark_pareto
 from tail_beam_sim.cli import main
 
 
 def test_bench_prints_figures_marks_the_front_and_writes_charts(tmp_path, capsys):
+    """`tail-beam bench --json` reports every solver against Radau, both ends of the Pareto front on it, the hybrid within 1 %, and writes PNG charts."""
     code = main([
         "bench", "--solvers", "hybrid", "impulse", "DOP853", "--repeats", "1", "--min-time-s", "0", "--batch-impacts", "2000",
         "--no-tiers", "--out", str(tmp_path), "--json",
@@ -32,11 +33,13 @@ def test_bench_prints_figures_marks_the_front_and_writes_charts(tmp_path, capsys
 
 
 def test_pareto_front_keeps_only_rows_that_no_faster_row_beats():
+    """The Pareto front keeps a row only if no faster row is more accurate, ordered by time."""
     rows = [Row("a", "", [1.0], {"x": 1e-2}), Row("b", "", [2.0], {"x": 1e-1}), Row("c", "", [3.0], {"x": 1e-4}), Row("d", "", [0.5], {"x": 1.0})]
     front = mark_pareto(rows, lambda r: r.errors["x"])
     assert [r.name for r in front] == ["d", "a", "c"]
 
 
 def test_bench_bad_options_exit_2(capsys):
+    """`tail-beam bench --repeats 0` exits 2 naming --repeats."""
     assert main(["bench", "--repeats", "0", "--no-plot"]) == 2
     assert "--repeats" in capsys.readouterr().err

@@ -10,10 +10,10 @@ from scipy.linalg import eigh
 
 from tail_beam_sim.config import deep_merge, load_parameters
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.fidelity import shipped_settings
-from tail_beam_sim.scene import Scene
-from tail_beam_sim.simulate import simulate
-from tail_beam_sim.structure import beam_with_modes, euler_bernoulli_modes, load_bending_modes, rigid_beam
+from tail_beam_sim.physics.fidelity import shipped_settings
+from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.simulate import simulate
+from tail_beam_sim.physics.structure import beam_with_modes, euler_bernoulli_modes, load_bending_modes, rigid_beam
 
 
 def test_generator_matches_simply_supported_beam_closed_form():
@@ -91,6 +91,7 @@ def test_bending_modes_leave_rebound_and_add_imu_vibration(params):
 
 
 def test_mode_table_errors_name_the_field(params):
+    """Too many modes or a negative mode frequency is an InputError naming modes.count or the mode's field."""
     bad = deep_merge(load_parameters(), {"modes": {"count": 9}})
     with pytest.raises(InputError, match="modes.count"):
         load_bending_modes(bad)

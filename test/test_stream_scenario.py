@@ -6,9 +6,9 @@ import pytest
 
 from tail_beam_sim.config import deep_merge, default_config_dir, load_parameters
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.materials import material_table
-from tail_beam_sim.scenario import generate_caving_stream, load_scenario
-from tail_beam_sim.support import Support
+from tail_beam_sim.physics.materials import material_table
+from tail_beam_sim.physics.scenario import generate_caving_stream, load_scenario
+from tail_beam_sim.physics.support import Support
 
 
 @pytest.fixture(scope="module")
@@ -24,6 +24,7 @@ def scenario(node_params, **changes):
 
 
 def test_generated_stream_has_the_exact_gangue_share_and_stays_in_its_ranges(node_params):
+    """A generated stream of 40 has exactly 10 gangue impacts, every size, height, position, restitution and gap in its configured range, and unique ids."""
     planned = scenario(node_params, source="generated", count=40, gangue_fraction=0.25, seed=7)
     materials = material_table(node_params)
     gangue = [p for p in planned if materials[p.command["material"]].material_class == "gangue"]
@@ -39,6 +40,7 @@ def test_generated_stream_has_the_exact_gangue_share_and_stays_in_its_ranges(nod
 
 
 def test_generated_stream_is_reproducible_by_seed(node_params):
+    """The same seed generates the same stream, another seed another."""
     a = scenario(node_params, source="generated", seed=3)
     b = scenario(node_params, source="generated", seed=3)
     c = scenario(node_params, source="generated", seed=4)
@@ -46,6 +48,7 @@ def test_generated_stream_is_reproducible_by_seed(node_params):
 
 
 def test_scenario_file_keeps_order_and_requested_stamps(tmp_path, node_params):
+    """A scenario file's impacts keep their order and requested contact stamps, which are not passed on as command fields."""
     path = tmp_path / "impacts.yaml"
     path.write_text(
         "- {material: coal, radius_m: 0.03, drop_height_m: 2.0, position_m: 0.5, contact_stamp_s: 1.5}\n"
@@ -69,12 +72,14 @@ def test_scenario_file_keeps_order_and_requested_stamps(tmp_path, node_params):
     ],
 )
 def test_bad_scenario_fails_at_start_up_naming_the_field(node_params, changes, field):
+    """Each bad scenario setting is an InputError whose field names it, down to the index of a bad range bound or impact."""
     with pytest.raises(InputError) as info:
         scenario(node_params, **changes)
     assert info.value.field == field
 
 
 def test_bad_item_in_a_scenario_file_is_named_by_index(tmp_path, node_params):
+    """A bad impact in a scenario file is named by its index and field."""
     path = tmp_path / "impacts.yaml"
     path.write_text("impacts:\n- {material: coal, radius_m: 0.03, drop_height_m: 2.0, position_m: 0.5}\n- {material: chalk}\n")
     with pytest.raises(InputError) as info:
@@ -83,6 +88,7 @@ def test_bad_item_in_a_scenario_file_is_named_by_index(tmp_path, node_params):
 
 
 def test_generator_needs_both_classes_when_mixing(node_params):
+    """Asking for a gangue share with no gangue material in the table is refused, naming gangue."""
     materials = {k: v for k, v in material_table(node_params).items() if v.material_class != "gangue"}
     with pytest.raises(InputError, match="gangue"):
         generate_caving_stream({**node_params["scenario"], "gangue_fraction": 0.5}, materials)

@@ -17,12 +17,13 @@ from tail_beam_id.evaluation import (
     Summary, format_confusion, format_sizes, format_table, group, large_particle_accuracy, summaries,
 )
 from tail_beam_id.identifier import available_methods
-from tail_beam_id.runs import Record, run_set
+from tail_beam_id.runs import FOREIGN_PROFILES, Record, run_foreign, run_set
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import InputError, open_output_file, require_output_file, require_range
 
 MATCH_TOLERANCE_S = 0.002  # a label within this of the true contact is that impact's
+DEFAULT_OUT = "out/evaluate"  # where --plot writes when no --out is given (out/ is ignored by git)
 
 
 def _names(text: str, allowed: Sequence[str], field: str) -> list[str]:
@@ -49,8 +50,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--rates", default=None, help="sensor-rate settings, comma-separated (default: config: nominal,fast)")
     parser.add_argument("--count", type=int, default=None, help="impacts per scene set (default: config)")
     parser.add_argument("--windows-ms", default="", help="extra data windows to run each method at, ms (accuracy-latency trade-off)")
+    parser.add_argument("--profiles", default="nominal,self-calibrated",
+                        help="foreign set: how the identifier knows each support: nominal (config/), self-calibrated "
+                             "(tail-beam calibrate on its own stream), true (the drawn support itself: the ceiling)")
     parser.add_argument("--tier", default=None, help="simulation tier (default: config, modal)")
-    parser.add_argument("--out", default=None, help="directory for summary.json and the PNG charts")
+    parser.add_argument("--out", default=None, help=f"directory for summary.json and the PNG charts (with --plot, default {DEFAULT_OUT})")
     parser.add_argument("--plot", action="store_true", help="write the PNG charts into --out")
     add_config_option(parser)
     parser.set_defaults(func=run)
@@ -71,21 +75,29 @@ def run(args: argparse.Namespace) -> int:
     if count < 1:
         raise InputError("--count", count, "must be >= 1")
     if args.plot and not args.out:
-        raise InputError("--plot", True, "needs --out DIR for the PNG files")
+        args.out = DEFAULT_OUT
+    if args.out:
+        require_output_file("--out", Path(args.out) / "summary.json")  # before the work, not after
     started = time.monotonic()
     records: list[Record] = []
     for scene_set in sets:
+        if scene_set == "foreign":
+            per_support = int(ev["foreign_impacts_per_support"])
+            supports = max(1, math.ceil(count / per_support)) if args.count is not None else int(ev["foreign_supports"])
+            profiles = _names(args.profiles, FOREIGN_PROFILES, "--profiles")
+            records += run_foreign(params, supports, per_support, int(ev["seeds"][scene_set]), methods, MATCH_TOLERANCE_S, args.tier, profiles)
+            continue
         records += run_set(params, scene_set, count, int(ev["seeds"][scene_set]), chosen, methods, MATCH_TOLERANCE_S, args.tier, windows)
     items = summaries(records, ev["size_bins_m"])
     print(f"{count} impacts per set, {len(chosen)} settings, tier {args.tier or ev['tier']}, {time.monotonic() - started:.0f} s")
     print(format_table(items))
     print("\nconfusion (nominal noise):")
     for s in items:
-        if s.setting.endswith("/x1"):
+        if s.setting.endswith("/x1") or s.scene_set == "foreign":
             print("  " + format_confusion(s))
     print("\naccuracy by radius (nominal noise):")
     for s in items:
-        if s.setting.endswith("/x1") and len(s.by_size) > 1:
+        if (s.setting.endswith("/x1") or s.scene_set == "foreign") and len(s.by_size) > 1:
             print("  " + format_sizes(s))
     print("\ntargets (issue 4):")
     for line in targets(records, items):
@@ -93,7 +105,8 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
-        (out / "summary.json").write_text(json.dumps([s.as_dict() for s in items], indent=1) + "\n", encoding="utf-8")
+        with open_output_file("--out", out / "summary.json") as stream:
+            stream.write((json.dumps([s.as_dict() for s in items], indent=1) + "\n").encode("utf-8"))
         print(f"\nwrote {out / 'summary.json'}")
         if args.plot:
             from tail_beam_id.charts import write_all
@@ -134,6 +147,14 @@ def targets(records: Sequence[Record], items: Sequence[Summary]) -> list[str]:
                     gap = 100 * (s.accuracy - twin.accuracy)
                     lines.append(f"mismatch {setting} {s.method} {1e3 * s.window_s:g} ms: {100 * twin.accuracy:.1f}% vs stream {100 * s.accuracy:.1f}% "
                                  f"({gap:+.1f} points) -> within 3 points: {'met' if gap <= 3.0 else 'NOT met'}")
+    for s in items:
+        if s.scene_set == "foreign":
+            nominal = [m for m in items if m.scene_set == "stream" and m.method == s.method and m.window_s == s.window_s]
+            gaps = ", ".join(f"{100 * (m.accuracy - s.accuracy):+.1f} points vs stream {m.setting}" for m in nominal)
+            lines.append(f"foreign {s.method} {1e3 * s.window_s:g} ms: {100 * s.accuracy:.1f}% (CI {100 * s.accuracy_ci[0]:.1f}-{100 * s.accuracy_ci[1]:.1f}, n {s.n})"
+                         f"{' (' + gaps + ')' if gaps else ''}; extra labels {s.false_labels} ({100 * s.false_labels / s.n:.1f}%, target <= 1%); "
+                         f"wrong at >= 0.9 {s.extra['confident_wrong']} ({100 * s.extra['confident_wrong'] / s.n:.1f}%, target <= 1%); "
+                         f"ECE {s.extra['ece']:.3f} (target <= 0.05)")
     compute = [s.compute_ms["median"] for s in items if not math.isnan(s.compute_ms["median"])]
     latency = [s.data_latency_ms["max"] for s in items if not math.isnan(s.data_latency_ms["max"])]
     if compute:

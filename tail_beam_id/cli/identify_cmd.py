@@ -8,39 +8,80 @@ replayed into it (``latency_ms`` aside, a wall-clock figure).
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import sys
+from typing import Any
+
+import numpy as np
 
 from tail_beam_id.identifier import StreamIdentifier, available_methods
 from tail_beam_id.replay import replay
-from tail_beam_sim.bagread import read_sensors
+from tail_beam_id.calibration import SupportProfile
+from tail_beam_id.calibration import calibrate as calibrate_support
+from tail_beam_sim.bags.read import BagSensors, read_sensors
 from tail_beam_sim.cli.common import add_config_option
-from tail_beam_sim.config import load_parameters
-from tail_beam_sim.sensors import ImuStream, PressureStream, Rebound
+from tail_beam_sim.config import deep_merge, load_parameters
+from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("identify", help="label every impact of a recorded bag (one JSON object per line)")
     parser.add_argument("bag", help="rosbag2 bag directory holding jack_pressure, imu and rebound_velocity")
     parser.add_argument("--method", choices=available_methods(), help="identification method (default: identification.method)")
+    parser.add_argument("--calibrate", action=argparse.BooleanOptionalAction, default=None,
+                        help="calibrate to the bag's own support first (tail-beam calibrate), then identify "
+                             "(default: identification.self_calibrate)")
+    parser.add_argument("--namespace", help="the support to identify when the bag holds several, e.g. /support_07")
     add_config_option(parser)
     parser.set_defaults(func=run)
 
 
-def identify_bag(bag: str, method: str | None = None, config: list[str] | None = None) -> list[dict]:
-    """Labels of every impact in ``bag``, in impact_stamp order."""
+def identify_bag(bag: str, method: str | None = None, config: list[str] | None = None, calibrate: bool | None = None,
+                 namespace: str | None = None) -> list[dict]:
+    """Labels of every impact in ``bag`` (of the support ``namespace`` when it holds several),
+    in impact_stamp order; with ``calibrate`` (default: ``identification.self_calibrate``), on
+    the bag's own support profile (labels say ``calibrated``). Gaps in the vibration's running
+    index are reported on stderr."""
     params = load_parameters(config or [])
-    data = read_sensors(bag)
+    data = read_sensors(bag, namespace=namespace)
+    if data.vibration_gaps:
+        print(f"identify: {data.namespace} vibration: {len(data.vibration_gaps)} gap(s), {data.vibration_lost_samples} samples lost "
+              f"(first missing index {data.vibration_gaps[0][0]})", file=sys.stderr)
+    if calibrate is None:
+        calibrate = bool(params["identification"].get("self_calibrate", False))
+    if calibrate:
+        params = with_profile(params, profile_of(data, params))
+    return identify_sensors(data, params, method)
+
+
+def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | None = None) -> list[dict]:
+    """Labels of the bag's sensor data under ``params``, in impact_stamp order."""
     identifier = StreamIdentifier(method, params=params["identification"], model_params=params)
     pressure = PressureStream(data.pressure_stamp_s, data.pressure_pa, 0.0)
     imu = ImuStream(data.imu_stamp_s, data.angular_velocity_radps, data.linear_acceleration_mps2, 0.0, 0.0)
     rebounds = [Rebound(stamp, velocity, velocity) for stamp, velocity in data.rebounds]
-    labels = replay(identifier, pressure, imu, rebounds)
+    vibration = data.vibration if data.vibration.count else None
+    labels = replay(identifier, pressure, imu, rebounds, vibration=vibration)
     return sorted(labels, key=lambda label: label["impact_stamp"])
 
 
+def profile_of(data: BagSensors, params: dict[str, Any]) -> SupportProfile:
+    """The support profile of a bag's sensor data (tail_beam_id.calibration)."""
+    accel_z = data.linear_acceleration_mps2[:, 2] if data.linear_acceleration_mps2.size else np.zeros(0)
+    return calibrate_support(params, (data.pressure_stamp_s, data.pressure_pa), (data.imu_stamp_s, accel_z),
+                             lambda calibrated: identify_sensors(data, calibrated, "statistical"))
+
+
+def with_profile(params: dict[str, Any], profile: SupportProfile) -> dict[str, Any]:
+    """``params`` with the profile's parameters merged in."""
+    merged = copy.deepcopy(params)
+    deep_merge(merged, profile.parameters()["/**"]["ros__parameters"])
+    return merged
+
+
 def run(args: argparse.Namespace) -> int:
-    for label in identify_bag(args.bag, args.method, args.config):
+    for label in identify_bag(args.bag, args.method, args.config, args.calibrate, args.namespace):
         print(json.dumps(label))
     sys.stdout.flush()
     return 0

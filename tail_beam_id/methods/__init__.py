@@ -24,6 +24,8 @@ class Decision:
 
     p_coal: float
     estimates: dict[str, float] = field(default_factory=dict)
+    # Features outside what the method was trained on (its confidence is capped for them).
+    outside_training: tuple[str, ...] = ()
 
     @property
     def label(self) -> str:
@@ -39,6 +41,11 @@ class Method(Protocol):
     name: str
 
     def decide(self, features: Mapping[str, float]) -> Decision: ...
+
+
+def cap_confidence(p_coal: float, cap: float) -> float:
+    """P(coal) moved toward 0.5 so that the stated label's probability is at most ``cap``."""
+    return min(max(p_coal, 1.0 - cap), cap)
 
 
 def sigmoid(x: float) -> float:
@@ -58,3 +65,5 @@ def load_model(name: str, path: str | Path | None = None) -> dict[str, Any]:
         raise InputError(f"identification.{name}.model", str(file), f"must be a readable JSON file ({exc.strerror})") from None
     except json.JSONDecodeError as exc:
         raise InputError(f"identification.{name}.model", str(file), f"must be valid JSON ({exc.msg})") from None
+
+__all__ = ["Decision", "Method", "MODELS_DIR", "cap_confidence", "load_model", "sigmoid"]

@@ -24,13 +24,15 @@ import numpy as np
 from scipy.special import ndtr
 
 from tail_beam_id.methods import Decision
-from tail_beam_sim.contact import effective_modulus_pa
-from tail_beam_sim.errors import InputError, require_range
-from tail_beam_sim.materials import material_table
-from tail_beam_sim.support import Support
+from tail_beam_sim.physics.contact import effective_modulus_pa, hertz_constant, hertz_elastic_impact
+from tail_beam_sim.errors import InputError, require_int, require_range
+from tail_beam_sim.physics.materials import material_table, sphere_mass_kg
+from tail_beam_sim.physics.support import Support
 
-ELASTIC_DURATION_FACTOR = 2.943195  # tc = this x delta_max / v0 for an elastic Hertz impact
 LOG_IMPOSSIBLE = math.log(1e-100)  # log-likelihood of an observation a particle cannot give
+
+
+DURATION_CACHE_SIZE = 8  # IMU periods whose per-particle duration terms are kept
 
 
 @dataclass(frozen=True)
@@ -60,14 +62,11 @@ class PhysicsConfig:
             low = require_range(f"identification.physics.{name}[0]", value[0], 0.0, None, low_open=True)
             return low, require_range(f"identification.physics.{name}[1]", value[1], low, None)
 
-        samples = p.get("prior_samples")
-        if isinstance(samples, bool) or not isinstance(samples, int) or not 100 <= samples <= 10**6:
-            raise InputError("identification.physics.prior_samples", samples, "must be an integer in [100, 1e6]")
         return cls(
             prior_radius_m=pair("prior_radius_m"),
             prior_drop_height_m=pair("prior_drop_height_m"),
             prior_position_m=pair("prior_position_m"),
-            prior_samples=samples,
+            prior_samples=require_int("identification.physics.prior_samples", p.get("prior_samples"), 100, 10**6),
             seed=int(p.get("seed", 0)),
             moment_model_error=require_range("identification.physics.moment_model_error", p.get("moment_model_error"), 0.0, 1.0),
             duration_model_error=require_range("identification.physics.duration_model_error", p.get("duration_model_error"), 0.0, 1.0),
@@ -126,10 +125,9 @@ def build_bank(config: PhysicsConfig, params: Mapping[str, Any], ratio_table: Ma
         columns["v"].append(np.sqrt(2.0 * support.gravity_mps2 * height))
         columns["e"].append(e)
     cat = {k: np.concatenate(v) for k, v in columns.items()}
-    mass = cat["rho"] * 4.0 / 3.0 * math.pi * cat["r"] ** 3
-    stiffness = 4.0 / 3.0 * cat["estar"] * np.sqrt(cat["r"])
-    delta_max = (5.0 * mass * cat["v"] ** 2 / (4.0 * stiffness)) ** 0.4
-    duration = ELASTIC_DURATION_FACTOR * delta_max / cat["v"] * duration_ratio(cat["e"], ratio_table)
+    mass = sphere_mass_kg(cat["rho"], cat["r"])
+    elastic = hertz_elastic_impact(hertz_constant(cat["estar"], cat["r"]), mass, cat["v"])
+    duration = elastic["duration_s"] * duration_ratio(cat["e"], ratio_table)
     return PriorBank(
         material=cat["material"].astype(int), names=names,
         is_coal=np.array([materials[names[i]].is_coal for i in cat["material"].astype(int)]),
@@ -158,14 +156,23 @@ class PhysicsMethod:
         return cls(config, build_bank(config, params, model["duration_ratio"]), model["timing"])
 
     def _lag(self, period_s: float) -> Mapping[str, float]:
-        """The camera-minus-onset lag model measured for the nearest IMU period."""
-        return min(self.timing, key=lambda t: abs(math.log(t["imu_period_s"] / period_s)))
+        """The camera-minus-onset lag model at this IMU period: interpolated in log(period)
+        between the measured bands (any rate, never a category; held at the end bands)."""
+        log_p = [math.log(t["imu_period_s"]) for t in self.timing]
+        x = math.log(period_s)
+        return {
+            "imu_period_s": period_s,
+            "mean_s": float(np.interp(x, log_p, [t["mean_s"] for t in self.timing])),
+            "std_s": float(np.interp(x, log_p, [t["std_s"] for t in self.timing])),
+        }
 
     def _duration_model(self, period_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per prior particle: expected camera-minus-onset delay (s), 1 / its spread (1/s) and
-        that reciprocal's log, for the IMU period's lag model (cached per lag model)."""
+        that reciprocal's log, for the IMU period's lag model (cached per period)."""
         lag = self._lag(period_s)
-        key = lag["imu_period_s"]
+        key = round(period_s, 9)
+        if key not in self._duration_terms and len(self._duration_terms) >= DURATION_CACHE_SIZE:
+            self._duration_terms.pop(next(iter(self._duration_terms)))  # one support streams at one rate: keep a few
         if key not in self._duration_terms:
             b = self.bank
             sigma = np.hypot(lag["std_s"], self.config.duration_model_error * b.duration_s)

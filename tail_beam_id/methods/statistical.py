@@ -1,7 +1,14 @@
-"""A statistical classifier trained on the project's own simulations: logistic regression on
-the logarithms of the physical features and their pairwise products, one model per set of
-signals available (so it still labels when a stream is gone) and, with the IMU, per IMU sample
-period, with temperature-scaled (calibrated) probabilities.
+"""A statistical classifier trained on the project's own simulations: a small neural network
+(one hidden tanh layer) on the logarithms of the physical features, one model per set of
+signals available (so it still labels when a stream is gone), with temperature-scaled
+(calibrated) probabilities.
+
+Any sensor rate: the models are trained on supports and sensor rates drawn from wide ranges
+(tail_beam_id.supports), and the IMU sample period is a continuous input like any other
+feature, never a category. Knowing its limits: each model keeps the envelope of its training
+inputs (the 0.1 and 99.9 percentiles of each); an impact outside it is clamped to the envelope
+before the pairwise products (no polynomial extrapolation), its confidence is capped and the
+decision names the features that were outside.
 
 Why logarithms: the physics is a product of powers (moment impulse = m v0 (1 + e) x,
 contact duration ~ R (rho / E*)^0.4 v0^-0.2, rebound speed = e v0), so the material shows as a
@@ -13,12 +20,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from itertools import combinations_with_replacement
 from typing import Any
 
 import numpy as np
 
-from tail_beam_id.methods import Decision, sigmoid
+from tail_beam_id.methods import Decision, cap_confidence, sigmoid
+from tail_beam_sim.errors import InputError, require_range
 
 # Each signal's features, with the floor (in the feature's unit) below which a noisy reading is
 # clipped before taking its log; None = used as is (a sign or a ratio near 1).
@@ -64,44 +71,49 @@ def base_vector(features: Mapping[str, float], names: Sequence[tuple[str, float 
     return np.array(values)
 
 
-def expand(x: np.ndarray) -> np.ndarray:
-    """x plus every pairwise product (rows of a 2-D array, or one vector)."""
-    x2 = np.atleast_2d(x)
-    pairs = [x2[:, i] * x2[:, j] for i, j in combinations_with_replacement(range(x2.shape[1]), 2)]
-    out = np.hstack([x2, np.column_stack(pairs)]) if pairs else x2
-    return out if x.ndim == 2 else out[0]
-
-
 class StatisticalMethod:
-    """Calibrated logistic regression; ``model['subsets'][key]`` holds each signal subset's
-    feature names, standardisation, weights and temperature."""
+    """Temperature-calibrated network; ``model['subsets'][key]`` (and ``calibrated_subsets``, for
+    supports with a measured profile) hold each signal subset's feature names, standardisation,
+    weights, temperature and training envelope."""
 
     name = "statistical"
 
-    def __init__(self, subsets: Mapping[str, Mapping[str, Any]]) -> None:
+    def __init__(self, subsets: Mapping[str, Mapping[str, Any]], outside_confidence_cap: float,
+                 calibrated_subsets: Mapping[str, Mapping[str, Any]] | None = None) -> None:
         self.subsets = subsets
+        self.calibrated_subsets = calibrated_subsets or {}
+        self.outside_confidence_cap = outside_confidence_cap
 
     @classmethod
-    def from_model(cls, model: Mapping[str, Any]) -> StatisticalMethod:
-        return cls(model["subsets"])
-
-    def _model(self, features: Mapping[str, float]) -> Mapping[str, Any] | None:
-        """The model for these signals; with the IMU, the one trained at the nearest IMU
-        sample period (its timing features mean different things at 2 and 20 kHz)."""
-        key = subset_key(signals_of(features))
-        if "imu_period_s" not in features:
-            return self.subsets.get(key)
-        periods = [float(k.split("@")[1]) for k in self.subsets if k.split("@")[0] == key and "@" in k]
-        if not periods:
-            return self.subsets.get(key)
-        nearest = min(periods, key=lambda p: abs(math.log(p / features["imu_period_s"])))
-        return self.subsets[f"{key}@{nearest:g}"]
+    def from_model(cls, model: Mapping[str, Any], params: Mapping[str, Any]) -> StatisticalMethod:
+        section = (params.get("identification") or {}).get("statistical") or {}
+        cap = require_range("identification.statistical.outside_confidence_cap", section.get("outside_confidence_cap", 0.6), 0.5, 1.0)
+        families = [model["subsets"], model.get("calibrated_subsets") or {}]
+        stale = [key for family in families for key in family if "@" in key or "envelope" not in family[key]]
+        if stale:
+            raise InputError("statistical model", stale[0], "is a per-rate model without an envelope: retrain (python -m tail_beam_id.training)")
+        return cls(model["subsets"], cap, model.get("calibrated_subsets"))
 
     def decide(self, features: Mapping[str, float]) -> Decision:
-        model = self._model(features)
+        """P(coal) from the model of the signals there are; on a calibrated support (a measured
+        profile: ``support_calibrated``) from the models trained on calibrated features."""
+        family = self.calibrated_subsets if features.get("support_calibrated") and self.calibrated_subsets else self.subsets
+        model = family.get(subset_key(signals_of(features)))
         if model is None:
             return Decision(0.5, {})
         names = [(n, f) for n, f in model["features"]]
-        z = (expand(base_vector(features, names)) - np.array(model["mean"])) / np.array(model["scale"])
-        logit = float(z @ np.array(model["weights"]) + model["bias"]) / float(model["temperature"])
-        return Decision(sigmoid(logit), {"logit": logit})
+        x = base_vector(features, names)
+        low, high = (np.array(v) for v in model["envelope"])
+        outside = tuple(name for (name, _), v, lo, hi in zip(names, x, low, high) if not lo <= v <= hi)
+        z = (np.clip(x, low, high) - np.array(model["mean"])) / np.array(model["scale"])
+        logit = network_logit(model, z[None, :])[0] / float(model["temperature"])
+        p_coal = sigmoid(float(logit))
+        if outside:
+            p_coal = cap_confidence(p_coal, self.outside_confidence_cap)
+        return Decision(p_coal, {"logit": float(logit)}, outside)
+
+
+def network_logit(model: Mapping[str, Any], z: np.ndarray) -> np.ndarray:
+    """The network's logit for standardised inputs ``z`` (N, d), before the temperature."""
+    hidden = np.tanh(z @ np.array(model["w1"]).T + np.array(model["b1"]))
+    return hidden @ np.array(model["w2"]) + float(model["b2"])

@@ -1,29 +1,31 @@
 """``tail-beam``: the suite's offline command line. One module per subcommand.
 
 Each subcommand module has ``register(subparsers)``, which adds its parser and sets
-``func``. Bad input ends with exit status 2 and one line naming the field and what is
-allowed, never a traceback.
+``func``. The verbs are found through the ``tail_beam.verbs`` entry-point group (setup.py), the
+way ros2cli and colcon find theirs, so any installed package can contribute one.
+
+Exit status: 0 done; 2 bad input (one line naming the field and what is allowed); 3 a solve
+failed (:class:`~tail_beam_sim.physics.solvers.SolverError`: one line naming the solver and
+what to change); 130 interrupted. Never a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
+from importlib.metadata import entry_points
 import sys
 from collections.abc import Sequence
 
 from tail_beam_sim.errors import InputError
+from tail_beam_sim.physics.solvers import SolverError
 
-# Subcommands, in the order ``tail-beam --help`` lists them: name -> module.
-SUBCOMMANDS = {
-    "simulate": "tail_beam_sim.cli.simulate_cmd",
-    "sweep": "tail_beam_sim.cli.sweep_cmd",
-    "evaluate": "tail_beam_id.cli.evaluate_cmd",
-    "identify": "tail_beam_id.cli.identify_cmd",
-    "bag": "tail_beam_sim.cli.bag_cmd",
-    "demo": "tail_beam_sim.cli.demo_cmd",
-    "bench": "tail_beam_sim.cli.bench_cmd",
-}
+VERB_GROUP = "tail_beam.verbs"
+# Order of ``tail-beam --help`` for the verbs it knows; any other installed verb follows, by name.
+__all__ = ["EXIT_BAD_INPUT", "EXIT_SOLVER_FAILED", "OneLineParser", "VERB_GROUP", "build_parser", "main"]
+EXIT_BAD_INPUT = 2
+EXIT_SOLVER_FAILED = 3
+
+PREFERRED_ORDER = ("simulate", "sweep", "identify", "calibrate", "evaluate", "bag", "demo", "bench")
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -37,8 +39,12 @@ def build_parser() -> argparse.ArgumentParser:
     """The full ``tail-beam`` parser with every installed subcommand."""
     parser = OneLineParser(prog="tail-beam", description="tail_beam offline tools: simulate, sweep, identify, evaluate, bench")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser, metavar="COMMAND")
-    for module_name in SUBCOMMANDS.values():
-        importlib.import_module(module_name).register(sub)
+    verbs = {ep.name: ep for ep in entry_points(group=VERB_GROUP)}
+    if not verbs:
+        parser.exit(2, f"tail-beam: error: no verbs installed in entry-point group {VERB_GROUP!r}: reinstall the package (pip install -e .)\n")
+    rank = {name: i for i, name in enumerate(PREFERRED_ORDER)}
+    for name in sorted(verbs, key=lambda n: (rank.get(n, len(rank)), n)):
+        verbs[name].load()(sub)
     return parser
 
 
@@ -50,7 +56,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except InputError as exc:
         print(f"tail-beam {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except SolverError as exc:
+        print(f"tail-beam {args.command}: solver failed: {exc}", file=sys.stderr)
+        return EXIT_SOLVER_FAILED
     except KeyboardInterrupt:
         print(f"tail-beam {args.command}: interrupted", file=sys.stderr)
         return 130

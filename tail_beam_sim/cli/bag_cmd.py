@@ -3,9 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
-from tail_beam_sim.bagread import check_bag_path, raw_messages
-from tail_beam_sim.bagwrite import repair
+from pathlib import Path
+
+import yaml
+
+from tail_beam_sim import topics
+from tail_beam_sim.bags.read import ANY_NAMESPACE, check_bag_path, raw_messages
+from tail_beam_sim.bags.records import TYPESTORE, vibration_fields
+from tail_beam_sim.bags.write import METADATA, repair
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.physics.sensors import IndexSpan
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,21 +29,54 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_info(args: argparse.Namespace) -> int:
+    """Every topic of every namespace with its type and count; for vibration the samples, the
+    rate and the samples missing from the running index; the recorder's loss counts."""
     counts: dict[str, list] = {}
+    spans: dict[str, IndexSpan] = {}
+    periods: dict[str, float] = {}
     first = last = None
-    for raw in raw_messages(args.bag):
-        entry = counts.setdefault(raw.topic, [raw.msgtype, 0])
+    for raw in raw_messages(args.bag, namespace=ANY_NAMESPACE):
+        name = raw.full_topic or raw.topic
+        entry = counts.setdefault(name, [raw.msgtype, 0])
         entry[1] += 1
         first = raw.log_time_ns if first is None else min(first, raw.log_time_ns)
         last = raw.log_time_ns if last is None else max(last, raw.log_time_ns)
+        if raw.topic == topics.VIBRATION and raw.msgtype == topics.MSG_TYPES[topics.VIBRATION]:
+            index, _, samples, period_s, _ = vibration_fields(TYPESTORE.deserialize_cdr(raw.data, raw.msgtype))
+            spans.setdefault(name, IndexSpan()).add(index, samples.size)
+            periods[name] = period_s
     print(f"bag {args.bag}: {sum(c[1] for c in counts.values())} messages, log time {first * 1e-9:.3f} .. {last * 1e-9:.3f} s")
+    width = max(18, *(len(t) for t in counts))
     for topic, (msgtype, count) in sorted(counts.items()):
-        print(f"  {topic:<18} {msgtype:<32} {count:>8}")
+        line = f"  {topic:<{width}} {msgtype:<32} {count:>8}"
+        if topic in spans:
+            span = spans[topic]
+            rate = 1.0 / periods[topic] if periods[topic] > 0 else float("nan")
+            line += f"  ({span.samples} samples at {rate:.0f} Hz, {span.lost_samples} samples lost)"
+        print(line)
+    custom = _custom_data(Path(args.bag))
+    lost = {k: v for k, v in custom.items() if k.startswith("tail_beam.")}
+    if lost:
+        print("  recorder: " + ", ".join(f"{k.removeprefix('tail_beam.')} {v}" for k, v in sorted(lost.items())))
     return 0
 
 
+def _custom_data(bag: Path) -> dict[str, str]:
+    """The ``custom_data`` of a bag's metadata.yaml (the recorder's loss counts), or none."""
+    try:
+        info = yaml.safe_load((bag / METADATA).read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+    except (OSError, yaml.YAMLError, KeyError, TypeError):
+        return {}
+    return {str(k): str(v) for k, v in (info.get("custom_data") or {}).items()}
+
+
 def run_repair(args: argparse.Namespace) -> int:
-    segments, messages = repair(args.bag)
-    check_bag_path(args.bag)
-    print(f"bag {args.bag}: salvaged {messages} messages from {segments} open segment(s); metadata.yaml rewritten")
+    """Repair, then read the whole bag back: say it reads, or say clearly that it does not."""
+    report = repair(args.bag)
+    try:
+        count = sum(1 for _ in raw_messages(args.bag))
+    except InputError as exc:
+        print(f"tail-beam bag: error: could not repair {args.bag} ({report.summary()}): {exc.allowed}", file=sys.stderr)
+        return 2
+    print(f"bag {args.bag}: {report.summary()}; metadata.yaml rewritten; the bag reads: {count} messages")
     return 0

@@ -15,11 +15,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tail_beam_sim import benchmark as bench
+from tail_beam_sim.physics import benchmark as bench
 from tail_beam_sim.cli.common import add_impact_options, fidelity_from_args, scene_from_args
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.fidelity import TIERS, structure_for
-from tail_beam_sim.simulate import build_problem
+from tail_beam_sim.physics.fidelity import TIERS, structure_for
+from tail_beam_sim.physics.simulate import build_problem
 
 TARGET_SPEEDUP = 1000.0
 TARGET_ERROR = 0.01
@@ -35,7 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--solvers", nargs="+", metavar="NAME", help="only these solvers (Radau at rtol 1e-8 is always kept as the baseline)")
     parser.add_argument("--batch-impacts", type=int, default=100_000, help="impacts in the batch summaries run (streams: a tenth); 0 skips the batch")
     parser.add_argument("--no-tiers", action="store_true", help="skip the tier comparison (it needs a modal Radau reference, ~10 s)")
-    parser.add_argument("--out", default="bench", metavar="DIR", help="directory of the PNG charts (default ./bench)")
+    parser.add_argument("--out", default="out/bench", metavar="DIR", help="directory of the PNG charts (default out/bench)")
     parser.add_argument("--no-plot", action="store_true", help="do not write charts")
     parser.add_argument("--json", action="store_true", help="print one JSON object with every figure instead of tables")
     parser.set_defaults(func=run)
@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     _, _, settings = fidelity_from_args(argparse.Namespace(config=args.config, outputs=None, tolerance=None, tier=None))
     settings_list = bench.QUICK_SETTINGS + (bench.FULL_EXTRA if args.full else [])
     if args.solvers:
-        from tail_beam_sim.solvers import SOLVERS
+        from tail_beam_sim.physics.solvers import SOLVERS
 
         unknown = sorted(set(args.solvers) - set(SOLVERS))
         if unknown:
@@ -140,7 +140,7 @@ def _table(rows: list[bench.Row]) -> str:
 
 def write_charts(directory: Path, rows: list[bench.Row], tier_rows: list[bench.Row]) -> list[Path]:
     """Log-log time (ratio to Radau rtol 1e-8) against each error, Pareto front joined."""
-    from tail_beam_sim.plotting import pyplot
+    from tail_beam_sim.plotting import pyplot, save_figure
 
     plt = pyplot()
     directory.mkdir(parents=True, exist_ok=True)
@@ -165,8 +165,5 @@ def write_charts(directory: Path, rows: list[bench.Row], tier_rows: list[bench.R
             axis.legend(fontsize=7)
         figure.suptitle(f"tail_beam {label}: time against error")
         figure.tight_layout()
-        path = directory / filename
-        figure.savefig(path, dpi=110)
-        plt.close(figure)
-        written.append(path)
+        written.append(save_figure(figure, directory / filename, 110, "--out"))
     return written

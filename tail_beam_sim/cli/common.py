@@ -6,10 +6,10 @@ import argparse
 from typing import Any
 
 from tail_beam_sim.config import load_parameters
-from tail_beam_sim.contact import CONTACT_LAWS
-from tail_beam_sim.fidelity import OUTPUTS, TIER_CHOICES, FidelitySettings, Needs
-from tail_beam_sim.scene import Scene
-from tail_beam_sim.solvers import SOLVERS
+from tail_beam_sim.physics.contact import CONTACT_LAWS
+from tail_beam_sim.physics.fidelity import OUTPUTS, TIER_CHOICES, FidelitySettings, Needs
+from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.solvers import SOLVERS
 
 
 def add_config_option(parser: argparse.ArgumentParser) -> None:

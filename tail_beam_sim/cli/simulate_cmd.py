@@ -7,9 +7,10 @@ import json
 import math
 import sys
 
-from tail_beam_sim import bagio
+from tail_beam_sim.bags import records as bagio
+from tail_beam_sim.errors import require_new_path, require_output_file
 from tail_beam_sim.cli.common import add_fidelity_options, add_impact_options, fidelity_from_args, scene_from_args
-from tail_beam_sim.simulate import simulate
+from tail_beam_sim.physics.simulate import simulate
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -19,11 +20,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object of noise-free results")
     parser.add_argument("--bag", metavar="PATH", help="write the sensor streams, rebound and truth as a rosbag2 bag")
     parser.add_argument("--storage", choices=sorted(bagio.STORAGES), default="mcap", help="bag storage (default mcap)")
+    parser.add_argument("--compression", choices=bagio.COMPRESSIONS, default="zstd",
+                        help="mcap chunk compression (default zstd; sqlite3 files are not compressed)")
     parser.add_argument("--plot", metavar="PNG", help="write a figure of the response")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    # Output paths first, before any work: a link there is refused, never written through.
+    if args.bag:
+        require_new_path("--bag", args.bag)
+    if args.plot:
+        require_output_file("--plot", args.plot)
     scene = scene_from_args(args)
     tier, needs, settings = fidelity_from_args(args)
     result = simulate(scene, args.solver, tier=tier, needs=needs, settings=settings, check=args.check)
@@ -42,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
         if not scene.impact.impact_id:
             scene = scene.with_impact(impact_id="simulate-0")
             result.scene = scene
-        count = bagio.write_bag(args.bag, bagio.result_records(result, command), args.storage)
+        count = bagio.write_bag(args.bag, bagio.result_records(result, command), args.storage, args.compression)
         print(f"wrote {count} messages to {args.bag} ({args.storage})", file=sys.stderr)
     if args.plot:
         from tail_beam_sim.plotting import plot_response

@@ -8,8 +8,8 @@ import json
 
 from tail_beam_sim.cli.common import add_impact_options, scene_from_args
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.scene import Impact
-from tail_beam_sim.simulate import simulate
+from tail_beam_sim.physics.scene import Impact
+from tail_beam_sim.physics.simulate import simulate
 
 SWEEPABLE = ("drop_height_m", "impact_speed_mps", "position_m", "radius_m", "material", "restitution")
 COLUMNS = (

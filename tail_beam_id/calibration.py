@@ -1,0 +1,175 @@
+"""Self-calibration: a support profile learned from the support's own recording, no labels.
+
+Every real support differs from ``config/``. What the identifier needs to know about it can be
+read off its own signals:
+
+- the IMU's mounting (upside down or not): gravity's sign on the accelerometer's z axis;
+- the jack's pressure-to-moment gain: on the rigid beam, a moment impulse M about the hinge
+  swings the jack pressure by ``omega M / (d S)`` (omega the beam's sway on the oil column, d
+  the jack's lever arm, S its piston area; docs/physics.md), whatever the beam's inertia. The
+  sway frequency shows as the peak of the pressure's spectrum, so the jack stiffness that
+  gives it is solved for (the geometry d, S as configured);
+- the IMU's moment-per-velocity gain (beam inertia over the IMU's distance from the hinge): the
+  median ratio, over the recording's impacts, of the moment the calibrated jack pressure saw
+  to the velocity step the IMU saw;
+- the noise of each sensor.
+
+The result is a ROS 2 parameter file (``tail-beam calibrate BAG --out profile.yaml``) that
+``tail-beam identify --config`` and ``id_node --params-file`` load.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from scipy.optimize import brentq
+from scipy.signal import welch
+
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.physics.materials import material_table
+from tail_beam_sim.physics.support import Support
+
+SWAY_BAND_HZ = (5.0, 300.0)  # where the beam's sway on the jack can be (nominal 39 Hz)
+MIN_PEAK_RATIO = 8.0  # the sway peak must stand this far above the spectrum's median in the band
+MIN_IMPACTS = 3  # impacts needed for the IMU gain
+GAIN_SIGMA = 5.0  # an impact counts for the IMU gain when its pressure moment is this many standard errors clear
+
+
+@dataclass(frozen=True)
+class SupportProfile:
+    """What a recording says about its support (units in the names; None: not measurable)."""
+
+    duration_s: float
+    impacts_used: int
+    imu_mount_sign: float | None
+    rigid_mode_frequency_hz: float | None
+    oil_bulk_modulus_pa: float | None
+    beam_inertia_about_hinge_kgm2: float | None
+    imu_gain_spread: float | None  # robust relative spread of the per-impact IMU gains
+    pressure_noise_pa: float | None
+    imu_accel_noise_mps2: float | None
+
+    @property
+    def calibrated(self) -> bool:
+        return self.rigid_mode_frequency_hz is not None
+
+    def parameters(self) -> dict[str, Any]:
+        """The profile as a ROS 2 parameter file's content (``/**: ros__parameters:``)."""
+        support: dict[str, Any] = {}
+        if self.oil_bulk_modulus_pa is not None:
+            support["oil_bulk_modulus_pa"] = self.oil_bulk_modulus_pa
+        if self.beam_inertia_about_hinge_kgm2 is not None:
+            support["beam_inertia_about_hinge_kgm2"] = self.beam_inertia_about_hinge_kgm2
+        section: dict[str, Any] = {"support": support} if support else {}
+        section["calibration"] = {k: v for k, v in asdict(self).items() if v is not None}
+        return {"/**": {"ros__parameters": section}}
+
+
+def robust_noise(values: np.ndarray) -> float | None:
+    """Noise RMS of a sampled signal from the median absolute first difference (slow motion and
+    the odd impact barely move it), in the signal's unit."""
+    if values.size < 16:
+        return None
+    diff = np.diff(values)
+    return float(1.4826 * np.median(np.abs(diff - np.median(diff))) / math.sqrt(2.0))
+
+
+def mount_sign(accel_z_mps2: np.ndarray) -> float | None:
+    """+1 when the accelerometer's z reads +g at rest (mounted as configured), -1 upside down."""
+    if accel_z_mps2.size < 16:
+        return None
+    median = float(np.median(accel_z_mps2))
+    return None if abs(median) < 2.0 else math.copysign(1.0, median)
+
+
+def sway_frequency(stamp_s: np.ndarray, pressure_pa: np.ndarray) -> float | None:
+    """The beam's sway on the oil column, Hz: the peak of the jack pressure's spectrum in
+    SWAY_BAND_HZ (refined by a parabola through the peak's log power), or None without a clear
+    peak (no impacts to excite it, or too short a recording)."""
+    if stamp_s.size < 64:
+        return None
+    period = float(np.median(np.diff(stamp_s)))
+    rate = 1.0 / period
+    segment = min(stamp_s.size, int(2.0 * rate))  # 0.5 Hz resolution where the recording allows
+    freq, power = welch(pressure_pa - np.mean(pressure_pa), fs=rate, nperseg=segment, detrend="linear")
+    band = (freq >= SWAY_BAND_HZ[0]) & (freq <= min(SWAY_BAND_HZ[1], 0.4 * rate))
+    if band.sum() < 5:
+        return None
+    index = np.flatnonzero(band)
+    peak = index[int(np.argmax(power[band]))]
+    if power[peak] < MIN_PEAK_RATIO * float(np.median(power[band])) or peak in (index[0], index[-1]):
+        return None
+    y0, y1, y2 = np.log(power[peak - 1:peak + 2])
+    shift = 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2) if (y0 - 2 * y1 + y2) != 0 else 0.0
+    return float(freq[peak] + shift * (freq[1] - freq[0]))
+
+
+def bulk_modulus_for(params: Mapping[str, Any], frequency_hz: float) -> float | None:
+    """The oil bulk modulus (Pa) that gives the configured support this sway frequency (the
+    jack's other compliances, geometry and the beam's inertia as configured)."""
+    materials = material_table(params)
+
+    def mismatch(log_scale: float) -> float:
+        varied = copy.deepcopy(dict(params["support"]))
+        varied["oil_bulk_modulus_pa"] = float(params["support"]["oil_bulk_modulus_pa"]) * math.exp(log_scale)
+        return math.log(Support.from_params(varied, materials).rigid_mode_frequency_hz / frequency_hz)
+
+    try:
+        return float(params["support"]["oil_bulk_modulus_pa"]) * math.exp(brentq(mismatch, math.log(0.02), math.log(50.0), xtol=1e-6))
+    except ValueError:
+        return None  # no oil column in that range gives it: the wall or the rod limits the stiffness
+
+
+def calibrate(
+    params: Mapping[str, Any],
+    pressure: tuple[np.ndarray, np.ndarray],
+    imu: tuple[np.ndarray, np.ndarray],
+    identify: Any,
+) -> SupportProfile:
+    """The profile of the support that recorded ``pressure`` (stamps s, Pa) and ``imu`` (stamps
+    s, z specific force m/s^2). ``identify(params)`` must return the labels of the recording
+    identified with those parameters (the IMU gain needs each impact's moment estimates)."""
+    p_stamp, p_value = pressure
+    i_stamp, i_accel = imu
+    if p_stamp.size == 0 and i_stamp.size == 0:
+        raise InputError("bag", "no jack_pressure and no imu", "calibration needs the recording's jack pressure or IMU")
+    duration = float(max(np.ptp(p_stamp) if p_stamp.size else 0.0, np.ptp(i_stamp) if i_stamp.size else 0.0))
+    sign = mount_sign(i_accel)
+    frequency = sway_frequency(p_stamp, p_value)
+    bulk = bulk_modulus_for(params, frequency) if frequency is not None else None
+    inertia = None
+    spread = None
+    used = 0
+    if bulk is not None:
+        calibrated = copy.deepcopy(dict(params))
+        calibrated["support"]["oil_bulk_modulus_pa"] = bulk
+        labels = identify(calibrated)
+        gains = []
+        for label in labels:
+            f = label.get("features", {})
+            if {"moment_impulse_pressure_nms", "imu_impulse_mps"} <= f.keys() and f.get("imu_impulse_mps", 0.0) > 0.0:
+                sigma = f.get("moment_impulse_sigma_nms", math.inf)
+                if f["moment_impulse_pressure_nms"] > GAIN_SIGMA * sigma:
+                    gains.append(f["moment_impulse_pressure_nms"] / f["imu_impulse_mps"])
+        used = len(gains)
+        if used >= MIN_IMPACTS:
+            gain = float(np.median(gains))  # N m s per m/s at the IMU = inertia / IMU distance
+            inertia_now = float(params["support"]["beam_inertia_about_hinge_kgm2"])
+            imu_from_hinge = float(params["support"]["imu_from_hinge_m"])
+            inertia = gain * imu_from_hinge
+            spread = float(1.4826 * np.median(np.abs(np.log(np.array(gains) / gain))))
+            # The sway frequency must still come out: the oil column follows the new inertia.
+            calibrated["support"]["beam_inertia_about_hinge_kgm2"] = inertia
+            bulk = bulk_modulus_for(calibrated, frequency) or bulk
+            if not 0.2 < inertia / inertia_now < 5.0:
+                inertia, spread = None, None  # implausible: keep the configured beam
+    return SupportProfile(
+        duration_s=duration, impacts_used=used, imu_mount_sign=sign, rigid_mode_frequency_hz=frequency,
+        oil_bulk_modulus_pa=bulk, beam_inertia_about_hinge_kgm2=inertia, imu_gain_spread=spread,
+        pressure_noise_pa=robust_noise(p_value), imu_accel_noise_mps2=robust_noise(i_accel),
+    )

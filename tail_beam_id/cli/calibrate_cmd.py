@@ -1,0 +1,50 @@
+"""``tail-beam calibrate BAG``: a support profile from the support's own recording, no labels.
+
+Writes a ROS 2 parameter file (``--out``, default: printed) that ``tail-beam identify --config``
+and ``id_node --ros-args --params-file`` load; see tail_beam_id.calibration for what it
+measures and how.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import yaml
+
+from tail_beam_id.cli.identify_cmd import profile_of
+from tail_beam_sim.bags.read import read_sensors
+from tail_beam_sim.cli.common import add_config_option
+from tail_beam_sim.config import load_parameters
+from tail_beam_sim.errors import InputError
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser("calibrate", help="learn a support profile (jack gain, IMU gain and mounting, ringing, noise) from a bag")
+    parser.add_argument("bag", help="rosbag2 bag of the support: jack_pressure and imu, with some impacts")
+    parser.add_argument("--out", help="write the profile here (a ROS 2 parameter file); default: print it")
+    add_config_option(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    params = load_parameters(args.config)
+    profile = profile_of(read_sensors(args.bag), params)
+    text = yaml.safe_dump(profile.parameters(), sort_keys=False)
+    if args.out:
+        out = Path(args.out)
+        if out.is_symlink() or out.is_dir():
+            raise InputError("--out", str(out), "must be a regular file path (not a directory or a symbolic link)")
+        out.write_text(text, encoding="utf-8")
+        print(f"wrote {out}", file=sys.stderr)
+    else:
+        sys.stdout.write(text)
+    c = profile
+    if not c.calibrated:
+        print("calibrate: no clear sway of the beam in the jack pressure (too few impacts, or too short): "
+              "the profile holds the noise and mounting only", file=sys.stderr)
+    else:
+        print(f"calibrate: sway {c.rigid_mode_frequency_hz:.2f} Hz, {c.impacts_used} impacts for the IMU gain, "
+              f"mount sign {c.imu_mount_sign}", file=sys.stderr)
+    return 0

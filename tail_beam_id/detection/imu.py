@@ -1,0 +1,333 @@
+"""Impact detection in the continuous IMU stream: onsets, pulses, noise and overlap.
+
+A particle's contact lasts 0.1-1 ms, far shorter than the beam's 40 Hz sway, and the IMU
+reports the mean specific force over each sample period: the contact shows as a sudden
+departure from a slow background (gravity, the beam still swaying from earlier impacts):
+negative when the plate is pushed away, positive when a bending mode answers first with the
+opposite sign. The detector predicts each sample from a quadratic fitted to the samples
+before it, and starts a pulse where a sample leaves the prediction by
+``accel_threshold_sigma`` noise RMS; while the bending modes ring after a pulse the
+threshold is raised in proportion to it. The noise RMS is a robust (MAD)
+estimate over fixed blocks of samples, so that the result depends only on the samples, never
+on how they were chunked on arrival.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from tail_beam_sim.errors import require_range
+
+MAD_TO_SIGMA = 1.4826  # median absolute deviation of a Gaussian times this = its RMS
+PERIOD_SAMPLES = 64  # the sample period is read from the first this many stamps
+# The onset look-back spans at least this many samples: at low rates the bending modes can
+# take a few samples to build the response past the detection threshold.
+ONSET_LOOKBACK_MIN_SAMPLES = 4
+
+
+@dataclass(frozen=True)
+class DetectionConfig:
+    """Detection thresholds (in noise RMS, sigma) and windows (s); see config/identification.yaml."""
+
+    accel_threshold_sigma: float
+    extend_threshold_sigma: float
+    onset_threshold_sigma: float
+    onset_lookback_s: float
+    baseline_window_s: float
+    noise_block_s: float
+    max_contact_s: float
+    rebound_early_tolerance_s: float
+    unconfirmed_pulse_sigma: float
+    pressure_confirm_sigma: float
+    pressure_threshold_sigma: float
+    ring_fraction: float
+    ring_decay_s: float
+    ring_window_s: float
+    rebound_onset_lead_s: float
+    pressure_onset_uncertainty_s: float
+    onset_before_rebound_max_s: float
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> DetectionConfig:
+        """Validate the ``identification.detection`` section."""
+        p = params or {}
+
+        def get(name: str, low: float, high: float, unit: str = "") -> float:
+            return require_range(f"identification.detection.{name}", p.get(name), low, high, low_open=True, unit=unit)
+
+        return cls(
+            accel_threshold_sigma=get("accel_threshold_sigma", 0.0, 1e3),
+            extend_threshold_sigma=get("extend_threshold_sigma", 0.0, 1e3),
+            onset_threshold_sigma=get("onset_threshold_sigma", 0.0, 1e3),
+            onset_lookback_s=get("onset_lookback_s", 0.0, 1.0, "s"),
+            baseline_window_s=get("baseline_window_s", 0.0, 1.0, "s"),
+            noise_block_s=get("noise_block_s", 0.0, 100.0, "s"),
+            max_contact_s=get("max_contact_s", 0.0, 1.0, "s"),
+            rebound_early_tolerance_s=get("rebound_early_tolerance_s", 0.0, 1.0, "s"),
+            unconfirmed_pulse_sigma=get("unconfirmed_pulse_sigma", 0.0, 1e6),
+            pressure_confirm_sigma=get("pressure_confirm_sigma", 0.0, 1e3),
+            pressure_threshold_sigma=get("pressure_threshold_sigma", 0.0, 1e3),
+            ring_fraction=get("ring_fraction", 0.0, 100.0),
+            ring_decay_s=get("ring_decay_s", 0.0, 10.0, "s"),
+            ring_window_s=get("ring_window_s", 0.0, 10.0, "s"),
+            rebound_onset_lead_s=get("rebound_onset_lead_s", 0.0, 1.0, "s"),
+            pressure_onset_uncertainty_s=get("pressure_onset_uncertainty_s", 0.0, 1.0, "s"),
+            onset_before_rebound_max_s=get("onset_before_rebound_max_s", 0.0, 1.0, "s"),
+        )
+
+
+@dataclass(frozen=True)
+class Pulse:
+    """One contact as the IMU saw it: where the specific force first left its background.
+
+    ``first_stamp_s``: stamp of the first sample deviating (the contact began within that
+    sample's averaging period); ``onset_s``: the middle of that period, the contact-start
+    estimate; ``polarity``: +1 when that sample shows the plate pushed away from the particle
+    (a rigid beam's answer), -1 when the bending modes answer first with the opposite sign
+    (impacts between the hinge and the jack pin); ``width_s``: RMS duration of the deviating
+    run of samples; ``peak_sigma``: the largest deviation in noise RMS; ``noise_mps2``: that
+    RMS, m/s^2; ``period_s``: the IMU sample period read from the stamps.
+    """
+
+    onset_s: float
+    first_stamp_s: float
+    polarity: int
+    width_s: float
+    peak_sigma: float
+    noise_mps2: float
+    period_s: float
+    first_index: int
+    last_index: int
+
+
+def robust_sigma(values: np.ndarray) -> float:
+    """Noise RMS from the median absolute deviation (insensitive to a few pulses)."""
+    if values.size == 0:
+        return math.nan
+    return float(MAD_TO_SIGMA * np.median(np.abs(values - np.median(values))))
+
+
+@lru_cache(maxsize=16)
+def extrapolation_weights(length: int) -> np.ndarray:
+    """Weights w such that w @ y[-length:] is a quadratic least-squares fit's value one step on."""
+    x = np.arange(-length, 0, dtype=float)
+    basis = np.vstack([np.ones(length), x, x * x]).T
+    return np.linalg.pinv(basis)[0]
+
+
+def background_fit(values: np.ndarray, lo: int, hi: int, excluded: np.ndarray, max_degree: int = 2) -> np.ndarray:
+    """Polynomial (in sample index, about ``hi``) fitted to values[lo:hi] outside ``excluded``:
+    quadratic with 12 samples or more, linear with 8 or more, else constant (a high degree on
+    few samples extrapolates wildly), at most ``max_degree``. Returns 3 coefficients, constant
+    first."""
+    index = np.arange(lo, hi)
+    keep = ~excluded[lo:hi]
+    x = (index[keep] - hi).astype(float)
+    coeffs = np.zeros(3)
+    if x.size == 0:
+        coeffs[0] = float(np.mean(values[lo:hi])) if hi > lo else 0.0
+        return coeffs
+    degree = min(max_degree, 2 if x.size >= 12 else (1 if x.size >= 8 else 0))
+    basis = np.vstack([x**p for p in range(degree + 1)]).T
+    fitted, *_ = np.linalg.lstsq(basis, values[lo:hi][keep], rcond=None)
+    coeffs[: degree + 1] = fitted
+    return coeffs
+
+
+class PulseDetector:
+    """Finds contact pulses in one IMU stream's specific force along the plate normal.
+
+    Feed it the whole buffered stream each time (``scan``); it remembers how far it got and
+    returns the pulses whose first sample it has now decided on.
+    """
+
+    def __init__(self, config: DetectionConfig) -> None:
+        self.config = config
+        self.cursor = 0  # next sample index (absolute) to examine
+        self.spans: list[tuple[int, int]] = []  # absolute (first, last) sample of each pulse found
+        self.period_s: float | None = None  # the IMU sample period, s, read from the stamps
+        self.ring: tuple[float, float] | None = None  # ringing envelope: (stamp s, level m/s^2)
+        self._sigma_cache: dict[int, float] = {}  # noise RMS per block, by its first absolute index
+
+    def geometry(self, period_s: float) -> tuple[int, int, int]:
+        """(baseline samples, noise block samples, most samples a pulse spans) at this period."""
+        c = self.config
+        baseline = max(4, int(round(c.baseline_window_s / period_s)))
+        block = max(16, int(round(c.noise_block_s / period_s)))
+        span = int(math.ceil(c.max_contact_s / period_s)) + 1
+        return baseline, block, span
+
+    def noise(self, accel_z: np.ndarray, k: int, baseline: int, block: int, base_index: int) -> float:
+        """Noise RMS for local sample ``k``: MAD of the prediction residuals over the previous
+        whole block of samples (the first block for early samples). Blocks are aligned to the
+        absolute sample index, so the value never depends on how the stream was chunked."""
+        absolute = base_index + k
+        start = max((absolute - baseline) // block - 1, 0) * block + baseline
+        if start not in self._sigma_cache:
+            # A stream that resumed after a gap may have had that block trimmed away: use the
+            # oldest whole block still buffered instead.
+            lo = min(max(start - base_index, baseline), max(accel_z.size - block, baseline))
+            self._sigma_cache[start] = robust_sigma(self._residual(accel_z, lo, lo + block, baseline))
+        return self._sigma_cache[start]
+
+    def _block_sigmas(self, accel_z: np.ndarray, start: int, stop: int, baseline: int, block: int, base_index: int) -> np.ndarray:
+        """Noise RMS for every sample in [start, stop), one value per aligned block."""
+        sigma = np.empty(stop - start)
+        k = start
+        while k < stop:
+            absolute = base_index + k
+            block_end = ((absolute - baseline) // block + 1) * block + baseline - base_index
+            end = min(block_end, stop)
+            sigma[k - start:end - start] = self.noise(accel_z, k, baseline, block, base_index)
+            k = end
+        return sigma
+
+    @staticmethod
+    def _residual(accel_z: np.ndarray, lo: int, hi: int, baseline: int) -> np.ndarray:
+        """Residuals of samples lo..hi-1 from the one-step quadratic prediction."""
+        windows = np.lib.stride_tricks.sliding_window_view(accel_z[lo - baseline:hi - 1], baseline)
+        return accel_z[lo:hi] - windows @ extrapolation_weights(baseline)
+
+    def scan(self, stamp_s: np.ndarray, accel_z: np.ndarray, base_index: int = 0, final: bool = False) -> list[Pulse]:
+        """New pulses in the buffered stream (``base_index`` = absolute index of element 0).
+
+        Unless ``final``, only samples whose pulse is fully in the buffer are examined.
+        """
+        n = accel_z.size
+        if n < 8 or (n < PERIOD_SAMPLES and not final):
+            return []
+        if self.period_s is None:
+            # Read once from the first samples and kept: the same for any chunking.
+            self.period_s = float(np.median(np.diff(stamp_s[:PERIOD_SAMPLES])))
+        period = self.period_s
+        baseline, block, span = self.geometry(period)
+        self.spans = [span for span in self.spans if span[1] >= base_index]
+        self._sigma_cache = {k: v for k, v in self._sigma_cache.items() if k >= base_index}
+        mask = np.zeros(n, dtype=bool)
+        for first, last in self.spans:
+            mask[first - base_index:last - base_index + 1] = True
+        if n < baseline + block:
+            if not final:
+                return []
+            block = n - baseline
+        stop = n if final else n - span - 1
+        start = max(self.cursor - base_index, baseline)
+        if stop <= start:
+            return []
+        residual = self._residual(accel_z, start, stop, baseline)
+        # Samples over the plain noise threshold (ringing only raises it): the only candidates
+        # outside the few samples after a pulse, which are checked one by one.
+        sigma = self._block_sigmas(accel_z, start, stop, baseline, block, base_index)
+        candidates = np.flatnonzero(np.abs(residual) > self.config.accel_threshold_sigma * sigma) + start
+        pulses: list[Pulse] = []
+        k = start
+        while k < stop:
+            ringing = self._ringing(float(stamp_s[k]), float(sigma[k - start]))
+            dirty = mask[max(k - baseline, 0):k].any()
+            if not dirty and not ringing:
+                following = int(np.searchsorted(candidates, k))
+                if following == candidates.size:
+                    break
+                k = int(candidates[following])
+                if k >= stop:
+                    break
+                deviation = residual[k - start]
+            elif dirty:
+                deviation = accel_z[k] - background_fit(accel_z, k - baseline, k, mask)[0]
+            else:
+                deviation = residual[k - start]
+            noise = sigma[k - start]
+            if noise > 0.0 and abs(deviation) > self._threshold(float(stamp_s[k]), noise):
+                pulse = self._grow(stamp_s, accel_z, mask, k, baseline, span, noise, period, base_index)
+                pulses.append(pulse)
+                mask[pulse.first_index - base_index:pulse.last_index - base_index + 1] = True
+                self.spans.append((pulse.first_index, pulse.last_index))
+                self.ring = (float(stamp_s[pulse.last_index - base_index]), pulse.peak_sigma * noise)
+                k = pulse.last_index - base_index + 1
+            else:
+                if ringing:
+                    self._follow_ring(float(stamp_s[k]), abs(deviation))
+                k += 1
+        self.cursor = base_index + max(k, stop)
+        return pulses
+
+    def _ringing(self, stamp_s: float, sigma: float) -> bool:
+        """Whether the beam still rings from the last pulse: within ``ring_window_s`` of it, or
+        for as long as the envelope followed on the samples themselves still stands above the
+        noise threshold. A support whose bending mode is lighter damped than the shipped one
+        rings for longer, and the detector learns that from its own samples instead of taking
+        the ringing for new impacts once a fixed window is over."""
+        if self.ring is None:
+            return False
+        stamp, level = self.ring
+        if stamp_s - stamp < self.config.ring_window_s:
+            return True
+        decayed = level * math.exp(-(stamp_s - stamp) / self.config.ring_decay_s)
+        return self.config.ring_fraction * decayed > self.config.accel_threshold_sigma * sigma
+
+    def _threshold(self, stamp_s: float, sigma: float) -> float:
+        """Detection threshold (m/s^2): the noise's, raised while the beam's bending modes
+        ring after a pulse to ``ring_fraction`` times their envelope, which decays with
+        ``ring_decay_s`` and follows every ringing sample (ringing is not a new impact)."""
+        c = self.config
+        threshold = c.accel_threshold_sigma * sigma
+        if self.ring is not None:
+            stamp, level = self.ring
+            threshold = max(threshold, c.ring_fraction * level * math.exp(-(stamp_s - stamp) / c.ring_decay_s))
+        return threshold
+
+    def _follow_ring(self, stamp_s: float, magnitude: float) -> None:
+        """Raise the ringing envelope to a sample's deviation (m/s^2) if it exceeds it."""
+        stamp, level = self.ring  # type: ignore[misc]
+        decayed = level * math.exp(-(stamp_s - stamp) / self.config.ring_decay_s)
+        if magnitude > decayed:
+            self.ring = (stamp_s, magnitude)
+
+    def _grow(
+        self, stamp_s: np.ndarray, accel_z: np.ndarray, mask: np.ndarray, k: int, baseline: int,
+        span: int, sigma: float, period: float, base_index: int,
+    ) -> Pulse:
+        """The whole deviating run of samples from its first over-threshold sample ``k``."""
+        c = self.config
+        # The contact may have begun earlier, below the detection threshold (the bending modes
+        # can build the response up over several samples): look back ``onset_lookback_s``
+        # against a straight line fitted before that (a quadratic would extrapolate the noise
+        # too far) for the first sample past onset_threshold_sigma.
+        lookback = max(ONSET_LOOKBACK_MIN_SAMPLES, int(round(c.onset_lookback_s / period)))
+        lo = max(k - lookback, baseline)
+        while mask[lo - baseline:k].any() and lo < k:
+            lo += 1
+        coeffs = background_fit(accel_z, lo - baseline, lo, mask, max_degree=1)
+        x = np.arange(lo, k + 1) - lo
+        before = accel_z[lo:k + 1] - (coeffs[0] + coeffs[1] * x)
+        past = np.abs(before) > c.onset_threshold_sigma * sigma
+        first = lo + int(np.argmax(past)) if past.any() else k
+        end = min(first + span, accel_z.size)
+        x = np.arange(first, end) - lo
+        deviation = accel_z[first:end] - (coeffs[0] + coeffs[1] * x + coeffs[2] * x * x)
+        last = first
+        for j in range(1, deviation.size):
+            if abs(deviation[j]) <= c.extend_threshold_sigma * sigma or mask[first + j]:
+                break
+            last = first + j
+        weight = np.abs(deviation[: last - first + 1])
+        times = stamp_s[first:last + 1] - 0.5 * period  # middle of each sample's averaging period
+        centre = float(np.sum(weight * times) / weight.sum())
+        variance = float(np.sum(weight * (times - centre) ** 2) / weight.sum())
+        return Pulse(
+            onset_s=float(stamp_s[first] - 0.5 * period),
+            first_stamp_s=float(stamp_s[first]),
+            polarity=1 if deviation[0] < 0.0 else -1,
+            width_s=math.sqrt(max(variance, 0.0)),
+            peak_sigma=float(weight.max() / sigma),
+            noise_mps2=sigma,
+            period_s=period,
+            first_index=base_index + first,
+            last_index=base_index + last,
+        )

@@ -1,0 +1,107 @@
+"""Supports other than the nominal one: draws of plausible tail beams and their sensors.
+
+Every real support differs from ``config/`` (beam section, wear plate, jack, oil, how and where
+the IMU is bolted, what the sensors sample at), so the identification methods are trained on
+supports drawn from wide ranges and judged on supports drawn from wider ones (the ``foreign``
+scene set), never on the nominal one alone. A draw scales or replaces the parameters of the
+merged parameter dict; ranges live in ``identification.evaluation.supports`` (config/identification.yaml):
+
+- ``inertia_scale``, ``jack_stiffness_scale``, ``jack_damping_scale``: factors on the nominal
+  beam inertia about the hinge, the oil's bulk modulus (the jack's stiffness) and its damping;
+- ``bending_1_frequency_hz`` (log-uniform) and ``damping_ratio``: the first bending mode (the
+  higher ones keep their nominal ratio to it) and every mode's damping;
+- ``imu_from_hinge_m``: where the IMU is bolted;
+- ``imu_rate_hz``, ``pressure_rate_hz``, ``camera_frame_rate_hz`` (log-uniform) and
+  ``noise_factor`` (log-uniform, x every nominal noise RMS);
+- ``contact_models``: the hysteresis laws a particle may follow.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from tail_beam_sim.errors import InputError
+
+SCALED = {
+    "inertia_scale": ("support", "beam_inertia_about_hinge_kgm2"),
+    "jack_stiffness_scale": ("support", "oil_bulk_modulus_pa"),
+    "jack_damping_scale": ("support", "jack_damping_nspm"),
+}
+NOISE_FIELDS = ("pressure_noise_pa", "imu_accel_noise_mps2", "imu_gyro_noise_radps", "camera_velocity_noise_mps",
+                "camera_velocity_noise_fraction")
+LOG_UNIFORM = {"bending_1_frequency_hz", "imu_rate_hz", "pressure_rate_hz", "camera_frame_rate_hz", "noise_factor"}
+RANGES = (*SCALED, "bending_1_frequency_hz", "damping_ratio", "imu_from_hinge_m", "imu_rate_hz", "pressure_rate_hz",
+          "camera_frame_rate_hz", "noise_factor")
+
+
+@dataclass(frozen=True)
+class SupportDraw:
+    """One drawn support and sensor layout: the values drawn (units in their names) and the
+    contact law of the particle that strikes it."""
+
+    values: dict[str, float]
+    contact_model: str
+
+    def apply(self, params: Mapping[str, Any]) -> dict[str, Any]:
+        """A copy of the merged parameters describing this support, its sensors (rates, every
+        noise RMS scaled by ``noise_factor``) and the particles' contact law."""
+        varied = copy.deepcopy(dict(params))
+        for name in NOISE_FIELDS:
+            varied["sensors"][name] = float(params["sensors"][name]) * self.values["noise_factor"]
+        varied.setdefault("scene", {})["contact_model"] = self.contact_model
+        for key, (section, name) in SCALED.items():
+            varied[section][name] = float(params[section][name]) * self.values[key]
+        varied["support"]["imu_from_hinge_m"] = self.values["imu_from_hinge_m"]
+        modes = varied["modes"]
+        names = sorted((k for k in modes if k.startswith("bending_")), key=lambda k: int(k.split("_")[1]))
+        if names:
+            ratio = self.values["bending_1_frequency_hz"] / float(modes[names[0]]["frequency_hz"])
+            for name in names:
+                # A lighter or heavier beam of the same mass distribution: its modal masses and
+                # couplings scale with its inertia (so the mass matrix stays positive).
+                mode = modes[name]
+                mode["frequency_hz"] = float(mode["frequency_hz"]) * ratio
+                mode["damping_ratio"] = self.values["damping_ratio"]
+                mode["modal_mass_kg"] = float(mode["modal_mass_kg"]) * self.values["inertia_scale"]
+                mode["rigid_coupling_kgm"] = float(mode["rigid_coupling_kgm"]) * self.values["inertia_scale"]
+        for rate in ("imu_rate_hz", "pressure_rate_hz", "camera_frame_rate_hz"):
+            varied["sensors"][rate] = self.values[rate]
+        return varied
+
+    def describe(self) -> str:
+        v = self.values
+        return (f"inertia x{v['inertia_scale']:.2f}, jack x{v['jack_stiffness_scale']:.2f}, mode 1 {v['bending_1_frequency_hz']:.0f} Hz "
+                f"zeta {100 * v['damping_ratio']:.1f} %, IMU {v['imu_rate_hz'] / 1e3:.1f} kHz at {v['imu_from_hinge_m']:.2f} m, "
+                f"noise x{v['noise_factor']:.2f}, {self.contact_model}")
+
+
+def support_ranges(evaluation: Mapping[str, Any], which: str) -> Mapping[str, Any]:
+    """The ``supports.<which>`` ranges (training or foreign), checked."""
+    supports = evaluation.get("supports")
+    if not isinstance(supports, Mapping) or not isinstance(supports.get(which), Mapping):
+        raise InputError(f"identification.evaluation.supports.{which}", None, "missing parameter section (config/identification.yaml)")
+    ranges = supports[which]
+    for name in RANGES:
+        pair = ranges.get(name)
+        if not (isinstance(pair, (list, tuple)) and len(pair) == 2 and all(isinstance(x, (int, float)) for x in pair) and 0 < pair[0] <= pair[1]):
+            raise InputError(f"identification.evaluation.supports.{which}.{name}", pair, "must be [low, high] with 0 < low <= high")
+    laws = ranges.get("contact_models")
+    if not isinstance(laws, (list, tuple)) or not laws:
+        raise InputError(f"identification.evaluation.supports.{which}.contact_models", laws, "must be a non-empty list of contact laws")
+    return ranges
+
+
+def draw_support(ranges: Mapping[str, Any], rng: np.random.Generator) -> SupportDraw:
+    """One support from ``ranges`` (uniform, or log-uniform for frequencies, rates and noise)."""
+    values = {}
+    for name in RANGES:
+        low, high = (float(x) for x in ranges[name])
+        values[name] = float(math.exp(rng.uniform(math.log(low), math.log(high)))) if name in LOG_UNIFORM else float(rng.uniform(low, high))
+    laws = list(ranges["contact_models"])
+    return SupportDraw(values, str(laws[int(rng.integers(len(laws)))]))

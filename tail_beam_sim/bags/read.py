@@ -1,0 +1,243 @@
+"""Reading the suite's rosbag2 bags with clear errors: missing, not a bag, empty, truncated, or
+lacking a topic. A bad bag is reported as one :class:`InputError`, never half-read.
+
+Topics are matched by their contract name under any namespace (``/support_07/imu``, ``/imu``
+and an old bag's relative ``imu`` all count as ``imu``). A bag holding the contract topics of
+several supports (namespaces) is read one support at a time: the caller names the namespace,
+and without one the error lists those present.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rosbags.highlevel import AnyReader
+
+from tail_beam_sim import topics
+from tail_beam_sim.bags.records import TYPESTORE, vibration_fields
+from tail_beam_sim.bags.write import METADATA, PARTIAL_DIR
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.physics.sensors import BlockSequencer, VibrationBlocks
+
+ANY_NAMESPACE = "*"  # read every namespace of the bag (tail-beam bag info)
+SENSOR_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.REBOUND_VELOCITY)
+_REPAIR_HINT = "run `tail-beam bag repair PATH` to recover what was written"
+
+
+def contract_name(topic: str) -> str:
+    """The contract name of a recorded topic: its last path component."""
+    return topic.rstrip("/").rsplit("/", 1)[-1]
+
+
+def check_bag_path(path: str | os.PathLike[str]) -> Path:
+    """Return the bag directory, or InputError saying why it is not a readable bag."""
+    bag = Path(path)
+    if bag.is_symlink() and not bag.exists():
+        raise InputError("bag", str(bag), f"is a dangling symbolic link (to {os.readlink(bag)!r}): give the bag directory")
+    if not bag.exists():
+        raise InputError("bag", str(bag), "does not exist")
+    if bag.is_file():
+        if bag.suffix in (".mcap", ".db3"):
+            raise InputError("bag", str(bag), "is a storage file; give the bag directory that holds it and metadata.yaml")
+        raise InputError("bag", str(bag), "is not a rosbag2 bag directory")
+    if not bag.is_dir():
+        raise InputError("bag", str(bag), "is not a rosbag2 bag directory")
+    try:
+        has_metadata = (bag / METADATA).is_file()
+        storage_files = any(p.suffix in (".mcap", ".db3") for p in bag.iterdir())
+    except OSError as exc:
+        raise InputError("bag", str(bag), f"cannot be listed ({exc.strerror or exc})") from None
+    if not has_metadata:
+        if storage_files:
+            raise InputError("bag", str(bag), f"has no metadata.yaml (its writer was killed?); {_REPAIR_HINT}")
+        raise InputError("bag", str(bag), "is not a rosbag2 bag (no metadata.yaml)")
+    return bag
+
+
+@dataclass
+class RawMessage:
+    """One recorded message: contract topic, type, log time (ns) and CDR bytes."""
+
+    topic: str
+    msgtype: str
+    log_time_ns: int
+    data: bytes
+    full_topic: str = ""  # the name as recorded, e.g. /support_07/imu
+
+
+@dataclass
+class BagSensors:
+    """A bag's sensor data as arrays (stamps in s of simulation time), plus its JSON topics."""
+
+    pressure_stamp_s: np.ndarray
+    pressure_pa: np.ndarray
+    imu_stamp_s: np.ndarray
+    angular_velocity_radps: np.ndarray
+    linear_acceleration_mps2: np.ndarray
+    rebounds: list[tuple[float, np.ndarray]]
+    json_topics: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+    partial: bool = False  # the bag had segments a killed recorder left open
+    vibration: VibrationBlocks = field(default_factory=VibrationBlocks.empty)  # in index order, each block once
+    vibration_gaps: list[tuple[int, int]] = field(default_factory=list)  # (first missing index, samples missing)
+    namespace: str = "/"  # the support's namespace the topics were read from
+
+    @property
+    def vibration_lost_samples(self) -> int:
+        """Accelerometer samples missing between the first and the last block of the bag."""
+        return sum(n for _, n in self.vibration_gaps)
+
+
+def namespaces(connections: Iterable[Any]) -> list[str]:
+    """The namespaces under which a bag holds contract topics, sorted."""
+    return sorted({topics.namespace_of(c.topic) for c in connections if contract_name(c.topic) in topics.MSG_TYPES})
+
+
+def _normalise(namespace: str) -> str:
+    return "/" + namespace.strip("/") if namespace.strip("/") else "/"
+
+
+def choose_namespace(bag: Path, connections: Iterable[Any], namespace: str | None) -> str | None:
+    """The namespace to read (None: every one, ``ANY_NAMESPACE``); InputError when the bag holds
+    several supports and none was chosen, or the chosen one is not there, listing those present."""
+    if namespace == ANY_NAMESPACE:
+        return None
+    present = namespaces(connections)
+    if namespace is None or namespace == "":
+        if len(present) > 1:
+            raise InputError("bag", str(bag), f"holds the topics of several supports (namespaces {', '.join(present)}); "
+                             "choose one with --namespace (bag_replay: replay.namespace)")
+        return present[0] if present else None
+    chosen = _normalise(namespace)
+    if chosen not in present:
+        raise InputError("namespace", namespace, f"not in the bag {bag}; it holds {', '.join(present) or 'no contract topic'}")
+    return chosen
+
+
+def raw_messages(
+    path: str | os.PathLike[str], wanted: Iterable[str] | None = None, required: Iterable[str] = (), namespace: str | None = None
+) -> Iterator[RawMessage]:
+    """The bag's messages in log-time order (``wanted`` contract topics; None = all) of one
+    support: ``namespace``, or the only one the bag holds (see :func:`choose_namespace`).
+
+    Raises InputError before the first message if the bag is unreadable, empty, lacks a
+    ``required`` topic or holds none of the ``wanted`` ones; and while reading if it turns out
+    truncated or damaged, or ends before the count its metadata lists (a bad bag is reported,
+    not half-read). A damaged storage file can fail in any way inside the reader, so every
+    error of the reader becomes that one line.
+    """
+    bag = check_bag_path(path)
+    try:
+        reader = AnyReader([bag], default_typestore=TYPESTORE)
+        reader.open()
+    except Exception as exc:  # noqa: BLE001 - a hostile file can break the reader anywhere
+        raise InputError("bag", str(bag), f"cannot be read ({_first_line(exc)}): truncated or damaged? {_REPAIR_HINT}") from None
+    try:
+        if reader.message_count == 0:
+            raise InputError("bag", str(bag), "holds no messages")
+        chosen = choose_namespace(bag, reader.connections, namespace)
+        support = [c for c in reader.connections if chosen is None or topics.namespace_of(c.topic) == chosen]
+        by_name: dict[str, set[str]] = {}
+        for connection in support:
+            by_name.setdefault(contract_name(connection.topic), set()).add(connection.topic)
+        has = ", ".join(sorted(by_name)) or "none"
+        for name in required:
+            present = [c for c in support if contract_name(c.topic) == name and c.msgcount > 0]
+            if not present:
+                raise InputError("bag", str(bag), f"lacks messages on topic '{name}' ({topics.MSG_TYPES.get(name, '?')}); it has: {has}")
+        names = set(wanted) if wanted is not None else set(by_name)
+        connections = [c for c in support if contract_name(c.topic) in names]
+        if not any(c.msgcount > 0 for c in connections):
+            # An empty selection would read as "every topic" to the reader: refuse it here.
+            raise InputError("bag", str(bag), f"holds no messages on {', '.join(sorted(names)) or 'no topic'}; it has: {has}")
+        listed = {id(c): c.msgcount for c in connections}
+        read = dict.fromkeys(listed, 0)
+        try:
+            for connection, log_ns, data in reader.messages(connections=connections):
+                read[id(connection)] += 1
+                yield RawMessage(contract_name(connection.topic), connection.msgtype, log_ns, bytes(data), connection.topic)
+        except Exception as exc:  # noqa: BLE001 - as above
+            raise InputError("bag", str(bag), f"is truncated or damaged ({_first_line(exc)}); {_REPAIR_HINT}") from None
+        short = sum(listed.values()) - sum(read.values())
+        if any(read[key] < listed[key] for key in listed):
+            raise InputError("bag", str(bag), f"is truncated: {short} of the messages its metadata lists are missing; {_REPAIR_HINT}")
+    finally:
+        try:
+            reader.close()
+        except Exception:  # noqa: BLE001 - closing a damaged file must not hide the first error
+            pass
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def read_sensors(path: str | os.PathLike[str], required: Iterable[str] = SENSOR_TOPICS, namespace: str | None = None) -> BagSensors:
+    """Read and decode one support's sensor topics (and its JSON topics) into arrays, all or
+    nothing. The vibration blocks come back in index order (a block recorded late is put back
+    in its place, a repeated one dropped), with the index gaps listed."""
+    pressure: list[tuple[float, float]] = []
+    vibration: list[tuple[int, float, np.ndarray, float, float]] = []
+    chosen = "/"
+    imu: list[tuple[float, ...]] = []
+    rebounds: list[tuple[float, np.ndarray]] = []
+    json_topics: dict[str, list[dict[str, Any]]] = {topics.LABEL: [], topics.IMPACT_TRUTH: [], topics.IMPACT_CMD: []}
+    for raw in raw_messages(path, None, required, namespace):
+        if raw.topic not in topics.MSG_TYPES:
+            continue
+        chosen = topics.namespace_of(raw.full_topic)
+        msg = TYPESTORE.deserialize_cdr(raw.data, raw.msgtype)
+        if raw.topic == topics.VIBRATION:
+            vibration.append(vibration_fields(msg))
+            continue
+        if raw.topic == topics.JACK_PRESSURE:
+            pressure.append((_stamp(msg), msg.fluid_pressure))
+        elif raw.topic == topics.IMU:
+            w, a = msg.angular_velocity, msg.linear_acceleration
+            imu.append((_stamp(msg), w.x, w.y, w.z, a.x, a.y, a.z))
+        elif raw.topic == topics.REBOUND_VELOCITY:
+            v = msg.twist.linear
+            rebounds.append((_stamp(msg), np.array([v.x, v.y, v.z])))
+        else:
+            json_topics[raw.topic].append(_json(msg.data))
+    p = np.array(pressure).reshape(-1, 2)
+    i = np.array(imu).reshape(-1, 7)
+    p, i = p[np.argsort(p[:, 0], kind="stable")], i[np.argsort(i[:, 0], kind="stable")]
+    rebounds.sort(key=lambda r: r[0])
+    partial = (Path(path) / PARTIAL_DIR).is_dir() and any((Path(path) / PARTIAL_DIR).iterdir())
+    blocks = _vibration_blocks(vibration)
+    gaps = BlockSequencer().push(blocks).gaps
+    return BagSensors(p[:, 0], p[:, 1], i[:, 0], i[:, 1:4], i[:, 4:7], rebounds, json_topics, partial, blocks, gaps, chosen)
+
+
+def _vibration_blocks(decoded: list[tuple[int, float, np.ndarray, float, float]]) -> VibrationBlocks:
+    """Decoded vibration messages as blocks in index order (each index once)."""
+    if not decoded:
+        return VibrationBlocks.empty()
+    blocks = VibrationBlocks(
+        first_index=np.array([d[0] for d in decoded], dtype=np.int64),
+        lengths=np.array([d[2].size for d in decoded], dtype=np.int64),
+        stamp_s=np.array([d[1] for d in decoded]),
+        accel_mps2=np.concatenate([d[2] for d in decoded]),
+        period_s=decoded[0][3],
+        range_mps2=decoded[0][4],
+    )
+    return blocks.sorted()
+
+
+def _stamp(msg: Any) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def _json(text: str) -> dict[str, Any]:
+    """A JSON topic's object; a text that is not JSON is kept under ``_unparsed``."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return {"_unparsed": text}  # impact_cmd may hold a rejected command: kept, not fatal

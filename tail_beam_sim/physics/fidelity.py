@@ -1,0 +1,264 @@
+"""Fidelity tiers: how much model a scene gets, and the automatic choice of the cheapest.
+
+Tiers, cheapest first:
+
+* ``impulse``: rigid beam, each contact an instantaneous impulse (closed form);
+* ``rigid``: the study's model, rigid beam on the jack, contact resolved (hybrid solver);
+* ``modal``: rigid beam plus the bending modes of ``config/modes.yaml``;
+* ``brittle``: ``modal`` with the crushing contact for coal (past the study; never chosen
+  automatically, only on request: it changes the physics, not the accuracy).
+
+A scene states what it needs (:class:`Needs`: outputs among rebound, contact, pressure, imu,
+and a relative tolerance; the sensors' bandwidth comes from their sample rates).
+:func:`model_errors` estimates each tier's error against the richest one, cheaply:
+
+* impulse vs rigid: an impulse at the pulse's centroid instead of the pulse changes a mode of
+  angular frequency omega by about (omega sigma)^2 / 2 (sigma the pulse's RMS width), and the
+  pulse leaves out gravity and the plate's forces during the contact (see solvers/pulse.py);
+* rigid vs modal: both structures' responses to the same impulse, sampled as the sensors
+  sample them (point pressure samples, period-averaged IMU), compared in relative L2 over the
+  window (the worst of four phases of the impulse within a sample period, with a 25 % margin);
+  and for the rebound, the change in the plate's effective mass at the contact point.
+
+The errors add up the ladder (the impulse tier errs by its own step plus the rigid one's), and
+:func:`plan` picks the first tier within tolerance, with its structure, solver and options and
+the tier to check it against (the next one up; ``tail_beam_sim.physics.compare`` measures the
+differences). This is the first step of ``simulate``: plan, build, solve, sensors, compare.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from tail_beam_sim.config import load_parameters
+from tail_beam_sim.physics.contact import damping_factor, hertz_stiffness
+from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
+from tail_beam_sim.physics.solvers.pulse import contact_pulse
+from tail_beam_sim.physics.structure import BendingMode, LinearStructure, beam_with_modes, load_bending_modes, reduced_mass_kg, rigid_beam
+from tail_beam_sim.physics.support import Support
+
+OUTPUTS = ("rebound", "contact", "pressure", "imu")
+PHASES = (0.0, 0.25, 0.5, 0.75)  # where, as a fraction of a sample period, an impulse may fall
+SAMPLED_MARGIN = 1.25  # the pulse's finite length and the phases between those tried move the measured difference by a few %
+WAVEFORM_OUTPUTS = ("pressure", "imu")
+
+
+# The crushing law's kink at yield lowers RK4's order: 48 steps leave up to 3e-4 in the rebound,
+# 192 steps under 1e-4 (test_fidelity.py), the bound the hybrid reports for integrated contacts.
+BRITTLE_STEPS_PER_CONTACT = 192
+
+
+@dataclass(frozen=True)
+class Tier:
+    """One fidelity tier: its structure (with or without bending modes), contact, solver and
+    the solver's options: fixed ones, and the option (if any) through which the solver takes
+    the relative tolerance the scene needs (capped at ``tolerance_cap``)."""
+
+    name: str
+    bending_modes: bool
+    default_solver: str
+    brittle: bool
+    fixed_options: tuple[tuple[str, Any], ...] = ()
+    tolerance_option: str | None = None
+    tolerance_cap: float = math.inf
+
+    def solver_options(self, needs: Needs) -> dict[str, Any]:
+        """The options this tier gives its solver for ``needs``."""
+        options = dict(self.fixed_options)
+        if self.tolerance_option is not None:
+            options[self.tolerance_option] = min(self.tolerance_cap, needs.tolerance)
+        return options
+
+
+_PULSE_TOLERANCE = {"tolerance_option": "pulse_tolerance", "tolerance_cap": DEFAULT_PULSE_TOLERANCE}
+TIERS: dict[str, Tier] = {
+    "impulse": Tier("impulse", False, "impulse", False),
+    "rigid": Tier("rigid", False, "hybrid", False, **_PULSE_TOLERANCE),
+    "modal": Tier("modal", True, "hybrid", False, **_PULSE_TOLERANCE),
+    "brittle": Tier("brittle", True, "hybrid", True, fixed_options=(("steps_per_contact", BRITTLE_STEPS_PER_CONTACT),)),
+}
+ACCURACY_LADDER = ("impulse", "rigid", "modal")
+DEFAULT_TIER = "rigid"
+TIER_CHOICES = ("auto", *TIERS)
+
+
+def get_tier(name: str) -> Tier:
+    """The tier called ``name``, or InputError listing the tiers."""
+    try:
+        return TIERS[name]
+    except KeyError:
+        raise InputError("tier", name, f"must be one of {', '.join(TIER_CHOICES)}") from None
+
+
+@dataclass(frozen=True)
+class Needs:
+    """What a scene asks of the simulation: which outputs, to what relative tolerance."""
+
+    outputs: frozenset[str] = frozenset(OUTPUTS)
+    tolerance: float = 0.01
+
+    @classmethod
+    def of(cls, outputs: Iterable[str], tolerance: float) -> Needs:
+        """Validated needs (InputError naming the field)."""
+        chosen = frozenset(outputs)
+        unknown = sorted(chosen - set(OUTPUTS))
+        if unknown or not chosen:
+            raise InputError("fidelity.outputs", sorted(chosen), f"must be a non-empty subset of {', '.join(OUTPUTS)}")
+        return cls(chosen, require_range("fidelity.tolerance", tolerance, 0.0, 1.0, low_open=True))
+
+
+@dataclass(frozen=True)
+class FidelitySettings:
+    """The ``fidelity`` and ``modes`` parameter sections: default tier and needs, bending modes,
+    and the confinement factor of the crushing contact (dimensionless)."""
+
+    tier: str
+    needs: Needs
+    modes: tuple[BendingMode, ...]
+    crushing_confinement_factor: float
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> FidelitySettings:
+        section = params.get("fidelity") or {}
+        if not isinstance(section, Mapping):
+            raise InputError("fidelity", section, "must be a parameter section")
+        tier = section.get("tier", "auto")
+        if tier not in TIER_CHOICES:
+            raise InputError("fidelity.tier", tier, f"must be one of {', '.join(TIER_CHOICES)}")
+        return cls(
+            tier=tier,
+            needs=Needs.of(section.get("outputs", OUTPUTS), section.get("tolerance", 0.01)),
+            modes=load_bending_modes(params),
+            crushing_confinement_factor=require_range(
+                "fidelity.crushing_confinement_factor", section.get("crushing_confinement_factor", 3.0), 0.0, 100.0, low_open=True
+            ),
+        )
+
+
+@lru_cache(maxsize=1)
+def shipped_settings() -> FidelitySettings:
+    """The settings of the shipped config/ files (read once)."""
+    return FidelitySettings.from_params(load_parameters())
+
+
+_STRUCTURES: dict[tuple[Support, int, bool], tuple[Sequence[BendingMode], LinearStructure]] = {}
+STRUCTURE_CACHE_SIZE = 64
+
+
+def structure_for(tier: Tier, support: Support, modes: Sequence[BendingMode]) -> LinearStructure:
+    """The linear structure ``tier`` uses on ``support`` (built once per support and mode set:
+    its eigen-decomposition is the costly part)."""
+    key = (support, id(modes), tier.bending_modes)
+    cached = _STRUCTURES.get(key)
+    if cached is not None and cached[0] is modes:
+        return cached[1]
+    structure = beam_with_modes(support, modes) if tier.bending_modes else rigid_beam(support)
+    if len(_STRUCTURES) >= STRUCTURE_CACHE_SIZE:
+        _STRUCTURES.clear()
+    _STRUCTURES[key] = (modes, structure)  # holding ``modes`` keeps its id from being reused
+    return structure
+
+
+@dataclass
+class Plan:
+    """The tier chosen for a scene: its structure, solver and options, its estimated model error
+    (and every tier's), and the tier above it to check it against (None at the top)."""
+
+    tier: Tier
+    structure: LinearStructure
+    solver: str
+    solver_options: dict[str, Any]
+    model_error: float
+    estimates: dict[str, float] = field(default_factory=dict)
+    check_against: str | None = None
+
+
+def plan(scene: Scene, tier: str, needs: Needs, settings: FidelitySettings) -> Plan:
+    """Choose (``tier='auto'``) or take the tier, with its structure, solver and options and the
+    error estimates."""
+    estimates = model_errors(scene, needs, settings.modes)
+    if tier == "auto":
+        name = next((t for t in ACCURACY_LADDER if estimates[t] <= needs.tolerance), ACCURACY_LADDER[-1])
+    else:
+        name = get_tier(tier).name
+    chosen = TIERS[name]
+    return Plan(
+        tier=chosen,
+        structure=structure_for(chosen, scene.support, settings.modes),
+        solver=chosen.default_solver,
+        solver_options=chosen.solver_options(needs),
+        model_error=estimates.get(name, 0.0),
+        estimates=estimates,
+        check_against=next_tier_up(name),
+    )
+
+
+def model_errors(scene: Scene, needs: Needs, modes: Sequence[BendingMode]) -> dict[str, float]:
+    """Estimated relative error of each tier of the accuracy ladder against the richest (module docstring)."""
+    support, impact = scene.support, scene.impact
+    rigid = structure_for(TIERS["rigid"], support, modes)
+    modal = structure_for(TIERS["modal"], support, modes)
+    shape_rigid = rigid.contact_shape(impact.position_m)
+    shape_modal = modal.contact_shape(impact.position_m)
+    c_rigid = rigid.contact_compliance(shape_rigid)  # 1/kg; 0 over the hinge
+    c_modal = modal.contact_compliance(shape_modal)
+    mass = impact.mass_kg
+    reduced = reduced_mass_kg(mass, c_rigid)
+    chi = damping_factor(scene.contact_model, impact.restitution)
+    stiffness = hertz_stiffness(impact.material, support.plate, impact.radius_m)
+    pulse = contact_pulse(min(chi, 40.0), stiffness, reduced, impact.impact_speed_mps)
+    width = pulse.width_s
+    duration = pulse.duration_s
+    gravity = support.gravity_mps2 * duration / impact.impact_speed_mps
+    waveform = needs.outputs & set(WAVEFORM_OUTPUTS)
+    omega_rigid = 2 * math.pi * float(rigid.natural_frequencies_hz().max())
+    impulse_step = max(gravity, (omega_rigid * width) ** 2 / 2 if waveform else 0.0)
+    restitution = max(pulse.separation_mps / impact.impact_speed_mps, 1e-3)
+    rebound_step = (1 + restitution) / restitution * abs(reduced_mass_kg(1.0, mass * c_modal) - reduced_mass_kg(1.0, mass * c_rigid))
+    rigid_step = rebound_step if needs.outputs & {"rebound", "contact"} else 0.0
+    if waveform and modes:
+        rigid_step = max(rigid_step, SAMPLED_MARGIN * _sampled_difference(scene, rigid, modal, waveform))
+    return {"impulse": impulse_step + rigid_step, "rigid": rigid_step, "modal": 0.0, "brittle": 0.0}
+
+
+def _sampled_difference(scene: Scene, rigid: LinearStructure, modal: LinearStructure, outputs: set[str]) -> float:
+    """Relative L2 difference of the two structures' impulse responses as the sensors sample them,
+    the worst over where the impulse falls within a sample period (PHASES, evaluated together)."""
+    spec, x = scene.sensors, scene.impact.position_m
+    worst = 0.0
+    for output in outputs:
+        rate = spec.pressure_rate_hz if output == "pressure" else spec.imu_rate_hz
+        count = int(scene.window_s * rate)
+        times = ((np.arange(1, count + 1)[None, :] - np.array(PHASES)[:, None]) / rate).ravel()  # (phases x samples)
+        signals = []
+        for structure in (rigid, modal):
+            qd0 = structure.inv_mass @ structure.contact_shape(x)
+            zero = np.zeros(structure.size)
+            q, qd = structure.propagate(zero, qd0, times)
+            if output == "pressure":
+                signals.append(structure.pressure_pa(q, qd) - structure.setting_pressure_pa)
+            else:
+                early = times < 1.0 / rate  # the beam is at rest before the impulse
+                before_q, before_qd = structure.propagate(zero, qd0, np.maximum(times - 1.0 / rate, 0.0))
+                before_q[:, early], before_qd[:, early] = 0.0, 0.0
+                signals.append(np.stack([structure.imu_shape @ (qd - before_qd), structure.imu_slope_shape @ (q - before_q)]) * rate)
+        lower, upper = (signal.reshape(-1, len(PHASES), count) for signal in signals)
+        reference = np.sqrt((upper**2).sum(axis=(0, 2)))
+        difference = np.sqrt(((upper - lower) ** 2).sum(axis=(0, 2)))
+        worst = max(worst, float(np.max(np.where(reference > 0, difference / np.where(reference > 0, reference, 1.0), 0.0))))
+    return worst
+
+
+def next_tier_up(name: str) -> str | None:
+    """The tier above ``name`` on the accuracy ladder (None at the top)."""
+    if name in ACCURACY_LADDER[:-1]:
+        return ACCURACY_LADDER[ACCURACY_LADDER.index(name) + 1]
+    return None

@@ -1,0 +1,148 @@
+"""Start-up scenarios of the simulator: a YAML list of impacts, or a generated caving stream.
+
+A scenario is a list of :class:`PlannedImpact`: an ``impact_cmd`` JSON object and, when the
+scenario fixes it, the contact stamp (s of simulation time) it asks for. Every impact is
+validated here, so a bad scenario fails at start-up with the field named.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from tail_beam_sim.config import default_config_dir
+from tail_beam_sim.errors import InputError, require_int, require_range
+from tail_beam_sim.physics.materials import Material
+from tail_beam_sim.physics.scene import Impact
+from tail_beam_sim.physics.support import Support
+
+SOURCES = ("none", "file", "generated")
+MAX_GENERATED = 100_000
+
+
+@dataclass(frozen=True)
+class PlannedImpact:
+    """One impact of a scenario: its command and the contact stamp it asks for (s, or None)."""
+
+    command: dict[str, Any]
+    contact_stamp_s: float | None = None
+
+
+def load_scenario(params: Mapping[str, Any], materials: Mapping[str, Material], support: Support) -> list[PlannedImpact]:
+    """The scenario the ``scenario`` parameter section describes (validated)."""
+    source = params.get("source", "none")
+    if source not in SOURCES:
+        raise InputError("scenario.source", source, f"must be one of {', '.join(SOURCES)}")
+    if source == "none":
+        return []
+    if source == "file":
+        planned = read_scenario_file(params.get("file", ""))
+    else:
+        planned = generate_caving_stream(params, materials, support)
+    seen: set[str] = set()
+    for index, item in enumerate(planned):
+        impact = Impact.from_mapping(item.command, materials, support, prefix=f"scenario[{index}].")
+        if impact.impact_id in seen:
+            raise InputError(f"scenario[{index}].impact_id", impact.impact_id, "is used twice in the scenario; each impact_id names one impact")
+        seen.add(impact.impact_id or f"\0{index}")
+    return planned
+
+
+def resolve_scenario_file(path: str | os.PathLike[str]) -> Path:
+    """A scenario file: as given (absolute, or relative to the working directory), else the
+    file of that name in the shipped config directory (``scenario.file:=impacts.yaml``)."""
+    given = Path(path)
+    if given.is_absolute() or given.exists():
+        return given
+    shipped = default_config_dir() / given
+    return shipped if shipped.exists() else given
+
+
+def read_scenario_file(path: str | os.PathLike[str]) -> list[PlannedImpact]:
+    """Impacts from a YAML file: a list (or ``{impacts: [...]}``) of impact_cmd objects.
+
+    An item may hold ``contact_stamp_s``, the contact time it asks for, s. A relative path is
+    looked for in the working directory, then in the shipped config directory.
+    """
+    if not path:
+        raise InputError("scenario.file", path, "must name a YAML file when scenario.source is file")
+    try:
+        data = yaml.safe_load(resolve_scenario_file(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise InputError("scenario.file", str(path), f"must be a readable file ({exc.strerror})") from None
+    except yaml.YAMLError as exc:
+        raise InputError("scenario.file", str(path), f"must be valid YAML ({str(exc).splitlines()[0]})") from None
+    if isinstance(data, Mapping):
+        data = data.get("impacts")
+    if not isinstance(data, list):
+        raise InputError("scenario.file", str(path), "must hold a list of impacts (or impacts: [...])")
+    planned = []
+    for index, item in enumerate(data):
+        if not isinstance(item, Mapping):
+            raise InputError(f"scenario[{index}]", item, "must be a mapping of impact fields")
+        command = dict(item)
+        stamp = command.pop("contact_stamp_s", None)
+        if stamp is not None:
+            stamp = require_range(f"scenario[{index}].contact_stamp_s", stamp, 0.0, None, unit="s")
+        planned.append(PlannedImpact(command, stamp))
+    return planned
+
+
+def _range(params: Mapping[str, Any], name: str, low: float, high: float | None, unit: str) -> tuple[float, float]:
+    value = params.get(name)
+    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 2:
+        raise InputError(f"scenario.{name}", value, f"must be [low, high] in {unit}")
+    lo = require_range(f"scenario.{name}[0]", value[0], low, high, low_open=True, unit=unit)
+    hi = require_range(f"scenario.{name}[1]", value[1], lo, high, unit=unit)
+    return lo, hi
+
+
+def generate_caving_stream(params: Mapping[str, Any], materials: Mapping[str, Material], support: Support | None = None) -> list[PlannedImpact]:
+    """A seeded stream of falling coal and gangue particles.
+
+    Exactly ``round(count * gangue_fraction)`` particles are gangue, in shuffled order; each
+    gangue particle is one of the config's gangue materials, chosen uniformly. Radius, drop
+    height and position are uniform in their ranges, restitution uniform in the material's
+    ``restitution_range``, the time between contacts uniform in ``interval_s``. The support,
+    when given, bounds the ranges (every impact is validated against it by :func:`load_scenario`).
+    """
+    count = params.get("count")
+    require_int("scenario.count", count, 0, MAX_GENERATED)
+    seed = params.get("seed", 0)
+    require_int("scenario.seed", seed, 0)
+    fraction = require_range("scenario.gangue_fraction", params.get("gangue_fraction"), 0.0, 1.0)
+    radius = _range(params, "radius_m", 0.0, support.particle_radius_max_m if support else None, "m")
+    height = _range(params, "drop_height_m", 0.0, support.drop_height_max_m if support else None, "m")
+    position = _range(params, "position_m", 0.0, None, "m")
+    interval = _range(params, "interval_s", 0.0, 3600.0, "s")
+    start = require_range("scenario.start_s", params.get("start_s", 0.0), 0.0, None, unit="s")
+    coal = sorted(name for name, m in materials.items() if m.material_class == "coal")
+    gangue = sorted(name for name, m in materials.items() if m.material_class == "gangue")
+    if (fraction < 1.0 and not coal) or (fraction > 0.0 and not gangue):
+        raise InputError("scenario.gangue_fraction", fraction, "needs coal and gangue materials in the config")
+    rng = np.random.default_rng(seed)
+    is_gangue = np.zeros(count, dtype=bool)
+    is_gangue[: int(round(count * fraction))] = True
+    rng.shuffle(is_gangue)
+    planned = []
+    stamp = start
+    for index, gangue_particle in enumerate(is_gangue):
+        names = gangue if gangue_particle else coal
+        material = materials[names[int(rng.integers(len(names)))]]
+        command = {
+            "material": material.name,
+            "radius_m": float(rng.uniform(*radius)),
+            "drop_height_m": float(rng.uniform(*height)),
+            "position_m": float(rng.uniform(*position)),
+            "restitution": float(rng.uniform(*material.restitution_range)),
+            "impact_id": f"caving-{index:04d}",
+        }
+        planned.append(PlannedImpact(command, stamp))
+        stamp += float(rng.uniform(*interval))
+    return planned

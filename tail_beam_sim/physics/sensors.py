@@ -1,0 +1,391 @@
+"""What the support's sensors report, from a trajectory: noise-free signals and sampled streams.
+
+* Jack pressure: the piston chamber's absolute pressure, point-sampled, clipped to the
+  transducer's range (a saturated transducer reads its limit).
+* IMU on the beam: angular velocity about y and specific force (acceleration minus gravity,
+  so a plate at rest reads +g along z). Each sample is the mean over its sample period, as an
+  integrating, alias-free accelerometer gives: a pulse shorter than a sample shows as its
+  impulse, not as a spike caught by chance.
+* Camera: the particle's velocity as it last leaves the plate, stamped at the first frame
+  at or after separation.
+* Tail-beam accelerometer (``vibration``): specific force along the plate normal at the IMU's
+  place, m/s^2, sampled at 1-100 kHz behind an anti-alias filter: the beam's response is
+  computed ``oversample`` times per sample (each dense value the exact mean over its dense
+  period, from the velocity change), low-passed by a Butterworth filter
+  (:class:`AntiAliasFilter`, its state carried from chunk to chunk) and decimated; then white
+  noise of the sensor's density over the filter's band, and clipping to the measuring range
+  (a saturated sample reads its limit and is flagged). Samples travel in blocks
+  (:class:`VibrationBlocks`) numbered by the running index of their first sample, so that a
+  consumer detects a lost or late block from the index (:class:`BlockSequencer`).
+
+Noise is Gaussian. :class:`SensorNoise` is the one sampling path from a clean signal to a
+reading (noise level, clipping) for every producer: the offline suite here (a generator per
+sensor, so changing one rate leaves the others' noise alone), the stream (noise indexed by
+sample number, so chunking never changes it) and the batch (float32 draws). They differ only in
+where their unit normal draws come from.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scipy import signal
+
+from tail_beam_sim.physics.scene import SensorSpec
+from tail_beam_sim.physics.solvers.problem import Samples, Trajectory
+
+
+@dataclass
+class PressureStream:
+    """Jack pressure samples: stamps (s, simulation time) and absolute pressure (Pa)."""
+
+    stamp_s: np.ndarray
+    pressure_pa: np.ndarray
+    variance_pa2: float
+
+
+@dataclass
+class ImuStream:
+    """IMU samples: stamps (s), angular velocity (rad/s, T x 3), specific force (m/s^2, T x 3)."""
+
+    stamp_s: np.ndarray
+    angular_velocity_radps: np.ndarray
+    linear_acceleration_mps2: np.ndarray
+    gyro_variance: float
+    accel_variance: float
+
+
+@dataclass
+class Rebound:
+    """The camera's rebound measurement: stamp (s) and velocity in the plate frame (m/s)."""
+
+    stamp_s: float
+    velocity_mps: np.ndarray  # (x along the beam, y, z along the outward normal)
+    true_velocity_mps: np.ndarray
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """The sensors' noise levels (1 sigma) and how a reading is made of a clean signal and unit
+    normal draws: pressure (Pa, clipped to the transducer's range), gyro (rad/s) and
+    accelerometer (m/s^2), both scaled by the IMU's rate (``imu_noise_scale``)."""
+
+    pressure_pa: float
+    gyro_radps: float
+    accel_mps2: float
+    pressure_range_pa: tuple[float, float]
+
+    @classmethod
+    def of(cls, spec: SensorSpec) -> SensorNoise:
+        return cls(
+            pressure_pa=spec.pressure_noise_pa,
+            gyro_radps=spec.imu_gyro_noise_radps * spec.imu_noise_scale,
+            accel_mps2=spec.imu_accel_noise_mps2 * spec.imu_noise_scale,
+            pressure_range_pa=(spec.pressure_range_min_pa, spec.pressure_range_max_pa),
+        )
+
+    def pressure(self, clean_pa: np.ndarray, unit: np.ndarray) -> np.ndarray:
+        """Pressure readings, Pa: a saturated transducer reads its limit."""
+        return np.clip(clean_pa + self.pressure_pa * unit, *self.pressure_range_pa)
+
+    def gyro(self, clean_radps: np.ndarray, unit: np.ndarray) -> np.ndarray:
+        """Angular velocity readings, rad/s."""
+        return clean_radps + self.gyro_radps * unit
+
+    def accel(self, clean_mps2: np.ndarray, unit: np.ndarray) -> np.ndarray:
+        """Specific force readings, m/s^2."""
+        return clean_mps2 + self.accel_mps2 * unit
+
+
+def specific_force_z(trajectory: Trajectory, samples: Samples) -> np.ndarray:
+    """Noise-free, instantaneous specific force along the plate normal at the IMU, m/s^2."""
+    structure = trajectory.problem.structure
+    angle = structure.imu_slope_shape @ samples.q
+    return structure.gravity_mps2 * np.cos(angle) - structure.imu_shape @ samples.qdd
+
+
+def imu_samples(trajectory: Trajectory, t_s: np.ndarray, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Noise-free IMU readings averaged over (t - period, t]: gyro (T x 3), accel (T x 3)."""
+    structure = trajectory.problem.structure
+    now = trajectory.sample(t_s)
+    before = trajectory.sample(t_s - period_s)
+    slope, imu = structure.imu_slope_shape, structure.imu_shape
+    angle = slope @ now.q
+    gyro = np.zeros((t_s.size, 3))
+    gyro[:, 1] = slope @ (now.q - before.q) / period_s
+    accel = np.zeros((t_s.size, 3))
+    rate = slope @ now.qd
+    g = structure.gravity_mps2
+    accel[:, 0] = -structure.imu_from_hinge_m * rate**2 - g * np.sin(angle)
+    accel[:, 2] = g * np.cos(angle) - imu @ (now.qd - before.qd) / period_s
+    return gyro, accel
+
+
+def sample_grid(start_s: float, end_s: float, rate_hz: float) -> np.ndarray:
+    """Sample instants k / rate_hz of the absolute clock that fall in [start_s, end_s]."""
+    first = math.ceil(start_s * rate_hz - 1e-9)
+    last = math.floor(end_s * rate_hz + 1e-9)
+    return np.arange(first, last + 1) / rate_hz
+
+
+class SensorSuite:
+    """Samples a trajectory the way the support's sensors would, with seeded noise."""
+
+    def __init__(self, spec: SensorSpec, seed: int | None = None) -> None:
+        self.spec = spec
+        self.noise = SensorNoise.of(spec)
+        children = np.random.SeedSequence(spec.seed if seed is None else seed).spawn(5)  # [3] is simulate()'s contact phase
+        pressure, imu, camera, vibration = children[0], children[1], children[2], children[4]
+        self._vibration_rng = np.random.default_rng(vibration)
+        self._pressure_rng = np.random.default_rng(pressure)
+        self._imu_rng = np.random.default_rng(imu)
+        self._camera_rng = np.random.default_rng(camera)
+
+    def pressure(self, trajectory: Trajectory, stamp_s: np.ndarray, contact_stamp_s: float) -> PressureStream:
+        """Pressure samples at absolute stamps; the trajectory's t = 0 is ``contact_stamp_s``."""
+        noise = self.noise
+        state = trajectory.sample(stamp_s - contact_stamp_s)
+        clean = trajectory.problem.structure.pressure_pa(state.q, state.qd)
+        noisy = noise.pressure(clean, self._pressure_rng.standard_normal(stamp_s.size))
+        return PressureStream(stamp_s, noisy, noise.pressure_pa**2)
+
+    def imu(self, trajectory: Trajectory, stamp_s: np.ndarray, contact_stamp_s: float) -> ImuStream:
+        """IMU samples at absolute stamps, each averaged over its sample period."""
+        noise = self.noise
+        gyro, accel = imu_samples(trajectory, stamp_s - contact_stamp_s, 1.0 / self.spec.imu_rate_hz)
+        gyro = noise.gyro(gyro, self._imu_rng.standard_normal(gyro.shape))
+        accel = noise.accel(accel, self._imu_rng.standard_normal(accel.shape))
+        return ImuStream(stamp_s, gyro, accel, noise.gyro_radps**2, noise.accel_mps2**2)
+
+    def vibration(self, trajectory: Trajectory, end_s: float, contact_stamp_s: float) -> VibrationBlocks:
+        """The accelerometer's complete blocks from stamp 0 to ``end_s`` (the trajectory's t = 0
+        is ``contact_stamp_s``): dense response, anti-alias filter, noise, clipping."""
+        spec = self.spec
+        dense_rate = spec.vibration_oversample * spec.vibration_rate_hz
+        stamps = np.arange(math.floor(end_s * dense_rate + 1e-9) + 1) / dense_rate
+        dense = mean_specific_force_z(trajectory, stamps - contact_stamp_s, 1.0 / dense_rate)
+        aa = AntiAliasFilter(spec.vibration_rate_hz, spec.vibration_antialias_order, spec.vibration_antialias_cutoff_fraction,
+                             spec.vibration_oversample)
+        clean = aa(dense)[:: spec.vibration_oversample]
+        noisy = clean + self._vibration_rng.normal(0.0, spec.vibration_noise_mps2, clean.size)
+        blocks, _ = cut_blocks(np.clip(noisy, -spec.vibration_range_mps2, spec.vibration_range_mps2), 0, spec)
+        return blocks
+
+    def rebound(self, trajectory: Trajectory, contact_stamp_s: float) -> Rebound:
+        """The camera's view of the particle leaving the plate for the last time."""
+        spec = self.spec
+        true = np.array([0.0, 0.0, trajectory.rebound_velocity_mps])
+        sigma = spec.camera_velocity_noise_mps + spec.camera_velocity_noise_fraction * abs(true[2])
+        measured = true + self._camera_rng.normal(0.0, sigma, 3) * np.array([1.0, 0.0, 1.0])
+        separation = contact_stamp_s + trajectory.final_separation_s
+        stamp = math.ceil(separation * spec.camera_frame_rate_hz - 1e-9) / spec.camera_frame_rate_hz
+        return Rebound(stamp, measured, true)
+
+
+def mean_specific_force_z(trajectory: Trajectory, t_s: np.ndarray, period_s: float) -> np.ndarray:
+    """Noise-free specific force along the plate normal at the IMU's place, each value the exact
+    mean over (t - period, t] (from the velocity change), m/s^2; ``t_s`` in the trajectory's time."""
+    structure = trajectory.problem.structure
+    now = trajectory.sample(t_s)
+    before = trajectory.sample(t_s - period_s)
+    angle = structure.imu_slope_shape @ now.q
+    return structure.gravity_mps2 * np.cos(angle) - structure.imu_shape @ (now.qd - before.qd) / period_s
+
+
+class AntiAliasFilter:
+    """The accelerometer's anti-alias low-pass: a Butterworth filter (``order``, cut-off
+    ``cutoff_fraction`` x ``rate_hz``) run on the densely computed response (``oversample`` x
+    ``rate_hz``), then every ``oversample``-th value kept. The state is carried between calls,
+    so the output is the same however the dense signal is split."""
+
+    def __init__(self, rate_hz: float, order: int, cutoff_fraction: float, oversample: int) -> None:
+        self.oversample = oversample
+        self._sos = signal.butter(order, cutoff_fraction * rate_hz, btype="low", fs=oversample * rate_hz, output="sos")
+        self._zi: np.ndarray | None = None
+
+    def __call__(self, dense: np.ndarray) -> np.ndarray:
+        """Filter dense values (in order, continuing the previous call); returns them all filtered."""
+        if dense.size == 0:
+            return dense.copy()
+        if self._zi is None:  # start settled on the first value (the beam at rest reads +g)
+            self._zi = signal.sosfilt_zi(self._sos) * dense[0]
+        out, self._zi = signal.sosfilt(self._sos, dense, zi=self._zi)
+        return out
+
+
+@dataclass
+class VibrationBlocks:
+    """Blocks of accelerometer samples (topic ``vibration``; docs/interface.md).
+
+    Block ``b`` holds samples ``first_index[b] .. first_index[b] + lengths[b] - 1`` of the
+    sensor's running sample count; ``accel_mps2`` holds all samples of all blocks, block after
+    block (float32, specific force along z, m/s^2). ``stamp_s[b]`` is the stamp of the block's
+    first sample and ``period_s`` the sample period, so sample ``j`` of block ``b`` is at
+    ``stamp_s[b] + j * period_s``. A sample at +-``range_mps2`` is saturated (clipped).
+    """
+
+    first_index: np.ndarray  # (B,) int64
+    lengths: np.ndarray  # (B,) int64
+    stamp_s: np.ndarray  # (B,) s
+    accel_mps2: np.ndarray  # (sum of lengths,) float32
+    period_s: float
+    range_mps2: float
+    noise_variance: float = 0.0  # (m/s^2)^2 per sample
+
+    @classmethod
+    def empty(cls, period_s: float = 0.0, range_mps2: float = math.inf) -> VibrationBlocks:
+        none = np.empty(0, dtype=np.int64)
+        return cls(none, none.copy(), np.empty(0), np.empty(0, dtype=np.float32), period_s, range_mps2)
+
+    @property
+    def count(self) -> int:
+        """Number of blocks."""
+        return int(self.first_index.size)
+
+    @property
+    def sample_count(self) -> int:
+        return int(self.accel_mps2.size)
+
+    def offsets(self) -> np.ndarray:
+        """Where each block starts in ``accel_mps2`` (B + 1 edges)."""
+        return np.concatenate([[0], np.cumsum(self.lengths)]).astype(np.int64)
+
+    def block(self, b: int) -> tuple[int, float, np.ndarray]:
+        """(first index, stamp s, samples) of block ``b``."""
+        edges = self.offsets()
+        return int(self.first_index[b]), float(self.stamp_s[b]), self.accel_mps2[edges[b] : edges[b + 1]]
+
+    def sample_stamps_s(self) -> np.ndarray:
+        """The stamp of every sample, s: each block's stamp plus j sample periods."""
+        within = np.arange(self.sample_count) - np.repeat(self.offsets()[:-1], self.lengths)
+        return np.repeat(self.stamp_s, self.lengths) + within * self.period_s
+
+    def saturated(self) -> np.ndarray:
+        """Whether each sample reads the measuring range's limit (clipped)."""
+        return np.abs(self.accel_mps2) >= np.float32(self.range_mps2)
+
+    def select(self, keep: np.ndarray) -> VibrationBlocks:
+        """The blocks where ``keep`` (B,) is true, in their order."""
+        keep = np.asarray(keep, dtype=bool)
+        sample_keep = np.repeat(keep, self.lengths)
+        return VibrationBlocks(self.first_index[keep], self.lengths[keep], self.stamp_s[keep], self.accel_mps2[sample_keep],
+                               self.period_s, self.range_mps2, self.noise_variance)
+
+    def sorted(self) -> VibrationBlocks:
+        """The same blocks in running-index order, each index once (a repeated block dropped)."""
+        if not self.count:
+            return self
+        order = np.argsort(self.first_index, kind="stable")
+        _, first = np.unique(self.first_index[order], return_index=True)
+        return self.take(order[first])
+
+    def take(self, order: np.ndarray) -> VibrationBlocks:
+        """The blocks at positions ``order``, in that order."""
+        edges = self.offsets()
+        pieces = [self.accel_mps2[edges[b] : edges[b + 1]] for b in order]
+        samples = np.concatenate(pieces) if pieces else np.empty(0, dtype=np.float32)
+        return VibrationBlocks(self.first_index[order], self.lengths[order], self.stamp_s[order], samples,
+                               self.period_s, self.range_mps2, self.noise_variance)
+
+    @staticmethod
+    def concatenate(parts: list[VibrationBlocks]) -> VibrationBlocks:
+        """The blocks of ``parts`` one after another (period and range of the first non-empty part)."""
+        parts = [p for p in parts if p.count]
+        if not parts:
+            return VibrationBlocks.empty()
+        head = parts[0]
+        return VibrationBlocks(
+            np.concatenate([p.first_index for p in parts]), np.concatenate([p.lengths for p in parts]),
+            np.concatenate([p.stamp_s for p in parts]), np.concatenate([p.accel_mps2 for p in parts]),
+            head.period_s, head.range_mps2, head.noise_variance,
+        )
+
+
+def cut_blocks(samples: np.ndarray, first_index: int, spec: SensorSpec) -> tuple[VibrationBlocks, np.ndarray]:
+    """Samples ``first_index ..`` (clipped, m/s^2) cut into the sensor's blocks: block b holds
+    indices b*N .. b*N+N-1 (N = ``vibration_block_samples``). Returns the complete blocks and
+    the samples left over (the start of the next block). ``first_index`` is a block's start."""
+    n = spec.vibration_block_samples
+    whole = samples.size // n * n
+    starts = first_index + n * np.arange(whole // n, dtype=np.int64)
+    blocks = VibrationBlocks(
+        starts, np.full(starts.size, n, dtype=np.int64), starts / spec.vibration_rate_hz,
+        np.asarray(samples[:whole], dtype=np.float32), 1.0 / spec.vibration_rate_hz, spec.vibration_range_mps2,
+        spec.vibration_noise_mps2**2,
+    )
+    return blocks, np.asarray(samples[whole:], dtype=np.float32)
+
+
+@dataclass
+class SequenceReport:
+    """What :class:`BlockSequencer` found in the blocks it was given."""
+
+    accepted: VibrationBlocks  # the blocks to use, in index order
+    gaps: list[tuple[int, int]]  # (first missing index, missing sample count), in order
+    late: int  # blocks refused: they came after a later block was accepted (or repeated one)
+
+
+class BlockSequencer:
+    """Keeps a block stream in running-index order and counts what is missing.
+
+    Each call takes the blocks that arrived since the last one; it sorts them by index (a block
+    late within one call is put back in order), accepts those that continue the stream, reports
+    every jump in the index as a gap (samples lost), and refuses a block whose index is behind
+    what was already accepted (late past a later block, or a repeat) with a count. Totals are
+    kept in ``lost_samples``, ``lost_blocks`` (gaps) and ``late_blocks``.
+    """
+
+    def __init__(self) -> None:
+        self.next_index: int | None = None
+        self.lost_samples = 0
+        self.gap_count = 0
+        self.late_blocks = 0
+        self.accepted_samples = 0
+
+    def push(self, blocks: VibrationBlocks) -> SequenceReport:
+        ordered = blocks.sorted()
+        refused_repeats = blocks.count - ordered.count
+        keep = np.ones(ordered.count, dtype=bool)
+        gaps: list[tuple[int, int]] = []
+        expected = self.next_index
+        for b in range(ordered.count):
+            first, length = int(ordered.first_index[b]), int(ordered.lengths[b])
+            if expected is not None and first < expected:
+                keep[b] = False
+                continue
+            if expected is not None and first > expected:
+                gaps.append((expected, first - expected))
+            expected = first + length
+        late = refused_repeats + int((~keep).sum())
+        accepted = ordered.select(keep)
+        self.next_index = expected
+        self.lost_samples += sum(n for _, n in gaps)
+        self.gap_count += len(gaps)
+        self.late_blocks += late
+        self.accepted_samples += accepted.sample_count
+        return SequenceReport(accepted, gaps, late)
+
+
+class IndexSpan:
+    """Counts the samples missing from a block stream whatever the order blocks come in: the
+    span from the lowest first index to the highest end, less the samples received (a recorder
+    writes every block it gets, late ones included, so only a block never received is lost)."""
+
+    def __init__(self) -> None:
+        self.first: int | None = None
+        self.end: int | None = None
+        self.samples = 0
+        self.blocks = 0
+
+    def add(self, first_index: int, length: int) -> None:
+        self.first = first_index if self.first is None else min(self.first, first_index)
+        self.end = first_index + length if self.end is None else max(self.end, first_index + length)
+        self.samples += length
+        self.blocks += 1
+
+    @property
+    def lost_samples(self) -> int:
+        return 0 if self.first is None or self.end is None else max(self.end - self.first - self.samples, 0)

@@ -1,0 +1,185 @@
+"""Offline simulation of one scene: plan, build, solve, sensors, compare.
+
+``simulate(scene)`` is the one entry point the command line, the nodes' tests and the
+benchmarks share. It runs five plain steps, each typed: :func:`~tail_beam_sim.physics.fidelity.plan`
+(tier, structure, solver), :func:`build_problem`, :func:`~tail_beam_sim.physics.solvers.solve`,
+:func:`sense` (histories, sensor streams, summary) and, on request,
+:func:`~tail_beam_sim.physics.compare.compare` against the next tier up. Its
+:class:`~tail_beam_sim.physics.result.SimulationResult` holds the noise-free histories (time
+from first contact), the sensor streams (absolute simulation time, as the ROS topics stamp
+them) and a summary.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from tail_beam_sim.physics.compare import compare
+from tail_beam_sim.physics.contact import CrushingContact, damping_factor, effective_modulus_pa, hertz_stiffness
+from tail_beam_sim.physics.fidelity import DEFAULT_TIER, FidelitySettings, Needs, plan, shipped_settings
+from tail_beam_sim.physics.result import SimulationResult
+from tail_beam_sim.physics.scene import Impact, Scene
+from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, SensorSuite, VibrationBlocks, sample_grid, specific_force_z
+from tail_beam_sim.physics.solvers import ImpactProblem, Trajectory, solve
+from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
+from tail_beam_sim.physics.support import Support
+
+__all__ = ["HISTORY_RATE_HZ", "SimulationResult", "build_problem", "crushing_contact", "histories", "sense", "simulate", "summarise"]
+
+HISTORY_RATE_HZ = 20000.0
+
+
+def build_problem(
+    support: Support,
+    impact: Impact,
+    contact_model: str,
+    window_s: float,
+    structure: LinearStructure | None = None,
+    q0: np.ndarray | None = None,
+    qd0: np.ndarray | None = None,
+    crushing: CrushingContact | None = None,
+) -> ImpactProblem:
+    """Assemble the impact problem of ``impact`` on ``support`` (rigid beam by default;
+    ``crushing`` replaces the hysteresis law by the brittle contact)."""
+    structure = structure or rigid_beam(support)
+    n = structure.size
+    return ImpactProblem(
+        structure=structure,
+        contact_shape=structure.contact_shape(impact.position_m),
+        mass_kg=impact.mass_kg,
+        hertz_stiffness=hertz_stiffness(impact.material, support.plate, impact.radius_m),
+        damping_factor=damping_factor(contact_model, impact.restitution),
+        impact_speed_mps=impact.impact_speed_mps,
+        gravity_mps2=support.gravity_mps2,
+        window_s=window_s,
+        q0=np.zeros(n) if q0 is None else np.asarray(q0, dtype=float),
+        qd0=np.zeros(n) if qd0 is None else np.asarray(qd0, dtype=float),
+        crushing=crushing,
+    )
+
+
+def summarise(scene: Scene, trajectory: Trajectory, history: dict[str, np.ndarray]) -> dict[str, Any]:
+    """The noise-free figures of an impact (the keys of ``tail-beam simulate --json``)."""
+    impact = scene.impact
+    after = history["time_s"] >= 0.0
+    rebound = trajectory.rebound_velocity_mps
+    return {
+        "material": impact.material.name,
+        "radius_m": impact.radius_m,
+        "mass_kg": impact.mass_kg,
+        "position_m": impact.position_m,
+        "drop_height_m": impact.drop_height_m,
+        "impact_speed_mps": impact.impact_speed_mps,
+        "rebound_speed_mps": max(rebound, 0.0),
+        "restitution": max(rebound, 0.0) / impact.impact_speed_mps,
+        "contact_duration_s": trajectory.contacts[0].duration_s,
+        "peak_contact_force_n": max(c.peak_force_n for c in trajectory.contacts),
+        "peak_jack_pressure_change_pa": float(np.max(history["jack_pressure_pa"][after]) - scene.support.setting_pressure_pa),
+        "peak_beam_angular_velocity_radps": float(np.max(np.abs(history["beam_angular_velocity_radps"][after]))),
+        "peak_imu_dynamic_accel_mps2": float(np.max(np.abs(history["imu_dynamic_accel_mps2"][after]))),
+        "n_contacts": len(trajectory.contacts),
+        "particle_at_rest": trajectory.particle_at_rest,
+        "contact_model": scene.contact_model,
+        "solver": trajectory.solver,
+        "window_s": scene.window_s,
+    }
+
+
+def histories(scene: Scene, trajectory: Trajectory) -> dict[str, np.ndarray]:
+    """Noise-free response histories from -pre_contact_s to window_s, time from first contact."""
+    uniform = np.arange(-scene.pre_contact_s, scene.window_s + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ)
+    contact_times = np.concatenate([np.empty(0)] + [seg.t_s for seg in trajectory.segments if hasattr(seg, "force_n")])
+    times = np.unique(np.concatenate([uniform, contact_times[contact_times <= scene.window_s]]))
+    state = trajectory.sample(times)
+    structure = trajectory.problem.structure
+    return {
+        "time_s": times,
+        "contact_force_n": state.force_n,
+        "jack_pressure_pa": structure.pressure_pa(state.q, state.qd),
+        "beam_angle_rad": state.q[0],
+        "beam_angular_velocity_radps": state.qd[0],
+        "imu_angular_velocity_radps": structure.imu_slope_shape @ state.qd,
+        "imu_specific_force_mps2": specific_force_z(trajectory, state),
+        "imu_dynamic_accel_mps2": -(structure.imu_shape @ state.qdd),
+        "particle_position_m": state.z_m,
+        "particle_velocity_mps": state.zd_mps,
+    }
+
+
+def simulate(
+    scene: Scene,
+    solver: str | None = None,
+    *,
+    tier: str = DEFAULT_TIER,
+    needs: Needs | None = None,
+    settings: FidelitySettings | None = None,
+    check: bool = False,
+    **solver_options: Any,
+) -> SimulationResult:
+    """Simulate one impact of ``scene`` and sample its sensors (reproducible by seed).
+
+    ``tier`` picks the model (``tail_beam_sim.physics.fidelity``: impulse, rigid (default: the study's
+    model), modal, brittle, or auto: the cheapest that meets ``needs``); ``settings`` holds the
+    bending modes and defaults (default: config/); ``solver`` the method (default: the tier's).
+    The summary reports ``tier``, ``solver`` and ``error_estimate`` (relative, of the model and
+    the solver together); ``check=True`` also simulates the next tier up and adds the measured
+    differences as ``check``.
+    """
+    settings = settings or shipped_settings()
+    needs = needs or settings.needs
+    chosen = plan(scene, tier, needs, settings)
+    crushing = crushing_contact(scene.support, scene.impact, settings.crushing_confinement_factor) if chosen.tier.brittle else None
+    problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=chosen.structure, crushing=crushing)
+    options = {**chosen.solver_options, **solver_options} if solver in (None, chosen.solver) else solver_options
+    trajectory = solve(problem, solver or chosen.solver, **options)
+    result = sense(scene, trajectory)
+    # The solver's own estimate is a field of every trajectory (contract: tail_beam_sim.physics.solvers).
+    own = trajectory.error_estimate
+    result.summary["tier"] = chosen.tier.name
+    result.summary["error_estimate"] = max(chosen.model_error, own) if math.isfinite(own) else math.nan
+    if check and chosen.check_against is not None:
+        reference = simulate(scene, tier=chosen.check_against, needs=needs, settings=settings)
+        result.summary["check"] = {"against": chosen.check_against, **compare(result, reference, needs.outputs)}
+    return result
+
+
+def sense(scene: Scene, trajectory: Trajectory) -> SimulationResult:
+    """What the support's sensors and the summary make of ``trajectory``: noise-free histories,
+    the sampled streams and the rebound (seeded by ``scene.sensors.seed``).
+
+    The contact falls at a seeded instant within the first sample period after
+    ``pre_contact_s``, so it is not always aligned with a sample, as it would not be on a
+    real support.
+    """
+    spec = scene.sensors
+    suite = SensorSuite(spec)
+    phase_rng = np.random.default_rng(np.random.SeedSequence(spec.seed).spawn(4)[3])
+    slowest = min(spec.pressure_rate_hz, spec.imu_rate_hz)
+    contact_stamp = scene.pre_contact_s + float(phase_rng.uniform(0.0, 1.0 / slowest))
+    end = contact_stamp + scene.window_s
+    history = histories(scene, trajectory)
+    return SimulationResult(
+        scene=scene,
+        trajectory=trajectory,
+        contact_stamp_s=contact_stamp,
+        history=history,
+        pressure=suite.pressure(trajectory, sample_grid(0.0, end, spec.pressure_rate_hz), contact_stamp),
+        imu=suite.imu(trajectory, sample_grid(0.0, end, spec.imu_rate_hz), contact_stamp),
+        rebound=suite.rebound(trajectory, contact_stamp),
+        summary=summarise(scene, trajectory, history),
+        vibration=suite.vibration(trajectory, end, contact_stamp),
+    )
+
+
+def crushing_contact(support: Support, impact: Impact, confinement_factor: float) -> CrushingContact | None:
+    """The crushing contact of a coal particle (None for gangue, which stays elastic)."""
+    if not impact.material.is_coal:
+        return None
+    return CrushingContact(
+        effective_modulus_pa(impact.material, support.plate), impact.radius_m,
+        impact.material.crushing_strength_pa * confinement_factor,
+    )
+

@@ -1,0 +1,239 @@
+"""What a solver is given (:class:`ImpactProblem`) and what it returns (:class:`Trajectory`).
+
+Times are seconds from the first contact (t = 0), when the particle, falling at
+``impact_speed_mps``, touches the undeformed plate. The particle's position ``z_m`` is its
+lowest point along the plate's outward normal, zero at the undeformed plate; the plate under
+it is displaced by ``contact_shape @ q`` away from it, so the penetration is
+``delta = -(contact_shape @ q) - z``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tail_beam_sim.physics.contact import CrushingContact
+from tail_beam_sim.physics.structure import LinearStructure, reduced_mass_kg
+
+
+class SolverError(RuntimeError):
+    """A solve failed: the solver could not deliver a trustworthy result for this problem.
+
+    Raised instead of returning a wrong answer (a diverged step, energy gained in a contact,
+    a step beyond the stability limit, a problem outside the method's range). It is not bad
+    input (an option out of range is :class:`~tail_beam_sim.errors.InputError`): the command
+    line exits with its own status (3) and a node logs it and keeps running. The message is
+    one line, ``<solver>: <what went wrong and what to change>``.
+    """
+
+    def __init__(self, solver: str, reason: str) -> None:
+        self.solver = solver
+        self.reason = reason
+        super().__init__(f"{solver}: {reason}")
+
+
+@dataclass(frozen=True)
+class ImpactProblem:
+    """One particle striking a linear structure through a Hertz contact with hysteresis.
+
+    ``crushing`` (None by default) switches the contact to the brittle law of
+    :class:`~tail_beam_sim.physics.contact.CrushingContact`, which replaces the hysteresis.
+    """
+
+    structure: LinearStructure
+    contact_shape: np.ndarray
+    mass_kg: float
+    hertz_stiffness: float
+    damping_factor: float
+    impact_speed_mps: float
+    gravity_mps2: float
+    window_s: float
+    q0: np.ndarray
+    qd0: np.ndarray
+    crushing: CrushingContact | None = None
+
+    @property
+    def contact_load(self) -> np.ndarray:
+        """M^-1 b: the structure's acceleration per newton at the contact point."""
+        return self.structure.inv_mass @ self.contact_shape
+
+    @property
+    def reduced_mass_kg(self) -> float:
+        """The particle's and the plate's effective mass at the contact point, in series, kg."""
+        # Written with the compliance b^T M^-1 b, so that it stays finite over the hinge (a
+        # rigid wall: compliance 0, the particle's own mass).
+        return float(reduced_mass_kg(self.mass_kg, float(self.contact_shape @ self.contact_load)))
+
+
+@dataclass(frozen=True)
+class ContactRecord:
+    """One contact as it happened: start and end (s), speeds (m/s) and peak force (N)."""
+
+    start_s: float
+    end_s: float
+    approach_speed_mps: float
+    separation_speed_mps: float
+    peak_force_n: float
+
+    @property
+    def duration_s(self) -> float:
+        return self.end_s - self.start_s
+
+
+@dataclass
+class ContactSegment:
+    """Dense solution of an integrated span (a contact, or a fixed-step solver's whole window):
+    states at the solver's steps, sampled by cubic Hermite interpolation."""
+
+    t_s: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    z_m: np.ndarray
+    zd_mps: np.ndarray
+    force_n: np.ndarray
+
+    @property
+    def start_s(self) -> float:
+        return float(self.t_s[0])
+
+
+@dataclass
+class FreeSegment:
+    """No contact: the structure rings freely and the particle flies under gravity.
+
+    The state is known exactly at ``anchor_s``; the segment covers [start_s, end_s).
+    """
+
+    start_s: float
+    end_s: float
+    anchor_s: float
+    q: np.ndarray
+    qd: np.ndarray
+    z_m: float
+    zd_mps: float
+
+
+@dataclass
+class OdeSegment:
+    """A free-flight span integrated by an adaptive solver, sampled through its dense output
+    (``dense(t)`` returns the states [q, qd, z, zd] as columns) so that long steps of a
+    high-order method are interpolated at the method's own order."""
+
+    t_s: np.ndarray
+    dense: Callable[[np.ndarray], np.ndarray]
+
+    @property
+    def start_s(self) -> float:
+        return float(self.t_s[0])
+
+
+@dataclass
+class Samples:
+    """The system's state at a set of times (arrays over time; q-like ones are (n, T))."""
+
+    t_s: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    force_n: np.ndarray
+    z_m: np.ndarray
+    zd_mps: np.ndarray
+
+
+@dataclass
+class Trajectory:
+    """The piecewise solution of an impact, evaluable at any time (before, during, after).
+
+    The fields every solver fills are its contract (``tail_beam_sim.physics.solvers``):
+    ``segments`` ordered by start time and covering the whole real line; ``contacts``, each
+    contact in order; ``solver``, the registered name that produced it; ``error_estimate``, the
+    solver's own relative error estimate of the trajectory (nan: it has none);
+    ``particle_at_rest``, whether the particle ended lying on the plate. ``stats`` holds the
+    solver's own counters, for reports only: nothing downstream reads them.
+    """
+
+    problem: ImpactProblem
+    segments: list[ContactSegment | FreeSegment | OdeSegment]
+    contacts: list[ContactRecord]
+    solver: str
+    error_estimate: float
+    particle_at_rest: bool = False
+    stats: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def rebound_velocity_mps(self) -> float:
+        """The particle's normal velocity as it last left the plate (outward positive), m/s."""
+        last = self.contacts[-1] if self.contacts else None
+        return last.separation_speed_mps if last else -self.problem.impact_speed_mps
+
+    @property
+    def final_separation_s(self) -> float:
+        """When the particle last left the plate, s (nan if it never left)."""
+        return self.contacts[-1].end_s if self.contacts else math.nan
+
+    def sample(self, t_s: np.ndarray) -> Samples:
+        """Evaluate the state at times ``t_s`` (any order, any range)."""
+        times = np.atleast_1d(np.asarray(t_s, dtype=float))
+        n = self.problem.structure.size
+        out = Samples(
+            t_s=times,
+            q=np.zeros((n, times.size)),
+            qd=np.zeros((n, times.size)),
+            qdd=np.zeros((n, times.size)),
+            force_n=np.zeros(times.size),
+            z_m=np.zeros(times.size),
+            zd_mps=np.zeros(times.size),
+        )
+        starts = np.array([seg.start_s for seg in self.segments])
+        which = np.clip(np.searchsorted(starts, times, side="right") - 1, 0, len(self.segments) - 1)
+        for index in np.unique(which):
+            mask = which == index
+            segment = self.segments[index]
+            if isinstance(segment, FreeSegment):
+                self._sample_free(segment, times[mask], out, mask)
+            elif isinstance(segment, OdeSegment):
+                self._sample_ode(segment, times[mask], out, mask)
+            else:
+                self._sample_contact(segment, times[mask], out, mask)
+        return out
+
+    def _sample_free(self, seg: FreeSegment, times: np.ndarray, out: Samples, mask: np.ndarray) -> None:
+        structure = self.problem.structure
+        dt = times - seg.anchor_s
+        q, qd = structure.propagate(seg.q, seg.qd, dt)
+        out.q[:, mask], out.qd[:, mask] = q, qd
+        out.qdd[:, mask] = structure.acceleration(q, qd, np.zeros(times.size), self.problem.contact_shape)
+        g = self.problem.gravity_mps2
+        out.z_m[mask] = seg.z_m + seg.zd_mps * dt - 0.5 * g * dt * dt
+        out.zd_mps[mask] = seg.zd_mps - g * dt
+
+    def _sample_ode(self, seg: OdeSegment, times: np.ndarray, out: Samples, mask: np.ndarray) -> None:
+        n = self.problem.structure.size
+        states = seg.dense(np.clip(times, seg.t_s[0], seg.t_s[-1]))
+        q, qd = states[:n], states[n : 2 * n]
+        out.q[:, mask], out.qd[:, mask] = q, qd
+        out.qdd[:, mask] = self.problem.structure.acceleration(q, qd, np.zeros(times.size), self.problem.contact_shape)
+        out.z_m[mask], out.zd_mps[mask] = states[2 * n], states[2 * n + 1]
+
+    @staticmethod
+    def _sample_contact(seg: ContactSegment, times: np.ndarray, out: Samples, mask: np.ndarray) -> None:
+        k = np.clip(np.searchsorted(seg.t_s, times, side="right") - 1, 0, seg.t_s.size - 2)
+        h = seg.t_s[k + 1] - seg.t_s[k]
+        s = np.where(h > 0, (times - seg.t_s[k]) / np.where(h > 0, h, 1.0), 0.0)
+        h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+        h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+
+        def hermite(y: np.ndarray, dy: np.ndarray) -> np.ndarray:
+            return h00 * y[..., k] + h10 * h * dy[..., k] + h01 * y[..., k + 1] + h11 * h * dy[..., k + 1]
+
+        out.q[:, mask] = hermite(seg.q, seg.qd)
+        out.qd[:, mask] = hermite(seg.qd, seg.qdd)
+        out.qdd[:, mask] = seg.qdd[:, k] * (1 - s) + seg.qdd[:, k + 1] * s
+        out.force_n[mask] = seg.force_n[k] * (1 - s) + seg.force_n[k + 1] * s
+        zdd = np.gradient(seg.zd_mps, seg.t_s) if seg.t_s.size > 1 else np.zeros(1)
+        out.z_m[mask] = hermite(seg.z_m, seg.zd_mps)
+        out.zd_mps[mask] = hermite(seg.zd_mps, zdd)

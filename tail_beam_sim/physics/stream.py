@@ -1,0 +1,412 @@
+"""A continuous stream simulator: simulation time and the beam's motion carried across impacts.
+
+The offline :func:`tail_beam_sim.physics.simulate.simulate` solves one impact on a beam at rest. A
+support in service is struck again and again while the beam still rings (its 40 Hz mode
+decays over about half a second), and its data acquisition samples noise between impacts.
+:class:`StreamSimulator` keeps that state:
+
+* Each submitted impact is given a contact stamp (the requested one, or as soon as allowed:
+  ``command_lead_s`` after the samples already produced and ``min_impact_gap_s`` after the
+  previous particle left the plate), solved at once, and queued until the clock reaches it.
+  The queue is bounded (``max_queued_impacts``): a command beyond it is refused with an
+  :class:`InputError` that says so, never silently dropped.
+* The beam's motion is linear between contacts, so each impact's trajectory is the motion
+  carried in (the free response of the beam's displacement at the contact stamp) plus the
+  solution of the impact with the beam's carried velocity as its initial velocity
+  (:class:`CarriedTrajectory`). The particle meets the plate where the plate is at the
+  contact stamp, so the solver's convention (contact at zero penetration) holds exactly.
+* :meth:`StreamSimulator.advance` produces every sample of a time span at once (vectorised
+  per chunk): jack pressure, IMU and accelerometer on their absolute grids ``k / rate`` (the
+  accelerometer's complete blocks only: the rest of a block waits for the next span), the rebounds and
+  truths whose stamps fall in the span. Noise is drawn per fixed block of sample indices, so
+  the output depends only on the seed and the impacts, never on how the time was chunked
+  (a real-time run and an as-fast-as-possible run give identical data).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
+
+import numpy as np
+
+from tail_beam_sim.config import section
+from tail_beam_sim.physics.contact import CONTACT_LAWS
+from tail_beam_sim.errors import InputError, require_int, require_range
+from tail_beam_sim.physics.fidelity import DEFAULT_TIER, get_tier, structure_for
+from tail_beam_sim.physics.materials import Material, material_table
+from tail_beam_sim.physics.scene import Impact, Scene, SensorSpec
+from tail_beam_sim.physics.sensors import (
+    AntiAliasFilter, ImuStream, PressureStream, Rebound, SensorSuite, VibrationBlocks, cut_blocks, imu_samples,
+    mean_specific_force_z,
+)
+from tail_beam_sim.physics.result import impact_truth
+from tail_beam_sim.physics.simulate import build_problem, histories, summarise
+from tail_beam_sim.physics.solvers import DEFAULT_SOLVER, ImpactProblem, Samples, Trajectory, solve
+from tail_beam_sim.physics.solvers.problem import FreeSegment
+from tail_beam_sim.physics.structure import LinearStructure, load_bending_modes, rigid_beam
+from tail_beam_sim.physics.support import Support
+
+NOISE_BLOCK_SAMPLES = 4096  # noise is drawn per block of this many sample indices (any size works)
+_PRESSURE_NOISE_STREAM, _IMU_NOISE_STREAM, _VIBRATION_NOISE_STREAM = 0, 1, 2  # keys of the noise streams under one seed
+
+
+class QueueFull(InputError):
+    """An impact refused because ``stream.max_queued_impacts`` impacts are already waiting."""
+
+
+@dataclass(frozen=True)
+class StreamParams:
+    """Timing of the stream (s) and the bound of its impact queue."""
+
+    min_impact_gap_s: float
+    command_lead_s: float
+    max_queued_impacts: int
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> StreamParams:
+        """Validate the ``stream`` parameter section."""
+        return cls(
+            min_impact_gap_s=require_range("stream.min_impact_gap_s", params.get("min_impact_gap_s"), 0.0, 60.0, unit="s"),
+            command_lead_s=require_range("stream.command_lead_s", params.get("command_lead_s"), 0.0, 60.0, low_open=True, unit="s"),
+            max_queued_impacts=require_int("stream.max_queued_impacts", params.get("max_queued_impacts"), 1),
+        )
+
+
+@dataclass
+class CarriedTrajectory(Trajectory):
+    """An impact's trajectory plus the free motion of the displacement carried in.
+
+    The base trajectory was solved from the carried velocity with zero displacement; the
+    carried displacement ``carried_q`` (generalised coordinates at t = 0) rings freely on
+    top of it. The structure is linear, so the sum is the beam's exact motion.
+    """
+
+    carried_q: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @classmethod
+    def carry(cls, trajectory: Trajectory, carried_q: np.ndarray) -> CarriedTrajectory:
+        values = {f.name: getattr(trajectory, f.name) for f in fields(Trajectory)}
+        return cls(**values, carried_q=np.asarray(carried_q, dtype=float))
+
+    def sample(self, t_s: np.ndarray) -> Samples:
+        out = super().sample(t_s)
+        structure = self.problem.structure
+        q, qd = structure.propagate(self.carried_q, np.zeros_like(self.carried_q), out.t_s)
+        out.q = out.q + q
+        out.qd = out.qd + qd
+        out.qdd = out.qdd + structure.acceleration(q, qd, np.zeros(out.t_s.size), self.problem.contact_shape)
+        return out
+
+
+def rest_trajectory(structure: LinearStructure, gravity_mps2: float) -> Trajectory:
+    """The beam at rest with no particle: the motion before the first impact."""
+    zeros = np.zeros(structure.size)
+    problem = ImpactProblem(
+        structure=structure, contact_shape=zeros, mass_kg=0.0, hertz_stiffness=0.0, damping_factor=0.0,
+        impact_speed_mps=0.0, gravity_mps2=gravity_mps2, window_s=0.0, q0=zeros, qd0=zeros,
+    )
+    return Trajectory(problem, [FreeSegment(-math.inf, math.inf, 0.0, zeros, zeros, 0.0, 0.0)], [], "rest", 0.0)
+
+
+def _relative(stamp_s: np.ndarray, epoch_start_s: float) -> np.ndarray:
+    """Stamps as times of an epoch's trajectory (the rest epoch, starting at -inf, has no origin)."""
+    return stamp_s - epoch_start_s if math.isfinite(epoch_start_s) else stamp_s
+
+
+class BlockNoise:
+    """Standard normal noise indexed by sample number, independent of how it is requested.
+
+    Block ``k`` (indices ``k*B .. k*B+B-1``) comes from its own generator seeded with
+    ``(seed, stream, k)``, so samples ``i..j`` are the same whether asked for at once or in
+    pieces.
+    """
+
+    def __init__(self, seed: int, stream: int, width: int, block_samples: int = NOISE_BLOCK_SAMPLES) -> None:
+        self._key = (seed, stream)
+        self._width = width
+        self._block = block_samples
+        self._cache: dict[int, np.ndarray] = {}
+
+    def _get_block(self, k: int) -> np.ndarray:
+        if k not in self._cache:
+            if len(self._cache) > 2:
+                self._cache.pop(min(self._cache))
+            rng = np.random.default_rng([*self._key, k])
+            self._cache[k] = rng.standard_normal((self._block, self._width))
+        return self._cache[k]
+
+    def take(self, first: int, count: int) -> np.ndarray:
+        """Noise of sample indices ``first .. first+count-1``, shape (count, width)."""
+        out = np.empty((count, self._width))
+        done = 0
+        while done < count:
+            k, offset = divmod(first + done, self._block)
+            n = min(count - done, self._block - offset)
+            out[done : done + n] = self._get_block(k)[offset : offset + n]
+            done += n
+        return out
+
+
+@dataclass(frozen=True)
+class ScheduledImpact:
+    """An impact given its contact stamp (s), solved, with its rebound and truth."""
+
+    impact: Impact
+    contact_stamp_s: float
+    trajectory: CarriedTrajectory
+    rebound: Rebound
+    truth: dict[str, Any]
+
+    @property
+    def impact_id(self) -> str:
+        return self.impact.impact_id
+
+    @property
+    def free_after_s(self) -> float:
+        """When the particle last left the plate, s of simulation time."""
+        return self.contact_stamp_s + self.trajectory.final_separation_s
+
+    @property
+    def truth_stamp_s(self) -> float:
+        """When the truth is published: the end of the impact's simulated window, s."""
+        return self.contact_stamp_s + self.trajectory.problem.window_s
+
+
+@dataclass
+class Chunk:
+    """Everything the sensors produced in the span (start_s, end_s] of simulation time."""
+
+    start_s: float
+    end_s: float
+    pressure: PressureStream
+    imu: ImuStream
+    vibration: VibrationBlocks  # the accelerometer's blocks completed in the span, in index order
+    rebounds: list[tuple[str, Rebound]]  # (impact_id, rebound), in stamp order
+    truths: list[tuple[float, dict[str, Any]]]  # (stamp s, impact_truth JSON object), in stamp order
+    started: list[ScheduledImpact]  # impacts whose contact stamp fell in the span
+
+
+class StreamSimulator:
+    """Simulation time, the beam's state and the impact queue of one support."""
+
+    def __init__(
+        self,
+        support: Support,
+        materials: Mapping[str, Material],
+        sensors: SensorSpec,
+        stream: StreamParams,
+        contact_model: str,
+        window_s: float,
+        structure: LinearStructure | None = None,
+        solver: str = DEFAULT_SOLVER,
+        id_prefix: str = "sim",
+    ) -> None:
+        self.support = support
+        self.materials = materials
+        self.sensors = sensors
+        self.params = stream
+        self.contact_model = contact_model
+        self.window_s = window_s
+        self.structure = structure or rigid_beam(support)
+        self.solver = solver
+        self.id_prefix = id_prefix
+        self._suite = SensorSuite(sensors)
+        self._pressure_noise = BlockNoise(sensors.seed, _PRESSURE_NOISE_STREAM, 1)
+        self._imu_noise = BlockNoise(sensors.seed, _IMU_NOISE_STREAM, 6)
+        self._vibration_noise = BlockNoise(sensors.seed, _VIBRATION_NOISE_STREAM, 1)
+        self._antialias = AntiAliasFilter(
+            sensors.vibration_rate_hz, sensors.vibration_antialias_order, sensors.vibration_antialias_cutoff_fraction,
+            sensors.vibration_oversample,
+        )
+        self._next_dense_index = 0  # the accelerometer's next dense (oversampled) value
+        self._vibration_tail = np.empty(0, dtype=np.float32)  # samples of the incomplete block
+        self._vibration_tail_first = 0  # running index of the first of them
+        self._epoch_starts: list[float] = [-math.inf]
+        self._epochs: list[Trajectory] = [rest_trajectory(self.structure, support.gravity_mps2)]
+        self._queue: deque[ScheduledImpact] = deque()  # solved, contact stamp not yet reached
+        self._pending_events: list[ScheduledImpact] = []  # started, rebound or truth not yet out
+        self._next_pressure_index = 0
+        self._next_imu_index = 0
+        self._time_s = 0.0
+        self._count = 0
+        self._last_free_after_s = -math.inf  # when the latest scheduled particle leaves the plate, s
+        self._ids: set[str] = set()  # every impact_id of this run: each names one impact
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any], **options: Any) -> StreamSimulator:
+        """Build from merged parameters: support, materials, sensors, scene, stream sections.
+
+        ``stream.tier`` picks the model (``tail_beam_sim.physics.fidelity.TIERS``): its structure
+        (bending modes from the ``modes`` section) and its solver.
+        """
+        materials = material_table(params)
+        support = Support.from_params(section(params, "support"), materials)
+        tier = get_tier(section(params, "stream").get("tier", DEFAULT_TIER))
+        scene = section(params, "scene")
+        contact_model = scene.get("contact_model")
+        if contact_model not in CONTACT_LAWS:
+            raise InputError("scene.contact_model", contact_model, f"must be one of {', '.join(CONTACT_LAWS)}")
+        return cls(
+            support=support,
+            materials=materials,
+            sensors=SensorSpec.from_params(section(params, "sensors")),
+            stream=StreamParams.from_params(section(params, "stream")),
+            contact_model=contact_model,
+            window_s=require_range("scene.window_s", scene.get("window_s"), 0.0, 10.0, low_open=True, unit="s"),
+            structure=structure_for(tier, support, load_bending_modes(params)),
+            solver=tier.default_solver,
+            **options,
+        )
+
+    @property
+    def time_s(self) -> float:
+        """Simulation time up to which samples have been produced, s."""
+        return self._time_s
+
+    @property
+    def queued(self) -> int:
+        """Impacts accepted whose contact has not started yet."""
+        return len(self._queue)
+
+    @property
+    def earliest_contact_s(self) -> float:
+        """The earliest contact stamp a new impact can get now, s."""
+        after_last = self._last_free_after_s + self.params.min_impact_gap_s
+        return max(self._time_s + self.params.command_lead_s, after_last)
+
+    def submit(self, command: Mapping[str, Any], contact_stamp_s: float | None = None) -> ScheduledImpact:
+        """Validate, schedule and solve one impact (``impact_cmd`` JSON object).
+
+        Raises InputError naming the field for a bad command or an impact_id used before in this
+        run (an id names one impact: truths and labels are matched by it), and QueueFull when
+        the queue is full. ``contact_stamp_s`` asks for a contact time; it is moved later if not
+        allowed yet. A missing impact_id is made up: ``<id_prefix>-<count>``, never one in use.
+        """
+        impact = Impact.from_mapping(command, self.materials, self.support)
+        if impact.impact_id in self._ids:
+            raise InputError("impact_id", impact.impact_id, "already names an earlier impact of this run; give each impact its own id")
+        if len(self._queue) >= self.params.max_queued_impacts:
+            raise QueueFull(
+                "impact_cmd", impact.impact_id or dict(command),
+                f"refused: queue full, {len(self._queue)} impacts already queued (stream.max_queued_impacts); "
+                "send impacts more slowly or raise the limit",
+            )
+        self._count += 1
+        if not impact.impact_id:
+            made_up = f"{self.id_prefix}-{self._count:04d}"
+            while made_up in self._ids:
+                made_up += "+"
+            impact = replace(impact, impact_id=made_up)
+        self._ids.add(impact.impact_id)
+        stamp = max(contact_stamp_s if contact_stamp_s is not None else -math.inf, self.earliest_contact_s)
+        scheduled = self._solve(impact, stamp)
+        self._queue.append(scheduled)
+        self._last_free_after_s = scheduled.free_after_s
+        return scheduled
+
+    def _solve(self, impact: Impact, stamp_s: float) -> ScheduledImpact:
+        """Solve ``impact`` at ``stamp_s`` on the beam as the previous impacts leave it."""
+        before = self._epochs[-1].sample(_relative(np.array([stamp_s]), self._epoch_starts[-1]))
+        q0, qd0 = before.q[:, 0], before.qd[:, 0]
+        problem = build_problem(self.support, impact, self.contact_model, self.window_s, self.structure, qd0=qd0)
+        trajectory = CarriedTrajectory.carry(solve(problem, self.solver), q0)
+        self._epoch_starts.append(stamp_s)
+        self._epochs.append(trajectory)
+        rebound = self._suite.rebound(trajectory, stamp_s)
+        scene = Scene(self.support, impact, self.sensors, self.materials, self.contact_model, self.window_s, 0.0)
+        summary = summarise(scene, trajectory, histories(scene, trajectory))
+        return ScheduledImpact(impact, stamp_s, trajectory, rebound, impact_truth(scene, trajectory, stamp_s, rebound.stamp_s, summary))
+
+    def advance(self, until_s: float) -> Chunk:
+        """Produce every sample, rebound and truth in (time_s, until_s]; the clock moves on."""
+        start = self._time_s
+        until = max(float(until_s), start)
+        spec = self.sensors
+        pressure_index = self._grid(self._next_pressure_index, until, spec.pressure_rate_hz)
+        imu_index = self._grid(self._next_imu_index, until, spec.imu_rate_hz)
+        pressure = self._pressure(pressure_index)
+        imu = self._imu(imu_index)
+        vibration = self._vibration(until)
+        self._next_pressure_index += pressure_index.size
+        self._next_imu_index += imu_index.size
+        started = []
+        while self._queue and self._queue[0].contact_stamp_s <= until:
+            started.append(self._queue.popleft())
+        self._pending_events.extend(started)
+        rebounds = [(s.impact_id, s.rebound) for s in self._pending_events if start < s.rebound.stamp_s <= until]
+        truths = [(s.truth_stamp_s, s.truth) for s in self._pending_events if start < s.truth_stamp_s <= until]
+        rebounds.sort(key=lambda r: r[1].stamp_s)
+        truths.sort(key=lambda t: t[0])
+        self._pending_events = [s for s in self._pending_events if max(s.rebound.stamp_s, s.truth_stamp_s) > until]
+        self._time_s = until
+        self._prune()
+        return Chunk(start, until, pressure, imu, vibration, rebounds, truths, started)
+
+    @staticmethod
+    def _grid(first_index: int, until_s: float, rate_hz: float) -> np.ndarray:
+        last = math.floor(until_s * rate_hz + 1e-9)
+        return np.arange(first_index, max(last + 1, first_index))
+
+    def _by_epoch(self, stamp_s: np.ndarray) -> list[tuple[Trajectory, float, np.ndarray]]:
+        """Split stamps by the epoch (trajectory and its start, s) they fall in."""
+        which = np.searchsorted(np.array(self._epoch_starts), stamp_s, side="right") - 1
+        return [(self._epochs[k], self._epoch_starts[k], which == k) for k in np.unique(which)]
+
+    def _pressure(self, index: np.ndarray) -> PressureStream:
+        spec = self.sensors
+        stamps = index / spec.pressure_rate_hz
+        clean = np.empty(stamps.size)
+        for trajectory, start, mask in self._by_epoch(stamps):
+            state = trajectory.sample(_relative(stamps[mask], start))
+            clean[mask] = self.structure.pressure_pa(state.q, state.qd)
+        unit = self._pressure_noise.take(int(index[0]), index.size)[:, 0] if index.size else np.empty(0)
+        noise = self._suite.noise
+        return PressureStream(stamps, noise.pressure(clean, unit), noise.pressure_pa**2)
+
+    def _imu(self, index: np.ndarray) -> ImuStream:
+        spec = self.sensors
+        stamps = index / spec.imu_rate_hz
+        gyro, accel = np.empty((stamps.size, 3)), np.empty((stamps.size, 3))
+        for trajectory, start, mask in self._by_epoch(stamps):
+            gyro[mask], accel[mask] = imu_samples(trajectory, _relative(stamps[mask], start), 1.0 / spec.imu_rate_hz)
+        noise = self._suite.noise
+        if index.size:
+            unit = self._imu_noise.take(int(index[0]), index.size)
+            gyro, accel = noise.gyro(gyro, unit[:, :3]), noise.accel(accel, unit[:, 3:])
+        return ImuStream(stamps, gyro, accel, noise.gyro_radps**2, noise.accel_mps2**2)
+
+    def _vibration(self, until_s: float) -> VibrationBlocks:
+        """The accelerometer up to ``until_s``: dense response, anti-alias filter, decimation,
+        noise, clipping; returns the blocks completed (block b holds indices b*N .. b*N+N-1)."""
+        spec = self.sensors
+        m = spec.vibration_oversample
+        dense_rate = m * spec.vibration_rate_hz
+        dense_index = self._grid(self._next_dense_index, until_s, dense_rate)
+        self._next_dense_index += dense_index.size
+        stamps = dense_index / dense_rate
+        dense = np.empty(stamps.size)
+        for trajectory, start, mask in self._by_epoch(stamps):
+            dense[mask] = mean_specific_force_z(trajectory, _relative(stamps[mask], start), 1.0 / dense_rate)
+        # Every dense value goes through the filter once, in order; sample i is the filter's
+        # output at dense index m * i (stamp i / rate).
+        at_sample = dense_index % m == 0
+        filtered = self._antialias(dense)[at_sample]
+        first = int(dense_index[at_sample][0]) // m if filtered.size else 0
+        sigma = spec.vibration_noise_mps2
+        if filtered.size:
+            filtered = filtered + sigma * self._vibration_noise.take(first, filtered.size)[:, 0]
+        clipped = np.clip(filtered, -spec.vibration_range_mps2, spec.vibration_range_mps2)
+        blocks, self._vibration_tail = cut_blocks(np.concatenate([self._vibration_tail, clipped]), self._vibration_tail_first, spec)
+        self._vibration_tail_first += blocks.sample_count
+        return blocks
+
+    def _prune(self) -> None:
+        """Forget epochs that no future sample can fall in (keep one IMU period of history)."""
+        horizon = self._time_s - 2.0 / self.sensors.imu_rate_hz
+        while len(self._epoch_starts) > 1 and self._epoch_starts[1] <= horizon:
+            self._epoch_starts.pop(0)
+            self._epochs.pop(0)

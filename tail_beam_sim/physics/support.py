@@ -1,0 +1,137 @@
+"""The support's tail beam and jack: geometry, jack stiffness and the beam's linear dynamics."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.physics.materials import Material
+
+
+@dataclass(frozen=True)
+class Support:
+    """A tail beam turning about its hinge, held by the tail-beam jack. SI units throughout."""
+
+    gravity_mps2: float
+    beam_length_m: float
+    beam_mass_kg: float
+    beam_inertia_about_hinge_kgm2: float
+    plate: Material
+    plate_thickness_m: float
+    jack_pin_from_hinge_m: float
+    jack_angle_to_beam_deg: float
+    jack_bore_m: float
+    jack_oil_column_m: float
+    jack_wall_thickness_m: float
+    jack_wall_youngs_modulus_pa: float
+    oil_bulk_modulus_pa: float
+    jack_damping_nspm: float
+    jack_extra_compliance_mpn: float
+    setting_pressure_pa: float
+    imu_from_hinge_m: float
+    impact_zone_min_m: float
+    impact_zone_max_m: float
+    # The impacts the model is built for (config/support.yaml): radius m, drop height m, speed m/s.
+    particle_radius_min_m: float
+    particle_radius_max_m: float
+    drop_height_min_m: float
+    drop_height_max_m: float
+    impact_speed_min_mps: float
+    impact_speed_max_mps: float
+
+    @property
+    def piston_area_m2(self) -> float:
+        """Piston area S of the jack's piston chamber, m^2."""
+        return math.pi * self.jack_bore_m**2 / 4.0
+
+    @property
+    def effective_bulk_modulus_pa(self) -> float:
+        """Oil bulk modulus softened by the hoop expansion of a thin wall, Pa."""
+        wall = self.jack_bore_m / (self.jack_wall_thickness_m * self.jack_wall_youngs_modulus_pa)
+        return 1.0 / (1.0 / self.oil_bulk_modulus_pa + wall)
+
+    @property
+    def jack_stiffness_npm(self) -> float:
+        """Axial stiffness K_Q of the jack: oil column, wall and extra compliance in series, N/m."""
+        column = self.effective_bulk_modulus_pa * self.piston_area_m2 / self.jack_oil_column_m
+        return 1.0 / (1.0 / column + self.jack_extra_compliance_mpn)
+
+    @property
+    def jack_lever_arm_m(self) -> float:
+        """Perpendicular distance d from the hinge to the jack axis, m."""
+        return self.jack_pin_from_hinge_m * math.sin(math.radians(self.jack_angle_to_beam_deg))
+
+    @property
+    def rotational_stiffness_nmprad(self) -> float:
+        """K_Q d^2: the jack's restoring moment per radian of beam rotation, N m/rad."""
+        return self.jack_stiffness_npm * self.jack_lever_arm_m**2
+
+    @property
+    def rotational_damping_nmsprad(self) -> float:
+        """c_Q d^2: the jack's damping moment per rad/s of beam rotation, N m s/rad."""
+        return self.jack_damping_nspm * self.jack_lever_arm_m**2
+
+    @property
+    def rigid_mode_frequency_hz(self) -> float:
+        """Undamped frequency of the rigid beam on its jack, sqrt(K_Q d^2 / I_C) / 2 pi, Hz."""
+        return math.sqrt(self.rotational_stiffness_nmprad / self.beam_inertia_about_hinge_kgm2) / (2 * math.pi)
+
+    @property
+    def rigid_mode_damping_ratio(self) -> float:
+        """Damping ratio of the rigid beam mode (dimensionless)."""
+        return self.rotational_damping_nmsprad / (
+            2.0 * math.sqrt(self.rotational_stiffness_nmprad * self.beam_inertia_about_hinge_kgm2)
+        )
+
+    def check_position(self, position_m: object, field: str = "position_m", allow_text: bool = True) -> float:
+        """Validate an impact position along the plate (0 .. beam length), m. Position 0 is over
+        the hinge, where the plate cannot move: the particle rebounds as off a rigid wall."""
+        return require_range(field, position_m, 0.0, self.beam_length_m, unit="m (on the plate, from the hinge)", allow_text=allow_text)
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any], materials: Mapping[str, Material]) -> Support:
+        """Build and validate the support from the ``support`` parameter section."""
+        if not isinstance(params, Mapping):
+            raise InputError("support", params, "missing parameter section")
+
+        def get(name: str, low: float | None, high: float | None, unit: str, low_open: bool = True) -> float:
+            if name not in params:
+                raise InputError(f"support.{name}", None, "missing from the config")
+            return require_range(f"support.{name}", params[name], low, high, low_open=low_open, unit=unit)
+
+        def limits(name: str, suffix: str, unit: str) -> dict[str, float]:
+            low = get(f"{name}_min_{suffix}", 0.0, None, unit)
+            return {f"{name}_min_{suffix}": low, f"{name}_max_{suffix}": get(f"{name}_max_{suffix}", low, None, unit, low_open=False)}
+
+        plate_name = params.get("plate_material")
+        if plate_name not in materials:
+            raise InputError("support.plate_material", plate_name, f"must be one of {sorted(materials)}")
+        length = get("beam_length_m", 0.0, 20.0, "m")
+        support = cls(
+            gravity_mps2=get("gravity_mps2", 0.0, 100.0, "m/s^2", low_open=False),
+            beam_length_m=length,
+            beam_mass_kg=get("beam_mass_kg", 0.0, None, "kg"),
+            beam_inertia_about_hinge_kgm2=get("beam_inertia_about_hinge_kgm2", 0.0, None, "kg m^2"),
+            plate=materials[plate_name],
+            plate_thickness_m=get("plate_thickness_m", 0.0, 1.0, "m"),
+            jack_pin_from_hinge_m=get("jack_pin_from_hinge_m", 0.0, length, "m"),
+            jack_angle_to_beam_deg=get("jack_angle_to_beam_deg", 0.0, 90.0, "deg"),
+            jack_bore_m=get("jack_bore_m", 0.0, 2.0, "m"),
+            jack_oil_column_m=get("jack_oil_column_m", 0.0, 10.0, "m"),
+            jack_wall_thickness_m=get("jack_wall_thickness_m", 0.0, 1.0, "m"),
+            jack_wall_youngs_modulus_pa=get("jack_wall_youngs_modulus_pa", 0.0, None, "Pa"),
+            oil_bulk_modulus_pa=get("oil_bulk_modulus_pa", 0.0, None, "Pa"),
+            jack_damping_nspm=get("jack_damping_nspm", 0.0, None, "N s/m", low_open=False),
+            jack_extra_compliance_mpn=get("jack_extra_compliance_mpn", 0.0, None, "m/N", low_open=False),
+            setting_pressure_pa=get("setting_pressure_pa", 0.0, None, "Pa", low_open=False),
+            imu_from_hinge_m=get("imu_from_hinge_m", 0.0, length, "m", low_open=False),
+            impact_zone_min_m=get("impact_zone_min_m", 0.0, length, "m", low_open=False),
+            impact_zone_max_m=get("impact_zone_max_m", 0.0, length, "m", low_open=False),
+            **limits("particle_radius", "m", "m"), **limits("drop_height", "m", "m"), **limits("impact_speed", "mps", "m/s"),
+        )
+        if support.impact_zone_min_m > support.impact_zone_max_m:
+            raise InputError("support.impact_zone_min_m", support.impact_zone_min_m, "must not exceed impact_zone_max_m")
+        return support

@@ -1,0 +1,171 @@
+"""Numpy sensor chunks to rclpy messages and back: the one place that knows both.
+
+Stamps are seconds of simulation time as floats on the numpy side and ``builtin_interfaces/Time``
+(integer nanoseconds, :func:`tail_beam_sim.topics.stamp_ns`) on the message side. Frames and
+covariance conventions follow docs/interface.md: no orientation estimate on the IMU
+(``orientation_covariance[0] = -1``), diagonal noise covariances from the sensor's variance.
+"""
+
+from __future__ import annotations
+
+import array
+import importlib
+import json
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import TwistStamped
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import FluidPressure, Imu, LaserScan
+from std_msgs.msg import Header, String
+
+from tail_beam_sim import topics
+from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, VibrationBlocks
+
+NO_ORIENTATION = [-1.0] + [0.0] * 8  # REP 145: element 0 = -1, the estimate is not provided
+
+
+EVENT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)  # one message per impact or command
+# impact_cmd as sim_node reads it: keep-all, so that a burst waits in the reader's history (reliable
+# flow control slows the client) instead of keep-last overwriting what the node has not taken yet.
+COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def stream_qos(depth: int) -> QoSProfile:
+    """Reliable QoS of a sensor stream; ``depth`` 0 keeps all, so that a slow subscriber slows
+    the publisher down (reliable flow control) instead of losing samples."""
+    if depth == 0:
+        return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def message_class(msgtype: str) -> type:
+    """The rclpy class of a ``pkg/msg/Name`` type."""
+    package, _, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{package}.msg"), name)
+
+
+def time_msg(stamp_s: float) -> Time:
+    """builtin_interfaces/Time of ``stamp_s`` seconds of simulation time."""
+    ns = topics.stamp_ns(stamp_s)
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def stamp_s(stamp: Time) -> float:
+    """Seconds of a builtin_interfaces/Time."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def header(stamp: float, frame_id: str) -> Header:
+    return Header(stamp=time_msg(stamp), frame_id=frame_id)
+
+
+def pressure_messages(stream: PressureStream) -> list[FluidPressure]:
+    """One jack_pressure message per sample (Pa; variance in Pa^2)."""
+    variance = float(stream.variance_pa2)
+    return [
+        FluidPressure(header=header(t, topics.FRAME_JACK), fluid_pressure=p, variance=variance)
+        for t, p in zip(stream.stamp_s.tolist(), stream.pressure_pa.tolist())
+    ]
+
+
+def imu_messages(stream: ImuStream) -> list[Imu]:
+    """One imu message per sample: rad/s and m/s^2 in the IMU frame, no orientation."""
+    gyro_cov = np.diag([stream.gyro_variance] * 3).ravel().tolist()
+    accel_cov = np.diag([stream.accel_variance] * 3).ravel().tolist()
+    messages = []
+    for t, w, a in zip(stream.stamp_s.tolist(), stream.angular_velocity_radps.tolist(), stream.linear_acceleration_mps2.tolist()):
+        msg = Imu(header=header(t, topics.FRAME_IMU))
+        msg.orientation.w = 1.0
+        msg.orientation_covariance = NO_ORIENTATION
+        msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = w
+        msg.angular_velocity_covariance = gyro_cov
+        msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = a
+        msg.linear_acceleration_covariance = accel_cov
+        messages.append(msg)
+    return messages
+
+
+def _float32_array(values: np.ndarray) -> array.array:
+    """A float32 sequence field's value from numpy, through its buffer (no object per sample)."""
+    out = array.array("f")
+    out.frombytes(np.ascontiguousarray(values, dtype=np.float32).tobytes())
+    return out
+
+
+def vibration_messages(blocks: VibrationBlocks) -> list[LaserScan]:
+    """One ``vibration`` message (sensor_msgs/LaserScan, docs/interface.md) per block: stamp of
+    the first sample, its running index in angle_min/angle_max, the sample period in
+    time_increment, the block's duration in scan_time, the measuring range in range_min/max
+    and the samples (m/s^2) in ranges."""
+    out = []
+    edges = blocks.offsets()
+    period = float(blocks.period_s)
+    for b in range(blocks.count):
+        high, low = topics.index_words(int(blocks.first_index[b]))
+        length = int(blocks.lengths[b])
+        out.append(LaserScan(
+            header=header(float(blocks.stamp_s[b]), topics.FRAME_ACCELEROMETER), angle_min=high, angle_max=low,
+            angle_increment=0.0, time_increment=period, scan_time=period * length,
+            range_min=-float(blocks.range_mps2), range_max=float(blocks.range_mps2),
+            ranges=_float32_array(blocks.accel_mps2[edges[b] : edges[b + 1]]),
+        ))
+    return out
+
+
+def vibration_blocks(messages: Sequence[LaserScan]) -> VibrationBlocks:
+    """``vibration`` messages back to blocks, in arrival order (samples read through their
+    buffers). The period and range are the first message's."""
+    if not messages:
+        return VibrationBlocks.empty()
+    pieces = [np.frombuffer(m.ranges, dtype=np.float32) for m in messages]
+    first = messages[0]
+    return VibrationBlocks(
+        first_index=np.array([topics.index_from_words(m.angle_min, m.angle_max) for m in messages], dtype=np.int64),
+        lengths=np.array([p.size for p in pieces], dtype=np.int64),
+        stamp_s=np.array([stamp_s(m.header.stamp) for m in messages]),
+        accel_mps2=np.concatenate(pieces),
+        period_s=float(first.time_increment),
+        range_mps2=float(first.range_max),
+    )
+
+
+def rebound_message(rebound: Rebound) -> TwistStamped:
+    """rebound_velocity: the particle's velocity leaving the plate, m/s, plate frame."""
+    msg = TwistStamped(header=header(rebound.stamp_s, topics.FRAME_PLATE))
+    v = [float(x) for x in rebound.velocity_mps]
+    msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z = v
+    return msg
+
+
+def string_message(payload: dict[str, Any]) -> String:
+    """A std_msgs/String holding one JSON object."""
+    return String(data=json.dumps(payload))
+
+
+def clock_message(stamp: float) -> Clock:
+    """rosgraph_msgs/Clock at ``stamp`` seconds of simulation time."""
+    return Clock(clock=time_msg(stamp))
+
+
+def pressure_arrays(messages: Sequence[FluidPressure]) -> tuple[np.ndarray, np.ndarray]:
+    """jack_pressure messages back to (stamp_s (T,), pressure_pa (T,))."""
+    stamps = np.array([stamp_s(m.header.stamp) for m in messages])
+    return stamps, np.array([m.fluid_pressure for m in messages])
+
+
+def imu_arrays(messages: Sequence[Imu]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """imu messages back to (stamp_s (T,), angular_velocity_radps (T,3), linear_acceleration_mps2 (T,3))."""
+    stamps = np.array([stamp_s(m.header.stamp) for m in messages])
+    gyro = np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z) for m in messages]).reshape(-1, 3)
+    accel = np.array([(m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z) for m in messages]).reshape(-1, 3)
+    return stamps, gyro, accel
+
+
+def rebound_values(msg: TwistStamped) -> tuple[float, np.ndarray]:
+    """rebound_velocity back to (stamp_s, velocity_mps (3,))."""
+    v = msg.twist.linear
+    return stamp_s(msg.header.stamp), np.array([v.x, v.y, v.z])

@@ -1,0 +1,120 @@
+"""``bag_recorder``: records every contract topic of its namespace to a rosbag2 bag.
+
+Messages arrive serialized (raw subscriptions) and are written as they are, with the node's
+clock as log time (simulation time under ``use_sim_time``), through
+:class:`tail_beam_sim.bags.write.SegmentedBagWriter`: a SIGINT or SIGTERM closes a valid bag, a
+SIGKILL loses only what came after the open segment's last flush (``flush_s``), and
+``tail-beam bag repair`` salvages the rest of that segment. Topics are stored under their fully
+qualified names (``/support_07/imu``, ``/imu`` in the root namespace), as rosbag2 stores them;
+bag_replay and ``tail-beam identify`` find the contract topics under any namespace. Every
+parameter is read at start-up only, so changes at run time (``use_sim_time`` included, which
+would rewrite the log times) are refused.
+
+Like ``ros2 bag record``: a new file every ``max_bag_duration_s`` of log time or
+``max_bag_size_bytes`` (0 = never), mcap chunks zstd-compressed (``compression``), and a count
+of messages lost, reported on exit and kept in the bag's metadata (``custom_data``): the
+vibration samples missing from the running index, and the middleware's message-lost events.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import LaserScan
+
+from tail_beam_sim import topics
+from tail_beam_sim.bags.records import COMPRESSIONS
+from tail_beam_sim.ros import messages as ros_messages
+from tail_beam_sim.bags.write import SegmentedBagWriter
+from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.physics.sensors import IndexSpan
+from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_and_read, refuse_runtime_changes
+from tail_beam_sim.ros.spin import run_node
+
+LOST_KEYS = ("tail_beam.vibration_lost_samples", "tail_beam.messages_lost_events")  # bag metadata custom_data
+
+
+OUTPUT_DIR = Path("out")  # where commands put what they write by default (ignored by git)
+
+
+def default_bag_path(prefix: str = "tail_beam") -> Path:
+    """out/bags/<prefix>_<UTC date-time> in the working directory."""
+    return OUTPUT_DIR / "bags" / time.strftime(f"{prefix}_%Y%m%dT%H%M%SZ", time.gmtime())
+
+
+class RecorderNode(Node):
+    """Writes the suite's topics to a bag until stopped."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("tail_beam_recorder", **kwargs)
+        params = declare_and_read(self, config_defaults(["recorder.yaml"], with_physics=False))["recorder"]
+        segment_s = require_range("recorder.segment_s", params.get("segment_s"), 0.0, 3600.0, low_open=True, unit="s")
+        flush_s = require_range("recorder.flush_s", params.get("flush_s"), 0.0, 3600.0, low_open=True, unit="s")
+        depth = int(require_range("recorder.qos_depth", params.get("qos_depth"), 0, 1e6))
+        max_duration_s = require_range("recorder.max_bag_duration_s", params.get("max_bag_duration_s", 0.0), 0.0, 1e7, unit="s")
+        max_size = int(require_range("recorder.max_bag_size_bytes", params.get("max_bag_size_bytes", 0), 0, 2**62, unit="bytes"))
+        compression = params.get("compression", "zstd")
+        if compression not in COMPRESSIONS:
+            raise InputError("recorder.compression", compression, f"must be one of {', '.join(COMPRESSIONS)}")
+        path = params.get("bag_path") or default_bag_path()
+        self.names = {topic: self.resolve_topic_name(topic) for topic in topics.MSG_TYPES}  # contract -> fully qualified
+        try:
+            self.writer = SegmentedBagWriter(
+                path, params.get("storage", "mcap"), {self.names[t]: m for t, m in topics.MSG_TYPES.items()},
+                compression=compression, max_duration_s=max_duration_s, max_size_bytes=max_size,
+            )
+        except InputError as exc:
+            raise InputError("recorder.bag_path" if exc.field == "bag" else f"recorder.{exc.field}", exc.value, exc.allowed) from None
+        self.bag_path = self.writer.path
+        self.vibration = IndexSpan()
+        self.lost_events = 0
+        qos = ros_messages.stream_qos(depth)
+        events = SubscriptionEventCallbacks(message_lost=self._on_lost)
+        for topic, msgtype in topics.MSG_TYPES.items():
+            self.create_subscription(
+                ros_messages.message_class(msgtype), topic, lambda data, t=topic: self._write(t, data), qos, raw=True,
+                event_callbacks=events,
+            )
+        self.create_timer(segment_s, self.writer.close_segment)
+        if flush_s < segment_s:
+            self.create_timer(flush_s, self.writer.flush)
+        refuse_runtime_changes(self, ALL_PARAMETERS, "the recorder reads its parameters at start-up only (restart it to change them)")
+        self.get_logger().info(
+            f"recording {', '.join(self.names.values())} to {self.bag_path} ({self.writer.storage}, compression {compression})"
+        )
+
+    def _write(self, topic: str, data: bytes) -> None:
+        self.writer.write(self.names[topic], self.get_clock().now().nanoseconds, data)
+        if topic == topics.VIBRATION:
+            msg = deserialize_message(data, LaserScan)
+            self.vibration.add(topics.index_from_words(msg.angle_min, msg.angle_max), len(msg.ranges))
+
+    def _on_lost(self, info: QoSMessageLostInfo) -> None:
+        self.lost_events += info.total_count_change
+
+    def loss_report(self) -> str:
+        """One line: vibration samples and blocks recorded, samples missing, message-lost events."""
+        v = self.vibration
+        return (f"vibration {v.samples} samples in {v.blocks} blocks, {v.lost_samples} samples lost (index gaps); "
+                f"{self.lost_events} messages lost (middleware events)")
+
+    def close(self) -> None:
+        """Close the bag (every message received so far is in it), with the loss counts."""
+        self.writer.set_custom_data(LOST_KEYS[0], str(self.vibration.lost_samples))
+        self.writer.set_custom_data(LOST_KEYS[1], str(self.lost_events))
+        self.writer.close()
+        print(f"bag_recorder: closed {self.bag_path}: {self.writer.message_count} messages; {self.loss_report()}", file=sys.stderr)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Record until SIGINT or SIGTERM, then close the bag."""
+    return run_node(RecorderNode, "bag_recorder", args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,214 @@
+"""Running a node as an executable: init, spin until told to stop, shut down.
+
+``EventsExecutor.spin()`` (rclpy 9) does not return when SIGINT or SIGTERM shuts the context
+down, so the nodes spin in short slices and check the context between them.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import Any, Protocol, runtime_checkable
+
+import rclpy
+from rclpy.executors import Executor, ExternalShutdownException
+from rclpy.experimental import EventsExecutor
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.task import Future
+from rclpy.parameter import Parameter
+
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.ros.usage import NodeUsage, asks_for_help
+
+
+@runtime_checkable
+class FinishingNode(Protocol):
+    """A node that knows when its work is done (a scenario played, a bag replayed):
+    :func:`run_node` stops spinning when ``finished`` is done."""
+
+    finished: Future
+
+
+@runtime_checkable
+class ClosingNode(Protocol):
+    """A node with resources to close on the way out (a bag writer)."""
+
+    def close(self) -> None: ...
+
+
+def overrides(values: Mapping[str, Any]) -> list[Parameter]:
+    """``parameter_overrides`` for a node built in-process, from a flat {dotted name: value}."""
+    return [Parameter(name, value=value) for name, value in values.items()]
+
+
+SLICE_S = 0.1  # longest wait between two checks of the context, s
+ACK_TIMEOUT_S = 10.0  # how long a closing publisher waits for its subscribers to have everything, s
+
+
+def spin(node: Node, done: Future | None = None) -> None:
+    """Spin ``node`` on an EventsExecutor until shutdown (SIGINT, SIGTERM) or ``done``.
+
+    SIGINT shuts the context down from the signal handler, possibly while a callback is
+    publishing: that callback then fails on the invalidated context ("publisher's context is
+    invalid"). Such a failure is the shutdown itself, not an error, and ends the spin quietly.
+    """
+    executor: Executor = EventsExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        while rclpy.ok(context=node.context) and not (done is not None and done.done()):
+            executor.spin_once(timeout_sec=SLICE_S)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        if rclpy.ok(context=node.context):
+            raise
+    finally:
+        executor.shutdown()
+
+
+class PublishBacklog:
+    """Publishes messages in order; when a reliable keep-all writer is full (a slow subscriber on
+    a busy machine: Fast DDS then fails the publish after its blocking time), keeps the rest for
+    the next ``flush``, so that the caller's timer returns, the executor spins, and nothing is
+    lost or reordered. Callers stop producing while ``pending`` is not zero."""
+
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._queue: deque[tuple[Publisher, Any]] = deque()
+        self._held = False  # whether the last flush was refused (warned once per episode)
+
+    @property
+    def pending(self) -> int:
+        return len(self._queue)
+
+    def publish(self, publisher: Publisher, msg: Any) -> None:
+        """Queue ``msg`` behind everything pending (call ``flush`` to send)."""
+        self._queue.append((publisher, msg))
+
+    def flush(self) -> bool:
+        """Send what the writers accept, in order; True when nothing is left."""
+        while self._queue:
+            publisher, msg = self._queue[0]
+            try:
+                publisher.publish(msg)
+            except RuntimeError:  # rclpy raises its RCLError, a RuntimeError, when the writer refuses
+                if not self._node.context.ok():
+                    return False  # shutting down: the writer is gone, nobody is behind
+                if not self._held:
+                    self._node.get_logger().warning(
+                        f"a subscriber of {publisher.topic_name} is behind: holding {len(self._queue)} messages until it catches up"
+                    )
+                self._held = True
+                return False
+            self._queue.popleft()
+        self._held = False
+        return True
+
+
+class SubscriberGate:
+    """Opens once every publisher has ``count`` subscribers and ``settle_s`` (wall clock) has
+    passed since: DDS discovery is asymmetric, so a publisher counts a subscriber before that
+    subscriber has matched the publisher, and a volatile reader loses what is sent in between."""
+
+    def __init__(self, publishers: Sequence[Publisher], count: int, settle_s: float) -> None:
+        self._publishers = publishers
+        self._count = count
+        self._settle_s = settle_s
+        self._seen_at: float | None = None
+
+    def open(self) -> bool:
+        if self._count == 0:
+            return True
+        if self._seen_at is None:
+            if not all(p.get_subscription_count() >= self._count for p in self._publishers):
+                return False
+            self._seen_at = time.monotonic()
+        return time.monotonic() - self._seen_at >= self._settle_s
+
+
+def drain(node: Node, publishers: Iterable[Publisher]) -> None:
+    """Before exiting: wait until the subscribers have every message published (unless the
+    process was told to stop, which shuts the middleware down)."""
+    if not node.context.ok():
+        return
+    for publisher in publishers:
+        publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
+
+
+class NodeGroup:
+    """Several nodes in one process, one context and one EventsExecutor: the demo and the node
+    benchmark use it so that code outside ``tail_beam_sim.ros`` never touches rclpy itself."""
+
+    def __init__(self) -> None:
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.executor = EventsExecutor(context=self.context)
+        self.nodes: list[Node] = []
+
+    def add(self, node: Node) -> Node:
+        """Spin ``node`` with the group (built with ``context=group.context``); returns it."""
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def listener(self, name: str, namespace: str, topics: Mapping[str, Callable[[str], None]], depth: int = 1000) -> Node:
+        """A plain node that hands the ``data`` of each ``std_msgs/String`` on ``topics`` to its callback."""
+        from std_msgs.msg import String
+
+        node = rclpy.create_node(name, context=self.context, namespace=namespace)
+        for topic, callback in topics.items():
+            node.create_subscription(String, topic, lambda msg, cb=callback: cb(msg.data), depth)
+        return self.add(node)
+
+    def spin_once(self, timeout_s: float) -> None:
+        self.executor.spin_once(timeout_sec=timeout_s)
+
+    def close(self) -> None:
+        """Close each node that has ``close()``, destroy them all and shut the context down."""
+        for node in self.nodes:
+            if isinstance(node, ClosingNode):
+                node.close()
+        self.executor.shutdown()
+        for node in self.nodes:
+            node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def run_node(make: Callable[[], Node], usage: NodeUsage | str, args: Sequence[str] | None = None) -> int:
+    """The ``main`` of every executable: build the node, spin it, close and shut down.
+
+    ``-h``/``--help`` prints ``usage`` and exits 0 before ROS starts (no node, no file). A
+    :class:`FinishingNode` stops spinning when its ``finished`` future is done; a
+    :class:`ClosingNode` is closed on the way out. Bad parameters end it with one line and exit
+    status 2; SIGINT and SIGTERM end it with status 0; a node that sets ``exit_status`` (a
+    replay that met a damaged bag) exits with it.
+    """
+    if isinstance(usage, str):
+        usage = NodeUsage(usage, (make.__doc__ or "").strip().split("\n\n")[0])
+    executable = usage.executable
+    if asks_for_help(list(sys.argv[1:] if args is None else args)):
+        print(usage.text())
+        return 0
+    rclpy.init(args=args)
+    try:
+        node = make()
+    except InputError as exc:
+        print(f"{executable}: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        spin(node, node.finished if isinstance(node, FinishingNode) else None)
+    finally:
+        try:
+            if isinstance(node, ClosingNode):
+                node.close()
+            node.destroy_node()
+        except Exception:
+            if rclpy.ok():
+                raise  # a real failure; one on a context SIGINT already invalidated is the shutdown
+        rclpy.try_shutdown()
+    return int(getattr(node, "exit_status", 0))

@@ -1,0 +1,129 @@
+"""Benchmark of the vibration pipeline as deployed; prints figures, asserts nothing.
+
+sim_node -> id_node -> bag_recorder, each its own process (console scripts), sim_node at
+realtime_factor 1 on a generated caving stream, at each vibration rate asked for. Reported per
+run, from the recorded bag and /proc:
+
+* real-time ratio: simulation time the vibration's stamps span over the recorder's log (wall)
+  time of the same messages;
+* loss: vibration samples missing from the running index (bag), pressure and IMU samples
+  missing from their k / rate grids (bag), id_node's gap warnings, the recorder's own count;
+* CPU share of each process over the steady part of the run (utime + stime from
+  /proc/<pid>/stat, one core = 100 %);
+* bag size per minute of the support (the run's bag, scaled), with the compression asked for.
+
+Usage: python test/bench_vibration.py [--rates 25600 51200 76800 100000] [--duration 20]
+       [--compression zstd none]
+The machine is shared: say so when quoting figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+BIN = Path(sys.executable).parent
+TICK_S = os.sysconf("SC_CLK_TCK")
+os.environ.setdefault("ROS_DOMAIN_ID", str(74 + os.getpid() % 20))
+
+
+def cpu_s(pid: int) -> float | None:
+    """CPU seconds (user + system) of a process so far, or None once it is gone."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / TICK_S
+
+
+def ros_args(params: dict[str, object]) -> list[str]:
+    return ["--ros-args"] + [a for k, v in params.items() for a in ("-p", f"{k}:={v}")]
+
+
+def run(rate_hz: float, duration_s: float, compression: str, workdir: Path) -> dict[str, object]:
+    from tail_beam_sim.bags.read import read_sensors
+
+    bag = workdir / f"bag_{int(rate_hz)}_{compression}"
+    log = workdir / f"id_{int(rate_hz)}_{compression}.log"
+    sensors = {"sensors.vibration_rate_hz": rate_hz}
+    recorder = subprocess.Popen([str(BIN / "bag_recorder"), *ros_args({"recorder.bag_path": str(bag), "recorder.compression": compression})],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    ident = subprocess.Popen([str(BIN / "id_node"), *ros_args({"id_node.flush_after_idle_s": 1.0, **sensors})],
+                             stdout=subprocess.DEVNULL, stderr=log.open("w"))
+    sim = subprocess.Popen([str(BIN / "sim_node"), *ros_args({
+        **sensors, "sim_node.wait_for_subscribers": 2, "sim_node.exit_after_idle_s": 0.5, "scenario.source": "generated",
+        "scenario.count": max(1, int(duration_s / 0.55)), "scenario.start_s": 0.5})], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    procs = {"sim_node": sim, "id_node": ident, "bag_recorder": recorder}
+    samples: list[tuple[float, dict[str, float | None]]] = []
+    while sim.poll() is None:
+        samples.append((time.monotonic(), {name: cpu_s(p.pid) for name, p in procs.items()}))
+        time.sleep(0.5)
+    time.sleep(1.5)
+    for p in (ident, recorder):
+        p.send_signal(signal.SIGINT)
+    _, recorder_err = recorder.communicate(timeout=60)
+    ident.wait(timeout=60)
+    # Steady part: from 4 s after start (start-up and the 2 s subscriber settle) to the last sample.
+    steady = [s for s in samples if s[0] >= samples[0][0] + 4.0 and all(v is not None for v in s[1].values())]
+    share = {}
+    if len(steady) >= 2:
+        (t0, c0), (t1, c1) = steady[0], steady[-1]
+        share = {name: 100.0 * (c1[name] - c0[name]) / (t1 - t0) for name in procs}
+    data = read_sensors(bag, required=())
+    blocks = data.vibration
+    stamps = blocks.sample_stamps_s()
+    from rosbags.highlevel import AnyReader
+    from tail_beam_sim.bags.records import TYPESTORE
+
+    with AnyReader([bag], default_typestore=TYPESTORE) as reader:  # the vibration's own log times (labels come later)
+        vib = [c for c in reader.connections if c.topic.endswith("/vibration")]
+        times = [ns for _, ns, _ in reader.messages(connections=vib)]
+        log_span_s = (max(times) - min(times)) * 1e-9 if times else 0.0
+    stamp_span_s = float(stamps[-1] - stamps[0]) if stamps.size else 0.0
+    pressure_missing = int(round((data.pressure_stamp_s[-1] - data.pressure_stamp_s[0]) * 2000.0)) + 1 - data.pressure_stamp_s.size
+    imu_missing = int(round((data.imu_stamp_s[-1] - data.imu_stamp_s[0]) * 2000.0)) + 1 - data.imu_stamp_s.size
+    size = sum(f.stat().st_size for f in bag.iterdir() if f.is_file())
+    gap_warnings = sum(1 for line in log.read_text().splitlines() if "vibration:" in line and "lost" in line)
+    return {
+        "rate_hz": rate_hz, "compression": compression, "sim_s": stamp_span_s,
+        "realtime": stamp_span_s / log_span_s if log_span_s else float("nan"),
+        "vib_lost": data.vibration_lost_samples, "pressure_lost": pressure_missing, "imu_lost": imu_missing,
+        "id_gap_warnings": gap_warnings, "recorder_line": recorder_err.strip().splitlines()[-1] if recorder_err.strip() else "",
+        "cpu": share, "mb_per_min": size / 1e6 / stamp_span_s * 60.0 if stamp_span_s else float("nan"),
+        "labels": len(data.json_topics.get("label", [])),
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rates", type=float, nargs="+", default=[25600.0])
+    parser.add_argument("--duration", type=float, default=20.0, help="simulated seconds per run")
+    parser.add_argument("--compression", nargs="+", default=["zstd"], choices=["zstd", "none"])
+    args = parser.parse_args()
+    print(f"load average before: {os.getloadavg()[0]:.2f} (shared machine, {os.cpu_count()} cores)", flush=True)
+    print("| vibration rate | compression | real-time ratio | lost (vibration / pressure / IMU samples) | id_node gap warnings "
+          "| CPU sim / id / recorder | bag MB per min | labels |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    with tempfile.TemporaryDirectory(prefix="bench_vibration_") as tmp:
+        for rate in args.rates:
+            for compression in args.compression:
+                r = run(rate, args.duration, compression, Path(tmp))
+                cpu = r["cpu"]
+                cpu_text = " / ".join(f"{cpu[n]:.0f} %" for n in ("sim_node", "id_node", "bag_recorder")) if cpu else "n/a"
+                print(f"| {rate / 1000:g} kHz | {compression} | {r['realtime']:.3f} | {r['vib_lost']} / {r['pressure_lost']} / {r['imu_lost']} "
+                      f"| {r['id_gap_warnings']} | {cpu_text} | {r['mb_per_min']:.1f} | {r['labels']} |", flush=True)
+                print(f"    recorder: {r['recorder_line']}", file=sys.stderr)
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,300 @@
+"""The tail-beam accelerometer and its `vibration` blocks: the sensor model (anti-alias filter,
+noise, saturation), the two codecs (rclpy, rosbags), gap and late-block detection, bags read
+per support, and sim_node/id_node over the real middleware."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tail_beam_sim import topics
+from tail_beam_sim.bags import records as bagio
+from tail_beam_sim.bags.read import read_sensors
+from tail_beam_sim.config import default_config_dir, load_parameters
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.sensors import AntiAliasFilter, BlockSequencer, IndexSpan, VibrationBlocks
+from tail_beam_sim.physics.simulate import simulate
+from tail_beam_sim.physics.stream import StreamSimulator
+
+TAIL_BEAM = str(Path(sys.executable).parent / "tail-beam")
+MARBLE = {"material": "marble", "radius_m": 0.1, "drop_height_m": 4.0, "position_m": 1.4}
+COAL = {"material": "coal", "radius_m": 0.03, "drop_height_m": 3.0, "position_m": 1.0}
+
+
+def stream(**sensors) -> StreamSimulator:
+    params = load_parameters([default_config_dir() / "sim_node.yaml"])
+    params["sensors"].update(sensors)
+    return StreamSimulator.from_params(params)
+
+
+def blocks_of(first_indices, n: int = 4, rate_hz: float = 1000.0) -> VibrationBlocks:
+    """Blocks of n samples starting at ``first_indices``; sample values = their own index."""
+    first = np.asarray(first_indices, dtype=np.int64)
+    samples = np.concatenate([np.arange(f, f + n) for f in first]).astype(np.float32) if first.size else np.empty(0, np.float32)
+    return VibrationBlocks(first, np.full(first.size, n, dtype=np.int64), first / rate_hz, samples, 1.0 / rate_hz, 100.0)
+
+
+# --- sensor model ----------------------------------------------------------------------------
+
+def test_antialias_filter_passes_the_band_and_stops_what_would_alias():
+    """Butterworth magnitude |H| = 1/sqrt(1 + (f/fc)^2n): a tone at 0.2 x rate passes (0.998), one at
+    0.9 x rate, which would fold onto 0.1 x rate, is cut to under 0.04 of its amplitude."""
+    rate, m = 25600.0, 4
+    t = np.arange(200_000) / (m * rate)
+
+    def gain(frequency_hz: float) -> float:
+        out = AntiAliasFilter(rate, 4, 0.4, m)(np.sin(2 * np.pi * frequency_hz * t))[::m]
+        return float(np.sqrt(2) * out[out.size // 2 :].std())
+
+    assert gain(0.2 * rate) == pytest.approx(1 / math.sqrt(1 + 0.5**8), abs=0.01)
+    assert gain(0.9 * rate) < 1 / math.sqrt(1 + (0.9 / 0.4) ** 8) + 0.005
+
+
+def test_accelerometer_at_rest_reads_g_with_its_noise_density():
+    """A plate at rest reads +g (specific force); the noise RMS is density x sqrt(cut-off)."""
+    sim = stream(vibration_noise_density_mps2_rthz=0.004)
+    blocks = sim.advance(0.5).vibration
+    expected_rms = 0.004 * math.sqrt(0.4 * 25600.0)
+    assert blocks.sample_count == 0.5 * 25600 // 128 * 128
+    assert blocks.accel_mps2.mean() == pytest.approx(9.81, abs=0.01)
+    assert blocks.accel_mps2.std() == pytest.approx(expected_rms, rel=0.05)
+
+
+def test_vibration_is_the_same_however_time_is_chunked():
+    """Dense response, filter state and noise are carried by sample index: two chunkings give
+    bit-identical blocks, numbered without a gap."""
+    def run(step: float) -> VibrationBlocks:
+        sim = stream()
+        sim.submit(MARBLE, 0.1)
+        parts, t = [], 0.0
+        while t < 0.4:
+            t = min(0.4, t + step)
+            parts.append(sim.advance(t).vibration)
+        return VibrationBlocks.concatenate(parts)
+
+    a, b = run(0.02), run(0.0071)
+    assert a.count == b.count == int(0.4 * 25600) // 128
+    np.testing.assert_array_equal(a.first_index, 128 * np.arange(a.count))
+    np.testing.assert_array_equal(a.accel_mps2, b.accel_mps2)
+
+
+def test_an_accelerometer_that_saturates_is_clipped_at_its_range_and_flagged():
+    """A 100 mm marble lump at the tip peaks near 1.2 km/s^2: a 200 m/s^2 sensor clips there and
+    the clipped samples read exactly its limit, on the wire too (range_min/range_max)."""
+    sim = stream(vibration_range_mps2=200.0)
+    sim.submit(MARBLE, 0.05)
+    blocks = sim.advance(0.1).vibration
+    saturated = blocks.saturated()
+    assert saturated.sum() >= 3
+    assert np.abs(blocks.accel_mps2).max() == np.float32(200.0)
+    assert not saturated[blocks.sample_stamps_s() < 0.05].any()
+    b = int(np.searchsorted(blocks.offsets(), np.flatnonzero(saturated)[0], side="right") - 1)
+    (message,) = [m for _, _, m in bagio.vibration_msgs(blocks.select(np.arange(blocks.count) == b))]
+    index, _, samples, _, range_mps2 = bagio.vibration_fields(message)
+    assert range_mps2 == 200.0 and message.range_min == -200.0 and (np.abs(samples) >= range_mps2).any()
+
+
+def test_offline_simulate_carries_the_accelerometer_response_of_the_impact():
+    """`simulate` gives whole blocks from stamp 0; the impact shows in them far above the noise."""
+    params = load_parameters()
+    result = simulate(Scene.from_params(params, {"material": "sandstone", "radius_m": 0.05}))
+    blocks = result.vibration
+    stamps = blocks.sample_stamps_s()
+    assert blocks.first_index[0] == 0 and blocks.sample_count % 128 == 0
+    np.testing.assert_allclose(np.diff(stamps), 1 / 25600.0, atol=1e-12)
+    before = blocks.accel_mps2[stamps < result.contact_stamp_s]
+    after = np.abs(blocks.accel_mps2[stamps >= result.contact_stamp_s] - 9.81)
+    assert after.max() > 20 * before.std()
+
+
+# --- codecs ------------------------------------------------------------------------------------
+
+def test_rclpy_and_rosbags_codecs_carry_index_stamp_period_and_samples_exactly():
+    """A block far into a run (index beyond 2**24 and 2**40) crosses rclpy serialization and the
+    rosbags decoder with its exact index, stamp, float32 samples, period and range."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from sensor_msgs.msg import LaserScan
+
+    from tail_beam_sim.ros import messages as ros_messages
+
+    first = [2**24 + 3 * 128, 2**40 + 5]
+    blocks = VibrationBlocks(np.array(first, dtype=np.int64), np.array([128, 128]), np.array(first) / 25600.0,
+                             np.random.default_rng(1).normal(9.81, 3, 256).astype(np.float32), 1 / 25600.0, 2000.0)
+    wire = [serialize_message(m) for m in ros_messages.vibration_messages(blocks)]
+    back = ros_messages.vibration_blocks([deserialize_message(w, LaserScan) for w in wire])
+    np.testing.assert_array_equal(back.first_index, first)
+    np.testing.assert_array_equal(back.accel_mps2, blocks.accel_mps2)
+    np.testing.assert_allclose(back.stamp_s, blocks.stamp_s, atol=1e-9)
+    assert back.period_s == pytest.approx(1 / 25600.0, rel=1e-7) and back.range_mps2 == 2000.0
+    for data, (b_first, b_stamp, b_samples) in zip(wire, (blocks.block(0), blocks.block(1))):
+        index, stamp, samples, period, _ = bagio.vibration_fields(bagio.TYPESTORE.deserialize_cdr(data, "sensor_msgs/msg/LaserScan"))
+        assert index == b_first and stamp == pytest.approx(b_stamp, abs=1e-9)
+        np.testing.assert_array_equal(samples, b_samples)
+
+
+# --- gaps and late blocks ------------------------------------------------------------------------
+
+def test_a_dropped_block_is_detected_from_the_index_and_counted():
+    """Blocks 0, 4, 12 of 4 samples: block 8 is missing, 4 samples lost, one gap at index 8."""
+    sequencer = BlockSequencer()
+    report = sequencer.push(blocks_of([0, 4, 12]))
+    assert report.gaps == [(8, 4)]
+    assert sequencer.lost_samples == 4 and sequencer.gap_count == 1
+    np.testing.assert_array_equal(report.accepted.first_index, [0, 4, 12])
+
+
+def test_a_late_block_is_put_back_in_order_or_refused_with_a_count():
+    """Within one delivery a late block is reordered (no gap); once a later block has been
+    handed on, the late one (and a repeat) is refused and counted, never passed on out of order."""
+    sequencer = BlockSequencer()
+    report = sequencer.push(blocks_of([0, 8, 4]))
+    assert report.gaps == [] and report.late == 0
+    np.testing.assert_array_equal(report.accepted.accel_mps2, np.arange(12))
+    report = sequencer.push(blocks_of([16]))
+    assert report.gaps == [(12, 4)]
+    report = sequencer.push(blocks_of([12, 16, 20]))
+    assert report.late == 2 and sequencer.late_blocks == 2
+    np.testing.assert_array_equal(report.accepted.first_index, [20])
+
+
+def test_the_recorders_count_is_independent_of_arrival_order():
+    """IndexSpan: blocks 8, 0, 12 (4 missing) count 4 lost samples in any order."""
+    for order in ([8, 0, 12], [12, 8, 0], [0, 8, 12]):
+        span = IndexSpan()
+        for first in order:
+            span.add(first, 4)
+        assert span.lost_samples == 4 and span.samples == 12
+
+
+# --- bags: gaps, missing topic, several supports ------------------------------------------------
+
+def impact_records(command: dict, seed: int = 0) -> list:
+    params = load_parameters()
+    result = simulate(Scene.from_params(params, {**command, "seed": seed}))
+    return bagio.result_records(result, command)
+
+
+def test_a_bag_with_a_dropped_and_a_late_block_reads_back_in_order_with_the_gap(tmp_path):
+    """A block missing from the bag is listed as a gap (tail-beam bag info says how many samples);
+    one written out of order is read back in its place."""
+    records = impact_records(COAL)
+    vibration = [r for r in records if r[0] == topics.VIBRATION]
+    dropped, late = vibration[3], vibration[5]
+    kept = [r for r in records if r is not dropped and r is not late] + [(late[0], late[1] + 10**7, late[2])]
+    bagio.write_bag(tmp_path / "bag", kept)
+    data = read_sensors(tmp_path / "bag")
+    assert data.vibration_gaps == [(3 * 128, 128)] and data.vibration_lost_samples == 128
+    assert np.all(np.diff(data.vibration.first_index) > 0) and 5 * 128 in data.vibration.first_index
+    info = subprocess.run([TAIL_BEAM, "bag", "info", str(tmp_path / "bag")], capture_output=True, text=True, check=True).stdout
+    assert "/vibration" in info and "128 samples lost" in info and "at 25600 Hz" in info
+
+
+def test_without_the_vibration_topic_labels_still_come_from_the_other_signals(tmp_path):
+    """A bag with no vibration at all is identified from IMU, pressure and camera."""
+    from tail_beam_id.cli.identify_cmd import identify_bag
+
+    bagio.write_bag(tmp_path / "bag", [r for r in impact_records(COAL) if r[0] != topics.VIBRATION])
+    assert read_sensors(tmp_path / "bag").vibration.count == 0
+    (label,) = identify_bag(str(tmp_path / "bag"), "statistical")
+    assert label["label"] == "coal" and "vibration" not in label.get("signals", [])
+
+
+def two_support_bag(path: Path) -> None:
+    """Coal under /support_01 and marble under /support_07, one mcap bag (as one recorder per
+    support writing side by side would give, merged)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        for namespace, command in (("/support_01", COAL), ("/support_07", {**MARBLE, "radius_m": 0.05})):
+            connections = {t: writer.add_connection(topics.qualified(namespace, t), m, typestore=bagio.TYPESTORE)
+                           for t, m in topics.MSG_TYPES.items()}
+            for topic, ns, msg in sorted(impact_records(command), key=lambda r: r[1]):
+                writer.write(connections[topic], ns, bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic]))
+
+
+def test_two_supports_in_one_bag_need_a_namespace_and_then_read_the_right_one(tmp_path):
+    """Without --namespace: exit 2 and one line naming both supports; with it, each support's
+    own impact (coal on 01, marble on 07)."""
+    from tail_beam_id.cli.identify_cmd import identify_bag
+
+    bag = tmp_path / "two"
+    two_support_bag(bag)
+    with pytest.raises(InputError, match="/support_01, /support_07"):
+        read_sensors(bag)
+    cli = subprocess.run([TAIL_BEAM, "identify", str(bag)], capture_output=True, text=True)
+    assert cli.returncode == 2 and "--namespace" in cli.stderr and "Traceback" not in cli.stderr
+    assert [lab["label"] for lab in identify_bag(str(bag), namespace="/support_01")] == ["coal"]
+    assert [lab["label"] for lab in identify_bag(str(bag), namespace="support_07")] == ["gangue"]
+    assert read_sensors(bag, namespace="/support_07").namespace == "/support_07"
+    with pytest.raises(InputError, match="namespace = '/support_03'"):
+        read_sensors(bag, namespace="/support_03")
+
+
+def test_a_bag_with_relative_names_still_reads():
+    """Bags recorded before the names were fully qualified (``imu``) read as the root namespace."""
+    assert topics.namespace_of("imu") == topics.namespace_of("/imu") == "/"
+    assert topics.namespace_of("/support_07/imu") == "/support_07"
+    assert topics.qualified("/support_07/", "imu") == "/support_07/imu" and topics.qualified("", "imu") == "/imu"
+
+
+# --- nodes over the middleware -----------------------------------------------------------------
+
+@pytest.mark.ros
+def test_sim_node_publishes_contiguous_numbered_blocks():
+    """sim_node's blocks: consecutive indices from 0, stamp = index / rate, frame and range as documented."""
+    from geometry_msgs.msg import TwistStamped
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import FluidPressure, Imu, LaserScan
+
+    from rosprobe import Probe, ros_context, spin_until
+    from tail_beam_sim.ros import messages as ros_messages
+    from tail_beam_sim.ros.sim_node import SimNode
+
+    with ros_context() as (context, executor):
+        sim = SimNode(context=context, parameter_overrides=[
+            Parameter("sim_node.realtime_factor", value=0.0), Parameter("sim_node.wait_for_subscribers", value=1),
+            Parameter("sim_node.subscriber_settle_s", value=0.3)])
+        probe = Probe(context, {topics.VIBRATION: LaserScan, topics.JACK_PRESSURE: FluidPressure, topics.IMU: Imu,
+                                topics.REBOUND_VELOCITY: TwistStamped})  # the gate waits for all four
+        executor.add_node(sim)
+        executor.add_node(probe)
+        assert spin_until(executor, lambda: len(probe.messages[topics.VIBRATION]) >= 100)
+        blocks = ros_messages.vibration_blocks(probe.messages[topics.VIBRATION])
+        np.testing.assert_array_equal(blocks.first_index, 128 * np.arange(blocks.count))
+        np.testing.assert_allclose(blocks.stamp_s, blocks.first_index / 25600.0, atol=1e-9)
+        assert {m.header.frame_id for m in probe.messages[topics.VIBRATION]} == {"tail_beam_accelerometer"}
+        assert {(m.range_min, m.range_max) for m in probe.messages[topics.VIBRATION]} == {(-2000.0, 2000.0)}
+
+
+@pytest.mark.ros
+def test_id_node_reports_a_dropped_block_and_refuses_a_late_one():
+    """id_node fed blocks 0, 1, 3 then 2 over the middleware: one gap of 128 samples, then block 2
+    refused as late (it came after block 3 was handed on)."""
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import LaserScan
+
+    from rosprobe import RELIABLE, Probe, ros_context, spin_until
+    from tail_beam_id.id_node import IdNode
+    from tail_beam_sim.ros import messages as ros_messages
+
+    with ros_context() as (context, executor):
+        ident = IdNode(context=context, namespace="/feed", parameter_overrides=[Parameter("id_node.poll_period_s", value=0.05)])
+        feeder = Probe(context, {}, namespace="/feed", name="feeder")
+        pub = feeder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
+        executor.add_node(ident)
+        executor.add_node(feeder)
+        assert spin_until(executor, lambda: pub.get_subscription_count() >= 1)
+        msgs = ros_messages.vibration_messages(blocks_of([0, 128, 256, 384], n=128, rate_hz=25600.0))
+        for msg in (msgs[0], msgs[1], msgs[3]):
+            pub.publish(msg)
+        assert spin_until(executor, lambda: ident.vibration_lost_samples == 128)
+        pub.publish(msgs[2])
+        assert spin_until(executor, lambda: ident.vibration_late_blocks == 1)
+        assert ident.received[topics.VIBRATION] == 4 and ident.vibration_lost_samples == 128
