@@ -5,11 +5,18 @@ from __future__ import annotations
 
 import hashlib
 import os
+import sys
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
+# Tests live in one folder per layer (test/sim/physics, test/sim/bags, test/sim/ros,
+# test/sim/cli, test/id); their shared helpers (rosprobe, id_helpers) sit here and the
+# benchmark and soak scripts in test/bench.
+for _helpers in (Path(__file__).resolve().parent, Path(__file__).resolve().parent / "bench"):
+    if str(_helpers) not in sys.path:
+        sys.path.insert(0, str(_helpers))
 
 
 def _domain_id() -> int:

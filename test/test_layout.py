@@ -102,3 +102,24 @@ def test_every_package_declares_its_public_names(package):
     """Each package says what it exports (``__all__``), so a star import or a reader knows the API."""
     path = SIM.get(package) or ID[package]
     assert "__all__" in path.read_text(), f"{package} has no __all__"
+
+
+TEST_ROOT = REPO / "test"
+TEST_FOLDERS = {"sim/physics", "sim/bags", "sim/ros", "sim/cli", "id", "."}
+
+
+def test_tests_sit_in_one_folder_per_layer():
+    """Every test module lives in the folder of the layer it pins (README "Layout")."""
+    misplaced = [str(p.relative_to(TEST_ROOT)) for p in TEST_ROOT.rglob("test_*.py") if str(p.parent.relative_to(TEST_ROOT)) not in TEST_FOLDERS]
+    assert not misplaced
+    assert [p.name for p in TEST_ROOT.glob("test_*.py")] == ["test_layout.py"]
+
+
+def test_every_test_says_what_it_pins():
+    """Each test function carries a docstring whose first line says what it pins."""
+    bare = []
+    for path in TEST_ROOT.rglob("test_*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.name.startswith("test_") and not ast.get_docstring(node):
+                bare.append(f"{path.relative_to(TEST_ROOT)}::{node.name}")
+    assert not bare

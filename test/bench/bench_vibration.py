@@ -12,7 +12,7 @@ run, from the recorded bag and /proc:
   /proc/<pid>/stat, one core = 100 %);
 * bag size per minute of the support (the run's bag, scaled), with the compression asked for.
 
-Usage: python test/bench_vibration.py [--rates 25600 51200 76800 100000] [--duration 20]
+Usage: python test/bench/bench_vibration.py [--rates 25600 51200 76800 100000] [--duration 20]
        [--compression zstd none]
 The machine is shared: say so when quoting figures.
 """

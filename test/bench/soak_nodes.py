@@ -2,7 +2,7 @@
 ``realtime_factor:=0``; prints the resident memory (RSS) of each every few seconds, then checks
 the bag: impacts (truths) = labels = rebounds = the count asked for.
 
-    python test/soak_nodes.py --impacts 1000          # about 8 minutes on a loaded 2-core machine
+    python test/bench/soak_nodes.py --impacts 1000          # about 8 minutes on a loaded 2-core machine
 
 Not part of the pytest suite (too long); test/test_soak_short.py runs the same with 50 impacts.
 Exit status 0 when the counts match and the bag reads, 1 otherwise.

@@ -10,7 +10,7 @@
 3. Recorder: bag_recorder in this process recording sim_node running as fast as it can
    (realtime_factor 0); messages written per wall second, and any lost; and its writer alone.
 
-Usage: python test/bench_nodes.py [--rates 2000 5000 10000] [--duration 6] [--repeats 3]
+Usage: python test/bench/bench_nodes.py [--rates 2000 5000 10000] [--duration 6] [--repeats 3]
 Each figure is the median over the repeats. Keep it small on a shared machine.
 """
 
