@@ -1,12 +1,17 @@
 """``id_node``: a ROS 2 node over :class:`tail_beam_id.identifier.StreamIdentifier`.
 
-Subscribes to ``jack_pressure``, ``imu``, ``vibration`` and ``rebound_velocity`` (never ``impact_truth``),
-buffers what arrives, and every ``poll_period_s`` hands the buffers to the identifier and
-publishes its labels on ``label``. The identifier decides from stamps and contents only, so
-the labels do not depend on how the topics interleave on arrival. When no sensor message has
-come for ``flush_after_idle_s`` (the data ended, or every stream stopped) the pending impacts
-are decided from what there is. Spun by ``rclpy.experimental.EventsExecutor``, which keeps
-up with thousands of messages per second where the default executor loses some.
+Subscribes to ``jack_pressure``, ``imu``, ``vibration`` and ``rebound_velocity`` (never
+``impact_truth``), buffers what arrives, and every ``poll_period_s`` puts it in stamp order
+through an :class:`tail_beam_id.arrival.ArrivalGate`, hands the identifier what every live
+stream has passed, and publishes its labels on ``label``. The identifier thus sees the streams
+as ``tail-beam identify`` sees them in a bag, whatever order and pace the middleware delivers
+them in: live and offline labels agree. When no sensor message has come for
+``flush_after_idle_s`` (the data ended, or every stream stopped) the pending impacts are
+decided from what there is. A time jump (stamps going back: a restarted simulator, a looped
+replay; every stream ahead at once) is logged, what was pending is decided, and identification
+starts afresh; a lone message stamped far ahead is set aside and counted, never let poison the
+streams. Spun by ``rclpy.experimental.EventsExecutor``, which keeps up with thousands of
+messages per second where the default executor loses some.
 
 The ``vibration`` blocks are decoded with numpy and kept in running-index order by a
 :class:`tail_beam_sim.physics.sensors.BlockSequencer`: a jump in the index is a lost block,
@@ -17,7 +22,6 @@ is refused and counted (``vibration_lost_samples``, ``vibration_late_blocks``).
 from __future__ import annotations
 
 import sys
-import math
 import time
 
 import numpy as np
@@ -26,11 +30,12 @@ from rclpy.node import Node
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
 
+from tail_beam_id.arrival import GateConfig, GatedIdentifier
 from tail_beam_id.identifier import StreamIdentifier
+from tail_beam_id.methods import Method
 from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.errors import require_range
-from tail_beam_sim.physics.sensors import BlockSequencer
 from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_and_read, refuse_runtime_changes
 from tail_beam_sim.ros.spin import run_node
 
@@ -45,14 +50,16 @@ class IdNode(Node):
         period = require_range("id_node.poll_period_s", node.get("poll_period_s"), 0.0, 10.0, low_open=True, unit="s")
         self.flush_after_idle_s = require_range("id_node.flush_after_idle_s", node.get("flush_after_idle_s"), 0.0, None, low_open=True, unit="s")
         depth = int(require_range("id_node.qos_depth", node.get("qos_depth"), 0, 1e6))
-        self.identifier = StreamIdentifier(params.get("method") or None, params=params["identification"], model_params=params)
+        method = params.get("method") or None
+
+        def new_identifier(trained: Method | None) -> StreamIdentifier:
+            return StreamIdentifier(method, params=params["identification"], model_params=params, prebuilt=trained)
+
+        self.gated = GatedIdentifier(new_identifier, GateConfig.from_params(node))
         self._pressure: list[FluidPressure] = []
         self._imu: list[Imu] = []
         self._rebounds: list[TwistStamped] = []
         self._vibration: list[LaserScan] = []
-        self._vib_stamps: list[np.ndarray] = []  # vibration samples sequenced, not yet given to the identifier
-        self._vib_values: list[np.ndarray] = []
-        self.sequencer = BlockSequencer()
         self._last_arrival_s = time.monotonic()
         self._unflushed = False
         self.received = {topics.JACK_PRESSURE: 0, topics.IMU: 0, topics.VIBRATION: 0, topics.REBOUND_VELOCITY: 0}
@@ -85,76 +92,50 @@ class IdNode(Node):
         self._vibration.append(msg)
         self._arrived(topics.VIBRATION)
 
-    @property
-    def vibration_lost_samples(self) -> int:
-        return self.sequencer.lost_samples
-
-    @property
-    def vibration_late_blocks(self) -> int:
-        return self.sequencer.late_blocks
-
-    def _take_vibration(self) -> None:
-        """Decode the buffered blocks, put them in index order, report gaps and late blocks."""
-        if not self._vibration:
-            return
-        report = self.sequencer.push(ros_messages.vibration_blocks(self._vibration))
-        self._vibration = []
-        if report.gaps:
-            missing = sum(n for _, n in report.gaps)
-            self.get_logger().warning(
-                f"vibration: {len(report.gaps)} gap(s), {missing} samples lost (first missing index {report.gaps[0][0]}); "
-                f"{self.sequencer.lost_samples} lost in all"
-            )
-        if report.late:
-            self.get_logger().warning(
-                f"vibration: {report.late} block(s) arrived after a later one and were refused; {self.sequencer.late_blocks} in all"
-            )
-        self._feed_vibration(report.accepted)
-
-    def _feed_vibration(self, blocks) -> None:
-        """Queue the accepted blocks (in index order) for the identifier's high-rate channel."""
-        if blocks.count:
-            self._vib_stamps.append(blocks.sample_stamps_s())
-            self._vib_values.append(blocks.accel_mps2.astype(float))
-
-    def _release_vibration(self, everything: bool) -> None:
-        """Hand the identifier the queued vibration samples no later than the per-sample streams
-        it has (jack pressure, IMU) plus half the stream timeout. A few large vibration blocks
-        arrive ahead, in wall time, of thousands of small per-sample messages; fed at once they
-        would make those streams look stopped (their stamps lagging the newest by more than
-        ``stream_timeout_s``), a decision that depends on arrival, not on the data."""
-        if not self._vib_stamps:
-            return
-        stamps, values = np.concatenate(self._vib_stamps), np.concatenate(self._vib_values)
-        seen = [s for s in (self.identifier.pressure.latest_s, self.identifier.imu.latest_s) if s > -math.inf]
-        limit = math.inf if everything or not seen else min(seen) + 0.5 * self.identifier.config.stream_timeout_s
-        take = stamps <= limit
-        if take.any():
-            self.identifier.add_vibration(stamps[take], values[take])
-        self._vib_stamps, self._vib_values = ([stamps[~take]], [values[~take]]) if not take.all() else ([], [])
-
     def _on_rebound(self, msg: TwistStamped) -> None:
         self._rebounds.append(msg)
         self._arrived(topics.REBOUND_VELOCITY)
 
-    def _tick(self) -> None:
-        """Hand the buffered samples to the identifier; publish what it can decide."""
+    @property
+    def vibration_lost_samples(self) -> int:
+        return self.gated.sequencer.lost_samples
+
+    @property
+    def vibration_late_blocks(self) -> int:
+        return self.gated.sequencer.late_blocks
+
+    @property
+    def identifier(self) -> StreamIdentifier:
+        return self.gated.identifier
+
+    def _arrivals(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """The pressure and IMU messages since the last tick as arrays, in arrival order."""
+        out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         if self._pressure:
-            self.identifier.add_pressure(*ros_messages.pressure_arrays(self._pressure))
-            self._pressure = []
+            stamps, pressure = ros_messages.pressure_arrays(self._pressure)
+            out[topics.JACK_PRESSURE] = (stamps, pressure.reshape(-1, 1))
         if self._imu:
-            self.identifier.add_imu(*ros_messages.imu_arrays(self._imu))
-            self._imu = []
-        self._take_vibration()
-        idle = self._unflushed and time.monotonic() - self._last_arrival_s > self.flush_after_idle_s
-        self._release_vibration(everything=idle)
-        for msg in self._rebounds:
-            self.identifier.add_rebound(*ros_messages.rebound_values(msg))
-        self._rebounds = []
-        labels = self.identifier.poll()
-        if self._unflushed and time.monotonic() - self._last_arrival_s > self.flush_after_idle_s:
-            labels += self.identifier.flush()
+            stamps, gyro, accel = ros_messages.imu_arrays(self._imu)
+            out[topics.IMU] = (stamps, np.hstack([gyro, accel]))
+        self._pressure, self._imu = [], []
+        return out
+
+    def _tick(self) -> None:
+        """Hand the gated identifier what arrived; publish the labels it decides."""
+        now = time.monotonic()
+        arrivals = self._arrivals()
+        blocks = ros_messages.vibration_blocks(self._vibration)
+        rebounds = [ros_messages.rebound_values(m) for m in self._rebounds]
+        self._vibration, self._rebounds = [], []
+        idle = self._unflushed and now - self._last_arrival_s > self.flush_after_idle_s
+        self._publish(self.gated.tick(now, arrivals, blocks, rebounds, end_of_data=idle))
+        if idle:
             self._unflushed = False
+        for note in self.gated.notes:
+            self.get_logger().warning(note)
+        self.gated.notes.clear()
+
+    def _publish(self, labels: list[dict]) -> None:
         for label in labels:
             self._label_pub.publish(ros_messages.string_message(label))
             self.published += 1

@@ -27,12 +27,18 @@ def impact(params: dict[str, Any], tier: str = "modal", noise: float = 1.0, sens
     return simulate(scene, tier=tier)
 
 
-def stream(params, commands, until_s, **stream_options):
-    """A continuous stream of impacts at given contact stamps (the beam carries its motion)."""
+def stream_chunk(params, commands, until_s, **stream_options):
+    """A continuous stream of impacts at given contact stamps (the beam carries its motion),
+    as the simulator's Chunk: pressure, imu, vibration blocks, rebounds and truths."""
     varied = copy.deepcopy(params)
     varied["stream"] = {"tier": "modal", "min_impact_gap_s": 0.0, "command_lead_s": 0.001, "max_queued_impacts": 20, **stream_options}
     simulator = StreamSimulator.from_params(varied)
     for stamp, command in commands:
         simulator.submit(command, contact_stamp_s=stamp)
-    chunk = simulator.advance(until_s)
+    return simulator.advance(until_s)
+
+
+def stream(params, commands, until_s, **stream_options):
+    """A continuous stream of impacts at given contact stamps: pressure, imu, rebounds, truths."""
+    chunk = stream_chunk(params, commands, until_s, **stream_options)
     return chunk.pressure, chunk.imu, [r for _, r in chunk.rebounds], [t for _, t in chunk.truths]

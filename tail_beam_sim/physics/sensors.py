@@ -345,6 +345,11 @@ class BlockSequencer:
         self.late_blocks = 0
         self.accepted_samples = 0
 
+    def restart(self) -> None:
+        """The source started its running index again (a restarted simulator): the next block
+        begins the stream anew; the totals are kept."""
+        self.next_index = None
+
     def push(self, blocks: VibrationBlocks) -> SequenceReport:
         ordered = blocks.sorted()
         refused_repeats = blocks.count - ordered.count

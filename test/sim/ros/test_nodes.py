@@ -221,6 +221,59 @@ def test_id_node_labels_from_what_remains_when_a_stream_stops():
         assert all(math.isfinite(lab["confidence"]) for lab in labels)
 
 
+def test_id_node_survives_a_restarted_simulator_and_a_stamp_from_the_future():
+    """A stream whose stamps start again from 0 (sim_node restarted) and, before it, one IMU
+    message stamped 1000 s ahead: id_node says so in its log and labels every impact of both
+    runs, the same labels offline identification gives each run (it went deaf before)."""
+    from tail_beam_id.identifier import StreamIdentifier
+    from tail_beam_id.replay import replay
+
+    chunk = offline_chunk()
+    starts = [t["contact_start_stamp"] for _, t in chunk.truths]
+    params = load_parameters()
+    expected = replay(StreamIdentifier("threshold", params=params["identification"], model_params=params), chunk.pressure,
+                      chunk.imu, [r for _, r in chunk.rebounds], vibration=chunk.vibration)
+    assert len(expected) == len(starts)
+    with ros_context() as (context, executor):
+        ident = id_node(context)
+        feeder = Probe(context, {topics.LABEL: String, "/rosout": Log}, name="feeder")
+        pubs = {
+            topics.JACK_PRESSURE: feeder.create_publisher(FluidPressure, topics.JACK_PRESSURE, 10000),
+            topics.IMU: feeder.create_publisher(Imu, topics.IMU, 10000),
+            topics.VIBRATION: feeder.create_publisher(LaserScan, topics.VIBRATION, 1000),
+            topics.REBOUND_VELOCITY: feeder.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, 100),
+        }
+        executor.add_node(ident)
+        executor.add_node(feeder)
+        assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()))
+        future = ros_messages.imu_messages(chunk.imu)[100]
+        future.header.stamp = ros_messages.time_msg(1000.0)
+        for run in range(2):
+            messages = sorted(
+                [(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec, k, topic, m) for topic, batch in (
+                    (topics.JACK_PRESSURE, ros_messages.pressure_messages(chunk.pressure)),
+                    (topics.IMU, ros_messages.imu_messages(chunk.imu)),
+                    (topics.VIBRATION, ros_messages.vibration_messages(chunk.vibration)),
+                    (topics.REBOUND_VELOCITY, [ros_messages.rebound_message(r) for _, r in chunk.rebounds]),
+                ) for k, m in enumerate(batch)], key=lambda item: item[:2])
+            for i, (_, _, topic, msg) in enumerate(messages):
+                pubs[topic].publish(msg)
+                if run == 0 and i == len(messages) // 3:
+                    pubs[topics.IMU].publish(future)
+                if i % 2000 == 0:
+                    spin_for(executor, 0.05)
+            spin_until(executor, lambda: len(feeder.messages[topics.LABEL]) >= len(starts) * (run + 1), timeout_s=30)
+        spin_for(executor, 0.5)
+        labels = feeder.json(topics.LABEL)
+        log = " | ".join(m.msg for m in feeder.messages["/rosout"] if m.name.endswith("tail_beam_id"))
+    key = ("label", "confidence")
+    assert [tuple(l[k] for k in key) for l in labels] == [tuple(l[k] for k in key) for l in expected] * 2, log
+    # Stamps cross the middleware as integer nanoseconds.
+    np.testing.assert_allclose([l["impact_stamp"] for l in labels], [l["impact_stamp"] for l in expected] * 2, atol=1e-8)
+    assert "time jump" in log and "went back" in log
+    assert "1 samples stamped more than 1 s ahead" in log
+
+
 def test_publish_clock_gives_the_simulation_time_on_slash_clock():
     """/clock ticks forward with simulation time, ending within one chunk of the last published sample."""
     from rosgraph_msgs.msg import Clock

@@ -1,5 +1,6 @@
 """The soak of test/bench/soak_nodes.py, short: sim_node, id_node and bag_recorder as processes on 50
-generated impacts at ``realtime_factor:=0``; the bag reads and holds every impact once."""
+generated impacts at ``realtime_factor:=0``; the bag reads and holds every impact once, and
+its live labels are the offline ones."""
 
 from __future__ import annotations
 
@@ -12,11 +13,10 @@ IMPACTS = 50
 
 
 def test_fifty_impacts_as_fast_as_possible_are_all_in_the_bag(tmp_path):
-    """truths = rebounds = 50 in a bag that reads, every node's RSS sampled; labels = 50 too once
-    live id_node keeps up at realtime_factor 0 (issue 8, another bullet's)."""
+    """truths = rebounds = labels = 50 in a bag that reads, every node's RSS sampled, and the live
+    labels are the offline ones: id_node keeps up at realtime_factor 0 and orders what arrives."""
     result = soak(IMPACTS, tmp_path, sample_s=2.0, timeout_s=300, echo=lambda *a, **k: None, namespace="/soak_short")
     assert result.truths == IMPACTS and result.rebounds == IMPACTS, result.logs
     assert all(sum(mb > 0 for _, mb in samples) >= 3 for samples in result.rss.values()), result.rss  # sampled while running
-    if result.labels != IMPACTS:
-        pytest.xfail(f"{result.labels} labels for {IMPACTS} impacts: live id_node at realtime_factor 0 "
-                     "disagrees with offline identify (issue 8, fixed in another branch)")
+    assert result.labels == result.offline_labels == IMPACTS, result.logs["id_node"]
+    assert result.live_matches_offline
