@@ -41,7 +41,7 @@ class OneLineParser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The full ``tail-beam`` parser with every installed subcommand."""
-    parser = OneLineParser(prog="tail-beam", description="tail_beam offline tools: simulate, sweep, identify, evaluate, bench")
+    parser = OneLineParser(prog="tail-beam", description="tail_beam tools: simulate, sweep, identify, evaluate, bench offline; send impacts to a running sim_node")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser, metavar="COMMAND")
     verbs = {ep.name: ep for ep in entry_points(group=VERB_GROUP)}
     if not verbs:
