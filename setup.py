@@ -51,6 +51,7 @@ setup(
         "tail_beam.verbs": [
             "simulate = tail_beam_sim.cli.simulate_cmd:register",
             "sweep = tail_beam_sim.cli.sweep_cmd:register",
+            "send = tail_beam_sim.cli.send_cmd:register",
             "bag = tail_beam_sim.cli.bag_cmd:register",
             "bench = tail_beam_sim.cli.bench_cmd:register",
             "identify = tail_beam_id.cli.identify_cmd:register",

@@ -27,8 +27,9 @@ def ros_context() -> Iterator[tuple[rclpy.Context, EventsExecutor]]:
     try:
         yield context, executor
     finally:
+        nodes = list(executor.get_nodes())  # before shutdown, which forgets them
         executor.shutdown()
-        for node in list(executor.get_nodes()):
+        for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown(context=context)
 

@@ -6,7 +6,9 @@ way ros2cli and colcon find theirs, so any installed package can contribute one.
 
 Exit status: 0 done; 2 bad input (one line naming the field and what is allowed); 3 a solve
 failed (:class:`~tail_beam_sim.physics.solvers.SolverError`: one line naming the solver and
-what to change); 130 interrupted. Never a traceback.
+what to change); 4 a peer did not answer in time (``send``: no simulator appeared, or it did
+not acknowledge the commands or send their truths); 5 a peer refused the request (``send``:
+the simulator refused a command); 130 interrupted. Never a traceback.
 """
 
 from __future__ import annotations
@@ -21,11 +23,13 @@ from tail_beam_sim.physics.solvers import SolverError
 
 VERB_GROUP = "tail_beam.verbs"
 # Order of ``tail-beam --help`` for the verbs it knows; any other installed verb follows, by name.
-__all__ = ["EXIT_BAD_INPUT", "EXIT_SOLVER_FAILED", "OneLineParser", "VERB_GROUP", "build_parser", "main"]
+__all__ = ["EXIT_BAD_INPUT", "EXIT_SOLVER_FAILED", "EXIT_TIMEOUT", "EXIT_REFUSED", "OneLineParser", "VERB_GROUP", "build_parser", "main"]
 EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 3
+EXIT_TIMEOUT = 4
+EXIT_REFUSED = 5
 
-PREFERRED_ORDER = ("simulate", "sweep", "identify", "calibrate", "evaluate", "bag", "demo", "bench")
+PREFERRED_ORDER = ("simulate", "sweep", "send", "identify", "calibrate", "evaluate", "bag", "demo", "bench")
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -37,7 +41,7 @@ class OneLineParser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The full ``tail-beam`` parser with every installed subcommand."""
-    parser = OneLineParser(prog="tail-beam", description="tail_beam offline tools: simulate, sweep, identify, evaluate, bench")
+    parser = OneLineParser(prog="tail-beam", description="tail_beam tools: simulate, sweep, identify, evaluate, bench offline; send impacts to a running sim_node")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser, metavar="COMMAND")
     verbs = {ep.name: ep for ep in entry_points(group=VERB_GROUP)}
     if not verbs:

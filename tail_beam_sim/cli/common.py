@@ -51,13 +51,16 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
     return Scene.from_params(params, overrides)
 
 
-def add_fidelity_options(parser: argparse.ArgumentParser) -> None:
-    """--tier, --solver, --outputs, --tolerance, --check (defaults from config/fidelity.yaml)."""
+def add_fidelity_options(parser: argparse.ArgumentParser, check: bool = True) -> None:
+    """--tier, --solver, --outputs, --tolerance and, when ``check``, --check (defaults from
+    config/fidelity.yaml). ``simulate`` and ``sweep`` share them, so that a sweep's row and the
+    single simulation of the same settings use the same model."""
     parser.add_argument("--tier", choices=TIER_CHOICES, help="model fidelity (default from config: auto, the cheapest that meets the needs)")
     parser.add_argument("--solver", choices=sorted(SOLVERS), help="solver (default: the tier's; hybrid for rigid/modal/brittle)")
     parser.add_argument("--outputs", nargs="+", choices=OUTPUTS, help="what the scene needs, for --tier auto (default: all)")
     parser.add_argument("--tolerance", type=str, help="relative error the scene accepts, for --tier auto (default 0.01)")
-    parser.add_argument("--check", action="store_true", help="also simulate the next tier up and report the measured differences")
+    if check:
+        parser.add_argument("--check", action="store_true", help="also simulate the next tier up and report the measured differences")
 
 
 def fidelity_from_args(args: argparse.Namespace) -> tuple[str, Needs, FidelitySettings]:

@@ -45,13 +45,24 @@ def load_scenario(params: Mapping[str, Any], materials: Mapping[str, Material], 
         planned = read_scenario_file(params.get("file", ""))
     else:
         planned = generate_caving_stream(params, materials, support)
-    seen: set[str] = set()
-    for index, item in enumerate(planned):
-        impact = Impact.from_mapping(item.command, materials, support, prefix=f"scenario[{index}].")
-        if impact.impact_id in seen:
-            raise InputError(f"scenario[{index}].impact_id", impact.impact_id, "is used twice in the scenario; each impact_id names one impact")
-        seen.add(impact.impact_id or f"\0{index}")
+    check_impacts([item.command for item in planned], materials, support)
     return planned
+
+
+def check_impacts(
+    commands: Sequence[Mapping[str, Any]], materials: Mapping[str, Material], support: Support, item: str = "scenario",
+) -> list[Impact]:
+    """Validate a list of impact_cmd objects as the simulator will (``Impact.from_mapping``),
+    and refuse an impact_id used twice in it; errors name ``<item>[index].<field>``."""
+    seen: set[str] = set()
+    impacts = []
+    for index, command in enumerate(commands):
+        impact = Impact.from_mapping(command, materials, support, prefix=f"{item}[{index}].")
+        if impact.impact_id in seen:
+            raise InputError(f"{item}[{index}].impact_id", impact.impact_id, f"is used twice in the {item}; each impact_id names one impact")
+        seen.add(impact.impact_id or f"\0{index}")
+        impacts.append(impact)
+    return impacts
 
 
 def resolve_scenario_file(path: str | os.PathLike[str]) -> Path:
@@ -64,32 +75,33 @@ def resolve_scenario_file(path: str | os.PathLike[str]) -> Path:
     return shipped if shipped.exists() else given
 
 
-def read_scenario_file(path: str | os.PathLike[str]) -> list[PlannedImpact]:
+def read_scenario_file(path: str | os.PathLike[str], field: str = "scenario.file", item: str = "scenario") -> list[PlannedImpact]:
     """Impacts from a YAML file: a list (or ``{impacts: [...]}``) of impact_cmd objects.
 
     An item may hold ``contact_stamp_s``, the contact time it asks for, s. A relative path is
-    looked for in the working directory, then in the shipped config directory.
+    looked for in the working directory, then in the shipped config directory. Errors name the
+    file as ``field`` and an item as ``<item>[index]`` (``tail-beam send`` reads the same files).
     """
     if not path:
-        raise InputError("scenario.file", path, "must name a YAML file when scenario.source is file")
+        raise InputError(field, path, "must name a YAML file of impacts")
     try:
         data = yaml.safe_load(resolve_scenario_file(path).read_text(encoding="utf-8"))
     except OSError as exc:
-        raise InputError("scenario.file", str(path), f"must be a readable file ({exc.strerror})") from None
+        raise InputError(field, str(path), f"must be a readable file ({exc.strerror})") from None
     except yaml.YAMLError as exc:
-        raise InputError("scenario.file", str(path), f"must be valid YAML ({str(exc).splitlines()[0]})") from None
+        raise InputError(field, str(path), f"must be valid YAML ({str(exc).splitlines()[0]})") from None
     if isinstance(data, Mapping):
         data = data.get("impacts")
     if not isinstance(data, list):
-        raise InputError("scenario.file", str(path), "must hold a list of impacts (or impacts: [...])")
+        raise InputError(field, str(path), "must hold a list of impacts (or impacts: [...])")
     planned = []
-    for index, item in enumerate(data):
-        if not isinstance(item, Mapping):
-            raise InputError(f"scenario[{index}]", item, "must be a mapping of impact fields")
-        command = dict(item)
+    for index, entry in enumerate(data):
+        if not isinstance(entry, Mapping):
+            raise InputError(f"{item}[{index}]", entry, "must be a mapping of impact fields")
+        command = dict(entry)
         stamp = command.pop("contact_stamp_s", None)
         if stamp is not None:
-            stamp = require_range(f"scenario[{index}].contact_stamp_s", stamp, 0.0, None, unit="s")
+            stamp = require_range(f"{item}[{index}].contact_stamp_s", stamp, 0.0, None, unit="s")
         planned.append(PlannedImpact(command, stamp))
     return planned
 

@@ -34,7 +34,7 @@ from std_msgs.msg import String
 
 from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import InputError, require_range, shorten
 from tail_beam_sim.ros.params import config_defaults, declare_and_read
 from tail_beam_sim.ros.spin import ACK_TIMEOUT_S, PublishBacklog, SubscriberGate, drain, run_node
 from tail_beam_sim.physics.command import parse_command
@@ -57,6 +57,18 @@ USAGE = NodeUsage(
         "sim_node --ros-args -r __ns:=/support_07 --params-file my.yaml",
     ),
 )
+
+
+REFUSAL_PREFIX = "impact_cmd "  # every line refusing a command starts so: "impact_cmd rejected: ...", "refused", "not simulated"
+
+
+def refusal_tag(command: object) -> str:
+    """``impact_id '<id>'; `` for a command (a parsed impact_cmd) that carries a string
+    impact_id, else "": sim_node puts it in the brackets that end a refusal's log line
+    (``[impact_id 'run3-017'; 2 refused so far]``), and ``tail-beam send --wait-truth`` looks for
+    it on /rosout. Long ids are cut as every echoed value is (:func:`~tail_beam_sim.errors.shorten`)."""
+    impact_id = command.get("impact_id") if isinstance(command, dict) else None
+    return f"impact_id {shorten(impact_id)}; " if isinstance(impact_id, str) else ""
 
 
 @dataclass
@@ -135,21 +147,27 @@ class SimNode(Node):
         return SetParametersResult(successful=False, reason=reason)
 
     def _on_command(self, msg: String) -> None:
-        """One impact_cmd: queue it, or log why not (the node keeps running either way)."""
+        """One impact_cmd: queue it, or log why not (the node keeps running either way). A
+        refusal's line names the command's impact_id when it has one (:func:`refusal_tag`), so
+        that a client reading /rosout knows which of its commands was refused."""
         self.commands.received += 1
+        command = None
         try:
-            scheduled = self.stream.submit(parse_command(msg.data))
+            command = parse_command(msg.data)
+            scheduled = self.stream.submit(command)
         except QueueFull as exc:
             self.commands.refused += 1
-            self.get_logger().warning(f"impact_cmd refused: {exc} [{self.commands.refused} refused so far]")
+            self.get_logger().warning(f"impact_cmd refused: {exc} [{refusal_tag(command)}{self.commands.refused} refused so far]")
             return
         except InputError as exc:
             self.commands.refused += 1
-            self.get_logger().error(f"impact_cmd rejected: {exc} [{self.commands.refused} refused so far]")
+            self.get_logger().error(f"impact_cmd rejected: {exc} [{refusal_tag(command)}{self.commands.refused} refused so far]")
             return
         except SolverError as exc:
             self.commands.refused += 1
-            self.get_logger().error(f"impact_cmd not simulated: solver failed: {exc} [{self.commands.refused} refused so far]")
+            self.get_logger().error(
+                f"impact_cmd not simulated: solver failed: {exc} [{refusal_tag(command)}{self.commands.refused} refused so far]"
+            )
             return
         self.commands.queued += 1
         self.get_logger().info(

@@ -110,15 +110,24 @@ class PublishBacklog:
 
 
 class SubscriberGate:
-    """Opens once every publisher has ``count`` subscribers and ``settle_s`` (wall clock) has
-    passed since: DDS discovery is asymmetric, so a publisher counts a subscriber before that
-    subscriber has matched the publisher, and a volatile reader loses what is sent in between."""
+    """Opens once every publisher has ``count`` subscribers (and ``ready()``, when given, holds)
+    and ``settle_s`` (wall clock) has passed since: DDS discovery is asymmetric, so a publisher
+    counts a subscriber before that subscriber has matched the publisher, and a volatile reader
+    loses what is sent in between."""
 
-    def __init__(self, publishers: Sequence[Publisher], count: int, settle_s: float) -> None:
+    def __init__(
+        self, publishers: Sequence[Publisher], count: int, settle_s: float, ready: Callable[[], bool] | None = None,
+    ) -> None:
         self._publishers = publishers
         self._count = count
         self._settle_s = settle_s
+        self._ready = ready
         self._seen_at: float | None = None
+
+    @property
+    def seen(self) -> bool:
+        """Whether the subscribers are there (the settle time may still be running)."""
+        return self._seen_at is not None
 
     def open(self) -> bool:
         if self._count == 0:
@@ -126,17 +135,22 @@ class SubscriberGate:
         if self._seen_at is None:
             if not all(p.get_subscription_count() >= self._count for p in self._publishers):
                 return False
+            if self._ready is not None and not self._ready():
+                return False
             self._seen_at = time.monotonic()
         return time.monotonic() - self._seen_at >= self._settle_s
 
 
-def drain(node: Node, publishers: Iterable[Publisher]) -> None:
+def drain(node: Node, publishers: Iterable[Publisher]) -> bool:
     """Before exiting: wait until the subscribers have every message published (unless the
-    process was told to stop, which shuts the middleware down)."""
+    process was told to stop, which shuts the middleware down), at most ``ACK_TIMEOUT_S`` per
+    publisher. True when every publisher's messages were acknowledged."""
     if not node.context.ok():
-        return
+        return False
+    acked = True
     for publisher in publishers:
-        publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
+        acked = publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S)) and acked
+    return acked
 
 
 class NodeGroup:
