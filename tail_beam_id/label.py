@@ -1,5 +1,6 @@
-"""Labels: the ``label`` JSON object the identifier gives (docs/interface.md), built here, and the
-one rule that says which impact a label is of when it is scored against the truth.
+"""Labels: the ``label`` JSON object the identifier gives (docs/interface.md), built here
+(:func:`make_label`), and the one rule that says which impact a label is of when it is scored
+against the truth (:func:`match`).
 
 The rule (demo, evaluate, training, benchmarks and tests all use :func:`match`): a label is of
 the impact whose contact start (``impact_truth.contact_start_stamp``) lies within
@@ -18,6 +19,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from tail_beam_id.methods import Decision
 from tail_beam_sim.errors import require_range
 
 TRUTH_STAMP = "contact_start_stamp"  # the impact_truth field a label's stamp is compared with, s
@@ -82,3 +84,43 @@ def match(truths: Sequence[Mapping[str, Any]], labels: Sequence[Mapping[str, Any
     """Pair ``impact_truth`` objects with ``label`` objects by the rule of this module."""
     return match_stamps([float(t[TRUTH_STAMP]) for t in truths], [float(l[LABEL_STAMP]) for l in labels], tolerance_s)
 
+
+def make_label(
+    *,
+    impact_stamp_s: float,
+    decision: Decision,
+    confidence: float,
+    method: str,
+    compute_ms: float,
+    data_latency_ms: float,
+    signals: Sequence[str],
+    overlap: bool,
+    calibrated: bool,
+    features: Mapping[str, float],
+    saturated: Sequence[str] = (),
+    imu_inverted: bool = False,
+) -> dict[str, Any]:
+    """The ``label`` object of one impact: the contract's fields (docs/interface.md) first, then
+    the suite's own; the optional keys (``saturated``, ``imu_mount``, ``outside_training``) only
+    when they say something. ``confidence``: the stated label's probability after any cap;
+    ``compute_ms``: time the decision took (published as ``latency_ms``); ``features``: the
+    impact's features, to which the method's estimates are added."""
+    label: dict[str, Any] = {
+        LABEL_STAMP: impact_stamp_s,
+        "label": decision.label,
+        "confidence": round(float(confidence), 6),
+        "method": method,
+        "latency_ms": compute_ms,
+        "data_latency_ms": data_latency_ms,
+        "signals": list(signals),
+        "overlap": overlap,
+        "calibrated": calibrated,
+        "features": {**{k: float(v) for k, v in features.items()}, **decision.estimates},
+    }
+    if saturated:
+        label["saturated"] = list(saturated)
+    if imu_inverted:
+        label["imu_mount"] = "inverted"
+    if decision.outside_training:
+        label["outside_training"] = list(decision.outside_training)
+    return label

@@ -16,7 +16,7 @@ from tail_beam_id.dataset import SCENE_SETS, evaluation_params, settings
 from tail_beam_id.evaluation import (
     Summary, format_confusion, format_sizes, format_table, group, large_particle_accuracy, summaries,
 )
-from tail_beam_id.identifier import available_methods
+from tail_beam_id.methods import available_methods
 from tail_beam_id.runs import FOREIGN_PROFILES, Record, run_foreign, run_set
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters

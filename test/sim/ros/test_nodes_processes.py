@@ -16,8 +16,8 @@ from std_msgs.msg import String
 
 from rosprobe import Probe, ros_context, spin_for, spin_until
 from tail_beam_id.cli.identify_cmd import identify_bag
-from tail_beam_id.identifier import available_methods
 from tail_beam_id.label import match, match_tolerance_s
+from tail_beam_id.methods import available_methods
 from tail_beam_sim import topics
 from tail_beam_sim.bags.read import raw_messages, read_sensors
 from tail_beam_sim.bags.write import PARTIAL_DIR
