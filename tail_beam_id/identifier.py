@@ -14,63 +14,30 @@ is the IMU's ``linear_acceleration.z`` unless a high-rate tail-beam acceleromete
 channel for pulse detection and the IMU impulse (labels name ``vibration`` in ``signals``
 instead of ``imu``); the IMU's pulses count only before the vibration stream began and after
 it stopped. The vibration stream is a continuous stream for liveness and timeouts.
+
+Its parts live in modules of their own: the stream buffers (:mod:`tail_beam_id.buffers`), the
+methods and their registry (:mod:`tail_beam_id.methods`), and the label object it returns
+(:func:`tail_beam_id.label.make_label`).
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from tail_beam_id.buffers import Series
 from tail_beam_id.detection.imu import DetectionConfig, Pulse, PulseDetector
-from tail_beam_id.features import BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
-from tail_beam_id.methods import Decision, Method, load_model
 from tail_beam_id.detection.pressure import PressureDetector
+from tail_beam_id.features import BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
+from tail_beam_id.label import make_label
+from tail_beam_id.methods import METHODS, Decision, Method, build_method
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, require_range
-
-
-def _threshold(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
-    from tail_beam_id.methods.threshold import ThresholdMethod
-
-    return ThresholdMethod.from_model(model, params)
-
-
-def _statistical(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
-    from tail_beam_id.methods.statistical import StatisticalMethod
-
-    return StatisticalMethod.from_model(model, params)
-
-
-def _physics(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
-    from tail_beam_id.methods.physics import PhysicsMethod
-
-    return PhysicsMethod.from_model(model, params)
-
-
-# name -> factory building the method from its trained model dict and the merged parameters.
-METHODS: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any]], Method]] = {
-    "threshold": _threshold,
-    "statistical": _statistical,
-    "physics": _physics,
-}
-
-
-def available_methods() -> list[str]:
-    """Names the ``method`` parameter accepts."""
-    return list(METHODS)
-
-
-def build_method(name: str, params: Mapping[str, Any], model_path: str | None = None) -> Method:
-    """The method ``name`` with its shipped (or given) trained parameters; ``params``: the
-    merged parameters (support, materials, identification)."""
-    if name not in METHODS:
-        raise InputError("identification.method", name, f"must be one of {', '.join(METHODS)}")
-    return METHODS[name](load_model(name, model_path), params)
 
 
 @dataclass(frozen=True)
@@ -124,50 +91,6 @@ class IdentifierConfig:
 MOUNT_SAMPLES = 16  # IMU samples whose median gravity reading gives the mounting's sign
 
 
-class _Series:
-    """One continuous stream's samples, appended in chunks and joined lazily."""
-
-    def __init__(self) -> None:
-        self.chunks_t: list[np.ndarray] = []
-        self.chunks_v: list[np.ndarray] = []
-        self.stamp_s = np.zeros(0)
-        self.values = np.zeros((0, 1))
-        self.base_index = 0  # absolute index of element 0 (after trimming)
-
-    @property
-    def seen(self) -> bool:
-        return bool(self.chunks_t) or self.stamp_s.size > 0
-
-    def append(self, stamp_s: np.ndarray, values: np.ndarray) -> None:
-        last = self.latest_s
-        keep = stamp_s > last  # per-topic order is preserved; drop repeats
-        if keep.any():
-            self.chunks_t.append(stamp_s[keep])
-            self.chunks_v.append(values[keep])
-
-    @property
-    def latest_s(self) -> float:
-        if self.chunks_t:
-            return float(self.chunks_t[-1][-1])
-        return float(self.stamp_s[-1]) if self.stamp_s.size else -math.inf
-
-    def join(self) -> None:
-        if self.chunks_t:
-            self.stamp_s = np.concatenate([self.stamp_s, *self.chunks_t])
-            width = self.chunks_v[0].shape[1]
-            old = self.values if self.values.shape[1] == width else np.zeros((0, width))
-            self.values = np.concatenate([old, *self.chunks_v])
-            self.chunks_t, self.chunks_v = [], []
-
-    def trim_before(self, stamp_s: float) -> None:
-        """Forget samples older than ``stamp_s`` (keeps absolute indices valid)."""
-        drop = int(np.searchsorted(self.stamp_s, stamp_s))
-        if drop > 0:
-            self.stamp_s = self.stamp_s[drop:]
-            self.values = self.values[drop:]
-            self.base_index += drop
-
-
 @dataclass
 class _Impact:
     """A detected impact waiting for its data."""
@@ -211,9 +134,9 @@ class StreamIdentifier:
         # Whether the support parameters are a profile measured on this support (tail-beam
         # calibrate) rather than the nominal config/: the methods then use their calibrated models.
         self.calibrated = bool((merged.get("calibration") or {}).get("rigid_mode_frequency_hz"))
-        self.pressure = _Series()
-        self.imu = _Series()
-        self.vibration = _Series()  # high-rate accelerometer, specific force along the plate normal
+        self.pressure = Series()
+        self.imu = Series()
+        self.vibration = Series()  # high-rate accelerometer, specific force along the plate normal
         self.rebounds: list[tuple[float, np.ndarray]] = []
         self.detector = PulseDetector(self.config.detection)
         self.vibration_detector = PulseDetector(self.config.detection)
@@ -280,7 +203,7 @@ class StreamIdentifier:
     def _newest_s(self) -> float:
         return max(self.pressure.latest_s, self.imu.latest_s, self.vibration.latest_s)
 
-    def _continuous(self) -> tuple[_Series, ...]:
+    def _continuous(self) -> tuple[Series, ...]:
         return (self.pressure, self.imu, self.vibration)
 
     def _vibration_in_use(self) -> bool:
@@ -295,7 +218,7 @@ class StreamIdentifier:
         stops = [stop for series, stop in ((self.imu, self.imu_stop_s), (self.vibration, self.vibration_stop_s)) if series.seen]
         return max(stops, default=math.inf)
 
-    def _live(self, series: _Series, final: bool) -> bool:
+    def _live(self, series: Series, final: bool) -> bool:
         """A continuous stream is live unless never seen or lagging by more than the timeout."""
         if not series.seen:
             return False
@@ -456,7 +379,7 @@ class StreamIdentifier:
         return self._scanned_s(self.imu, self.detector)
 
     @staticmethod
-    def _scanned_s(series: _Series, detector: PulseDetector) -> float:
+    def _scanned_s(series: Series, detector: PulseDetector) -> float:
         """Stamp up to which ``detector`` has examined ``series``, s."""
         local = detector.cursor - series.base_index - 1
         if local < 0 or not series.stamp_s.size:
@@ -504,25 +427,13 @@ class StreamIdentifier:
             confidence = min(confidence, cfg.overlap_confidence_cap)
         self._decided.append(impact.onset_s)
         horizon = self._data_horizon(impact)
-        label = {
-            "impact_stamp": onset,
-            "label": decision.label,
-            "confidence": round(float(confidence), 6),
-            "method": self.method.name,
-            "latency_ms": (time.perf_counter() - started) * 1e3,
-            "data_latency_ms": (horizon - onset) * 1e3,
-            "signals": signals,
-            "overlap": overlap,
-            "calibrated": self.calibrated,
-            "features": {**{k: float(v) for k, v in features.items()}, **decision.estimates},
-        }
-        if fit is not None and fit.saturated:
-            label["saturated"] = ["jack_pressure"]
-        if self.mount_sign is not None and self.mount_sign < 0:
-            label["imu_mount"] = "inverted"
-        if decision.outside_training:
-            label["outside_training"] = list(decision.outside_training)
-        return label
+        return make_label(
+            impact_stamp_s=onset, decision=decision, confidence=confidence, method=self.method.name,
+            compute_ms=(time.perf_counter() - started) * 1e3, data_latency_ms=(horizon - onset) * 1e3,
+            signals=signals, overlap=overlap, calibrated=self.calibrated, features=features,
+            saturated=["jack_pressure"] if fit is not None and fit.saturated else [],
+            imu_inverted=self.mount_sign is not None and self.mount_sign < 0,
+        )
 
     def _data_horizon(self, impact: _Impact) -> float:
         """The latest stamp of data this decision needed (s): the data latency's end."""

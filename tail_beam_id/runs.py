@@ -13,6 +13,7 @@ import copy
 from tail_beam_id.dataset import Setting, simulate_set, support_streams
 from tail_beam_sim.config import deep_merge
 from tail_beam_id.identifier import StreamIdentifier
+from tail_beam_id.label import match, match_tolerance_s
 from tail_beam_id.replay import replay
 
 
@@ -20,7 +21,8 @@ from tail_beam_id.replay import replay
 class Record:
     """One impact at one setting under one method: the truth and the matched label (or None).
 
-    ``extra_labels`` counts labels that matched no impact (false detections); times in s.
+    ``extra_labels`` counts labels that matched no impact (false detections; the rule:
+    :func:`tail_beam_id.label.match`); times in s.
     """
 
     scene_set: str
@@ -43,13 +45,6 @@ class Record:
         return self.label is not None and (self.label["label"] == "coal") == self.is_coal
 
 
-def match(labels: Sequence[Mapping[str, Any]], contact_stamp_s: float, tolerance_s: float) -> tuple[dict[str, Any] | None, int]:
-    """The label nearest the true contact within the tolerance, and how many others there are."""
-    near = [l for l in labels if abs(l["impact_stamp"] - contact_stamp_s) <= tolerance_s]
-    best = min(near, key=lambda l: abs(l["impact_stamp"] - contact_stamp_s), default=None)
-    return (dict(best) if best else None), len(labels) - (1 if best else 0)
-
-
 def run_set(
     params: Mapping[str, Any],
     scene_set: str,
@@ -57,7 +52,6 @@ def run_set(
     seed: int,
     chosen: Sequence[Setting],
     methods: Sequence[str],
-    tolerance_s: float,
     tier: str | None = None,
     windows_s: Sequence[float] = (),
     true_profile: bool = False,
@@ -66,6 +60,7 @@ def run_set(
     configured data window and at each of ``windows_s`` (s) as well. With ``true_profile`` an
     impact on a drawn support is identified knowing that support (a perfect calibration: what
     the calibrated models are trained on)."""
+    tolerance_s = match_tolerance_s(params["identification"])
     built: dict[str, Any] = {}
     sections = [dict(params["identification"])] + [with_window(params["identification"], w) for w in windows_s]
     for impact in simulate_set(params, scene_set, count, seed, chosen, tier):
@@ -84,13 +79,14 @@ def run_set(
                     started = time.perf_counter()
                     labels = replay(identifier, result.pressure, result.imu, [result.rebound])
                     wall = time.perf_counter() - started
-                    label, extra = match(labels, result.contact_stamp_s, tolerance_s)
+                    matching = match([truth], labels, tolerance_s)
+                    paired = matching.label_index(0)
                     yield Record(
                         scene_set=scene_set, setting=key, method=method, window_s=float(section["window_s"]), index=impact.index,
                         material=truth["material"], is_coal=truth["label"] == "coal", radius_m=truth["radius_m"],
                         contact_stamp_s=result.contact_stamp_s,
                         duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
-                        label=label, extra_labels=extra, wall_s=wall, calibrated=identifier.calibrated,
+                        label=None if paired is None else dict(labels[paired]), extra_labels=len(matching.extra), wall_s=wall, calibrated=identifier.calibrated,
                     )
 
 
@@ -113,7 +109,6 @@ def run_foreign(
     impacts_per_support: int,
     seed: int,
     methods: Sequence[str],
-    tolerance_s: float,
     tier: str | None = None,
     profiles: Sequence[str] = FOREIGN_PROFILES[:2],
 ) -> Iterator[Record]:
@@ -124,6 +119,7 @@ def run_foreign(
     from tail_beam_id.calibration import calibrate
 
     section = dict(params["identification"])
+    tolerance_s = match_tolerance_s(section)
     for number, recorded in enumerate(support_streams(params, supports, impacts_per_support, seed, tier=tier)):
 
         def identify(model_params: Mapping[str, Any], method: str) -> tuple[list[dict[str, Any]], float]:
@@ -143,29 +139,17 @@ def run_foreign(
                 model_params = merge_profile(params, found.parameters())
             for method in methods:
                 labels, wall = identify(model_params, method)
-                used = 0
+                matching = match(recorded.truths, labels, tolerance_s)
                 for k, truth in enumerate(recorded.truths):
-                    label, _ = match(labels, truth["contact_start_stamp"], tolerance_s)
-                    used += label is not None
+                    paired = matching.label_index(k)
                     yield Record(
                         scene_set="foreign", setting=profile, method=method, window_s=float(section["window_s"]),
                         index=number * impacts_per_support + k, material=truth["material"], is_coal=truth["label"] == "coal",
                         radius_m=truth["radius_m"], contact_stamp_s=truth["contact_start_stamp"],
-                        duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"], label=label,
-                        extra_labels=(len(labels) - used_labels(labels, recorded.truths, tolerance_s)) if k == 0 else 0,
+                        duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
+                        label=None if paired is None else dict(labels[paired]), extra_labels=len(matching.extra) if k == 0 else 0,
                         wall_s=wall / max(len(recorded.truths), 1), calibrated=profile != "nominal",
                     )
-
-
-def used_labels(labels: Sequence[Mapping[str, Any]], truths: Sequence[Mapping[str, Any]], tolerance_s: float) -> int:
-    """How many labels match some impact (each impact claims its nearest label)."""
-    claimed = set()
-    for truth in truths:
-        near = [(abs(l["impact_stamp"] - truth["contact_start_stamp"]), i) for i, l in enumerate(labels)
-                if abs(l["impact_stamp"] - truth["contact_start_stamp"]) <= tolerance_s]
-        if near:
-            claimed.add(min(near)[1])
-    return len(claimed)
 
 
 def merge_profile(params: Mapping[str, Any], profile_file: Mapping[str, Any]) -> dict[str, Any]:

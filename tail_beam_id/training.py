@@ -33,7 +33,6 @@ from tail_beam_sim.physics.solvers import solve
 from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.support import Support
 
-MATCH_TOLERANCE_S = 0.002  # a label within this of the true contact is that impact's
 L2_PENALTY = 1e-3  # ridge penalty on the standardised logistic weights
 HOLDOUT_FRACTION = 0.25  # share of training impacts kept aside to fit the temperature
 ENVELOPE_PERCENTILES = (0.1, 99.9)  # a model's training envelope: these percentiles of each input
@@ -42,8 +41,7 @@ THRESHOLD_FEATURES = ("rebound_speed_mps", "moment_impulse_nms", "pressure_swing
 
 def collect(params: Mapping[str, Any], scene_set: str, count: int, seed: int, tier: str | None, true_profile: bool = False) -> list[Record]:
     """Feature records of ``count`` training impacts at every setting (detected ones only)."""
-    records = run_set(params, scene_set, count, seed, settings(params, every_rate=True), ["threshold"], MATCH_TOLERANCE_S, tier,
-                      true_profile=true_profile)
+    records = run_set(params, scene_set, count, seed, settings(params, every_rate=True), ["threshold"], tier, true_profile=true_profile)
     return [r for r in records if r.label is not None]
 
 

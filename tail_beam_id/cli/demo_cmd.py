@@ -16,7 +16,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from tail_beam_id.label import Matching, match, match_tolerance_s
 from tail_beam_sim.bags.records import STORAGES
+from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, require_new_path, require_range
 
 # Fields the scoreboard reads, and their types: a message without them (another process on the
@@ -24,7 +26,6 @@ from tail_beam_sim.errors import InputError, require_new_path, require_range
 TRUTH_FIELDS = {"contact_start_stamp": (int, float), "label": str, "material": str, "radius_m": (int, float), "position_m": (int, float)}
 LABEL_FIELDS = {"impact_stamp": (int, float), "label": str, "confidence": (int, float), "method": str}
 LABELS = ("coal", "gangue")
-MATCH_TOLERANCE_S = 0.01  # a label belongs to the impact whose contact start is this close, s
 LATE_S = 2.0  # wall time after which an impact is shown without its label, s
 SETTLE_S = 1.5  # wall time the identifier gets after the data ends, s (its flush comes first)
 
@@ -44,9 +45,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 @dataclass
 class Scoreboard:
-    """Impacts (truths) and labels as they arrive, matched by stamp; prints progress."""
+    """Impacts (truths) and labels as they arrive, paired by :func:`tail_beam_id.label.match`
+    within ``tolerance_s`` (s); prints progress."""
 
     count: int
+    tolerance_s: float
     truths: list[dict[str, Any]] = field(default_factory=list)
     labels: list[dict[str, Any]] = field(default_factory=list)
     arrived: dict[int, float] = field(default_factory=dict)  # id(obj) -> wall s of arrival
@@ -69,15 +72,21 @@ class Scoreboard:
             return
         self.add(kind, item)
 
-    def match(self, truth: Mapping[str, Any]) -> dict[str, Any] | None:
-        near = [lab for lab in self.labels if abs(lab["impact_stamp"] - truth["contact_start_stamp"]) <= MATCH_TOLERANCE_S]
-        return min(near, key=lambda lab: abs(lab["impact_stamp"] - truth["contact_start_stamp"]), default=None)
+    def matching(self) -> Matching:
+        """The truths and labels so far, paired one to one (the pairing may change as more arrive)."""
+        return match(self.truths, self.labels, self.tolerance_s)
+
+    def label_of(self, matching: Matching, truth: int) -> dict[str, Any] | None:
+        """The label ``matching`` paired with truth number ``truth`` (from 0), or None."""
+        paired = matching.label_index(truth)
+        return None if paired is None else self.labels[paired]
 
     def show_ready(self, final: bool = False) -> None:
         """Print every impact whose label is in (or overdue), and labels that match nothing."""
         now = time.monotonic()
+        matching = self.matching()
         for index, truth in enumerate(self.truths, 1):
-            label = self.match(truth)
+            label = self.label_of(matching, index - 1)
             overdue = final or now - self.arrived[id(truth)] > LATE_S
             if id(truth) in self.shown or (label is None and not overdue):
                 continue
@@ -85,25 +94,24 @@ class Scoreboard:
             if label is not None:
                 self.shown.add(id(label))
             print(f"[{index:>3}/{self.count}] {truth['contact_start_stamp']:8.3f} s  {impact_text(truth):<44} -> {label_text(truth, label)}", flush=True)
-        for label in self.labels:
+        extra = set(matching.extra)
+        for number, label in enumerate(self.labels):
             late = final or now - self.arrived[id(label)] > LATE_S
-            if id(label) not in self.shown and late and not any(self.match(t) is label for t in self.truths):
+            if id(label) not in self.shown and late and number in extra:
                 self.shown.add(id(label))
                 print(f"          {label['impact_stamp']:8.3f} s  {'(no impact here)':<44} -> {label['label']} ({label['confidence']:.2f}): false detection", flush=True)
 
     def table(self) -> str:
         """Confusion table (missed impacts count as wrong) and accuracy."""
         rows = {"coal": [0, 0, 0], "gangue": [0, 0, 0]}
-        matched: set[int] = set()
-        for truth in self.truths:
-            label = self.match(truth)
+        matching = self.matching()
+        for number, truth in enumerate(self.truths):
+            label = self.label_of(matching, number)
             column = 2 if label is None else (0 if label["label"] == "coal" else 1)
             rows[truth["label"]][column] += 1
-            if label is not None:
-                matched.add(id(label))
         correct = rows["coal"][0] + rows["gangue"][1]
         total = len(self.truths)
-        extra = sum(1 for lab in self.labels if id(lab) not in matched)
+        extra = len(matching.extra)
         lines = [
             f"{'':>14} {'label coal':>11} {'label gangue':>13} {'no label':>9}",
             *(f"{'truth ' + name:>14} {r[0]:>11} {r[1]:>13} {r[2]:>9}" for name, r in rows.items()),
@@ -154,8 +162,8 @@ def run(args: argparse.Namespace) -> int:
     require_range("--gangue-fraction", args.gangue_fraction, 0.0, 1.0)
     bag = require_new_path("--bag", args.bag or default_bag_path("demo"))
 
+    board = Scoreboard(args.count, match_tolerance_s(load_parameters()["identification"]))
     group = NodeGroup()
-    board = Scoreboard(args.count)
     try:
         common = {"context": group.context, "namespace": args.namespace}
         recorder = group.add(RecorderNode(**common, parameter_overrides=overrides({"recorder.bag_path": str(bag), "recorder.storage": args.storage})))

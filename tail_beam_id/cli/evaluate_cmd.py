@@ -16,13 +16,12 @@ from tail_beam_id.dataset import SCENE_SETS, evaluation_params, settings
 from tail_beam_id.evaluation import (
     Summary, format_confusion, format_sizes, format_table, group, large_particle_accuracy, summaries,
 )
-from tail_beam_id.identifier import available_methods
+from tail_beam_id.methods import available_methods
 from tail_beam_id.runs import FOREIGN_PROFILES, Record, run_foreign, run_set
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, open_output_file, require_output_file, require_range
 
-MATCH_TOLERANCE_S = 0.002  # a label within this of the true contact is that impact's
 DEFAULT_OUT = "out/evaluate"  # where --plot writes when no --out is given (out/ is ignored by git)
 
 
@@ -85,9 +84,9 @@ def run(args: argparse.Namespace) -> int:
             per_support = int(ev["foreign_impacts_per_support"])
             supports = max(1, math.ceil(count / per_support)) if args.count is not None else int(ev["foreign_supports"])
             profiles = _names(args.profiles, FOREIGN_PROFILES, "--profiles")
-            records += run_foreign(params, supports, per_support, int(ev["seeds"][scene_set]), methods, MATCH_TOLERANCE_S, args.tier, profiles)
+            records += run_foreign(params, supports, per_support, int(ev["seeds"][scene_set]), methods, args.tier, profiles)
             continue
-        records += run_set(params, scene_set, count, int(ev["seeds"][scene_set]), chosen, methods, MATCH_TOLERANCE_S, args.tier, windows)
+        records += run_set(params, scene_set, count, int(ev["seeds"][scene_set]), chosen, methods, args.tier, windows)
     items = summaries(records, ev["size_bins_m"])
     print(f"{count} impacts per set, {len(chosen)} settings, tier {args.tier or ev['tier']}, {time.monotonic() - started:.0f} s")
     print(format_table(items))

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.identifier import StreamIdentifier, available_methods
+from tail_beam_id.identifier import StreamIdentifier
+from tail_beam_id.methods import available_methods
 from tail_beam_id.replay import replay
 from tail_beam_id.calibration import SupportProfile
 from tail_beam_id.calibration import calibrate as calibrate_support

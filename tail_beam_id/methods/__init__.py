@@ -1,14 +1,16 @@
 """Identification methods: each turns one impact's features into P(coal).
 
 A method is a class with ``name``, ``from_model(model_dict)`` and ``decide(features)``;
-trained parameters live as small JSON files in ``tail_beam_id/models/<name>.json``.
+trained parameters live as small JSON files in ``tail_beam_id/models/<name>.json``. The
+registry (:data:`METHODS`, :func:`available_methods`, :func:`build_method`) names them for the
+``identification.method`` parameter; each method's module is imported only when it is built.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -66,4 +68,46 @@ def load_model(name: str, path: str | Path | None = None) -> dict[str, Any]:
     except json.JSONDecodeError as exc:
         raise InputError(f"identification.{name}.model", str(file), f"must be valid JSON ({exc.msg})") from None
 
-__all__ = ["Decision", "Method", "MODELS_DIR", "cap_confidence", "load_model", "sigmoid"]
+
+def _threshold(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
+    from tail_beam_id.methods.threshold import ThresholdMethod
+
+    return ThresholdMethod.from_model(model, params)
+
+
+def _statistical(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
+    from tail_beam_id.methods.statistical import StatisticalMethod
+
+    return StatisticalMethod.from_model(model, params)
+
+
+def _physics(model: Mapping[str, Any], params: Mapping[str, Any]) -> Method:
+    from tail_beam_id.methods.physics import PhysicsMethod
+
+    return PhysicsMethod.from_model(model, params)
+
+
+# name -> factory building the method from its trained model dict and the merged parameters.
+METHODS: dict[str, Callable[[Mapping[str, Any], Mapping[str, Any]], Method]] = {
+    "threshold": _threshold,
+    "statistical": _statistical,
+    "physics": _physics,
+}
+
+
+def available_methods() -> list[str]:
+    """Names the ``method`` parameter accepts."""
+    return list(METHODS)
+
+
+def build_method(name: str, params: Mapping[str, Any], model_path: str | None = None) -> Method:
+    """The method ``name`` with its shipped (or given) trained parameters; ``params``: the
+    merged parameters (support, materials, identification)."""
+    if name not in METHODS:
+        raise InputError("identification.method", name, f"must be one of {', '.join(METHODS)}")
+    return METHODS[name](load_model(name, model_path), params)
+
+
+__all__ = [
+    "Decision", "METHODS", "Method", "MODELS_DIR", "available_methods", "build_method", "cap_confidence", "load_model", "sigmoid",
+]

@@ -55,6 +55,8 @@ def run_identification(rate_hz: float, duration_s: float) -> dict[str, float | s
     from std_msgs.msg import String
 
     from tail_beam_id.id_node import IdNode
+    from tail_beam_id.label import match, match_tolerance_s
+    from tail_beam_sim.config import load_parameters
     from tail_beam_sim.ros import messages as ros_messages
 
     context = rclpy.Context()
@@ -92,13 +94,11 @@ def run_identification(rate_hz: float, duration_s: float) -> dict[str, float | s
     lost = 2 * expected - ident.received["jack_pressure"] - ident.received["imu"]
     ratio = (stamps[-1] - stamps[0]) / (walls[-1] - walls[0]) if stamps.size > 1 else 0.0
     latencies = []
-    for truth in truths:
-        label = min(labels, key=lambda lw: abs(lw[0]["impact_stamp"] - truth["contact_start_stamp"]), default=None)
-        if label is None or abs(label[0]["impact_stamp"] - truth["contact_start_stamp"]) > 0.01:
-            continue
-        reached = np.searchsorted(stamps, truth["contact_end_stamp"])
+    matching = match(truths, [label for label, _ in labels], match_tolerance_s(load_parameters()["identification"]))
+    for number, paired in matching.pairs:
+        reached = np.searchsorted(stamps, truths[number]["contact_end_stamp"])
         if reached < walls.size:
-            latencies.append((label[1] - walls[reached]) * 1e3)
+            latencies.append((labels[paired][1] - walls[reached]) * 1e3)
     executor.shutdown()
     for node in (ident, watch):
         node.destroy_node()

@@ -1,7 +1,8 @@
 """Soak: sim_node, id_node and bag_recorder as processes on a long generated stream at
 ``realtime_factor:=0``; prints the resident memory (RSS) of each every few seconds, then checks
-the bag: impacts (truths) = labels = rebounds = the count asked for, and the live labels are
-those `tail-beam identify` gives on the bag.
+the bag: impacts (truths) = rebounds = the count asked for, each impact has its label by the
+suite's one matching rule (tail_beam_id.label.match) with no label left over, and the live
+labels are those `tail-beam identify` gives on the bag.
 
     python test/bench/soak_nodes.py --impacts 1000          # about 8 minutes on a loaded 2-core machine
 
@@ -38,13 +39,16 @@ def rss_mb(pid: int) -> float:
 
 @dataclass
 class SoakResult:
-    """Counts found in the bag and the RSS samples of each node (wall s, MB)."""
+    """Counts found in the bag and the RSS samples of each node (wall s, MB); ``matched``: truths
+    paired with a label, ``extra``: labels paired with none (tail_beam_id.label.match)."""
 
     asked: int
     truths: int = 0
     labels: int = 0
     offline_labels: int = 0  # tail-beam identify on the bag's sensor topics
     live_matches_offline: bool = False  # same stamps, labels, methods and confidences
+    matched: int = 0
+    extra: int = 0
     rebounds: int = 0
     messages: int = 0
     wall_s: float = 0.0
@@ -53,7 +57,7 @@ class SoakResult:
 
     @property
     def counts_match(self) -> bool:
-        return self.asked == self.truths == self.labels == self.rebounds and self.live_matches_offline
+        return self.asked == self.truths == self.matched == self.rebounds and self.extra == 0 and self.live_matches_offline
 
 
 def start(exe: str, params: list[str], log_dir: Path, namespace: str = "") -> subprocess.Popen:
@@ -67,8 +71,10 @@ def soak(impacts: int, work: Path, sample_s: float = 5.0, timeout_s: float = 360
     """Run the three nodes on ``impacts`` generated impacts; return what the bag holds.
     ``recorder_params`` are extra ``name:=value`` overrides of the recorder (experiments);
     ``namespace`` puts the whole support under one."""
+    from tail_beam_id.label import match, match_tolerance_s
     from tail_beam_sim import topics
     from tail_beam_sim.bags.read import read_sensors
+    from tail_beam_sim.config import load_parameters
 
     bag = work / "soak_bag"
     procs = {
@@ -122,6 +128,8 @@ def soak(impacts: int, work: Path, sample_s: float = 5.0, timeout_s: float = 360
     offline = identify_bag(str(bag))
     result.offline_labels = len(offline)
     result.live_matches_offline = [tuple(l[k] for k in key) for l in data.json_topics[topics.LABEL]] == [tuple(l[k] for k in key) for l in offline]
+    matching = match(data.json_topics[topics.IMPACT_TRUTH], data.json_topics[topics.LABEL], match_tolerance_s(load_parameters()["identification"]))
+    result.matched, result.extra = len(matching.pairs), len(matching.extra)
     result.messages = data.pressure_stamp_s.size + data.imu_stamp_s.size + result.rebounds + result.truths + result.labels
     return result
 
@@ -142,8 +150,9 @@ def main(argv: list[str] | None = None) -> int:
             third = max(1, len(values) // 3)
             print(f"  {name:<13} RSS first {values[0]:6.1f} MB, max {max(values):6.1f} MB, last {values[-1]:6.1f} MB; "
                   f"mean of first third {sum(values[:third]) / third:6.1f}, of last third {sum(values[-third:]) / third:6.1f}")
-    print(f"  truths {result.truths}, labels {result.labels} (offline {result.offline_labels}, "
-          f"{'the same' if result.live_matches_offline else 'NOT the same'}), rebounds {result.rebounds} (asked {result.asked}): "
+    print(f"  truths {result.truths}, labels {result.labels} ({result.matched} matched, {result.extra} extra; offline "
+          f"{result.offline_labels}, {'the same' if result.live_matches_offline else 'NOT the same'}), rebounds {result.rebounds} "
+          f"(asked {result.asked}): "
           f"{'match' if result.counts_match else 'MISMATCH'}")
     if args.keep:
         print(f"  kept in {work}")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tail_beam_id.evaluation import summarise, wilson
-from tail_beam_id.runs import Record, match
+from tail_beam_id.runs import Record
 from tail_beam_id.training import fit_logistic, fit_temperature
 from tail_beam_sim.cli import main
 
@@ -40,15 +40,6 @@ def test_missed_impacts_count_as_wrong_and_classes_weigh_equally():
     assert s.by_size[1]["accuracy"] == pytest.approx(0.5)
     # Data latency: from the true contact (0.999 s) to the newest stamp used (1.012 s).
     assert s.data_latency_ms["median"] == pytest.approx(13.0)
-
-
-def test_match_takes_the_nearest_label_and_counts_the_rest():
-    """A truth takes the nearest label within the tolerance and counts the others as extra; none within it gives no match."""
-    labels = [{"impact_stamp": 1.0005}, {"impact_stamp": 1.3}, {"impact_stamp": 0.9995}]
-    best, extra = match(labels, 1.0, 0.002)
-    assert best["impact_stamp"] in (1.0005, 0.9995)
-    assert extra == 2
-    assert match(labels, 2.0, 0.002) == (None, 3)
 
 
 def test_logistic_fit_finds_the_boundary_and_temperature_undoes_overconfidence():

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from id_helpers import impact, stream
-from tail_beam_id.identifier import StreamIdentifier, available_methods, build_method
+from tail_beam_id.identifier import StreamIdentifier
+from tail_beam_id.methods import available_methods, build_method
 from tail_beam_id.replay import replay
 from tail_beam_sim.errors import InputError
 

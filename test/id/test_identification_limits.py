@@ -47,8 +47,8 @@ def test_threshold_holds_on_the_paper_scene_and_breaks_on_the_stream(params):
         chosen = [r for r in records if r.method == method]
         return sum(r.correct for r in chosen) / len(chosen)
 
-    paper = list(run_set(params, "paper", 12, 9001, nominal, ["threshold"], 0.002))
-    stream = list(run_set(params, "stream", 30, 9002, nominal, ["threshold", "statistical"], 0.002))
+    paper = list(run_set(params, "paper", 12, 9001, nominal, ["threshold"]))
+    stream = list(run_set(params, "stream", 30, 9002, nominal, ["threshold", "statistical"]))
     assert accuracy(paper, "threshold") >= 0.9
     assert accuracy(stream, "threshold") <= 0.8
     assert accuracy(stream, "statistical") >= accuracy(stream, "threshold") + 0.1

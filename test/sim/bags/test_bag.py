@@ -11,38 +11,14 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 
+from bag_helpers import RATE_HZ, records, write_segments
 from tail_beam_sim import topics
 from tail_beam_sim.bags import records as bagio
 from tail_beam_sim.bags.read import read_sensors
-from tail_beam_sim.bags.write import PARTIAL_DIR, SegmentedBagWriter, repair
+from tail_beam_sim.bags.write import PARTIAL_DIR, repair
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.physics.sensors import ImuStream, PressureStream
 
-RATE_HZ = 1000.0
 TAIL_BEAM = str(Path(sys.executable).parent / "tail-beam")  # the installed console script
-
-
-def records(n: int, start_s: float = 0.0):
-    """n pressure and n IMU samples as bag records (topic, log ns, CDR bytes), stamp order."""
-    stamps = start_s + np.arange(n) / RATE_HZ
-    pressure = PressureStream(stamps, 20e6 + np.arange(n), 1e8)
-    imu = ImuStream(stamps, np.zeros((n, 3)), np.tile([0.0, 0.0, 9.81], (n, 1)), 1e-6, 1e-4)
-    out = list(bagio.pressure_msgs(pressure.stamp_s, pressure.pressure_pa, pressure.variance_pa2))
-    out += list(bagio.imu_msgs(imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 1e-6, 1e-4))
-    out.sort(key=lambda r: r[1])
-    return [(topic, ns, bytes(bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic]))) for topic, ns, msg in out]
-
-
-def write_segments(path, segments: list[list], storage: str = "mcap", close: bool = True) -> SegmentedBagWriter:
-    writer = SegmentedBagWriter(path, storage)
-    for index, segment in enumerate(segments):
-        for topic, ns, data in segment:
-            writer.write(topic, ns, data)
-        if close or index < len(segments) - 1:
-            writer.close_segment()
-    if close:
-        writer.close()
-    return writer
 
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])

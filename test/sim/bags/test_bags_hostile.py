@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from rosbags.rosbag2 import Writer
 
-from test_bag import records, write_segments
+from bag_helpers import records, write_segments
 from tail_beam_sim import topics
 from tail_beam_sim.bags.records import STORAGES, TYPESTORE
 from tail_beam_sim.bags.read import raw_messages, read_sensors

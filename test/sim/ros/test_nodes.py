@@ -15,6 +15,7 @@ from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
 
 from rosprobe import Probe, ros_context, spin_for, spin_until
+from tail_beam_id.label import match, match_tolerance_s
 from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.config import default_config_dir, deep_merge, load_parameters
@@ -145,7 +146,7 @@ def test_queue_overflow_is_a_warning_and_the_queued_impacts_all_happen():
 
 
 def test_id_node_labels_each_impact_of_a_live_sim_node():
-    """id_node labels each of a live sim_node's impacts within 5 ms of its contact, in stamp order, missing no sample."""
+    """id_node labels each of a live sim_node's impacts (the suite's matching rule, tail_beam_id.label), in stamp order, missing no sample."""
     with ros_context() as (context, executor):
         sim = sim_node(context, **{"sim_node.wait_for_subscribers": 1, "scenario.source": "generated", "scenario.count": 4})
         ident = id_node(context)
@@ -158,12 +159,11 @@ def test_id_node_labels_each_impact_of_a_live_sim_node():
         assert ident.received[topics.JACK_PRESSURE] >= len(probe.messages[topics.JACK_PRESSURE]) - 200
         truths = probe.json(topics.IMPACT_TRUTH)
         labels = probe.json(topics.LABEL)
-        for truth in truths:
-            # The onset is the identifier's estimate: a few IMU samples either way (5 ms << 0.4 s apart).
-            near = [lab for lab in labels if abs(lab["impact_stamp"] - truth["contact_start_stamp"]) < 5e-3]
-            assert near, f"no label within 5 ms of {truth['impact_id']}"
-            assert near[0]["label"] in ("coal", "gangue") and 0.0 <= near[0]["confidence"] <= 1.0
-            assert near[0]["method"] == "threshold"
+        matching = match(truths, labels, match_tolerance_s(load_parameters()["identification"]))
+        assert not matching.missed, f"no label for {[truths[i]['impact_id'] for i in matching.missed]}"
+        for _, paired in matching.pairs:
+            assert labels[paired]["label"] in ("coal", "gangue") and 0.0 <= labels[paired]["confidence"] <= 1.0
+            assert labels[paired]["method"] == "threshold"
         stamps = [lab["impact_stamp"] for lab in labels]
         assert stamps == sorted(stamps)
 
@@ -207,17 +207,17 @@ def test_id_node_labels_from_what_remains_when_a_stream_stops():
             pubs[topics.IMU].publish(msg)
         for _, rebound in chunk.rebounds:
             pubs[topics.REBOUND_VELOCITY].publish(ros_messages.rebound_message(rebound))
-        def labelled(start: float) -> bool:
-            return any(abs(lab["impact_stamp"] - start) < 5e-3 for lab in feeder.json(topics.LABEL))
-
-        spin_until(executor, lambda: all(labelled(s) for s in starts), timeout_s=20)
+        truths = [truth for _, truth in chunk.truths]
+        tolerance_s = match_tolerance_s(load_parameters()["identification"])
+        spin_until(executor, lambda: not match(truths, feeder.json(topics.LABEL), tolerance_s).missed, timeout_s=20)
         labels = feeder.json(topics.LABEL)
-        for start in starts[1:]:
-            later = [lab for lab in labels if abs(lab["impact_stamp"] - start) < 5e-3]
-            assert later, f"impact at {start:.4f} s after the IMU stopped was not labelled"
-            assert "imu" not in later[0]["signals"] and "jack_pressure" in later[0]["signals"]
-        first = [lab for lab in labels if abs(lab["impact_stamp"] - starts[0]) < 5e-3]
-        assert first and "imu" in first[0]["signals"]
+        matching = match(truths, labels, tolerance_s)
+        for number, start in enumerate(starts[1:], 1):
+            later = matching.label_index(number)
+            assert later is not None, f"impact at {start:.4f} s after the IMU stopped was not labelled"
+            assert "imu" not in labels[later]["signals"] and "jack_pressure" in labels[later]["signals"]
+        first = matching.label_index(0)
+        assert first is not None and "imu" in labels[first]["signals"]
         assert all(math.isfinite(lab["confidence"]) for lab in labels)
 
 

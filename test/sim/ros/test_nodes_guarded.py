@@ -17,7 +17,7 @@ from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
 
 from rosprobe import RELIABLE, Probe, ros_context, spin_for, spin_until
-from test_bag import records, write_segments
+from bag_helpers import records, write_segments
 from test_nodes_processes import BIN, Processes
 from tail_beam_sim import topics
 from tail_beam_sim.bags import records as bagio

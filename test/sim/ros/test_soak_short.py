@@ -1,6 +1,6 @@
 """The soak of test/bench/soak_nodes.py, short: sim_node, id_node and bag_recorder as processes on 50
-generated impacts at ``realtime_factor:=0``; the bag reads and holds every impact once, and
-its live labels are the offline ones."""
+generated impacts at ``realtime_factor:=0``; the bag reads and holds every impact once, each with
+its label, and its live labels are the offline ones."""
 
 from __future__ import annotations
 
@@ -13,10 +13,11 @@ IMPACTS = 50
 
 
 def test_fifty_impacts_as_fast_as_possible_are_all_in_the_bag(tmp_path):
-    """truths = rebounds = labels = 50 in a bag that reads, every node's RSS sampled, and the live
-    labels are the offline ones: id_node keeps up at realtime_factor 0 and orders what arrives."""
+    """truths = rebounds = 50 in a bag that reads, every node's RSS sampled, each truth matched by
+    a label and none extra, and the live labels are the offline ones: id_node keeps up at
+    realtime_factor 0 and orders what arrives."""
     result = soak(IMPACTS, tmp_path, sample_s=2.0, timeout_s=300, echo=lambda *a, **k: None, namespace="/soak_short")
     assert result.truths == IMPACTS and result.rebounds == IMPACTS, result.logs
     assert all(sum(mb > 0 for _, mb in samples) >= 3 for samples in result.rss.values()), result.rss  # sampled while running
-    assert result.labels == result.offline_labels == IMPACTS, result.logs["id_node"]
+    assert result.matched == IMPACTS and result.extra == 0, result.logs["id_node"]
     assert result.live_matches_offline

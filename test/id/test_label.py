@@ -1,0 +1,68 @@
+"""The one rule pairing labels with impacts (tail_beam_id.label.match) and its tolerance
+parameter: one to one, closest pair first, inclusive at the tolerance, extras and misses counted."""
+
+from __future__ import annotations
+
+import pytest
+
+from tail_beam_id.label import Matching, match, match_stamps, match_tolerance_s
+from tail_beam_sim.errors import InputError
+
+TOLERANCE_S = 2.0**-8  # 3.90625 ms: binary-exact, so stamps exactly at the edge are exact too
+
+
+def truths(*stamps_s: float) -> list[dict]:
+    return [{"contact_start_stamp": s, "label": "coal"} for s in stamps_s]
+
+
+def labels(*stamps_s: float) -> list[dict]:
+    return [{"impact_stamp": s, "label": "coal", "confidence": 0.9} for s in stamps_s]
+
+
+def test_a_truth_takes_the_nearest_label_and_the_rest_are_extra():
+    """Of three labels the one nearest the contact start is the impact's; the others (one within the tolerance) are extra."""
+    matching = match(truths(1.0), labels(1.003, 0.999, 1.3), TOLERANCE_S)
+    assert matching == Matching(pairs=((0, 1),), missed=(), extra=(0, 2))
+    assert matching.label_index(0) == 1
+
+
+def test_the_closest_pair_wins_whatever_the_truths_order():
+    """A label within reach of two truths goes to the nearer one, even when the other comes first; the other is missed."""
+    matching = match(truths(1.0, 1.003), labels(1.0025), TOLERANCE_S)
+    assert matching.pairs == ((1, 0),) and matching.missed == (0,) and matching.extra == ()
+    assert matching.label_index(0) is None
+
+
+def test_one_label_never_counts_for_two_truths():
+    """Two truths whose nearest label is the same one: it pairs with the nearer, the other takes the next label within reach."""
+    # Per truth nearest-label (the old rule) gave label 0 to both impacts and left label 1 extra.
+    matching = match(truths(1.0, 1.002), labels(1.0011, 0.997), TOLERANCE_S)
+    assert matching.pairs == ((0, 1), (1, 0)) and matching.missed == () and matching.extra == ()
+    single = match(truths(1.0, 1.002), labels(1.0011), TOLERANCE_S)
+    assert len(single.pairs) == 1 and single.missed == (0,) and single.extra == ()
+
+
+def test_the_tolerance_is_inclusive_and_nothing_beyond_it_pairs():
+    """A label exactly the tolerance early or late pairs; one 1 us further does not, and counts as extra with the impact missed."""
+    for sign in (1.0, -1.0):
+        assert match(truths(1.0), labels(1.0 + sign * TOLERANCE_S), TOLERANCE_S).pairs == ((0, 0),)
+        beyond = match(truths(1.0), labels(1.0 + sign * (TOLERANCE_S + 1e-6)), TOLERANCE_S)
+        assert beyond == Matching(pairs=(), missed=(0,), extra=(0,))
+
+
+def test_extras_and_misses_are_counted_in_a_stream():
+    """Three impacts, four labels: two pairs, the impact without a label near it missed, the two stray labels extra."""
+    matching = match_stamps([0.5, 1.0, 1.5], [2.0, 0.501, 1.2, 1.4995], 0.005)
+    assert matching.pairs == ((0, 1), (2, 3))
+    assert matching.missed == (1,) and matching.extra == (0, 2)
+    assert match_stamps([], [1.0], 0.005) == Matching((), (), (0,))
+    assert match_stamps([1.0], [], 0.005) == Matching((), (0,), ())
+
+
+def test_the_tolerance_comes_from_the_identification_section(params):
+    """identification.match_tolerance_s is 5 ms as shipped; missing, zero or over 0.1 s it is refused naming the field and the range."""
+    assert match_tolerance_s(params["identification"]) == pytest.approx(0.005)
+    for bad in (None, 0.0, -0.001, 0.2, "soon"):
+        with pytest.raises(InputError) as error:
+            match_tolerance_s({"match_tolerance_s": bad})
+        assert "identification.match_tolerance_s" in str(error.value) and "0.1" in str(error.value)
