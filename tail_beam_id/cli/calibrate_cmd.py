@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 import yaml
 
@@ -17,7 +16,7 @@ from tail_beam_id.cli.identify_cmd import profile_of
 from tail_beam_sim.bags.read import read_sensors
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
-from tail_beam_sim.errors import InputError
+from tail_beam_sim.errors import InputError, open_output_file, require_output_file
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,13 +29,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     params = load_parameters(args.config)
+    out = require_output_file("--out", args.out) if args.out else None  # before the work, not after
     profile = profile_of(read_sensors(args.bag), params)
     text = yaml.safe_dump(profile.parameters(), sort_keys=False)
-    if args.out:
-        out = Path(args.out)
-        if out.is_symlink() or out.is_dir():
-            raise InputError("--out", str(out), "must be a regular file path (not a directory or a symbolic link)")
-        out.write_text(text, encoding="utf-8")
+    if out is not None:
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError("--out", str(out), f"its folder cannot be made ({exc.strerror or exc})") from None
+        with open_output_file("--out", out) as stream:
+            stream.write(text.encode("utf-8"))
         print(f"wrote {out}", file=sys.stderr)
     else:
         sys.stdout.write(text)

@@ -90,8 +90,9 @@ def test_no_impacts_no_profile(params):
 
 
 def test_calibrate_then_identify_from_the_command_line(params, recordings, tmp_path):
-    """`tail-beam calibrate BAG --out profile.yaml` writes a ROS 2 parameter file;
-    `tail-beam identify BAG --config profile.yaml` then labels every impact as calibrated."""
+    """`tail-beam calibrate BAG --out profiles/profile.yaml` writes a ROS 2 parameter file (its
+    folder made); `tail-beam identify BAG --config profile.yaml` then labels every impact as
+    calibrated. An --out that is a symbolic link is refused in one line, exit 2."""
     recorded = recordings[0]
     imu = recorded.imu
     records = [*pressure_msgs(recorded.pressure.stamp_s, recorded.pressure.pressure_pa, 1e8),
@@ -99,7 +100,12 @@ def test_calibrate_then_identify_from_the_command_line(params, recordings, tmp_p
                *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds)]
     bag = tmp_path / "support"
     write_bag(bag, records)
-    profile = tmp_path / "profile.yaml"
+    link = tmp_path / "link.yaml"
+    link.symlink_to(tmp_path / "elsewhere.yaml")
+    done = subprocess.run([TAIL_BEAM, "calibrate", str(bag), "--out", str(link)], capture_output=True, text=True, check=False)
+    assert done.returncode == 2 and "symbolic link" in done.stderr and len(done.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "elsewhere.yaml").exists()
+    profile = tmp_path / "profiles" / "profile.yaml"
     done = subprocess.run([TAIL_BEAM, "calibrate", str(bag), "--out", str(profile)],
                           capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
