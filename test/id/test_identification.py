@@ -224,3 +224,25 @@ def test_long_noise_only_stream_gives_no_label_and_bounded_buffers(params):
         assert identifier.poll() == []
     assert identifier.flush() == []
     assert identifier.imu.stamp_s.size < 2 * 2000 and identifier.pressure.stamp_s.size < 2 * 2000
+
+
+def test_a_stale_or_broken_statistical_model_is_refused_with_how_to_fix_it(params, tmp_path):
+    """A model file from before the training envelope (or per-rate keys) is refused naming the
+    retraining command, and a file that is not JSON names the field and the reason: the node
+    never runs on a model whose confidences it cannot cap."""
+    import json
+
+    from tail_beam_id.methods import load_model
+
+    model = load_model("statistical")
+    first = next(iter(model["subsets"]))
+    del model["subsets"][first]["envelope"]
+    stale = tmp_path / "stale.json"
+    stale.write_text(json.dumps(model))
+    with pytest.raises(InputError, match="retrain") as error:
+        build_method("statistical", params, str(stale))
+    assert first in str(error.value)
+    broken = tmp_path / "broken.json"
+    broken.write_text("{not json")
+    with pytest.raises(InputError, match="identification.statistical.model.*valid JSON"):
+        build_method("statistical", params, str(broken))
