@@ -39,6 +39,7 @@ from tail_beam_sim.physics.sensors import BlockSequencer, VibrationBlocks
 
 if TYPE_CHECKING:
     from tail_beam_id.identifier import StreamIdentifier
+    from tail_beam_id.online_calibration import OnlineCalibration
 
 CONTINUOUS = ("jack_pressure", "imu", "vibration")
 MAX_ASIDE_SAMPLES = 2_000_000  # samples held aside as "ahead of the others" (bounded memory)
@@ -271,10 +272,14 @@ class GatedIdentifier:
     decided. What the node should log (gaps, refusals, time jumps) collects in ``notes``.
     """
 
-    def __init__(self, new_identifier: Callable[[Any], StreamIdentifier], config: GateConfig) -> None:
+    def __init__(self, new_identifier: Callable[[Any], StreamIdentifier], config: GateConfig,
+                 calibration: OnlineCalibration | None = None) -> None:
         """``new_identifier(method)``: a fresh identifier reusing the trained ``method`` (None
-        the first time)."""
+        the first time); ``calibration``: learn a support profile from the first data and
+        decide with it from then on (None: stay on the configured support)."""
         self._new_identifier = new_identifier
+        self.calibration = calibration
+        self._profile: tuple[dict[str, Any], Any] | None = None  # (model params, method) once calibrated
         self.identifier = new_identifier(None)
         self.gate = ArrivalGate(config)
         self.sequencer = BlockSequencer()
@@ -318,7 +323,21 @@ class GatedIdentifier:
             for name, (stamps, values) in aside.items():
                 self.gate.add(name, stamps, values, now_s)
         self._note_counts()
-        return labels + self._decide(now_s, everything=end_of_data)
+        labels += self._decide(now_s, everything=end_of_data)
+        self._calibrate()
+        return labels
+
+    def _calibrate(self) -> None:
+        """Advance the online calibration; once it found a profile, decide with it."""
+        if self.calibration is None or self._profile is not None:
+            return
+        note = self.calibration.poll()
+        if note:
+            self.notes.append(note)
+        result = self.calibration.result
+        if result is not None and result.model_params is not None:
+            self._profile = (result.model_params, result.method)
+            self.identifier.recalibrate(*self._profile)
 
     def _restart(self, now_s: float, why: str) -> list[dict[str, Any]]:
         """Decide everything of the old time base; then a fresh identifier and gate."""
@@ -327,6 +346,8 @@ class GatedIdentifier:
         self.time_jumps += 1
         self._counts_before = self.count_totals()
         self.identifier = self._new_identifier(self.identifier.method)
+        if self._profile is not None:  # the same support: keep its profile
+            self.identifier.recalibrate(*self._profile)
         self.gate = ArrivalGate(self.gate.config)
         self.sequencer.restart()
         return labels
@@ -352,7 +373,10 @@ class GatedIdentifier:
 
     def _decide(self, now_s: float, everything: bool) -> list[dict[str, Any]]:
         """Feed the identifier what the gate releases; its labels (all pending with ``everything``)."""
-        feed(self.identifier, self.gate.release(now_s, everything=everything))
+        release = self.gate.release(now_s, everything=everything)
+        if self.calibration is not None:
+            self.calibration.record(release)
+        feed(self.identifier, release)
         labels = self.identifier.poll()
         if everything:
             labels += self.identifier.flush()

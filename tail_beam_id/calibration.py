@@ -30,6 +30,7 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.signal import welch
 
+from tail_beam_sim.config import deep_merge
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.support import Support
@@ -173,3 +174,10 @@ def calibrate(
         oil_bulk_modulus_pa=bulk, beam_inertia_about_hinge_kgm2=inertia, imu_gain_spread=spread,
         pressure_noise_pa=robust_noise(p_value), imu_accel_noise_mps2=robust_noise(i_accel),
     )
+
+
+def with_profile(params: Mapping[str, Any], profile: SupportProfile) -> dict[str, Any]:
+    """``params`` with the profile's parameters merged in (what ``--config profile.yaml`` gives)."""
+    merged = copy.deepcopy(dict(params))
+    deep_merge(merged, profile.parameters()["/**"]["ros__parameters"])
+    return merged

@@ -33,6 +33,7 @@ from std_msgs.msg import String
 from tail_beam_id.arrival import GateConfig, GatedIdentifier
 from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_id.methods import Method
+from tail_beam_id.online_calibration import OnlineCalibration
 from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.errors import require_range
@@ -55,7 +56,11 @@ class IdNode(Node):
         def new_identifier(trained: Method | None) -> StreamIdentifier:
             return StreamIdentifier(method, params=params["identification"], model_params=params, prebuilt=trained)
 
-        self.gated = GatedIdentifier(new_identifier, GateConfig.from_params(node))
+        learn_s = require_range("id_node.calibrate_online_s", node.get("calibrate_online_s"), 0.0, 3600.0, unit="s")
+        calibration = None
+        if learn_s > 0.0:
+            calibration = OnlineCalibration(params, learn_s, method or params["identification"]["method"])
+        self.gated = GatedIdentifier(new_identifier, GateConfig.from_params(node), calibration)
         self._pressure: list[FluidPressure] = []
         self._imu: list[Imu] = []
         self._rebounds: list[TwistStamped] = []
@@ -74,6 +79,9 @@ class IdNode(Node):
         self.create_timer(period, self._tick)
         refuse_runtime_changes(self, ALL_PARAMETERS, "id_node reads its parameters at start-up only (restart it to change them)")
         self.get_logger().info(f"identifying with method {self.identifier.method.name}")
+        if calibration is not None:
+            self.get_logger().info(f"calibration: learning the support from the first {learn_s:g} s of data "
+                                   "(labels say calibrated: false until then)")
 
     def _arrived(self, topic: str) -> None:
         self.received[topic] += 1

@@ -153,6 +153,18 @@ class StreamIdentifier:
         self._used_rebounds: set[float] = set()  # stamps of rebounds given to an impact
         self._decided: list[float] = []  # onsets of recently decided impacts (overlap check)
 
+    def recalibrate(self, model_params: Mapping[str, Any], method: Method | None = None) -> None:
+        """Decide from here on with a support profile measured on this support (``model_params``:
+        the merged parameters with the profile in; ``method``: the method built for them, when
+        it depends on the support). Pending impacts keep their data; only decisions change."""
+        merged = dict(model_params)
+        merged["identification"] = dict(merged.get("identification") or {}, method=self.config.method)
+        self.model = BeamModel.from_params(merged)
+        self.pressure_detector.model = self.model
+        if method is not None:
+            self.method = method
+        self.calibrated = bool((merged.get("calibration") or {}).get("rigid_mode_frequency_hz"))
+
     # ---- input -------------------------------------------------------------------------------
     def add_pressure(self, stamp_s: np.ndarray, pressure_pa: np.ndarray) -> None:
         """Jack pressure samples: stamps (s), absolute pressure (Pa)."""

@@ -8,7 +8,6 @@ replayed into it (``latency_ms`` aside, a wall-clock figure).
 from __future__ import annotations
 
 import argparse
-import copy
 import json
 import sys
 from typing import Any
@@ -18,11 +17,11 @@ import numpy as np
 from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_id.methods import available_methods
 from tail_beam_id.replay import replay
-from tail_beam_id.calibration import SupportProfile
+from tail_beam_id.calibration import SupportProfile, with_profile
 from tail_beam_id.calibration import calibrate as calibrate_support
 from tail_beam_sim.bags.read import BagSensors, read_sensors
 from tail_beam_sim.cli.common import add_config_option
-from tail_beam_sim.config import deep_merge, load_parameters
+from tail_beam_sim.config import load_parameters
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
 
 
@@ -72,13 +71,6 @@ def profile_of(data: BagSensors, params: dict[str, Any]) -> SupportProfile:
     accel_z = data.linear_acceleration_mps2[:, 2] if data.linear_acceleration_mps2.size else np.zeros(0)
     return calibrate_support(params, (data.pressure_stamp_s, data.pressure_pa), (data.imu_stamp_s, accel_z),
                              lambda calibrated: identify_sensors(data, calibrated, "statistical"))
-
-
-def with_profile(params: dict[str, Any], profile: SupportProfile) -> dict[str, Any]:
-    """``params`` with the profile's parameters merged in."""
-    merged = copy.deepcopy(params)
-    deep_merge(merged, profile.parameters()["/**"]["ros__parameters"])
-    return merged
 
 
 def run(args: argparse.Namespace) -> int:

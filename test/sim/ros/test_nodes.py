@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -272,6 +273,37 @@ def test_id_node_survives_a_restarted_simulator_and_a_stamp_from_the_future():
     np.testing.assert_allclose([l["impact_stamp"] for l in labels], [l["impact_stamp"] for l in expected] * 2, atol=1e-8)
     assert "time jump" in log and "went back" in log
     assert "1 samples stamped more than 1 s ahead" in log
+
+
+def test_id_node_calibrates_itself_online_and_says_so():
+    """A live sim_node (12 generated impacts, about 7 s) into id_node with calibrate_online_s 3:
+    id_node's log names the sway it measured, the shipped support's lowest natural frequency
+    within 2 %, and its labels say calibrated: false before and true after the learned window."""
+    from tail_beam_sim.physics.fidelity import TIERS, FidelitySettings, structure_for
+    from tail_beam_sim.physics.materials import material_table
+    from tail_beam_sim.physics.support import Support
+
+    params = load_parameters()
+    sway_hz = structure_for(TIERS["modal"], Support.from_params(params["support"], material_table(params)),
+                            FidelitySettings.from_params(params).modes).natural_frequencies_hz()[0]
+    with ros_context() as (context, executor):
+        sim = sim_node(context, **{"sim_node.wait_for_subscribers": 1, "scenario.source": "generated", "scenario.count": 12,
+                                   "sim_node.realtime_factor": 4.0})
+        ident = id_node(context, method="statistical", **{"id_node.calibrate_online_s": 3.0})
+        probe = Probe(context, {topics.LABEL: String, topics.IMPACT_TRUTH: String, "/rosout": Log})
+        for node in (sim, ident, probe):
+            executor.add_node(node)
+
+        def log() -> str:
+            return " | ".join(m.msg for m in probe.messages["/rosout"] if m.name == "tail_beam_id")
+
+        assert spin_until(executor, lambda: len(probe.messages[topics.IMPACT_TRUTH]) == 12, timeout_s=90)
+        assert spin_until(executor, lambda: len(probe.messages[topics.LABEL]) >= 12, timeout_s=20), log()
+        labels = probe.json(topics.LABEL)
+    flags = [label["calibrated"] for label in labels]
+    assert flags[0] is False and flags[-1] is True and flags == sorted(flags), log()
+    found = re.search(r"calibration: sway ([0-9.]+) Hz", log())
+    assert found and float(found.group(1)) == pytest.approx(sway_hz, rel=0.02), log()
 
 
 def test_publish_clock_gives_the_simulation_time_on_slash_clock():
