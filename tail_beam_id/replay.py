@@ -6,6 +6,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+import dataclasses
+
 import numpy as np
 
 
@@ -28,6 +30,7 @@ def replay(
     each delivery. ``vibration`` (blocks in index order) goes to ``identifier.add_vibration``
     sample by sample stamp, each chunk's samples with the other streams'.
     """
+    pressure, imu = _in_stamp_order(pressure), _in_stamp_order(imu)
     vib_stamps = vibration.sample_stamps_s() if vibration is not None and vibration.count else None
     starts = [s.stamp_s[0] for s in (pressure, imu) if s is not None and s.stamp_s.size]
     ends = [s.stamp_s[-1] for s in (pressure, imu) if s is not None and s.stamp_s.size]
@@ -42,19 +45,21 @@ def replay(
     # Chunk edges by multiplication, so consecutive chunks share one float edge exactly: no
     # sample is delivered twice or lost between them.
     edges = first + chunk_s * np.arange(count + 1)
-    for low, high in zip(edges[:-1], edges[1:]):
-        if pressure is not None:
-            take = (pressure.stamp_s >= low) & (pressure.stamp_s < high)
-            if take.any():
-                identifier.add_pressure(pressure.stamp_s[take], pressure.pressure_pa[take])
-        if imu is not None:
-            take = (imu.stamp_s >= low) & (imu.stamp_s < high)
-            if take.any():
-                identifier.add_imu(imu.stamp_s[take], imu.angular_velocity_radps[take], imu.linear_acceleration_mps2[take])
-        if vib_stamps is not None:
-            take = (vib_stamps >= low) & (vib_stamps < high)
-            if take.any():
-                identifier.add_vibration(vib_stamps[take], vibration.accel_mps2[take].astype(float))
+    # Each stream cut at the chunk edges once (searchsorted on the sorted stamps): a per-chunk
+    # mask over the whole stream would cost samples x chunks on a long recording.
+    p_cut = np.searchsorted(pressure.stamp_s, edges) if pressure is not None else None
+    i_cut = np.searchsorted(imu.stamp_s, edges) if imu is not None else None
+    v_cut = np.searchsorted(vib_stamps, edges) if vib_stamps is not None else None
+    for k, high in enumerate(edges[1:]):
+        if p_cut is not None and p_cut[k + 1] > p_cut[k]:
+            take = slice(p_cut[k], p_cut[k + 1])
+            identifier.add_pressure(pressure.stamp_s[take], pressure.pressure_pa[take])
+        if i_cut is not None and i_cut[k + 1] > i_cut[k]:
+            take = slice(i_cut[k], i_cut[k + 1])
+            identifier.add_imu(imu.stamp_s[take], imu.angular_velocity_radps[take], imu.linear_acceleration_mps2[take])
+        if v_cut is not None and v_cut[k + 1] > v_cut[k]:
+            take = slice(v_cut[k], v_cut[k + 1])
+            identifier.add_vibration(vib_stamps[take], vibration.accel_mps2[take].astype(float))
         while pending and pending[0].stamp_s < high:
             rebound = pending.pop(0)
             identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
@@ -62,6 +67,16 @@ def replay(
     for rebound in pending:
         identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
     return labels + identifier.flush()
+
+
+def _in_stamp_order(stream: Any) -> Any:
+    """``stream`` (PressureStream, ImuStream or None) with its samples in stamp order (a bag
+    written out of order is read as recorded; the chunks are cut on sorted stamps)."""
+    if stream is None or np.all(np.diff(stream.stamp_s) >= 0.0):
+        return stream
+    order = np.argsort(stream.stamp_s, kind="stable")
+    fields = {f.name: getattr(stream, f.name) for f in dataclasses.fields(stream)}
+    return dataclasses.replace(stream, **{k: v[order] for k, v in fields.items() if isinstance(v, np.ndarray) and v.shape[:1] == order.shape})
 
 
 def stream_arrays(result: Any) -> tuple[PressureStream, ImuStream, list[Rebound]]:
