@@ -6,6 +6,7 @@ down, so the nodes spin in short slices and check the context between them.
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from collections import deque
@@ -205,7 +206,10 @@ def run_node(make: Callable[[], Node], usage: NodeUsage | str, args: Sequence[st
         usage = NodeUsage(usage, (make.__doc__ or "").strip().split("\n\n")[0])
     executable = usage.executable
     if asks_for_help(list(sys.argv[1:] if args is None else args)):
-        print(usage.text())
+        try:
+            print(usage.text(), flush=True)
+        except BrokenPipeError:  # `... -h | head`: the reader left; not an error
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     rclpy.init(args=args)
     try:
