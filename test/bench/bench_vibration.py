@@ -10,7 +10,10 @@ run, from the recorded bag and /proc:
   missing from their k / rate grids (bag), id_node's gap warnings, the recorder's own count;
 * CPU share of each process over the steady part of the run (utime + stime from
   /proc/<pid>/stat, one core = 100 %);
-* bag size per minute of the support (the run's bag, scaled), with the compression asked for.
+* bag size per minute of the support (the run's bag, scaled), with the compression asked for;
+* identification: live labels against the truths (missed and extra count), R >= 50 mm apart,
+  the wall latency of each label after its contact end's data, and whether `tail-beam
+  identify` on the bag gives the same labels.
 
 Usage: python test/bench/bench_vibration.py [--rates 25600 51200 76800 100000] [--duration 20]
        [--compression zstd none]
@@ -87,18 +90,51 @@ def run(rate_hz: float, duration_s: float, compression: str, workdir: Path) -> d
         vib = [c for c in reader.connections if c.topic.endswith("/vibration")]
         times = [ns for _, ns, _ in reader.messages(connections=vib)]
         log_span_s = (max(times) - min(times)) * 1e-9 if times else 0.0
+        label_times = [ns for _, ns, _ in reader.messages(connections=[c for c in reader.connections if c.topic.endswith("/label")])]
     stamp_span_s = float(stamps[-1] - stamps[0]) if stamps.size else 0.0
     pressure_missing = int(round((data.pressure_stamp_s[-1] - data.pressure_stamp_s[0]) * 2000.0)) + 1 - data.pressure_stamp_s.size
     imu_missing = int(round((data.imu_stamp_s[-1] - data.imu_stamp_s[0]) * 2000.0)) + 1 - data.imu_stamp_s.size
     size = sum(f.stat().st_size for f in bag.iterdir() if f.is_file())
     gap_warnings = sum(1 for line in log.read_text().splitlines() if "vibration:" in line and "lost" in line)
+    scores = identification_scores(bag, data, np.asarray(times, dtype=float) * 1e-9, np.asarray(label_times, dtype=float) * 1e-9)
     return {
+        **scores,
         "rate_hz": rate_hz, "compression": compression, "sim_s": stamp_span_s,
         "realtime": stamp_span_s / log_span_s if log_span_s else float("nan"),
         "vib_lost": data.vibration_lost_samples, "pressure_lost": pressure_missing, "imu_lost": imu_missing,
         "id_gap_warnings": gap_warnings, "recorder_line": recorder_err.strip().splitlines()[-1] if recorder_err.strip() else "",
         "cpu": share, "mb_per_min": size / 1e6 / stamp_span_s * 60.0 if stamp_span_s else float("nan"),
         "labels": len(data.json_topics.get("label", [])),
+    }
+
+
+def identification_scores(bag: Path, data, block_log_s: np.ndarray, label_log_s: np.ndarray) -> dict[str, object]:
+    """The live labels in the bag against its truths (tail_beam_id.label.match): correct of
+    matched, for all and for R >= 50 mm, extra labels, live = offline (`tail-beam identify`
+    on the bag), and the wall latency of each label after the data of its contact's end: the
+    recorder's log time of the label less that of the vibration block holding the contact end."""
+    from tail_beam_id.cli.identify_cmd import identify_bag
+    from tail_beam_id.label import match, match_tolerance_s
+    from tail_beam_sim.config import load_parameters
+
+    truths, labels = data.json_topics.get("impact_truth", []), data.json_topics.get("label", [])
+    matching = match(truths, labels, match_tolerance_s(load_parameters()["identification"]))
+    right = [(truths[i]["radius_m"], labels[j]["label"] == truths[i]["label"]) for i, j in matching.pairs]
+    blocks = data.vibration
+    block_end_s = blocks.stamp_s + blocks.lengths * blocks.period_s
+    latency_ms = []
+    for i, j in matching.pairs:
+        k = int(np.searchsorted(block_end_s, truths[i]["final_separation_stamp"]))
+        if k < block_log_s.size and j < label_log_s.size:
+            latency_ms.append((label_log_s[j] - block_log_s[k]) * 1e3)
+    key = ("impact_stamp", "label", "method", "confidence")
+    offline = identify_bag(str(bag))
+    return {
+        "impacts": len(truths), "correct": sum(ok for _, ok in right), "missed": len(matching.missed), "extra": len(matching.extra),
+        "big": sum(1 for r, _ in right if r >= 0.05) + sum(1 for i in matching.missed if truths[i]["radius_m"] >= 0.05),
+        "big_correct": sum(ok for r, ok in right if r >= 0.05),
+        "latency_ms": (float(np.median(latency_ms)), float(np.max(latency_ms))) if latency_ms else (float("nan"),) * 2,
+        "same_offline": [tuple(l[k] for k in key) for l in labels] == [tuple(l[k] for k in key) for l in offline],
     }
 
 
@@ -121,6 +157,10 @@ def main() -> int:
                 print(f"| {rate / 1000:g} kHz | {compression} | {r['realtime']:.3f} | {r['vib_lost']} / {r['pressure_lost']} / {r['imu_lost']} "
                       f"| {r['id_gap_warnings']} | {cpu_text} | {r['mb_per_min']:.1f} | {r['labels']} |", flush=True)
                 print(f"    recorder: {r['recorder_line']}", file=sys.stderr)
+                print(f"    identification: {r['correct']}/{r['impacts']} correct ({r['missed']} missed, {r['extra']} extra), "
+                      f"R >= 50 mm {r['big_correct']}/{r['big']}; label after the contact end's data: median "
+                      f"{r['latency_ms'][0]:.1f} ms, max {r['latency_ms'][1]:.1f} ms (wall); live labels = offline: {r['same_offline']}",
+                      flush=True)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
     return 0
 
