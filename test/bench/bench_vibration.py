@@ -51,7 +51,8 @@ def ros_args(params: dict[str, object]) -> list[str]:
     return ["--ros-args"] + [a for k, v in params.items() for a in ("-p", f"{k}:={v}")]
 
 
-def run(rate_hz: float, duration_s: float, compression: str, workdir: Path) -> dict[str, object]:
+def run(rate_hz: float, duration_s: float, compression: str, workdir: Path, sim_params: dict[str, str] | None = None,
+        id_params: dict[str, str] | None = None) -> dict[str, object]:
     from tail_beam_sim.bags.read import read_sensors
 
     bag = workdir / f"bag_{int(rate_hz)}_{compression}"
@@ -59,11 +60,12 @@ def run(rate_hz: float, duration_s: float, compression: str, workdir: Path) -> d
     sensors = {"sensors.vibration_rate_hz": rate_hz}
     recorder = subprocess.Popen([str(BIN / "bag_recorder"), *ros_args({"recorder.bag_path": str(bag), "recorder.compression": compression})],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    ident = subprocess.Popen([str(BIN / "id_node"), *ros_args({"id_node.flush_after_idle_s": 1.0, **sensors})],
+    ident = subprocess.Popen([str(BIN / "id_node"), *ros_args({"id_node.flush_after_idle_s": 1.0, **sensors, **(id_params or {})})],
                              stdout=subprocess.DEVNULL, stderr=log.open("w"))
     sim = subprocess.Popen([str(BIN / "sim_node"), *ros_args({
         **sensors, "sim_node.wait_for_subscribers": 2, "sim_node.exit_after_idle_s": 0.5, "scenario.source": "generated",
-        "scenario.count": max(1, int(duration_s / 0.55)), "scenario.start_s": 0.5})], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        "scenario.count": max(1, int(duration_s / 0.55)), "scenario.start_s": 0.5, **(sim_params or {})})],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     procs = {"sim_node": sim, "id_node": ident, "bag_recorder": recorder}
     samples: list[tuple[float, dict[str, float | None]]] = []
     while sim.poll() is None:
@@ -143,7 +145,11 @@ def main() -> int:
     parser.add_argument("--rates", type=float, nargs="+", default=[25600.0])
     parser.add_argument("--duration", type=float, default=20.0, help="simulated seconds per run")
     parser.add_argument("--compression", nargs="+", default=["zstd"], choices=["zstd", "none"])
+    parser.add_argument("--sim-param", action="append", default=[], metavar="NAME:=VALUE", help="a sim_node parameter (repeatable)")
+    parser.add_argument("--id-param", action="append", default=[], metavar="NAME:=VALUE", help="an id_node parameter (repeatable)")
     args = parser.parse_args()
+    sim_params = dict(item.split(":=", 1) for item in args.sim_param)
+    id_params = dict(item.split(":=", 1) for item in args.id_param)
     print(f"load average before: {os.getloadavg()[0]:.2f} (shared machine, {os.cpu_count()} cores)", flush=True)
     print("| vibration rate | compression | real-time ratio | lost (vibration / pressure / IMU samples) | id_node gap warnings "
           "| CPU sim / id / recorder | bag MB per min | labels |")
@@ -151,7 +157,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="bench_vibration_") as tmp:
         for rate in args.rates:
             for compression in args.compression:
-                r = run(rate, args.duration, compression, Path(tmp))
+                r = run(rate, args.duration, compression, Path(tmp), sim_params, id_params)
                 cpu = r["cpu"]
                 cpu_text = " / ".join(f"{cpu[n]:.0f} %" for n in ("sim_node", "id_node", "bag_recorder")) if cpu else "n/a"
                 print(f"| {rate / 1000:g} kHz | {compression} | {r['realtime']:.3f} | {r['vib_lost']} / {r['pressure_lost']} / {r['imu_lost']} "
