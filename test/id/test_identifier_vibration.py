@@ -99,3 +99,60 @@ def test_vibration_with_mismatched_lengths_is_refused(params):
     identifier = StreamIdentifier("threshold", params["identification"], params)
     with pytest.raises(InputError, match="vibration"):
         identifier.add_vibration(np.arange(3) * 1e-4, np.zeros(2))
+
+
+def test_evaluation_feeds_the_accelerometer_where_the_setting_has_one(params):
+    """tail-beam evaluate and training feed the vibration blocks as id_node does: at the shipped
+    setting the labels name `vibration` and carry its period, at the IMU-only `nominal` setting the
+    same impacts (the same IMU noise) are labelled from the IMU, and the shipped setting is the default."""
+    from tail_beam_id.dataset import evaluation_params, settings
+    from tail_beam_id.runs import run_set
+
+    ev = evaluation_params(params)
+    assert ev["default_rates"][0] == "shipped"
+    chosen = settings(params, [1.0], ["shipped", "nominal"])
+    shipped, nominal = chosen
+    assert shipped.has_vibration and shipped.vibration_rate_hz == params["sensors"]["vibration_rate_hz"]
+    assert not nominal.has_vibration and dict(shipped.rates_hz) == dict(nominal.rates_hz)
+    records = list(run_set(params, "stream", 3, 9003, chosen, ["statistical"]))
+    assert len(records) == 6 and all(r.label is not None for r in records)
+    for r in records:
+        channel = "vibration" if r.setting == "shipped/x1" else "imu"
+        assert channel in r.label["signals"], (r.setting, r.label["signals"])
+        expected_period_s = 1.0 / (params["sensors"]["vibration_rate_hz"] if channel == "vibration" else nominal.rates_hz["imu_rate_hz"])
+        assert r.label["features"]["imu_period_s"] == pytest.approx(expected_period_s, rel=1e-6)
+        assert bool(r.label["features"].get("vibration_channel")) == (channel == "vibration")
+
+
+def test_a_setting_with_a_bad_accelerometer_rate_names_the_field(params):
+    """A vibration rate that is neither 0 (none) nor within the sensor's range is refused in one line naming the setting's field."""
+    import copy
+
+    from tail_beam_id.dataset import settings
+    from tail_beam_sim.errors import InputError
+
+    bad = copy.deepcopy(params)
+    bad["identification"]["evaluation"]["rates"]["shipped"]["vibration_rate_hz"] = 500.0
+    with pytest.raises(InputError, match=r"rates\.shipped\.vibration_rate_hz"):
+        settings(bad, [1.0], ["shipped"])
+
+
+def test_statistical_method_keeps_the_accelerometer_apart_from_the_imu(params):
+    """Features flagged as the accelerometer's are decided by the `vibration` models, the same
+    values unflagged by the IMU's; a model file without vibration models falls back to the IMU's."""
+    from tail_beam_id.methods.statistical import StatisticalMethod, signals_of
+
+    features = {"moment_impulse_imu_nms": 5.0, "imu_ring_ratio": 0.1, "imu_pulse_polarity": 1.0, "imu_pulse_width_s": 2e-4,
+                "imu_noise_mps2": 0.2, "imu_period_s": 1 / 25600.0, "rebound_speed_mps": 1.0, "rebound_delay_s": 6e-4}
+    flagged = {**features, "vibration_channel": 1.0}
+    assert signals_of(features) == ("imu", "rebound_velocity")
+    assert signals_of(flagged) == ("rebound_velocity", "vibration")
+
+    def model(bias: float) -> dict:
+        return {"features": [["rebound_speed_mps", 0.05]], "mean": [0.0], "scale": [1.0], "w1": [[0.0]], "b1": [0.0], "w2": [0.0],
+                "b2": bias, "temperature": 1.0, "envelope": [[-10.0], [10.0]]}
+
+    both = StatisticalMethod({"imu+rebound_velocity": model(3.0), "rebound_velocity+vibration": model(-3.0)}, 0.6)
+    assert both.decide(features).label == "coal" and both.decide(flagged).label == "gangue"
+    imu_only = StatisticalMethod({"imu+rebound_velocity": model(3.0)}, 0.6)
+    assert imu_only.decide(flagged).label == "coal"
