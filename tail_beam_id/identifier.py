@@ -423,7 +423,7 @@ class StreamIdentifier:
             features["support_calibrated"] = 1.0
         if impulse is not None and impact.channel == "vibration":
             # The imu_* features came from the accelerometer (anti-alias filtered point samples,
-            # not the IMU's period means): the methods keep models of their own for it.
+            # not the IMU's period means): the physics method keeps a lag model of its own for it.
             features[VIBRATION_CHANNEL] = 1.0
         decision: Decision = self.method.decide(features)
         confidence = decision.confidence

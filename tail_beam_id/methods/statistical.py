@@ -3,11 +3,9 @@
 signals available (so it still labels when a stream is gone), with temperature-scaled
 (calibrated) probabilities.
 
-The tail-beam accelerometer (``vibration``) is a signal of its own: when it is the acceleration
-channel (the features carry ``vibration_channel``) the models of the ``vibration`` subsets decide,
-trained on the accelerometer's sensor model (anti-alias filtered point samples, whose pulse and
-onset differ from an integrating IMU's at the same rate); a model file without them falls back
-to the IMU's.
+The acceleration features (the ``imu`` signal's) come from whichever channel the identifier
+used: the IMU, or the tail-beam accelerometer (``vibration``) while it is fed; the models decide
+both alike, trained on the IMU's (tail_beam_id.training.train_family says why).
 
 Any sensor rate: the models are trained on supports and sensor rates drawn from wide ranges
 (tail_beam_id.supports), and the IMU sample period is a continuous input like any other
@@ -30,7 +28,6 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.features import VIBRATION_CHANNEL
 from tail_beam_id.methods import Decision, cap_confidence, sigmoid
 from tail_beam_sim.errors import InputError, require_range
 
@@ -44,22 +41,16 @@ SIGNAL_FEATURES: dict[str, tuple[tuple[str, float | None], ...]] = {
     ),
     "rebound_velocity": (("rebound_speed_mps", 0.05),),
 }
-# The accelerometer gives the same features under the same names (the flag tells them apart).
-SIGNAL_FEATURES["vibration"] = SIGNAL_FEATURES["imu"]
 # Features that need two signals at once.
 JOINT_FEATURES: dict[tuple[str, str], tuple[tuple[str, float | None], ...]] = {
     ("imu", "rebound_velocity"): (("rebound_delay_s", 5e-5),),
-    ("vibration", "rebound_velocity"): (("rebound_delay_s", 5e-5),),
 }
-SIGNAL_ORDER = ("jack_pressure", "imu", "rebound_velocity", "vibration")
-EXCLUSIVE = ("imu", "vibration")  # one acceleration channel per impact: no model holds both
+SIGNAL_ORDER = ("jack_pressure", "imu", "rebound_velocity")
 
 
 def signals_of(features: Mapping[str, float]) -> tuple[str, ...]:
-    """Which signals an impact's features came from (in SIGNAL_ORDER): its acceleration
-    features are the accelerometer's when flagged ``vibration_channel``, else the IMU's."""
-    channel = "vibration" if features.get(VIBRATION_CHANNEL) else "imu"
-    return tuple(s for s in SIGNAL_ORDER if SIGNAL_FEATURES[s][0][0] in features and (s not in EXCLUSIVE or s == channel))
+    """Which signals an impact's features came from (in SIGNAL_ORDER)."""
+    return tuple(s for s in SIGNAL_ORDER if SIGNAL_FEATURES[s][0][0] in features)
 
 
 def subset_key(signals: Sequence[str]) -> str:
@@ -111,12 +102,7 @@ class StatisticalMethod:
         """P(coal) from the model of the signals there are; on a calibrated support (a measured
         profile: ``support_calibrated``) from the models trained on calibrated features."""
         family = self.calibrated_subsets if features.get("support_calibrated") and self.calibrated_subsets else self.subsets
-        signals = signals_of(features)
-        model = family.get(subset_key(signals))
-        if model is None and "vibration" in signals:
-            # A model file from before the accelerometer: its IMU model decides.
-            as_imu = {"imu" if s == "vibration" else s for s in signals}
-            model = family.get(subset_key(tuple(s for s in SIGNAL_ORDER if s in as_imu)))
+        model = family.get(subset_key(signals_of(features)))
         if model is None:
             return Decision(0.5, {})
         names = [(n, f) for n, f in model["features"]]
