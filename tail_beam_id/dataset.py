@@ -2,7 +2,10 @@
 (paper, stream, mismatch) and the training set, each drawn from its own seed.
 
 Each impact is simulated at every sensor setting asked for (noise factor x sample rates),
-each with its own pre-contact baseline, as one short stream.
+each with its own pre-contact baseline, as one short stream. A setting or drawn support with
+the tail-beam accelerometer keeps the simulated ``vibration`` blocks in its result (and the
+runs feed them to the identifier, as id_node does); one without it has no blocks
+(``VibrationBlocks.empty()``).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.fidelity import FidelitySettings
 from tail_beam_sim.physics.simulate import SimulationResult, simulate
+from tail_beam_sim.physics.sensors import VibrationBlocks
 from tail_beam_sim.physics.stream import StreamSimulator
 from tail_beam_id.supports import SupportDraw, draw_support, support_ranges
 
@@ -33,17 +37,32 @@ DRAWN_SETTING = "drawn"
 PERTURBED_SUPPORT = ("beam_inertia_about_hinge_kgm2", "jack_damping_nspm", "oil_bulk_modulus_pa")
 
 
+RATE_FIELDS = ("pressure_rate_hz", "imu_rate_hz", "camera_frame_rate_hz")  # every setting names these, Hz
+VIBRATION_FIELD = "vibration_rate_hz"  # the accelerometer's rate, Hz; 0 or absent = no accelerometer
+VIBRATION_RATE_RANGE_HZ = (1000.0, 100000.0)  # what sensors.vibration_rate_hz accepts, Hz
+
+
 @dataclass(frozen=True)
 class Setting:
-    """One sensor setting: noise factor (x nominal RMS) and named sample rates (Hz)."""
+    """One sensor setting: noise factor (x nominal RMS), the named sample rates of pressure,
+    IMU and camera (Hz) and the tail-beam accelerometer's rate (Hz; 0 = none at this site)."""
 
     noise_factor: float
     rate_name: str
     rates_hz: Mapping[str, float]
+    vibration_rate_hz: float = 0.0
 
     @property
     def key(self) -> str:
         return f"{self.rate_name}/x{self.noise_factor:g}"
+
+    @property
+    def has_vibration(self) -> bool:
+        return self.vibration_rate_hz > 0.0
+
+    def sensors(self) -> dict[str, float]:
+        """The ``sensors`` parameters this setting sets (the accelerometer's rate only when it has one)."""
+        return {**self.rates_hz, **({VIBRATION_FIELD: self.vibration_rate_hz} if self.has_vibration else {})}
 
 
 @dataclass
@@ -82,7 +101,21 @@ def settings(
     for factor in factors:
         if not (factor >= 0.0 and math.isfinite(factor)):
             raise InputError("noise", factor, "must be a finite factor >= 0")
-    return [Setting(float(f), name, rates[name]) for name in names for f in factors]
+    return [Setting(float(f), name, {k: float(rates[name][k]) for k in RATE_FIELDS}, _vibration_rate(rates[name], name))
+            for name in names for f in factors]
+
+
+def _vibration_rate(rates: Mapping[str, Any], name: str) -> float:
+    """A setting's accelerometer rate (Hz), checked: 0 (or absent) for none, else in range."""
+    for field in RATE_FIELDS:
+        if field not in rates:
+            raise InputError(f"identification.evaluation.rates.{name}.{field}", None, "missing (Hz)")
+    value = rates.get(VIBRATION_FIELD, 0.0)
+    low, high = VIBRATION_RATE_RANGE_HZ
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (value == 0.0 or low <= value <= high):
+        raise InputError(f"identification.evaluation.rates.{name}.{VIBRATION_FIELD}", value,
+                         f"must be 0 (no accelerometer) or in [{low:g}, {high:g}] Hz")
+    return float(value)
 
 
 def draw_commands(params: Mapping[str, Any], scene_set: str, count: int, seed: int) -> Iterator[tuple[dict[str, Any], dict[str, float], str]]:
@@ -133,12 +166,13 @@ def simulate_set(
         results = {}
         noise_seed = int(noise_seeds[index].generate_state(1)[0])
         for setting in chosen:
-            varied["sensors"] = {**params["sensors"], **setting.rates_hz, "seed": noise_seed}
+            varied["sensors"] = {**params["sensors"], **setting.sensors(), "seed": noise_seed}
             scene = Scene.from_params(varied, {
                 **command, "contact_model": law, "pre_contact_s": ev["pre_contact_s"], "window_s": ev["window_s"],
             })
             scene = replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor))
-            results[setting.key] = simulate(scene, tier=tier)
+            result = simulate(scene, tier=tier)
+            results[setting.key] = result if setting.has_vibration else replace(result, vibration=VibrationBlocks.empty())
         yield LabelledImpact(index, command, scale, law, results)
 
 
@@ -147,15 +181,18 @@ def _simulate_drawn(params: Mapping[str, Any], scene_set: str, count: int, seed:
     ev = evaluation_params(params)
     ranges = support_ranges(ev, DRAWN_SETS[scene_set])
     support_rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
+    vibration_rng = np.random.default_rng(np.random.SeedSequence([seed, 3]))
     noise_seeds = np.random.SeedSequence(seed).spawn(count)
     for index, (command, _, _) in enumerate(draw_commands(params, "stream", count, seed)):
-        draw = draw_support(ranges, support_rng)
+        draw = draw_support(ranges, support_rng, vibration_rng)
         varied = draw.apply(params)
         varied["sensors"]["seed"] = int(noise_seeds[index].generate_state(1)[0])
         scene = Scene.from_params(varied, {
             **command, "contact_model": draw.contact_model, "pre_contact_s": ev["pre_contact_s"], "window_s": ev["window_s"],
         })
         result = simulate(scene, tier=tier, settings=FidelitySettings.from_params(varied))
+        if draw.vibration_rate_hz <= 0.0:
+            result = replace(result, vibration=VibrationBlocks.empty())
         yield LabelledImpact(index, command, {}, draw.contact_model, {DRAWN_SETTING: result}, draw)
 
 
@@ -169,6 +206,7 @@ class SupportStream:
     imu: Any
     rebounds: list[Any]
     truths: list[dict[str, Any]]
+    vibration: Any = None  # the accelerometer's blocks (VibrationBlocks); None when the support has none
 
 
 def support_streams(
@@ -180,9 +218,10 @@ def support_streams(
     ev = evaluation_params(params)
     ranges = support_ranges(ev, which)
     rng = np.random.default_rng(np.random.SeedSequence([seed, 2]))
+    vibration_rng = np.random.default_rng(np.random.SeedSequence([seed, 4]))
     gap_s = float(ev["stream_gap_s"])
     for index in range(supports):
-        draw = draw_support(ranges, rng)
+        draw = draw_support(ranges, rng, vibration_rng)
         varied = draw.apply(params)
         varied["sensors"]["seed"] = int(rng.integers(2**31))
         varied["stream"] = {**varied.get("stream", {}), "tier": tier or ev["tier"], "min_impact_gap_s": 0.0,
@@ -193,4 +232,5 @@ def support_streams(
         for k, command in enumerate(commands):
             simulator.submit(command, contact_stamp_s=start + k * gap_s * (1.0 + 0.5 * rng.uniform()))
         chunk = simulator.advance(start + impacts_per_support * gap_s * 1.5 + 0.2)
-        yield SupportStream(draw, varied, chunk.pressure, chunk.imu, [r for _, r in chunk.rebounds], [t for _, t in chunk.truths])
+        yield SupportStream(draw, varied, chunk.pressure, chunk.imu, [r for _, r in chunk.rebounds], [t for _, t in chunk.truths],
+                            chunk.vibration if draw.vibration_rate_hz > 0.0 else None)

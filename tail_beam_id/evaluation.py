@@ -4,7 +4,8 @@ Every impact counts: one that no label matches (missed detection) counts as wron
 carries a 95 % Wilson interval; balanced accuracy (mean of the coal and gangue recalls) a
 95 % interval from the two recalls' Wilson half-widths combined in quadrature. Latency is
 split into data latency (simulated time from the true contact to the newest stamp the
-decision needed) and compute time (wall-clock of features and decision, per impact).
+decision needed; also from the contact's end, the truth's ``final_separation_stamp``) and
+compute time (wall-clock of features and decision, per impact).
 """
 
 from __future__ import annotations
@@ -113,7 +114,8 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
             hits = sum(r.correct for r in group)
             by_size.append({"radius_m": [low, high], "n": len(group), "accuracy": hits / len(group), "ci": wilson(hits, len(group))})
     labelled = [r for r in records if r.label]
-    data_latency = [(r.label["impact_stamp"] + r.label["data_latency_ms"] / 1e3 - r.contact_stamp_s) * 1e3 for r in labelled]
+    data_latency = [(data_horizon_s(r) - r.contact_stamp_s) * 1e3 for r in labelled]
+    after_end = [(data_horizon_s(r) - (r.contact_stamp_s + r.duration_s)) * 1e3 for r in labelled]
     wrong_conf = [r.label["confidence"] for r in labelled if not r.correct]
     calibration = reliability(records)
     return Summary(
@@ -128,6 +130,8 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
         # features and decision): what the per-label compute time leaves out.
         extra={
             "stream_processing_ms": _percentiles([1e3 * r.wall_s for r in records]),
+            # From the contact's end (final separation) to the newest stamp the label needed, ms.
+            "data_latency_after_contact_end_ms": _percentiles(after_end),
             "confident_wrong": sum(1 for r in labelled if not r.correct and r.label["confidence"] >= CONFIDENT),
             "outside_training": sum(1 for r in labelled if r.label.get("outside_training")),
             # Extra labels count against accuracy too: correct / (impacts + labels with no impact).
@@ -135,6 +139,12 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
             "ece": calibration[0], "reliability": calibration[1],
         },
     )
+
+
+def data_horizon_s(record: Record) -> float:
+    """The newest stamp a labelled record's decision needed, s: the label's ``impact_stamp``
+    (the detected onset) plus its ``data_latency_ms`` (measured from that onset)."""
+    return float(record.label["impact_stamp"]) + float(record.label["data_latency_ms"]) / 1e3
 
 
 def group(records: Iterable[Record]) -> dict[tuple[str, str, str, float], list[Record]]:

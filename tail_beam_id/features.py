@@ -22,6 +22,9 @@ from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
 from tail_beam_sim.physics.support import Support
 
 SIGNALS = ("jack_pressure", "imu", "rebound_velocity")
+# Feature flag (1.0 when present) of an impact whose acceleration features (the imu_* names, the
+# rebound delay) came from the tail-beam accelerometer's ``vibration`` stream, not the IMU.
+VIBRATION_CHANNEL = "vibration_channel"
 
 
 @dataclass(frozen=True)

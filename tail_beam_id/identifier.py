@@ -33,7 +33,7 @@ import numpy as np
 from tail_beam_id.buffers import Series
 from tail_beam_id.detection.imu import DetectionConfig, Pulse, PulseDetector
 from tail_beam_id.detection.pressure import PressureDetector
-from tail_beam_id.features import BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
+from tail_beam_id.features import VIBRATION_CHANNEL, BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
 from tail_beam_id.label import make_label
 from tail_beam_id.methods import METHODS, Decision, Method, build_method
 from tail_beam_sim.config import load_parameters
@@ -433,6 +433,10 @@ class StreamIdentifier:
             signals.append("rebound_velocity")
         if self.calibrated:
             features["support_calibrated"] = 1.0
+        if impulse is not None and impact.channel == "vibration":
+            # The imu_* features came from the accelerometer (anti-alias filtered point samples,
+            # not the IMU's period means): the physics method keeps a lag model of its own for it.
+            features[VIBRATION_CHANNEL] = 1.0
         decision: Decision = self.method.decide(features)
         confidence = decision.confidence
         if overlap:

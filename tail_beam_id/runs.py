@@ -55,11 +55,15 @@ def run_set(
     tier: str | None = None,
     windows_s: Sequence[float] = (),
     true_profile: bool = False,
+    without_vibration_too: bool = False,
 ) -> Iterator[Record]:
     """Simulate ``count`` impacts of ``scene_set`` and identify each with every method, at the
-    configured data window and at each of ``windows_s`` (s) as well. With ``true_profile`` an
-    impact on a drawn support is identified knowing that support (a perfect calibration: what
-    the calibrated models are trained on)."""
+    configured data window and at each of ``windows_s`` (s) as well; the accelerometer's blocks
+    are fed wherever the setting (or drawn support) has one, as id_node feeds them. With
+    ``true_profile`` an impact on a drawn support is identified knowing that support (a perfect
+    calibration: what the calibrated models are trained on). With ``without_vibration_too`` an impact whose
+    result has the accelerometer is also identified without it (setting ``<key>/no-vibration``:
+    the same impact at a site with the IMU alone; training uses it)."""
     tolerance_s = match_tolerance_s(params["identification"])
     built: dict[str, Any] = {}
     sections = [dict(params["identification"])] + [with_window(params["identification"], w) for w in windows_s]
@@ -68,7 +72,7 @@ def run_set(
         if true_profile and impact.support is not None:
             model_params = impact.support.apply(params)
             model_params["calibration"] = {"rigid_mode_frequency_hz": "known"}
-        for key, result in impact.results.items():
+        for key, result, vibration in _feeds(impact.results, without_vibration_too):
             truth = result.truth()
             for method in methods:
                 for section in sections:
@@ -77,7 +81,7 @@ def run_set(
                     if model_params is params:
                         built[method] = identifier.method
                     started = time.perf_counter()
-                    labels = replay(identifier, result.pressure, result.imu, [result.rebound])
+                    labels = replay(identifier, result.pressure, result.imu, [result.rebound], vibration=vibration)
                     wall = time.perf_counter() - started
                     matching = match([truth], labels, tolerance_s)
                     paired = matching.label_index(0)
@@ -88,6 +92,15 @@ def run_set(
                         duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
                         label=None if paired is None else dict(labels[paired]), extra_labels=len(matching.extra), wall_s=wall, calibrated=identifier.calibrated,
                     )
+
+
+def _feeds(results: Mapping[str, Any], without_vibration_too: bool) -> Iterator[tuple[str, Any, Any]]:
+    """(setting key, result, the vibration blocks to feed or None) of each result, and of each
+    result with the accelerometer once more without it when asked."""
+    for key, result in results.items():
+        yield key, result, result.vibration
+        if without_vibration_too and result.vibration.count:
+            yield f"{key}/no-vibration", result, None
 
 
 def with_window(section: Mapping[str, Any], window_s: float) -> dict[str, Any]:
@@ -125,7 +138,7 @@ def run_foreign(
         def identify(model_params: Mapping[str, Any], method: str) -> tuple[list[dict[str, Any]], float]:
             identifier = StreamIdentifier(method, section, model_params)
             started = time.perf_counter()
-            labels = replay(identifier, recorded.pressure, recorded.imu, recorded.rebounds)
+            labels = replay(identifier, recorded.pressure, recorded.imu, recorded.rebounds, vibration=recorded.vibration)
             return labels, time.perf_counter() - started
 
         for profile in profiles:

@@ -13,7 +13,11 @@ merged parameter dict; ranges live in ``identification.evaluation.supports`` (co
 - ``imu_from_hinge_m``: where the IMU is bolted;
 - ``imu_rate_hz``, ``pressure_rate_hz``, ``camera_frame_rate_hz`` (log-uniform) and
   ``noise_factor`` (log-uniform, x every nominal noise RMS);
-- ``contact_models``: the hysteresis laws a particle may follow.
+- ``contact_models``: the hysteresis laws a particle may follow;
+- ``vibration_share`` and ``vibration_rate_hz`` (log-uniform): whether the support has the
+  tail-beam accelerometer (topic ``vibration``) and at what rate; ``vibration_rate_hz`` is 0 in
+  a draw without it (the IMU alone is then the acceleration channel). Drawn from a generator of
+  its own (:func:`draw_support`), so adding it left every other draw of a seed unchanged.
 """
 
 from __future__ import annotations
@@ -34,19 +38,25 @@ SCALED = {
     "jack_damping_scale": ("support", "jack_damping_nspm"),
 }
 NOISE_FIELDS = ("pressure_noise_pa", "imu_accel_noise_mps2", "imu_gyro_noise_radps", "camera_velocity_noise_mps",
-                "camera_velocity_noise_fraction")
-LOG_UNIFORM = {"bending_1_frequency_hz", "imu_rate_hz", "pressure_rate_hz", "camera_frame_rate_hz", "noise_factor"}
+                "camera_velocity_noise_fraction", "vibration_noise_density_mps2_rthz")
+LOG_UNIFORM = {"bending_1_frequency_hz", "imu_rate_hz", "pressure_rate_hz", "camera_frame_rate_hz", "noise_factor", "vibration_rate_hz"}
 RANGES = (*SCALED, "bending_1_frequency_hz", "damping_ratio", "imu_from_hinge_m", "imu_rate_hz", "pressure_rate_hz",
-          "camera_frame_rate_hz", "noise_factor")
+          "camera_frame_rate_hz", "noise_factor", "vibration_rate_hz")
 
 
 @dataclass(frozen=True)
 class SupportDraw:
-    """One drawn support and sensor layout: the values drawn (units in their names) and the
-    contact law of the particle that strikes it."""
+    """One drawn support and sensor layout: the values drawn (units in their names;
+    ``vibration_rate_hz`` 0 or absent = no accelerometer) and the contact law of the particle
+    that strikes it."""
 
     values: dict[str, float]
     contact_model: str
+
+    @property
+    def vibration_rate_hz(self) -> float:
+        """The accelerometer's rate, Hz; 0 when the support has none."""
+        return float(self.values.get("vibration_rate_hz", 0.0))
 
     def apply(self, params: Mapping[str, Any]) -> dict[str, Any]:
         """A copy of the merged parameters describing this support, its sensors (rates, every
@@ -72,13 +82,17 @@ class SupportDraw:
                 mode["rigid_coupling_kgm"] = float(mode["rigid_coupling_kgm"]) * self.values["inertia_scale"]
         for rate in ("imu_rate_hz", "pressure_rate_hz", "camera_frame_rate_hz"):
             varied["sensors"][rate] = self.values[rate]
+        if self.vibration_rate_hz > 0.0:
+            varied["sensors"]["vibration_rate_hz"] = self.vibration_rate_hz
         return varied
 
     def describe(self) -> str:
         v = self.values
         return (f"inertia x{v['inertia_scale']:.2f}, jack x{v['jack_stiffness_scale']:.2f}, mode 1 {v['bending_1_frequency_hz']:.0f} Hz "
                 f"zeta {100 * v['damping_ratio']:.1f} %, IMU {v['imu_rate_hz'] / 1e3:.1f} kHz at {v['imu_from_hinge_m']:.2f} m, "
-                f"noise x{v['noise_factor']:.2f}, {self.contact_model}")
+                f"noise x{v['noise_factor']:.2f}, "
+                f"{f'accelerometer {self.vibration_rate_hz / 1e3:.1f} kHz' if self.vibration_rate_hz > 0 else 'no accelerometer'}, "
+                f"{self.contact_model}")
 
 
 def support_ranges(evaluation: Mapping[str, Any], which: str) -> Mapping[str, Any]:
@@ -91,17 +105,34 @@ def support_ranges(evaluation: Mapping[str, Any], which: str) -> Mapping[str, An
         pair = ranges.get(name)
         if not (isinstance(pair, (list, tuple)) and len(pair) == 2 and all(isinstance(x, (int, float)) for x in pair) and 0 < pair[0] <= pair[1]):
             raise InputError(f"identification.evaluation.supports.{which}.{name}", pair, "must be [low, high] with 0 < low <= high")
+    share = ranges.get("vibration_share")
+    if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0.0 <= share <= 1.0:
+        raise InputError(f"identification.evaluation.supports.{which}.vibration_share", share, "must be a fraction in [0, 1]")
     laws = ranges.get("contact_models")
     if not isinstance(laws, (list, tuple)) or not laws:
         raise InputError(f"identification.evaluation.supports.{which}.contact_models", laws, "must be a non-empty list of contact laws")
     return ranges
 
 
-def draw_support(ranges: Mapping[str, Any], rng: np.random.Generator) -> SupportDraw:
-    """One support from ``ranges`` (uniform, or log-uniform for frequencies, rates and noise)."""
+def draw_support(ranges: Mapping[str, Any], rng: np.random.Generator, vibration_rng: np.random.Generator | None = None) -> SupportDraw:
+    """One support from ``ranges`` (uniform, or log-uniform for frequencies, rates and noise).
+    The accelerometer (present with probability ``vibration_share``, and its rate) is drawn from
+    ``vibration_rng`` (default ``rng``), so a caller that gives it a generator of its own draws
+    every other value as it did before the accelerometer was drawn."""
     values = {}
     for name in RANGES:
-        low, high = (float(x) for x in ranges[name])
-        values[name] = float(math.exp(rng.uniform(math.log(low), math.log(high)))) if name in LOG_UNIFORM else float(rng.uniform(low, high))
+        if name == "vibration_rate_hz":
+            continue
+        values[name] = _draw(ranges[name], name, rng)
     laws = list(ranges["contact_models"])
-    return SupportDraw(values, str(laws[int(rng.integers(len(laws)))]))
+    draw_law = str(laws[int(rng.integers(len(laws)))])
+    vib = rng if vibration_rng is None else vibration_rng
+    present = vib.uniform() < float(ranges["vibration_share"])
+    rate = _draw(ranges["vibration_rate_hz"], "vibration_rate_hz", vib)
+    values["vibration_rate_hz"] = rate if present else 0.0
+    return SupportDraw(values, draw_law)
+
+
+def _draw(pair: Any, name: str, rng: np.random.Generator) -> float:
+    low, high = (float(x) for x in pair)
+    return float(math.exp(rng.uniform(math.log(low), math.log(high)))) if name in LOG_UNIFORM else float(rng.uniform(low, high))

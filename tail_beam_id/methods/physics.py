@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr
 
+from tail_beam_id.features import VIBRATION_CHANNEL
 from tail_beam_id.methods import Decision
 from tail_beam_sim.physics.contact import effective_modulus_pa, hertz_constant, hertz_elastic_impact
 from tail_beam_sim.errors import InputError, require_int, require_range
@@ -143,34 +144,40 @@ class PhysicsMethod:
 
     name = "physics"
 
-    def __init__(self, config: PhysicsConfig, bank: PriorBank, timing: list[Mapping[str, float]]) -> None:
+    def __init__(self, config: PhysicsConfig, bank: PriorBank, timing: list[Mapping[str, float]],
+                 timing_vibration: list[Mapping[str, float]] | None = None) -> None:
         self.config = config
         self.bank = bank
         self.timing = sorted(timing, key=lambda t: t["imu_period_s"])
+        # The lag when the accelerometer is the channel (its anti-alias filter delays the onset);
+        # the IMU's when the model file has none.
+        self.timing_vibration = sorted(timing_vibration, key=lambda t: t["imu_period_s"]) if timing_vibration else self.timing
         self.rebound_speed_mps = bank.restitution * bank.speed_mps
-        self._duration_terms: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._duration_terms: dict[tuple[bool, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     @classmethod
     def from_model(cls, model: Mapping[str, Any], params: Mapping[str, Any]) -> PhysicsMethod:
         config = PhysicsConfig.from_params(params["identification"].get("physics") or {})
-        return cls(config, build_bank(config, params, model["duration_ratio"]), model["timing"])
+        return cls(config, build_bank(config, params, model["duration_ratio"]), model["timing"], model.get("timing_vibration"))
 
-    def _lag(self, period_s: float) -> Mapping[str, float]:
-        """The camera-minus-onset lag model at this IMU period: interpolated in log(period)
-        between the measured bands (any rate, never a category; held at the end bands)."""
-        log_p = [math.log(t["imu_period_s"]) for t in self.timing]
+    def _lag(self, period_s: float, vibration: bool = False) -> Mapping[str, float]:
+        """The camera-minus-onset lag model at this IMU (or, with ``vibration``, accelerometer)
+        period: interpolated in log(period) between the measured bands (any rate, never a
+        category; held at the end bands)."""
+        table = self.timing_vibration if vibration else self.timing
+        log_p = [math.log(t["imu_period_s"]) for t in table]
         x = math.log(period_s)
         return {
             "imu_period_s": period_s,
-            "mean_s": float(np.interp(x, log_p, [t["mean_s"] for t in self.timing])),
-            "std_s": float(np.interp(x, log_p, [t["std_s"] for t in self.timing])),
+            "mean_s": float(np.interp(x, log_p, [t["mean_s"] for t in table])),
+            "std_s": float(np.interp(x, log_p, [t["std_s"] for t in table])),
         }
 
-    def _duration_model(self, period_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _duration_model(self, period_s: float, vibration: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per prior particle: expected camera-minus-onset delay (s), 1 / its spread (1/s) and
-        that reciprocal's log, for the IMU period's lag model (cached per period)."""
-        lag = self._lag(period_s)
-        key = round(period_s, 9)
+        that reciprocal's log, for the channel's lag model at this period (cached per period)."""
+        lag = self._lag(period_s, vibration)
+        key = (vibration, round(period_s, 9))
         if key not in self._duration_terms and len(self._duration_terms) >= DURATION_CACHE_SIZE:
             self._duration_terms.pop(next(iter(self._duration_terms)))  # one support streams at one rate: keep a few
         if key not in self._duration_terms:
@@ -200,7 +207,7 @@ class PhysicsMethod:
             log_l += -0.5 * ((speed - self.rebound_speed_mps) / sigma) ** 2 - math.log(sigma)
         delay = features.get("rebound_delay_s")
         if delay is not None and "imu_period_s" in features:
-            expected, inverse_sigma, log_inverse_sigma = self._duration_model(features["imu_period_s"])
+            expected, inverse_sigma, log_inverse_sigma = self._duration_model(features["imu_period_s"], bool(features.get(VIBRATION_CHANNEL)))
             log_l += log_inverse_sigma - 0.5 * ((delay - expected) * inverse_sigma) ** 2
         return log_l
 
@@ -245,7 +252,7 @@ class PhysicsMethod:
             best -= math.log(math.hypot(c.rebound_noise_mps + c.rebound_noise_fraction * abs(speed), features.get("rebound_cross_mps", 0.0)))
         delay = features.get("rebound_delay_s")
         if delay is not None and "imu_period_s" in features:
-            lag = self._lag(features["imu_period_s"])
+            lag = self._lag(features["imu_period_s"], bool(features.get(VIBRATION_CHANNEL)))
             best -= math.log(math.hypot(lag["std_s"], c.duration_model_error * max(delay - lag["mean_s"], 1e-5)))
         moment = features.get("moment_impulse_nms")
         if moment is not None:

@@ -3,6 +3,10 @@
 signals available (so it still labels when a stream is gone), with temperature-scaled
 (calibrated) probabilities.
 
+The acceleration features (the ``imu`` signal's) come from whichever channel the identifier
+used: the IMU, or the tail-beam accelerometer (``vibration``) while it is fed; the models decide
+both alike, trained on the IMU's (tail_beam_id.training.train_family says why).
+
 Any sensor rate: the models are trained on supports and sensor rates drawn from wide ranges
 (tail_beam_id.supports), and the IMU sample period is a continuous input like any other
 feature, never a category. Knowing its limits: each model keeps the envelope of its training

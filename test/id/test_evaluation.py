@@ -40,6 +40,8 @@ def test_missed_impacts_count_as_wrong_and_classes_weigh_equally():
     assert s.by_size[1]["accuracy"] == pytest.approx(0.5)
     # Data latency: from the true contact (0.999 s) to the newest stamp used (1.012 s).
     assert s.data_latency_ms["median"] == pytest.approx(13.0)
+    # From the contact's end (0.999 s + 0.3 ms) to the same stamp: 12.7 ms.
+    assert s.extra["data_latency_after_contact_end_ms"]["median"] == pytest.approx(12.7)
 
 
 def test_logistic_fit_finds_the_boundary_and_temperature_undoes_overconfidence():

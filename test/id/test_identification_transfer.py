@@ -97,10 +97,31 @@ def test_drawn_supports_stay_inside_their_ranges(params):
         draw = draw_support(ranges, rng)
         for name, value in draw.values.items():
             low, high = ranges[name]
-            assert low <= value <= high, name
+            assert low <= value <= high or (name == "vibration_rate_hz" and value == 0.0), name
         varied = draw.apply(params)
         assert varied["modes"]["bending_1"]["frequency_hz"] == pytest.approx(draw.values["bending_1_frequency_hz"])
         assert varied["sensors"]["imu_rate_hz"] == draw.values["imu_rate_hz"]
+        assert varied["sensors"]["vibration_rate_hz"] == (draw.vibration_rate_hz or params["sensors"]["vibration_rate_hz"])
         assert varied["support"]["beam_inertia_about_hinge_kgm2"] == pytest.approx(
             params["support"]["beam_inertia_about_hinge_kgm2"] * draw.values["inertia_scale"])
     assert copy.deepcopy(params) == params  # the nominal parameters are not touched
+
+
+def test_drawn_supports_have_the_accelerometer_at_the_configured_share(params):
+    """About vibration_share of drawn supports have the accelerometer (rate in range, noise scaled as
+    the others'), the rest none; drawn from its own generator, it leaves every other draw as it was."""
+    ranges = support_ranges(evaluation_params(params), "training")
+    draws = [draw_support(ranges, np.random.default_rng(5 + k), np.random.default_rng(100 + k)) for k in range(200)]
+    with_it = [d for d in draws if d.vibration_rate_hz > 0.0]
+    assert abs(len(with_it) / len(draws) - float(ranges["vibration_share"])) < 0.1
+    low, high = ranges["vibration_rate_hz"]
+    assert all(low <= d.vibration_rate_hz <= high for d in with_it)
+    varied = with_it[0].apply(params)
+    assert varied["sensors"]["vibration_noise_density_mps2_rthz"] == pytest.approx(
+        params["sensors"]["vibration_noise_density_mps2_rthz"] * with_it[0].values["noise_factor"])
+    none = {**ranges, "vibration_share": 0.0}
+    for k, draw in enumerate(draws):
+        other = draw_support(none, np.random.default_rng(5 + k), np.random.default_rng(100 + k))
+        assert other.vibration_rate_hz == 0.0
+        assert {n: v for n, v in other.values.items() if n != "vibration_rate_hz"} == {
+            n: v for n, v in draw.values.items() if n != "vibration_rate_hz"} and other.contact_model == draw.contact_model

@@ -99,3 +99,54 @@ def test_vibration_with_mismatched_lengths_is_refused(params):
     identifier = StreamIdentifier("threshold", params["identification"], params)
     with pytest.raises(InputError, match="vibration"):
         identifier.add_vibration(np.arange(3) * 1e-4, np.zeros(2))
+
+
+def test_evaluation_feeds_the_accelerometer_where_the_setting_has_one(params):
+    """tail-beam evaluate and training feed the vibration blocks as id_node does: at the shipped
+    setting the labels name `vibration` and carry its period, at the IMU-only `nominal` setting the
+    same impacts (the same IMU noise) are labelled from the IMU, and the shipped setting is the default."""
+    from tail_beam_id.dataset import evaluation_params, settings
+    from tail_beam_id.runs import run_set
+
+    ev = evaluation_params(params)
+    assert ev["default_rates"][0] == "shipped"
+    chosen = settings(params, [1.0], ["shipped", "nominal"])
+    shipped, nominal = chosen
+    assert shipped.has_vibration and shipped.vibration_rate_hz == params["sensors"]["vibration_rate_hz"]
+    assert not nominal.has_vibration and dict(shipped.rates_hz) == dict(nominal.rates_hz)
+    records = list(run_set(params, "stream", 3, 9003, chosen, ["statistical"]))
+    assert len(records) == 6 and all(r.label is not None for r in records)
+    for r in records:
+        channel = "vibration" if r.setting == "shipped/x1" else "imu"
+        assert channel in r.label["signals"], (r.setting, r.label["signals"])
+        expected_period_s = 1.0 / (params["sensors"]["vibration_rate_hz"] if channel == "vibration" else nominal.rates_hz["imu_rate_hz"])
+        assert r.label["features"]["imu_period_s"] == pytest.approx(expected_period_s, rel=1e-6)
+        assert bool(r.label["features"].get("vibration_channel")) == (channel == "vibration")
+
+
+def test_a_setting_with_a_bad_accelerometer_rate_names_the_field(params):
+    """A vibration rate that is neither 0 (none) nor within the sensor's range is refused in one line naming the setting's field."""
+    import copy
+
+    from tail_beam_id.dataset import settings
+    from tail_beam_sim.errors import InputError
+
+    bad = copy.deepcopy(params)
+    bad["identification"]["evaluation"]["rates"]["shipped"]["vibration_rate_hz"] = 500.0
+    with pytest.raises(InputError, match=r"rates\.shipped\.vibration_rate_hz"):
+        settings(bad, [1.0], ["shipped"])
+
+
+def test_shipped_models_are_trained_with_the_accelerometer():
+    """The shipped models were trained with the accelerometer fed where the layout has one: the training
+    records include impacts whose acceleration features came from the vibration stream, and the physics
+    method's lag table for that channel is learnt from them."""
+    import json
+
+    from tail_beam_id.methods import MODELS_DIR
+
+    statistical = json.loads((MODELS_DIR / "statistical.json").read_text(encoding="utf-8"))
+    provenance = statistical["provenance"][0]
+    assert provenance["vibration_records"] >= 1000 and provenance["records"] - provenance["vibration_records"] >= 5000
+    physics = json.loads((MODELS_DIR / "physics.json").read_text(encoding="utf-8"))
+    assert physics["timing_vibration"] and all(band["count"] >= 10 for band in physics["timing_vibration"])
