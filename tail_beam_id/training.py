@@ -39,6 +39,7 @@ from tail_beam_sim.physics.support import Support
 
 L2_PENALTY = 1e-3  # ridge penalty on the standardised logistic weights
 HOLDOUT_FRACTION = 0.25  # share of training impacts kept aside to fit the temperature
+MIN_UNSEEN_IMPACTS = 50  # held-out drawn-support impacts needed to fit the temperature on them alone
 ENVELOPE_PERCENTILES = (0.1, 99.9)  # a model's training envelope: these percentiles of each input
 THRESHOLD_FEATURES = ("rebound_speed_mps", "moment_impulse_nms", "pressure_swing_pa")
 
@@ -144,7 +145,10 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
 
 def fit_subset(records: Sequence[Record], names: Sequence[tuple[str, float | None]], held: set[tuple[str, int]]) -> dict[str, Any]:
     """Standardise, fit the logistic weights on the training impacts, the temperature on the
-    held-out ones."""
+    held-out impacts of drawn supports: each struck a support no training impact struck, as a
+    user's support is one the model never saw (issue 9: probabilities calibrated on unseen
+    supports; the nominal support's own held-out impacts would make it surer than it has a
+    right to be elsewhere). All held-out impacts when fewer than MIN_UNSEEN_IMPACTS are."""
     base = np.array([base_vector(r.label["features"], names) for r in records])
     y = np.array([1.0 if r.is_coal else 0.0 for r in records])
     train = np.array([(r.scene_set, r.index) not in held for r in records])
@@ -153,7 +157,9 @@ def fit_subset(records: Sequence[Record], names: Sequence[tuple[str, float | Non
     mean, scale = x[train].mean(axis=0), x[train].std(axis=0) + 1e-9
     z = (x - mean) / scale
     network = fit_network(z[train], y[train], seed=len(names))
-    temperature = fit_temperature(network_logit(network, z[~train]), y[~train])
+    unseen = ~train & np.array([r.scene_set == "varied" for r in records])
+    fit_on = unseen if unseen.sum() >= MIN_UNSEEN_IMPACTS else ~train
+    temperature = fit_temperature(network_logit(network, z[fit_on]), y[fit_on])
     return {
         "features": [[n, f] for n, f in names], "mean": mean.tolist(), "scale": scale.tolist(),
         **network, "temperature": temperature, "envelope": envelope.tolist(),
