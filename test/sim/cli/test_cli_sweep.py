@@ -7,18 +7,8 @@ import json
 
 import pytest
 
-from tail_beam_sim.cli import main
+from test_cli_simulate import run_cli
 from tail_beam_sim.cli.sweep_cmd import COLUMNS
-
-
-def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
-    """Run `tail-beam` in-process; argparse's own errors exit through SystemExit."""
-    try:
-        code = main(list(argv))
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def sweep_rows(capsys, *argv: str) -> list[dict]:
