@@ -8,10 +8,8 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import copy
 
 from tail_beam_id.dataset import Setting, simulate_set, support_streams
-from tail_beam_sim.config import deep_merge
 from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_id.label import match, match_tolerance_s
 from tail_beam_id.replay import replay
@@ -129,7 +127,7 @@ def run_foreign(
     the nominal config/, after self-calibration on the stream itself (no labels), and (for
     reference) knowing the true support; the setting names which. Labels that match no impact
     count as extra on the stream's first record."""
-    from tail_beam_id.calibration import calibrate
+    from tail_beam_id.calibration import calibrate, with_profile
 
     section = dict(params["identification"])
     tolerance_s = match_tolerance_s(section)
@@ -149,7 +147,7 @@ def run_foreign(
                 found = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
                                   (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
                                   lambda calibrated: identify(calibrated, "statistical")[0])
-                model_params = merge_profile(params, found.parameters())
+                model_params = with_profile(params, found)
             for method in methods:
                 labels, wall = identify(model_params, method)
                 matching = match(recorded.truths, labels, tolerance_s)
@@ -163,10 +161,3 @@ def run_foreign(
                         label=None if paired is None else dict(labels[paired]), extra_labels=len(matching.extra) if k == 0 else 0,
                         wall_s=wall / max(len(recorded.truths), 1), calibrated=profile != "nominal",
                     )
-
-
-def merge_profile(params: Mapping[str, Any], profile_file: Mapping[str, Any]) -> dict[str, Any]:
-    """``params`` with a profile's parameter-file content merged in."""
-    merged = copy.deepcopy(dict(params))
-    deep_merge(merged, profile_file["/**"]["ros__parameters"])
-    return merged
