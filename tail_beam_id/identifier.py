@@ -138,6 +138,7 @@ class StreamIdentifier:
         self.imu = Series()
         self.vibration = Series()  # high-rate accelerometer, specific force along the plate normal
         self.rebounds: list[tuple[float, np.ndarray]] = []
+        self.refused_rebounds = 0  # rebounds with a non-finite stamp or velocity, left out
         self.detector = PulseDetector(self.config.detection)
         self.vibration_detector = PulseDetector(self.config.detection)
         c = self.config
@@ -196,8 +197,13 @@ class StreamIdentifier:
         self.vibration.append(stamps, values)
 
     def add_rebound(self, stamp_s: float, velocity_mps: np.ndarray) -> None:
-        """One rebound: the camera's stamp (s) and the particle's velocity (3,) in the plate frame."""
+        """One rebound: the camera's stamp (s) and the particle's velocity (3,) in the plate frame.
+        A rebound with a non-finite stamp or velocity is no measurement: it is left out (its
+        impact is decided without the camera) and counted in ``refused_rebounds``."""
         velocity = np.asarray(velocity_mps, dtype=float).reshape(3)
+        if not (math.isfinite(stamp_s) and np.isfinite(velocity).all()):
+            self.refused_rebounds += 1
+            return
         if self.rebounds and stamp_s <= self.rebounds[-1][0]:
             return
         self.rebounds.append((float(stamp_s), velocity))

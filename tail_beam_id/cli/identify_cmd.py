@@ -63,6 +63,9 @@ def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | Non
     rebounds = [Rebound(stamp, velocity, velocity) for stamp, velocity in data.rebounds]
     vibration = data.vibration if data.vibration.count else None
     labels = replay(identifier, pressure, imu, rebounds, vibration=vibration)
+    if identifier.refused_rebounds:
+        print(f"identify: {data.namespace} rebound_velocity: {identifier.refused_rebounds} message(s) with a non-finite "
+              "stamp or velocity left out", file=sys.stderr)
     return sorted(labels, key=lambda label: label["impact_stamp"])
 
 

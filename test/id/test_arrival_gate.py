@@ -180,3 +180,25 @@ def test_the_gate_holds_samples_until_every_live_stream_has_passed_them(gate_con
     assert {name: t.max() for name, (t, _) in out.streams.items()} == pytest.approx({"jack_pressure": 0.04, "imu": 0.04, "vibration": 0.04})
     later = gate.release(now_s=gate_config.reorder_s + gate_config.stream_idle_s + 0.01)  # all idle: everything goes
     assert {name: t.max() for name, (t, _) in later.streams.items()} == pytest.approx({"jack_pressure": 0.09, "vibration": 0.07})
+
+
+def test_a_rebound_that_is_no_number_is_refused_live_and_offline_alike(params, chunk, gate_config):
+    """A rebound_velocity of NaN/inf (a broken camera, a hostile client) is counted and left
+    out, live and offline alike: every label is JSON-clean (no inf feature), the impacts are
+    decided without the camera, and the live labels are the offline ones on the same data."""
+    import json
+
+    run = plan(chunk, {})
+    arrival, rebounds = run.rebounds
+    run.rebounds = (arrival, [(stamp, np.array([np.nan, np.inf, 1e300])) for stamp, _ in rebounds])
+    runner = gated(params, gate_config)
+    live = drive(runner, [run])
+    broken = [type(r)(r.stamp_s, np.array([np.nan, np.inf, 1e300]), r.true_velocity_mps) for _, r in chunk.rebounds]
+    identifier = StreamIdentifier(params=params["identification"], model_params=params)
+    offline = replay(identifier, chunk.pressure, chunk.imu, broken, vibration=chunk.vibration)
+    assert keys(live) == keys(offline) and len(live) == len(STAMPS)
+    assert all("rebound_velocity" not in label["signals"] for label in live)
+    for label in live:
+        json.loads(json.dumps(label, allow_nan=False))
+    assert runner.count_totals()[3] == len(STAMPS) and identifier.refused_rebounds == len(STAMPS)
+    assert any("rebounds refused (not finite" in note for note in runner.notes)
