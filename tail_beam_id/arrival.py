@@ -98,7 +98,7 @@ class Counts:
     repeated_samples: int = 0  # stamp not after the stream's newest (a repeat, out of order)
     ahead_samples: int = 0  # set aside: a run stamped more than time_jump_s ahead of the live streams
     ahead_dropped: int = 0  # of those, dropped (the time base did not move)
-    refused_rebounds: int = 0  # rebound stamped more than time_jump_s behind the watermark or ahead of the streams
+    refused_rebounds: int = 0  # rebound not finite, or stamped more than time_jump_s behind the watermark or ahead of the streams
 
 
 class ArrivalGate:
@@ -180,8 +180,12 @@ class ArrivalGate:
                     self._accept(stream, chunk.stamp_s, chunk.values, now_s)
 
     def add_rebound(self, stamp_s: float, velocity_mps: np.ndarray, now_s: float) -> None:
-        """One rebound that arrived at wall clock ``now_s``; refused (counted) when stamped more
-        than ``time_jump_s`` behind what was released or ahead of the live streams."""
+        """One rebound that arrived at wall clock ``now_s``; refused (counted) when its stamp or
+        velocity is not finite, or it is stamped more than ``time_jump_s`` behind what was
+        released or ahead of the live streams."""
+        if not (math.isfinite(stamp_s) and np.isfinite(velocity_mps).all()):
+            self.counts.refused_rebounds += 1  # no measurement; the identifier would leave it out too
+            return
         behind = stamp_s < self.released_s - self.config.time_jump_s
         ahead = stamp_s > self._reference_s("", now_s) + self.config.time_jump_s
         if behind or ahead:
@@ -251,11 +255,6 @@ class ArrivalGate:
         if limit > self.released_s:
             self.released_s = limit
         return Release(out, [(stamp, velocity) for _, stamp, velocity in due])
-
-    @property
-    def held_samples(self) -> int:
-        """Samples waiting for the watermark (bounded by the rates times reorder_s and stream_idle_s)."""
-        return sum(c.stamp_s.size for s in self.streams.values() for c in s.chunks)
 
 
 
@@ -396,7 +395,7 @@ class GatedIdentifier:
             self.notes.append(
                 f"arrival: {total[0]} repeated or out-of-order samples refused, {total[1]} samples stamped more than "
                 f"{self.gate.config.time_jump_s:g} s ahead of the other streams ({total[2]} of them dropped), "
-                f"{total[3]} rebounds stamped out of the streams' time refused (totals)"
+                f"{total[3]} rebounds refused (not finite, or stamped out of the streams' time) (totals)"
             )
 
 
