@@ -139,8 +139,9 @@ class StreamIdentifier:
         self.vibration = Series()  # high-rate accelerometer, specific force along the plate normal
         self.rebounds: list[tuple[float, np.ndarray]] = []
         self.refused_rebounds = 0  # rebounds with a non-finite stamp or velocity, left out
-        self.detector = PulseDetector(self.config.detection)
-        self.vibration_detector = PulseDetector(self.config.detection)
+        sway_hz = self.model.support.rigid_mode_frequency_hz
+        self.detector = PulseDetector(self.config.detection, sway_hz)
+        self.vibration_detector = PulseDetector(self.config.detection, sway_hz)
         c = self.config
         self.pressure_detector = PressureDetector(
             self.model, c.detection.pressure_threshold_sigma, c.pressure_pre_s, c.window_s, c.detection.ring_window_s
@@ -162,6 +163,8 @@ class StreamIdentifier:
         merged["identification"] = dict(merged.get("identification") or {}, method=self.config.method)
         self.model = BeamModel.from_params(merged)
         self.pressure_detector.model = self.model
+        for detector in (self.detector, self.vibration_detector):
+            detector.sway_frequency_hz = self.model.support.rigid_mode_frequency_hz
         if method is not None:
             self.method = method
         self.calibrated = bool((merged.get("calibration") or {}).get("rigid_mode_frequency_hz"))

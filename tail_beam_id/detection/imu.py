@@ -29,6 +29,8 @@ PERIOD_SAMPLES = 64  # the sample period is read from the first this many stamps
 # The onset look-back spans at least this many samples: at low rates the bending modes can
 # take a few samples to build the response past the detection threshold.
 ONSET_LOOKBACK_MIN_SAMPLES = 4
+# The look-back's sway background needs at least this many samples (else a straight line).
+SWAY_FIT_MIN_SAMPLES = 6
 
 
 @dataclass(frozen=True)
@@ -40,6 +42,7 @@ class DetectionConfig:
     onset_threshold_sigma: float
     onset_lookback_s: float
     baseline_window_s: float
+    sway_window_s: float
     noise_block_s: float
     max_contact_s: float
     rebound_early_tolerance_s: float
@@ -67,6 +70,7 @@ class DetectionConfig:
             onset_threshold_sigma=get("onset_threshold_sigma", 0.0, 1e3),
             onset_lookback_s=get("onset_lookback_s", 0.0, 1.0, "s"),
             baseline_window_s=get("baseline_window_s", 0.0, 1.0, "s"),
+            sway_window_s=get("sway_window_s", 0.0, 1.0, "s"),
             noise_block_s=get("noise_block_s", 0.0, 100.0, "s"),
             max_contact_s=get("max_contact_s", 0.0, 1.0, "s"),
             rebound_early_tolerance_s=get("rebound_early_tolerance_s", 0.0, 1.0, "s"),
@@ -147,8 +151,9 @@ class PulseDetector:
     returns the pulses whose first sample it has now decided on.
     """
 
-    def __init__(self, config: DetectionConfig) -> None:
+    def __init__(self, config: DetectionConfig, sway_frequency_hz: float | None = None) -> None:
         self.config = config
+        self.sway_frequency_hz = sway_frequency_hz  # the beam's free sway (the identifier's beam model), Hz
         self.cursor = 0  # next sample index (absolute) to examine
         self.spans: list[tuple[int, int]] = []  # absolute (first, last) sample of each pulse found
         self.period_s: float | None = None  # the IMU sample period, s, read from the stamps
@@ -289,6 +294,32 @@ class PulseDetector:
         if magnitude > decayed:
             self.ring = (stamp_s, magnitude)
 
+    def _pulse_background(self, stamp_s: np.ndarray, accel_z: np.ndarray, lo: int, baseline: int, mask: np.ndarray, period: float) -> Any:
+        """The background a pulse's samples (from ``lo`` on) are compared with, as a function of
+        sample index: a constant plus the beam's free sway (cosine and sine at its frequency)
+        fitted over ``sway_window_s`` before ``lo``. After a large impact the beam sways for
+        seconds; within the look-back and the contact the sway curves, and a straight line
+        fitted before it leaves it by many noise RMS (the onset was found a sample or more
+        early), while a quadratic extrapolates the noise too far. Without a known sway
+        frequency, or too few clean samples, a straight line over the baseline as before."""
+        c = self.config
+        reach = max(baseline, int(round(c.sway_window_s / period)))
+        start = max(lo - reach, 0)
+        keep = ~mask[start:lo]
+        if self.sway_frequency_hz is not None and keep.sum() >= SWAY_FIT_MIN_SAMPLES:
+            omega = 2.0 * math.pi * self.sway_frequency_hz
+            t = stamp_s[start:lo][keep] - stamp_s[lo]
+            basis = np.vstack([np.ones_like(t), np.cos(omega * t), np.sin(omega * t)]).T
+            coeffs, *_ = np.linalg.lstsq(basis, accel_z[start:lo][keep], rcond=None)
+
+            def sway(index: np.ndarray) -> np.ndarray:
+                tau = (index - lo) * period
+                return coeffs[0] + coeffs[1] * np.cos(omega * tau) + coeffs[2] * np.sin(omega * tau)
+
+            return sway
+        line = background_fit(accel_z, lo - baseline, lo, mask, max_degree=1)
+        return lambda index: line[0] + line[1] * (index - lo)
+
     def _grow(
         self, stamp_s: np.ndarray, accel_z: np.ndarray, mask: np.ndarray, k: int, baseline: int,
         span: int, sigma: float, period: float, base_index: int,
@@ -303,17 +334,17 @@ class PulseDetector:
         lo = max(k - lookback, baseline)
         while mask[lo - baseline:k].any() and lo < k:
             lo += 1
-        coeffs = background_fit(accel_z, lo - baseline, lo, mask, max_degree=1)
-        x = np.arange(lo, k + 1) - lo
-        before = accel_z[lo:k + 1] - (coeffs[0] + coeffs[1] * x)
+        background = self._pulse_background(stamp_s, accel_z, lo, baseline, mask, period)
+        before = accel_z[lo:k + 1] - background(np.arange(lo, k + 1))
         past = np.abs(before) > c.onset_threshold_sigma * sigma
         first = lo + int(np.argmax(past)) if past.any() else k
         end = min(first + span, accel_z.size)
-        x = np.arange(first, end) - lo
-        deviation = accel_z[first:end] - (coeffs[0] + coeffs[1] * x + coeffs[2] * x * x)
+        deviation = accel_z[first:end] - background(np.arange(first, end))
         last = first
         for j in range(1, deviation.size):
-            if abs(deviation[j]) <= c.extend_threshold_sigma * sigma or mask[first + j]:
+            # The run reaches at least the sample that set the detection off: an early sample
+            # past the onset threshold does not cut the contact itself off.
+            if first + j > k and (abs(deviation[j]) <= c.extend_threshold_sigma * sigma or mask[first + j]):
                 break
             last = first + j
         weight = np.abs(deviation[: last - first + 1])
