@@ -211,10 +211,13 @@ class SupportStream:
 
 def support_streams(
     params: Mapping[str, Any], supports: int, impacts_per_support: int, seed: int, which: str = "foreign", tier: str | None = None,
+    setting: Setting | None = None,
 ) -> Iterator[SupportStream]:
     """``supports`` drawn supports, each recorded as one continuous stream of
     ``impacts_per_support`` stream-scene impacts (the beam still swaying from the earlier ones,
-    as on a face), like the bags a user records: what self-calibration works from."""
+    as on a face), like the bags a user records: what self-calibration works from. With
+    ``setting`` every support carries that setting's sensors (rates, accelerometer, noise
+    factor) instead of drawn ones; the supports and impacts are the same for any setting."""
     ev = evaluation_params(params)
     ranges = support_ranges(ev, which)
     rng = np.random.default_rng(np.random.SeedSequence([seed, 2]))
@@ -222,6 +225,8 @@ def support_streams(
     gap_s = float(ev["stream_gap_s"])
     for index in range(supports):
         draw = draw_support(ranges, rng, vibration_rng)
+        if setting is not None:
+            draw = draw.with_sensors(setting.rates_hz, setting.vibration_rate_hz, setting.noise_factor)
         varied = draw.apply(params)
         varied["sensors"]["seed"] = int(rng.integers(2**31))
         varied["stream"] = {**varied.get("stream", {}), "tier": tier or ev["tier"], "min_impact_gap_s": 0.0,

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 
-from tail_beam_id.dataset import Setting, simulate_set, support_streams
+from tail_beam_id.dataset import Setting, SupportStream, simulate_set, support_streams
 from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_id.label import match, match_tolerance_s
 from tail_beam_id.replay import replay
@@ -112,6 +112,7 @@ def with_window(section: Mapping[str, Any], window_s: float) -> dict[str, Any]:
 
 
 FOREIGN_PROFILES = ("nominal", "self-calibrated", "true")  # how the identifier knows the support
+DRAWN_SENSORS = "drawn"  # the foreign set's setting whose sensors (rates, noise) are drawn with each support
 
 
 def run_foreign(
@@ -122,42 +123,55 @@ def run_foreign(
     methods: Sequence[str],
     tier: str | None = None,
     profiles: Sequence[str] = FOREIGN_PROFILES[:2],
+    chosen: Sequence[Setting | None] = (None,),
 ) -> Iterator[Record]:
     """The ``foreign`` scene set: drawn supports each recorded as one stream, identified with
     the nominal config/, after self-calibration on the stream itself (no labels), and (for
-    reference) knowing the true support; the setting names which. Labels that match no impact
-    count as extra on the stream's first record."""
+    reference) knowing the true support. Each support is recorded with each of ``chosen``
+    sensor settings (the same supports and impacts at each: the comparison with the nominal
+    support at the same rates), None meaning the sensors drawn with the support. The record's
+    setting is ``<setting key or drawn>/<profile>``. Labels that match no impact count as extra
+    on the stream's first record."""
+    for setting in chosen:
+        streams = support_streams(params, supports, impacts_per_support, seed, tier=tier, setting=setting)
+        for number, recorded in enumerate(streams):
+            yield from _foreign_records(params, recorded, number, impacts_per_support, methods, profiles,
+                                        setting.key if setting is not None else DRAWN_SENSORS)
+
+
+def _foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: int, impacts_per_support: int,
+                     methods: Sequence[str], profiles: Sequence[str], sensors: str) -> Iterator[Record]:
+    """The records of one recorded support stream, under each profile and method."""
     from tail_beam_id.calibration import calibrate, with_profile
 
     section = dict(params["identification"])
     tolerance_s = match_tolerance_s(section)
-    for number, recorded in enumerate(support_streams(params, supports, impacts_per_support, seed, tier=tier)):
 
-        def identify(model_params: Mapping[str, Any], method: str) -> tuple[list[dict[str, Any]], float]:
-            identifier = StreamIdentifier(method, section, model_params)
-            started = time.perf_counter()
-            labels = replay(identifier, recorded.pressure, recorded.imu, recorded.rebounds, vibration=recorded.vibration)
-            return labels, time.perf_counter() - started
+    def identify(model_params: Mapping[str, Any], method: str) -> tuple[list[dict[str, Any]], float]:
+        identifier = StreamIdentifier(method, section, model_params)
+        started = time.perf_counter()
+        labels = replay(identifier, recorded.pressure, recorded.imu, recorded.rebounds, vibration=recorded.vibration)
+        return labels, time.perf_counter() - started
 
-        for profile in profiles:
-            model_params: Mapping[str, Any] = params
-            if profile == "true":
-                model_params = {**recorded.params, "calibration": {"rigid_mode_frequency_hz": "known"}}
-            elif profile == "self-calibrated":
-                found = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
-                                  (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
-                                  lambda calibrated: identify(calibrated, "statistical")[0])
-                model_params = with_profile(params, found)
-            for method in methods:
-                labels, wall = identify(model_params, method)
-                matching = match(recorded.truths, labels, tolerance_s)
-                for k, truth in enumerate(recorded.truths):
-                    paired = matching.label_index(k)
-                    yield Record(
-                        scene_set="foreign", setting=profile, method=method, window_s=float(section["window_s"]),
-                        index=number * impacts_per_support + k, material=truth["material"], is_coal=truth["label"] == "coal",
-                        radius_m=truth["radius_m"], contact_stamp_s=truth["contact_start_stamp"],
-                        duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
-                        label=None if paired is None else dict(labels[paired]), extra_labels=len(matching.extra) if k == 0 else 0,
-                        wall_s=wall / max(len(recorded.truths), 1), calibrated=profile != "nominal",
-                    )
+    for profile in profiles:
+        model_params: Mapping[str, Any] = params
+        if profile == "true":
+            model_params = {**recorded.params, "calibration": {"rigid_mode_frequency_hz": "known"}}
+        elif profile == "self-calibrated":
+            found = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
+                              (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
+                              lambda calibrated: identify(calibrated, "statistical")[0])
+            model_params = with_profile(params, found)
+        for method in methods:
+            labels, wall = identify(model_params, method)
+            matching = match(recorded.truths, labels, tolerance_s)
+            for k, truth in enumerate(recorded.truths):
+                paired = matching.label_index(k)
+                yield Record(
+                    scene_set="foreign", setting=f"{sensors}/{profile}", method=method, window_s=float(section["window_s"]),
+                    index=number * impacts_per_support + k, material=truth["material"], is_coal=truth["label"] == "coal",
+                    radius_m=truth["radius_m"], contact_stamp_s=truth["contact_start_stamp"],
+                    duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
+                    label=None if paired is None else dict(labels[paired]), extra_labels=len(matching.extra) if k == 0 else 0,
+                    wall_s=wall / max(len(recorded.truths), 1), calibrated=profile != "nominal",
+                )

@@ -86,6 +86,13 @@ class SupportDraw:
             varied["sensors"]["vibration_rate_hz"] = self.vibration_rate_hz
         return varied
 
+    def with_sensors(self, rates_hz: Mapping[str, float], vibration_rate_hz: float, noise_factor: float) -> SupportDraw:
+        """The same support and contact law with other sensors: ``rates_hz`` (pressure, IMU and
+        camera rates, Hz), the accelerometer's rate (Hz, 0 = none) and the noise factor."""
+        values = {**self.values, **{k: float(v) for k, v in rates_hz.items()},
+                  "vibration_rate_hz": float(vibration_rate_hz), "noise_factor": float(noise_factor)}
+        return SupportDraw(values, self.contact_model)
+
     def describe(self) -> str:
         v = self.values
         return (f"inertia x{v['inertia_scale']:.2f}, jack x{v['jack_stiffness_scale']:.2f}, mode 1 {v['bending_1_frequency_hz']:.0f} Hz "

@@ -117,3 +117,26 @@ def test_calibrate_then_identify_from_the_command_line(params, recordings, tmp_p
     labels = [json.loads(line) for line in done.stdout.splitlines()]
     assert len(labels) >= len(recorded.truths) - 1
     assert all(label["calibrated"] for label in labels)
+
+
+def test_foreign_supports_at_a_named_setting_keep_their_mechanics_and_impacts(params):
+    """The foreign set compares like with like: recorded at a named sensor setting, each drawn
+    support keeps its mechanics, contact law and impacts (the truths are identical) while its
+    sensors become the setting's (the IMU at its rate, the accelerometer present or not, noise x1)."""
+    from tail_beam_id.dataset import settings
+
+    shipped, nominal = settings(params, [1.0], ["shipped", "nominal"])
+    drawn = list(support_streams(params, 2, 2, seed=778))
+    at_shipped = list(support_streams(params, 2, 2, seed=778, setting=shipped))
+    at_nominal = list(support_streams(params, 2, 2, seed=778, setting=nominal))
+    for own, s, n in zip(drawn, at_shipped, at_nominal):
+        assert s.support.contact_model == n.support.contact_model == own.support.contact_model
+        mechanics = {k: v for k, v in own.support.values.items() if not k.endswith("_rate_hz") and k != "noise_factor"}
+        for other in (s, n):
+            assert {k: other.support.values[k] for k in mechanics} == mechanics
+            assert [t["radius_m"] for t in other.truths] == [t["radius_m"] for t in own.truths]
+            assert [t["material"] for t in other.truths] == [t["material"] for t in own.truths]
+            assert other.support.values["noise_factor"] == 1.0
+        assert np.median(np.diff(s.imu.stamp_s)) == pytest.approx(1.0 / shipped.rates_hz["imu_rate_hz"])
+        assert s.vibration is not None and s.vibration.period_s == pytest.approx(1.0 / shipped.vibration_rate_hz)
+        assert n.vibration is None

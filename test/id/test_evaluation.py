@@ -103,3 +103,18 @@ def test_charts_are_written(tmp_path):
     paths = write_all(items, tmp_path, 0.012)
     assert [p.name for p in paths] == ["reliability.png", "accuracy_vs_latency.png", "accuracy_vs_size.png", "accuracy_vs_noise.png"]
     assert all(p.stat().st_size > 1000 and p.read_bytes()[:4] == b"\x89PNG" for p in paths)
+
+
+def test_evaluate_compares_foreign_supports_with_the_nominal_one_at_the_same_setting(capsys):
+    """`--sets stream,foreign --rates nominal`: the foreign supports are scored at the nominal
+    setting and with drawn sensors, and the target line sets the former against the nominal
+    support's stream scene at that very setting."""
+    code = main(["evaluate", "--sets", "stream,foreign", "--count", "2", "--noise", "1", "--rates", "nominal",
+                 "--methods", "threshold", "--profiles", "nominal"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "foreign   nominal/x1/nominal" in out and "foreign   drawn/nominal" in out
+    targets = out.split("targets (issue 4):")[1].splitlines()
+    line = next(x for x in targets if x.strip().startswith("foreign nominal/x1/nominal threshold"))
+    assert "vs stream nominal/x1" in line and "within 5:" in line
+    assert "vs stream" not in next(x for x in targets if x.strip().startswith("foreign drawn/nominal threshold"))
