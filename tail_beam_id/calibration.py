@@ -37,6 +37,9 @@ from tail_beam_sim.physics.support import Support
 
 SWAY_BAND_HZ = (5.0, 300.0)  # where the beam's sway on the jack can be (nominal 39 Hz)
 MIN_PEAK_RATIO = 8.0  # the sway peak must stand this far above the spectrum's median in the band
+# The spectrum's bins must be at most this fraction of the sway frequency found: a recording too
+# short to resolve it (one 55 ms impact put a 39.3 Hz sway at 37.2 Hz: 18 Hz bins) measures nothing.
+MAX_BIN_FRACTION = 0.05
 MIN_IMPACTS = 3  # impacts needed for the IMU gain
 GAIN_SIGMA = 5.0  # an impact counts for the IMU gain when its pressure moment is this many standard errors clear
 
@@ -91,7 +94,7 @@ def mount_sign(accel_z_mps2: np.ndarray) -> float | None:
 def sway_frequency(stamp_s: np.ndarray, pressure_pa: np.ndarray) -> float | None:
     """The beam's sway on the oil column, Hz: the peak of the jack pressure's spectrum in
     SWAY_BAND_HZ (refined by a parabola through the peak's log power), or None without a clear
-    peak (no impacts to excite it, or too short a recording)."""
+    peak (no impacts to excite it) or when the recording is too short to resolve it."""
     if stamp_s.size < 64:
         return None
     period = float(np.median(np.diff(stamp_s)))
@@ -107,7 +110,8 @@ def sway_frequency(stamp_s: np.ndarray, pressure_pa: np.ndarray) -> float | None
         return None
     y0, y1, y2 = np.log(power[peak - 1:peak + 2])
     shift = 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2) if (y0 - 2 * y1 + y2) != 0 else 0.0
-    return float(freq[peak] + shift * (freq[1] - freq[0]))
+    found = float(freq[peak] + shift * (freq[1] - freq[0]))
+    return found if freq[1] - freq[0] <= MAX_BIN_FRACTION * found else None
 
 
 def bulk_modulus_for(params: Mapping[str, Any], frequency_hz: float) -> float | None:
