@@ -111,10 +111,14 @@ def fit_temperature(logits: np.ndarray, y: np.ndarray) -> float:
 
 def train_statistical(records: Sequence[Record], seed: int) -> dict[str, Any]:
     """The statistical method's two families of models: ``subsets`` from the records identified
-    with the nominal config/, ``calibrated_subsets`` from those identified on a known profile."""
+    with the nominal config/, ``calibrated_subsets`` from those identified on a known profile:
+    the drawn supports' records identified knowing their support, and the nominal support's
+    own records (its profile is config/, so they are what a perfect calibration gives there).
+    Without the latter the calibrated models knew only drawn supports and lost 3 points on
+    streams of the nominal support at the shipped layout (88.7 against 91.7 %, 240 impacts)."""
     return {
         "subsets": train_family([r for r in records if not r.calibrated], seed),
-        "calibrated_subsets": train_family([r for r in records if r.calibrated], seed),
+        "calibrated_subsets": train_family([r for r in records if r.calibrated or r.scene_set not in DRAWN_SETS], seed),
     }
 
 
