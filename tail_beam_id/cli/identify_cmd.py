@@ -1,8 +1,11 @@
 """``tail-beam identify BAG``: the id_node's identification, offline on a recorded bag.
 
-Prints one ``label`` JSON object per line, in impact_stamp order. The identifier decides from
-stamps and contents only, so these are the labels id_node publishes when the same bag is
-replayed into it (``latency_ms`` aside, a wall-clock figure).
+Prints one ``label`` JSON object per line, in impact_stamp order. By default
+(``identification.self_calibrate``) it first calibrates to the bag's own support (tail-beam
+calibrate: no labels needed) and says on stderr what it measured. With ``--no-calibrate`` the
+labels are the ones id_node publishes (by default uncalibrated) when the same bag is replayed
+into it (``latency_ms`` aside, a wall-clock figure): the identifier decides from stamps and
+contents only.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--method", choices=available_methods(), help="identification method (default: identification.method)")
     parser.add_argument("--calibrate", action=argparse.BooleanOptionalAction, default=None,
                         help="calibrate to the bag's own support first (tail-beam calibrate), then identify "
-                             "(default: identification.self_calibrate)")
+                             "(default: identification.self_calibrate, on); --no-calibrate gives id_node's labels")
     parser.add_argument("--namespace", help="the support to identify when the bag holds several, e.g. /support_07")
     add_config_option(parser)
     parser.set_defaults(func=run)
@@ -51,8 +54,20 @@ def identify_bag(bag: str, method: str | None = None, config: list[str] | None =
     if calibrate is None:
         calibrate = bool(params["identification"].get("self_calibrate", False))
     if calibrate:
-        params = with_profile(params, profile_of(data, params))
+        profile = profile_of(data, params)
+        print(f"identify: {data.namespace} {describe_profile(profile)}", file=sys.stderr)
+        params = with_profile(params, profile)
     return identify_sensors(data, params, method)
+
+
+def describe_profile(profile: SupportProfile) -> str:
+    """One line on what self-calibration measured (or that it kept config/)."""
+    if not profile.calibrated:
+        return ("self-calibration: no clear sway of the beam in the jack pressure (too few impacts, or too short); "
+                "identified on the configured support (labels say calibrated: false)")
+    gain = f"{profile.impacts_used} impacts for the IMU gain" if profile.beam_inertia_about_hinge_kgm2 else "IMU gain not measured"
+    return (f"self-calibration: sway {profile.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus {profile.oil_bulk_modulus_pa:.3g} Pa, "
+            f"{gain} (labels say calibrated: true; --no-calibrate for id_node's uncalibrated labels)")
 
 
 def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | None = None) -> list[dict]:

@@ -130,7 +130,7 @@ def identification_scores(bag: Path, data, block_log_s: np.ndarray, label_log_s:
         if k < block_log_s.size and j < label_log_s.size:
             latency_ms.append((label_log_s[j] - block_log_s[k]) * 1e3)
     key = ("impact_stamp", "label", "method", "confidence")
-    offline = identify_bag(str(bag))
+    offline = identify_bag(str(bag), calibrate=False)  # id_node as run here does not calibrate
     return {
         "impacts": len(truths), "correct": sum(ok for _, ok in right), "missed": len(matching.missed), "extra": len(matching.extra),
         "big": sum(1 for r, _ in right if r >= 0.05) + sum(1 for i in matching.missed if truths[i]["radius_m"] >= 0.05),

@@ -125,7 +125,7 @@ def soak(impacts: int, work: Path, sample_s: float = 5.0, timeout_s: float = 360
     from tail_beam_id.cli.identify_cmd import identify_bag
 
     key = ("impact_stamp", "label", "method", "confidence")
-    offline = identify_bag(str(bag))
+    offline = identify_bag(str(bag), calibrate=False)  # id_node as run here does not calibrate
     result.offline_labels = len(offline)
     result.live_matches_offline = [tuple(l[k] for k in key) for l in data.json_topics[topics.LABEL]] == [tuple(l[k] for k in key) for l in offline]
     matching = match(data.json_topics[topics.IMPACT_TRUTH], data.json_topics[topics.LABEL], match_tolerance_s(load_parameters()["identification"]))

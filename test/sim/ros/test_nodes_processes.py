@@ -108,7 +108,7 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
     assert procs.stop(recorder) == 0  # SIGINT: the bag is closed
     assert not (bag / PARTIAL_DIR).exists()
     recorded = read_sensors(bag)
-    offline = identify_bag(str(bag), method())
+    offline = identify_bag(str(bag), method(), calibrate=False)  # id_node does not calibrate by default
     live = recorded.json_topics[topics.LABEL]
     assert len(recorded.json_topics[topics.IMPACT_TRUTH]) == 4
     assert len(offline) >= 1
