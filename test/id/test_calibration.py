@@ -92,7 +92,8 @@ def test_no_impacts_no_profile(params):
 def test_calibrate_then_identify_from_the_command_line(params, recordings, tmp_path):
     """`tail-beam calibrate BAG --out profiles/profile.yaml` writes a ROS 2 parameter file (its
     folder made); `tail-beam identify BAG --config profile.yaml` then labels every impact as
-    calibrated. An --out that is a symbolic link is refused in one line, exit 2."""
+    calibrated, as plain `tail-beam identify BAG` does by default (saying what it measured), and
+    `--no-calibrate` does not. An --out that is a symbolic link is refused in one line, exit 2."""
     recorded = recordings[0]
     imu = recorded.imu
     records = [*pressure_msgs(recorded.pressure.stamp_s, recorded.pressure.pressure_pa, 1e8),
@@ -117,6 +118,18 @@ def test_calibrate_then_identify_from_the_command_line(params, recordings, tmp_p
     labels = [json.loads(line) for line in done.stdout.splitlines()]
     assert len(labels) >= len(recorded.truths) - 1
     assert all(label["calibrated"] for label in labels)
+    # Plain identify calibrates by itself (identification.self_calibrate) to the same profile,
+    # says so on stderr, and gives the same labels; --no-calibrate gives the uncalibrated ones.
+    plain = subprocess.run([TAIL_BEAM, "identify", str(bag)], capture_output=True, text=True, check=False)
+    assert plain.returncode == 0, plain.stderr
+    assert f"self-calibration: sway {content['calibration']['rigid_mode_frequency_hz']:.2f} Hz" in plain.stderr
+    def decided(found):  # all but latency_ms, a wall-clock figure
+        return [{k: v for k, v in label.items() if k != "latency_ms"} for label in found]
+
+    assert decided(json.loads(line) for line in plain.stdout.splitlines()) == decided(labels)
+    raw = subprocess.run([TAIL_BEAM, "identify", str(bag), "--no-calibrate"], capture_output=True, text=True, check=False)
+    assert raw.returncode == 0 and "self-calibration" not in raw.stderr
+    assert not any(json.loads(line)["calibrated"] for line in raw.stdout.splitlines())
 
 
 def test_foreign_supports_at_a_named_setting_keep_their_mechanics_and_impacts(params):
