@@ -286,6 +286,7 @@ class GatedIdentifier:
         self.notes: list[str] = []
         self._counts_before = (0, 0, 0, 0)
         self._counts_noted = (0, 0, 0, 0)
+        self._refused_noted = 0  # the identifier's refused samples already noted
 
     def tick(self, now_s: float, arrivals: Streams, blocks: VibrationBlocks, rebounds: Sequence[tuple[float, np.ndarray]],
              end_of_data: bool = False) -> list[dict[str, Any]]:
@@ -345,6 +346,7 @@ class GatedIdentifier:
         self.time_jumps += 1
         self._counts_before = self.count_totals()
         self.identifier = self._new_identifier(self.identifier.method)
+        self._refused_noted = 0
         if self._profile is not None:  # the same support: keep its profile
             self.identifier.recalibrate(*self._profile)
         self.gate = ArrivalGate(self.gate.config)
@@ -376,6 +378,11 @@ class GatedIdentifier:
         if self.calibration is not None:
             self.calibration.record(release)
         feed(self.identifier, release)
+        refused = sum(self.identifier.refused_samples.values())
+        if refused > self._refused_noted:
+            self._refused_noted = refused
+            counts = ", ".join(f"{name} {n}" for name, n in self.identifier.refused_samples.items() if n)
+            self.notes.append(f"identification: {refused} sample(s) with a non-finite stamp or value left out ({counts}) (totals)")
         labels = self.identifier.poll()
         if everything:
             labels += self.identifier.flush()

@@ -139,6 +139,9 @@ class StreamIdentifier:
         self.vibration = Series()  # high-rate accelerometer, specific force along the plate normal
         self.rebounds: list[tuple[float, np.ndarray]] = []
         self.refused_rebounds = 0  # rebounds with a non-finite stamp or velocity, left out
+        # Samples with a non-finite stamp or value (a sensor's dropout, a corrupt message), left out
+        # by stream: one NaN pressure sample made a label "gangue" with confidence NaN.
+        self.refused_samples = {"jack_pressure": 0, "imu": 0, "vibration": 0}
         sway_hz = self.model.support.rigid_mode_frequency_hz
         self.detector = PulseDetector(self.config.detection, sway_hz)
         self.vibration_detector = PulseDetector(self.config.detection, sway_hz)
@@ -176,7 +179,7 @@ class StreamIdentifier:
         values = np.atleast_1d(np.asarray(pressure_pa, dtype=float)).reshape(-1, 1)
         if stamps.size != values.shape[0]:
             raise InputError("pressure_pa", values.shape, f"must hold one value per stamp ({stamps.size})")
-        self.pressure.append(stamps, values)
+        self.pressure.append(*self._finite("jack_pressure", stamps, values))
 
     def add_imu(self, stamp_s: np.ndarray, angular_velocity_radps: np.ndarray, linear_acceleration_mps2: np.ndarray) -> None:
         """IMU samples: stamps (s), angular velocity (T, 3) rad/s, specific force (T, 3) m/s^2."""
@@ -185,7 +188,7 @@ class StreamIdentifier:
         accel = np.asarray(linear_acceleration_mps2, dtype=float).reshape(-1, 3)
         if gyro.shape[0] != stamps.size or accel.shape[0] != stamps.size:
             raise InputError("imu", (gyro.shape, accel.shape), f"must hold (T, 3) arrays for T = {stamps.size} stamps")
-        self.imu.append(stamps, np.hstack([gyro, accel]))
+        self.imu.append(*self._finite("imu", stamps, np.hstack([gyro, accel])))
 
     def add_vibration(self, stamp_s: np.ndarray, accel_mps2: np.ndarray) -> None:
         """High-rate tail-beam accelerometer samples: stamps (s, in order) and specific force
@@ -195,9 +198,19 @@ class StreamIdentifier:
         values = np.atleast_1d(np.asarray(accel_mps2, dtype=float)).reshape(-1, 1)
         if stamps.size != values.shape[0]:
             raise InputError("vibration accel_mps2", values.shape, f"must hold one value per stamp ({stamps.size})")
+        stamps, values = self._finite("vibration", stamps, values)
         if stamps.size and self.vibration_start_s == math.inf:
             self.vibration_start_s = float(stamps[0])
         self.vibration.append(stamps, values)
+
+    def _finite(self, name: str, stamps: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The samples whose stamp and values are all finite; the others counted in
+        ``refused_samples`` (a missing sample, as a lost message is, never a number)."""
+        ok = np.isfinite(stamps) & np.isfinite(values).all(axis=1)
+        if ok.all():
+            return stamps, values
+        self.refused_samples[name] += int((~ok).sum())
+        return stamps[ok], values[ok]
 
     def add_rebound(self, stamp_s: float, velocity_mps: np.ndarray) -> None:
         """One rebound: the camera's stamp (s) and the particle's velocity (3,) in the plate frame.

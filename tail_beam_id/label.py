@@ -14,6 +14,7 @@ detection.
 from __future__ import annotations
 
 import bisect
+import math
 from functools import cached_property
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -104,19 +105,25 @@ def make_label(
     the suite's own; the optional keys (``saturated``, ``imu_mount``, ``outside_training``) only
     when they say something. ``confidence``: the stated label's probability after any cap;
     ``compute_ms``: time the decision took (published as ``latency_ms``); ``features``: the
-    impact's features, to which the method's estimates are added."""
+    impact's features, to which the method's estimates are added. A value that is no finite
+    number never reaches the JSON (strict parsers refuse NaN and Infinity): such a feature is left
+    out and named in ``non_finite_features``, and such a confidence becomes 0.5 (no idea)."""
+    every = {**{k: float(v) for k, v in features.items()}, **{k: float(v) for k, v in decision.estimates.items()}}
+    non_finite = sorted(k for k, v in every.items() if not math.isfinite(v))
     label: dict[str, Any] = {
         LABEL_STAMP: impact_stamp_s,
         "label": decision.label,
-        "confidence": round(float(confidence), 6),
+        "confidence": round(float(confidence), 6) if math.isfinite(confidence) else 0.5,
         "method": method,
         "latency_ms": compute_ms,
         "data_latency_ms": data_latency_ms,
         "signals": list(signals),
         "overlap": overlap,
         "calibrated": calibrated,
-        "features": {**{k: float(v) for k, v in features.items()}, **decision.estimates},
+        "features": {k: v for k, v in every.items() if math.isfinite(v)},
     }
+    if non_finite:
+        label["non_finite_features"] = non_finite
     if saturated:
         label["saturated"] = list(saturated)
     if imu_inverted:

@@ -78,6 +78,9 @@ def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | Non
     rebounds = [Rebound(stamp, velocity, velocity) for stamp, velocity in data.rebounds]
     vibration = data.vibration if data.vibration.count else None
     labels = replay(identifier, pressure, imu, rebounds, vibration=vibration)
+    refused = {name: n for name, n in identifier.refused_samples.items() if n}
+    for name, n in refused.items():
+        print(f"identify: {data.namespace} {name}: {n} sample(s) with a non-finite stamp or value left out", file=sys.stderr)
     if identifier.refused_rebounds:
         print(f"identify: {data.namespace} rebound_velocity: {identifier.refused_rebounds} message(s) with a non-finite "
               "stamp or velocity left out", file=sys.stderr)

@@ -202,3 +202,38 @@ def test_a_rebound_that_is_no_number_is_refused_live_and_offline_alike(params, c
         json.loads(json.dumps(label, allow_nan=False))
     assert runner.count_totals()[3] == len(STAMPS) and identifier.refused_rebounds == len(STAMPS)
     assert any("rebounds refused (not finite" in note for note in runner.notes)
+
+
+def test_samples_that_are_no_number_are_left_out_live_and_offline_alike(params, chunk, gate_config):
+    """A NaN jack pressure sample right after an impact, an inf IMU sample and a NaN
+    accelerometer sample in the middle of another (a sensor dropout, a corrupt message) are
+    counted and left out, live (noted for the log) and offline alike; every label stays strict
+    JSON with a finite confidence and the same material as without them. Before, the one NaN
+    pressure sample made its label gangue with confidence NaN."""
+    import json
+    from dataclasses import replace
+
+    run = plan(chunk, {})
+    clean = offline(params, chunk)
+    p_arrival, p_stamps, p_values = run.pressure
+    i_arrival, i_stamps, i_values = run.imu
+    p_values, i_values = p_values.copy(), i_values.copy()
+    p_values[int(np.searchsorted(p_stamps, STAMPS[0] + 0.003)), 0] = np.nan
+    i_values[int(np.searchsorted(i_stamps, STAMPS[1] + 0.002)), 5] = np.inf
+    run.pressure, run.imu = (p_arrival, p_stamps, p_values), (i_arrival, i_stamps, i_values)
+    accel = chunk.vibration.accel_mps2.copy()
+    sample = int(np.searchsorted(chunk.vibration.sample_stamps_s(), STAMPS[2] + 0.001))
+    accel[sample] = np.nan
+    vibration = replace(chunk.vibration, accel_mps2=accel)
+    run.blocks = (run.blocks[0], replace(run.blocks[1], accel_mps2=accel))
+    runner = gated(params, gate_config)
+    live = drive(runner, [run])
+    identifier = StreamIdentifier(params=params["identification"], model_params=params)
+    broken = replay(identifier, replace(chunk.pressure, pressure_pa=p_values[:, 0]), replace(chunk.imu, linear_acceleration_mps2=i_values[:, 3:]),
+                    [r for _, r in chunk.rebounds], vibration=vibration)
+    assert keys(live) == keys(broken) and len(live) == len(STAMPS)
+    assert [label["label"] for label in broken] == [label["label"] for label in clean]
+    for label in live + broken:
+        json.loads(json.dumps(label, allow_nan=False))
+    assert identifier.refused_samples == {"jack_pressure": 1, "imu": 1, "vibration": 1}
+    assert any("3 sample(s) with a non-finite stamp or value left out" in note for note in runner.notes)

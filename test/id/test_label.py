@@ -66,3 +66,21 @@ def test_the_tolerance_comes_from_the_identification_section(params):
         with pytest.raises(InputError) as error:
             match_tolerance_s({"match_tolerance_s": bad})
         assert "identification.match_tolerance_s" in str(error.value) and "0.1" in str(error.value)
+
+
+def test_a_label_never_carries_a_value_that_is_no_number():
+    """Whatever a method returns, the label is strict JSON: a non-finite feature or estimate is
+    left out and named, a non-finite confidence becomes 0.5 (no idea), never NaN."""
+    import json
+    import math
+
+    from tail_beam_id.label import make_label
+    from tail_beam_id.methods import Decision
+
+    label = make_label(impact_stamp_s=1.0, decision=Decision(math.nan, {"logit": math.nan, "p": 0.3}), confidence=math.nan,
+                       method="statistical", compute_ms=0.5, data_latency_ms=12.0, signals=["imu"], overlap=False,
+                       calibrated=False, features={"moment_impulse_nms": math.inf, "rebound_speed_mps": 2.0})
+    json.loads(json.dumps(label, allow_nan=False))
+    assert label["confidence"] == 0.5
+    assert label["features"] == {"rebound_speed_mps": 2.0, "p": 0.3}
+    assert label["non_finite_features"] == ["logit", "moment_impulse_nms"]
