@@ -233,9 +233,13 @@ def support_streams(
                             "command_lead_s": 0.001, "max_queued_impacts": impacts_per_support + 1}
         simulator = StreamSimulator.from_params(varied)
         commands = [c for c, _, _ in draw_commands(params, "stream", impacts_per_support, seed + 1000 * index)]
-        start = float(ev["pre_contact_s"]) * 2.0
-        for k, command in enumerate(commands):
-            simulator.submit(command, contact_stamp_s=start + k * gap_s * (1.0 + 0.5 * rng.uniform()))
-        chunk = simulator.advance(start + impacts_per_support * gap_s * 1.5 + 0.2)
+        # Each contact gap_s to 1.5 gap_s after the one before. (Until this was cumulative, the
+        # k-th impact was put at k gap_s times a random 1..1.5: impacts came in any order and
+        # some within milliseconds of another, their features mixed.)
+        stamp = float(ev["pre_contact_s"]) * 2.0
+        for command in commands:
+            simulator.submit(command, contact_stamp_s=stamp)
+            stamp += gap_s * (1.0 + 0.5 * rng.uniform())
+        chunk = simulator.advance(stamp + 0.2)
         yield SupportStream(draw, varied, chunk.pressure, chunk.imu, [r for _, r in chunk.rebounds], [t for _, t in chunk.truths],
                             chunk.vibration if draw.vibration_rate_hz > 0.0 else None)

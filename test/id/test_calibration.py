@@ -164,3 +164,17 @@ def test_a_recording_too_short_to_resolve_the_sway_measures_no_sway(params):
 
     result = impact(params, material="marble", radius_m=0.08)
     assert sway_frequency(result.pressure.stamp_s, result.pressure.pressure_pa) is None
+
+
+def test_foreign_stream_impacts_come_in_order_a_gap_apart(params):
+    """A foreign support's impacts strike one after another, stream_gap_s to 1.5 stream_gap_s
+    apart, as documented (they were put at k gaps times a random 1..1.5: out of order, some
+    within milliseconds of another, their features mixed)."""
+    from tail_beam_id.dataset import evaluation_params
+
+    gap_s = float(evaluation_params(params)["stream_gap_s"])
+    (recorded,) = support_streams(params, 1, 12, seed=779)
+    starts = np.array([t["contact_start_stamp"] for t in recorded.truths])
+    steps = np.diff(starts)
+    assert len(starts) == 12
+    assert np.all(steps >= gap_s - 1e-9) and np.all(steps <= 1.5 * gap_s + 1e-9)
