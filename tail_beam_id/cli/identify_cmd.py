@@ -54,9 +54,16 @@ def identify_bag(bag: str, method: str | None = None, config: list[str] | None =
     if calibrate is None:
         calibrate = bool(params["identification"].get("self_calibrate", False))
     if calibrate:
-        profile = profile_of(data, params)
-        print(f"identify: {data.namespace} {describe_profile(profile)}", file=sys.stderr)
-        params = with_profile(params, profile)
+        try:
+            profile = profile_of(data, params)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            # Self-calibration is a refinement: a recording it cannot read is still identified,
+            # on the configured support, and the reason is said.
+            print(f"identify: {data.namespace} self-calibration failed ({type(exc).__name__}: {exc}); identified on the "
+                  "configured support (labels say calibrated: false)", file=sys.stderr)
+        else:
+            print(f"identify: {data.namespace} {describe_profile(profile)}", file=sys.stderr)
+            params = with_profile(params, profile)
     return identify_sensors(data, params, method)
 
 

@@ -178,3 +178,24 @@ def test_foreign_stream_impacts_come_in_order_a_gap_apart(params):
     steps = np.diff(starts)
     assert len(starts) == 12
     assert np.all(steps >= gap_s - 1e-9) and np.all(steps <= 1.5 * gap_s + 1e-9)
+
+
+def test_identify_still_labels_when_self_calibration_fails(params, recordings, tmp_path, monkeypatch, capsys):
+    """Self-calibration is a refinement: if it cannot read a recording (here made to raise), the
+    bag is still identified on the configured support, and stderr says why."""
+    import tail_beam_id.cli.identify_cmd as identify_cmd
+
+    recorded = recordings[1]
+    imu = recorded.imu
+    bag = tmp_path / "support"
+    write_bag(bag, [*pressure_msgs(recorded.pressure.stamp_s, recorded.pressure.pressure_pa, 1e8),
+                    *imu_msgs(imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 0.0, 0.0),
+                    *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds)])
+
+    def broken(*args, **kwargs):
+        raise FloatingPointError("overflow in the sway fit")
+
+    monkeypatch.setattr(identify_cmd, "calibrate_support", broken)
+    labels = identify_cmd.identify_bag(str(bag))
+    assert len(labels) >= len(recorded.truths) - 1 and not any(label["calibrated"] for label in labels)
+    assert "self-calibration failed (FloatingPointError: overflow in the sway fit)" in capsys.readouterr().err
