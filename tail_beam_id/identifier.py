@@ -46,6 +46,7 @@ class IdentifierConfig:
 
     method: str
     window_s: float
+    vibration_window_s: float  # the data window of an impact the accelerometer found (s)
     pressure_pre_s: float
     impulse_pre_s: float
     impulse_skip_s: float
@@ -73,9 +74,12 @@ class IdentifierConfig:
             raise InputError("identification.impulse_post_s", params.get("impulse_post_s"), f"must be <= window_s ({window:g} s)")
         if overlap > window:
             raise InputError("identification.overlap_window_s", overlap, f"must be <= window_s ({window:g} s)")
+        vibration_window = params.get("vibration_window_s", window)
+        vibration_window = require_range("identification.vibration_window_s", vibration_window, 0.0, window, low_open=True, unit="s")
         return cls(
             method=method,
             window_s=window,
+            vibration_window_s=vibration_window,
             pressure_pre_s=seconds("pressure_pre_s"),
             impulse_pre_s=seconds("impulse_pre_s"),
             impulse_skip_s=seconds("impulse_skip_s"),
@@ -363,6 +367,16 @@ class StreamIdentifier:
             return impact.onset_s, impact.rebound[0] if impact.rebound else impact.onset_s + c.max_contact_s
         return impact.pulse.onset_s - c.rebound_early_tolerance_s, impact.pulse.onset_s + c.max_contact_s
 
+    def _windows(self, impact: _Impact) -> tuple[float, float, float]:
+        """(data window, end of the impulse fit, overlap window) after this impact's onset, s.
+        An impact the accelerometer found needs less data (``vibration_window_s``): its pulse
+        pins the onset to a 39 us sample and its velocity step to a few milliseconds."""
+        cfg = self.config
+        if impact.channel == "vibration":
+            window = cfg.vibration_window_s
+            return window, min(cfg.impulse_post_s, window), min(cfg.overlap_window_s, window)
+        return cfg.window_s, cfg.impulse_post_s, cfg.overlap_window_s
+
     def _matching_rebound(self, impact: _Impact) -> tuple[float, np.ndarray] | None:
         lo, hi = self._rebound_window(impact)
         for stamp, velocity in self.rebounds:
@@ -372,7 +386,8 @@ class StreamIdentifier:
 
     def _neighbours(self, impact: _Impact) -> list[_Impact]:
         """Pending impacts whose onsets fall within the overlap window of this one's."""
-        return [o for o in self.pending if o is not impact and abs(o.onset_s - impact.onset_s) < self.config.overlap_window_s]
+        overlap_s = self._windows(impact)[2]
+        return [o for o in self.pending if o is not impact and abs(o.onset_s - impact.onset_s) < overlap_s]
 
     def _overlapping(self, impact: _Impact) -> bool:
         """Another impact within the overlap window that something besides the IMU confirms (its
@@ -384,18 +399,19 @@ class StreamIdentifier:
             lo, hi = self._rebound_window(other)
             if any(lo <= stamp <= hi and stamp != own and stamp not in self._used_rebounds for stamp, _ in self.rebounds):
                 return True
-        return any(abs(t - impact.onset_s) < self.config.overlap_window_s for t in self._decided)
+        return any(abs(t - impact.onset_s) < self._windows(impact)[2] for t in self._decided)
 
     def _ready(self, impact: _Impact) -> bool:
         cfg = self.config
-        horizon = impact.onset_s + cfg.window_s
+        window_s, _, overlap_s = self._windows(impact)
+        horizon = impact.onset_s + window_s
         for series in self._continuous():
             if self._live(series, False) and series.latest_s < horizon:
                 return False
         accel = self.vibration if self._vibration_in_use() else self.imu
-        if self._live(accel, False) and self._imu_scanned_s() < impact.onset_s + cfg.overlap_window_s:
+        if self._live(accel, False) and self._imu_scanned_s() < impact.onset_s + overlap_s:
             return False
-        if any(p.onset_s < impact.onset_s + cfg.overlap_window_s for p in self._held):
+        if any(p.onset_s < impact.onset_s + overlap_s for p in self._held):
             return False
         if impact.rebound is not None:
             return True
@@ -431,9 +447,10 @@ class StreamIdentifier:
         onset = impact.onset_s
         if impact.rebound is not None:
             onset = max(onset, impact.rebound[0] - cfg.detection.onset_before_rebound_max_s)
+        window_s, post_s, _ = self._windows(impact)
         fit: PressureFit | None = None
         if self.pressure.stamp_s.size:
-            fit = fit_pressure(self.model, self.pressure.stamp_s, self.pressure.values[:, 0], onset, cfg.pressure_pre_s, cfg.window_s)
+            fit = fit_pressure(self.model, self.pressure.stamp_s, self.pressure.values[:, 0], onset, cfg.pressure_pre_s, window_s)
         if impact.pulse is not None and impact.rebound is None:
             ringing = any(0.0 < impact.onset_s - t < cfg.detection.ring_window_s for t in self._decided)
             weak = impact.pulse.peak_sigma < cfg.detection.unconfirmed_pulse_sigma and not self._pressure_confirms(fit)
@@ -443,7 +460,7 @@ class StreamIdentifier:
         if impact.pulse is not None:
             series, column = (self.vibration, 0) if impact.channel == "vibration" else (self.imu, 5)
             impulse = imu_impulse(
-                self.model, series.stamp_s, series.values[:, column] if series is self.vibration else self._accel_z(), impact.pulse, cfg.impulse_pre_s, cfg.impulse_skip_s, cfg.impulse_post_s
+                self.model, series.stamp_s, series.values[:, column] if series is self.vibration else self._accel_z(), impact.pulse, cfg.impulse_pre_s, cfg.impulse_skip_s, post_s
             )
         features = impact_features(self.model, impact.pulse, impulse, fit, impact.rebound)
         signals = []
@@ -475,7 +492,7 @@ class StreamIdentifier:
 
     def _data_horizon(self, impact: _Impact) -> float:
         """The latest stamp of data this decision needed (s): the data latency's end."""
-        horizon = impact.onset_s + self.config.window_s
+        horizon = impact.onset_s + self._windows(impact)[0]
         if impact.rebound is not None:
             horizon = max(horizon, impact.rebound[0])
         else:

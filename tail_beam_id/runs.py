@@ -106,6 +106,7 @@ def with_window(section: Mapping[str, Any], window_s: float) -> dict[str, Any]:
     it shrink with it."""
     changed = dict(section)
     changed["window_s"] = window_s
+    changed["vibration_window_s"] = window_s  # every impact at this window, the accelerometer's too
     changed["impulse_post_s"] = min(float(section["impulse_post_s"]), window_s)
     changed["overlap_window_s"] = min(float(section["overlap_window_s"]), window_s)
     return changed

@@ -150,3 +150,21 @@ def test_shipped_models_are_trained_with_the_accelerometer():
     assert provenance["vibration_records"] >= 1000 and provenance["records"] - provenance["vibration_records"] >= 5000
     physics = json.loads((MODELS_DIR / "physics.json").read_text(encoding="utf-8"))
     assert physics["timing_vibration"] and all(band["count"] >= 10 for band in physics["timing_vibration"])
+
+
+def test_an_impact_the_accelerometer_found_is_decided_on_its_shorter_window(params, fast_impact):
+    """Found in the accelerometer's stream, an impact is decided vibration_window_s (6 ms) of
+    data after its onset; found by the IMU alone, window_s (12 ms) after. A vibration window
+    longer than window_s is refused, naming the field and its range."""
+    from tail_beam_sim.errors import InputError
+
+    section = params["identification"]
+    with_vibration = _feed(StreamIdentifier("statistical", section, params), fast_impact, _slow_imu(fast_impact.imu))
+    imu_only = _feed(StreamIdentifier("statistical", section, params), fast_impact, _slow_imu(fast_impact.imu), vibration_until_s=-1.0)
+    assert "vibration" in with_vibration[0]["signals"] and "vibration" not in imu_only[0]["signals"]
+    # data_latency_ms runs to the later of the window's end and the camera's stamp (about 0.5 ms).
+    assert with_vibration[0]["data_latency_ms"] == pytest.approx(1e3 * section["vibration_window_s"], abs=0.1)
+    assert imu_only[0]["data_latency_ms"] == pytest.approx(1e3 * section["window_s"], abs=0.1)
+    assert with_vibration[0]["label"] == imu_only[0]["label"]
+    with pytest.raises(InputError, match="vibration_window_s"):
+        StreamIdentifier("statistical", {**section, "vibration_window_s": 2 * section["window_s"]}, params)
