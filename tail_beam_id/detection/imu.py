@@ -15,7 +15,7 @@ on how they were chunked on arrival.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -294,7 +294,9 @@ class PulseDetector:
         if magnitude > decayed:
             self.ring = (stamp_s, magnitude)
 
-    def _pulse_background(self, stamp_s: np.ndarray, accel_z: np.ndarray, lo: int, baseline: int, mask: np.ndarray, period: float) -> Any:
+    def _pulse_background(
+        self, stamp_s: np.ndarray, accel_z: np.ndarray, lo: int, baseline: int, mask: np.ndarray, period: float,
+    ) -> Callable[[np.ndarray], np.ndarray]:
         """The background a pulse's samples (from ``lo`` on) are compared with, as a function of
         sample index: a constant plus the beam's free sway (cosine and sine at its frequency)
         fitted over ``sway_window_s`` before ``lo``. After a large impact the beam sways for
