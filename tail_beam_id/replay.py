@@ -3,14 +3,11 @@ them: in chunks of stamp time, each topic in order, the rebound when its stamp i
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import dataclasses
+from collections.abc import Callable, Sequence
 from typing import Any
 
-import dataclasses
-
 import numpy as np
-
-
 
 from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, VibrationBlocks
@@ -23,12 +20,14 @@ def replay(
     rebounds: Sequence[Rebound] = (),
     chunk_s: float = 0.01,
     vibration: VibrationBlocks | None = None,
+    progress: Callable[[float, float], None] | None = None,
 ) -> list[dict[str, Any]]:
     """Every label the identifier gives for these streams (polled per chunk, then flushed).
 
     A stream passed as None is absent (a sensor gone); ``chunk_s`` is the stamp-time span of
     each delivery. ``vibration`` (blocks in index order) goes to ``identifier.add_vibration``
-    sample by sample stamp, each chunk's samples with the other streams'.
+    sample by sample stamp, each chunk's samples with the other streams'. ``progress(done_s,
+    total_s)`` is called about every PROGRESS_STEP of the streams' stamp time and at the end.
     """
     pressure, imu = _in_stamp_order(pressure), _in_stamp_order(imu)
     vib_stamps = vibration.sample_stamps_s() if vibration is not None and vibration.count else None
@@ -47,6 +46,7 @@ def replay(
     edges = first + chunk_s * np.arange(count + 1)
     # Each stream cut at the chunk edges once (searchsorted on the sorted stamps): a per-chunk
     # mask over the whole stream would cost samples x chunks on a long recording.
+    every = max(1, int(count * PROGRESS_STEP))
     p_cut = np.searchsorted(pressure.stamp_s, edges) if pressure is not None else None
     i_cut = np.searchsorted(imu.stamp_s, edges) if imu is not None else None
     v_cut = np.searchsorted(vib_stamps, edges) if vib_stamps is not None else None
@@ -64,9 +64,17 @@ def replay(
             rebound = pending.pop(0)
             identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
         labels += identifier.poll()
+        if progress is not None and k % every == 0:
+            progress(min(high, last) - first, last - first)
     for rebound in pending:
         identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
-    return labels + identifier.flush()
+    labels += identifier.flush()
+    if progress is not None:
+        progress(last - first, last - first)
+    return labels
+
+
+PROGRESS_STEP = 0.02  # replay reports its progress about every this fraction of the stream
 
 
 def _in_stamp_order(stream: Any) -> Any:

@@ -77,14 +77,17 @@ def describe_profile(profile: SupportProfile) -> str:
             f"{gain} (labels say calibrated: true; --no-calibrate for id_node's uncalibrated labels)")
 
 
-def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | None = None) -> list[dict]:
-    """Labels of the bag's sensor data under ``params``, in impact_stamp order."""
+def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | None = None, phase: str = "identifying") -> list[dict]:
+    """Labels of the bag's sensor data under ``params``, in impact_stamp order; on a terminal,
+    a progress line on stderr (``phase``) while a long recording is worked through."""
     identifier = StreamIdentifier(method, params=params["identification"], model_params=params)
     pressure = PressureStream(data.pressure_stamp_s, data.pressure_pa, 0.0)
     imu = ImuStream(data.imu_stamp_s, data.angular_velocity_radps, data.linear_acceleration_mps2, 0.0, 0.0)
     rebounds = [Rebound(stamp, velocity, velocity) for stamp, velocity in data.rebounds]
     vibration = data.vibration if data.vibration.count else None
-    labels = replay(identifier, pressure, imu, rebounds, vibration=vibration)
+    line = ProgressLine(sys.stderr, f"identify: {data.namespace} {phase}")
+    labels = replay(identifier, pressure, imu, rebounds, vibration=vibration, progress=line.update)
+    line.close()
     refused = {name: n for name, n in identifier.refused_samples.items() if n}
     for name, n in refused.items():
         print(f"identify: {data.namespace} {name}: {n} sample(s) with a non-finite stamp or value left out", file=sys.stderr)
@@ -98,7 +101,33 @@ def profile_of(data: BagSensors, params: dict[str, Any]) -> SupportProfile:
     """The support profile of a bag's sensor data (tail_beam_id.calibration)."""
     accel_z = data.linear_acceleration_mps2[:, 2] if data.linear_acceleration_mps2.size else np.zeros(0)
     return calibrate_support(params, (data.pressure_stamp_s, data.pressure_pa), (data.imu_stamp_s, accel_z),
-                             lambda calibrated: identify_sensors(data, calibrated, "statistical"))
+                             lambda calibrated: identify_sensors(data, calibrated, "statistical", phase="self-calibrating"))
+
+
+class ProgressLine:
+    """One line on a terminal that says how far a long pass through a recording got (rewritten
+    in place); nothing when the stream is no terminal (a pipe, a log, a test) or the recording
+    is shorter than MIN_PROGRESS_S of stamp time."""
+
+    MIN_PROGRESS_S = 60.0
+
+    def __init__(self, stream: Any, what: str) -> None:
+        self.stream = stream
+        self.what = what
+        self.shown = False
+        self.enabled = bool(getattr(stream, "isatty", lambda: False)())
+
+    def update(self, done_s: float, total_s: float) -> None:
+        if not self.enabled or total_s < self.MIN_PROGRESS_S:
+            return
+        self.stream.write(f"\r{self.what}: {done_s:.0f} of {total_s:.0f} s of data ({100.0 * done_s / total_s:.0f} %)")
+        self.stream.flush()
+        self.shown = True
+
+    def close(self) -> None:
+        if self.shown:
+            self.stream.write("\n")
+            self.stream.flush()
 
 
 def run(args: argparse.Namespace) -> int:

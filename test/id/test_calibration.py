@@ -199,3 +199,38 @@ def test_identify_still_labels_when_self_calibration_fails(params, recordings, t
     labels = identify_cmd.identify_bag(str(bag))
     assert len(labels) >= len(recorded.truths) - 1 and not any(label["calibrated"] for label in labels)
     assert "self-calibration failed (FloatingPointError: overflow in the sway fit)" in capsys.readouterr().err
+
+
+def test_a_long_identification_shows_its_progress_on_a_terminal_only(params, recordings):
+    """replay reports how far it got, in order, ending at the whole recording; identify's
+    progress line writes on a terminal (in place, then a newline) and stays silent on a pipe or
+    for a short recording."""
+    import io
+
+    from tail_beam_id.cli.identify_cmd import ProgressLine
+
+    recorded = recordings[0]
+    seen = []
+    replay(StreamIdentifier("statistical", params["identification"], params), recorded.pressure, recorded.imu,
+           recorded.rebounds, progress=lambda done, total: seen.append((done, total)))
+    stamps = np.concatenate([recorded.pressure.stamp_s, recorded.imu.stamp_s])
+    total = stamps.max() - stamps.min()
+    assert len(seen) >= 10 and all(t == pytest.approx(total) for _, t in seen)
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen) and seen[-1][0] == pytest.approx(total)
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    terminal, pipe = Terminal(), io.StringIO()
+    for stream in (terminal, pipe):
+        line = ProgressLine(stream, "identify: / identifying")
+        line.update(30.0, 120.0)
+        line.update(120.0, 120.0)
+        line.close()
+    assert terminal.getvalue() == ("\ridentify: / identifying: 30 of 120 s of data (25 %)"
+                                   "\ridentify: / identifying: 120 of 120 s of data (100 %)\n")
+    assert pipe.getvalue() == ""
+    short = Terminal()
+    ProgressLine(short, "x").update(1.0, 5.0)
+    assert short.getvalue() == ""
