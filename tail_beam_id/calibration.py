@@ -139,8 +139,10 @@ def calibrate(
     """The profile of the support that recorded ``pressure`` (stamps s, Pa) and ``imu`` (stamps
     s, z specific force m/s^2). ``identify(params)`` must return the labels of the recording
     identified with those parameters (the IMU gain needs each impact's moment estimates)."""
-    p_stamp, p_value = pressure
-    i_stamp, i_accel = imu
+    # A sample with a non-finite stamp or value is a lost sample here too, as for the identifier
+    # (one NaN pressure sample made the spectrum, and so the whole calibration, fail).
+    p_stamp, p_value = _finite(*pressure)
+    i_stamp, i_accel = _finite(*imu)
     if p_stamp.size == 0 and i_stamp.size == 0:
         raise InputError("bag", "no jack_pressure and no imu", "calibration needs the recording's jack pressure or IMU")
     duration = float(max(np.ptp(p_stamp) if p_stamp.size else 0.0, np.ptp(i_stamp) if i_stamp.size else 0.0))
@@ -178,6 +180,13 @@ def calibrate(
         oil_bulk_modulus_pa=bulk, beam_inertia_about_hinge_kgm2=inertia, imu_gain_spread=spread,
         pressure_noise_pa=robust_noise(p_value), imu_accel_noise_mps2=robust_noise(i_accel),
     )
+
+
+def _finite(stamp_s: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The samples whose stamp and value are finite."""
+    stamp_s, values = np.asarray(stamp_s, dtype=float), np.asarray(values, dtype=float)
+    keep = np.isfinite(stamp_s) & np.isfinite(values)
+    return (stamp_s, values) if keep.all() else (stamp_s[keep], values[keep])
 
 
 def with_profile(params: Mapping[str, Any], profile: SupportProfile) -> dict[str, Any]:

@@ -77,9 +77,12 @@ def describe_profile(profile: SupportProfile) -> str:
             f"{gain} (labels say calibrated: true; --no-calibrate for id_node's uncalibrated labels)")
 
 
-def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | None = None, phase: str = "identifying") -> list[dict]:
+def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | None = None, phase: str = "identifying",
+                     report: bool = True) -> list[dict]:
     """Labels of the bag's sensor data under ``params``, in impact_stamp order; on a terminal,
-    a progress line on stderr (``phase``) while a long recording is worked through."""
+    a progress line on stderr (``phase``) while a long recording is worked through. With
+    ``report`` the samples and rebounds left out (not finite) are said on stderr: once per bag,
+    not again for self-calibration's pass over the same data."""
     identifier = StreamIdentifier(method, params=params["identification"], model_params=params)
     pressure = PressureStream(data.pressure_stamp_s, data.pressure_pa, 0.0)
     imu = ImuStream(data.imu_stamp_s, data.angular_velocity_radps, data.linear_acceleration_mps2, 0.0, 0.0)
@@ -88,6 +91,8 @@ def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | Non
     line = ProgressLine(sys.stderr, f"identify: {data.namespace} {phase}")
     labels = replay(identifier, pressure, imu, rebounds, vibration=vibration, progress=line.update)
     line.close()
+    if not report:
+        return sorted(labels, key=lambda label: label["impact_stamp"])
     refused = {name: n for name, n in identifier.refused_samples.items() if n}
     for name, n in refused.items():
         print(f"identify: {data.namespace} {name}: {n} sample(s) with a non-finite stamp or value left out", file=sys.stderr)
@@ -101,7 +106,7 @@ def profile_of(data: BagSensors, params: dict[str, Any]) -> SupportProfile:
     """The support profile of a bag's sensor data (tail_beam_id.calibration)."""
     accel_z = data.linear_acceleration_mps2[:, 2] if data.linear_acceleration_mps2.size else np.zeros(0)
     return calibrate_support(params, (data.pressure_stamp_s, data.pressure_pa), (data.imu_stamp_s, accel_z),
-                             lambda calibrated: identify_sensors(data, calibrated, "statistical", phase="self-calibrating"))
+                             lambda calibrated: identify_sensors(data, calibrated, "statistical", phase="self-calibrating", report=False))
 
 
 class ProgressLine:

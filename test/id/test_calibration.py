@@ -234,3 +234,23 @@ def test_a_long_identification_shows_its_progress_on_a_terminal_only(params, rec
     short = Terminal()
     ProgressLine(short, "x").update(1.0, 5.0)
     assert short.getvalue() == ""
+
+
+def test_identify_says_once_what_it_left_out_even_when_it_calibrates(params, recordings, tmp_path):
+    """A NaN pressure sample in a bag is reported on stderr once, though self-calibration passes
+    through the recording as well (it was reported twice); self-calibration leaves it out as the
+    identifier does and still measures the sway (the NaN made it fail); labels stay strict JSON."""
+    recorded = recordings[2]
+    imu = recorded.imu
+    pressure = recorded.pressure.pressure_pa.copy()
+    pressure[len(pressure) // 2] = np.nan
+    bag = tmp_path / "support"
+    write_bag(bag, [*pressure_msgs(recorded.pressure.stamp_s, pressure, 1e8),
+                    *imu_msgs(imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 0.0, 0.0),
+                    *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds)])
+    done = subprocess.run([TAIL_BEAM, "identify", str(bag)], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.count("jack_pressure: 1 sample(s) with a non-finite stamp or value left out") == 1
+    assert "self-calibration: sway" in done.stderr
+    for line in done.stdout.splitlines():
+        json.loads(line, parse_constant=lambda name: pytest.fail(f"label carries {name}"))
