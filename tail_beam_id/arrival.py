@@ -286,7 +286,8 @@ class GatedIdentifier:
         self.notes: list[str] = []
         self._counts_before = (0, 0, 0, 0)
         self._counts_noted = (0, 0, 0, 0)
-        self._refused_noted = 0  # the identifier's refused samples already noted
+        self._refused_before = 0  # non-finite samples refused by the identifiers of earlier epochs
+        self._refused_noted = 0  # the total already noted
 
     def tick(self, now_s: float, arrivals: Streams, blocks: VibrationBlocks, rebounds: Sequence[tuple[float, np.ndarray]],
              end_of_data: bool = False) -> list[dict[str, Any]]:
@@ -345,8 +346,8 @@ class GatedIdentifier:
         self.notes.append(f"time jump: {why}; decided what was pending ({len(labels)} labels), identifying afresh")
         self.time_jumps += 1
         self._counts_before = self.count_totals()
+        self._refused_before += sum(self.identifier.refused_samples.values())
         self.identifier = self._new_identifier(self.identifier.method)
-        self._refused_noted = 0
         if self._profile is not None:  # the same support: keep its profile
             self.identifier.recalibrate(*self._profile)
         self.gate = ArrivalGate(self.gate.config)
@@ -378,11 +379,12 @@ class GatedIdentifier:
         if self.calibration is not None:
             self.calibration.record(release)
         feed(self.identifier, release)
-        refused = sum(self.identifier.refused_samples.values())
+        refused = self._refused_before + sum(self.identifier.refused_samples.values())
         if refused > self._refused_noted:
             self._refused_noted = refused
             counts = ", ".join(f"{name} {n}" for name, n in self.identifier.refused_samples.items() if n)
-            self.notes.append(f"identification: {refused} sample(s) with a non-finite stamp or value left out ({counts}) (totals)")
+            self.notes.append(f"identification: {refused} sample(s) with a non-finite stamp or value left out (totals; "
+                              f"this epoch: {counts})")
         labels = self.identifier.poll()
         if everything:
             labels += self.identifier.flush()

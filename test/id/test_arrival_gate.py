@@ -237,3 +237,14 @@ def test_samples_that_are_no_number_are_left_out_live_and_offline_alike(params, 
         json.loads(json.dumps(label, allow_nan=False))
     assert identifier.refused_samples == {"jack_pressure": 1, "imu": 1, "vibration": 1}
     assert any("3 sample(s) with a non-finite stamp or value left out" in note for note in runner.notes)
+    # A restarted simulator sends the same broken run again: the log's totals keep counting
+    # across the time jump (they started again from 0 with the new identifier).
+    again = plan(chunk, {}, start_wall_s=UNTIL_S + 0.3)
+    again.pressure, again.imu, again.blocks = run.pressure, run.imu, run.blocks
+    again.pressure = (again.pressure[0] + UNTIL_S + 0.3, *again.pressure[1:])
+    again.imu = (again.imu[0] + UNTIL_S + 0.3, *again.imu[1:])
+    again.blocks = (again.blocks[0] + UNTIL_S + 0.3, again.blocks[1])
+    restarted = gated(params, gate_config)
+    drive(restarted, [run, again])
+    assert restarted.time_jumps == 1
+    assert any("6 sample(s) with a non-finite stamp or value left out" in note for note in restarted.notes)
