@@ -23,7 +23,6 @@ from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.fidelity import FidelitySettings
 from tail_beam_sim.physics.simulate import SimulationResult, simulate
-from tail_beam_sim.physics.sensors import VibrationBlocks
 from tail_beam_sim.physics.stream import StreamSimulator
 from tail_beam_id.supports import SupportDraw, draw_support, support_ranges
 
@@ -171,8 +170,7 @@ def simulate_set(
                 **command, "contact_model": law, "pre_contact_s": ev["pre_contact_s"], "window_s": ev["window_s"],
             })
             scene = replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor))
-            result = simulate(scene, tier=tier)
-            results[setting.key] = result if setting.has_vibration else replace(result, vibration=VibrationBlocks.empty())
+            results[setting.key] = simulate(scene, tier=tier, vibration=setting.has_vibration)
         yield LabelledImpact(index, command, scale, law, results)
 
 
@@ -190,9 +188,7 @@ def _simulate_drawn(params: Mapping[str, Any], scene_set: str, count: int, seed:
         scene = Scene.from_params(varied, {
             **command, "contact_model": draw.contact_model, "pre_contact_s": ev["pre_contact_s"], "window_s": ev["window_s"],
         })
-        result = simulate(scene, tier=tier, settings=FidelitySettings.from_params(varied))
-        if draw.vibration_rate_hz <= 0.0:
-            result = replace(result, vibration=VibrationBlocks.empty())
+        result = simulate(scene, tier=tier, settings=FidelitySettings.from_params(varied), vibration=draw.vibration_rate_hz > 0.0)
         yield LabelledImpact(index, command, {}, draw.contact_model, {DRAWN_SETTING: result}, draw)
 
 

@@ -117,6 +117,7 @@ def simulate(
     needs: Needs | None = None,
     settings: FidelitySettings | None = None,
     check: bool = False,
+    vibration: bool = True,
     **solver_options: Any,
 ) -> SimulationResult:
     """Simulate one impact of ``scene`` and sample its sensors (reproducible by seed).
@@ -126,7 +127,9 @@ def simulate(
     bending modes and defaults (default: config/); ``solver`` the method (default: the tier's).
     The summary reports ``tier``, ``solver`` and ``error_estimate`` (relative, of the model and
     the solver together); ``check=True`` also simulates the next tier up and adds the measured
-    differences as ``check``.
+    differences as ``check``. ``vibration=False``: a site without the tail-beam accelerometer
+    (no blocks; the other streams are the same, and the accelerometer model, three quarters of
+    a single impact's time at 25.6 kHz, is not run).
     """
     settings = settings or shipped_settings()
     needs = needs or settings.needs
@@ -135,7 +138,7 @@ def simulate(
     problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=chosen.structure, crushing=crushing)
     options = {**chosen.solver_options, **solver_options} if solver in (None, chosen.solver) else solver_options
     trajectory = solve(problem, solver or chosen.solver, **options)
-    result = sense(scene, trajectory)
+    result = sense(scene, trajectory, vibration)
     # The solver's own estimate is a field of every trajectory (contract: tail_beam_sim.physics.solvers).
     own = trajectory.error_estimate
     result.summary["tier"] = chosen.tier.name
@@ -146,7 +149,7 @@ def simulate(
     return result
 
 
-def sense(scene: Scene, trajectory: Trajectory) -> SimulationResult:
+def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> SimulationResult:
     """What the support's sensors and the summary make of ``trajectory``: noise-free histories,
     the sampled streams and the rebound (seeded by ``scene.sensors.seed``).
 
@@ -170,7 +173,7 @@ def sense(scene: Scene, trajectory: Trajectory) -> SimulationResult:
         imu=suite.imu(trajectory, sample_grid(0.0, end, spec.imu_rate_hz), contact_stamp),
         rebound=suite.rebound(trajectory, contact_stamp),
         summary=summarise(scene, trajectory, history),
-        vibration=suite.vibration(trajectory, end, contact_stamp),
+        vibration=suite.vibration(trajectory, end, contact_stamp) if vibration else VibrationBlocks.empty(),
     )
 
 

@@ -74,3 +74,16 @@ def test_imu_noise_grows_with_sqrt_of_rate():
     scene = Scene.from_params(params, {"window_s": 0.25})
     accel_x = simulate(scene).imu.linear_acceleration_mps2[:, 0]
     assert np.std(accel_x) == pytest.approx(2.0 * scene.sensors.imu_accel_noise_mps2, rel=0.1)
+
+
+def test_a_site_without_the_accelerometer_has_the_same_other_streams(params):
+    """simulate(vibration=False) (a site without the tail-beam accelerometer: what the IMU-only
+    training and evaluation settings simulate) gives no blocks and, sample for sample, the same
+    pressure, IMU and rebound as with it: the accelerometer draws its noise last and alone."""
+    scene = Scene.from_params(params, {"material": "marble", "radius_m": 0.04, "window_s": 0.05})
+    with_it, without = simulate(scene, tier="modal"), simulate(scene, tier="modal", vibration=False)
+    assert with_it.vibration.count > 0 and without.vibration.count == 0
+    np.testing.assert_array_equal(with_it.pressure.pressure_pa, without.pressure.pressure_pa)
+    np.testing.assert_array_equal(with_it.imu.linear_acceleration_mps2, without.imu.linear_acceleration_mps2)
+    np.testing.assert_array_equal(with_it.rebound.velocity_mps, without.rebound.velocity_mps)
+    assert with_it.rebound.stamp_s == without.rebound.stamp_s
