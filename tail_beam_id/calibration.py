@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -30,6 +30,7 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.signal import welch
 
+from tail_beam_id.label import Label
 from tail_beam_sim.config import deep_merge
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.materials import material_table
@@ -134,7 +135,7 @@ def calibrate(
     params: Mapping[str, Any],
     pressure: tuple[np.ndarray, np.ndarray],
     imu: tuple[np.ndarray, np.ndarray],
-    identify: Any,
+    identify: Callable[[dict[str, Any]], Sequence[Label]],
 ) -> SupportProfile:
     """The profile of the support that recorded ``pressure`` (stamps s, Pa) and ``imu`` (stamps
     s, z specific force m/s^2). ``identify(params)`` must return the labels of the recording
@@ -158,7 +159,7 @@ def calibrate(
         labels = identify(calibrated)
         gains = []
         for label in labels:
-            f = label.get("features", {})
+            f = label.features
             if {"moment_impulse_pressure_nms", "imu_impulse_mps"} <= f.keys() and f.get("imu_impulse_mps", 0.0) > 0.0:
                 sigma = f.get("moment_impulse_sigma_nms", math.inf)
                 if f["moment_impulse_pressure_nms"] > GAIN_SIGMA * sigma:

@@ -75,7 +75,7 @@ def reliability(records: Sequence[Record]) -> tuple[float, list[dict[str, float]
     labelled = [r for r in records if r.label]
     if not labelled:
         return math.nan, []
-    confidence = np.array([r.label["confidence"] for r in labelled])
+    confidence = np.array([r.label.confidence for r in labelled])
     correct = np.array([r.correct for r in labelled], dtype=float)
     index = np.clip(np.searchsorted(RELIABILITY_BINS, confidence, side="right") - 1, 0, len(RELIABILITY_BINS) - 2)
     bins, ece = [], 0.0
@@ -105,7 +105,7 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
     half = 0.5 * math.hypot(*halves)
     confusion = {truth: {"coal": 0, "gangue": 0, "missed": 0} for truth in ("coal", "gangue")}
     for r in records:
-        said = r.label["label"] if r.label else "missed"
+        said = r.label.material if r.label else "missed"
         confusion["coal" if r.is_coal else "gangue"][said] += 1
     by_size = []
     for low, high in zip(size_bins_m[:-1], size_bins_m[1:]):
@@ -116,7 +116,7 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
     labelled = [r for r in records if r.label]
     data_latency = [(data_horizon_s(r) - r.contact_stamp_s) * 1e3 for r in labelled]
     after_end = [(data_horizon_s(r) - (r.contact_stamp_s + r.duration_s)) * 1e3 for r in labelled]
-    wrong_conf = [r.label["confidence"] for r in labelled if not r.correct]
+    wrong_conf = [r.label.confidence for r in labelled if not r.correct]
     calibration = reliability(records)
     return Summary(
         scene_set=first.scene_set, setting=first.setting, method=first.method, window_s=first.window_s, n=n,
@@ -124,7 +124,7 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
         balanced_ci=(max(0.0, balanced - half), min(1.0, balanced + half)),
         detected=len(labelled), false_labels=sum(r.extra_labels for r in records), confusion=confusion,
         by_size=by_size, data_latency_ms=_percentiles(data_latency),
-        compute_ms=_percentiles([r.label["latency_ms"] for r in labelled]),
+        compute_ms=_percentiles([r.label.latency_ms for r in labelled]),
         mean_confidence_wrong=float(np.mean(wrong_conf)) if wrong_conf else math.nan,
         # Wall-clock to process each impact's whole stream (detection over every sample, then
         # features and decision): what the per-label compute time leaves out.
@@ -132,8 +132,8 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
             "stream_processing_ms": _percentiles([1e3 * r.wall_s for r in records]),
             # From the contact's end (final separation) to the newest stamp the label needed, ms.
             "data_latency_after_contact_end_ms": _percentiles(after_end),
-            "confident_wrong": sum(1 for r in labelled if not r.correct and r.label["confidence"] >= CONFIDENT),
-            "outside_training": sum(1 for r in labelled if r.label.get("outside_training")),
+            "confident_wrong": sum(1 for r in labelled if not r.correct and r.label.confidence >= CONFIDENT),
+            "outside_training": sum(1 for r in labelled if r.label.outside_training),
             # Extra labels count against accuracy too: correct / (impacts + labels with no impact).
             "accuracy_with_extras": correct / (n + sum(r.extra_labels for r in records)),
             "ece": calibration[0], "reliability": calibration[1],
@@ -144,7 +144,7 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
 def data_horizon_s(record: Record) -> float:
     """The newest stamp a labelled record's decision needed, s: the label's ``impact_stamp``
     (the detected onset) plus its ``data_latency_ms`` (measured from that onset)."""
-    return float(record.label["impact_stamp"]) + float(record.label["data_latency_ms"]) / 1e3
+    return record.label.impact_stamp_s + record.label.data_latency_ms / 1e3
 
 
 def group(records: Iterable[Record]) -> dict[tuple[str, str, str, float], list[Record]]:

@@ -32,6 +32,7 @@ from std_msgs.msg import String
 
 from tail_beam_id.arrival import GateConfig, GatedIdentifier
 from tail_beam_id.identifier import StreamIdentifier
+from tail_beam_id.label import Label
 from tail_beam_id.methods import Method
 from tail_beam_id.online_calibration import OnlineCalibration
 from tail_beam_sim import topics
@@ -143,13 +144,13 @@ class IdNode(Node):
             self.get_logger().warning(note)
         self.gated.notes.clear()
 
-    def _publish(self, labels: list[dict]) -> None:
+    def _publish(self, labels: list[Label]) -> None:
         for label in labels:
-            self._label_pub.publish(ros_messages.string_message(label))
+            self._label_pub.publish(String(data=label.to_json()))
             self.published += 1
             self.get_logger().info(
-                f"impact at {label['impact_stamp']:.4f} s: {label['label']} ({label['confidence']:.2f}, {label['method']}, "
-                f"signals {', '.join(label.get('signals', []))})"
+                f"impact at {label.impact_stamp_s:.4f} s: {label.material} ({label.confidence:.2f}, {label.method}, "
+                f"signals {', '.join(label.signals)})"
             )
 
 

@@ -16,7 +16,9 @@ instead of ``imu``); the IMU's pulses count only before the vibration stream beg
 it stopped. The vibration stream is a continuous stream for liveness and timeouts.
 
 Its parts live in modules of their own: the stream buffers (:mod:`tail_beam_id.buffers`), the
-methods and their registry (:mod:`tail_beam_id.methods`), and the label object it returns
+pulse and pressure detectors (:mod:`tail_beam_id.detection`), impact association: rebounds,
+overlap, the camera's side of readiness (:mod:`tail_beam_id.association`), the methods and their
+registry (:mod:`tail_beam_id.methods`), and the :class:`~tail_beam_id.label.Label` it returns
 (:func:`tail_beam_id.label.make_label`).
 """
 
@@ -30,11 +32,12 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_id.association import ImpactAssociation, PendingImpact
 from tail_beam_id.buffers import Series
 from tail_beam_id.detection.imu import DetectionConfig, Pulse, PulseDetector
 from tail_beam_id.detection.pressure import PressureDetector
 from tail_beam_id.features import VIBRATION_CHANNEL, BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
-from tail_beam_id.label import make_label
+from tail_beam_id.label import Label, make_label
 from tail_beam_id.methods import METHODS, Decision, Method, build_method
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, require_range
@@ -95,17 +98,6 @@ class IdentifierConfig:
 MOUNT_SAMPLES = 16  # IMU samples whose median gravity reading gives the mounting's sign
 
 
-@dataclass
-class _Impact:
-    """A detected impact waiting for its data."""
-
-    onset_s: float
-    pulse: Pulse | None
-    rebound: tuple[float, np.ndarray] | None = None
-    source: str = "imu"  # what detected it: imu (a pulse in an acceleration channel) | rebound | pressure
-    channel: str = "imu"  # the acceleration channel of its pulse: imu | vibration
-
-
 class StreamIdentifier:
     """Labels each impact in continuous sensor streams coal or gangue (docs/interface.md ``label``)."""
 
@@ -141,8 +133,6 @@ class StreamIdentifier:
         self.pressure = Series()
         self.imu = Series()
         self.vibration = Series()  # high-rate accelerometer, specific force along the plate normal
-        self.rebounds: list[tuple[float, np.ndarray]] = []
-        self.refused_rebounds = 0  # rebounds with a non-finite stamp or velocity, left out
         # Samples with a non-finite stamp or value (a sensor's dropout, a corrupt message), left out
         # by stream: one NaN pressure sample made a label "gangue" with confidence NaN.
         self.refused_samples = {"jack_pressure": 0, "imu": 0, "vibration": 0}
@@ -153,14 +143,12 @@ class StreamIdentifier:
         self.pressure_detector = PressureDetector(
             self.model, c.detection.pressure_threshold_sigma, c.pressure_pre_s, c.window_s, c.detection.ring_window_s
         )
-        self.pending: list[_Impact] = []
+        self.impacts = ImpactAssociation(self.config)  # pending impacts, rebounds, recent decisions
         self.imu_stop_s = math.inf  # stamp after which the IMU was declared stopped
         self.mount_sign: float | None = None  # +1: IMU z along the plate normal; -1: mounted upside down
         self.vibration_start_s = math.inf  # first vibration stamp seen
         self.vibration_stop_s = math.inf  # stamp after which the vibration stream was declared stopped
         self._held: list[Pulse] = []  # IMU pulses the vibration stream may yet cover
-        self._used_rebounds: set[float] = set()  # stamps of rebounds given to an impact
-        self._decided: list[float] = []  # onsets of recently decided impacts (overlap check)
 
     def recalibrate(self, model_params: Mapping[str, Any], method: Method | None = None) -> None:
         """Decide from here on with a support profile measured on this support (``model_params``:
@@ -217,23 +205,21 @@ class StreamIdentifier:
         return stamps[ok], values[ok]
 
     def add_rebound(self, stamp_s: float, velocity_mps: np.ndarray) -> None:
-        """One rebound: the camera's stamp (s) and the particle's velocity (3,) in the plate frame.
-        A rebound with a non-finite stamp or velocity is no measurement: it is left out (its
-        impact is decided without the camera) and counted in ``refused_rebounds``."""
-        velocity = np.asarray(velocity_mps, dtype=float).reshape(3)
-        if not (math.isfinite(stamp_s) and np.isfinite(velocity).all()):
-            self.refused_rebounds += 1
-            return
-        if self.rebounds and stamp_s <= self.rebounds[-1][0]:
-            return
-        self.rebounds.append((float(stamp_s), velocity))
+        """One rebound: the camera's stamp (s) and the particle's velocity (3,) in the plate frame
+        (:meth:`ImpactAssociation.add_rebound`: a non-finite one is left out and counted)."""
+        self.impacts.add_rebound(stamp_s, velocity_mps)
+
+    @property
+    def refused_rebounds(self) -> int:
+        """Rebounds with a non-finite stamp or velocity, left out."""
+        return self.impacts.refused_rebounds
 
     # ---- output ------------------------------------------------------------------------------
-    def poll(self) -> list[dict[str, Any]]:
+    def poll(self) -> list[Label]:
         """Labels of the impacts now decidable, in impact_stamp order."""
         return self._run(final=False)
 
-    def flush(self) -> list[dict[str, Any]]:
+    def flush(self) -> list[Label]:
         """End of data: decide everything pending from what there is."""
         return self._run(final=True)
 
@@ -262,7 +248,7 @@ class StreamIdentifier:
             return False
         return final or series.latest_s >= self._newest_s() - self.config.stream_timeout_s
 
-    def _run(self, final: bool) -> list[dict[str, Any]]:
+    def _run(self, final: bool) -> list[Label]:
         for series in self._continuous():
             series.join()
         if self.imu.seen and not self._live(self.imu, final) and self.imu_stop_s == math.inf:
@@ -272,10 +258,10 @@ class StreamIdentifier:
         self._detect_pulses(final)
         self._rebound_impacts(final)
         self._pressure_impacts(final)
-        self.pending.sort(key=lambda impact: impact.onset_s)
-        labels: list[dict[str, Any]] = []
-        while self.pending and (final or self._ready(self.pending[0])):
-            impact = self.pending.pop(0)
+        self.impacts.pending.sort(key=lambda impact: impact.onset_s)
+        labels: list[Label] = []
+        while self.impacts.pending and (final or self._ready(self.impacts.pending[0])):
+            impact = self.impacts.pending.pop(0)
             label = self._decide(impact)
             if label is not None:
                 labels.append(label)
@@ -300,11 +286,11 @@ class StreamIdentifier:
         the vibration stream has not yet passed is held until it does or is declared stopped."""
         if self.vibration.stamp_s.size:
             for pulse in self.vibration_detector.scan(self.vibration.stamp_s, self.vibration.values[:, 0], self.vibration.base_index, final):
-                self.pending.append(_Impact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration"))
+                self.impacts.pending.append(PendingImpact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration"))
         if self.vibration.seen:
             # IMU pulses already waiting from before the vibration stream was first seen.
-            covered = [i for i in self.pending if i.channel == "imu" and i.pulse is not None and i.onset_s >= self.vibration_start_s]
-            self.pending = [i for i in self.pending if not any(i is c for c in covered)]
+            covered = [i for i in self.impacts.pending if i.channel == "imu" and i.pulse is not None and i.onset_s >= self.vibration_start_s]
+            self.impacts.pending = [i for i in self.impacts.pending if not any(i is c for c in covered)]
             self._held += [i.pulse for i in covered]  # type: ignore[misc]
         accel_z = self._accel_z()
         if accel_z is not None:
@@ -317,26 +303,24 @@ class StreamIdentifier:
             if self._vibration_in_use() and pulse.onset_s > self.vibration.latest_s and not final:
                 self._held.append(pulse)  # the vibration stream may yet cover it, or stop first
             else:
-                self.pending.append(_Impact(onset_s=pulse.onset_s, pulse=pulse))
+                self.impacts.pending.append(PendingImpact(onset_s=pulse.onset_s, pulse=pulse))
 
     def _rebound_impacts(self, final: bool) -> None:
         """A rebound no IMU pulse can claim is an impact of its own (IMU stopped or absent, or
         the pulse lost in noise); its onset is put ``rebound_onset_lead_s`` before its stamp."""
         c = self.config.detection
         scanned = math.inf if final else self._imu_scanned_s()
-        for stamp, velocity in self.rebounds:
-            if stamp in self._used_rebounds:
+        for stamp, velocity in self.impacts.rebounds:
+            if stamp in self.impacts.used_rebounds:
                 continue
             imu_gone = stamp > self._accel_stop_s() + c.max_contact_s
             imu_absent = not self._accel_seen() and (final or self._newest_s() >= stamp + self.config.stream_timeout_s)
-            claimable = any(
-                i.rebound is None and self._rebound_window(i)[0] <= stamp <= self._rebound_window(i)[1] for i in self.pending
-            )
+            claimable = self.impacts.claimable(stamp)
             orphan = self._accel_seen() and scanned >= stamp + c.rebound_early_tolerance_s
             if (imu_gone or imu_absent or orphan) and not claimable:
-                self._used_rebounds.add(stamp)
+                self.impacts.used_rebounds.add(stamp)
                 onset = stamp - c.rebound_onset_lead_s
-                self.pending.append(_Impact(onset_s=onset, pulse=None, rebound=(stamp, velocity), source="rebound"))
+                self.impacts.pending.append(PendingImpact(onset_s=onset, pulse=None, rebound=(stamp, velocity), source="rebound"))
 
     def _imu_absent(self, final: bool) -> bool:
         """No acceleration channel (IMU, vibration) at all, after the pressure has run
@@ -354,56 +338,15 @@ class StreamIdentifier:
         start = stop if stop < math.inf else -math.inf
         margin = self.config.detection.pressure_onset_uncertainty_s
         for onset in self.pressure_detector.scan(self.pressure.stamp_s, self.pressure.values[:, 0], start, final):
-            known = [i.onset_s for i in self.pending if i.source == "rebound"] + self._decided
+            known = [i.onset_s for i in self.impacts.pending if i.source == "rebound"] + self.impacts.decided
             if all(abs(onset.onset_s - t) > margin for t in known):
-                self.pending.append(_Impact(onset_s=onset.onset_s, pulse=None, source="pressure"))
+                self.impacts.pending.append(PendingImpact(onset_s=onset.onset_s, pulse=None, source="pressure"))
 
-    def _rebound_window(self, impact: _Impact) -> tuple[float, float]:
-        """Stamps a rebound of this impact may carry, s."""
-        c = self.config.detection
-        if impact.source == "pressure":
-            return impact.onset_s - c.pressure_onset_uncertainty_s, impact.onset_s + c.max_contact_s + c.pressure_onset_uncertainty_s
-        if impact.pulse is None:
-            return impact.onset_s, impact.rebound[0] if impact.rebound else impact.onset_s + c.max_contact_s
-        return impact.pulse.onset_s - c.rebound_early_tolerance_s, impact.pulse.onset_s + c.max_contact_s
-
-    def _windows(self, impact: _Impact) -> tuple[float, float, float]:
-        """(data window, end of the impulse fit, overlap window) after this impact's onset, s.
-        An impact the accelerometer found needs less data (``vibration_window_s``): its pulse
-        pins the onset to a 39 us sample and its velocity step to a few milliseconds."""
-        cfg = self.config
-        if impact.channel == "vibration":
-            window = cfg.vibration_window_s
-            return window, min(cfg.impulse_post_s, window), min(cfg.overlap_window_s, window)
-        return cfg.window_s, cfg.impulse_post_s, cfg.overlap_window_s
-
-    def _matching_rebound(self, impact: _Impact) -> tuple[float, np.ndarray] | None:
-        lo, hi = self._rebound_window(impact)
-        for stamp, velocity in self.rebounds:
-            if lo <= stamp <= hi and stamp not in self._used_rebounds:
-                return stamp, velocity
-        return None
-
-    def _neighbours(self, impact: _Impact) -> list[_Impact]:
-        """Pending impacts whose onsets fall within the overlap window of this one's."""
-        overlap_s = self._windows(impact)[2]
-        return [o for o in self.pending if o is not impact and abs(o.onset_s - impact.onset_s) < overlap_s]
-
-    def _overlapping(self, impact: _Impact) -> bool:
-        """Another impact within the overlap window that something besides the IMU confirms (its
-        own rebound, or detected from a rebound or the pressure), or one already labelled."""
-        own = impact.rebound[0] if impact.rebound else None
-        for other in self._neighbours(impact):
-            if other.source != "imu" or other.rebound is not None:
-                return True
-            lo, hi = self._rebound_window(other)
-            if any(lo <= stamp <= hi and stamp != own and stamp not in self._used_rebounds for stamp, _ in self.rebounds):
-                return True
-        return any(abs(t - impact.onset_s) < self._windows(impact)[2] for t in self._decided)
-
-    def _ready(self, impact: _Impact) -> bool:
-        cfg = self.config
-        window_s, _, overlap_s = self._windows(impact)
+    def _ready(self, impact: PendingImpact) -> bool:
+        """Every live stream has passed the impact's data window, the acceleration channel has
+        been scanned over its overlap window (and no held pulse lies in it), and the camera has
+        settled (:meth:`ImpactAssociation.camera_settled`)."""
+        window_s, _, overlap_s = self.impacts.windows(impact)
         horizon = impact.onset_s + window_s
         for series in self._continuous():
             if self._live(series, False) and series.latest_s < horizon:
@@ -413,13 +356,7 @@ class StreamIdentifier:
             return False
         if any(p.onset_s < impact.onset_s + overlap_s for p in self._held):
             return False
-        if impact.rebound is not None:
-            return True
-        _, rebound_end = self._rebound_window(impact)
-        camera_passed = bool(self.rebounds) and self.rebounds[-1][0] > rebound_end
-        if self._matching_rebound(impact) is not None and not self._neighbours(impact):
-            return True
-        return camera_passed or self._newest_s() >= rebound_end + cfg.camera_timeout_s
+        return self.impacts.camera_settled(impact, self._newest_s())
 
     def _imu_scanned_s(self) -> float:
         """Stamp up to which the detector has examined the acceleration channel in use (the
@@ -436,23 +373,20 @@ class StreamIdentifier:
             return -math.inf
         return float(series.stamp_s[min(local, series.stamp_s.size - 1)])
 
-    def _decide(self, impact: _Impact) -> dict[str, Any] | None:
+    def _decide(self, impact: PendingImpact) -> Label | None:
         started = time.perf_counter()
         cfg = self.config
-        if impact.rebound is None:
-            impact.rebound = self._matching_rebound(impact)
-        if impact.rebound is not None:
-            self._used_rebounds.add(impact.rebound[0])
-        overlap = self._overlapping(impact)
+        self.impacts.take_rebound(impact)
+        overlap = self.impacts.overlapping(impact)
         onset = impact.onset_s
         if impact.rebound is not None:
             onset = max(onset, impact.rebound[0] - cfg.detection.onset_before_rebound_max_s)
-        window_s, post_s, _ = self._windows(impact)
+        window_s, post_s, _ = self.impacts.windows(impact)
         fit: PressureFit | None = None
         if self.pressure.stamp_s.size:
             fit = fit_pressure(self.model, self.pressure.stamp_s, self.pressure.values[:, 0], onset, cfg.pressure_pre_s, window_s)
         if impact.pulse is not None and impact.rebound is None:
-            ringing = any(0.0 < impact.onset_s - t < cfg.detection.ring_window_s for t in self._decided)
+            ringing = any(0.0 < impact.onset_s - t < cfg.detection.ring_window_s for t in self.impacts.decided)
             weak = impact.pulse.peak_sigma < cfg.detection.unconfirmed_pulse_sigma and not self._pressure_confirms(fit)
             if ringing or weak:
                 return None  # the beam still ringing, or noise: nothing else saw an impact
@@ -480,8 +414,8 @@ class StreamIdentifier:
         confidence = decision.confidence
         if overlap:
             confidence = min(confidence, cfg.overlap_confidence_cap)
-        self._decided.append(impact.onset_s)
-        horizon = self._data_horizon(impact)
+        self.impacts.decided.append(impact.onset_s)
+        horizon = self.impacts.data_horizon_s(impact)
         return make_label(
             impact_stamp_s=onset, decision=decision, confidence=confidence, method=self.method.name,
             compute_ms=(time.perf_counter() - started) * 1e3, data_latency_ms=(horizon - onset) * 1e3,
@@ -489,15 +423,6 @@ class StreamIdentifier:
             saturated=["jack_pressure"] if fit is not None and fit.saturated else [],
             imu_inverted=self.mount_sign is not None and self.mount_sign < 0,
         )
-
-    def _data_horizon(self, impact: _Impact) -> float:
-        """The latest stamp of data this decision needed (s): the data latency's end."""
-        horizon = impact.onset_s + self._windows(impact)[0]
-        if impact.rebound is not None:
-            horizon = max(horizon, impact.rebound[0])
-        else:
-            horizon = max(horizon, self._rebound_window(impact)[1] + self.config.camera_timeout_s)
-        return horizon
 
     def _pressure_confirms(self, fit: PressureFit | None) -> bool:
         """The jack pressure saw a moment impulse ``pressure_confirm_sigma`` standard errors
@@ -517,13 +442,11 @@ class StreamIdentifier:
             horizon = min(horizon, self._scanned_s(self.imu, self.detector))
         if self._vibration_in_use():
             horizon = min(horizon, self._scanned_s(self.vibration, self.vibration_detector))
-        oldest_needed = min([i.onset_s for i in self.pending] + [p.onset_s for p in self._held], default=horizon) - keep_s
+        oldest_needed = min([i.onset_s for i in self.impacts.pending] + [p.onset_s for p in self._held], default=horizon) - keep_s
         if self.imu.stamp_s.size and self.imu.stamp_s[0] < oldest_needed - keep_s:
             self.imu.trim_before(oldest_needed)
         if self.pressure.stamp_s.size and self.pressure.stamp_s[0] < oldest_needed - keep_s:
             self.pressure.trim_before(oldest_needed)
         if self.vibration.stamp_s.size and self.vibration.stamp_s[0] < oldest_needed - keep_s:
             self.vibration.trim_before(oldest_needed)
-        self.rebounds = [r for r in self.rebounds if r[0] >= oldest_needed]
-        self._decided = [t for t in self._decided if t >= oldest_needed]
-        self._used_rebounds = {t for t in self._used_rebounds if t >= oldest_needed}
+        self.impacts.forget_before(oldest_needed)

@@ -1,6 +1,7 @@
-"""Labels: the ``label`` JSON object the identifier gives (docs/interface.md), built here
-(:func:`make_label`), and the one rule that says which impact a label is of when it is scored
-against the truth (:func:`match`).
+"""Labels: :class:`Label`, the one typed form of the ``label`` JSON object (docs/interface.md)
+that the identifier gives (:func:`make_label`) and id_node, ``tail-beam identify``, the demo,
+the evaluation and the tests read; and the one rule that says which impact a label is of when it
+is scored against the truth (:func:`match`).
 
 The rule (demo, evaluate, training, benchmarks and tests all use :func:`match`): a label is of
 the impact whose contact start (``impact_truth.contact_start_stamp``) lies within
@@ -14,18 +15,158 @@ detection.
 from __future__ import annotations
 
 import bisect
+import json
 import math
 from functools import cached_property
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from tail_beam_id.methods import Decision
-from tail_beam_sim.errors import require_range
+from tail_beam_sim.errors import InputError, require_finite, require_range
 
 TRUTH_STAMP = "contact_start_stamp"  # the impact_truth field a label's stamp is compared with, s
 LABEL_STAMP = "impact_stamp"  # the label field holding the detected contact start, s
 MATCH_TOLERANCE_MAX_S = 0.1  # above this a label could reach a neighbouring impact of a stream (>= 0.2 s apart), s
+
+
+MATERIALS = ("coal", "gangue")  # the values of a label's "label" field
+
+
+@dataclass(frozen=True)
+class Label:
+    """One impact's label (docs/interface.md, ``label`` JSON). The first four fields are the
+    contract's; the rest are the suite's own and have defaults, so that a label from another
+    identifier that gives only the contract's fields is read too (its other keys are kept in
+    ``extra`` and written back as they were).
+
+    ``material``: the JSON ``label`` field, "coal" or "gangue"; ``confidence``: the stated
+    label's probability, 0..1; ``latency_ms``: the decision's compute time, ms (wall clock);
+    ``data_latency_ms``: from the impact stamp to the newest data the decision needed, ms of
+    stamp time; ``features``: the impact's features and the method's estimates (units in names).
+    """
+
+    impact_stamp_s: float
+    material: str
+    confidence: float
+    method: str
+    latency_ms: float | None = None  # None: not measured (a label from another identifier may not say)
+    data_latency_ms: float | None = None
+    signals: tuple[str, ...] = ()
+    overlap: bool = False
+    calibrated: bool = False
+    features: Mapping[str, float] = field(default_factory=dict)
+    non_finite_features: tuple[str, ...] = ()
+    saturated: tuple[str, ...] = ()
+    imu_mount: str | None = None  # "inverted" when the IMU read -g (mounted upside down, corrected)
+    outside_training: tuple[str, ...] = ()
+    extra: Mapping[str, Any] = field(default_factory=dict)  # keys of another identifier's label, kept as they came
+
+    def decision(self) -> tuple[float, str, float, str]:
+        """What live and offline identification of the same data agree on exactly (the compute
+        time apart): (impact_stamp_s, material, confidence, method)."""
+        return self.impact_stamp_s, self.material, self.confidence, self.method
+
+    def as_dict(self) -> dict[str, Any]:
+        """The ``label`` JSON object: the contract's fields first, then the suite's; the
+        optional keys only when they say something; a timing that was not measured (None) left out."""
+        out: dict[str, Any] = {LABEL_STAMP: self.impact_stamp_s, "label": self.material, "confidence": self.confidence,
+                               "method": self.method}
+        for key in ("latency_ms", "data_latency_ms"):
+            if getattr(self, key) is not None:
+                out[key] = getattr(self, key)
+        out.update(signals=list(self.signals), overlap=self.overlap, calibrated=self.calibrated, features=dict(self.features))
+        optional = {"non_finite_features": list(self.non_finite_features), "saturated": list(self.saturated),
+                    "imu_mount": self.imu_mount, "outside_training": list(self.outside_training)}
+        out.update({k: v for k, v in optional.items() if v})
+        out.update({k: v for k, v in self.extra.items() if k not in out})
+        return out
+
+    def to_json(self) -> str:
+        """The label as published on ``label`` and printed by ``tail-beam identify``: strict JSON."""
+        return json.dumps(self.as_dict(), allow_nan=False)
+
+    @classmethod
+    def from_dict(cls, obj: object, where: str = "label") -> Label:
+        """Read a ``label`` object (from a topic, a bag or a file); raise InputError naming the
+        field (``<where>.<field>``) and what it allows for anything else."""
+        if not isinstance(obj, Mapping):
+            raise InputError(where, obj, "must be a JSON object with impact_stamp, label, confidence and method")
+        for key in (LABEL_STAMP, "label", "confidence", "method"):
+            if key not in obj:
+                raise InputError(f"{where}.{key}", None, "is required (docs/interface.md, label JSON)")
+        material = obj["label"]
+        if material not in MATERIALS:
+            raise InputError(f"{where}.label", material, f"must be one of {', '.join(MATERIALS)}")
+        if not isinstance(obj["method"], str):
+            raise InputError(f"{where}.method", obj["method"], "must be a string")
+        known = {f for f in cls.__dataclass_fields__} | {LABEL_STAMP, "label"}
+        return cls(
+            impact_stamp_s=require_finite(f"{where}.{LABEL_STAMP}", obj[LABEL_STAMP], allow_text=False),
+            material=material,
+            confidence=require_range(f"{where}.confidence", _number(obj["confidence"], f"{where}.confidence"), 0.0, 1.0),
+            method=obj["method"],
+            latency_ms=_optional_number(obj, "latency_ms", where),
+            data_latency_ms=_optional_number(obj, "data_latency_ms", where),
+            signals=_strings(obj, "signals", where),
+            overlap=_flag(obj, "overlap", where),
+            calibrated=_flag(obj, "calibrated", where),
+            features=_features(obj, where),
+            non_finite_features=_strings(obj, "non_finite_features", where),
+            saturated=_strings(obj, "saturated", where),
+            imu_mount=_imu_mount(obj, where),
+            outside_training=_strings(obj, "outside_training", where),
+            extra={k: v for k, v in obj.items() if k not in known},
+        )
+
+    @classmethod
+    def from_json(cls, text: str | bytes, where: str = "label") -> Label:
+        """Read a ``label`` message's JSON text (as :meth:`from_dict`)."""
+        try:
+            obj = json.loads(text)
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(where, text, f"must be a JSON object ({exc})") from None
+        except RecursionError:
+            raise InputError(where, text, "must be a JSON object (nested too deep to read)") from None
+        return cls.from_dict(obj, where)
+
+
+def _number(value: object, name: str) -> float:
+    if isinstance(value, bool):
+        raise InputError(name, value, "must be a finite number")
+    return require_finite(name, value, allow_text=False)
+
+
+def _optional_number(obj: Mapping[str, Any], key: str, where: str) -> float | None:
+    return _number(obj[key], f"{where}.{key}") if key in obj else None
+
+
+def _flag(obj: Mapping[str, Any], key: str, where: str) -> bool:
+    value = obj.get(key, False)
+    if not isinstance(value, bool):
+        raise InputError(f"{where}.{key}", value, "must be true or false")
+    return value
+
+
+def _strings(obj: Mapping[str, Any], key: str, where: str) -> tuple[str, ...]:
+    value = obj.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise InputError(f"{where}.{key}", value, "must be a list of strings")
+    return tuple(value)
+
+
+def _features(obj: Mapping[str, Any], where: str) -> dict[str, float]:
+    value = obj.get("features", {})
+    if not isinstance(value, Mapping):
+        raise InputError(f"{where}.features", value, "must be a JSON object of name: number")
+    return {str(k): _number(v, f"{where}.features.{k}") for k, v in value.items()}
+
+
+def _imu_mount(obj: Mapping[str, Any], where: str) -> str | None:
+    value = obj.get("imu_mount")
+    if value not in (None, "inverted"):
+        raise InputError(f"{where}.imu_mount", value, 'must be "inverted" when given')
+    return value
 
 
 def match_tolerance_s(section: Mapping[str, Any]) -> float:
@@ -81,9 +222,9 @@ def match_stamps(truth_stamps_s: Sequence[float], label_stamps_s: Sequence[float
     )
 
 
-def match(truths: Sequence[Mapping[str, Any]], labels: Sequence[Mapping[str, Any]], tolerance_s: float) -> Matching:
-    """Pair ``impact_truth`` objects with ``label`` objects by the rule of this module."""
-    return match_stamps([float(t[TRUTH_STAMP]) for t in truths], [float(l[LABEL_STAMP]) for l in labels], tolerance_s)
+def match(truths: Sequence[Mapping[str, Any]], labels: Sequence[Label], tolerance_s: float) -> Matching:
+    """Pair ``impact_truth`` objects with labels by the rule of this module."""
+    return match_stamps([float(t[TRUTH_STAMP]) for t in truths], [label.impact_stamp_s for label in labels], tolerance_s)
 
 
 def make_label(
@@ -100,34 +241,26 @@ def make_label(
     features: Mapping[str, float],
     saturated: Sequence[str] = (),
     imu_inverted: bool = False,
-) -> dict[str, Any]:
-    """The ``label`` object of one impact: the contract's fields (docs/interface.md) first, then
-    the suite's own; the optional keys (``saturated``, ``imu_mount``, ``outside_training``) only
-    when they say something. ``confidence``: the stated label's probability after any cap;
+) -> Label:
+    """The label of one impact. ``confidence``: the stated label's probability after any cap;
     ``compute_ms``: time the decision took (published as ``latency_ms``); ``features``: the
     impact's features, to which the method's estimates are added. A value that is no finite
     number never reaches the JSON (strict parsers refuse NaN and Infinity): such a feature is left
     out and named in ``non_finite_features``, and such a confidence becomes 0.5 (no idea)."""
     every = {**{k: float(v) for k, v in features.items()}, **{k: float(v) for k, v in decision.estimates.items()}}
-    non_finite = sorted(k for k, v in every.items() if not math.isfinite(v))
-    label: dict[str, Any] = {
-        LABEL_STAMP: impact_stamp_s,
-        "label": decision.label,
-        "confidence": round(float(confidence), 6) if math.isfinite(confidence) else 0.5,
-        "method": method,
-        "latency_ms": compute_ms,
-        "data_latency_ms": data_latency_ms,
-        "signals": list(signals),
-        "overlap": overlap,
-        "calibrated": calibrated,
-        "features": {k: v for k, v in every.items() if math.isfinite(v)},
-    }
-    if non_finite:
-        label["non_finite_features"] = non_finite
-    if saturated:
-        label["saturated"] = list(saturated)
-    if imu_inverted:
-        label["imu_mount"] = "inverted"
-    if decision.outside_training:
-        label["outside_training"] = list(decision.outside_training)
-    return label
+    return Label(
+        impact_stamp_s=impact_stamp_s,
+        material=decision.label,
+        confidence=round(float(confidence), 6) if math.isfinite(confidence) else 0.5,
+        method=method,
+        latency_ms=compute_ms,
+        data_latency_ms=data_latency_ms,
+        signals=tuple(signals),
+        overlap=overlap,
+        calibrated=calibrated,
+        features={k: v for k, v in every.items() if math.isfinite(v)},
+        non_finite_features=tuple(sorted(k for k, v in every.items() if not math.isfinite(v))),
+        saturated=tuple(saturated),
+        imu_mount="inverted" if imu_inverted else None,
+        outside_training=tuple(decision.outside_training),
+    )

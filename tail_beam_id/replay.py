@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from tail_beam_id.identifier import StreamIdentifier
+from tail_beam_id.label import Label
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, VibrationBlocks
 
 
@@ -21,7 +22,7 @@ def replay(
     chunk_s: float = 0.01,
     vibration: VibrationBlocks | None = None,
     progress: Callable[[float, float], None] | None = None,
-) -> list[dict[str, Any]]:
+) -> list[Label]:
     """Every label the identifier gives for these streams (polled per chunk, then flushed).
 
     A stream passed as None is absent (a sensor gone); ``chunk_s`` is the stamp-time span of
@@ -33,7 +34,7 @@ def replay(
     vib_stamps = vibration.sample_stamps_s() if vibration is not None and vibration.count else None
     starts = [s.stamp_s[0] for s in (pressure, imu) if s is not None and s.stamp_s.size]
     ends = [s.stamp_s[-1] for s in (pressure, imu) if s is not None and s.stamp_s.size]
-    labels: list[dict[str, Any]] = []
+    labels: list[Label] = []
     if not starts:
         for rebound in rebounds:
             identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)

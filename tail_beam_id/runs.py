@@ -11,7 +11,7 @@ from typing import Any
 
 from tail_beam_id.dataset import Setting, SupportStream, simulate_set, support_streams
 from tail_beam_id.identifier import StreamIdentifier
-from tail_beam_id.label import match, match_tolerance_s
+from tail_beam_id.label import Label, match, match_tolerance_s
 from tail_beam_id.replay import replay
 
 
@@ -33,14 +33,14 @@ class Record:
     radius_m: float
     contact_stamp_s: float
     duration_s: float
-    label: dict[str, Any] | None
+    label: Label | None
     extra_labels: int
     wall_s: float
     calibrated: bool = False  # identified with the support's own profile instead of config/
 
     @property
     def correct(self) -> bool:
-        return self.label is not None and (self.label["label"] == "coal") == self.is_coal
+        return self.label is not None and (self.label.material == "coal") == self.is_coal
 
 
 def run_set(
@@ -88,7 +88,7 @@ def run_set(
                         material=truth["material"], is_coal=truth["label"] == "coal", radius_m=truth["radius_m"],
                         contact_stamp_s=result.contact_stamp_s,
                         duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
-                        label=None if paired is None else dict(labels[paired]), extra_labels=len(matching.extra), wall_s=wall, calibrated=identifier.calibrated,
+                        label=None if paired is None else labels[paired], extra_labels=len(matching.extra), wall_s=wall, calibrated=identifier.calibrated,
                     )
 
 
@@ -173,6 +173,6 @@ def _foreign_records(params: Mapping[str, Any], recorded: SupportStream, number:
                     index=number * impacts_per_support + k, material=truth["material"], is_coal=truth["label"] == "coal",
                     radius_m=truth["radius_m"], contact_stamp_s=truth["contact_start_stamp"],
                     duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
-                    label=None if paired is None else dict(labels[paired]), extra_labels=len(matching.extra) if k == 0 else 0,
+                    label=None if paired is None else labels[paired], extra_labels=len(matching.extra) if k == 0 else 0,
                     wall_s=wall / max(len(recorded.truths), 1), calibrated=profile != "nominal",
                 )

@@ -28,6 +28,7 @@ from tail_beam_id.dataset import DRAWN_SETS, evaluation_params, settings
 from tail_beam_id.features import VIBRATION_CHANNEL
 from tail_beam_id.methods import MODELS_DIR
 from tail_beam_id.methods.statistical import SIGNAL_ORDER, base_vector, feature_list, network_logit, signals_of, subset_key
+from tail_beam_id.label import Label
 from tail_beam_id.runs import Record, run_set
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.physics.contact import hertz_elastic_impact, hertz_stiffness
@@ -133,7 +134,7 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
     5 kHz camera's frame, not the onset, now limits the contact duration) while the fast IMU lost
     0.5-2 points (94.5-96.1 % without a channel flag, 95.9-96.8 % with one, against 96.4-97.0 %).
     """
-    records = [r for r in records if not r.label["features"].get(VIBRATION_CHANNEL)]
+    records = [r for r in records if not r.label.features.get(VIBRATION_CHANNEL)]
     rng = np.random.default_rng(seed)
     impacts = sorted({(r.scene_set, r.index) for r in records})
     chosen = rng.choice(len(impacts), size=max(1, int(len(impacts) * HOLDOUT_FRACTION)), replace=False)
@@ -141,7 +142,7 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
     subsets: dict[str, Any] = {}
     for mask in range(1, 2 ** len(SIGNAL_ORDER)):
         signals = tuple(s for i, s in enumerate(SIGNAL_ORDER) if mask >> i & 1)
-        usable = [r for r in records if set(signals) <= set(signals_of(r.label["features"]))]
+        usable = [r for r in records if set(signals) <= set(signals_of(r.label.features))]
         if len(usable) >= 50:
             subsets[subset_key(signals)] = fit_subset(usable, feature_list(signals), held)
     return subsets
@@ -153,7 +154,7 @@ def fit_subset(records: Sequence[Record], names: Sequence[tuple[str, float | Non
     user's support is one the model never saw (issue 9: probabilities calibrated on unseen
     supports; the nominal support's own held-out impacts would make it surer than it has a
     right to be elsewhere). All held-out impacts when fewer than MIN_UNSEEN_IMPACTS are."""
-    base = np.array([base_vector(r.label["features"], names) for r in records])
+    base = np.array([base_vector(r.label.features, names) for r in records])
     y = np.array([1.0 if r.is_coal else 0.0 for r in records])
     train = np.array([(r.scene_set, r.index) not in held for r in records])
     envelope = np.percentile(base[train], ENVELOPE_PERCENTILES, axis=0)
@@ -177,17 +178,17 @@ def train_threshold(records: Sequence[Record]) -> dict[str, Any]:
     accelerometer's settings repeat their impacts)."""
     rules = []
     for name in THRESHOLD_FEATURES:
-        usable = [r for r in records if name in r.label["features"] and r.setting.endswith("/x1")
-                  and not r.label["features"].get(VIBRATION_CHANNEL)]
+        usable = [r for r in records if name in r.label.features and r.setting.endswith("/x1")
+                  and not r.label.features.get(VIBRATION_CHANNEL)]
         if len(usable) < 50:
             continue
-        x = np.log(np.maximum([r.label["features"][name] for r in usable], 1e-9))[:, None]
+        x = np.log(np.maximum([r.label.features[name] for r in usable], 1e-9))[:, None]
         y = np.array([1.0 if r.is_coal else 0.0 for r in usable])
         w = fit_logistic(x, y, l2=0.0)
         slope, threshold = float(w[0]), float(math.exp(-w[1] / w[0]))
         predicted = (slope * (x[:, 0] - math.log(threshold))) > 0
         balanced = 0.5 * (np.mean(predicted[y == 1]) + np.mean(~predicted[y == 0]))
-        values = [r.label["features"][name] for r in usable]
+        values = [r.label.features[name] for r in usable]
         rules.append({
             "feature": name, "threshold": threshold, "slope": slope, "seen": [float(min(values)), float(max(values))],
             "training_balanced_accuracy": float(balanced),
@@ -223,9 +224,9 @@ def timing_table(records: Sequence[Record], vibration: bool = False) -> list[dic
     of the impacts whose channel was the accelerometer, else of the IMU's."""
     by_band: dict[int, list[tuple[float, float]]] = {}
     for r in records:
-        if bool(r.label["features"].get(VIBRATION_CHANNEL)) != vibration:
+        if bool(r.label.features.get(VIBRATION_CHANNEL)) != vibration:
             continue
-        f = r.label["features"]
+        f = r.label.features
         if "rebound_delay_s" in f:
             band = int(np.searchsorted(TIMING_BIN_EDGES_S, f["imu_period_s"]))
             by_band.setdefault(band, []).append((f["imu_period_s"], f["rebound_delay_s"] - r.duration_s))
@@ -246,8 +247,19 @@ CACHE_FORMAT = "tail_beam training records 2"  # 2: the accelerometer fed (vibra
 def save_cache(path: Path, records: Sequence[Record], paper: Sequence[Record]) -> None:
     """Keep the simulated training records as JSON: data only, nothing a reader executes
     (a pickle would run any code a tampered cache holds)."""
-    payload = {"format": CACHE_FORMAT, "stream": [dataclasses.asdict(r) for r in records], "paper": [dataclasses.asdict(r) for r in paper]}
+    payload = {"format": CACHE_FORMAT, "stream": [_record_json(r) for r in records], "paper": [_record_json(r) for r in paper]}
     path.write_text(json.dumps(payload), encoding="utf-8")
+
+
+def _record_json(record: Record) -> dict[str, Any]:
+    """A record as JSON data, its label as the ``label`` JSON object."""
+    return {**dataclasses.asdict(record), "label": None if record.label is None else record.label.as_dict()}
+
+
+def _record(data: dict[str, Any]) -> Record:
+    """The record :func:`_record_json` wrote."""
+    label = data.get("label")
+    return Record(**{**data, "label": None if label is None else Label.from_dict(label, "cache record label")})
 
 
 def load_cache(path: Path) -> tuple[list[Record], list[Record]]:
@@ -256,8 +268,8 @@ def load_cache(path: Path) -> tuple[list[Record], list[Record]]:
         payload = json.loads(path.read_text(encoding="utf-8"))
         if payload.get("format") != CACHE_FORMAT:
             raise ValueError(f"not a {CACHE_FORMAT!r} file")
-        return [Record(**r) for r in payload["stream"]], [Record(**r) for r in payload["paper"]]
-    except (ValueError, TypeError, KeyError, AttributeError) as exc:
+        return [_record(r) for r in payload["stream"]], [_record(r) for r in payload["paper"]]
+    except (ValueError, TypeError, KeyError, AttributeError) as exc:  # InputError (a bad label) is a ValueError
         raise SystemExit(f"training: error: --cache {path}: cannot be read ({exc}); delete it to simulate afresh") from None
 
 
@@ -288,7 +300,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if cache is not None:
             save_cache(cache, records, paper)
     provenance = {"training_seed": seed, "impacts": args.count, "varied_impacts": varied_count, "varied_seed": seed + 2,
-                  "records": len(records), "vibration_records": sum(1 for r in records if r.label["features"].get(VIBRATION_CHANNEL)),
+                  "records": len(records), "vibration_records": sum(1 for r in records if r.label.features.get(VIBRATION_CHANNEL)),
                   "scene_set": "stream+varied"}
     paper_provenance = {"training_seed": seed + 1, "impacts": paper_count, "records": len(paper), "scene_set": "paper"}
     outputs = {

@@ -15,6 +15,8 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
+from tail_beam_id.label import Label
+
 RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 
 
@@ -50,6 +52,10 @@ class Probe(Node):
 
     def json(self, topic: str) -> list[dict[str, Any]]:
         return [json.loads(m.data) for m in self.messages[topic]]
+
+    def labels(self, topic: str) -> list[Label]:
+        """The messages on a label topic, each read as a Label (one that does not read fails the test)."""
+        return [Label.from_json(m.data) for m in self.messages[topic]]
 
 
 def spin_until(executor: EventsExecutor, condition: Callable[[], bool], timeout_s: float = 30.0) -> bool:

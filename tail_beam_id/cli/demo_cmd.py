@@ -16,15 +16,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from tail_beam_id.label import Matching, match, match_tolerance_s
+from tail_beam_id.label import Label, Matching, match, match_tolerance_s
 from tail_beam_sim.bags.records import STORAGES
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, require_new_path, require_range
 
-# Fields the scoreboard reads, and their types: a message without them (another process on the
-# topic, a foreign tool) is skipped, not trusted.
+# Fields the scoreboard reads of a truth, and their types: a message without them (another
+# process on the topic, a foreign tool) is skipped, not trusted; a label must read as a Label.
 TRUTH_FIELDS = {"contact_start_stamp": (int, float), "label": str, "material": str, "radius_m": (int, float), "position_m": (int, float)}
-LABEL_FIELDS = {"impact_stamp": (int, float), "label": str, "confidence": (int, float), "method": str}
 LABELS = ("coal", "gangue")
 LATE_S = 2.0  # wall time after which an impact is shown without its label, s
 SETTLE_S = 1.5  # wall time the identifier gets after the data ends, s (its flush comes first)
@@ -51,20 +50,28 @@ class Scoreboard:
     count: int
     tolerance_s: float
     truths: list[dict[str, Any]] = field(default_factory=list)
-    labels: list[dict[str, Any]] = field(default_factory=list)
+    labels: list[Label] = field(default_factory=list)
     arrived: dict[int, float] = field(default_factory=dict)  # id(obj) -> wall s of arrival
     shown: set[int] = field(default_factory=set)
     skipped: dict[str, int] = field(default_factory=dict)  # topic -> messages that were not ours
 
-    def add(self, kind: str, item: dict[str, Any]) -> None:
+    def add(self, kind: str, item: dict[str, Any] | Label) -> None:
         (self.truths if kind == "truth" else self.labels).append(item)
         self.arrived[id(item)] = time.monotonic()
 
     def receive(self, kind: str, topic: str, text: str) -> None:
         """Add a truth or label as published; a message that is not a JSON object with the fields
         the scoreboard reads is skipped and counted, with one warning line per topic."""
-        item = parse_message(text, TRUTH_FIELDS if kind == "truth" else LABEL_FIELDS)
-        if item is None or item["label"] not in LABELS:
+        item: dict[str, Any] | Label | None
+        if kind == "truth":
+            item = parse_message(text, TRUTH_FIELDS)
+            item = item if item is not None and item["label"] in LABELS else None
+        else:
+            try:
+                item = Label.from_json(text)
+            except InputError:
+                item = None
+        if item is None:
             self.skipped[topic] = self.skipped.get(topic, 0) + 1
             if self.skipped[topic] == 1:
                 print(f"warning: skipping messages on {topic} that are not the suite's {kind} JSON "
@@ -76,7 +83,7 @@ class Scoreboard:
         """The truths and labels so far, paired one to one (the pairing may change as more arrive)."""
         return match(self.truths, self.labels, self.tolerance_s)
 
-    def label_of(self, matching: Matching, truth: int) -> dict[str, Any] | None:
+    def label_of(self, matching: Matching, truth: int) -> Label | None:
         """The label ``matching`` paired with truth number ``truth`` (from 0), or None."""
         paired = matching.label_index(truth)
         return None if paired is None else self.labels[paired]
@@ -99,7 +106,7 @@ class Scoreboard:
             late = final or now - self.arrived[id(label)] > LATE_S
             if id(label) not in self.shown and late and number in extra:
                 self.shown.add(id(label))
-                print(f"          {label['impact_stamp']:8.3f} s  {'(no impact here)':<44} -> {label['label']} ({label['confidence']:.2f}): false detection", flush=True)
+                print(f"          {label.impact_stamp_s:8.3f} s  {'(no impact here)':<44} -> {label.material} ({label.confidence:.2f}): false detection", flush=True)
 
     def table(self) -> str:
         """Confusion table (missed impacts count as wrong) and accuracy."""
@@ -107,7 +114,7 @@ class Scoreboard:
         matching = self.matching()
         for number, truth in enumerate(self.truths):
             label = self.label_of(matching, number)
-            column = 2 if label is None else (0 if label["label"] == "coal" else 1)
+            column = 2 if label is None else (0 if label.material == "coal" else 1)
             rows[truth["label"]][column] += 1
         correct = rows["coal"][0] + rows["gangue"][1]
         total = len(self.truths)
@@ -143,11 +150,11 @@ def impact_text(truth: Mapping[str, Any]) -> str:
             f"at {truth['position_m']:.2f} m")
 
 
-def label_text(truth: Mapping[str, Any], label: Mapping[str, Any] | None) -> str:
+def label_text(truth: Mapping[str, Any], label: Label | None) -> str:
     if label is None:
         return "no label"
-    mark = "ok" if label["label"] == truth["label"] else "WRONG"
-    return f"{label['label']:<6} ({label['confidence']:.2f}, {label['method']})  {mark}"
+    mark = "ok" if label.material == truth["label"] else "WRONG"
+    return f"{label.material:<6} ({label.confidence:.2f}, {label.method})  {mark}"
 
 
 def run(args: argparse.Namespace) -> int:

@@ -11,13 +11,13 @@ contents only.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from typing import Any
 
 import numpy as np
 
 from tail_beam_id.identifier import StreamIdentifier
+from tail_beam_id.label import Label
 from tail_beam_id.methods import available_methods
 from tail_beam_id.replay import replay
 from tail_beam_id.calibration import SupportProfile, with_profile
@@ -78,7 +78,7 @@ def describe_profile(profile: SupportProfile) -> str:
 
 
 def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | None = None, phase: str = "identifying",
-                     report: bool = True) -> list[dict]:
+                     report: bool = True) -> list[Label]:
     """Labels of the bag's sensor data under ``params``, in impact_stamp order; on a terminal,
     a progress line on stderr (``phase``) while a long recording is worked through. With
     ``report`` the samples and rebounds left out (not finite) are said on stderr: once per bag,
@@ -92,14 +92,14 @@ def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | Non
     labels = replay(identifier, pressure, imu, rebounds, vibration=vibration, progress=line.update)
     line.close()
     if not report:
-        return sorted(labels, key=lambda label: label["impact_stamp"])
+        return sorted(labels, key=lambda label: label.impact_stamp_s)
     refused = {name: n for name, n in identifier.refused_samples.items() if n}
     for name, n in refused.items():
         print(f"identify: {data.namespace} {name}: {n} sample(s) with a non-finite stamp or value left out", file=sys.stderr)
     if identifier.refused_rebounds:
         print(f"identify: {data.namespace} rebound_velocity: {identifier.refused_rebounds} message(s) with a non-finite "
               "stamp or velocity left out", file=sys.stderr)
-    return sorted(labels, key=lambda label: label["impact_stamp"])
+    return sorted(labels, key=lambda label: label.impact_stamp_s)
 
 
 def profile_of(data: BagSensors, params: dict[str, Any]) -> SupportProfile:
@@ -137,6 +137,6 @@ class ProgressLine:
 
 def run(args: argparse.Namespace) -> int:
     for label in identify_bag(args.bag, args.method, args.config, args.calibrate, args.namespace):
-        print(json.dumps(label))
+        print(label.to_json())
     sys.stdout.flush()
     return 0

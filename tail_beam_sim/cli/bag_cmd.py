@@ -10,7 +10,7 @@ from pathlib import Path
 import yaml
 
 from tail_beam_sim import topics
-from tail_beam_sim.bags.read import ANY_NAMESPACE, check_bag_path, raw_messages
+from tail_beam_sim.bags.read import ANY_NAMESPACE, raw_messages
 from tail_beam_sim.bags.records import TYPESTORE, vibration_fields
 from tail_beam_sim.bags.write import METADATA, repair
 from tail_beam_sim.errors import InputError

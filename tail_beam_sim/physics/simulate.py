@@ -22,7 +22,7 @@ from tail_beam_sim.physics.contact import CrushingContact, damping_factor, effec
 from tail_beam_sim.physics.fidelity import DEFAULT_TIER, FidelitySettings, Needs, plan, shipped_settings
 from tail_beam_sim.physics.result import SimulationResult
 from tail_beam_sim.physics.scene import Impact, Scene
-from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, SensorSuite, VibrationBlocks, sample_grid, specific_force_z
+from tail_beam_sim.physics.sensors import SensorSuite, VibrationBlocks, sample_grid, specific_force_z
 from tail_beam_sim.physics.solvers import ImpactProblem, Trajectory, solve
 from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
 from tail_beam_sim.physics.support import Support

@@ -55,7 +55,7 @@ def run_identification(rate_hz: float, duration_s: float) -> dict[str, float | s
     from std_msgs.msg import String
 
     from tail_beam_id.id_node import IdNode
-    from tail_beam_id.label import match, match_tolerance_s
+    from tail_beam_id.label import Label, match, match_tolerance_s
     from tail_beam_sim.config import load_parameters
     from tail_beam_sim.ros import messages as ros_messages
 
@@ -74,7 +74,7 @@ def run_identification(rate_hz: float, duration_s: float) -> dict[str, float | s
     watch = rclpy.create_node("bench_watch", context=context)
     truths, labels = [], []
     watch.create_subscription(String, "impact_truth", lambda m: truths.append(json.loads(m.data)), 100)
-    watch.create_subscription(String, "label", lambda m: labels.append((json.loads(m.data), time.monotonic())), 100)
+    watch.create_subscription(String, "label", lambda m: labels.append((Label.from_json(m.data), time.monotonic())), 100)
     executor.add_node(ident)
     executor.add_node(watch)
     sim = start_sim(rate_hz, duration_s, 1.0, max(1, int(duration_s / 0.6)))

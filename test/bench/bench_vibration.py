@@ -116,12 +116,13 @@ def identification_scores(bag: Path, data, block_log_s: np.ndarray, label_log_s:
     on the bag), and the wall latency of each label after the data of its contact's end: the
     recorder's log time of the label less that of the vibration block holding the contact end."""
     from tail_beam_id.cli.identify_cmd import identify_bag
-    from tail_beam_id.label import match, match_tolerance_s
+    from tail_beam_id.label import Label, match, match_tolerance_s
     from tail_beam_sim.config import load_parameters
 
-    truths, labels = data.json_topics.get("impact_truth", []), data.json_topics.get("label", [])
+    truths = data.json_topics.get("impact_truth", [])
+    labels = [Label.from_dict(obj) for obj in data.json_topics.get("label", [])]
     matching = match(truths, labels, match_tolerance_s(load_parameters()["identification"]))
-    right = [(truths[i]["radius_m"], labels[j]["label"] == truths[i]["label"]) for i, j in matching.pairs]
+    right = [(truths[i]["radius_m"], labels[j].material == truths[i]["label"]) for i, j in matching.pairs]
     blocks = data.vibration
     block_end_s = blocks.stamp_s + blocks.lengths * blocks.period_s
     latency_ms = []
@@ -129,14 +130,13 @@ def identification_scores(bag: Path, data, block_log_s: np.ndarray, label_log_s:
         k = int(np.searchsorted(block_end_s, truths[i]["final_separation_stamp"]))
         if k < block_log_s.size and j < label_log_s.size:
             latency_ms.append((label_log_s[j] - block_log_s[k]) * 1e3)
-    key = ("impact_stamp", "label", "method", "confidence")
     offline = identify_bag(str(bag), calibrate=False)  # id_node as run here does not calibrate
     return {
         "impacts": len(truths), "correct": sum(ok for _, ok in right), "missed": len(matching.missed), "extra": len(matching.extra),
         "big": sum(1 for r, _ in right if r >= 0.05) + sum(1 for i in matching.missed if truths[i]["radius_m"] >= 0.05),
         "big_correct": sum(ok for r, ok in right if r >= 0.05),
         "latency_ms": (float(np.median(latency_ms)), float(np.max(latency_ms))) if latency_ms else (float("nan"),) * 2,
-        "same_offline": [tuple(l[k] for k in key) for l in labels] == [tuple(l[k] for k in key) for l in offline],
+        "same_offline": [l.decision() for l in labels] == [l.decision() for l in offline],
     }
 
 

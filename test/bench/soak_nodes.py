@@ -13,7 +13,6 @@ Exit status 0 when the counts match and the bag reads, 1 otherwise.
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import subprocess
 import sys
@@ -71,7 +70,7 @@ def soak(impacts: int, work: Path, sample_s: float = 5.0, timeout_s: float = 360
     """Run the three nodes on ``impacts`` generated impacts; return what the bag holds.
     ``recorder_params`` are extra ``name:=value`` overrides of the recorder (experiments);
     ``namespace`` puts the whole support under one."""
-    from tail_beam_id.label import match, match_tolerance_s
+    from tail_beam_id.label import Label, match, match_tolerance_s
     from tail_beam_sim import topics
     from tail_beam_sim.bags.read import read_sensors
     from tail_beam_sim.config import load_parameters
@@ -124,11 +123,11 @@ def soak(impacts: int, work: Path, sample_s: float = 5.0, timeout_s: float = 360
     result.rebounds = len(data.rebounds)
     from tail_beam_id.cli.identify_cmd import identify_bag
 
-    key = ("impact_stamp", "label", "method", "confidence")
+    live = [Label.from_dict(obj) for obj in data.json_topics[topics.LABEL]]
     offline = identify_bag(str(bag), calibrate=False)  # id_node as run here does not calibrate
     result.offline_labels = len(offline)
-    result.live_matches_offline = [tuple(l[k] for k in key) for l in data.json_topics[topics.LABEL]] == [tuple(l[k] for k in key) for l in offline]
-    matching = match(data.json_topics[topics.IMPACT_TRUTH], data.json_topics[topics.LABEL], match_tolerance_s(load_parameters()["identification"]))
+    result.live_matches_offline = [l.decision() for l in live] == [l.decision() for l in offline]
+    matching = match(data.json_topics[topics.IMPACT_TRUTH], live, match_tolerance_s(load_parameters()["identification"]))
     result.matched, result.extra = len(matching.pairs), len(matching.extra)
     result.messages = data.pressure_stamp_s.size + data.imu_stamp_s.size + result.rebounds + result.truths + result.labels
     return result

@@ -12,13 +12,13 @@ import pytest
 from id_helpers import stream_chunk
 from tail_beam_id.arrival import ArrivalGate, GateConfig, GatedIdentifier
 from tail_beam_id.identifier import StreamIdentifier
+from tail_beam_id.label import Label
 from tail_beam_id.replay import replay
 from tail_beam_sim.config import default_config_dir, load_parameters
 from tail_beam_sim.physics.sensors import VibrationBlocks
 
 STAMPS = [0.4, 1.0, 1.6]
 UNTIL_S = 2.1
-KEY = ("impact_stamp", "label", "method", "confidence")
 
 
 @pytest.fixture(scope="module")
@@ -101,8 +101,8 @@ def offline(params, chunk) -> list[dict]:
                   vibration=chunk.vibration)
 
 
-def keys(labels: list[dict]) -> list[tuple]:
-    return [tuple(label[k] for k in KEY) for label in labels]
+def keys(labels: list[Label]) -> list[tuple]:
+    return [label.decision() for label in labels]
 
 
 @pytest.mark.parametrize("speed", [1.0, 25.0, 1000.0])
@@ -163,8 +163,8 @@ def test_a_sensor_that_stops_no_longer_holds_the_others(params, chunk, gate_conf
     keep = blocks.stamp_s < 0.7
     run.blocks = (arrival[keep], blocks.select(keep))
     labels = drive(gated(params, gate_config), [run])
-    assert [round(l["impact_stamp"], 2) for l in labels] == STAMPS
-    assert "vibration" in labels[0]["signals"] and all("vibration" not in l["signals"] for l in labels[1:])
+    assert [round(l.impact_stamp_s, 2) for l in labels] == STAMPS
+    assert "vibration" in labels[0].signals and all("vibration" not in l.signals for l in labels[1:])
 
 
 def test_the_gate_holds_samples_until_every_live_stream_has_passed_them(gate_config):
@@ -197,9 +197,9 @@ def test_a_rebound_that_is_no_number_is_refused_live_and_offline_alike(params, c
     identifier = StreamIdentifier(params=params["identification"], model_params=params)
     offline = replay(identifier, chunk.pressure, chunk.imu, broken, vibration=chunk.vibration)
     assert keys(live) == keys(offline) and len(live) == len(STAMPS)
-    assert all("rebound_velocity" not in label["signals"] for label in live)
+    assert all("rebound_velocity" not in label.signals for label in live)
     for label in live:
-        json.loads(json.dumps(label, allow_nan=False))
+        json.loads(label.to_json())
     assert runner.count_totals()[3] == len(STAMPS) and identifier.refused_rebounds == len(STAMPS)
     assert any("rebounds refused (not finite" in note for note in runner.notes)
 
@@ -232,9 +232,9 @@ def test_samples_that_are_no_number_are_left_out_live_and_offline_alike(params, 
     broken = replay(identifier, replace(chunk.pressure, pressure_pa=p_values[:, 0]), replace(chunk.imu, linear_acceleration_mps2=i_values[:, 3:]),
                     [r for _, r in chunk.rebounds], vibration=vibration)
     assert keys(live) == keys(broken) and len(live) == len(STAMPS)
-    assert [label["label"] for label in broken] == [label["label"] for label in clean]
+    assert [label.material for label in broken] == [label.material for label in clean]
     for label in live + broken:
-        json.loads(json.dumps(label, allow_nan=False))
+        json.loads(label.to_json())
     assert identifier.refused_samples == {"jack_pressure": 1, "imu": 1, "vibration": 1}
     assert any("3 sample(s) with a non-finite stamp or value left out" in note for note in runner.notes)
     # A restarted simulator sends the same broken run again: the log's totals keep counting

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ import yaml
 from tail_beam_id.calibration import calibrate, mount_sign, sway_frequency
 from tail_beam_id.dataset import support_streams
 from tail_beam_id.identifier import StreamIdentifier
+from tail_beam_id.label import Label
 from tail_beam_id.replay import replay
 from tail_beam_sim.bags.records import imu_msgs, pressure_msgs, rebound_msg, write_bag
 from tail_beam_sim.physics.fidelity import TIERS, FidelitySettings, structure_for
@@ -115,18 +117,18 @@ def test_calibrate_then_identify_from_the_command_line(params, recordings, tmp_p
     done = subprocess.run([TAIL_BEAM, "identify", str(bag), "--config", str(profile), "--no-calibrate"],
                           capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
-    labels = [json.loads(line) for line in done.stdout.splitlines()]
+    labels = [Label.from_json(line) for line in done.stdout.splitlines()]
     assert len(labels) >= len(recorded.truths) - 1
-    assert all(label["calibrated"] for label in labels)
+    assert all(label.calibrated for label in labels)
     # Plain identify calibrates by itself (identification.self_calibrate) to the same profile,
     # says so on stderr, and gives the same labels; --no-calibrate gives the uncalibrated ones.
     plain = subprocess.run([TAIL_BEAM, "identify", str(bag)], capture_output=True, text=True, check=False)
     assert plain.returncode == 0, plain.stderr
     assert f"self-calibration: sway {content['calibration']['rigid_mode_frequency_hz']:.2f} Hz" in plain.stderr
     def decided(found):  # all but latency_ms, a wall-clock figure
-        return [{k: v for k, v in label.items() if k != "latency_ms"} for label in found]
+        return [replace(label, latency_ms=0.0) for label in found]
 
-    assert decided(json.loads(line) for line in plain.stdout.splitlines()) == decided(labels)
+    assert decided(Label.from_json(line) for line in plain.stdout.splitlines()) == decided(labels)
     raw = subprocess.run([TAIL_BEAM, "identify", str(bag), "--no-calibrate"], capture_output=True, text=True, check=False)
     assert raw.returncode == 0 and "self-calibration" not in raw.stderr
     assert not any(json.loads(line)["calibrated"] for line in raw.stdout.splitlines())
@@ -197,7 +199,7 @@ def test_identify_still_labels_when_self_calibration_fails(params, recordings, t
 
     monkeypatch.setattr(identify_cmd, "calibrate_support", broken)
     labels = identify_cmd.identify_bag(str(bag))
-    assert len(labels) >= len(recorded.truths) - 1 and not any(label["calibrated"] for label in labels)
+    assert len(labels) >= len(recorded.truths) - 1 and not any(label.calibrated for label in labels)
     assert "self-calibration failed (FloatingPointError: overflow in the sway fit)" in capsys.readouterr().err
 
 

@@ -102,6 +102,6 @@ def test_onset_of_a_small_particle_on_a_beam_swaying_from_a_large_one(params, ra
     vibration = chunk.vibration if rates["vibration_rate_hz"] else None
     labels = replay(StreamIdentifier("statistical", params["identification"], params), chunk.pressure, chunk.imu,
                     [r for _, r in chunk.rebounds], vibration=vibration)
-    near = [label for label in labels if abs(label["impact_stamp"] - small.contact_stamp_s) < 0.005]
+    near = [label for label in labels if abs(label.impact_stamp_s - small.contact_stamp_s) < 0.005]
     assert len(near) == 1
-    assert abs(near[0]["impact_stamp"] - small.contact_stamp_s) <= tolerance_s
+    assert abs(near[0].impact_stamp_s - small.contact_stamp_s) <= tolerance_s

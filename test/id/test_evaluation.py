@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 
 from tail_beam_id.evaluation import summarise, wilson
+from tail_beam_id.label import Label
 from tail_beam_id.runs import Record
 from tail_beam_id.training import fit_logistic, fit_temperature
 from tail_beam_sim.cli import main
 
 
 def record(is_coal: bool, said: str | None, radius_m: float = 0.03) -> Record:
-    label = None if said is None else {"label": said, "confidence": 0.9, "impact_stamp": 1.0, "data_latency_ms": 12.0, "latency_ms": 1.0}
+    label = None if said is None else Label(1.0, said, 0.9, "physics", latency_ms=1.0, data_latency_ms=12.0)
     return Record("stream", "nominal/x1", "physics", 0.012, 0, "coal" if is_coal else "marble", is_coal, radius_m, 0.999, 3e-4, label, 0, 0.01)
 
 

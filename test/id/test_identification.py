@@ -13,7 +13,6 @@ from tail_beam_id.replay import replay
 from tail_beam_sim.errors import InputError
 
 METHODS = ("threshold", "statistical", "physics")
-KEYS = ("impact_stamp", "label", "confidence", "method")
 
 
 def identify(params, method, pressure, imu, rebounds, chunk_s=0.01):
@@ -37,12 +36,12 @@ def test_paper_scene_is_labelled_right(params, paper, method):
     for material, result in paper.items():
         labels = identify(params, method, result.pressure, result.imu, [result.rebound])
         assert len(labels) == 1
-        assert labels[0]["label"] == ("coal" if material == "coal" else "gangue")
-        assert labels[0]["confidence"] > 0.5
-        assert labels[0]["signals"] == ["jack_pressure", "imu", "rebound_velocity"]
-        assert abs(labels[0]["impact_stamp"] - result.contact_stamp_s) < 0.0005
+        assert labels[0].material == ("coal" if material == "coal" else "gangue")
+        assert labels[0].confidence > 0.5
+        assert labels[0].signals == ("jack_pressure", "imu", "rebound_velocity")
+        assert abs(labels[0].impact_stamp_s - result.contact_stamp_s) < 0.0005
         # Decided within 50 ms of simulated time after the contact.
-        assert labels[0]["impact_stamp"] + labels[0]["data_latency_ms"] / 1e3 - result.contact_stamp_s <= 0.05
+        assert labels[0].impact_stamp_s + labels[0].data_latency_ms / 1e3 - result.contact_stamp_s <= 0.05
 
 
 def test_labels_depend_on_stamps_not_on_chunking_or_arrival(params):
@@ -73,7 +72,7 @@ def test_labels_depend_on_stamps_not_on_chunking_or_arrival(params):
     labels += late.flush()
     assert len(fine) == 3
     for a, b, c in zip(fine, coarse, labels):
-        assert [a[k] for k in KEYS] == [b[k] for k in KEYS] == [c[k] for k in KEYS]
+        assert a.decision() == b.decision() == c.decision()
 
 
 def test_camera_gone_still_labels_from_pressure_and_imu(params, paper):
@@ -81,10 +80,10 @@ def test_camera_gone_still_labels_from_pressure_and_imu(params, paper):
     result = paper["sandstone"]
     labels = identify(params, "statistical", result.pressure, result.imu, [])
     assert len(labels) == 1
-    assert labels[0]["signals"] == ["jack_pressure", "imu"]
-    assert "rebound_speed_mps" not in labels[0]["features"]
+    assert labels[0].signals == ("jack_pressure", "imu")
+    assert "rebound_speed_mps" not in labels[0].features
     # It waited for the camera (timeout) but still labels within 50 ms of the contact.
-    assert labels[0]["impact_stamp"] + labels[0]["data_latency_ms"] / 1e3 - result.contact_stamp_s <= 0.05
+    assert labels[0].impact_stamp_s + labels[0].data_latency_ms / 1e3 - result.contact_stamp_s <= 0.05
 
 
 def test_imu_gone_still_labels_from_pressure_and_camera(params, paper):
@@ -92,7 +91,7 @@ def test_imu_gone_still_labels_from_pressure_and_camera(params, paper):
     result = paper["coal"]
     labels = identify(params, "physics", result.pressure, None, [result.rebound])
     assert len(labels) == 1
-    assert labels[0]["signals"] == ["jack_pressure", "rebound_velocity"]
+    assert labels[0].signals == ("jack_pressure", "rebound_velocity")
 
 
 @pytest.fixture(scope="module")
@@ -110,8 +109,8 @@ def test_pressure_alone_never_gives_a_confident_label(params, medium, method):
     for result in medium:
         labels = identify(params, method, result.pressure, None, [])
         assert len(labels) == 1
-        assert labels[0]["signals"] == ["jack_pressure"]
-        assert labels[0]["confidence"] <= 0.75
+        assert labels[0].signals == ("jack_pressure",)
+        assert labels[0].confidence <= 0.75
 
 
 def test_imu_stopping_midstream_moves_to_the_camera(params):
@@ -128,10 +127,10 @@ def test_imu_stopping_midstream_moves_to_the_camera(params):
     )
     labels = identify(params, "statistical", pressure, imu, rebounds)
     assert len(labels) == 3
-    assert labels[0]["signals"] == ["jack_pressure", "imu", "rebound_velocity"]
-    assert labels[1]["signals"] == labels[2]["signals"] == ["jack_pressure", "rebound_velocity"]
+    assert labels[0].signals == ("jack_pressure", "imu", "rebound_velocity")
+    assert labels[1].signals == labels[2].signals == ("jack_pressure", "rebound_velocity")
     for label, truth in zip(labels, truths):
-        assert abs(label["impact_stamp"] - truth["contact_start_stamp"]) < 0.002
+        assert abs(label.impact_stamp_s - truth["contact_start_stamp"]) < 0.002
 
 
 def test_saturated_pressure_is_left_out(params):
@@ -140,11 +139,11 @@ def test_saturated_pressure_is_left_out(params):
     result = impact(params, material="marble", seed=4, sensors={"pressure_range_max_pa": 20.005e6})
     labels = identify(params, "statistical", result.pressure, result.imu, [result.rebound])
     assert len(labels) == 1
-    assert labels[0]["saturated"] == ["jack_pressure"]
-    assert labels[0]["signals"] == ["imu", "rebound_velocity"]
+    assert labels[0].saturated == ("jack_pressure",)
+    assert labels[0].signals == ("imu", "rebound_velocity")
     # A clipped transducer counts for nothing: the same label as with no pressure stream at all.
     without = identify(params, "statistical", None, result.imu, [result.rebound])
-    assert [labels[0][k] for k in KEYS] == [without[0][k] for k in KEYS]
+    assert labels[0].decision() == without[0].decision()
 
 
 def test_two_impacts_3_ms_apart_are_flagged_and_not_trusted(params):
@@ -157,8 +156,8 @@ def test_two_impacts_3_ms_apart_are_flagged_and_not_trusted(params):
     labels = identify(params, "statistical", pressure, imu, rebounds)
     cap = params["identification"]["overlap_confidence_cap"]
     assert len(labels) == 2
-    assert all(l["overlap"] for l in labels)
-    assert all(l["confidence"] <= cap for l in labels)
+    assert all(l.overlap for l in labels)
+    assert all(l.confidence <= cap for l in labels)
 
 
 def test_physics_caps_confidence_when_no_particle_explains_the_impact(params):
@@ -176,7 +175,7 @@ def test_physics_estimates_the_particle(params, paper):
     estimates = {}
     for material, result in paper.items():
         label = identify(params, "physics", result.pressure, result.imu, [result.rebound])[0]
-        estimates[material] = label["features"]
+        estimates[material] = label.features
     assert estimates["coal"]["estimated_density_kgpm3"] < 1800 < estimates["sandstone"]["estimated_density_kgpm3"]
     assert estimates["coal"]["estimated_contact_modulus_pa"] < estimates["sandstone"]["estimated_contact_modulus_pa"]
     assert estimates["coal"]["estimated_restitution"] > estimates["sandstone"]["estimated_restitution"]
@@ -206,8 +205,8 @@ def test_impact_lost_in_imu_noise_is_still_labelled_from_the_camera(params):
     result = impact(params, noise=10.0, material="coal", radius_m=0.025, drop_height_m=1.5, position_m=0.2, restitution=0.3)
     labels = identify(params, "statistical", result.pressure, result.imu, [result.rebound])
     assert len(labels) == 1
-    assert "imu" not in labels[0]["signals"] and "rebound_velocity" in labels[0]["signals"]
-    assert abs(labels[0]["impact_stamp"] - result.contact_stamp_s) < 0.002
+    assert "imu" not in labels[0].signals and "rebound_velocity" in labels[0].signals
+    assert abs(labels[0].impact_stamp_s - result.contact_stamp_s) < 0.002
 
 
 def test_long_noise_only_stream_gives_no_label_and_bounded_buffers(params):

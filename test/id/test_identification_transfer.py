@@ -32,14 +32,14 @@ def test_any_imu_rate_labels_the_paper_scene(params, rate_hz):
         result = impact(params, material=material, seed=21, sensors={"imu_rate_hz": rate_hz})
         labels = identify(params, result)
         assert len(labels) == 1, labels
-        assert labels[0]["label"] == ("coal" if material == "coal" else "gangue"), (rate_hz, labels[0])
+        assert labels[0].material == ("coal" if material == "coal" else "gangue"), (rate_hz, labels[0])
 
 
 def test_odd_rate_is_never_confidently_wrong(params):
     """The reported failure: a 50 mm coal sphere with a 5 kHz IMU was gangue with confidence 1.0."""
     result = impact(params, material="coal", radius_m=0.05, seed=3, sensors={"imu_rate_hz": 5000.0})
     (label,) = identify(params, result)
-    assert label["label"] == "coal" or label["confidence"] < 0.9, label
+    assert label.material == "coal" or label.confidence < 0.9, label
 
 
 @pytest.mark.parametrize("method", ["threshold", "statistical", "physics"])
@@ -51,9 +51,9 @@ def test_imu_bolted_upside_down_gives_the_same_label(params, method):
                       angular_velocity_radps=result.imu.angular_velocity_radps * np.array([1.0, -1.0, -1.0]))
     (upright,) = identify(params, result, method)
     (inverted,) = identify(params, result, method, imu=flipped)
-    assert inverted["label"] == upright["label"] == "gangue"
-    assert inverted["imu_mount"] == "inverted" and "imu_mount" not in upright
-    assert abs(inverted["confidence"] - upright["confidence"]) < 0.05
+    assert inverted.material == upright.material == "gangue"
+    assert inverted.imu_mount == "inverted" and upright.imu_mount is None
+    assert abs(inverted.confidence - upright.confidence) < 0.05
 
 
 def test_lightly_damped_low_mode_ringing_is_not_taken_for_impacts(params):
@@ -66,7 +66,7 @@ def test_lightly_damped_low_mode_ringing_is_not_taken_for_impacts(params):
         "camera_frame_rate_hz": 5000.0, "noise_factor": 1.0,
     }, "calibrated")
     varied = draw.apply(params)
-    from id_helpers import WINDOW_S, PRE_CONTACT_S
+    from id_helpers import PRE_CONTACT_S
     from tail_beam_sim.physics.fidelity import FidelitySettings
     from tail_beam_sim.physics.scene import Scene
     from tail_beam_sim.physics.simulate import simulate
@@ -75,8 +75,8 @@ def test_lightly_damped_low_mode_ringing_is_not_taken_for_impacts(params):
                                        "pre_contact_s": PRE_CONTACT_S, "window_s": 0.3, "seed": 2})
     result = simulate(scene, tier="modal", settings=FidelitySettings.from_params(varied))
     labels = identify(varied, result)
-    assert len(labels) == 1, [(l["impact_stamp"], l["signals"]) for l in labels]
-    assert abs(labels[0]["impact_stamp"] - result.contact_stamp_s) < 0.001
+    assert len(labels) == 1, [(l.impact_stamp_s, l.signals) for l in labels]
+    assert abs(labels[0].impact_stamp_s - result.contact_stamp_s) < 0.001
 
 
 def test_features_far_outside_training_cap_confidence_and_say_why(params):
@@ -85,8 +85,8 @@ def test_features_far_outside_training_cap_confidence_and_say_why(params):
     result = impact(params, material="marble", radius_m=0.05, seed=8, sensors={"pressure_noise_pa": 2.0e6})
     (label,) = identify(params, result)
     cap = params["identification"]["statistical"]["outside_confidence_cap"]
-    assert label["confidence"] <= cap + 1e-9
-    assert "pressure_noise_pa" in label["outside_training"]
+    assert label.confidence <= cap + 1e-9
+    assert "pressure_noise_pa" in label.outside_training
 
 
 def test_drawn_supports_stay_inside_their_ranges(params):

@@ -42,16 +42,16 @@ def test_imu_declared_stopped_then_resuming_does_not_break_the_identifier(params
         identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
     labels = identifier.poll() + identifier.flush()
     assert len(labels) == len(STAMPS)
-    for label, stamp in zip(sorted(labels, key=lambda l: l["impact_stamp"]), STAMPS):
-        assert abs(label["impact_stamp"] - stamp) < 1e-3
-        assert "imu" not in label["signals"] and label["confidence"] < 0.9
+    for label, stamp in zip(sorted(labels, key=lambda l: l.impact_stamp_s), STAMPS):
+        assert abs(label.impact_stamp_s - stamp) < 1e-3
+        assert "imu" not in label.signals and label.confidence < 0.9
 
 
 def test_in_order_delivery_gives_the_same_labels_for_any_chunking(params):
     """In-order delivery in 3, 10 or 25 ms chunks gives the same three labels and confidences."""
     fast, (pressure, imu, rebounds, _) = _caving_stream(params)
     runs = [
-        [(l["impact_stamp"], l["label"], l["confidence"]) for l in replay(StreamIdentifier(params=fast["identification"]), pressure, imu, rebounds, chunk_s=c)]
+        [(l.impact_stamp_s, l.material, l.confidence) for l in replay(StreamIdentifier(params=fast["identification"]), pressure, imu, rebounds, chunk_s=c)]
         for c in (0.003, 0.01, 0.025)
     ]
     assert len(runs[0]) == 3

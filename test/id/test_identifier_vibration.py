@@ -60,11 +60,11 @@ def test_vibration_stream_is_the_acceleration_channel(params, fast_impact):
     labels = _feed(StreamIdentifier("statistical", params["identification"], params), fast_impact, _slow_imu(fast_impact.imu))
     assert len(labels) == 1
     label = labels[0]
-    assert label["signals"] == ["jack_pressure", "vibration", "rebound_velocity"]
-    assert label["features"]["imu_period_s"] == pytest.approx(1.0 / VIBRATION_RATE_HZ, rel=1e-6)
-    assert label["label"] == "gangue"
+    assert label.signals == ("jack_pressure", "vibration", "rebound_velocity")
+    assert label.features["imu_period_s"] == pytest.approx(1.0 / VIBRATION_RATE_HZ, rel=1e-6)
+    assert label.material == "gangue"
     # The 20 kHz channel places the onset within one of its periods and a half of the contact.
-    assert abs(label["impact_stamp"] - fast_impact.contact_stamp_s) < 1.5 / VIBRATION_RATE_HZ
+    assert abs(label.impact_stamp_s - fast_impact.contact_stamp_s) < 1.5 / VIBRATION_RATE_HZ
 
 
 def test_without_vibration_the_imu_is_the_channel(params, fast_impact):
@@ -73,13 +73,13 @@ def test_without_vibration_the_imu_is_the_channel(params, fast_impact):
     slow = _slow_imu(fast_impact.imu)
     labels = _feed(StreamIdentifier("statistical", params["identification"], params), fast_impact, slow, vibration_until_s=-1.0)
     assert len(labels) == 1
-    assert labels[0]["signals"] == ["jack_pressure", "imu", "rebound_velocity"]
-    assert labels[0]["features"]["imu_period_s"] == pytest.approx(1.0 / (VIBRATION_RATE_HZ / DECIMATION), rel=1e-6)
+    assert labels[0].signals == ("jack_pressure", "imu", "rebound_velocity")
+    assert labels[0].features["imu_period_s"] == pytest.approx(1.0 / (VIBRATION_RATE_HZ / DECIMATION), rel=1e-6)
     from tail_beam_sim.physics.sensors import ImuStream
 
     imu = ImuStream(slow[0], slow[1], slow[2], 0.0, 0.0)
     plain = replay(StreamIdentifier("statistical", params["identification"], params), fast_impact.pressure, imu, [fast_impact.rebound])
-    assert [(l["impact_stamp"], l["label"], l["confidence"]) for l in labels] == [(l["impact_stamp"], l["label"], l["confidence"]) for l in plain]
+    assert [(l.impact_stamp_s, l.material, l.confidence) for l in labels] == [(l.impact_stamp_s, l.material, l.confidence) for l in plain]
 
 
 def test_vibration_stopping_hands_back_to_the_imu(params, fast_impact):
@@ -88,8 +88,8 @@ def test_vibration_stopping_hands_back_to_the_imu(params, fast_impact):
     until = fast_impact.contact_stamp_s - 0.1
     labels = _feed(StreamIdentifier("statistical", params["identification"], params), fast_impact, _slow_imu(fast_impact.imu), vibration_until_s=until)
     assert len(labels) == 1
-    assert "imu" in labels[0]["signals"] and "vibration" not in labels[0]["signals"]
-    assert abs(labels[0]["impact_stamp"] - fast_impact.contact_stamp_s) < 1e-3
+    assert "imu" in labels[0].signals and "vibration" not in labels[0].signals
+    assert abs(labels[0].impact_stamp_s - fast_impact.contact_stamp_s) < 1e-3
 
 
 def test_vibration_with_mismatched_lengths_is_refused(params):
@@ -118,10 +118,10 @@ def test_evaluation_feeds_the_accelerometer_where_the_setting_has_one(params):
     assert len(records) == 6 and all(r.label is not None for r in records)
     for r in records:
         channel = "vibration" if r.setting == "shipped/x1" else "imu"
-        assert channel in r.label["signals"], (r.setting, r.label["signals"])
+        assert channel in r.label.signals, (r.setting, r.label.signals)
         expected_period_s = 1.0 / (params["sensors"]["vibration_rate_hz"] if channel == "vibration" else nominal.rates_hz["imu_rate_hz"])
-        assert r.label["features"]["imu_period_s"] == pytest.approx(expected_period_s, rel=1e-6)
-        assert bool(r.label["features"].get("vibration_channel")) == (channel == "vibration")
+        assert r.label.features["imu_period_s"] == pytest.approx(expected_period_s, rel=1e-6)
+        assert bool(r.label.features.get("vibration_channel")) == (channel == "vibration")
 
 
 def test_a_setting_with_a_bad_accelerometer_rate_names_the_field(params):
@@ -161,10 +161,10 @@ def test_an_impact_the_accelerometer_found_is_decided_on_its_shorter_window(para
     section = params["identification"]
     with_vibration = _feed(StreamIdentifier("statistical", section, params), fast_impact, _slow_imu(fast_impact.imu))
     imu_only = _feed(StreamIdentifier("statistical", section, params), fast_impact, _slow_imu(fast_impact.imu), vibration_until_s=-1.0)
-    assert "vibration" in with_vibration[0]["signals"] and "vibration" not in imu_only[0]["signals"]
+    assert "vibration" in with_vibration[0].signals and "vibration" not in imu_only[0].signals
     # data_latency_ms runs to the later of the window's end and the camera's stamp (about 0.5 ms).
-    assert with_vibration[0]["data_latency_ms"] == pytest.approx(1e3 * section["vibration_window_s"], abs=0.1)
-    assert imu_only[0]["data_latency_ms"] == pytest.approx(1e3 * section["window_s"], abs=0.1)
-    assert with_vibration[0]["label"] == imu_only[0]["label"]
+    assert with_vibration[0].data_latency_ms == pytest.approx(1e3 * section["vibration_window_s"], abs=0.1)
+    assert imu_only[0].data_latency_ms == pytest.approx(1e3 * section["window_s"], abs=0.1)
+    assert with_vibration[0].material == imu_only[0].material
     with pytest.raises(InputError, match="vibration_window_s"):
         StreamIdentifier("statistical", {**section, "vibration_window_s": 2 * section["window_s"]}, params)

@@ -56,9 +56,9 @@ def test_labels_say_calibrated_once_the_learned_support_is_in_use(params, record
     log line names the sway frequency it measured, which is the recording support's lowest
     natural frequency within 2 % (not the nominal support's)."""
     labels, gated = calibrated_run
-    flags = [label["calibrated"] for label in labels]
+    flags = [label.calibrated for label in labels]
     assert flags[0] is False and flags[-1] is True and flags == sorted(flags)
-    assert all(not l["calibrated"] for l in labels if l["impact_stamp"] < LEARN_S)
+    assert all(not l.calibrated for l in labels if l.impact_stamp_s < LEARN_S)
     support = Support.from_params(recorded.params["support"], material_table(recorded.params))
     truth = structure_for(TIERS["modal"], support, FidelitySettings.from_params(recorded.params).modes).natural_frequencies_hz()[0]
     nominal = structure_for(TIERS["modal"], Support.from_params(params["support"], material_table(params)),
@@ -73,9 +73,8 @@ def test_without_online_calibration_nothing_changes(params, recorded):
     same run whose calibration is still learning (the window longer than the stream)."""
     plain, _ = run(params, recorded, None)
     learning, gated = run(params, recorded, OnlineCalibration(params, 60.0, "statistical", background=False))
-    assert not any(l["calibrated"] for l in plain)
-    key = ("impact_stamp", "label", "confidence")
-    assert [tuple(l[k] for k in key) for l in plain] == [tuple(l[k] for k in key) for l in learning]
+    assert not any(l.calibrated for l in plain)
+    assert [l.decision() for l in plain] == [l.decision() for l in learning]
     assert gated.calibration.state == "learning"
 
 

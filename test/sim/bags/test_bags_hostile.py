@@ -17,8 +17,8 @@ from rosbags.rosbag2 import Writer
 from bag_helpers import records, write_segments
 from tail_beam_sim import topics
 from tail_beam_sim.bags.records import STORAGES, TYPESTORE
-from tail_beam_sim.bags.read import raw_messages, read_sensors
-from tail_beam_sim.bags.write import PARTIAL_DIR, SegmentedBagWriter, repair
+from tail_beam_sim.bags.read import raw_messages
+from tail_beam_sim.bags.write import PARTIAL_DIR, SegmentedBagWriter
 from tail_beam_sim.errors import InputError
 
 BIN = Path(sys.executable).parent
@@ -290,11 +290,13 @@ def test_a_tampered_training_cache_runs_no_code(tmp_path):
 
 def test_the_training_cache_round_trips_as_json(tmp_path):
     """save_cache/load_cache give back equal records from a JSON file."""
+    from tail_beam_id.label import Label
     from tail_beam_id.runs import Record
     from tail_beam_id.training import load_cache, save_cache
 
-    record = Record("stream", "nominal/x1", "threshold", 0.012, 3, "coal", True, 0.031, 1.25, 2.1e-4,
-                    {"label": "coal", "confidence": 0.93, "features": {"rebound_speed_mps": 5.6}}, 0, 0.002)
+    label = Label(1.2501, "coal", 0.93, "threshold", latency_ms=0.7, data_latency_ms=12.0, signals=("imu",),
+                  features={"rebound_speed_mps": 5.6}, outside_training=("pressure_noise_pa",))
+    record = Record("stream", "nominal/x1", "threshold", 0.012, 3, "coal", True, 0.031, 1.25, 2.1e-4, label, 0, 0.002)
     save_cache(tmp_path / "cache.json", [record], [])
     assert load_cache(tmp_path / "cache.json") == ([record], [])
     assert (tmp_path / "cache.json").read_text().startswith("{")

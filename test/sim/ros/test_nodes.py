@@ -159,13 +159,13 @@ def test_id_node_labels_each_impact_of_a_live_sim_node():
         # Zero loss: the identifier got every sample the simulator published up to now.
         assert ident.received[topics.JACK_PRESSURE] >= len(probe.messages[topics.JACK_PRESSURE]) - 200
         truths = probe.json(topics.IMPACT_TRUTH)
-        labels = probe.json(topics.LABEL)
+        labels = probe.labels(topics.LABEL)
         matching = match(truths, labels, match_tolerance_s(load_parameters()["identification"]))
         assert not matching.missed, f"no label for {[truths[i]['impact_id'] for i in matching.missed]}"
         for _, paired in matching.pairs:
-            assert labels[paired]["label"] in ("coal", "gangue") and 0.0 <= labels[paired]["confidence"] <= 1.0
-            assert labels[paired]["method"] == "threshold"
-        stamps = [lab["impact_stamp"] for lab in labels]
+            assert labels[paired].material in ("coal", "gangue") and 0.0 <= labels[paired].confidence <= 1.0
+            assert labels[paired].method == "threshold"
+        stamps = [lab.impact_stamp_s for lab in labels]
         assert stamps == sorted(stamps)
 
 
@@ -210,16 +210,16 @@ def test_id_node_labels_from_what_remains_when_a_stream_stops():
             pubs[topics.REBOUND_VELOCITY].publish(ros_messages.rebound_message(rebound))
         truths = [truth for _, truth in chunk.truths]
         tolerance_s = match_tolerance_s(load_parameters()["identification"])
-        spin_until(executor, lambda: not match(truths, feeder.json(topics.LABEL), tolerance_s).missed, timeout_s=20)
-        labels = feeder.json(topics.LABEL)
+        spin_until(executor, lambda: not match(truths, feeder.labels(topics.LABEL), tolerance_s).missed, timeout_s=20)
+        labels = feeder.labels(topics.LABEL)
         matching = match(truths, labels, tolerance_s)
         for number, start in enumerate(starts[1:], 1):
             later = matching.label_index(number)
             assert later is not None, f"impact at {start:.4f} s after the IMU stopped was not labelled"
-            assert "imu" not in labels[later]["signals"] and "jack_pressure" in labels[later]["signals"]
+            assert "imu" not in labels[later].signals and "jack_pressure" in labels[later].signals
         first = matching.label_index(0)
-        assert first is not None and "imu" in labels[first]["signals"]
-        assert all(math.isfinite(lab["confidence"]) for lab in labels)
+        assert first is not None and "imu" in labels[first].signals
+        assert all(math.isfinite(lab.confidence) for lab in labels)
 
 
 def test_id_node_survives_a_restarted_simulator_and_a_stamp_from_the_future():
@@ -265,12 +265,11 @@ def test_id_node_survives_a_restarted_simulator_and_a_stamp_from_the_future():
                     spin_for(executor, 0.05)
             spin_until(executor, lambda: len(feeder.messages[topics.LABEL]) >= len(starts) * (run + 1), timeout_s=30)
         spin_for(executor, 0.5)
-        labels = feeder.json(topics.LABEL)
+        labels = feeder.labels(topics.LABEL)
         log = " | ".join(m.msg for m in feeder.messages["/rosout"] if m.name.endswith("tail_beam_id"))
-    key = ("label", "confidence")
-    assert [tuple(l[k] for k in key) for l in labels] == [tuple(l[k] for k in key) for l in expected] * 2, log
+    assert [(l.material, l.confidence) for l in labels] == [(l.material, l.confidence) for l in expected] * 2, log
     # Stamps cross the middleware as integer nanoseconds.
-    np.testing.assert_allclose([l["impact_stamp"] for l in labels], [l["impact_stamp"] for l in expected] * 2, atol=1e-8)
+    np.testing.assert_allclose([l.impact_stamp_s for l in labels], [l.impact_stamp_s for l in expected] * 2, atol=1e-8)
     assert "time jump" in log and "went back" in log
     assert "1 samples stamped more than 1 s ahead" in log
 
@@ -299,8 +298,8 @@ def test_id_node_calibrates_itself_online_and_says_so():
 
         assert spin_until(executor, lambda: len(probe.messages[topics.IMPACT_TRUTH]) == 12, timeout_s=90)
         assert spin_until(executor, lambda: len(probe.messages[topics.LABEL]) >= 12, timeout_s=20), log()
-        labels = probe.json(topics.LABEL)
-    flags = [label["calibrated"] for label in labels]
+        labels = probe.labels(topics.LABEL)
+    flags = [label.calibrated for label in labels]
     assert flags[0] is False and flags[-1] is True and flags == sorted(flags), log()
     found = re.search(r"calibration: sway ([0-9.]+) Hz", log())
     assert found and float(found.group(1)) == pytest.approx(sway_hz, rel=0.02), log()

@@ -16,7 +16,7 @@ from std_msgs.msg import String
 
 from rosprobe import Probe, ros_context, spin_for, spin_until
 from tail_beam_id.cli.identify_cmd import identify_bag
-from tail_beam_id.label import match, match_tolerance_s
+from tail_beam_id.label import Label, match, match_tolerance_s
 from tail_beam_id.methods import available_methods
 from tail_beam_sim import topics
 from tail_beam_sim.bags.read import raw_messages, read_sensors
@@ -77,12 +77,11 @@ def short_scenario(count: int, *extra: str) -> list[str]:
     return ["scenario.source:=generated", f"scenario.count:={count}", "sim_node.exit_after_idle_s:=0.5", *extra]
 
 
-def assert_same_labels(got: list[dict], expected: list[dict]) -> None:
+def assert_same_labels(got: list[Label], expected: list[Label]) -> None:
     """Same impacts, labels, method and confidences (docs/interface.md: live and offline agree):
     id_node hands its identifier the streams in stamp order (tail_beam_id/arrival.py), so its
     decisions cannot depend on how the middleware interleaved them."""
-    key = ("impact_stamp", "label", "method", "confidence")
-    assert [tuple(g[k] for k in key) for g in got] == [tuple(e[k] for k in key) for e in expected]
+    assert [g.decision() for g in got] == [e.decision() for e in expected]
 
 
 def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, procs):
@@ -109,7 +108,7 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
     assert not (bag / PARTIAL_DIR).exists()
     recorded = read_sensors(bag)
     offline = identify_bag(str(bag), method(), calibrate=False)  # id_node does not calibrate by default
-    live = recorded.json_topics[topics.LABEL]
+    live = [Label.from_dict(obj) for obj in recorded.json_topics[topics.LABEL]]
     assert len(recorded.json_topics[topics.IMPACT_TRUTH]) == 4
     assert len(offline) >= 1
     assert_same_labels(live, offline)
@@ -132,7 +131,7 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
         )
         assert spin_until(executor, lambda: replay.poll() is not None, timeout_s=60) and replay.returncode == 0
         spin_until(executor, lambda: len(probe.messages[topics.LABEL]) >= len(offline), timeout_s=30)
-        replayed = probe.json(topics.LABEL)
+        replayed = probe.labels(topics.LABEL)
         procs.stop(ident2)
     assert len(replayed) == len(offline), f"id_node on the replay said: {procs.log(ident2)[-2000:]}"
     assert_same_labels(replayed, offline)
@@ -195,8 +194,8 @@ def test_two_supports_in_one_domain_do_not_mix(procs):
             truths = probe.json(f"{ns}/{topics.IMPACT_TRUTH}")
             assert len(truths) == count
             assert truths[0]["contact_start_stamp"] == pytest.approx(float(start))
-            labels = probe.json(f"{ns}/{topics.LABEL}")
+            labels = probe.labels(f"{ns}/{topics.LABEL}")
             assert labels, f"no label in {ns}"
             # Every label is of this support's own impacts (the other's are >= 0.2 s away).
             extra = match(truths, labels, match_tolerance_s(load_parameters()["identification"])).extra
-            assert not extra, (ns, [labels[j]["impact_stamp"] for j in extra], [t["contact_start_stamp"] for t in truths])
+            assert not extra, (ns, [labels[j].impact_stamp_s for j in extra], [t["contact_start_stamp"] for t in truths])

@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -203,7 +202,7 @@ def test_without_the_vibration_topic_labels_still_come_from_the_other_signals(tm
     bagio.write_bag(tmp_path / "bag", [r for r in impact_records(COAL) if r[0] != topics.VIBRATION])
     assert read_sensors(tmp_path / "bag").vibration.count == 0
     (label,) = identify_bag(str(tmp_path / "bag"), "statistical")
-    assert label["label"] == "coal" and "vibration" not in label.get("signals", [])
+    assert label.material == "coal" and "vibration" not in label.signals
 
 
 def two_support_bag(path: Path) -> None:
@@ -230,8 +229,8 @@ def test_two_supports_in_one_bag_need_a_namespace_and_then_read_the_right_one(tm
         read_sensors(bag)
     cli = subprocess.run([TAIL_BEAM, "identify", str(bag)], capture_output=True, text=True)
     assert cli.returncode == 2 and "--namespace" in cli.stderr and "Traceback" not in cli.stderr
-    assert [lab["label"] for lab in identify_bag(str(bag), namespace="/support_01")] == ["coal"]
-    assert [lab["label"] for lab in identify_bag(str(bag), namespace="support_07")] == ["gangue"]
+    assert [lab.material for lab in identify_bag(str(bag), namespace="/support_01")] == ["coal"]
+    assert [lab.material for lab in identify_bag(str(bag), namespace="support_07")] == ["gangue"]
     assert read_sensors(bag, namespace="/support_07").namespace == "/support_07"
     with pytest.raises(InputError, match="namespace = '/support_03'"):
         read_sensors(bag, namespace="/support_03")
