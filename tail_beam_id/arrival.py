@@ -39,6 +39,7 @@ from tail_beam_sim.physics.sensors import BlockSequencer, VibrationBlocks
 
 if TYPE_CHECKING:
     from tail_beam_id.identifier import StreamIdentifier
+    from tail_beam_id.label import Label
     from tail_beam_id.online_calibration import OnlineCalibration
 
 CONTINUOUS = ("jack_pressure", "imu", "vibration")
@@ -290,10 +291,10 @@ class GatedIdentifier:
         self._refused_noted = 0  # the total already noted
 
     def tick(self, now_s: float, arrivals: Streams, blocks: VibrationBlocks, rebounds: Sequence[tuple[float, np.ndarray]],
-             end_of_data: bool = False) -> list[dict[str, Any]]:
+             end_of_data: bool = False) -> list[Label]:
         """Admit what arrived (wall clock ``now_s``); the labels of what is now decided (with
         ``end_of_data``, of everything pending)."""
-        labels: list[dict[str, Any]] = []
+        labels: list[Label] = []
         later: Streams = {}  # what belongs to a new time base
         for name, (stamps, values) in arrivals.items():
             cut = self.gate.add(name, stamps, values, now_s) if stamps.size else None
@@ -340,7 +341,7 @@ class GatedIdentifier:
             self._profile = (result.model_params, result.method)
             self.identifier.recalibrate(*self._profile)
 
-    def _restart(self, now_s: float, why: str) -> list[dict[str, Any]]:
+    def _restart(self, now_s: float, why: str) -> list[Label]:
         """Decide everything of the old time base; then a fresh identifier and gate."""
         labels = self._decide(now_s, everything=True)
         self.notes.append(f"time jump: {why}; decided what was pending ({len(labels)} labels), identifying afresh")
@@ -373,7 +374,7 @@ class GatedIdentifier:
             accepted = report.accepted
             self.gate.add("vibration", accepted.sample_stamps_s(), accepted.accel_mps2.astype(float).reshape(-1, 1), now_s)
 
-    def _decide(self, now_s: float, everything: bool) -> list[dict[str, Any]]:
+    def _decide(self, now_s: float, everything: bool) -> list[Label]:
         """Feed the identifier what the gate releases; its labels (all pending with ``everything``)."""
         release = self.gate.release(now_s, everything=everything)
         if self.calibration is not None:

@@ -26,6 +26,7 @@ from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
 
 if TYPE_CHECKING:
     from tail_beam_id.arrival import Release
+    from tail_beam_id.label import Label
     from tail_beam_id.methods import Method
 
 
@@ -124,7 +125,7 @@ class OnlineCalibration:
         from tail_beam_id.methods import build_method
         from tail_beam_id.replay import replay
 
-        def identify(model_params: Mapping[str, Any]) -> list[dict[str, Any]]:
+        def identify(model_params: Mapping[str, Any]) -> list[Label]:
             return replay(StreamIdentifier("statistical", model_params["identification"], model_params), pressure, imu, rebounds)
 
         profile = calibrate(self.params, (pressure.stamp_s, pressure.pressure_pa), (imu.stamp_s, imu.linear_acceleration_mps2[:, 2]), identify)

@@ -202,7 +202,12 @@ class PulseDetector:
     def scan(self, stamp_s: np.ndarray, accel_z: np.ndarray, base_index: int = 0, final: bool = False) -> list[Pulse]:
         """New pulses in the buffered stream (``base_index`` = absolute index of element 0).
 
-        Unless ``final``, only samples whose pulse is fully in the buffer are examined.
+        Every sample is examined as it arrives (the tests are causal: a sample is compared with
+        the samples before it and the noise of an earlier block), except that, unless ``final``,
+        a sample over the threshold whose pulse is not yet fully in the buffer (``max_contact_s``
+        of samples after it) stops the scan there until it is. So :attr:`cursor` is "every
+        sample before this is decided": it stays at the newest sample on a quiet beam instead of
+        ``max_contact_s`` behind it, and the pulses found never depend on the chunking.
         """
         n = accel_z.size
         if n < 8 or (n < PERIOD_SAMPLES and not final):
@@ -221,7 +226,7 @@ class PulseDetector:
             if not final:
                 return []
             block = n - baseline
-        stop = n if final else n - span - 1
+        stop = n
         start = max(self.cursor - base_index, baseline)
         if stop <= start:
             return []
@@ -249,6 +254,9 @@ class PulseDetector:
                 deviation = residual[k - start]
             noise = sigma[k - start]
             if noise > 0.0 and abs(deviation) > self._threshold(float(stamp_s[k]), noise):
+                if not final and k + span + 1 >= n:
+                    self.cursor = base_index + k  # its pulse is not all in yet: look again from here
+                    return pulses
                 pulse = self._grow(stamp_s, accel_z, mask, k, baseline, span, noise, period, base_index)
                 pulses.append(pulse)
                 mask[pulse.first_index - base_index:pulse.last_index - base_index + 1] = True

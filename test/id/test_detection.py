@@ -48,6 +48,31 @@ def test_chunking_does_not_change_what_is_found(params):
     assert len(whole) == 1
 
 
+def test_the_scan_reaches_the_newest_sample_unless_a_pulse_is_still_coming_in(params):
+    """On a quiet beam every sample is decided as it arrives (the cursor is at the newest sample,
+    not max_contact_s behind it); a sample over the threshold whose pulse is not all in holds the
+    cursor there, and the pulse found once it is, in 25.6 kHz accelerometer chunks of 64 samples,
+    is the one found on the whole record."""
+    result = impact(params, material="marble", radius_m=0.06, position_m=0.3, sensors={"imu_rate_hz": 25600.0})
+    t, a = result.imu.stamp_s, result.imu.linear_acceleration_mps2[:, 2]
+    config = DetectionConfig.from_params(params["identification"]["detection"])
+    whole = PulseDetector(config).scan(t, a, 0, final=True)
+    assert len(whole) == 1
+    first = whole[0].first_index
+    live = PulseDetector(config)
+    found, cursors = [], []
+    for end in range(64, t.size + 64, 64):
+        end = min(end, t.size)
+        found += live.scan(t[:end], a[:end], 0, final=False)
+        cursors.append((end, live.cursor))
+    assert [p.onset_s for p in found] == [p.onset_s for p in whole]
+    baseline, block, span = live.geometry(1.0 / 25600.0)
+    quiet = [(end, cursor) for end, cursor in cursors if baseline + block <= end < first]  # after the first noise block
+    assert quiet and all(cursor == end for end, cursor in quiet)
+    waiting = [(end, cursor) for end, cursor in cursors if first < end <= first + span]
+    assert waiting and all(cursor <= first for _, cursor in waiting)  # held at the pulse until it is all in
+
+
 def test_small_impact_is_lost_in_tenfold_noise(params, detector):
     # The smallest, slowest particle near the hinge: about 10 sigma at nominal noise, about
     # 1 sigma at ten times the noise, where no detector can see it in the IMU.
