@@ -42,6 +42,8 @@ from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_an
 from tail_beam_sim.ros.spin import run_node
 
 
+MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
+
 class IdNode(Node):
     """Labels each impact in the sensor streams coal or gangue."""
 
@@ -70,6 +72,7 @@ class IdNode(Node):
         self._unflushed = False
         self.received = {topics.JACK_PRESSURE: 0, topics.IMU: 0, topics.VIBRATION: 0, topics.REBOUND_VELOCITY: 0}
         self.published = 0
+        self.refused_blocks = 0  # vibration messages that carried no block (their index, period or range out of range)
         sensor_qos = ros_messages.stream_qos(depth)
         event_qos = ros_messages.EVENT_QOS
         self._label_pub = self.create_publisher(String, topics.LABEL, event_qos)
@@ -133,7 +136,13 @@ class IdNode(Node):
         """Hand the gated identifier what arrived; publish the labels it decides."""
         now = time.monotonic()
         arrivals = self._arrivals()
-        blocks = ros_messages.vibration_blocks(self._vibration)
+        refused: list[str] = []
+        blocks = ros_messages.vibration_blocks(self._vibration, refused)
+        if refused:
+            self.refused_blocks += len(refused)
+            reasons = list(dict.fromkeys(refused))  # each distinct reason once
+            shown = "; ".join(reasons[:MAX_REASONS]) + (f"; and {len(reasons) - MAX_REASONS} more" if len(reasons) > MAX_REASONS else "")
+            self.get_logger().warning(f"vibration: {len(refused)} message(s) refused: {shown} ({self.refused_blocks} refused in all)")
         rebounds = [ros_messages.rebound_values(m) for m in self._rebounds]
         self._vibration, self._rebounds = [], []
         idle = self._unflushed and now - self._last_arrival_s > self.flush_after_idle_s

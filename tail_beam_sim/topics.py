@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import math
+
+from tail_beam_sim.errors import InputError
+
 IMPACT_CMD = "impact_cmd"
 JACK_PRESSURE = "jack_pressure"
 IMU = "imu"
@@ -52,8 +56,33 @@ def index_words(first_index: int) -> tuple[float, float]:
 
 
 def index_from_words(angle_min: float, angle_max: float) -> int:
-    """The first sample index a vibration block carries in (angle_min, angle_max)."""
+    """The first sample index a vibration block carries in (angle_min, angle_max); InputError
+    naming the field for a word that carries none (a message not from an accelerometer of the
+    contract: NaN, negative, fractional or too large)."""
+    for name, word in (("angle_min", angle_min), ("angle_max", angle_max)):
+        value = float(word)
+        if not (math.isfinite(value) and 0.0 <= value < INDEX_WORD and value == math.floor(value)):
+            raise InputError(f"vibration.{name}", word, "must be a whole number in [0, 2**24): a word of the block's running sample index")
     return int(angle_min) * INDEX_WORD + int(angle_max)
+
+
+MAX_BLOCK_PERIOD_S = 1.0  # the slowest accelerometer a vibration block may come from: 1 Hz, s
+
+
+def block_period_s(time_increment: float) -> float:
+    """A vibration block's sample period (LaserScan time_increment), s; InputError unless in (0, 1] s."""
+    value = float(time_increment)
+    if not (math.isfinite(value) and 0.0 < value <= MAX_BLOCK_PERIOD_S):
+        raise InputError("vibration.time_increment", time_increment, f"must be the sample period, in (0, {MAX_BLOCK_PERIOD_S:g}] s")
+    return value
+
+
+def block_range_mps2(range_max: float) -> float:
+    """A vibration block's measuring range (LaserScan range_max), m/s^2; InputError unless finite and > 0."""
+    value = float(range_max)
+    if not (math.isfinite(value) and value > 0.0):
+        raise InputError("vibration.range_max", range_max, "must be the accelerometer's measuring range, a finite number > 0 m/s^2")
+    return value
 
 
 def stamp_ns(stamp_s: float) -> int:

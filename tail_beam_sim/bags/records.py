@@ -112,10 +112,12 @@ def vibration_msgs(blocks: VibrationBlocks) -> Iterator[BagRecord]:
 
 def vibration_fields(msg: Any) -> tuple[int, float, np.ndarray, float, float]:
     """A decoded (rosbags) vibration message: (first sample index, stamp s, samples m/s^2
-    float32, sample period s, measuring range m/s^2)."""
+    float32, sample period s, measuring range m/s^2); InputError naming the field of a message
+    that carries no block (tail_beam_sim.topics)."""
     stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
     samples = np.asarray(msg.ranges, dtype=np.float32)
-    return topics.index_from_words(msg.angle_min, msg.angle_max), stamp, samples, float(msg.time_increment), float(msg.range_max)
+    return (topics.index_from_words(msg.angle_min, msg.angle_max), stamp, samples, topics.block_period_s(msg.time_increment),
+            topics.block_range_mps2(msg.range_max))
 
 
 def rebound_msg(stamp_s: float, velocity_mps: np.ndarray) -> BagRecord:

@@ -23,6 +23,7 @@ from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import Header, String
 
 from tail_beam_sim import topics
+from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, VibrationBlocks
 
 NO_ORIENTATION = [-1.0] + [0.0] * 8  # REP 145: element 0 = -1, the estimate is not provided
@@ -116,17 +117,34 @@ def vibration_messages(blocks: VibrationBlocks) -> list[LaserScan]:
     return out
 
 
-def vibration_blocks(messages: Sequence[LaserScan]) -> VibrationBlocks:
+def vibration_blocks(messages: Sequence[LaserScan], refused: list[str] | None = None) -> VibrationBlocks:
     """``vibration`` messages back to blocks, in arrival order (samples read through their
-    buffers). The period and range are the first message's."""
-    if not messages:
+    buffers). The period and range are the first message's. A message that carries no block
+    (its index words, period or range out of range: tail_beam_sim.topics), or whose period
+    differs from the first one's, raises InputError naming the field; with ``refused``, it is
+    left out instead and the reason appended there."""
+    kept: list[tuple[LaserScan, int]] = []
+    for m in messages:
+        try:
+            index = topics.index_from_words(m.angle_min, m.angle_max)
+            period = topics.block_period_s(m.time_increment)
+            topics.block_range_mps2(m.range_max)
+            if kept and period != kept[0][0].time_increment:
+                raise InputError("vibration.time_increment", period, f"must be the stream's sample period, {kept[0][0].time_increment:g} s")
+        except InputError as exc:
+            if refused is None:
+                raise
+            refused.append(str(exc))
+            continue
+        kept.append((m, index))
+    if not kept:
         return VibrationBlocks.empty()
-    pieces = [np.frombuffer(m.ranges, dtype=np.float32) for m in messages]
-    first = messages[0]
+    pieces = [np.frombuffer(m.ranges, dtype=np.float32) for m, _ in kept]
+    first = kept[0][0]
     return VibrationBlocks(
-        first_index=np.array([topics.index_from_words(m.angle_min, m.angle_max) for m in messages], dtype=np.int64),
+        first_index=np.array([index for _, index in kept], dtype=np.int64),
         lengths=np.array([p.size for p in pieces], dtype=np.int64),
-        stamp_s=np.array([stamp_s(m.header.stamp) for m in messages]),
+        stamp_s=np.array([stamp_s(m.header.stamp) for m, _ in kept]),
         accel_mps2=np.concatenate(pieces),
         period_s=float(first.time_increment),
         range_mps2=float(first.range_max),

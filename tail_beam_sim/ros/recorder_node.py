@@ -73,6 +73,7 @@ class RecorderNode(Node):
         self.bag_path = self.writer.path
         self.vibration = IndexSpan()
         self.lost_events = 0
+        self.refused_blocks = 0  # vibration messages without a readable block index (recorded, not counted)
         qos = ros_messages.stream_qos(depth)
         events = SubscriptionEventCallbacks(message_lost=self._on_lost)
         for topic, msgtype in topics.MSG_TYPES.items():
@@ -92,7 +93,15 @@ class RecorderNode(Node):
         self.writer.write(self.names[topic], self.get_clock().now().nanoseconds, data)
         if topic == topics.VIBRATION:
             msg = deserialize_message(data, LaserScan)
-            self.vibration.add(topics.index_from_words(msg.angle_min, msg.angle_max), len(msg.ranges))
+            try:
+                index = topics.index_from_words(msg.angle_min, msg.angle_max)
+            except InputError as exc:  # recorded as it came; `tail-beam identify` will name it too
+                self.refused_blocks += 1
+                if self.refused_blocks == 1 or self.refused_blocks % 1000 == 0:
+                    self.get_logger().warning(f"vibration: a message without a block index, recorded but not counted: {exc} "
+                                              f"({self.refused_blocks} so far)")
+                return
+            self.vibration.add(index, len(msg.ranges))
 
     def _on_lost(self, info: QoSMessageLostInfo) -> None:
         self.lost_events += info.total_count_change

@@ -297,3 +297,50 @@ def test_id_node_reports_a_dropped_block_and_refuses_a_late_one():
         pub.publish(msgs[2])
         assert spin_until(executor, lambda: ident.vibration_late_blocks == 1)
         assert ident.received[topics.VIBRATION] == 4 and ident.vibration_lost_samples == 128
+
+
+@pytest.mark.ros
+def test_vibration_messages_that_carry_no_block_are_refused_by_name_and_nothing_stops(tmp_path):
+    """A client publishes vibration messages whose index words, period or range are no block's
+    (NaN, negative, fractional, zero period, zero range) between good ones: id_node refuses each
+    with a line naming the field and keeps identifying the good blocks (the refused one's samples
+    are a gap); the recorder records them all and goes on; reading that bag is refused as a whole,
+    naming the field, not half-read."""
+    from rcl_interfaces.msg import Log
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import LaserScan
+
+    from rosprobe import RELIABLE, Probe, ros_context, spin_for, spin_until
+    from tail_beam_id.id_node import IdNode
+    from tail_beam_sim.ros import messages as ros_messages
+    from tail_beam_sim.ros.recorder_node import RecorderNode
+
+    spoilers = [("angle_min", math.nan), ("angle_max", -1.0), ("angle_max", 3.5), ("time_increment", 0.0), ("range_max", 0.0)]
+    good = ros_messages.vibration_messages(blocks_of([k * 128 for k in range(len(spoilers) + 2)], n=128, rate_hz=25600.0))
+    bad = []
+    for (field, value), msg in zip(spoilers, good[1:-1]):
+        setattr(msg, field, value)
+        bad.append(msg)
+    with ros_context() as (context, executor):
+        ident = IdNode(context=context, namespace="/feed", parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)])
+        recorder = RecorderNode(context=context, namespace="/feed", parameter_overrides=[Parameter("recorder.bag_path", value=str(tmp_path / "bag"))])
+        feeder = Probe(context, {"/rosout": Log}, namespace="/feed", name="feeder")
+        pub = feeder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
+        for node in (ident, recorder, feeder):
+            executor.add_node(node)
+        assert spin_until(executor, lambda: pub.get_subscription_count() >= 2)
+        for msg in good:
+            pub.publish(msg)
+        assert spin_until(executor, lambda: ident.refused_blocks == len(spoilers) and recorder.refused_blocks == 3)
+        spin_for(executor, 0.3)
+        log = " | ".join(x.msg for x in feeder.messages["/rosout"])
+        recorder.close()
+    assert ident.received[topics.VIBRATION] == len(good)
+    assert ident.vibration_lost_samples == len(spoilers) * 128  # the refused blocks' samples are a gap
+    for field, _ in spoilers:
+        assert f"vibration.{field} = " in log, log
+    assert f"({len(spoilers)} refused in all)" in log and "recorded but not counted" in log
+    with pytest.raises(InputError, match=r"vibration\.angle_min = nan"):
+        read_sensors(tmp_path / "bag", required=(topics.VIBRATION,))
+    info = subprocess.run([TAIL_BEAM, "bag", "info", str(tmp_path / "bag")], capture_output=True, text=True)
+    assert info.returncode == 2 and "vibration.angle_min = nan" in info.stderr and "Traceback" not in info.stderr, info.stderr
