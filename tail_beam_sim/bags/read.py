@@ -236,8 +236,11 @@ def _stamp(msg: Any) -> float:
 
 
 def _json(text: str) -> dict[str, Any]:
-    """A JSON topic's object; a text that is not JSON is kept under ``_unparsed``."""
+    """A JSON topic's object; a text that is no JSON object (not JSON, nested too deep to read,
+    or JSON but a list, number or string) is kept under ``_unparsed``: impact_cmd may hold a
+    rejected command, and a foreign publisher may have written anything on label."""
     try:
-        return json.loads(text)
-    except json.JSONDecodeError:
-        return {"_unparsed": text}  # impact_cmd may hold a rejected command: kept, not fatal
+        value = json.loads(text)
+    except (json.JSONDecodeError, RecursionError):
+        return {"_unparsed": text}
+    return value if isinstance(value, dict) else {"_unparsed": text}

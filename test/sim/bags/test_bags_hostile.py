@@ -11,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from rosbags.rosbag2 import Writer
 
@@ -300,3 +301,24 @@ def test_the_training_cache_round_trips_as_json(tmp_path):
     save_cache(tmp_path / "cache.json", [record], [])
     assert load_cache(tmp_path / "cache.json") == ([record], [])
     assert (tmp_path / "cache.json").read_text().startswith("{")
+
+
+def test_json_topics_holding_anything_read_as_unparsed_and_identify_goes_on(tmp_path):
+    """Text on impact_cmd, label and impact_truth that is no JSON object (not JSON, a list, a
+    number, nested 100 000 deep) reads back under _unparsed; `tail-beam identify` still labels the
+    bag's sensor data, exit 0 and no traceback."""
+    from tail_beam_sim.bags import records as bagio
+    from tail_beam_sim.bags.read import read_sensors
+
+    texts = ["not json", "[1, 2]", "42", "[" * 100_000, '{"label": "coal"}']
+    strings = [(topic, 1_000_000 * (k + 1), bytes(TYPESTORE.serialize_cdr(bagio.string_msg(text), "std_msgs/msg/String")))
+               for k, text in enumerate(texts) for topic in (topics.IMPACT_CMD, topics.LABEL, topics.IMPACT_TRUTH)]
+    topic, ns, msg = bagio.rebound_msg(0.2, np.array([0.0, 0.0, 1.0]))
+    rebound = [(topic, ns, bytes(TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic])))]
+    write_segments(tmp_path / "bag", [records(2000) + strings + rebound])
+    data = read_sensors(tmp_path / "bag")
+    for name in (topics.IMPACT_CMD, topics.LABEL, topics.IMPACT_TRUTH):
+        assert [item.get("_unparsed", item) for item in data.json_topics[name]][:4] == texts[:4]
+        assert data.json_topics[name][4] == {"label": "coal"}
+    result = run("tail-beam", "identify", str(tmp_path / "bag"), "--no-calibrate")
+    assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr
