@@ -103,7 +103,7 @@ class SendClient(Node):
     def _on_truth(self, msg: String) -> None:
         try:
             truth = json.loads(msg.data)
-        except ValueError:
+        except (ValueError, RecursionError):
             return  # not the suite's JSON: another participant's message, not a truth of ours
         if isinstance(truth, dict):
             self.truths.append(truth)

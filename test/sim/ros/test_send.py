@@ -133,3 +133,28 @@ def test_no_simulator_times_out_with_one_line():
     assert "/listener subscribes to it but publishes no impact_truth" in err
     # The wait is the timeout; the rest is starting Python and rclpy (about 1.5 s here, 3 s loaded).
     assert 3.0 <= elapsed < 3.0 + 8.0
+
+
+def test_a_foreign_publisher_on_impact_truth_is_ignored_whatever_it_sends():
+    """While `send --wait-truth` waits, another participant publishes on impact_truth text that
+    is no truth (not JSON, a list, nested 100 000 deep): send ignores it and prints only its own
+    impact's truth, exit 0, no traceback."""
+    junk = ["not json", "[1, 2]", "[" * 100_000]
+    with ros_context() as (context, executor):
+        sim = sim_node(context, "/support_07")
+        other = Probe(context, {}, namespace="/support_07", name="foreign_truths")
+        pub = other.create_publisher(String, topics.IMPACT_TRUTH, 10)
+        sent = []
+
+        def publish_junk() -> None:
+            pub.publish(String(data=junk[len(sent) % len(junk)]))
+            sent.append(1)
+
+        other.create_timer(0.05, publish_junk)
+        executor.add_node(sim)
+        executor.add_node(other)
+        code, out, err, _ = send(executor, "--material", "coal", "--radius-m", "0.05", "--drop-height-m", "1.5",
+                                 "--position-m", "1.0", "--impact-id", "mine", "--namespace", "support_07", "--wait-truth")
+    assert code == 0 and "Traceback" not in err, err
+    assert len(sent) >= len(junk)
+    assert [json.loads(line)["impact_id"] for line in out.splitlines()] == ["mine"]
