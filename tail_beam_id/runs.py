@@ -148,7 +148,7 @@ def _foreign_records(params: Mapping[str, Any], recorded: SupportStream, number:
     section = dict(params["identification"])
     tolerance_s = match_tolerance_s(section)
 
-    def identify(model_params: Mapping[str, Any], method: str) -> tuple[list[dict[str, Any]], float]:
+    def identify(model_params: Mapping[str, Any], method: str) -> tuple[list[Label], float]:
         identifier = StreamIdentifier(method, section, model_params)
         started = time.perf_counter()
         labels = replay(identifier, recorded.pressure, recorded.imu, recorded.rebounds, vibration=recorded.vibration)
