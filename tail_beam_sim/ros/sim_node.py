@@ -5,9 +5,7 @@ Takes impacts on ``impact_cmd`` (and a start-up scenario), publishes ``jack_pres
 ``/clock`` on request. A timer advances simulation time by the wall-clock time elapsed times
 ``realtime_factor`` (0: as fast as possible), at most ``max_chunk_s`` per tick: a short stall
 is caught up; when it falls more than ``max_lag_s`` behind it runs slower than real time from
-there on. It never skips a sample. With ``release_period_s`` (real time only) it computes one
-tick ahead and sends each message when simulation time reaches its last sample, as a sensor
-would (:mod:`tail_beam_sim.ros.release`), instead of a tick's messages all at once.
+there on. It never skips a sample.
 
 Every ``impact_cmd`` is either queued (and simulated) or refused with one log line naming the
 field and the allowed range, and a running count (:class:`CommandCounts`); the subscription
@@ -38,7 +36,6 @@ from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.errors import InputError, require_range, shorten
 from tail_beam_sim.ros.params import config_defaults, declare_and_read
-from tail_beam_sim.ros.release import StampedRelease
 from tail_beam_sim.ros.spin import ACK_TIMEOUT_S, PublishBacklog, SubscriberGate, drain, run_node
 from tail_beam_sim.physics.command import parse_command
 from tail_beam_sim.physics.scenario import PlannedImpact, load_scenario
@@ -95,7 +92,6 @@ class SimNode(Node):
         node = params["sim_node"]
         self.realtime_factor = require_range("sim_node.realtime_factor", node.get("realtime_factor"), 0.0, 1e6)
         period = require_range("sim_node.publish_period_s", node.get("publish_period_s"), 0.0, 10.0, low_open=True, unit="s")
-        release = require_range("sim_node.release_period_s", node.get("release_period_s", 0.0), 0.0, period, unit="s (0: a tick's messages at once)")
         self.max_chunk_s = require_range("sim_node.max_chunk_s", node.get("max_chunk_s"), 0.0, 10.0, low_open=True, unit="s")
         self.max_lag_s = require_range("sim_node.max_lag_s", node.get("max_lag_s"), 0.0, 3600.0, unit="s")
         idle = node.get("exit_after_idle_s")
@@ -128,12 +124,7 @@ class SimNode(Node):
         self._last_activity_s = 0.0
         self._started = False  # simulation time held at 0 until the subscribers are there
         self._backlog = PublishBacklog(self)  # messages a full writer has not taken yet, in order
-        # Real time with a release period: computed a tick ahead, each message sent when its last sample is due.
-        self._release = StampedRelease() if release > 0.0 and self.realtime_factor > 0.0 else None
-        self._lookahead_s = period * self.realtime_factor if self._release is not None else 0.0
         self.create_timer(0.0 if self.realtime_factor == 0.0 else period, self._tick)
-        if self._release is not None:
-            self.create_timer(release, self._release_due)
         self.add_on_set_parameters_callback(self._on_set_parameters)  # after declaring: start-up values pass
         self.get_logger().info(
             f"simulating at realtime_factor {self.realtime_factor:g}: pressure {self.stream.sensors.pressure_rate_hz:g} Hz, "
@@ -200,31 +191,17 @@ class SimNode(Node):
                 self.get_logger().error(f"scenario impact not simulated: solver failed: {exc}")
 
     def _target_time_s(self, now_s: float) -> float:
-        """Simulation time to reach this tick (plus the release look-ahead), s."""
+        """Simulation time to reach this tick, s."""
         current = self.stream.time_s
         if self.realtime_factor == 0.0:
             return current + self.max_chunk_s
         if self._anchor is None:
             self._anchor = (now_s, current)
-        target = self._now_sim_s(now_s) + self._lookahead_s
+        wall0, sim0 = self._anchor
+        target = sim0 + (now_s - wall0) * self.realtime_factor
         if target > current + self.max_lag_s:  # too far behind to catch up: slower than real time from here
             self._anchor = (now_s, current)
         return min(target, current + self.max_chunk_s)  # a short stall is caught up, a chunk at a time
-
-    def _now_sim_s(self, now_s: float) -> float:
-        """The simulation time that wall-clock ``now_s`` stands for, s (before the first tick: 0)."""
-        if self._anchor is None:
-            return 0.0
-        wall0, sim0 = self._anchor
-        return sim0 + (now_s - wall0) * self.realtime_factor
-
-    def _release_due(self) -> None:
-        """Send the computed messages whose last sample simulation time has reached."""
-        if self._release is None or not self._release or not self.context.ok():
-            return
-        for publisher, msg in self._release.due(self._now_sim_s(time.monotonic())):
-            self._backlog.publish(publisher, msg)
-        self._backlog.flush()
 
     def _tick(self) -> None:
         if not self._started:
@@ -245,9 +222,6 @@ class SimNode(Node):
     def close(self) -> None:
         """Before exiting: say what became of the commands; let the subscribers have every message published."""
         self.get_logger().info(f"impact_cmd: {self.commands}; {len(self._planned)} scenario impact(s) not started")
-        if self._release is not None:  # computed ahead and not yet due: sent now, nothing is lost
-            for publisher, msg in self._release.drain():
-                self._backlog.publish(publisher, msg)
         deadline = time.monotonic() + ACK_TIMEOUT_S
         while self.context.ok() and not self._backlog.flush() and time.monotonic() < deadline:
             time.sleep(0.01)
@@ -261,27 +235,22 @@ class SimNode(Node):
                 f"impact {scheduled.impact_id}: {scheduled.impact.material.name} R {scheduled.impact.radius_m * 1e3:.0f} mm "
                 f"at {scheduled.contact_stamp_s:.4f} s"
             )
-        # The streams in one stamp order, so that a consumer never sees one run ahead of the
-        # others: sent at once, a vibration block at its first sample's stamp; released as a
-        # sensor sends, every message at its last sample's stamp (a block once it is complete).
-        blocks = chunk.vibration
+        # The streams in one stamp order (a vibration block at its first sample's stamp), so that
+        # a consumer never sees one run ahead of the others.
         outgoing = [(self._pressure_pub, m) for m in ros_messages.pressure_messages(chunk.pressure)]
         outgoing += [(self._imu_pub, m) for m in ros_messages.imu_messages(chunk.imu)]
-        outgoing += [(self._vibration_pub, m) for m in ros_messages.vibration_messages(blocks)]
-        block_stamps = blocks.stamp_s + ((blocks.lengths - 1) * blocks.period_s if self._release is not None else 0.0)
-        stamps = np.concatenate([chunk.pressure.stamp_s, chunk.imu.stamp_s, block_stamps])
-        ordered = [(float(stamps[i]), outgoing[i]) for i in np.argsort(stamps, kind="stable")]
-        events = [(rebound.stamp_s, (self._rebound_pub, ros_messages.rebound_message(rebound))) for _, rebound in chunk.rebounds]
-        events += [(stamp, (self._truth_pub, ros_messages.string_message(truth))) for stamp, truth in chunk.truths]
+        outgoing += [(self._vibration_pub, m) for m in ros_messages.vibration_messages(chunk.vibration)]
+        stamps = np.concatenate([chunk.pressure.stamp_s, chunk.imu.stamp_s, chunk.vibration.stamp_s])
+        backlog = self._backlog
+        for index in np.argsort(stamps, kind="stable"):
+            backlog.publish(*outgoing[index])
+        for _, rebound in chunk.rebounds:
+            backlog.publish(self._rebound_pub, ros_messages.rebound_message(rebound))
+        for _, truth in chunk.truths:
+            backlog.publish(self._truth_pub, ros_messages.string_message(truth))
         if self._clock_pub is not None and math.isfinite(chunk.end_s):
-            events.append((chunk.end_s, (self._clock_pub, ros_messages.clock_message(chunk.end_s))))
-        if self._release is not None:
-            self._release.add(sorted(ordered + events, key=lambda item: item[0]))  # stable: streams before events
-            self._release_due()
-            return
-        for _, (publisher, msg) in ordered + events:
-            self._backlog.publish(publisher, msg)
-        self._backlog.flush()
+            backlog.publish(self._clock_pub, ros_messages.clock_message(chunk.end_s))
+        backlog.flush()
 
 
 def main(args: list[str] | None = None) -> int:
