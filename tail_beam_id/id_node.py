@@ -44,6 +44,7 @@ from tail_beam_sim.ros.spin import run_node
 
 MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
 
+
 class IdNode(Node):
     """Labels each impact in the sensor streams coal or gangue."""
 
