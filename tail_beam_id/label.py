@@ -121,14 +121,26 @@ class Label:
 
     @classmethod
     def from_json(cls, text: str | bytes, where: str = "label") -> Label:
-        """Read a ``label`` message's JSON text (as :meth:`from_dict`)."""
+        """Read a ``label`` message's JSON text (as :meth:`from_dict`); strict JSON: NaN and
+        Infinity, which Python's json would take, are refused (the label could not be written
+        back)."""
         try:
-            obj = json.loads(text)
+            obj = json.loads(text, parse_constant=_refuse_constant)
+        except _NotStrictJson as exc:
+            raise InputError(where, text, f"must be strict JSON ({exc} is not strict JSON)") from None
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise InputError(where, text, f"must be a JSON object ({exc})") from None
         except RecursionError:
             raise InputError(where, text, "must be a JSON object (nested too deep to read)") from None
         return cls.from_dict(obj, where)
+
+
+class _NotStrictJson(ValueError):
+    """A NaN or Infinity in a label's text."""
+
+
+def _refuse_constant(name: str) -> None:
+    raise _NotStrictJson(name)
 
 
 def _number(value: object, name: str) -> float:

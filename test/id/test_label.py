@@ -118,7 +118,8 @@ def test_another_identifiers_label_with_the_contract_fields_only_is_read_and_its
     ('{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "signals": "imu"}', "label.signals"),
     ('{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "features": {"x": "big"}}', "label.features.x"),
     ('{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "overlap": 1}', "label.overlap"),
-    ('{"impact_stamp": NaN, "label": "coal", "confidence": 0.9, "method": "m"}', "label.impact_stamp"),
+    ('{"impact_stamp": NaN, "label": "coal", "confidence": 0.9, "method": "m"}', "label"),
+    ('{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "score": Infinity}', "label"),
     ('{"impact_stamp": 1.0, ', "label"),
     ('[' * 100000, "label"),
 ])
@@ -128,3 +129,5 @@ def test_a_label_that_is_not_one_is_refused_naming_the_field(text, field):
     with pytest.raises(InputError) as error:
         Label.from_json(text)
     assert str(error.value).startswith(f"{field} = ")
+    if "NaN" in text or "Infinity" in text:
+        assert "not strict JSON" in str(error.value)
