@@ -31,6 +31,12 @@ MATCH_TOLERANCE_MAX_S = 0.1  # above this a label could reach a neighbouring imp
 
 
 MATERIALS = ("coal", "gangue")  # the values of a label's "label" field
+# The label JSON keys this module reads and writes (docs/interface.md); any other key of a label
+# is another identifier's, kept in Label.extra.
+JSON_KEYS = frozenset({
+    LABEL_STAMP, "label", "confidence", "method", "latency_ms", "data_latency_ms", "signals", "overlap", "calibrated",
+    "features", "non_finite_features", "saturated", "imu_mount", "outside_training",
+})
 
 
 @dataclass(frozen=True)
@@ -100,9 +106,8 @@ class Label:
             raise InputError(f"{where}.label", material, f"must be one of {', '.join(MATERIALS)}")
         if not isinstance(obj["method"], str):
             raise InputError(f"{where}.method", obj["method"], "must be a string")
-        known = {f for f in cls.__dataclass_fields__} | {LABEL_STAMP, "label"}
         return cls(
-            impact_stamp_s=require_finite(f"{where}.{LABEL_STAMP}", obj[LABEL_STAMP], allow_text=False),
+            impact_stamp_s=_number(obj[LABEL_STAMP], f"{where}.{LABEL_STAMP}"),
             material=material,
             confidence=require_range(f"{where}.confidence", _number(obj["confidence"], f"{where}.confidence"), 0.0, 1.0),
             method=obj["method"],
@@ -116,7 +121,7 @@ class Label:
             saturated=_strings(obj, "saturated", where),
             imu_mount=_imu_mount(obj, where),
             outside_training=_strings(obj, "outside_training", where),
-            extra={k: v for k, v in obj.items() if k not in known},
+            extra={k: v for k, v in obj.items() if k not in JSON_KEYS},
         )
 
     @classmethod

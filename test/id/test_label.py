@@ -102,16 +102,20 @@ def test_a_label_reads_back_from_its_json_as_it_was():
 def test_another_identifiers_label_with_the_contract_fields_only_is_read_and_its_own_keys_kept():
     """docs/interface.md requires impact_stamp, label, confidence and method; the suite's fields
     default, and a key the suite does not know survives a round trip untouched."""
-    label = Label.from_json('{"impact_stamp": 1.5, "label": "coal", "confidence": 0.8, "method": "cnn", "model_version": "v3"}')
+    label = Label.from_json('{"impact_stamp": 1.5, "label": "coal", "confidence": 0.8, "method": "cnn", "model_version": "v3", '
+                            '"material": "sandstone", "extra": 1}')
     assert (label.impact_stamp_s, label.material, label.signals, label.latency_ms) == (1.5, "coal", (), None)
+    # Keys named like the dataclass's own fields (material, extra) are the other identifier's too.
     assert label.as_dict() == {"impact_stamp": 1.5, "label": "coal", "confidence": 0.8, "method": "cnn", "signals": [],
-                               "overlap": False, "calibrated": False, "features": {}, "model_version": "v3"}
+                               "overlap": False, "calibrated": False, "features": {}, "model_version": "v3",
+                               "material": "sandstone", "extra": 1}
 
 
 @pytest.mark.parametrize(("text", "field"), [
     ('[1, 2]', "label"),
     ('{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9}', "label.method"),
     ('{"impact_stamp": "1.0", "label": "coal", "confidence": 0.9, "method": "m"}', "label.impact_stamp"),
+    ('{"impact_stamp": true, "label": "coal", "confidence": 0.9, "method": "m"}', "label.impact_stamp"),
     ('{"impact_stamp": 1.0, "label": "sandstone", "confidence": 0.9, "method": "m"}', "label.label"),
     ('{"impact_stamp": 1.0, "label": "coal", "confidence": 1.5, "method": "m"}', "label.confidence"),
     ('{"impact_stamp": 1.0, "label": "coal", "confidence": true, "method": "m"}', "label.confidence"),
