@@ -85,6 +85,13 @@ def block_range_mps2(range_max: float) -> float:
     return value
 
 
+def block_header(angle_min: float, angle_max: float, time_increment: float, range_max: float) -> tuple[int, float, float]:
+    """A vibration message's (first sample index, sample period s, measuring range m/s^2), each
+    checked as :func:`index_from_words`, :func:`block_period_s` and :func:`block_range_mps2` do:
+    the one reading of a block's header, for the topic and for bags."""
+    return index_from_words(angle_min, angle_max), block_period_s(time_increment), block_range_mps2(range_max)
+
+
 def stamp_ns(stamp_s: float) -> int:
     """Seconds of simulation time as integer nanoseconds (rounded, never negative)."""
     return max(0, int(round(stamp_s * 1e9)))

@@ -217,9 +217,14 @@ def read_sensors(path: str | os.PathLike[str], required: Iterable[str] = SENSOR_
 
 
 def _vibration_blocks(decoded: list[tuple[int, float, np.ndarray, float, float]]) -> VibrationBlocks:
-    """Decoded vibration messages as blocks in index order (each index once)."""
+    """Decoded vibration messages as blocks in index order (each index once); InputError when
+    they disagree on the sample period (two accelerometers on one topic, or a foreign message):
+    one period for all would misplace the others' samples in time."""
     if not decoded:
         return VibrationBlocks.empty()
+    periods = sorted({d[3] for d in decoded})
+    if len(periods) > 1:
+        raise InputError("vibration.time_increment", periods[:3], f"must be one sample period for the whole bag (first: {decoded[0][3]:g} s)")
     blocks = VibrationBlocks(
         first_index=np.array([d[0] for d in decoded], dtype=np.int64),
         lengths=np.array([d[2].size for d in decoded], dtype=np.int64),

@@ -116,8 +116,8 @@ def vibration_fields(msg: Any) -> tuple[int, float, np.ndarray, float, float]:
     that carries no block (tail_beam_sim.topics)."""
     stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
     samples = np.asarray(msg.ranges, dtype=np.float32)
-    return (topics.index_from_words(msg.angle_min, msg.angle_max), stamp, samples, topics.block_period_s(msg.time_increment),
-            topics.block_range_mps2(msg.range_max))
+    index, period, range_mps2 = topics.block_header(msg.angle_min, msg.angle_max, msg.time_increment, msg.range_max)
+    return index, stamp, samples, period, range_mps2
 
 
 def rebound_msg(stamp_s: float, velocity_mps: np.ndarray) -> BagRecord:

@@ -4,6 +4,7 @@ per support, and sim_node/id_node over the real middleware."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import subprocess
 import sys
@@ -193,6 +194,21 @@ def test_a_bag_with_a_dropped_and_a_late_block_reads_back_in_order_with_the_gap(
     assert np.all(np.diff(data.vibration.first_index) > 0) and 5 * 128 in data.vibration.first_index
     info = subprocess.run([TAIL_BEAM, "bag", "info", str(tmp_path / "bag")], capture_output=True, text=True, check=True).stdout
     assert "/vibration" in info and "128 samples lost" in info and "at 25600 Hz" in info
+
+
+def test_a_bag_whose_blocks_disagree_on_the_sample_period_is_refused_naming_it(tmp_path):
+    """One vibration message claiming another (valid) sample period among 25.6 kHz blocks: read
+    with the first period its samples would sit at the wrong times, so the bag is refused whole,
+    naming vibration.time_increment, and `tail-beam identify` says so in one line."""
+    records = impact_records(COAL)
+    index = next(i for i, r in enumerate(records) if r[0] == topics.VIBRATION) + 2
+    topic, log_ns, msg = records[index]
+    records[index] = (topic, log_ns, dataclasses.replace(msg, time_increment=1.0 / 12800.0))
+    bagio.write_bag(tmp_path / "bag", records)
+    with pytest.raises(InputError, match=r"vibration\.time_increment = .*one sample period for the whole bag"):
+        read_sensors(tmp_path / "bag")
+    cli = subprocess.run([TAIL_BEAM, "identify", str(tmp_path / "bag")], capture_output=True, text=True)
+    assert cli.returncode == 2 and "vibration.time_increment" in cli.stderr and "Traceback" not in cli.stderr, cli.stderr
 
 
 def test_without_the_vibration_topic_labels_still_come_from_the_other_signals(tmp_path):
