@@ -266,10 +266,12 @@ class GatedIdentifier:
     """A :class:`StreamIdentifier` behind an :class:`ArrivalGate`, across time jumps: what
     ``id_node`` runs each tick, free of ROS so that tests drive it the same way.
 
-    Each :meth:`tick` takes what arrived since the last one: the pressure (values (T, 1), Pa) and
-    IMU (values (T, 6): angular velocity rad/s then specific force m/s^2) samples as arrays in
-    arrival order, the vibration blocks as received, the rebounds; it returns the labels now
-    decided. What the node should log (gaps, refusals, time jumps) collects in ``notes``.
+    Each :meth:`tick` takes what arrived since the last one: the pressure (values (T, 1), Pa)
+    and IMU (values (T, 6): angular velocity rad/s then specific force m/s^2) samples as arrays
+    in arrival order, the vibration blocks as received, the rebounds; it returns the labels now
+    decided. A caller that knows when each message arrived gives them to :meth:`admit` in
+    batches of arrival time, then calls :meth:`decide`, so that each is held ``reorder_s`` from
+    its own arrival, not from the tick that took it. What the node should log (gaps, refusals, time jumps) collects in ``notes``.
     """
 
     def __init__(self, new_identifier: Callable[[Any], StreamIdentifier], config: GateConfig,
@@ -292,8 +294,17 @@ class GatedIdentifier:
 
     def tick(self, now_s: float, arrivals: Streams, blocks: VibrationBlocks, rebounds: Sequence[tuple[float, np.ndarray]],
              end_of_data: bool = False) -> list[Label]:
-        """Admit what arrived (wall clock ``now_s``); the labels of what is now decided (with
-        ``end_of_data``, of everything pending)."""
+        """Admit what arrived (all of it at wall clock ``now_s``); the labels of what is now
+        decided (with ``end_of_data``, of everything pending): :meth:`admit` then :meth:`decide`."""
+        labels = self.admit(now_s, arrivals, blocks, rebounds)
+        return labels + self.decide(now_s, end_of_data)
+
+    def admit(self, arrived_s: float, arrivals: Streams, blocks: VibrationBlocks,
+              rebounds: Sequence[tuple[float, np.ndarray]]) -> list[Label]:
+        """Admit what arrived, the newest of it at wall clock ``arrived_s`` (its hold of
+        ``reorder_s`` counts from then). Returns the labels decided by a time jump it found (what
+        was pending in the old time base), else none: :meth:`decide` gives the rest."""
+        now_s = arrived_s
         labels: list[Label] = []
         later: Streams = {}  # what belongs to a new time base
         for name, (stamps, values) in arrivals.items():
@@ -325,9 +336,19 @@ class GatedIdentifier:
             for name, (stamps, values) in aside.items():
                 self.gate.add(name, stamps, values, now_s)
         self._note_counts()
-        labels += self._decide(now_s, everything=end_of_data)
+        return labels
+
+    def decide(self, now_s: float, end_of_data: bool = False) -> list[Label]:
+        """Release what has been held ``reorder_s`` by wall clock ``now_s`` to the identifier; the
+        labels it now decides (with ``end_of_data``, of everything pending)."""
+        labels = self._decide(now_s, everything=end_of_data)
         self._calibrate()
         return labels
+
+    def next_horizon_s(self) -> float:
+        """Stamp every stream must pass before the next pending impact can be decided, s (inf:
+        none pending): :meth:`StreamIdentifier.next_horizon_s`."""
+        return self.identifier.next_horizon_s()
 
     def _calibrate(self) -> None:
         """Advance the online calibration; once it found a profile, decide with it."""

@@ -13,6 +13,11 @@ starts afresh; a lone message stamped far ahead is set aside and counted, never 
 streams. Spun by ``rclpy.experimental.EventsExecutor``, which keeps up with thousands of
 messages per second where the default executor loses some.
 
+Each message is held ``reorder_s`` from its own arrival (wall clock), not from the tick that
+takes it. Besides the periodic tick, a one-shot wake runs a tick ``reorder_s`` after the data
+the next pending impact waits for (its onset plus its data window, on every stream) has
+arrived, so that a label does not wait for the next period.
+
 The ``vibration`` blocks are decoded with numpy and kept in running-index order by a
 :class:`tail_beam_sim.physics.sensors.BlockSequencer`: a jump in the index is a lost block,
 logged with the count of samples missing; a block that comes after a later one was handed on
@@ -21,6 +26,8 @@ is refused and counted (``vibration_lost_samples``, ``vibration_late_blocks``).
 
 from __future__ import annotations
 
+import bisect
+import math
 import sys
 import time
 
@@ -43,6 +50,27 @@ from tail_beam_sim.ros.spin import run_node
 
 
 MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
+WAKE_MARGIN_S = 2e-4  # the wake runs this long after the hold has passed, s (a timer may fire a little early)
+
+
+class Inbox:
+    """The messages of one topic since the last tick, each with its wall-clock arrival time (s)."""
+
+    def __init__(self) -> None:
+        self.messages: list = []
+        self.arrived_s: list[float] = []
+
+    def put(self, message: object, now_s: float) -> None:
+        self.messages.append(message)
+        self.arrived_s.append(now_s)
+
+    def take(self, cutoff_s: float) -> tuple[tuple[list, float], tuple[list, float]]:
+        """Empty the inbox: (messages arrived by ``cutoff_s``, the newest one's arrival s), then
+        (the later ones, the newest one's arrival s); -inf for an empty part."""
+        k = bisect.bisect_right(self.arrived_s, cutoff_s)
+        times, messages = self.arrived_s, self.messages
+        self.messages, self.arrived_s = [], []
+        return (messages[:k], times[k - 1] if k else -math.inf), (messages[k:], times[-1] if k < len(times) else -math.inf)
 
 
 class IdNode(Node):
@@ -65,10 +93,10 @@ class IdNode(Node):
         if learn_s > 0.0:
             calibration = OnlineCalibration(params, learn_s, method or params["identification"]["method"])
         self.gated = GatedIdentifier(new_identifier, GateConfig.from_params(node), calibration)
-        self._pressure: list[FluidPressure] = []
-        self._imu: list[Imu] = []
-        self._rebounds: list[TwistStamped] = []
-        self._vibration: list[LaserScan] = []
+        self._inbox = {topic: Inbox() for topic in (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION, topics.REBOUND_VELOCITY)}
+        self._newest_stamp_s: dict[str, float] = {}  # continuous topic -> newest stamp arrived (the wake's test), s
+        self._due_s = math.inf  # stamp the next pending impact waits for (identifier.next_horizon_s), s
+        self._woken_for_s = math.nan  # the due stamp the last wake was for (one wake each)
         self._last_arrival_s = time.monotonic()
         self._unflushed = False
         self.received = {topics.JACK_PRESSURE: 0, topics.IMU: 0, topics.VIBRATION: 0, topics.REBOUND_VELOCITY: 0}
@@ -82,32 +110,56 @@ class IdNode(Node):
         self.create_subscription(LaserScan, topics.VIBRATION, self._on_vibration, sensor_qos)
         self.create_subscription(TwistStamped, topics.REBOUND_VELOCITY, self._on_rebound, event_qos)
         self.create_timer(period, self._tick)
+        self._wake = self.create_timer(self.gated.gate.config.reorder_s + WAKE_MARGIN_S, self._on_wake)
+        self._wake.cancel()
         refuse_runtime_changes(self, ALL_PARAMETERS, "id_node reads its parameters at start-up only (restart it to change them)")
         self.get_logger().info(f"identifying with method {self.identifier.method.name}")
         if calibration is not None:
             self.get_logger().info(f"calibration: learning the support from the first {learn_s:g} s of data "
                                    "(labels say calibrated: false until then)")
 
-    def _arrived(self, topic: str) -> None:
+    def _arrived(self, topic: str, message: object, last_stamp_s: float | None = None) -> None:
+        """Keep a message with its arrival time; for a continuous topic (``last_stamp_s``: its
+        newest sample's stamp) arm the wake once every stream has passed the due stamp."""
+        now = time.monotonic()
+        self._inbox[topic].put(message, now)
         self.received[topic] += 1
-        self._last_arrival_s = time.monotonic()
+        self._last_arrival_s = now
         self._unflushed = True
+        if last_stamp_s is None:
+            return
+        newest = self._newest_stamp_s
+        if last_stamp_s > newest.get(topic, -math.inf):
+            newest[topic] = last_stamp_s
+        if last_stamp_s >= self._due_s:
+            self._arm_wake()
+
+    def _arm_wake(self) -> None:
+        """Start the one-shot wake if every stream has passed the due stamp and no wake for it ran."""
+        due = self._due_s
+        if due == self._woken_for_s or not self._wake.is_canceled():
+            return
+        if all(stamp >= due for stamp in self._newest_stamp_s.values()):
+            self._woken_for_s = due
+            self._wake.reset()
+
+    def _on_wake(self) -> None:
+        self._wake.cancel()
+        self._tick()
 
     def _on_pressure(self, msg: FluidPressure) -> None:
-        self._pressure.append(msg)
-        self._arrived(topics.JACK_PRESSURE)
+        self._arrived(topics.JACK_PRESSURE, msg, ros_messages.stamp_s(msg.header.stamp))
 
     def _on_imu(self, msg: Imu) -> None:
-        self._imu.append(msg)
-        self._arrived(topics.IMU)
+        self._arrived(topics.IMU, msg, ros_messages.stamp_s(msg.header.stamp))
 
     def _on_vibration(self, msg: LaserScan) -> None:
-        self._vibration.append(msg)
-        self._arrived(topics.VIBRATION)
+        increment = msg.time_increment
+        last = ros_messages.stamp_s(msg.header.stamp) + (increment * (len(msg.ranges) - 1) if math.isfinite(increment) and increment > 0.0 else 0.0)
+        self._arrived(topics.VIBRATION, msg, last)
 
     def _on_rebound(self, msg: TwistStamped) -> None:
-        self._rebounds.append(msg)
-        self._arrived(topics.REBOUND_VELOCITY)
+        self._arrived(topics.REBOUND_VELOCITY, msg)
 
     @property
     def vibration_lost_samples(self) -> int:
@@ -121,38 +173,48 @@ class IdNode(Node):
     def identifier(self) -> StreamIdentifier:
         return self.gated.identifier
 
-    def _arrivals(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """The pressure and IMU messages since the last tick as arrays, in arrival order."""
-        out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        if self._pressure:
-            stamps, pressure = ros_messages.pressure_arrays(self._pressure)
-            out[topics.JACK_PRESSURE] = (stamps, pressure.reshape(-1, 1))
-        if self._imu:
-            stamps, gyro, accel = ros_messages.imu_arrays(self._imu)
-            out[topics.IMU] = (stamps, np.hstack([gyro, accel]))
-        self._pressure, self._imu = [], []
-        return out
-
-    def _tick(self) -> None:
-        """Hand the gated identifier what arrived; publish the labels it decides."""
-        now = time.monotonic()
-        arrivals = self._arrivals()
+    def _admit(self, part: dict[str, list], arrived_s: float) -> list[Label]:
+        """Hand the gated identifier one batch of messages (the newest arrived at ``arrived_s``)."""
+        arrivals: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        if part[topics.JACK_PRESSURE]:
+            stamps, pressure = ros_messages.pressure_arrays(part[topics.JACK_PRESSURE])
+            arrivals[topics.JACK_PRESSURE] = (stamps, pressure.reshape(-1, 1))
+        if part[topics.IMU]:
+            stamps, gyro, accel = ros_messages.imu_arrays(part[topics.IMU])
+            arrivals[topics.IMU] = (stamps, np.hstack([gyro, accel]))
         refused: list[str] = []
-        blocks = ros_messages.vibration_blocks(self._vibration, refused)
+        blocks = ros_messages.vibration_blocks(part[topics.VIBRATION], refused)
         if refused:
             self.refused_blocks += len(refused)
             reasons = list(dict.fromkeys(refused))  # each distinct reason once
             shown = "; ".join(reasons[:MAX_REASONS]) + (f"; and {len(reasons) - MAX_REASONS} more" if len(reasons) > MAX_REASONS else "")
             self.get_logger().warning(f"vibration: {len(refused)} message(s) refused: {shown} ({self.refused_blocks} refused in all)")
-        rebounds = [ros_messages.rebound_values(m) for m in self._rebounds]
-        self._vibration, self._rebounds = [], []
+        rebounds = [ros_messages.rebound_values(m) for m in part[topics.REBOUND_VELOCITY]]
+        return self.gated.admit(arrived_s, arrivals, blocks, rebounds)
+
+    def _tick(self) -> None:
+        """Hand the gated identifier what arrived, in two batches (held long enough by now, and
+        not yet); publish the labels it decides; arm the wake for the next pending impact."""
+        now = time.monotonic()
+        parts: tuple[dict[str, list], dict[str, list]] = ({}, {})
+        arrived_s = [-math.inf, -math.inf]
+        for topic, inbox in self._inbox.items():
+            for k, (messages, newest_s) in enumerate(inbox.take(now - self.gated.gate.config.reorder_s)):
+                parts[k][topic] = messages
+                arrived_s[k] = max(arrived_s[k], newest_s)
+        labels: list[Label] = []
+        for part, batch_s in zip(parts, arrived_s):
+            if batch_s > -math.inf:
+                labels += self._admit(part, batch_s)
         idle = self._unflushed and now - self._last_arrival_s > self.flush_after_idle_s
-        self._publish(self.gated.tick(now, arrivals, blocks, rebounds, end_of_data=idle))
+        self._publish(labels + self.gated.decide(now, end_of_data=idle))
         if idle:
             self._unflushed = False
         for note in self.gated.notes:
             self.get_logger().warning(note)
         self.gated.notes.clear()
+        self._due_s = self.gated.next_horizon_s()
+        self._arm_wake()
 
     def _publish(self, labels: list[Label]) -> None:
         for label in labels:

@@ -223,6 +223,12 @@ class StreamIdentifier:
         """End of data: decide everything pending from what there is."""
         return self._run(final=True)
 
+    def next_horizon_s(self) -> float:
+        """Stamp the streams must pass before the earliest pending impact can be decided (its
+        onset plus its data window), s; inf when nothing is pending. A live consumer polls as
+        soon as its data is in (``id_node``'s wake) instead of on its next periodic tick."""
+        return min((i.onset_s + self.impacts.windows(i)[0] for i in self.impacts.pending), default=math.inf)
+
     # ---- internals ---------------------------------------------------------------------------
     def _newest_s(self) -> float:
         return max(self.pressure.latest_s, self.imu.latest_s, self.vibration.latest_s)

@@ -23,6 +23,7 @@ The machine is shared: say so when quoting figures.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import signal
 import subprocess
@@ -153,6 +154,8 @@ def main() -> int:
     parser.add_argument("--compression", nargs="+", default=["zstd"], choices=["zstd", "none"])
     parser.add_argument("--sim-param", action="append", default=[], metavar="NAME:=VALUE", help="a sim_node parameter (repeatable)")
     parser.add_argument("--id-param", action="append", default=[], metavar="NAME:=VALUE", help="an id_node parameter (repeatable)")
+    parser.add_argument("--keep", type=Path, default=None, metavar="DIR",
+                        help="write the bags and id_node's logs here and keep them (default: a temporary directory)")
     args = parser.parse_args()
     sim_params = dict(item.split(":=", 1) for item in args.sim_param)
     id_params = dict(item.split(":=", 1) for item in args.id_param)
@@ -160,7 +163,9 @@ def main() -> int:
     print("| vibration rate | compression | real-time ratio | lost (vibration / pressure / IMU samples) | id_node gap warnings "
           "| CPU sim / id / recorder | bag MB per min | labels |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
-    with tempfile.TemporaryDirectory(prefix="bench_vibration_") as tmp:
+    if args.keep is not None:
+        args.keep.mkdir(parents=True, exist_ok=True)
+    with (contextlib.nullcontext(str(args.keep)) if args.keep is not None else tempfile.TemporaryDirectory(prefix="bench_vibration_")) as tmp:
         for rate in args.rates:
             for compression in args.compression:
                 r = run(rate, args.duration, compression, Path(tmp), sim_params, id_params)

@@ -248,3 +248,37 @@ def test_samples_that_are_no_number_are_left_out_live_and_offline_alike(params, 
     drive(restarted, [run, again])
     assert restarted.time_jumps == 1
     assert any("6 sample(s) with a non-finite stamp or value left out" in note for note in restarted.notes)
+
+
+def arrivals_between(chunk, lo_s: float, hi_s: float):
+    """The chunk's samples, blocks (by first stamp) and rebounds stamped in (lo_s, hi_s], as
+    GatedIdentifier.admit takes them."""
+    p, i, v = chunk.pressure, chunk.imu, chunk.vibration
+    take_p = (p.stamp_s > lo_s) & (p.stamp_s <= hi_s)
+    take_i = (i.stamp_s > lo_s) & (i.stamp_s <= hi_s)
+    arrivals = {"jack_pressure": (p.stamp_s[take_p], p.pressure_pa[take_p].reshape(-1, 1)),
+                "imu": (i.stamp_s[take_i], np.hstack([i.angular_velocity_radps, i.linear_acceleration_mps2])[take_i])}
+    blocks = v.select((v.stamp_s > lo_s) & (v.stamp_s <= hi_s))
+    rebounds = [(r.stamp_s, r.velocity_mps) for _, r in chunk.rebounds if lo_s < r.stamp_s <= hi_s]
+    return arrivals, blocks, rebounds
+
+
+def test_each_batch_is_held_from_its_own_arrival_and_the_next_horizon_is_known(params, chunk, gate_config):
+    """What id_node does with arrival times: a batch admitted at wall clock t is released at t +
+    reorder_s, not before and not held for a later batch's sake; while the first impact waits
+    for its data window, next_horizon_s is its onset plus vibration_window_s (what id_node's
+    wake waits for), and inf once it is labelled."""
+    hold = gate_config.reorder_s
+    window_s = params["identification"]["vibration_window_s"]
+    runner = gated(params, gate_config)
+    early = STAMPS[0] + window_s - 0.0015  # the first pulse and its ringing are in, its data window not
+    assert runner.admit(10.0, *arrivals_between(chunk, -np.inf, early)) == []
+    assert runner.admit(10.0 + hold / 2, *arrivals_between(chunk, early, STAMPS[0] + 0.1)) == []
+    assert runner.decide(10.0 + 0.9 * hold) == [] and runner.gate.released_s == -np.inf
+    assert runner.decide(10.0 + hold) == []
+    assert early - 0.001 < runner.gate.released_s <= early  # the first batch only
+    onset = runner.next_horizon_s() - window_s
+    assert abs(onset - STAMPS[0]) < 0.001
+    labels = runner.decide(10.0 + 1.5 * hold)
+    assert [round(label.impact_stamp_s, 2) for label in labels] == [STAMPS[0]]
+    assert runner.next_horizon_s() == np.inf
