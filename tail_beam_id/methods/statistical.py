@@ -1,7 +1,8 @@
 """A statistical classifier trained on the project's own simulations: a small neural network
 (one hidden tanh layer) on the logarithms of the physical features, one model per set of
 signals available (so it still labels when a stream is gone), with temperature-scaled
-(calibrated) probabilities.
+(calibrated) probabilities; the temperature grows as the impact's moment impulse gets smaller
+(small particles are where the features are least sure).
 
 The acceleration features (the ``imu`` signal's) come from whichever channel the identifier
 used: the IMU, or the tail-beam accelerometer (``vibration``) while it is fed; the models decide
@@ -46,6 +47,26 @@ JOINT_FEATURES: dict[tuple[str, str], tuple[tuple[str, float | None], ...]] = {
     ("imu", "rebound_velocity"): (("rebound_delay_s", 5e-5),),
 }
 SIGNAL_ORDER = ("jack_pressure", "imu", "rebound_velocity")
+# The features that say how large an impact is (its moment impulse), in order of preference: a
+# model's temperature grows as it gets smaller (tail_beam_id.training.fit_size_temperature).
+SIZE_FEATURES = ("moment_impulse_pressure_nms", "moment_impulse_imu_nms")
+
+
+def size_feature(names: Sequence[tuple[str, float | None]]) -> str | None:
+    """The feature among a model's ``names`` that measures the impact's size, or None."""
+    present = {name for name, _ in names}
+    return next((name for name in SIZE_FEATURES if name in present), None)
+
+
+def temperature_of(model: Mapping[str, Any], x: np.ndarray) -> float:
+    """The model's temperature for clipped inputs ``x`` (the base vector): ``temperature``,
+    times exp(slope (reference - log size)) for a model with a ``temperature_size``."""
+    temperature = float(model["temperature"])
+    size = model.get("temperature_size")
+    if size is None:
+        return temperature
+    column = [name for name, _ in model["features"]].index(size["feature"])
+    return temperature * math.exp(float(size["slope"]) * (float(size["reference"]) - float(x[column])))
 
 
 def signals_of(features: Mapping[str, float]) -> tuple[str, ...]:
@@ -109,8 +130,9 @@ class StatisticalMethod:
         x = base_vector(features, names)
         low, high = (np.array(v) for v in model["envelope"])
         outside = tuple(name for (name, _), v, lo, hi in zip(names, x, low, high) if not lo <= v <= hi)
-        z = (np.clip(x, low, high) - np.array(model["mean"])) / np.array(model["scale"])
-        logit = network_logit(model, z[None, :])[0] / float(model["temperature"])
+        clipped = np.clip(x, low, high)
+        z = (clipped - np.array(model["mean"])) / np.array(model["scale"])
+        logit = network_logit(model, z[None, :])[0] / temperature_of(model, clipped)
         p_coal = sigmoid(float(logit))
         if outside:
             p_coal = cap_confidence(p_coal, self.outside_confidence_cap)

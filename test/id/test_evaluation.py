@@ -11,7 +11,7 @@ import pytest
 from tail_beam_id.evaluation import summarise, wilson
 from tail_beam_id.label import Label
 from tail_beam_id.runs import Record
-from tail_beam_id.training import fit_logistic, fit_temperature
+from tail_beam_id.training import fit_logistic, fit_size_temperature, fit_temperature
 from tail_beam_sim.cli import main
 
 
@@ -56,6 +56,23 @@ def test_logistic_fit_finds_the_boundary_and_temperature_undoes_overconfidence()
     assert w[1] == pytest.approx(-1.0, abs=0.2)
     # Logits five times too large: the calibrating temperature is about five.
     assert fit_temperature(5.0 * (2.0 * x[:, 0] - 1.0), y) == pytest.approx(5.0, rel=0.2)
+
+
+def test_size_temperature_finds_overconfidence_that_grows_as_impacts_get_smaller():
+    """Logits whose overconfidence is 2 at the reference size and doubles with each unit the log
+    size falls below it (true temperature 2 exp(ln 2 (reference - log size))): the fit recovers
+    T = 2 and slope ln 2, so the small impacts' confidence comes down and the large ones' up; with
+    no size dependence the slope is about 0 and T the plain temperature."""
+    rng = np.random.default_rng(1)
+    log_size = rng.uniform(-2.0, 2.0, 8000)
+    honest = rng.normal(0.0, 2.0, log_size.size)  # the true logit
+    y = (rng.uniform(size=log_size.size) < 1.0 / (1.0 + np.exp(-honest))).astype(float)
+    true_t = 2.0 * np.exp(np.log(2.0) * (0.0 - log_size))
+    temperature, slope = fit_size_temperature(honest * true_t, y, log_size, reference=0.0)
+    assert temperature == pytest.approx(2.0, rel=0.15)
+    assert slope == pytest.approx(np.log(2.0), rel=0.15)
+    flat_t, flat_slope = fit_size_temperature(3.0 * honest, y, log_size, reference=0.0)
+    assert abs(flat_slope) < 0.05 and flat_t == pytest.approx(fit_temperature(3.0 * honest, y), rel=0.05)
 
 
 def test_evaluate_command_prints_figures_and_targets(capsys, tmp_path):

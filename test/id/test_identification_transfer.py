@@ -125,3 +125,25 @@ def test_drawn_supports_have_the_accelerometer_at_the_configured_share(params):
         assert other.vibration_rate_hz == 0.0
         assert {n: v for n, v in other.values.items() if n != "vibration_rate_hz"} == {
             n: v for n, v in draw.values.items() if n != "vibration_rate_hz"} and other.contact_model == draw.contact_model
+
+
+def test_the_shipped_models_are_less_sure_of_a_small_impact_than_of_a_large_one_with_the_same_logit(params):
+    """The shipped statistical models' temperature grows as the moment impulse shrinks (fitted on
+    unseen drawn supports: small particles are where they err): the same network logit gives a
+    smaller confidence for a 1 N m s impact than for a 20 N m s one, in the three-signal model of
+    both families, and the shipped fit says so with a positive slope."""
+    import math
+
+    from tail_beam_id.methods import load_model
+    from tail_beam_id.methods.statistical import temperature_of
+
+    model = load_model("statistical")
+    for family in ("subsets", "calibrated_subsets"):
+        subset = model[family]["jack_pressure+imu+rebound_velocity"]
+        assert subset["temperature_size"]["feature"] == "moment_impulse_pressure_nms"
+        assert subset["temperature_size"]["slope"] > 0.0
+        column = [name for name, _ in subset["features"]].index("moment_impulse_pressure_nms")
+        x = np.array(subset["mean"], dtype=float)
+        small, large = x.copy(), x.copy()
+        small[column], large[column] = math.log(1.0), math.log(20.0)
+        assert temperature_of(subset, small) > subset["temperature"] > temperature_of(subset, large)
