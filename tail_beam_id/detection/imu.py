@@ -144,6 +144,35 @@ def background_fit(values: np.ndarray, lo: int, hi: int, excluded: np.ndarray, m
     return coeffs
 
 
+def background_values(values: np.ndarray, ends: np.ndarray, baseline: int, excluded: np.ndarray) -> np.ndarray:
+    """``background_fit(values, e - baseline, e, excluded)[0]`` for every ``e`` in ``ends`` at
+    once: the background each sample just after a pulse is compared with (the fit over the
+    samples before it that no pulse covers, at the sample). Same degrees as ``background_fit``;
+    the normal equations of the few samples in a window, in x / baseline, solved together."""
+    ends = np.asarray(ends, dtype=int)
+    if ends.size == 0:
+        return np.empty(0)
+    offsets = np.arange(-baseline, 0)
+    index = ends[:, None] + offsets[None, :]
+    y = values[index]
+    keep = (~excluded[index]).astype(float)
+    kept = keep.sum(axis=1)
+    powers = (offsets / baseline)[None, :] ** np.arange(5)[:, None]  # (5, baseline)
+    moments = keep @ powers.T  # (N, 5): sums of x^m over the kept samples
+    rhs = (keep * y) @ powers[:3].T  # (N, 3)
+    out = y.mean(axis=1)  # no sample kept: the plain mean, as background_fit
+    degree = np.where(kept >= 12, 2, np.where(kept >= 8, 1, 0))
+    for d in range(3):
+        rows = (degree == d) & (kept > 0)
+        if rows.any():
+            normal = np.stack([np.stack([moments[rows, p + q] for q in range(d + 1)], axis=-1) for p in range(d + 1)], axis=-2)
+            out[rows] = np.linalg.solve(normal, rhs[rows, :d + 1, None])[:, 0, 0]
+    return out
+
+
+RING_RUN_DECAYS = 20.0  # a run of ringing samples followed at once spans at most this many ring_decay_s
+
+
 class PulseDetector:
     """Finds contact pulses in one IMU stream's specific force along the plate normal.
 
@@ -239,6 +268,11 @@ class PulseDetector:
         k = start
         while k < stop:
             ringing = self._ringing(float(stamp_s[k]), float(sigma[k - start]))
+            if ringing:
+                run_end = self._ring_run(stamp_s, accel_z, residual, sigma, mask, k, stop, start, baseline)
+                if run_end > k:
+                    k = run_end
+                    continue
             dirty = mask[max(k - baseline, 0):k].any()
             if not dirty and not ringing:
                 following = int(np.searchsorted(candidates, k))
@@ -269,6 +303,47 @@ class PulseDetector:
                 k += 1
         self.cursor = base_index + max(k, stop)
         return pulses
+
+    def _ring_run(
+        self, stamp_s: np.ndarray, accel_z: np.ndarray, residual: np.ndarray, sigma: np.ndarray, mask: np.ndarray,
+        k: int, stop: int, start: int, baseline: int,
+    ) -> int:
+        """Follow the ringing over samples ``k``.. at once, as the sample-by-sample walk does
+        (each raises the envelope it exceeds), for as long as every sample rings and stays under
+        the threshold; returns the first that does not (a pulse, or the ringing is over: the
+        walk decides it), ``k`` itself when that is the first. Vectorised: the envelope before
+        each sample is a running maximum of |deviation| exp(t / ring_decay_s)."""
+        c = self.config
+        stamp0, level0 = self.ring  # type: ignore[misc]
+        t0 = float(stamp_s[k])
+        end = k + int(np.searchsorted(stamp_s[k:stop], t0 + RING_RUN_DECAYS * c.ring_decay_s, side="right"))
+        t = stamp_s[k:end]
+        deviation = residual[k - start:end - start].copy()
+        masked = np.concatenate([[0], np.cumsum(mask)])
+        rows = np.arange(k, end)
+        dirty = masked[rows] - masked[np.maximum(rows - baseline, 0)] > 0
+        if dirty.any():
+            deviation[dirty] = accel_z[rows[dirty]] - background_values(accel_z, rows[dirty], baseline, mask)
+        magnitude = np.abs(deviation)
+        growth = np.exp((t - t0) / c.ring_decay_s)
+        # Envelope in units of exp(t / ring_decay_s) after t0: entry 0 the state before k.
+        candidate = np.concatenate([[level0 * math.exp((stamp0 - t0) / c.ring_decay_s)], magnitude * growth])
+        running = np.maximum.accumulate(candidate)
+        raises = candidate > np.concatenate([[-math.inf], running[:-1]])
+        setter = np.maximum.accumulate(np.where(raises, np.arange(candidate.size), 0))
+        before = running[:-1] / growth  # decayed envelope before each sample, m/s^2
+        since = t - np.concatenate([[stamp0], t])[setter[:-1]]  # since the envelope was last raised, s
+        noise = sigma[k - start:end - start]
+        ringing = (since < c.ring_window_s) | (c.ring_fraction * before > c.accel_threshold_sigma * noise)
+        over = (noise > 0.0) & (magnitude > np.maximum(c.accel_threshold_sigma * noise, c.ring_fraction * before))
+        halt = np.flatnonzero(over | ~ringing)
+        r = int(halt[0]) if halt.size else end - k
+        if r == 0:
+            return k
+        last = int(setter[r])
+        if last > 0:
+            self.ring = (float(t[last - 1]), float(magnitude[last - 1]))
+        return k + r
 
     def _ringing(self, stamp_s: float, sigma: float) -> bool:
         """Whether the beam still rings from the last pulse: within ``ring_window_s`` of it, or

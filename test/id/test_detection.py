@@ -130,3 +130,22 @@ def test_onset_of_a_small_particle_on_a_beam_swaying_from_a_large_one(params, ra
     near = [label for label in labels if abs(label.impact_stamp_s - small.contact_stamp_s) < 0.005]
     assert len(near) == 1
     assert abs(near[0].impact_stamp_s - small.contact_stamp_s) <= tolerance_s
+
+
+def test_background_values_are_the_per_sample_fits_at_once():
+    """The batched background (the detector's walk just after a pulse) equals background_fit's
+    least-squares value at each sample, for windows with every kept-sample count from none to
+    all (constant, line and quadratic fits alike)."""
+    from tail_beam_id.detection.imu import background_fit, background_values
+
+    rng = np.random.default_rng(5)
+    baseline = 20
+    values = np.cumsum(rng.normal(size=400)) + 0.01 * np.arange(400) ** 1.5
+    excluded = np.zeros(400, dtype=bool)
+    excluded[100:125] = True  # a pulse: the windows after it keep 0..20 of their samples
+    excluded[250:253] = True
+    ends = np.arange(baseline, 400)
+    expected = np.array([background_fit(values, e - baseline, e, excluded)[0] for e in ends])
+    kept = np.array([(~excluded[e - baseline:e]).sum() for e in ends])
+    assert set(kept) >= {0, 5, 10, 15, 20}
+    np.testing.assert_allclose(background_values(values, ends, baseline, excluded), expected, rtol=1e-9, atol=1e-9)
