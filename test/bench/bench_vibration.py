@@ -58,6 +58,7 @@ def run(rate_hz: float, duration_s: float, compression: str, workdir: Path, sim_
 
     bag = workdir / f"bag_{int(rate_hz)}_{compression}"
     log = workdir / f"id_{int(rate_hz)}_{compression}.log"
+    sim_log = workdir / f"sim_{int(rate_hz)}_{compression}.log"
     sensors = {"sensors.vibration_rate_hz": rate_hz}
     recorder = subprocess.Popen([str(BIN / "bag_recorder"), *ros_args({"recorder.bag_path": str(bag), "recorder.compression": compression})],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
@@ -66,7 +67,7 @@ def run(rate_hz: float, duration_s: float, compression: str, workdir: Path, sim_
     sim = subprocess.Popen([str(BIN / "sim_node"), *ros_args({
         **sensors, "sim_node.wait_for_subscribers": 2, "sim_node.exit_after_idle_s": 0.5, "scenario.source": "generated",
         "scenario.count": max(1, int(duration_s / 0.55)), "scenario.start_s": 0.5, **(sim_params or {})})],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        stdout=subprocess.DEVNULL, stderr=sim_log.open("w"))
     procs = {"sim_node": sim, "id_node": ident, "bag_recorder": recorder}
     samples: list[tuple[float, dict[str, float | None]]] = []
     while sim.poll() is None:
@@ -83,6 +84,9 @@ def run(rate_hz: float, duration_s: float, compression: str, workdir: Path, sim_
     if len(steady) >= 2:
         (t0, c0), (t1, c1) = steady[0], steady[-1]
         share = {name: 100.0 * (c1[name] - c0[name]) / (t1 - t0) for name in procs}
+    if sim.returncode != 0:  # refused its parameters (a rate out of range, ...): nothing to measure
+        lines = sim_log.read_text().strip().splitlines()
+        raise RuntimeError(f"sim_node exited with status {sim.returncode}: {lines[-1] if lines else 'no output'}")
     data = read_sensors(bag, required=())
     blocks = data.vibration
     stamps = blocks.sample_stamps_s()
@@ -168,7 +172,11 @@ def main() -> int:
     with (contextlib.nullcontext(str(args.keep)) if args.keep is not None else tempfile.TemporaryDirectory(prefix="bench_vibration_")) as tmp:
         for rate in args.rates:
             for compression in args.compression:
-                r = run(rate, args.duration, compression, Path(tmp), sim_params, id_params)
+                try:
+                    r = run(rate, args.duration, compression, Path(tmp), sim_params, id_params)
+                except RuntimeError as exc:
+                    print(f"| {rate / 1000:g} kHz | {compression} | not run: {exc} | | | | | |", flush=True)
+                    continue
                 cpu = r["cpu"]
                 cpu_text = " / ".join(f"{cpu[n]:.0f} %" for n in ("sim_node", "id_node", "bag_recorder")) if cpu else "n/a"
                 print(f"| {rate / 1000:g} kHz | {compression} | {r['realtime']:.3f} | {r['vib_lost']} / {r['pressure_lost']} / {r['imu_lost']} "
