@@ -94,7 +94,8 @@ class IdNode(Node):
             calibration = OnlineCalibration(params, learn_s, method or params["identification"]["method"])
         self.gated = GatedIdentifier(new_identifier, GateConfig.from_params(node), calibration)
         self._inbox = {topic: Inbox() for topic in (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION, topics.REBOUND_VELOCITY)}
-        self._newest_stamp_s: dict[str, float] = {}  # continuous topic -> newest stamp arrived (the wake's test), s
+        # Continuous topic -> (newest stamp arrived, its wall-clock arrival), s: the wake's test.
+        self._newest: dict[str, tuple[float, float]] = {}
         self._due_s = math.inf  # stamp the next pending impact waits for (identifier.next_horizon_s), s
         self._woken_for_s = math.nan  # the due stamp the last wake was for (one wake each)
         self._last_arrival_s = time.monotonic()
@@ -128,18 +129,20 @@ class IdNode(Node):
         self._unflushed = True
         if last_stamp_s is None:
             return
-        newest = self._newest_stamp_s
-        if last_stamp_s > newest.get(topic, -math.inf):
-            newest[topic] = last_stamp_s
+        if last_stamp_s > self._newest.get(topic, (-math.inf, 0.0))[0]:
+            self._newest[topic] = (last_stamp_s, now)
         if last_stamp_s >= self._due_s:
             self._arm_wake()
 
     def _arm_wake(self) -> None:
-        """Start the one-shot wake if every stream has passed the due stamp and no wake for it ran."""
+        """Start the one-shot wake if every live stream (one heard from within stream_idle_s)
+        has passed the due stamp and no wake for it ran."""
         due = self._due_s
         if due == self._woken_for_s or not self._wake.is_canceled():
             return
-        if all(stamp >= due for stamp in self._newest_stamp_s.values()):
+        live_after_s = time.monotonic() - self.gated.gate.config.stream_idle_s
+        live = [stamp for stamp, arrived in self._newest.values() if arrived >= live_after_s]
+        if live and min(live) >= due:
             self._woken_for_s = due
             self._wake.reset()
 
@@ -203,9 +206,12 @@ class IdNode(Node):
                 parts[k][topic] = messages
                 arrived_s[k] = max(arrived_s[k], newest_s)
         labels: list[Label] = []
+        jumps = self.gated.time_jumps
         for part, batch_s in zip(parts, arrived_s):
             if batch_s > -math.inf:
                 labels += self._admit(part, batch_s)
+        if self.gated.time_jumps != jumps:  # a new time base: the stamps seen so far say nothing of it
+            self._newest.clear()
         idle = self._unflushed and now - self._last_arrival_s > self.flush_after_idle_s
         self._publish(labels + self.gated.decide(now, end_of_data=idle))
         if idle:

@@ -14,6 +14,7 @@ from tail_beam_sim import topics
 
 CONTACT_S = 0.3  # stamp of the one impact's contact, s
 POLL_PERIOD_S = 3.0  # id_node's periodic tick, far longer than anything the wake waits for
+IDLE_S = 0.5  # id_node.stream_idle_s when the IMU stops
 
 
 def messages_between(chunk, lo_s: float, hi_s: float) -> list[tuple[str, object]]:
@@ -34,17 +35,19 @@ def messages_between(chunk, lo_s: float, hi_s: float) -> list[tuple[str, object]
 
 
 @pytest.mark.ros
-def test_a_label_comes_when_its_data_is_in_not_on_the_next_periodic_tick(params):
+@pytest.mark.parametrize("imu_stops", [False, True])
+def test_a_label_comes_when_its_data_is_in_not_on_the_next_periodic_tick(params, imu_stops):
     """A feeder sends the streams up to just after an impact's pulse, id_node's periodic tick
     (every 3 s here) finds the pulse, then the feeder sends the rest: the label comes well
     within a second of the rest, long before the next periodic tick. Before the wake it came
-    with that tick (3 s)."""
+    with that tick (3 s). With ``imu_stops`` the rest has no IMU samples and comes after the
+    IMU has been silent for stream_idle_s: a stream that stopped does not hold the wake back."""
     from geometry_msgs.msg import TwistStamped
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import FluidPressure, Imu, LaserScan
     from std_msgs.msg import String
 
-    from rosprobe import Probe, ros_context, spin_until
+    from rosprobe import Probe, ros_context, spin_for, spin_until
     from tail_beam_id.id_node import IdNode
     from tail_beam_sim.ros import messages as ros_messages
 
@@ -56,8 +59,9 @@ def test_a_label_comes_when_its_data_is_in_not_on_the_next_periodic_tick(params)
     with ros_context() as (context, executor):
         ident = IdNode(context=context, namespace="/wake", parameter_overrides=[
             Parameter("method", value="statistical"), Parameter("id_node.poll_period_s", value=POLL_PERIOD_S),
-            # the feeder pauses between its two sends: not the end of the data, nor a stream stopped
-            Parameter("id_node.flush_after_idle_s", value=30.0), Parameter("id_node.stream_idle_s", value=30.0)])
+            # the feeder pauses between its two sends: not the end of the data (nor, unless the
+            # IMU stops, a stream stopped)
+            Parameter("id_node.flush_after_idle_s", value=30.0), Parameter("id_node.stream_idle_s", value=IDLE_S if imu_stops else 30.0)])
         feeder = Probe(context, {topics.LABEL: String}, namespace="/wake", name="feeder")
         qos = {topics.REBOUND_VELOCITY: ros_messages.EVENT_QOS}
         pubs = {topic: feeder.create_publisher(kind, topic, qos.get(topic, ros_messages.stream_qos(10000))) for topic, kind in types.items()}
@@ -68,6 +72,9 @@ def test_a_label_comes_when_its_data_is_in_not_on_the_next_periodic_tick(params)
             pubs[topic].publish(message)
         assert spin_until(executor, lambda: ident.gated.identifier.impacts.pending, timeout_s=3 * POLL_PERIOD_S)
         assert not feeder.messages[topics.LABEL]
+        if imu_stops:
+            rest = [(topic, m) for topic, m in rest if topic != topics.IMU]
+            spin_for(executor, 2 * IDLE_S)
         sent_s = time.monotonic()
         for topic, message in rest:
             pubs[topic].publish(message)
