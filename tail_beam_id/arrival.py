@@ -271,7 +271,8 @@ class GatedIdentifier:
     in arrival order, the vibration blocks as received, the rebounds; it returns the labels now
     decided. A caller that knows when each message arrived gives them to :meth:`admit` in
     batches of arrival time, then calls :meth:`decide`, so that each is held ``reorder_s`` from
-    its own arrival, not from the tick that took it. What the node should log (gaps, refusals, time jumps) collects in ``notes``.
+    its own arrival, not from the tick that took it. What the node should log (gaps, refusals,
+    time jumps) collects in ``notes``.
     """
 
     def __init__(self, new_identifier: Callable[[Any], StreamIdentifier], config: GateConfig,
@@ -304,16 +305,15 @@ class GatedIdentifier:
         """Admit what arrived, the newest of it at wall clock ``arrived_s`` (its hold of
         ``reorder_s`` counts from then). Returns the labels decided by a time jump it found (what
         was pending in the old time base), else none: :meth:`decide` gives the rest."""
-        now_s = arrived_s
         labels: list[Label] = []
         later: Streams = {}  # what belongs to a new time base
         for name, (stamps, values) in arrivals.items():
-            cut = self.gate.add(name, stamps, values, now_s) if stamps.size else None
+            cut = self.gate.add(name, stamps, values, arrived_s) if stamps.size else None
             if cut is not None:
                 later[name] = (stamps[cut:], values[cut:])
         vib_cut = self.gate.backward_jump("vibration", blocks.stamp_s) if blocks.count else None
         old_blocks = blocks.select(np.arange(blocks.count) < (blocks.count if vib_cut is None else vib_cut))
-        self._admit_blocks(old_blocks, now_s)
+        self._admit_blocks(old_blocks, arrived_s)
         stale_s = self.gate.released_s - self.gate.config.time_jump_s
         if later or vib_cut is not None:  # stamps went back: decide the old time base, start afresh
             name = next(iter(later), "vibration")
@@ -321,20 +321,20 @@ class GatedIdentifier:
             from_s = self.gate.streams[name].latest_s
             for stamp, velocity in rebounds:
                 if stamp >= stale_s:
-                    self.gate.add_rebound(stamp, velocity, now_s)
-            labels += self._restart(now_s, f"{name} stamps went back from {from_s:.4f} s to {back_to:.4f} s "
-                                           "(a simulator restarted or a replay looped)")
+                    self.gate.add_rebound(stamp, velocity, arrived_s)
+            labels += self._restart(arrived_s, f"{name} stamps went back from {from_s:.4f} s to {back_to:.4f} s "
+                                               "(a simulator restarted or a replay looped)")
             for name, (stamps, values) in later.items():
-                self.gate.add(name, stamps, values, now_s)
-            self._admit_blocks(blocks.select(np.arange(blocks.count) >= (blocks.count if vib_cut is None else vib_cut)), now_s)
+                self.gate.add(name, stamps, values, arrived_s)
+            self._admit_blocks(blocks.select(np.arange(blocks.count) >= (blocks.count if vib_cut is None else vib_cut)), arrived_s)
             rebounds = [r for r in rebounds if r[0] < stale_s]
         for stamp, velocity in rebounds:
-            self.gate.add_rebound(stamp, velocity, now_s)
-        if self.gate.forward_jump(now_s):
+            self.gate.add_rebound(stamp, velocity, arrived_s)
+        if self.gate.forward_jump(arrived_s):
             aside = self.gate.take_aside()
-            labels += self._restart(now_s, f"every stream's stamps moved ahead by more than {self.gate.config.time_jump_s:g} s")
+            labels += self._restart(arrived_s, f"every stream's stamps moved ahead by more than {self.gate.config.time_jump_s:g} s")
             for name, (stamps, values) in aside.items():
-                self.gate.add(name, stamps, values, now_s)
+                self.gate.add(name, stamps, values, arrived_s)
         self._note_counts()
         return labels
 
