@@ -319,9 +319,10 @@ class PulseDetector:
         end = k + int(np.searchsorted(stamp_s[k:stop], t0 + RING_RUN_DECAYS * c.ring_decay_s, side="right"))
         t = stamp_s[k:end]
         deviation = residual[k - start:end - start].copy()
-        masked = np.concatenate([[0], np.cumsum(mask)])
+        lo = max(k - baseline, 0)  # masked samples in the baseline before each of the run's samples
+        masked = np.concatenate([[0], np.cumsum(mask[lo:end])])
         rows = np.arange(k, end)
-        dirty = masked[rows] - masked[np.maximum(rows - baseline, 0)] > 0
+        dirty = masked[rows - lo] - masked[np.maximum(rows - baseline, 0) - lo] > 0
         if dirty.any():
             deviation[dirty] = accel_z[rows[dirty]] - background_values(accel_z, rows[dirty], baseline, mask)
         magnitude = np.abs(deviation)
