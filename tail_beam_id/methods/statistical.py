@@ -69,6 +69,23 @@ def temperature_of(model: Mapping[str, Any], x: np.ndarray) -> float:
     return temperature * math.exp(float(size["slope"]) * (float(size["reference"]) - float(x[column])))
 
 
+def _check_temperature_size(key: str, model: Mapping[str, Any]) -> None:
+    """A model's ``temperature_size``, if it has one, names one of its features and gives a
+    finite slope and reference; anything else is refused by name when the model is loaded,
+    not in the middle of a decision."""
+    size = model.get("temperature_size")
+    if size is None:
+        return
+    field = f"statistical model {key}.temperature_size"
+    names = [name for name, _ in model["features"]]
+    if not isinstance(size, Mapping) or size.get("feature") not in names:
+        raise InputError(field, size, f"must name one of the model's features ({', '.join(names)}): retrain (python -m tail_beam_id.training)")
+    for part in ("slope", "reference"):
+        value = size.get(part)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise InputError(f"{field}.{part}", value, "must be a finite number: retrain (python -m tail_beam_id.training)")
+
+
 def signals_of(features: Mapping[str, float]) -> tuple[str, ...]:
     """Which signals an impact's features came from (in SIGNAL_ORDER)."""
     return tuple(s for s in SIGNAL_ORDER if SIGNAL_FEATURES[s][0][0] in features)
@@ -117,6 +134,9 @@ class StatisticalMethod:
         stale = [key for family in families for key in family if "@" in key or "envelope" not in family[key]]
         if stale:
             raise InputError("statistical model", stale[0], "is a per-rate model without an envelope: retrain (python -m tail_beam_id.training)")
+        for family in families:
+            for key, subset in family.items():
+                _check_temperature_size(key, subset)
         return cls(model["subsets"], cap, model.get("calibrated_subsets"))
 
     def decide(self, features: Mapping[str, float]) -> Decision:

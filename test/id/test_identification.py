@@ -227,8 +227,9 @@ def test_long_noise_only_stream_gives_no_label_and_bounded_buffers(params):
 
 def test_a_stale_or_broken_statistical_model_is_refused_with_how_to_fix_it(params, tmp_path):
     """A model file from before the training envelope (or per-rate keys) is refused naming the
-    retraining command, and a file that is not JSON names the field and the reason: the node
-    never runs on a model whose confidences it cannot cap."""
+    retraining command, a size-dependent temperature that names no feature of its model or has
+    no finite slope is refused by name at load, and a file that is not JSON names the field and
+    the reason: the node never runs on a model whose confidences it cannot cap."""
     import json
 
     from tail_beam_id.methods import load_model
@@ -241,6 +242,17 @@ def test_a_stale_or_broken_statistical_model_is_refused_with_how_to_fix_it(param
     with pytest.raises(InputError, match="retrain") as error:
         build_method("statistical", params, str(stale))
     assert first in str(error.value)
+    model = load_model("statistical")
+    model["calibrated_subsets"]["jack_pressure+imu+rebound_velocity"]["temperature_size"]["feature"] = "radius_m"
+    odd = tmp_path / "odd.json"
+    odd.write_text(json.dumps(model))
+    with pytest.raises(InputError, match=r"jack_pressure\+imu\+rebound_velocity\.temperature_size = .*radius_m.*must name one of"):
+        build_method("statistical", params, str(odd))
+    model["calibrated_subsets"]["jack_pressure+imu+rebound_velocity"]["temperature_size"] = {
+        "feature": "moment_impulse_pressure_nms", "reference": 1.7, "slope": "steep"}
+    odd.write_text(json.dumps(model))
+    with pytest.raises(InputError, match=r"temperature_size\.slope = 'steep': must be a finite number"):
+        build_method("statistical", params, str(odd))
     broken = tmp_path / "broken.json"
     broken.write_text("{not json")
     with pytest.raises(InputError, match="identification.statistical.model.*valid JSON"):
