@@ -60,14 +60,15 @@ def run(rate_hz: float, duration_s: float, compression: str, workdir: Path, sim_
     log = workdir / f"id_{int(rate_hz)}_{compression}.log"
     sim_log = workdir / f"sim_{int(rate_hz)}_{compression}.log"
     sensors = {"sensors.vibration_rate_hz": rate_hz}
+    id_err, sim_err = log.open("w"), sim_log.open("w")  # the nodes' logs, closed once they are done
     recorder = subprocess.Popen([str(BIN / "bag_recorder"), *ros_args({"recorder.bag_path": str(bag), "recorder.compression": compression})],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     ident = subprocess.Popen([str(BIN / "id_node"), *ros_args({"id_node.flush_after_idle_s": 1.0, **sensors, **(id_params or {})})],
-                             stdout=subprocess.DEVNULL, stderr=log.open("w"))
+                             stdout=subprocess.DEVNULL, stderr=id_err)
     sim = subprocess.Popen([str(BIN / "sim_node"), *ros_args({
         **sensors, "sim_node.wait_for_subscribers": 2, "sim_node.exit_after_idle_s": 0.5, "scenario.source": "generated",
         "scenario.count": max(1, int(duration_s / 0.55)), "scenario.start_s": 0.5, **(sim_params or {})})],
-        stdout=subprocess.DEVNULL, stderr=sim_log.open("w"))
+        stdout=subprocess.DEVNULL, stderr=sim_err)
     procs = {"sim_node": sim, "id_node": ident, "bag_recorder": recorder}
     samples: list[tuple[float, dict[str, float | None]]] = []
     while sim.poll() is None:
@@ -78,6 +79,8 @@ def run(rate_hz: float, duration_s: float, compression: str, workdir: Path, sim_
         p.send_signal(signal.SIGINT)
     _, recorder_err = recorder.communicate(timeout=60)
     ident.wait(timeout=60)
+    id_err.close()
+    sim_err.close()
     # Steady part: from 4 s after start (start-up and the 2 s subscriber settle) to the last sample.
     steady = [s for s in samples if s[0] >= samples[0][0] + 4.0 and all(v is not None for v in s[1].values())]
     share = {}
