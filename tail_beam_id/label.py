@@ -35,7 +35,7 @@ MATERIALS = ("coal", "gangue")  # the values of a label's "label" field
 # is another identifier's, kept in Label.extra.
 JSON_KEYS = frozenset({
     LABEL_STAMP, "label", "confidence", "method", "latency_ms", "data_latency_ms", "signals", "overlap", "calibrated",
-    "features", "non_finite_features", "saturated", "imu_mount", "outside_training",
+    "features", "non_finite_features", "saturated", "imu_mount", "vibration_mount", "outside_training",
 })
 
 
@@ -65,6 +65,7 @@ class Label:
     non_finite_features: tuple[str, ...] = ()
     saturated: tuple[str, ...] = ()
     imu_mount: str | None = None  # "inverted" when the IMU read -g (mounted upside down, corrected)
+    vibration_mount: str | None = None  # "inverted" when the tail-beam accelerometer read -g (corrected)
     outside_training: tuple[str, ...] = ()
     extra: Mapping[str, Any] = field(default_factory=dict)  # keys of another identifier's label, kept as they came
 
@@ -83,7 +84,7 @@ class Label:
                 out[key] = getattr(self, key)
         out.update(signals=list(self.signals), overlap=self.overlap, calibrated=self.calibrated, features=dict(self.features))
         optional = {"non_finite_features": list(self.non_finite_features), "saturated": list(self.saturated),
-                    "imu_mount": self.imu_mount, "outside_training": list(self.outside_training)}
+                    "imu_mount": self.imu_mount, "vibration_mount": self.vibration_mount, "outside_training": list(self.outside_training)}
         out.update({k: v for k, v in optional.items() if v})
         out.update({k: v for k, v in self.extra.items() if k not in out})
         return out
@@ -119,7 +120,8 @@ class Label:
             features=_features(obj, where),
             non_finite_features=_strings(obj, "non_finite_features", where),
             saturated=_strings(obj, "saturated", where),
-            imu_mount=_imu_mount(obj, where),
+            imu_mount=_mount(obj, "imu_mount", where),
+            vibration_mount=_mount(obj, "vibration_mount", where),
             outside_training=_strings(obj, "outside_training", where),
             extra={k: v for k, v in obj.items() if k not in JSON_KEYS},
         )
@@ -179,10 +181,11 @@ def _features(obj: Mapping[str, Any], where: str) -> dict[str, float]:
     return {str(k): _number(v, f"{where}.features.{k}") for k, v in value.items()}
 
 
-def _imu_mount(obj: Mapping[str, Any], where: str) -> str | None:
-    value = obj.get("imu_mount")
+def _mount(obj: Mapping[str, Any], key: str, where: str) -> str | None:
+    """A sensor's mounting field (``imu_mount``, ``vibration_mount``): absent, or "inverted"."""
+    value = obj.get(key)
     if value not in (None, "inverted"):
-        raise InputError(f"{where}.imu_mount", value, 'must be "inverted" when given')
+        raise InputError(f"{where}.{key}", value, 'must be "inverted" when given')
     return value
 
 
@@ -258,6 +261,7 @@ def make_label(
     features: Mapping[str, float],
     saturated: Sequence[str] = (),
     imu_inverted: bool = False,
+    vibration_inverted: bool = False,
 ) -> Label:
     """The label of one impact. ``confidence``: the stated label's probability after any cap;
     ``compute_ms``: time the decision took (published as ``latency_ms``); ``features``: the
@@ -279,5 +283,6 @@ def make_label(
         non_finite_features=tuple(sorted(k for k, v in every.items() if not math.isfinite(v))),
         saturated=tuple(saturated),
         imu_mount="inverted" if imu_inverted else None,
+        vibration_mount="inverted" if vibration_inverted else None,
         outside_training=tuple(decision.outside_training),
     )

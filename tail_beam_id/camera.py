@@ -1,0 +1,89 @@
+"""The camera's frame period, read from the stamps of its rebounds.
+
+A high-speed camera stamps a rebound with the first frame after the particle left the plate
+(docs/interface.md), so every rebound stamp lies on the camera's frame grid and the delay from
+an impact's onset to it is the contact duration plus up to one frame period. The statistical
+method needs that period to know how much of the delay is the camera's (a 1 kHz camera adds
+up to 1 ms, longer than most contacts); a bag does not say it, but its rebound stamps do: every
+difference between two of them is a whole number of frames.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+GRID_TOLERANCE_S = 2e-6  # how far a stamp may lie off the frame grid (clock jitter, ns rounding), s
+MIN_PERIOD_S = 20e-6  # the fastest camera recognised (50 kHz): below it any stamps fit some grid, s
+MAX_PERIOD_S = 0.002  # the slowest (500 Hz), s
+MIN_REBOUNDS = 8  # rebounds needed: with 7 differences a multiple of the true period fits by chance < 1 %
+MAX_REBOUNDS = 64  # rebounds kept for the estimate (the grid does not change)
+
+
+def frame_period_s(stamps_s: Sequence[float], tolerance_s: float = GRID_TOLERANCE_S) -> float | None:
+    """The longest frame period (s) on whose grid every stamp lies within ``tolerance_s``, or
+    None: too few stamps (< ``MIN_REBOUNDS``); none of ``MIN_PERIOD_S`` or more (stamps on no
+    grid: a camera stamped by its host's clock, say); or the longest is beyond ``MAX_PERIOD_S``
+    (impacts dropped on a regular schedule, whose contacts all end in the same frame of it:
+    the stamps then fit every divisor of the schedule and cannot tell the camera's frame).
+
+    The smallest difference between stamps is a whole number n of periods, so the candidates
+    are that difference over n = 1, 2, ...; the first that every other difference fits is it."""
+    stamps = np.unique(np.asarray(stamps_s, dtype=float))
+    if stamps.size < MIN_REBOUNDS or not np.isfinite(stamps).all():
+        return None
+    diffs = np.diff(stamps)
+    smallest = float(diffs.min())
+    last = math.floor(smallest / MIN_PERIOD_S + 1e-9)
+    if last < 1:
+        return None
+    periods = smallest / np.arange(1, last + 1)  # longest first
+    # Each difference in turn keeps the candidates it lies a whole number of periods from (within
+    # the tolerance): the first difference leaves few, so the rest cost little.
+    for diff in diffs:
+        periods = periods[np.abs(diff - np.round(diff / periods) * periods) <= tolerance_s]
+        if not periods.size:
+            return None
+    return float(periods[0]) if periods[0] <= MAX_PERIOD_S * (1.0 + 1e-6) else None
+
+
+class FramePeriod:
+    """The camera's frame period for one stream: from the rebound stamps once enough have come
+    (:func:`frame_period_s`), else the configured one (``configured_s``, s; None if unknown).
+
+    What an impact's decision uses depends only on the stamps up to its own rebound
+    (:meth:`period_at`), so live and offline decisions agree however the rebounds arrive."""
+
+    def __init__(self, configured_s: float | None) -> None:
+        self.configured_s = configured_s
+        self.stamps_s: list[float] = []
+        self.estimates_s: list[float | None] = []  # [k]: the estimate from the first k + 1 stamps
+
+    def add(self, stamp_s: float) -> None:
+        """A rebound's stamp (s), in stamp order (repeats and older ones ignored); estimates
+        again until ``MAX_REBOUNDS`` have come. While the stamps fit the last estimate only the
+        new difference is checked, so a rebound costs microseconds, not a search."""
+        if len(self.stamps_s) >= MAX_REBOUNDS or not math.isfinite(stamp_s) or (self.stamps_s and stamp_s <= self.stamps_s[-1]):
+            return
+        self.stamps_s.append(float(stamp_s))
+        last = self.estimates_s[-1] if self.estimates_s else None
+        if last is not None and _on_grid(stamp_s - self.stamps_s[-2], last):
+            estimate: float | None = last
+        else:
+            estimate = frame_period_s(self.stamps_s) if len(self.stamps_s) >= MIN_REBOUNDS else None
+        self.estimates_s.append(estimate)
+
+    def period_at(self, stamp_s: float) -> float | None:
+        """The frame period (s) a rebound stamped ``stamp_s`` is decided with: measured from the
+        stamps up to it if they gave one, else configured."""
+        k = bisect.bisect_right(self.stamps_s, stamp_s)
+        measured = self.estimates_s[k - 1] if k else None
+        return measured if measured is not None else self.configured_s
+
+
+def _on_grid(difference_s: float, period_s: float) -> bool:
+    """A stamp difference is a whole number of periods, within GRID_TOLERANCE_S."""
+    return abs(difference_s - round(difference_s / period_s) * period_s) <= GRID_TOLERANCE_S

@@ -1,0 +1,127 @@
+"""The camera's frame period read from its rebound stamps (tail_beam_id.camera), and what the
+statistical method does with a camera slower than its training's."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from id_helpers import stream_chunk
+from tail_beam_id.camera import MIN_REBOUNDS, FramePeriod, frame_period_s
+from tail_beam_id.identifier import StreamIdentifier
+from tail_beam_id.replay import replay
+
+
+def _grid_stamps(rate_hz: float, count: int, seed: int = 1, phase_s: float = 0.0) -> np.ndarray:
+    """Rebound stamps of a camera at ``rate_hz`` whose frames lie at phase + k / rate: each the
+    first frame after a separation 0.3-0.45 s after the one before (as a stream's), rounded to
+    the nanosecond as a bag stores them."""
+    separations = 0.5 + np.cumsum(0.3 + 0.15 * np.random.default_rng(seed).uniform(size=count))
+    stamps = phase_s + np.ceil((separations - phase_s) * rate_hz) / rate_hz
+    return np.round(stamps * 1e9) / 1e9
+
+
+@pytest.mark.parametrize("rate_hz", [500.0, 1000.0, 2000.0, 3000.0, 5000.0, 7777.0, 25600.0, 50000.0])
+def test_the_frame_period_is_read_from_the_stamps_grid(rate_hz):
+    """Every difference of grid stamps is a whole number of frames; the longest period that fits
+    them all is the camera's, whatever the grid's phase and even when 1/rate is no whole ns."""
+    stamps = _grid_stamps(rate_hz, 12, phase_s=0.000123)
+    assert frame_period_s(stamps) == pytest.approx(1.0 / rate_hz, rel=1e-6)
+
+
+def test_stamps_off_any_grid_give_no_period():
+    """Stamps with 10 us of jitter (a camera stamped by its host's clock), or the exact moments
+    of separation, lie on no frame grid of 20 us or more: no period, not a wrong one."""
+    rng = np.random.default_rng(3)
+    separations = 0.5 + np.cumsum(0.3 + 0.15 * rng.uniform(size=20))
+    assert frame_period_s(separations) is None
+    assert frame_period_s(_grid_stamps(5000.0, 20) + rng.normal(0.0, 1e-5, 20)) is None
+
+
+def test_a_regular_schedule_seen_by_a_slow_camera_gives_no_period():
+    """Contacts every 0.35 s exactly, each ending 0.1-0.9 ms after it starts, all end within the
+    same frame of a 1 kHz camera: the stamps fit every divisor of 10 ms, so they cannot say the
+    frame (1 ms); the estimate says nothing rather than 2 ms or 10 ms."""
+    contacts = 0.3 + 0.35 * np.arange(12)
+    separations = contacts + np.random.default_rng(4).uniform(1e-4, 9e-4, 12)
+    stamps = np.ceil(separations * 1000.0) / 1000.0
+    assert frame_period_s(stamps) is None
+    # The 5 kHz camera of the same impacts: the contacts end in several of its frames, so the
+    # grid shows; the regular schedule leaves it known to within 1 % (a period 1750 frames long
+    # fits 1748 slightly longer ones to within the 2 us tolerance).
+    assert frame_period_s(np.ceil(separations * 5000.0) / 5000.0) == pytest.approx(2e-4, rel=1e-2)
+
+
+def test_too_few_stamps_give_no_period():
+    """Seven stamps (six differences) may all be even multiples of the frame by chance: the
+    estimate waits for MIN_REBOUNDS."""
+    stamps = _grid_stamps(2000.0, MIN_REBOUNDS)
+    assert frame_period_s(stamps[:-1]) is None
+    assert frame_period_s(stamps) == pytest.approx(1.0 / 2000.0, rel=1e-6)
+
+
+def test_a_decision_uses_only_the_stamps_up_to_its_rebound():
+    """Before MIN_REBOUNDS stamps the configured period holds, after them the measured one; the
+    period an earlier rebound is decided with does not change when later rebounds come (live
+    and offline decisions agree however the rebounds arrive)."""
+    stamps = _grid_stamps(1000.0, 10)
+    camera = FramePeriod(configured_s=1.0 / 5000.0)
+    for stamp in stamps:
+        camera.add(float(stamp))
+    assert camera.period_at(stamps[MIN_REBOUNDS - 2]) == pytest.approx(2e-4)
+    assert camera.period_at(stamps[MIN_REBOUNDS - 1]) == pytest.approx(1e-3, rel=1e-6)
+    assert camera.period_at(stamps[-1]) == pytest.approx(1e-3, rel=1e-6)
+    assert FramePeriod(None).period_at(1.0) is None
+
+
+@pytest.fixture(scope="module")
+def slow_camera_stream(params):
+    """Ten impacts of 25-90 mm coal and mudstone 0.3-0.45 s apart on the nominal support, its camera
+    at 1 kHz (lagging the contact's end by up to 1 ms, five times the shipped camera's frame)."""
+    varied = copy.deepcopy(params)
+    varied["sensors"]["camera_frame_rate_hz"] = 1000.0
+    radii = np.geomspace(0.025, 0.09, 10)
+    starts = 0.3 + np.cumsum(0.3 + 0.15 * np.random.default_rng(7).uniform(size=10))  # as a face: 0.3-0.45 s apart
+    commands = [(float(starts[k]), {"material": "coal" if k % 2 else "mudstone", "radius_m": float(r), "drop_height_m": 3.0,
+                                  "position_m": 1.0}) for k, r in enumerate(radii)]
+    return stream_chunk(varied, commands, float(starts[-1]) + 0.1)
+
+
+def test_a_slow_camera_is_recognised_and_its_lag_averaged_over(params, slow_camera_stream):
+    """Identified with the shipped config/ (a 5 kHz camera), the labels say 200 us for the first
+    rebounds and 1 ms, read from the stamps, from the eighth on. Averaged over the lag a 1 kHz
+    camera may add, the delays read shorter contacts, and a shorter contact is a stiffer
+    particle: P(coal) falls on average against the decision that takes the whole delay for
+    contact, and no decision gets surer than the most confident lag allows."""
+    chunk = slow_camera_stream
+    labels = replay(StreamIdentifier("statistical", params["identification"], params), chunk.pressure, chunk.imu,
+                    [r for _, r in chunk.rebounds], vibration=chunk.vibration)
+    assert len(labels) == 10
+    periods = [label.features["camera_frame_period_s"] for label in labels]
+    assert periods[:MIN_REBOUNDS - 1] == pytest.approx([2e-4] * (MIN_REBOUNDS - 1))
+    assert periods[MIN_REBOUNDS - 1:] == pytest.approx([1e-3] * (10 - MIN_REBOUNDS + 1), rel=1e-6)
+    method = StreamIdentifier("statistical", params["identification"], params).method
+    shifts = []
+    for label in labels:
+        unaware = method.decide({**label.features, "camera_frame_period_s": 2e-4}).p_coal
+        averaged = method.decide({**label.features, "camera_frame_period_s": 1e-3}).p_coal
+        extremes = [method.decide({**label.features, "camera_frame_period_s": 2e-4,
+                                   "rebound_delay_s": label.features["rebound_delay_s"] + shift}).p_coal for shift in (1e-4, -9e-4)]
+        assert min(extremes) - 1e-9 <= averaged or averaged <= max(extremes) + 1e-9
+        shifts.append(averaged - unaware)
+    assert np.mean(shifts) < 0.0, shifts
+
+
+def test_a_camera_as_fast_as_the_training_changes_nothing(params, slow_camera_stream):
+    """At or below the reference frame (5 kHz) the delay is taken as it is: the decision equals
+    the one without the camera's period."""
+    features = replay(StreamIdentifier("statistical", params["identification"], params), slow_camera_stream.pressure,
+                      slow_camera_stream.imu, [r for _, r in slow_camera_stream.rebounds],
+                      vibration=slow_camera_stream.vibration)[0].features
+    method = StreamIdentifier("statistical", params["identification"], params).method
+    bare = {k: v for k, v in features.items() if k != "camera_frame_period_s"}
+    for period_s in (5e-5, 2e-4):
+        assert method.decide({**bare, "camera_frame_period_s": period_s}).p_coal == method.decide(bare).p_coal
+    assert method.decide({**bare, "camera_frame_period_s": 1e-3}).p_coal != method.decide(bare).p_coal
