@@ -424,7 +424,9 @@ class PulseDetector:
         before = accel_z[lo:k + 1] - background(np.arange(lo, k + 1))
         past = np.abs(before) > c.onset_threshold_sigma * sigma
         first = lo + int(np.argmax(past)) if past.any() else k
-        end = min(first + span, accel_z.size)
+        # At least up to k: at a slow rate (1 kHz and under) the look-back can reach further
+        # back than a contact spans, and a run cut off before k sent the walk backwards.
+        end = min(max(first + span, k + 1), accel_z.size)
         deviation = accel_z[first:end] - background(np.arange(first, end))
         last = first
         for j in range(1, deviation.size):
