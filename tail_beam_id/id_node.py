@@ -105,7 +105,7 @@ class IdNode(Node):
         self.refused_blocks = 0  # vibration messages that carried no block (their index, period or range out of range)
         sensor_qos = ros_messages.stream_qos(depth)
         event_qos = ros_messages.EVENT_QOS
-        self._label_pub = self.create_publisher(String, topics.LABEL, event_qos)
+        self._label_pub = self.create_publisher(String, topics.LABEL, ros_messages.EVENT_PUBLISHER_QOS)
         self.create_subscription(FluidPressure, topics.JACK_PRESSURE, self._on_pressure, sensor_qos)
         self.create_subscription(Imu, topics.IMU, self._on_imu, sensor_qos)
         self.create_subscription(LaserScan, topics.VIBRATION, self._on_vibration, sensor_qos)

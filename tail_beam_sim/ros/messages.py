@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TwistStamped
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import Header, String
@@ -30,6 +30,12 @@ NO_ORIENTATION = [-1.0] + [0.0] * 8  # REP 145: element 0 = -1, the estimate is 
 
 
 EVENT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)  # one message per impact or command
+# What the nodes publish events (rebound_velocity, impact_truth, label) with: as EVENT_QOS, and
+# transient-local, so that a subscriber asking for it (bag_recorder) also gets the last
+# ``depth`` events published before it matched: a label published before the recorder had
+# matched id_node was lost from the bag. Volatile subscribers (the contract's) match it too.
+EVENT_PUBLISHER_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+EVENT_TOPICS = (topics.REBOUND_VELOCITY, topics.IMPACT_TRUTH, topics.LABEL)
 # impact_cmd as sim_node reads it: keep-all, so that a burst waits in the reader's history (reliable
 # flow control slows the client) instead of keep-last overwriting what the node has not taken yet.
 COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)

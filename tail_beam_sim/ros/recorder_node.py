@@ -14,16 +14,27 @@ Like ``ros2 bag record``: a new file every ``max_bag_duration_s`` of log time or
 ``max_bag_size_bytes`` (0 = never), mcap chunks zstd-compressed (``compression``), and a count
 of messages lost, reported on exit and kept in the bag's metadata (``custom_data``): the
 vibration samples missing from the running index, and the middleware's message-lost events.
+
+Like rosbag2, it subscribes to the event topics (rebound_velocity, impact_truth, label) with
+the durability their publishers offer: transient-local when every publisher offers it (the
+suite's nodes do), so that the events published before the recorder matched them are in the
+bag too (a label published in the moment before was lost); volatile as soon as one publisher
+does not, since a transient-local subscription would not match it. An event delivered twice
+across such a switch is written once.
 """
 
 from __future__ import annotations
 
+import hashlib
+import math
 import sys
 import time
+from collections import OrderedDict
 from pathlib import Path
 
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import LaserScan
 
@@ -37,6 +48,9 @@ from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_an
 from tail_beam_sim.ros.spin import run_node
 
 LOST_KEYS = ("tail_beam.vibration_lost_samples", "tail_beam.messages_lost_events")  # bag metadata custom_data
+DISCOVERY_PERIOD_S = 0.1  # how often the event topics' publishers are looked at, s
+RECENT_EVENTS = 1000  # events per topic remembered, so that one delivered twice is written once
+REDELIVERY_S = 2.0  # after re-subscribing, how long an event already written is taken for a repeat, s (wall)
 
 
 OUTPUT_DIR = Path("out")  # where commands put what they write by default (ignored by git)
@@ -74,13 +88,15 @@ class RecorderNode(Node):
         self.vibration = IndexSpan()
         self.lost_events = 0
         self.refused_blocks = 0  # vibration messages without a readable block index (recorded, not counted)
-        qos = ros_messages.stream_qos(depth)
-        events = SubscriptionEventCallbacks(message_lost=self._on_lost)
-        for topic, msgtype in topics.MSG_TYPES.items():
-            self.create_subscription(
-                ros_messages.message_class(msgtype), topic, lambda data, t=topic: self._write(t, data), qos, raw=True,
-                event_callbacks=events,
-            )
+        self.qos = ros_messages.stream_qos(depth)
+        self._events: dict[str, tuple[object, tuple[DurabilityPolicy, ReliabilityPolicy]]] = {}
+        self._recent: dict[str, OrderedDict[bytes, None]] = {topic: OrderedDict() for topic in ros_messages.EVENT_TOPICS}
+        self._resubscribed: dict[str, float] = {}  # event topic -> when it was last re-subscribed (monotonic s)
+        for topic in topics.MSG_TYPES:
+            subscription = self._subscribe(topic, self.qos)
+            if topic in ros_messages.EVENT_TOPICS:
+                self._events[topic] = (subscription, (DurabilityPolicy.VOLATILE, ReliabilityPolicy.RELIABLE))
+        self.create_timer(DISCOVERY_PERIOD_S, self._follow_event_publishers)
         self.create_timer(segment_s, self.writer.close_segment)
         if flush_s < segment_s:
             self.create_timer(flush_s, self.writer.flush)
@@ -89,7 +105,43 @@ class RecorderNode(Node):
             f"recording {', '.join(self.names.values())} to {self.bag_path} ({self.writer.storage}, compression {compression})"
         )
 
+    def _subscribe(self, topic: str, qos: QoSProfile) -> object:
+        return self.create_subscription(
+            ros_messages.message_class(topics.MSG_TYPES[topic]), topic, lambda data, t=topic: self._write(t, data), qos, raw=True,
+            event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_lost),
+        )
+
+    def _follow_event_publishers(self) -> None:
+        """Subscribe to each event topic with the durability and reliability all its publishers
+        offer (module docstring), re-subscribing when they change."""
+        for topic in ros_messages.EVENT_TOPICS:
+            offered = [info.qos_profile for info in self.get_publishers_info_by_topic(self.names[topic])]
+            if not offered:
+                continue
+            durable = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+            reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
+            wanted = (DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
+                      ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT)
+            subscription, current = self._events[topic]
+            if wanted == current:
+                continue
+            self.destroy_subscription(subscription)
+            qos = QoSProfile(history=self.qos.history, depth=self.qos.depth, durability=wanted[0], reliability=wanted[1])
+            self._events[topic] = (self._subscribe(topic, qos), wanted)
+            self._resubscribed[topic] = time.monotonic()
+            if wanted[0] == DurabilityPolicy.VOLATILE and current[0] == DurabilityPolicy.TRANSIENT_LOCAL:
+                self.get_logger().info(f"{self.names[topic]}: a publisher offers volatile durability; recording it volatile "
+                                       "(events published before a subscriber matched are not kept)")
+
     def _write(self, topic: str, data: bytes) -> None:
+        recent = self._recent.get(topic)
+        if recent is not None:  # an event topic: one delivered again just after re-subscribing is written once
+            key = hashlib.blake2b(data, digest_size=16).digest()
+            if key in recent and time.monotonic() - self._resubscribed.get(topic, -math.inf) < REDELIVERY_S:
+                return
+            recent[key] = None
+            if len(recent) > RECENT_EVENTS:
+                recent.popitem(last=False)
         self.writer.write(self.names[topic], self.get_clock().now().nanoseconds, data)
         if topic == topics.VIBRATION:
             msg = deserialize_message(data, LaserScan)

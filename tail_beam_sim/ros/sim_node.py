@@ -110,7 +110,7 @@ class SimNode(Node):
         self.commands = CommandCounts()
         self.finished = Future()
         sensor_qos = ros_messages.stream_qos(depth)
-        event_qos = ros_messages.EVENT_QOS
+        event_qos = ros_messages.EVENT_PUBLISHER_QOS
         self._pressure_pub = self.create_publisher(FluidPressure, topics.JACK_PRESSURE, sensor_qos)
         self._imu_pub = self.create_publisher(Imu, topics.IMU, sensor_qos)
         self._vibration_pub = self.create_publisher(LaserScan, topics.VIBRATION, sensor_qos)

@@ -174,3 +174,48 @@ def test_replay_chooses_a_namespace_and_honours_start_offset_and_loop(tmp_path):
     first_pass = blocks.first_index[: np.flatnonzero(blocks.first_index == blocks.first_index[0])[1]]
     # 0.02 s at 25.6 kHz: blocks before index 512 are skipped; the rest come in order.
     assert first_pass[0] == 4 * 128 and np.all(np.diff(first_pass) == 128)
+
+
+@pytest.mark.ros
+def test_events_published_before_the_recorder_matched_are_in_the_bag_once(tmp_path):
+    """id_node's labels are published transient-local: three labels published before bag_recorder
+    even started are in its bag (a label published in the moment before the recorder matched
+    id_node used to be lost), each once, with the two published after. A volatile publisher (a
+    client of the contract) on another event topic is still recorded: the recorder follows
+    what the publishers offer."""
+    import json
+
+    from rclpy.parameter import Parameter
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    from rosprobe import ros_context, spin_for, spin_until
+    from tail_beam_sim.ros import messages as ros_messages
+    from tail_beam_sim.ros.recorder_node import RecorderNode
+
+    bag = tmp_path / "bag"
+    with ros_context() as (context, executor):
+        from rclpy.node import Node
+
+        source = Node("label_source", namespace=NS, context=context)
+        labels = source.create_publisher(String, topics.LABEL, ros_messages.EVENT_PUBLISHER_QOS)
+        truths = source.create_publisher(String, topics.IMPACT_TRUTH, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+        executor.add_node(source)
+        for k in range(3):
+            labels.publish(String(data=json.dumps({"impact_stamp": float(k), "label": "coal", "confidence": 0.9, "method": "x"})))
+        spin_for(executor, 0.2)
+        recorder = RecorderNode(context=context, namespace=NS, parameter_overrides=[Parameter("recorder.bag_path", value=str(bag))])
+        executor.add_node(recorder)
+        assert spin_until(executor, lambda: truths.get_subscription_count() >= 1 and labels.get_subscription_count() >= 1, timeout_s=20)
+        spin_for(executor, 0.5)  # the recorder has looked at the publishers and re-subscribed
+        for k in range(3, 5):
+            labels.publish(String(data=json.dumps({"impact_stamp": float(k), "label": "gangue", "confidence": 0.9, "method": "x"})))
+        truths.publish(String(data=json.dumps({"impact_id": 1})))
+        spin_for(executor, 1.0)
+        recorder.close()
+    with AnyReader([bag], default_typestore=bagio.TYPESTORE) as reader:
+        stamps = [json.loads(reader.deserialize(raw, c.msgtype).data)["impact_stamp"]
+                  for c, _, raw in reader.messages() if c.topic == f"{NS}/label"]
+        truth_count = sum(1 for c, _, _ in reader.messages() if c.topic == f"{NS}/impact_truth")
+    assert sorted(stamps) == [0.0, 1.0, 2.0, 3.0, 4.0]
+    assert truth_count == 1
