@@ -40,26 +40,31 @@ def test_stamps_off_any_grid_give_no_period():
     assert frame_period_s(_grid_stamps(5000.0, 20) + rng.normal(0.0, 1e-5, 20)) is None
 
 
-def test_a_regular_schedule_seen_by_a_slow_camera_gives_no_period():
+def test_a_regular_schedule_seen_by_a_slow_camera_gives_a_multiple_never_less():
     """Contacts every 0.35 s exactly, each ending 0.1-0.9 ms after it starts, all end within the
     same frame of a 1 kHz camera: the stamps fit every divisor of 10 ms, so they cannot say the
-    frame (1 ms); the estimate says nothing rather than 2 ms or 10 ms."""
+    frame (1 ms). The estimate errs long (2 ms: decisions less sure), never short."""
     contacts = 0.3 + 0.35 * np.arange(12)
     separations = contacts + np.random.default_rng(4).uniform(1e-4, 9e-4, 12)
-    stamps = np.ceil(separations * 1000.0) / 1000.0
-    assert frame_period_s(stamps) is None
+    assert frame_period_s(np.ceil(separations * 1000.0) / 1000.0) == pytest.approx(2e-3, rel=1e-6)
     # The 5 kHz camera of the same impacts: the contacts end in several of its frames, so the
     # grid shows; the regular schedule leaves it known to within 1 % (a period 1750 frames long
-    # fits 1748 slightly longer ones to within the 2 us tolerance).
+    # fits 1748 slightly longer ones to within the tolerance).
     assert frame_period_s(np.ceil(separations * 5000.0) / 5000.0) == pytest.approx(2e-4, rel=1e-2)
 
 
+@pytest.mark.parametrize("seed", range(20))
+def test_from_the_fewest_stamps_the_estimate_is_never_shorter_than_the_frame(seed):
+    """From MIN_REBOUNDS stamps of a face's stream the estimate is the frame or longer (a
+    multiple, or by chance another period that fits so few differences), never shorter."""
+    for rate_hz in (1000.0, 2000.0, 5000.0):
+        estimate = frame_period_s(_grid_stamps(rate_hz, MIN_REBOUNDS, seed=seed))
+        assert estimate is not None and estimate >= 1.0 / rate_hz * (1 - 1e-6), (rate_hz, estimate)
+
+
 def test_too_few_stamps_give_no_period():
-    """Seven stamps (six differences) may all be even multiples of the frame by chance: the
-    estimate waits for MIN_REBOUNDS."""
-    stamps = _grid_stamps(2000.0, MIN_REBOUNDS)
-    assert frame_period_s(stamps[:-1]) is None
-    assert frame_period_s(stamps) == pytest.approx(1.0 / 2000.0, rel=1e-6)
+    """Fewer stamps than MIN_REBOUNDS give no estimate."""
+    assert frame_period_s(_grid_stamps(2000.0, MIN_REBOUNDS - 1)) is None
 
 
 def test_a_decision_uses_only_the_stamps_up_to_its_rebound():
@@ -91,7 +96,8 @@ def slow_camera_stream(params):
 
 def test_a_slow_camera_is_recognised_and_its_lag_averaged_over(params, slow_camera_stream):
     """Identified with the shipped config/ (a 5 kHz camera), the labels say 200 us for the first
-    rebounds and 1 ms, read from the stamps, from the eighth on. Averaged over the lag a 1 kHz
+    rebounds, then the camera's 1 ms read from the stamps (or, from the
+    fewest, a period longer still). Averaged over the lag a 1 kHz
     camera may add, the delays read shorter contacts, and a shorter contact is a stiffer
     particle: P(coal) falls on average against the decision that takes the whole delay for
     contact, and no decision gets surer than the most confident lag allows."""
@@ -101,7 +107,8 @@ def test_a_slow_camera_is_recognised_and_its_lag_averaged_over(params, slow_came
     assert len(labels) == 10
     periods = [label.features["camera_frame_period_s"] for label in labels]
     assert periods[:MIN_REBOUNDS - 1] == pytest.approx([2e-4] * (MIN_REBOUNDS - 1))
-    assert periods[MIN_REBOUNDS - 1:] == pytest.approx([1e-3] * (10 - MIN_REBOUNDS + 1), rel=1e-6)
+    assert all(period >= 1e-3 * (1 - 1e-6) for period in periods[MIN_REBOUNDS - 1:]), periods  # erring long at first
+    assert periods[-1] == pytest.approx(1e-3, rel=1e-6)
     method = StreamIdentifier("statistical", params["identification"], params).method
     shifts = []
     for label in labels:
