@@ -34,6 +34,7 @@ import numpy as np
 
 from tail_beam_id.association import ImpactAssociation, PendingImpact
 from tail_beam_id.buffers import Series
+from tail_beam_id import mounting
 from tail_beam_id.camera import FramePeriod
 from tail_beam_id.detection.imu import DetectionConfig, Pulse, PulseDetector
 from tail_beam_id.detection.pressure import PressureDetector
@@ -98,9 +99,6 @@ class IdentifierConfig:
 
 MOUNT_SAMPLES = 16  # IMU samples whose median gravity reading gives the mounting's sign
 VIBRATION_MOUNT_SAMPLES = 64  # accelerometer samples whose median gravity reading gives its mounting's sign
-# An accelerometer whose median reading is below -this x g reads gravity upside down; one near 0
-# is AC-coupled (a piezoelectric sensor sees no gravity) and is taken as mounted as configured.
-INVERTED_GRAVITY_FRACTION = 0.5
 
 
 def _configured_frame_period_s(merged: Mapping[str, Any]) -> float | None:
@@ -162,6 +160,7 @@ class StreamIdentifier:
         self.imu_stop_s = math.inf  # stamp after which the IMU was declared stopped
         self.mount_sign: float | None = None  # +1: IMU z along the plate normal; -1: mounted upside down
         self.vibration_mount_sign: float | None = None  # the same for the tail-beam accelerometer
+        self._mount_block_s: float | None = None  # start of the next block the IMU comparison looks at, s
         self.vibration_start_s = math.inf  # first vibration stamp seen
         self.vibration_stop_s = math.inf  # stamp after which the vibration stream was declared stopped
         self._held: list[Pulse] = []  # IMU pulses the vibration stream may yet cover
@@ -305,28 +304,56 @@ class StreamIdentifier:
             self.mount_sign = -1.0 if float(np.median(self.imu.values[:MOUNT_SAMPLES, 5])) < 0.0 else 1.0
         return self.imu.values[:, 5] * self.mount_sign
 
-    def _vibration_z(self) -> np.ndarray | None:
-        """The accelerometer's specific force along the plate normal, the right way up.
+    def _vibration_z(self, final: bool = False) -> np.ndarray | None:
+        """The accelerometer's specific force along the plate normal, the right way up; None
+        until its mounting is known (:mod:`tail_beam_id.mounting`).
 
-        An accelerometer bolted upside down reads -g and every pulse with the opposite sign (the
-        IMU-trained models read a pulse's polarity and ringing: upside down, 82 % of a foreign
-        set's labels fell to 53 %, 68 of 200 wrong at >= 0.9). The sign is read once, from the
-        median of the first ``VIBRATION_MOUNT_SAMPLES`` samples: below -``INVERTED_GRAVITY_FRACTION``
-        g it is inverted; near 0 (an AC-coupled sensor) it is taken as configured. None until then."""
+        The sign is read once: from gravity in the median of the first
+        ``VIBRATION_MOUNT_SAMPLES`` samples; for an AC-coupled sensor (no gravity), from the IMU
+        beside it, block by block of ``mounting.BLOCK_S`` from the stream's start, once both
+        streams have passed a block's end (so the answer does not depend on how the data came);
+        without an IMU, or with no answer after ``mounting.GIVE_UP_S`` of data or at the end,
+        as configured. Until then the accelerometer is not scanned: its data are kept, and its
+        pulses found once the sign is known."""
         if self.vibration_mount_sign is None:
-            if self.vibration.stamp_s.size < VIBRATION_MOUNT_SAMPLES:
+            if self.vibration.stamp_s.size < VIBRATION_MOUNT_SAMPLES and not final:
                 return None
-            median = float(np.median(self.vibration.values[:VIBRATION_MOUNT_SAMPLES, 0]))
-            upside_down = median < -INVERTED_GRAVITY_FRACTION * self.model.support.gravity_mps2
-            self.vibration_mount_sign = -1.0 if upside_down else 1.0
+            sign = mounting.sign_from_gravity(self.vibration.values[:VIBRATION_MOUNT_SAMPLES, 0], self.model.support.gravity_mps2)
+            if sign is None:
+                sign = self._vibration_sign_from_imu(final)
+            if sign is None:
+                return None
+            self.vibration_mount_sign = sign
         column = self.vibration.values[:, 0]
         return column if self.vibration_mount_sign > 0.0 else -column
+
+    def _vibration_sign_from_imu(self, final: bool) -> float | None:
+        """The AC-coupled accelerometer's sign from the IMU, block by block (``_vibration_z``);
+        +1 (as configured) when it cannot be had; None while it may yet come."""
+        imu_z = self._accel_z()
+        if self._mount_block_s is None:
+            self._mount_block_s = float(self.vibration.stamp_s[0])
+        while imu_z is not None:
+            end = self._mount_block_s + mounting.BLOCK_S
+            complete = min(self.imu.latest_s, self.vibration.latest_s) >= end
+            if not (complete or final):
+                break
+            sign = mounting.sign_from_imu(self.vibration.stamp_s, self.vibration.values[:, 0], self.imu.stamp_s, imu_z,
+                                          self._mount_block_s, end if complete else math.inf)
+            if sign is not None:
+                return sign
+            if not complete:  # the end of the data: the last, partial block
+                break
+            self._mount_block_s = end
+        waited = self.vibration.latest_s - float(self.vibration.stamp_s[0])
+        imu_gone = not self.imu.seen and waited >= self.config.stream_timeout_s
+        return 1.0 if final or imu_gone or waited >= mounting.GIVE_UP_S else None
 
     def _detect_pulses(self, final: bool) -> None:
         """Pulses of the acceleration channels: the vibration stream's, and the IMU's where the
         vibration stream does not cover them (before it began, after it stopped); an IMU pulse
         the vibration stream has not yet passed is held until it does or is declared stopped."""
-        vibration_z = self._vibration_z() if self.vibration.stamp_s.size else None
+        vibration_z = self._vibration_z(final) if self.vibration.stamp_s.size else None
         if vibration_z is not None:
             for pulse in self.vibration_detector.scan(self.vibration.stamp_s, vibration_z, self.vibration.base_index, final):
                 self.impacts.pending.append(PendingImpact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration"))
