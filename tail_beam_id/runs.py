@@ -136,11 +136,11 @@ def run_foreign(
     for setting in chosen:
         streams = support_streams(params, supports, impacts_per_support, seed, tier=tier, setting=setting)
         for number, recorded in enumerate(streams):
-            yield from _foreign_records(params, recorded, number, impacts_per_support, methods, profiles,
+            yield from foreign_records(params, recorded, number, impacts_per_support, methods, profiles,
                                         setting.key if setting is not None else DRAWN_SENSORS)
 
 
-def _foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: int, impacts_per_support: int,
+def foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: int, impacts_per_support: int,
                      methods: Sequence[str], profiles: Sequence[str], sensors: str) -> Iterator[Record]:
     """The records of one recorded support stream, under each profile and method."""
     from tail_beam_id.calibration import calibrate, with_profile
