@@ -31,6 +31,7 @@ from scipy.optimize import brentq
 from scipy.signal import welch
 
 from tail_beam_id.label import Label
+from tail_beam_id.timing import UNUSUAL
 from tail_beam_sim.config import deep_merge
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.materials import material_table
@@ -58,6 +59,11 @@ class SupportProfile:
     imu_gain_spread: float | None  # robust relative spread of the per-impact IMU gains
     pressure_noise_pa: float | None
     imu_accel_noise_mps2: float | None
+    # Impacts of the pass whose delay from onset to camera stamp the statistical method checked,
+    # and those it found unusual (tail_beam_id.timing: too many, and the sensors' clocks may be
+    # offset; the identifier then caps the labels that use the delay from the first one on).
+    delay_checked_impacts: int | None = None
+    delay_unusual_impacts: int | None = None
 
     @property
     def calibrated(self) -> bool:
@@ -153,10 +159,14 @@ def calibrate(
     inertia = None
     spread = None
     used = 0
+    checked = unusual = None
     if bulk is not None:
         calibrated = copy.deepcopy(dict(params))
         calibrated["support"]["oil_bulk_modulus_pa"] = bulk
         labels = identify(calibrated)
+        checks = [label.features[UNUSUAL] for label in labels if UNUSUAL in label.features]
+        if checks:
+            checked, unusual = len(checks), int(sum(value > 0.5 for value in checks))
         gains = []
         for label in labels:
             f = label.features
@@ -180,6 +190,7 @@ def calibrate(
         duration_s=duration, impacts_used=used, imu_mount_sign=sign, rigid_mode_frequency_hz=frequency,
         oil_bulk_modulus_pa=bulk, beam_inertia_about_hinge_kgm2=inertia, imu_gain_spread=spread,
         pressure_noise_pa=robust_noise(p_value), imu_accel_noise_mps2=robust_noise(i_accel),
+        delay_checked_impacts=checked, delay_unusual_impacts=unusual,
     )
 
 

@@ -97,6 +97,7 @@ class IdNode(Node):
         # Continuous topic -> (newest stamp arrived, its wall-clock arrival), s: the wake's test.
         self._newest: dict[str, tuple[float, float]] = {}
         self._due_s = math.inf  # stamp the next pending impact waits for (identifier.next_horizon_s), s
+        self._timing_said: object | None = None  # the identifier's timing check whose suspicion was logged
         self._woken_for_s = math.nan  # the due stamp the last wake was for (one wake each)
         self._last_arrival_s = time.monotonic()
         self._unflushed = False
@@ -219,6 +220,10 @@ class IdNode(Node):
         for note in self.gated.notes:
             self.get_logger().warning(note)
         self.gated.notes.clear()
+        timing = self.identifier.timing
+        if timing.suspect and timing is not self._timing_said:
+            self._timing_said = timing  # once per identifier (a new time base starts a new one)
+            self.get_logger().warning(f"sensor timing: {timing.describe()}")
         self._due_s = self.gated.next_horizon_s()
         self._arm_wake()
 

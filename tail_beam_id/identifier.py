@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -36,6 +36,7 @@ from tail_beam_id.association import ImpactAssociation, PendingImpact
 from tail_beam_id.buffers import Series
 from tail_beam_id import mounting
 from tail_beam_id.camera import FramePeriod
+from tail_beam_id.timing import OUTSIDE_NAME, UNUSUAL, SensorTiming, TimingConfig, judge
 from tail_beam_id.detection.imu import DetectionConfig, Pulse, PulseDetector
 from tail_beam_id.detection.pressure import PressureDetector
 from tail_beam_id.features import VIBRATION_CHANNEL, BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
@@ -61,6 +62,7 @@ class IdentifierConfig:
     overlap_window_s: float
     overlap_confidence_cap: float
     detection: DetectionConfig
+    timing: TimingConfig
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> IdentifierConfig:
@@ -94,6 +96,7 @@ class IdentifierConfig:
             overlap_window_s=overlap,
             overlap_confidence_cap=require_range("identification.overlap_confidence_cap", params.get("overlap_confidence_cap"), 0.5, 1.0),
             detection=DetectionConfig.from_params(params.get("detection") or {}),
+            timing=TimingConfig.from_params(params.get("sensor_timing") or {}),
         )
 
 
@@ -108,6 +111,16 @@ def _configured_frame_period_s(merged: Mapping[str, Any]) -> float | None:
     if rate is None:
         return None
     return 1.0 / require_range("sensors.camera_frame_rate_hz", rate, 0.0, 1e6, low_open=True, unit="Hz")
+
+
+def _profile_says_timing_suspect(merged: Mapping[str, Any], config: TimingConfig) -> bool:
+    """A self-calibration pass over the recording (its profile's ``calibration`` section) found
+    its sensor timing suspect (tail_beam_id.timing): then the labels are capped from the first."""
+    calibration = merged.get("calibration") or {}
+    checked, unusual = calibration.get("delay_checked_impacts"), calibration.get("delay_unusual_impacts")
+    if not isinstance(checked, int) or not isinstance(unusual, int):
+        return False
+    return judge(checked, unusual, config)
 
 
 class StreamIdentifier:
@@ -157,6 +170,7 @@ class StreamIdentifier:
         )
         self.impacts = ImpactAssociation(self.config)  # pending impacts, rebounds, recent decisions
         self.camera = FramePeriod(_configured_frame_period_s(merged))  # the camera's frame period, s
+        self.timing = SensorTiming(self.config.timing, _profile_says_timing_suspect(merged, self.config.timing))
         self.imu_stop_s = math.inf  # stamp after which the IMU was declared stopped
         self.mount_sign: float | None = None  # +1: IMU z along the plate normal; -1: mounted upside down
         self.vibration_mount_sign: float | None = None  # the same for the tail-beam accelerometer
@@ -486,6 +500,11 @@ class StreamIdentifier:
         confidence = decision.confidence
         if overlap:
             confidence = min(confidence, cfg.overlap_confidence_cap)
+        if UNUSUAL in decision.estimates:
+            self.timing.add(decision.estimates[UNUSUAL] > 0.5)
+            if self.timing.suspect:
+                confidence = min(confidence, cfg.timing.confidence_cap)
+                decision = replace(decision, outside_training=(*decision.outside_training, OUTSIDE_NAME))
         self.impacts.decided.append(impact.onset_s)
         horizon = self.impacts.data_horizon_s(impact)
         return make_label(

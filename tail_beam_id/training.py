@@ -27,7 +27,9 @@ from scipy.optimize import minimize, minimize_scalar
 from tail_beam_id.dataset import DRAWN_SETS, evaluation_params, settings
 from tail_beam_id.features import VIBRATION_CHANNEL
 from tail_beam_id.methods import MODELS_DIR
-from tail_beam_id.methods.statistical import SIGNAL_ORDER, base_vector, feature_list, network_logit, signals_of, size_feature, subset_key
+from tail_beam_id.methods.statistical import (
+    SIGNAL_ORDER, base_vector, delay_design, feature_list, network_logit, signals_of, size_feature, subset_key,
+)
 from tail_beam_id.label import Label
 from tail_beam_id.runs import Record, run_set
 from tail_beam_sim.config import load_parameters
@@ -153,6 +155,7 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
     5 kHz camera's frame, not the onset, now limits the contact duration) while the fast IMU lost
     0.5-2 points (94.5-96.1 % without a channel flag, 95.9-96.8 % with one, against 96.4-97.0 %).
     """
+    every = list(records)
     records = [r for r in records if not r.label.features.get(VIBRATION_CHANNEL)]
     rng = np.random.default_rng(seed)
     impacts = sorted({(r.scene_set, r.index) for r in records})
@@ -163,8 +166,42 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
         signals = tuple(s for i, s in enumerate(SIGNAL_ORDER) if mask >> i & 1)
         usable = [r for r in records if set(signals) <= set(signals_of(r.label.features))]
         if len(usable) >= 50:
-            subsets[subset_key(signals)] = fit_subset(usable, feature_list(signals), held)
+            names = feature_list(signals)
+            subsets[subset_key(signals)] = fit_subset(usable, names, held)
+            if "rebound_delay_s" in dict(names):
+                # The check of the delay is fitted on the accelerometer's impacts too: its
+                # delays are the tight ones an offset clock shows in (tail_beam_id.timing).
+                subsets[subset_key(signals)]["delay_check"] = fit_delay_check(
+                    [r for r in every if set(signals) <= set(signals_of(r.label.features))], names, subsets[subset_key(signals)])
     return subsets
+
+
+DELAY_CHECK_PERCENTILES = (0.5, 99.5)  # the band of the training residuals a delay is usual in
+DELAY_CHECK_MIN_RECORDS = 50  # records an IMU-period band needs for its residual band
+DELAY_CHECK_RIDGE = 1e-3  # ridge penalty of the delay regression (per record)
+
+
+def fit_delay_check(records: Sequence[Record], names: Sequence[tuple[str, float | None]], model: Mapping[str, Any]) -> dict[str, Any]:
+    """The statistical method's check of an impact's delay from onset to camera stamp
+    (tail_beam_id.timing): a ridge regression of the standardised log delay on the model's other
+    inputs (with their pairwise products), and per band of IMU periods (TIMING_BIN_EDGES_S) the
+    0.5-99.5 % band of the training residuals (None where too few records fall)."""
+    low_env, high_env = (np.array(v) for v in model["envelope"])
+    z = (np.clip(np.array([base_vector(r.label.features, names) for r in records]), low_env, high_env)
+         - np.array(model["mean"])) / np.array(model["scale"])
+    column = [n for n, _ in names].index("rebound_delay_s")
+    x = delay_design(z, column)
+    weights = np.linalg.solve(x.T @ x + DELAY_CHECK_RIDGE * len(x) * np.eye(x.shape[1]), x.T @ z[:, column])
+    residual = z[:, column] - x @ weights
+    band = np.searchsorted(np.array(TIMING_BIN_EDGES_S), [r.label.features["imu_period_s"] for r in records])
+    low: list[float | None] = []
+    high: list[float | None] = []
+    for b in range(len(TIMING_BIN_EDGES_S) + 1):
+        inside = residual[band == b]
+        bounds = np.percentile(inside, DELAY_CHECK_PERCENTILES) if inside.size >= DELAY_CHECK_MIN_RECORDS else (None, None)
+        low.append(None if bounds[0] is None else float(bounds[0]))
+        high.append(None if bounds[1] is None else float(bounds[1]))
+    return {"weights": weights.tolist(), "bands_s": list(TIMING_BIN_EDGES_S), "low": low, "high": high, "fitted_on": len(records)}
 
 
 def fit_subset(records: Sequence[Record], names: Sequence[tuple[str, float | None]], held: set[tuple[str, int]]) -> dict[str, Any]:

@@ -99,6 +99,8 @@ def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | Non
     if identifier.refused_rebounds:
         print(f"identify: {data.namespace} rebound_velocity: {identifier.refused_rebounds} message(s) with a non-finite "
               "stamp or velocity left out", file=sys.stderr)
+    if identifier.timing.suspect:
+        print(f"identify: {data.namespace} sensor timing: {identifier.timing.describe()}", file=sys.stderr)
     return sorted(labels, key=lambda label: label.impact_stamp_s)
 
 

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from tail_beam_id.methods import Decision, cap_confidence, sigmoid
+from tail_beam_id.timing import UNUSUAL
 from tail_beam_sim.errors import InputError, require_range
 
 # Each signal's features, with the floor (in the feature's unit) below which a noisy reading is
@@ -168,7 +169,11 @@ class StatisticalMethod:
             logit = math.log(max(p_coal, 1e-300)) - math.log(max(1.0 - p_coal, 1e-300))
         if outside:
             p_coal = cap_confidence(p_coal, self.outside_confidence_cap)
-        return Decision(p_coal, {"logit": float(logit)}, outside)
+        estimates = {"logit": float(logit)}
+        if "rebound_delay_s" in features and "imu_period_s" in features:
+            # The lag-corrected row (the middle lag) is the impact as the training's camera saw it.
+            estimates.update(delay_check(model, names, z[len(rows) // 2], float(features["imu_period_s"])))
+        return Decision(p_coal, estimates, outside)
 
     def _lag_rows(self, features: Mapping[str, float], names: Sequence[tuple[str, float | None]]) -> np.ndarray:
         """The model's inputs (K, d): one row, or, for a camera slower than the training's
@@ -191,6 +196,31 @@ class StatisticalMethod:
         rows = np.repeat(x[None, :], LAG_ROWS, axis=0)
         rows[:, column] = np.log(np.maximum(delays, floor))
         return rows
+
+
+def delay_design(z: np.ndarray, column: int) -> np.ndarray:
+    """The delay check's regressors (N, k) from standardised inputs ``z`` (N, d): every input
+    but the delay (``column``), their pairwise products and squares, and 1."""
+    x = np.delete(z, column, axis=1)
+    upper = np.triu_indices(x.shape[1])
+    return np.hstack([x, (x[:, :, None] * x[:, None, :])[:, upper[0], upper[1]], np.ones((x.shape[0], 1))])
+
+
+def delay_check(model: Mapping[str, Any], names: Sequence[tuple[str, float | None]], z: np.ndarray,
+                period_s: float) -> dict[str, float]:
+    """``delay_residual`` (the standardised log delay less what the impact's other inputs predict)
+    and ``delay_unusual`` (1.0 outside the training residuals' band at this IMU period, s), or
+    nothing when the model has no check or no band for the period (tail_beam_id.timing)."""
+    check = model.get("delay_check")
+    if check is None:
+        return {}
+    column = [name for name, _ in names].index("rebound_delay_s")
+    residual = float(z[column] - delay_design(z[None, :], column)[0] @ np.array(check["weights"]))
+    band = int(np.searchsorted(np.array(check["bands_s"]), period_s))
+    low, high = check["low"][band], check["high"][band]
+    if low is None or high is None:
+        return {"delay_residual": residual}
+    return {"delay_residual": residual, UNUSUAL: 0.0 if low <= residual <= high else 1.0}
 
 
 def network_logit(model: Mapping[str, Any], z: np.ndarray) -> np.ndarray:
