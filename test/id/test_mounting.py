@@ -17,6 +17,8 @@ G = 9.81
 
 
 def test_gravity_gives_the_sign_of_a_dc_coupled_sensor_and_nothing_of_an_ac_coupled_one():
+    """A DC-coupled sensor reads +g or -g at rest: its sign; an AC-coupled one reads about 0:
+    gravity says nothing (the IMU must)."""
     rng = np.random.default_rng(1)
     assert sign_from_gravity(G + rng.normal(0, 0.2, 64), G) == 1.0
     assert sign_from_gravity(-G + rng.normal(0, 0.2, 64), G) == -1.0
