@@ -12,6 +12,10 @@ read off its own signals:
 - the IMU's moment-per-velocity gain (beam inertia over the IMU's distance from the hinge): the
   median ratio, over the recording's impacts, of the moment the calibrated jack pressure saw
   to the velocity step the IMU saw;
+- the beam's bending modes as the acceleration channel sees them ring after each impact (their
+  frequencies and damping, tail_beam_id.modes): the slowest one's decay time becomes the
+  detector's ``ring_decay_s``, so that a lightly damped beam's ringing is followed for as long
+  as it lasts and a stiff, well damped beam's no longer than it does;
 - the noise of each sensor.
 
 The result is a ROS 2 parameter file (``tail-beam calibrate BAG --out profile.yaml``) that
@@ -31,6 +35,8 @@ from scipy.optimize import brentq
 from scipy.signal import welch
 
 from tail_beam_id.label import Label
+from tail_beam_id.modes import MIN_FREQUENCY_HZ as MIN_MODE_FREQUENCY_HZ
+from tail_beam_id.modes import RingingMode, ring_decay_s, ringing_modes
 from tail_beam_id.timing import UNUSUAL
 from tail_beam_sim.config import deep_merge
 from tail_beam_sim.errors import InputError
@@ -64,6 +70,24 @@ class SupportProfile:
     # offset; the identifier then caps the labels that use the delay from the first one on).
     delay_checked_impacts: int | None = None
     delay_unusual_impacts: int | None = None
+    # The bending modes the impacts set ringing (tail_beam_id.modes), ascending: Hz and damping
+    # ratio; None when none could be measured (too few impacts, or the channel too slow).
+    ringing_modes_hz: list[float] | None = None
+    ringing_damping_ratios: list[float] | None = None
+
+    @property
+    def ring_decay_s(self) -> float | None:
+        """The detector's ring_decay_s for the measured modes (s), or None."""
+        if not self.ringing_modes_hz or not self.ringing_damping_ratios:
+            return None
+        return ring_decay_s([RingingMode(f, z, 0) for f, z in zip(self.ringing_modes_hz, self.ringing_damping_ratios)])
+
+    def describe_modes(self) -> str:
+        """The measured bending modes in a few words ('ringing 400 Hz (3.7 %), 1269 Hz (1.5 %)')."""
+        if not self.ringing_modes_hz or not self.ringing_damping_ratios:
+            return "no bending mode measured in the ringing"
+        modes = ", ".join(f"{f:.0f} Hz ({100.0 * z:.1f} %)" for f, z in zip(self.ringing_modes_hz, self.ringing_damping_ratios))
+        return f"ringing {modes}, ring_decay_s {self.ring_decay_s:.3g}"
 
     @property
     def calibrated(self) -> bool:
@@ -77,6 +101,8 @@ class SupportProfile:
         if self.beam_inertia_about_hinge_kgm2 is not None:
             support["beam_inertia_about_hinge_kgm2"] = self.beam_inertia_about_hinge_kgm2
         section: dict[str, Any] = {"support": support} if support else {}
+        if self.ring_decay_s is not None:
+            section["identification"] = {"detection": {"ring_decay_s": self.ring_decay_s}}
         section["calibration"] = {k: v for k, v in asdict(self).items() if v is not None}
         return {"/**": {"ros__parameters": section}}
 
@@ -142,10 +168,14 @@ def calibrate(
     pressure: tuple[np.ndarray, np.ndarray],
     imu: tuple[np.ndarray, np.ndarray],
     identify: Callable[[dict[str, Any]], Sequence[Label]],
+    ringing: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> SupportProfile:
     """The profile of the support that recorded ``pressure`` (stamps s, Pa) and ``imu`` (stamps
     s, z specific force m/s^2). ``identify(params)`` must return the labels of the recording
-    identified with those parameters (the IMU gain needs each impact's moment estimates)."""
+    identified with those parameters (the IMU gain needs each impact's moment estimates, the
+    modes each impact's onset). ``ringing`` (stamps s, m/s^2) is the channel the bending modes
+    are read from: the tail-beam accelerometer where there is one (it sees modes up to ten
+    times higher), else the IMU's z."""
     # A sample with a non-finite stamp or value is a lost sample here too, as for the identifier
     # (one NaN pressure sample made the spectrum, and so the whole calibration, fail).
     p_stamp, p_value = _finite(*pressure)
@@ -160,6 +190,7 @@ def calibrate(
     spread = None
     used = 0
     checked = unusual = None
+    modes: list[RingingMode] = []
     if bulk is not None:
         calibrated = copy.deepcopy(dict(params))
         calibrated["support"]["oil_bulk_modulus_pa"] = bulk
@@ -175,6 +206,8 @@ def calibrate(
                 if f["moment_impulse_pressure_nms"] > GAIN_SIGMA * sigma:
                     gains.append(f["moment_impulse_pressure_nms"] / f["imu_impulse_mps"])
         used = len(gains)
+        r_stamp, r_accel = _finite(*ringing) if ringing is not None else (i_stamp, i_accel)
+        modes = ringing_modes(r_stamp, r_accel, [label.impact_stamp_s for label in labels], min_frequency_hz=max(MIN_MODE_FREQUENCY_HZ, 2.0 * frequency))
         if used >= MIN_IMPACTS:
             gain = float(np.median(gains))  # N m s per m/s at the IMU = inertia / IMU distance
             inertia_now = float(params["support"]["beam_inertia_about_hinge_kgm2"])
@@ -191,6 +224,7 @@ def calibrate(
         oil_bulk_modulus_pa=bulk, beam_inertia_about_hinge_kgm2=inertia, imu_gain_spread=spread,
         pressure_noise_pa=robust_noise(p_value), imu_accel_noise_mps2=robust_noise(i_accel),
         delay_checked_impacts=checked, delay_unusual_impacts=unusual,
+        ringing_modes_hz=[m.frequency_hz for m in modes] or None, ringing_damping_ratios=[m.damping_ratio for m in modes] or None,
     )
 
 

@@ -187,8 +187,12 @@ class StreamIdentifier:
         merged["identification"] = dict(merged.get("identification") or {}, method=self.config.method)
         self.model = BeamModel.from_params(merged)
         self.pressure_detector.model = self.model
+        # The ringing the profile measured (tail_beam_id.modes) sets how long the detectors follow it.
+        ring_decay = ((model_params.get("identification") or {}).get("detection") or {}).get("ring_decay_s")
         for detector in (self.detector, self.vibration_detector):
             detector.sway_frequency_hz = self.model.support.rigid_mode_frequency_hz
+            if ring_decay is not None:
+                detector.config = replace(detector.config, ring_decay_s=float(ring_decay))
         if method is not None:
             self.method = method
         self.calibrated = bool((merged.get("calibration") or {}).get("rigid_mode_frequency_hz"))

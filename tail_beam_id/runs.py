@@ -149,7 +149,9 @@ def foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: 
     tolerance_s = match_tolerance_s(section)
 
     def identify(model_params: Mapping[str, Any], method: str) -> tuple[list[Label], float]:
-        identifier = StreamIdentifier(method, section, model_params)
+        # The profile's detection settings (the ringing it measured) with the evaluation's section.
+        detection = {**section.get("detection", {}), **(model_params.get("identification", {}).get("detection") or {})}
+        identifier = StreamIdentifier(method, {**section, "detection": detection}, model_params)
         started = time.perf_counter()
         labels = replay(identifier, recorded.pressure, recorded.imu, recorded.rebounds, vibration=recorded.vibration)
         return labels, time.perf_counter() - started
@@ -159,9 +161,11 @@ def foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: 
         if profile == "true":
             model_params = {**recorded.params, "calibration": {"rigid_mode_frequency_hz": "known"}}
         elif profile == "self-calibrated":
+            v = recorded.vibration
             found = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
                               (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
-                              lambda calibrated: identify(calibrated, "statistical")[0])
+                              lambda calibrated: identify(calibrated, "statistical")[0],
+                              (v.sample_stamps_s(), v.accel_mps2) if v is not None and v.count else None)
             model_params = with_profile(params, found)
         for method in methods:
             labels, wall = identify(model_params, method)

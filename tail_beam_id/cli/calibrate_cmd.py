@@ -48,5 +48,5 @@ def run(args: argparse.Namespace) -> int:
               "the profile holds the noise and mounting only", file=sys.stderr)
     else:
         print(f"calibrate: sway {c.rigid_mode_frequency_hz:.2f} Hz, {c.impacts_used} impacts for the IMU gain, "
-              f"mount sign {c.imu_mount_sign}", file=sys.stderr)
+              f"mount sign {c.imu_mount_sign}, {c.describe_modes()}", file=sys.stderr)
     return 0
