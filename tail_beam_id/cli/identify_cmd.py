@@ -68,12 +68,17 @@ def identify_bag(bag: str, method: str | None = None, config: list[str] | None =
 
 def report_reading(data: BagSensors, verb: str) -> None:
     """Say on stderr what reading the bag left out: vibration samples missing from the running
-    index, samples recorded twice at one stamp."""
+    index, samples recorded twice at one stamp; and a new time base within the bag, which is
+    read as one (id_node would start afresh there)."""
     if data.vibration_gaps:
         print(f"{verb}: {data.namespace} vibration: {len(data.vibration_gaps)} gap(s), {data.vibration_lost_samples} samples lost "
               f"(first missing index {data.vibration_gaps[0][0]})", file=sys.stderr)
     for name, n in data.repeated_samples.items():
         print(f"{verb}: {data.namespace} {name}: {n} sample(s) at a stamp already read left out (the first kept)", file=sys.stderr)
+    for name, (log_s, back_s) in data.time_jumps.items():
+        print(f"{verb}: {data.namespace} {name}: stamps go back {back_s:.3f} s at log time {log_s:.3f} s (a restarted simulator or "
+              "a looped replay?): the bag is read as one time base, the runs' samples merged by stamp; id_node would start "
+              "afresh there: cut the bag at that log time to take each run alone", file=sys.stderr)
 
 
 def describe_profile(profile: SupportProfile) -> str:

@@ -10,6 +10,7 @@ and without one the error lists those present.
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -30,6 +31,7 @@ SENSOR_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.REBOUND_VELOCITY)
 # The streams the identifier labels from: any one of them makes a bag identifiable (a support
 # without a camera, or with the accelerometer and the camera only, is labelled as id_node does).
 IDENTIFY_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION, topics.REBOUND_VELOCITY)
+TIME_JUMP_S = 1.0  # stamps back by more than this on a stream: a new time base (id_node.time_jump_s's default)
 _REPAIR_HINT = "run `tail-beam bag repair PATH` to recover what was written"
 
 
@@ -90,6 +92,7 @@ class BagSensors:
     vibration_gaps: list[tuple[int, int]] = field(default_factory=list)  # (first missing index, samples missing)
     namespace: str = "/"  # the support's namespace the topics were read from
     repeated_samples: dict[str, int] = field(default_factory=dict)  # per topic: samples at a stamp already read, left out
+    time_jumps: dict[str, tuple[float, float]] = field(default_factory=dict)  # per topic, the first: (log time s, stamps back by s)
 
     @property
     def vibration_lost_samples(self) -> int:
@@ -204,11 +207,20 @@ def read_sensors(
     imu: list[tuple[float, ...]] = []
     rebounds: list[tuple[float, np.ndarray]] = []
     json_topics: dict[str, list[dict[str, Any]]] = {topics.LABEL: [], topics.IMPACT_TRUTH: [], topics.IMPACT_CMD: []}
+    latest: dict[str, float] = {}
+    jumps: dict[str, tuple[float, float]] = {}
     for raw in raw_messages(path, None, required, namespace, any_of):
         if raw.topic not in topics.MSG_TYPES:
             continue
         chosen = topics.namespace_of(raw.full_topic)
         msg = TYPESTORE.deserialize_cdr(raw.data, raw.msgtype)
+        if raw.topic in SENSOR_TOPICS or raw.topic == topics.VIBRATION:
+            # In recorded order, a stream whose stamps go back by more than TIME_JUMP_S started a
+            # new time base (a restarted simulator, a looped replay): noted, the first per topic.
+            stamp = _stamp(msg)
+            if stamp < latest.get(raw.topic, -math.inf) - TIME_JUMP_S and raw.topic not in jumps:
+                jumps[raw.topic] = (raw.log_time_ns * 1e-9, latest[raw.topic] - stamp)
+            latest[raw.topic] = max(stamp, latest.get(raw.topic, -math.inf))
         if raw.topic == topics.VIBRATION:
             vibration.append(vibration_fields(msg))
             continue
@@ -231,7 +243,7 @@ def read_sensors(
     partial = (Path(path) / PARTIAL_DIR).is_dir() and any((Path(path) / PARTIAL_DIR).iterdir())
     blocks = _vibration_blocks(vibration)
     gaps = BlockSequencer().push(blocks).gaps
-    return BagSensors(p[:, 0], p[:, 1], i[:, 0], i[:, 1:4], i[:, 4:7], rebounds, json_topics, partial, blocks, gaps, chosen, repeated)
+    return BagSensors(p[:, 0], p[:, 1], i[:, 0], i[:, 1:4], i[:, 4:7], rebounds, json_topics, partial, blocks, gaps, chosen, repeated, jumps)
 
 
 def _first_of_each_stamp(rows: np.ndarray) -> tuple[np.ndarray, int]:

@@ -116,3 +116,28 @@ def test_calibrate_chooses_one_support_of_several(tmp_path, sandstone_records):
     assert refused.returncode == 2 and "--namespace" in refused.stderr and "Traceback" not in refused.stderr
     chosen = run("calibrate", str(bag), "--namespace", "/support_02")
     assert chosen.returncode == 0 and "imu_mount_sign" in chosen.stdout, chosen.stderr[-3000:]
+
+
+def test_a_new_time_base_in_the_bag_is_said(tmp_path, sandstone_records):
+    """A bag holding two runs whose stamps both start at 0 (a simulator restarted while the
+    recorder ran on): identify and calibrate read it as one time base, and say so on stderr,
+    naming the topic, how far its stamps went back and the log time where they did (was: the
+    runs merged by stamp without a word)."""
+    def later(records, shift_s):
+        """The records with every header stamp and log time ``shift_s`` later."""
+        out = []
+        for topic, ns, data in records:
+            msg = bagio.TYPESTORE.deserialize_cdr(data, topics.MSG_TYPES[topic])
+            if hasattr(msg, "header"):
+                stamp = topics.stamp_ns(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 + shift_s)
+                msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+            out.append((topic, ns + int(shift_s * 1e9), bytes(bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic]))))
+        return out
+
+    first = later(sandstone_records, 3.0)  # the first run ran 3 s before the impact's window
+    second = [(topic, ns + 4_000_000_000, data) for topic, ns, data in sandstone_records]  # restarted: stamps from 0 again
+    bag = write(tmp_path / "bag", first + second)
+    for verb in ("identify", "calibrate"):
+        result = run(verb, str(bag))
+        assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr[-3000:]
+        assert "imu: stamps go back" in result.stderr and "cut the bag at that log time" in result.stderr, result.stderr
