@@ -28,9 +28,11 @@ class Series:
         return bool(self.chunks_t) or self.stamp_s.size > 0
 
     def append(self, stamp_s: np.ndarray, values: np.ndarray) -> None:
-        """Add samples (stamps s, one row of values each); stamps not after the latest are dropped."""
-        last = self.latest_s
-        keep = stamp_s > last  # per-topic order is preserved; drop repeats
+        """Add samples (stamps s, one row of values each); a stamp not after every one before it
+        (the latest buffered, and those earlier in this chunk) is dropped: a repeat (a topic
+        recorded twice) would give a zero sample period."""
+        previous = np.maximum.accumulate(np.concatenate([[self.latest_s], stamp_s]))[:-1]
+        keep = stamp_s > previous  # per-topic order is preserved; drop repeats
         if keep.any():
             self.chunks_t.append(stamp_s[keep])
             self.chunks_v.append(values[keep])

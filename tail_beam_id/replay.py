@@ -32,8 +32,13 @@ def replay(
     """
     pressure, imu = _in_stamp_order(pressure), _in_stamp_order(imu)
     vib_stamps = vibration.sample_stamps_s() if vibration is not None and vibration.count else None
-    starts = [s.stamp_s[0] for s in (pressure, imu) if s is not None and s.stamp_s.size]
-    ends = [s.stamp_s[-1] for s in (pressure, imu) if s is not None and s.stamp_s.size]
+    # The span of every continuous stream, the accelerometer's too: one that starts earlier, runs
+    # on after the others or is alone must not lose its samples outside theirs.
+    spans = [s.stamp_s for s in (pressure, imu) if s is not None and s.stamp_s.size]
+    if vib_stamps is not None and vib_stamps.size:
+        spans.append(vib_stamps)
+    starts = [float(np.min(stamps)) for stamps in spans]
+    ends = [float(np.max(stamps)) for stamps in spans]
     labels: list[Label] = []
     if not starts:
         for rebound in rebounds:

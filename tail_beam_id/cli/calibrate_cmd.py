@@ -12,7 +12,8 @@ import sys
 
 import yaml
 
-from tail_beam_id.cli.identify_cmd import profile_of
+from tail_beam_id.cli.identify_cmd import profile_of, report_reading
+from tail_beam_sim import topics
 from tail_beam_sim.bags.read import read_sensors
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
@@ -23,6 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("calibrate", help="learn a support profile (jack gain, IMU gain and mounting, ringing, noise) from a bag")
     parser.add_argument("bag", help="rosbag2 bag of the support: jack_pressure and imu, with some impacts")
     parser.add_argument("--out", help="write the profile here (a ROS 2 parameter file); default: print it")
+    parser.add_argument("--namespace", help="the support to calibrate when the bag holds several, e.g. /support_07")
     add_config_option(parser)
     parser.set_defaults(func=run)
 
@@ -30,7 +32,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     params = load_parameters(args.config)
     out = require_output_file("--out", args.out) if args.out else None  # before the work, not after
-    profile = profile_of(read_sensors(args.bag), params)
+    # What calibration reads: the jack pressure (the sway) and the IMU (mounting, gain); either
+    # will do (tail_beam_id.calibration.calibrate), the camera is not needed.
+    data = read_sensors(args.bag, required=(), namespace=args.namespace, any_of=(topics.JACK_PRESSURE, topics.IMU))
+    report_reading(data, "calibrate")
+    profile = profile_of(data, params)
     text = yaml.safe_dump(profile.parameters(), sort_keys=False)
     if out is not None:
         try:

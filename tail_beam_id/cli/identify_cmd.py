@@ -22,7 +22,7 @@ from tail_beam_id.methods import available_methods
 from tail_beam_id.replay import replay
 from tail_beam_id.calibration import SupportProfile, with_profile
 from tail_beam_id.calibration import calibrate as calibrate_support
-from tail_beam_sim.bags.read import BagSensors, read_sensors
+from tail_beam_sim.bags.read import IDENTIFY_TOPICS, BagSensors, read_sensors
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
@@ -30,7 +30,7 @@ from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("identify", help="label every impact of a recorded bag (one JSON object per line)")
-    parser.add_argument("bag", help="rosbag2 bag directory holding jack_pressure, imu and rebound_velocity")
+    parser.add_argument("bag", help="rosbag2 bag directory holding the support's jack_pressure, imu, vibration and/or rebound_velocity")
     parser.add_argument("--method", choices=available_methods(), help="identification method (default: identification.method)")
     parser.add_argument("--calibrate", action=argparse.BooleanOptionalAction, default=None,
                         help="calibrate to the bag's own support first (tail-beam calibrate), then identify "
@@ -44,13 +44,12 @@ def identify_bag(bag: str, method: str | None = None, config: list[str] | None =
                  namespace: str | None = None) -> list[dict]:
     """Labels of every impact in ``bag`` (of the support ``namespace`` when it holds several),
     in impact_stamp order; with ``calibrate`` (default: ``identification.self_calibrate``), on
-    the bag's own support profile (labels say ``calibrated``). Gaps in the vibration's running
-    index are reported on stderr."""
+    the bag's own support profile (labels say ``calibrated``). Any one of the sensor topics will
+    do, as for id_node (the labels' ``signals`` say which were used). Gaps in the vibration's
+    running index and repeated samples are reported on stderr."""
     params = load_parameters(config or [])
-    data = read_sensors(bag, namespace=namespace)
-    if data.vibration_gaps:
-        print(f"identify: {data.namespace} vibration: {len(data.vibration_gaps)} gap(s), {data.vibration_lost_samples} samples lost "
-              f"(first missing index {data.vibration_gaps[0][0]})", file=sys.stderr)
+    data = read_sensors(bag, required=(), namespace=namespace, any_of=IDENTIFY_TOPICS)
+    report_reading(data, "identify")
     if calibrate is None:
         calibrate = bool(params["identification"].get("self_calibrate", False))
     if calibrate:
@@ -65,6 +64,21 @@ def identify_bag(bag: str, method: str | None = None, config: list[str] | None =
             print(f"identify: {data.namespace} {describe_profile(profile)}", file=sys.stderr)
             params = with_profile(params, profile)
     return identify_sensors(data, params, method)
+
+
+def report_reading(data: BagSensors, verb: str) -> None:
+    """Say on stderr what reading the bag left out: vibration samples missing from the running
+    index, samples recorded twice at one stamp; and a new time base within the bag, which is
+    read as one (id_node would start afresh there)."""
+    if data.vibration_gaps:
+        print(f"{verb}: {data.namespace} vibration: {len(data.vibration_gaps)} gap(s), {data.vibration_lost_samples} samples lost "
+              f"(first missing index {data.vibration_gaps[0][0]})", file=sys.stderr)
+    for name, n in data.repeated_samples.items():
+        print(f"{verb}: {data.namespace} {name}: {n} sample(s) at a stamp already read left out (the first kept)", file=sys.stderr)
+    for name, (log_s, back_s) in data.time_jumps.items():
+        print(f"{verb}: {data.namespace} {name}: stamps go back {back_s:.3f} s at log time {log_s:.3f} s (a restarted simulator or "
+              "a looped replay?): the bag is read as one time base, the runs' samples merged by stamp; id_node would start "
+              "afresh there: cut the bag at that log time to take each run alone", file=sys.stderr)
 
 
 def describe_profile(profile: SupportProfile) -> str:

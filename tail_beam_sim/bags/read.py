@@ -10,6 +10,7 @@ and without one the error lists those present.
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -27,6 +28,10 @@ from tail_beam_sim.physics.sensors import BlockSequencer, VibrationBlocks
 
 ANY_NAMESPACE = "*"  # read every namespace of the bag (tail-beam bag info)
 SENSOR_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.REBOUND_VELOCITY)
+# The streams the identifier labels from: any one of them makes a bag identifiable (a support
+# without a camera, or with the accelerometer and the camera only, is labelled as id_node does).
+IDENTIFY_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION, topics.REBOUND_VELOCITY)
+TIME_JUMP_S = 1.0  # stamps back by more than this on a stream: a new time base (id_node.time_jump_s's default)
 _REPAIR_HINT = "run `tail-beam bag repair PATH` to recover what was written"
 
 
@@ -86,6 +91,8 @@ class BagSensors:
     vibration: VibrationBlocks = field(default_factory=VibrationBlocks.empty)  # in index order, each block once
     vibration_gaps: list[tuple[int, int]] = field(default_factory=list)  # (first missing index, samples missing)
     namespace: str = "/"  # the support's namespace the topics were read from
+    repeated_samples: dict[str, int] = field(default_factory=dict)  # per topic: samples at a stamp already read, left out
+    time_jumps: dict[str, tuple[float, float]] = field(default_factory=dict)  # per topic, the first: (log time s, stamps back by s)
 
     @property
     def vibration_lost_samples(self) -> int:
@@ -120,13 +127,15 @@ def choose_namespace(bag: Path, connections: Iterable[Any], namespace: str | Non
 
 
 def raw_messages(
-    path: str | os.PathLike[str], wanted: Iterable[str] | None = None, required: Iterable[str] = (), namespace: str | None = None
+    path: str | os.PathLike[str], wanted: Iterable[str] | None = None, required: Iterable[str] = (), namespace: str | None = None,
+    any_of: Iterable[str] = (),
 ) -> Iterator[RawMessage]:
     """The bag's messages in log-time order (``wanted`` contract topics; None = all) of one
     support: ``namespace``, or the only one the bag holds (see :func:`choose_namespace`).
 
     Raises InputError before the first message if the bag is unreadable, empty, lacks a
-    ``required`` topic or holds none of the ``wanted`` ones; and while reading if it turns out
+    ``required`` topic, has messages on none of ``any_of`` (when given) or holds none of the
+    ``wanted`` ones; and while reading if it turns out
     truncated or damaged, or ends before the count its metadata lists (a bad bag is reported,
     not half-read). A damaged storage file can fail in any way inside the reader, so every
     error of the reader becomes that one line.
@@ -145,11 +154,16 @@ def raw_messages(
         by_name: dict[str, set[str]] = {}
         for connection in support:
             by_name.setdefault(contract_name(connection.topic), set()).add(connection.topic)
-        has = ", ".join(sorted(by_name)) or "none"
+        # The topics that hold messages: a connection without any (a recorder lists every
+        # contract topic) is not what the bag "has".
+        filled = sorted({contract_name(c.topic) for c in support if c.msgcount > 0})
+        has = ", ".join(filled) or "none"
         for name in required:
-            present = [c for c in support if contract_name(c.topic) == name and c.msgcount > 0]
-            if not present:
+            if name not in filled:
                 raise InputError("bag", str(bag), f"lacks messages on topic '{name}' ({topics.MSG_TYPES.get(name, '?')}); it has: {has}")
+        any_of = tuple(any_of)
+        if any_of and not set(any_of) & set(filled):
+            raise InputError("bag", str(bag), f"holds no messages on any of {', '.join(any_of)}; it has: {has}")
         names = set(wanted) if wanted is not None else set(by_name)
         connections = [c for c in support if contract_name(c.topic) in names]
         if not any(c.msgcount > 0 for c in connections):
@@ -178,21 +192,35 @@ def _first_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
-def read_sensors(path: str | os.PathLike[str], required: Iterable[str] = SENSOR_TOPICS, namespace: str | None = None) -> BagSensors:
+def read_sensors(
+    path: str | os.PathLike[str], required: Iterable[str] = SENSOR_TOPICS, namespace: str | None = None, any_of: Iterable[str] = (),
+) -> BagSensors:
     """Read and decode one support's sensor topics (and its JSON topics) into arrays, all or
-    nothing. The vibration blocks come back in index order (a block recorded late is put back
-    in its place, a repeated one dropped), with the index gaps listed."""
+    nothing (``required``, ``any_of``: :func:`raw_messages`). The vibration blocks come back in
+    index order (a block recorded late is put back in its place, a repeated one dropped), with
+    the index gaps listed; the pressure and IMU samples in stamp order, a sample at a stamp
+    already read left out (counted in ``repeated_samples``: a topic recorded twice), as id_node
+    leaves out a repeated stamp."""
     pressure: list[tuple[float, float]] = []
     vibration: list[tuple[int, float, np.ndarray, float, float]] = []
     chosen = "/"
     imu: list[tuple[float, ...]] = []
     rebounds: list[tuple[float, np.ndarray]] = []
     json_topics: dict[str, list[dict[str, Any]]] = {topics.LABEL: [], topics.IMPACT_TRUTH: [], topics.IMPACT_CMD: []}
-    for raw in raw_messages(path, None, required, namespace):
+    latest: dict[str, float] = {}
+    jumps: dict[str, tuple[float, float]] = {}
+    for raw in raw_messages(path, None, required, namespace, any_of):
         if raw.topic not in topics.MSG_TYPES:
             continue
         chosen = topics.namespace_of(raw.full_topic)
         msg = TYPESTORE.deserialize_cdr(raw.data, raw.msgtype)
+        if raw.topic in SENSOR_TOPICS or raw.topic == topics.VIBRATION:
+            # In recorded order, a stream whose stamps go back by more than TIME_JUMP_S started a
+            # new time base (a restarted simulator, a looped replay): noted, the first per topic.
+            stamp = _stamp(msg)
+            if stamp < latest.get(raw.topic, -math.inf) - TIME_JUMP_S and raw.topic not in jumps:
+                jumps[raw.topic] = (raw.log_time_ns * 1e-9, latest[raw.topic] - stamp)
+            latest[raw.topic] = max(stamp, latest.get(raw.topic, -math.inf))
         if raw.topic == topics.VIBRATION:
             vibration.append(vibration_fields(msg))
             continue
@@ -209,11 +237,22 @@ def read_sensors(path: str | os.PathLike[str], required: Iterable[str] = SENSOR_
     p = np.array(pressure).reshape(-1, 2)
     i = np.array(imu).reshape(-1, 7)
     p, i = p[np.argsort(p[:, 0], kind="stable")], i[np.argsort(i[:, 0], kind="stable")]
+    (p, p_repeated), (i, i_repeated) = _first_of_each_stamp(p), _first_of_each_stamp(i)
+    repeated = {name: n for name, n in ((topics.JACK_PRESSURE, p_repeated), (topics.IMU, i_repeated)) if n}
     rebounds.sort(key=lambda r: r[0])
     partial = (Path(path) / PARTIAL_DIR).is_dir() and any((Path(path) / PARTIAL_DIR).iterdir())
     blocks = _vibration_blocks(vibration)
     gaps = BlockSequencer().push(blocks).gaps
-    return BagSensors(p[:, 0], p[:, 1], i[:, 0], i[:, 1:4], i[:, 4:7], rebounds, json_topics, partial, blocks, gaps, chosen)
+    return BagSensors(p[:, 0], p[:, 1], i[:, 0], i[:, 1:4], i[:, 4:7], rebounds, json_topics, partial, blocks, gaps, chosen, repeated, jumps)
+
+
+def _first_of_each_stamp(rows: np.ndarray) -> tuple[np.ndarray, int]:
+    """Rows sorted by stamp (column 0, stable: in recorded order within a stamp) without those
+    at a stamp an earlier row has (the first recorded kept), and how many were left out."""
+    if rows.shape[0] < 2:
+        return rows, 0
+    keep = np.concatenate([[True], np.diff(rows[:, 0]) != 0.0])
+    return (rows, 0) if keep.all() else (rows[keep], int((~keep).sum()))
 
 
 def _vibration_blocks(decoded: list[tuple[int, float, np.ndarray, float, float]]) -> VibrationBlocks:

@@ -8,13 +8,15 @@ Exit status: 0 done; 2 bad input (one line naming the field and what is allowed)
 failed (:class:`~tail_beam_sim.physics.solvers.SolverError`: one line naming the solver and
 what to change); 4 a peer did not answer in time (``send``: no simulator appeared, or it did
 not acknowledge the commands or send their truths); 5 a peer refused the request (``send``:
-the simulator refused a command); 130 interrupted. Never a traceback.
+the simulator refused a command); 130 interrupted; 141 the output's reader went away (a closed
+pipe, ``| head``: as a tool killed by SIGPIPE reports it in a shell). Never a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
 from importlib.metadata import entry_points
+import os
 import sys
 from collections.abc import Sequence
 
@@ -23,11 +25,12 @@ from tail_beam_sim.physics.solvers import SolverError
 
 VERB_GROUP = "tail_beam.verbs"
 # Order of ``tail-beam --help`` for the verbs it knows; any other installed verb follows, by name.
-__all__ = ["EXIT_BAD_INPUT", "EXIT_SOLVER_FAILED", "EXIT_TIMEOUT", "EXIT_REFUSED", "OneLineParser", "VERB_GROUP", "build_parser", "main"]
+__all__ = ["EXIT_BAD_INPUT", "EXIT_SOLVER_FAILED", "EXIT_TIMEOUT", "EXIT_REFUSED", "EXIT_PIPE_CLOSED", "OneLineParser", "VERB_GROUP", "build_parser", "main"]
 EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 3
 EXIT_TIMEOUT = 4
 EXIT_REFUSED = 5
+EXIT_PIPE_CLOSED = 141  # 128 + SIGPIPE, what a shell reports for a tool its pipe's reader left
 
 PREFERRED_ORDER = ("simulate", "sweep", "send", "identify", "calibrate", "evaluate", "bag", "demo", "bench")
 
@@ -67,6 +70,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"tail-beam {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader of stdout left (``| head``): nothing more can be said there, and Python's
+        # own flush at exit must not fail on it again, so stdout goes to /dev/null from here.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_PIPE_CLOSED
 
 
 if __name__ == "__main__":
