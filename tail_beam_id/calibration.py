@@ -16,6 +16,10 @@ read off its own signals:
   frequencies and damping, tail_beam_id.modes): the slowest one's decay time becomes the
   detector's ``ring_decay_s``, so that a lightly damped beam's ringing is followed for as long
   as it lasts and a stiff, well damped beam's no longer than it does;
+- the camera's frame period, from the grid of all the recording's rebound stamps
+  (tail_beam_id.camera): the identifier otherwise reads it from the stamps up to each impact,
+  and assumes config/'s camera until four rebounds have come, so a slow camera's first impacts
+  were decided as if its lag were a 5 kHz camera's;
 - the noise of each sensor.
 
 The result is a ROS 2 parameter file (``tail-beam calibrate BAG --out profile.yaml``) that
@@ -34,6 +38,7 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.signal import welch
 
+from tail_beam_id.camera import frame_period_s
 from tail_beam_id.label import Label
 from tail_beam_id.modes import MIN_FREQUENCY_HZ as MIN_MODE_FREQUENCY_HZ
 from tail_beam_id.modes import RingingMode, ring_decay_s, ringing_modes
@@ -74,6 +79,8 @@ class SupportProfile:
     # ratio; None when none could be measured (too few impacts, or the channel too slow).
     ringing_modes_hz: list[float] | None = None
     ringing_damping_ratios: list[float] | None = None
+    # The camera's frame rate read from the grid of every rebound stamp, Hz; None without a grid.
+    camera_frame_rate_hz: float | None = None
 
     @property
     def ring_decay_s(self) -> float | None:
@@ -89,6 +96,12 @@ class SupportProfile:
         modes = ", ".join(f"{f:.0f} Hz ({100.0 * z:.1f} %)" for f, z in zip(self.ringing_modes_hz, self.ringing_damping_ratios))
         return f"ringing {modes}, ring_decay_s {self.ring_decay_s:.3g}"
 
+    def describe_camera(self) -> str:
+        """The camera's frame as read from the rebound stamps, in a few words."""
+        if self.camera_frame_rate_hz is None:
+            return "camera frame not read (fewer than 4 rebounds, or stamps on no frame grid)"
+        return f"camera {self.camera_frame_rate_hz:.0f} frames/s"
+
     @property
     def calibrated(self) -> bool:
         return self.rigid_mode_frequency_hz is not None
@@ -101,6 +114,8 @@ class SupportProfile:
         if self.beam_inertia_about_hinge_kgm2 is not None:
             support["beam_inertia_about_hinge_kgm2"] = self.beam_inertia_about_hinge_kgm2
         section: dict[str, Any] = {"support": support} if support else {}
+        if self.camera_frame_rate_hz is not None:
+            section["sensors"] = {"camera_frame_rate_hz": self.camera_frame_rate_hz}
         if self.ring_decay_s is not None:
             section["identification"] = {"detection": {"ring_decay_s": self.ring_decay_s}}
         section["calibration"] = {k: v for k, v in asdict(self).items() if v is not None}
@@ -169,13 +184,14 @@ def calibrate(
     imu: tuple[np.ndarray, np.ndarray],
     identify: Callable[[dict[str, Any]], Sequence[Label]],
     ringing: tuple[np.ndarray, np.ndarray] | None = None,
+    rebound_stamps_s: Sequence[float] = (),
 ) -> SupportProfile:
     """The profile of the support that recorded ``pressure`` (stamps s, Pa) and ``imu`` (stamps
     s, z specific force m/s^2). ``identify(params)`` must return the labels of the recording
     identified with those parameters (the IMU gain needs each impact's moment estimates, the
     modes each impact's onset). ``ringing`` (stamps s, m/s^2) is the channel the bending modes
     are read from: the tail-beam accelerometer where there is one (it sees modes up to ten
-    times higher), else the IMU's z."""
+    times higher), else the IMU's z. ``rebound_stamps_s`` (s) give the camera's frame."""
     # A sample with a non-finite stamp or value is a lost sample here too, as for the identifier
     # (one NaN pressure sample made the spectrum, and so the whole calibration, fail).
     p_stamp, p_value = _finite(*pressure)
@@ -225,7 +241,15 @@ def calibrate(
         pressure_noise_pa=robust_noise(p_value), imu_accel_noise_mps2=robust_noise(i_accel),
         delay_checked_impacts=checked, delay_unusual_impacts=unusual,
         ringing_modes_hz=[m.frequency_hz for m in modes] or None, ringing_damping_ratios=[m.damping_ratio for m in modes] or None,
+        camera_frame_rate_hz=_camera_frame_rate_hz(rebound_stamps_s),
     )
+
+
+def _camera_frame_rate_hz(stamps_s: Sequence[float]) -> float | None:
+    """The camera's frame rate (Hz) from the grid of the rebound stamps (s), or None."""
+    stamps = [float(t) for t in stamps_s if math.isfinite(float(t))]
+    period = frame_period_s(stamps)
+    return None if period is None else 1.0 / period
 
 
 def _finite(stamp_s: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

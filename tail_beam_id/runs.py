@@ -165,7 +165,8 @@ def foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: 
             found = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
                               (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
                               lambda calibrated: identify(calibrated, "statistical")[0],
-                              (v.sample_stamps_s(), v.accel_mps2) if v is not None and v.count else None)
+                              (v.sample_stamps_s(), v.accel_mps2) if v is not None and v.count else None,
+                              [r.stamp_s for r in recorded.rebounds])
             model_params = with_profile(params, found)
         for method in methods:
             labels, wall = identify(model_params, method)

@@ -51,8 +51,8 @@ def run(args: argparse.Namespace) -> int:
     c = profile
     if not c.calibrated:
         print("calibrate: no clear sway of the beam in the jack pressure (too few impacts, or too short): "
-              "the profile holds the noise and mounting only", file=sys.stderr)
+              f"the profile holds the noise, mounting and camera frame only ({c.describe_camera()})", file=sys.stderr)
     else:
         print(f"calibrate: sway {c.rigid_mode_frequency_hz:.2f} Hz, {c.impacts_used} impacts for the IMU gain, "
-              f"mount sign {c.imu_mount_sign}, {c.describe_modes()}", file=sys.stderr)
+              f"mount sign {c.imu_mount_sign}, {c.describe_modes()}, {c.describe_camera()}", file=sys.stderr)
     return 0

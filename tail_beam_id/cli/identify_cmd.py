@@ -88,7 +88,7 @@ def describe_profile(profile: SupportProfile) -> str:
                 "identified on the configured support (labels say calibrated: false)")
     gain = f"{profile.impacts_used} impacts for the IMU gain" if profile.beam_inertia_about_hinge_kgm2 else "IMU gain not measured"
     return (f"self-calibration: sway {profile.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus {profile.oil_bulk_modulus_pa:.3g} Pa, "
-            f"{gain}, {profile.describe_modes()} (labels say calibrated: true; --no-calibrate for id_node's uncalibrated labels)")
+            f"{gain}, {profile.describe_modes()}, {profile.describe_camera()} (labels say calibrated: true; --no-calibrate for id_node's uncalibrated labels)")
 
 
 def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | None = None, phase: str = "identifying",
@@ -124,7 +124,7 @@ def profile_of(data: BagSensors, params: dict[str, Any]) -> SupportProfile:
     ringing = (data.vibration.sample_stamps_s(), data.vibration.accel_mps2) if data.vibration.count else None
     return calibrate_support(params, (data.pressure_stamp_s, data.pressure_pa), (data.imu_stamp_s, accel_z),
                              lambda calibrated: identify_sensors(data, calibrated, "statistical", phase="self-calibrating", report=False),
-                             ringing)
+                             ringing, [stamp for stamp, _ in data.rebounds])
 
 
 class ProgressLine:

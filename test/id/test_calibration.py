@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tail_beam_id.calibration import calibrate, mount_sign, sway_frequency
+from tail_beam_id.calibration import calibrate, mount_sign, sway_frequency, with_profile
 from tail_beam_id.dataset import support_streams
 from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_id.label import Label
@@ -256,3 +256,31 @@ def test_identify_says_once_what_it_left_out_even_when_it_calibrates(params, rec
     assert "self-calibration: sway" in done.stderr
     for line in done.stdout.splitlines():
         json.loads(line, parse_constant=lambda name: pytest.fail(f"label carries {name}"))
+
+
+def test_self_calibration_reads_the_cameras_frame_from_every_rebound(params, recordings):
+    """A 1 kHz camera (each rebound stamped at the first 1 ms frame after separation): the
+    profile reads its frame from the grid of all the recording's rebound stamps, so even the
+    first impacts, before four rebounds have come, are decided with its lag, not config/'s
+    5 kHz camera's (labels say the frame they assumed); a recording whose stamps lie on no grid
+    keeps config/'s."""
+    recorded = recordings[0]
+    separations = np.array([truth["final_separation_stamp"] for truth in recorded.truths])
+    rebounds = [replace(r, stamp_s=float(np.ceil(separations[np.argmin(np.abs(separations - r.stamp_s))] * 1000.0) / 1000.0))
+                for r in recorded.rebounds]
+    slow = replace(recorded, rebounds=rebounds)
+    profile = calibrate(params, (slow.pressure.stamp_s, slow.pressure.pressure_pa),
+                        (slow.imu.stamp_s, slow.imu.linear_acceleration_mps2[:, 2]), _identify(params, slow),
+                        rebound_stamps_s=[r.stamp_s for r in rebounds])
+    assert profile.camera_frame_rate_hz == pytest.approx(1000.0, rel=1e-6)
+    assert profile.parameters()["/**"]["ros__parameters"]["sensors"]["camera_frame_rate_hz"] == profile.camera_frame_rate_hz
+    merged = with_profile(params, profile)
+    labels = replay(StreamIdentifier("statistical", merged["identification"], merged), slow.pressure, slow.imu, slow.rebounds)
+    first = min(labels, key=lambda label: label.impact_stamp_s)
+    assert first.features["camera_frame_period_s"] == pytest.approx(0.001, rel=1e-6)
+    uncalibrated = replay(StreamIdentifier("statistical", params["identification"], params), slow.pressure, slow.imu, slow.rebounds)
+    assert min(uncalibrated, key=lambda label: label.impact_stamp_s).features["camera_frame_period_s"] == pytest.approx(1 / 5000.0)
+    jittered = [r.stamp_s + 1e-5 * k for k, r in enumerate(rebounds)]
+    assert calibrate(params, (slow.pressure.stamp_s, slow.pressure.pressure_pa),
+                     (slow.imu.stamp_s, slow.imu.linear_acceleration_mps2[:, 2]), _identify(params, slow),
+                     rebound_stamps_s=jittered).camera_frame_rate_hz is None
