@@ -133,6 +133,10 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
             # From the contact's end (final separation) to the newest stamp the label needed, ms.
             "data_latency_after_contact_end_ms": _percentiles(after_end),
             "confident_wrong": sum(1 for r in labelled if not r.correct and r.label.confidence >= CONFIDENT),
+            # How many of the labels at >= 0.9 a calibrated identifier with these confidences gets
+            # wrong, on average: sum(1 - confidence). A count of confident wrong labels near it is
+            # honest confidence; only surer labels (better features), not recalibration, lower it.
+            "confident_wrong_if_calibrated": float(sum(1.0 - r.label.confidence for r in labelled if r.label.confidence >= CONFIDENT)),
             "outside_training": sum(1 for r in labelled if r.label.outside_training),
             # Extra labels count against accuracy too: correct / (impacts + labels with no impact).
             "accuracy_with_extras": correct / (n + sum(r.extra_labels for r in records)),

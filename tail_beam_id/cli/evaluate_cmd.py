@@ -205,7 +205,8 @@ def targets(records: Sequence[Record], items: Sequence[Summary]) -> list[str]:
                 gap = f" ({points:+.1f} points vs stream {twin.setting} {100 * twin.accuracy:.1f}% -> within 5: {'met' if points >= -5.0 else 'NOT met'})"
             lines.append(f"foreign {s.setting} {s.method} {1e3 * s.window_s:g} ms: {100 * s.accuracy:.1f}% (CI {100 * s.accuracy_ci[0]:.1f}-{100 * s.accuracy_ci[1]:.1f}, n {s.n})"
                          f"{gap}; extra labels {s.false_labels} ({100 * s.false_labels / s.n:.1f}%, target <= 1%); "
-                         f"wrong at >= 0.9 {s.extra['confident_wrong']} ({100 * s.extra['confident_wrong'] / s.n:.1f}%, target <= 1%); "
+                         f"wrong at >= 0.9 {s.extra['confident_wrong']} ({100 * s.extra['confident_wrong'] / s.n:.1f}%, target <= 1%; "
+                         f"{s.extra['confident_wrong_if_calibrated']:.1f} if those labels' confidences were exact); "
                          f"ECE {s.extra['ece']:.3f} (target <= 0.05)")
     compute = [s.compute_ms["median"] for s in items if not math.isnan(s.compute_ms["median"])]
     latency = [s.data_latency_ms["max"] for s in items if not math.isnan(s.data_latency_ms["max"])]

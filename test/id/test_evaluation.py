@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -43,6 +44,20 @@ def test_missed_impacts_count_as_wrong_and_classes_weigh_equally():
     assert s.data_latency_ms["median"] == pytest.approx(13.0)
     # From the contact's end (0.999 s + 0.3 ms) to the same stamp: 12.7 ms.
     assert s.extra["data_latency_after_contact_end_ms"]["median"] == pytest.approx(12.7)
+
+
+def test_confident_wrong_labels_are_set_against_what_their_confidences_promise():
+    """Of labels at >= 0.9, a calibrated identifier gets sum(1 - confidence) wrong on average:
+    two labels at 0.9 and one at 0.95 promise 0.25 wrong; a label under 0.9 and a missed impact
+    promise nothing; the count of those actually wrong at >= 0.9 is beside it."""
+    def said(is_coal, material, confidence):
+        r = record(is_coal, material)
+        return replace(r, label=replace(r.label, confidence=confidence))
+
+    records = [said(True, "coal", 0.9), said(False, "coal", 0.9), said(True, "coal", 0.95), said(False, "coal", 0.8), record(True, None)]
+    s = summarise(records, [0.025, 0.1])
+    assert s.extra["confident_wrong"] == 1
+    assert s.extra["confident_wrong_if_calibrated"] == pytest.approx(0.25)
 
 
 def test_logistic_fit_finds_the_boundary_and_temperature_undoes_overconfidence():
