@@ -14,6 +14,7 @@ Nothing here reads the sensor streams; the identifier asks with the stamps it ha
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -40,8 +41,11 @@ class ImpactAssociation:
     """The pending impacts, the camera's rebounds and the recently decided onsets, and the rules
     that associate them (module docstring)."""
 
-    def __init__(self, config: IdentifierConfig) -> None:
+    def __init__(self, config: IdentifierConfig, frame_period_at: Callable[[float], float | None] = lambda stamp_s: None) -> None:
+        """``frame_period_at(stamp)``: the camera's frame period (s) as known from the rebound
+        stamps up to ``stamp`` (tail_beam_id.camera.FramePeriod.period_at), or None."""
         self.config = config
+        self.frame_period_at = frame_period_at
         self.pending: list[PendingImpact] = []
         self.rebounds: list[tuple[float, np.ndarray]] = []  # (stamp s, velocity m/s), in stamp order
         self.refused_rebounds = 0  # rebounds with a non-finite stamp or velocity, left out
@@ -71,14 +75,22 @@ class ImpactAssociation:
             return window, min(cfg.impulse_post_s, window), min(cfg.overlap_window_s, window)
         return cfg.window_s, cfg.impulse_post_s, cfg.overlap_window_s
 
+    def slow_camera_s(self, stamp_s: float) -> float:
+        """How much longer than the windows allow for (``rebound_frame_allowance_s``) the
+        camera's frame is, as known at ``stamp_s``, s: a slower camera stamps a rebound up to a
+        frame after the contact ended."""
+        period = self.frame_period_at(stamp_s)
+        return 0.0 if period is None else max(0.0, period - self.config.detection.rebound_frame_allowance_s)
+
     def rebound_window(self, impact: PendingImpact) -> tuple[float, float]:
-        """Stamps a rebound of this impact may carry, s."""
+        """Stamps a rebound of this impact may carry, s (widened for a slow camera)."""
         c = self.config.detection
+        late = c.max_contact_s + self.slow_camera_s(impact.onset_s)
         if impact.source == "pressure":
-            return impact.onset_s - c.pressure_onset_uncertainty_s, impact.onset_s + c.max_contact_s + c.pressure_onset_uncertainty_s
+            return impact.onset_s - c.pressure_onset_uncertainty_s, impact.onset_s + late + c.pressure_onset_uncertainty_s
         if impact.pulse is None:
-            return impact.onset_s, impact.rebound[0] if impact.rebound else impact.onset_s + c.max_contact_s
-        return impact.pulse.onset_s - c.rebound_early_tolerance_s, impact.pulse.onset_s + c.max_contact_s
+            return impact.onset_s, impact.rebound[0] if impact.rebound else impact.onset_s + late
+        return impact.pulse.onset_s - c.rebound_early_tolerance_s, impact.pulse.onset_s + late
 
     def matching_rebound(self, impact: PendingImpact) -> tuple[float, np.ndarray] | None:
         """The first unused rebound within this impact's rebound window, or None."""

@@ -62,6 +62,10 @@ class FramePeriod:
     """The camera's frame period for one stream: from the rebound stamps once enough have come
     (:func:`frame_period_s`), else the configured one (``configured_s``, s; None if unknown).
 
+    A configured frame longer than the stamps' estimate wins while every stamp lies on its grid:
+    the stamps are read only up to MAX_PERIOD_S (a slower camera's fit a shorter frame too), so a
+    user who says the camera is slower is believed until a stamp says otherwise.
+
     What an impact's decision uses depends only on the stamps up to its own rebound
     (:meth:`period_at`), so live and offline decisions agree however the rebounds arrive."""
 
@@ -69,6 +73,7 @@ class FramePeriod:
         self.configured_s = configured_s
         self.stamps_s: list[float] = []
         self.estimates_s: list[float | None] = []  # [k]: the estimate from the first k + 1 stamps
+        self.on_configured_grid: list[bool] = []  # [k]: the first k + 1 stamps all lie on the configured frame's grid
 
     def add(self, stamp_s: float) -> None:
         """A rebound's stamp (s), in stamp order (repeats and older ones ignored); estimates
@@ -77,6 +82,8 @@ class FramePeriod:
         if len(self.stamps_s) >= MAX_REBOUNDS or not math.isfinite(stamp_s) or (self.stamps_s and stamp_s <= self.stamps_s[-1]):
             return
         self.stamps_s.append(float(stamp_s))
+        fits = self.configured_s is not None and _on_grid(stamp_s - self.stamps_s[0], self.configured_s)
+        self.on_configured_grid.append(fits and (self.on_configured_grid[-1] if self.on_configured_grid else True))
         last = self.estimates_s[-1] if self.estimates_s else None
         if last is not None and _on_grid(stamp_s - self.stamps_s[-2], last):
             estimate: float | None = last
@@ -89,7 +96,11 @@ class FramePeriod:
         stamps up to it if they gave one, else configured."""
         k = bisect.bisect_right(self.stamps_s, stamp_s)
         measured = self.estimates_s[k - 1] if k else None
-        return measured if measured is not None else self.configured_s
+        if measured is None:
+            return self.configured_s
+        if self.configured_s is not None and self.configured_s > measured and self.on_configured_grid[k - 1]:
+            return self.configured_s
+        return measured
 
 
 def _on_grid(difference_s: float, period_s: float) -> bool:

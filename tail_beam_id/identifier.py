@@ -168,8 +168,9 @@ class StreamIdentifier:
         self.pressure_detector = PressureDetector(
             self.model, c.detection.pressure_threshold_sigma, c.pressure_pre_s, c.window_s, c.detection.ring_window_s
         )
-        self.impacts = ImpactAssociation(self.config)  # pending impacts, rebounds, recent decisions
         self.camera = FramePeriod(_configured_frame_period_s(merged))  # the camera's frame period, s
+        # Pending impacts, rebounds, recent decisions; its rebound windows follow the camera's frame.
+        self.impacts = ImpactAssociation(self.config, self.camera.period_at)
         self.timing = SensorTiming(self.config.timing, _profile_says_timing_suspect(merged, self.config.timing))
         self.imu_stop_s = math.inf  # stamp after which the IMU was declared stopped
         self.mount_sign: float | None = None  # +1: IMU z along the plate normal; -1: mounted upside down
@@ -468,7 +469,8 @@ class StreamIdentifier:
         overlap = self.impacts.overlapping(impact)
         onset = impact.onset_s
         if impact.rebound is not None:
-            onset = max(onset, impact.rebound[0] - cfg.detection.onset_before_rebound_max_s)
+            before = cfg.detection.onset_before_rebound_max_s + self.impacts.slow_camera_s(impact.onset_s)
+            onset = max(onset, impact.rebound[0] - before)
         window_s, post_s, _ = self.impacts.windows(impact)
         fit: PressureFit | None = None
         if self.pressure.stamp_s.size:

@@ -55,6 +55,7 @@ class DetectionConfig:
     rebound_onset_lead_s: float
     pressure_onset_uncertainty_s: float
     onset_before_rebound_max_s: float
+    rebound_frame_allowance_s: float = 0.0005
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> DetectionConfig:
@@ -83,6 +84,7 @@ class DetectionConfig:
             rebound_onset_lead_s=get("rebound_onset_lead_s", 0.0, 1.0, "s"),
             pressure_onset_uncertainty_s=get("pressure_onset_uncertainty_s", 0.0, 1.0, "s"),
             onset_before_rebound_max_s=get("onset_before_rebound_max_s", 0.0, 1.0, "s"),
+            rebound_frame_allowance_s=get("rebound_frame_allowance_s", 0.0, 1.0, "s"),
         )
 
 

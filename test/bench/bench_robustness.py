@@ -91,6 +91,8 @@ CHANGES: dict[str, tuple[str, Callable]] = {
     "camera_20kHz": ("camera at 20 kHz", lambda r: _camera_rate(r, 20000.0)),
     "camera_2kHz": ("camera at 2 kHz", lambda r: _camera_rate(r, 2000.0)),
     "camera_1kHz": ("camera at 1 kHz", lambda r: _camera_rate(r, 1000.0)),
+    "camera_500Hz": ("camera at 500 Hz", lambda r: _camera_rate(r, 500.0)),
+    "camera_250Hz": ("camera at 250 Hz", lambda r: _camera_rate(r, 250.0)),
     "camera_late_0.2ms": ("camera stamps 0.2 ms late", lambda r: replace(r, rebounds=[replace(b, stamp_s=b.stamp_s + 2e-4) for b in r.rebounds])),
     "camera_late_0.5ms": ("camera stamps 0.5 ms late", lambda r: replace(r, rebounds=[replace(b, stamp_s=b.stamp_s + 5e-4) for b in r.rebounds])),
     "pressure_offset_10MPa": ("jack set 10 MPa higher", lambda r: replace(r, pressure=replace(r.pressure, pressure_pa=r.pressure.pressure_pa + 1e7))),

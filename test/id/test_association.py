@@ -42,6 +42,21 @@ def test_a_pulse_takes_the_rebound_within_its_contact_and_no_other(book):
     assert impact.rebound[0] == 1.0015 and book.matching_rebound(pulse_impact(0.9995)) is None
 
 
+def test_a_slow_cameras_rebound_window_is_wider_by_its_extra_frame(params):
+    """A camera stamps a rebound up to a frame after the contact ended. The windows allow for
+    rebound_frame_allowance_s; a camera whose frame, as known at the onset, is longer widens the
+    rebound window by the difference (a 4 ms frame: 3.5 ms later), one no longer does not."""
+    config = IdentifierConfig.from_params(params["identification"])
+    c = config.detection
+    for period, extra in ((None, 0.0), (2e-4, 0.0), (c.rebound_frame_allowance_s, 0.0), (0.004, 0.004 - c.rebound_frame_allowance_s)):
+        book = ImpactAssociation(config, lambda stamp_s, period=period: period)
+        impact = pulse_impact(1.0)
+        assert book.slow_camera_s(1.0) == pytest.approx(extra)
+        assert book.rebound_window(impact) == pytest.approx((1.0 - c.rebound_early_tolerance_s, 1.0 + c.max_contact_s + extra))
+    book.add_rebound(1.0 + c.max_contact_s + 0.003, UP)  # a 4 ms camera's: within the widened window
+    assert book.matching_rebound(impact) is not None
+
+
 def test_a_rebound_that_is_no_number_is_counted_and_a_repeat_ignored(book):
     """A rebound with a non-finite stamp or velocity is left out and counted; one not after the newest is a repeat."""
     book.add_rebound(math.nan, UP)

@@ -62,6 +62,27 @@ def test_from_the_fewest_stamps_the_estimate_is_never_shorter_than_the_frame(see
         assert estimate is not None and estimate >= 1.0 / rate_hz * (1 - 1e-6), (rate_hz, estimate)
 
 
+def test_a_configured_camera_slower_than_the_stamps_can_tell_is_believed_while_they_agree():
+    """Stamps of a 250 Hz camera lie on a 2 ms grid too, the slowest read from stamps; configured
+    as 250 Hz, its 4 ms frame is used while every stamp lies on that grid, and the stamps' own
+    estimate from the first one that does not. A configured frame shorter than the stamps' never
+    wins (the shipped 5 kHz against a slower camera)."""
+    rng = np.random.default_rng(3)
+    stamps = np.cumsum(rng.integers(50, 120, 8)) * 0.004
+    slow = FramePeriod(0.004)
+    for t in stamps:
+        slow.add(float(t))
+    assert frame_period_s(stamps) == pytest.approx(0.002)
+    assert slow.period_at(float(stamps[-1])) == pytest.approx(0.004)
+    slow.add(float(stamps[-1] + 0.006))  # a stamp off the 4 ms grid, on the 2 ms one
+    assert slow.period_at(float(stamps[-1] + 0.006)) == pytest.approx(0.002)
+    assert slow.period_at(float(stamps[-1])) == pytest.approx(0.004)  # earlier decisions keep theirs
+    shipped = FramePeriod(1 / 5000.0)
+    for t in stamps:
+        shipped.add(float(t))
+    assert shipped.period_at(float(stamps[-1])) == pytest.approx(0.002)
+
+
 def test_too_few_stamps_give_no_period():
     """Fewer stamps than MIN_REBOUNDS give no estimate."""
     assert frame_period_s(_grid_stamps(2000.0, MIN_REBOUNDS - 1)) is None

@@ -177,3 +177,41 @@ def test_the_shipped_models_are_less_sure_of_a_small_impact_than_of_a_large_one_
         small, large = x.copy(), x.copy()
         small[column], large[column] = math.log(1.0), math.log(20.0)
         assert temperature_of(subset, small) > subset["temperature"] > temperature_of(subset, large)
+
+
+def test_a_slow_cameras_rebounds_stay_with_their_impacts(params):
+    """A 250 Hz camera (4 ms frames; its stamps say 2 ms at least, the slowest frame they are read
+    to): each rebound is stamped up to 4 ms after its contact ended, past the rebound window a
+    2 kHz camera needs. The window widens by the frame's excess once the stamps have told it
+    (from the 4th rebound on), so no rebound becomes an impact of its own from there; with the
+    frame self-calibration reads from all the stamps (tail-beam identify's default), none at all."""
+    import copy
+    from dataclasses import replace
+
+    from tail_beam_id.calibration import with_profile
+    from tail_beam_id.calibration import calibrate
+    from tail_beam_id.dataset import settings, support_streams
+    from tail_beam_id.identifier import StreamIdentifier
+    from tail_beam_id.label import match, match_tolerance_s
+    from tail_beam_id.replay import replay
+
+    recorded = next(support_streams(params, 1, 12, seed=41004, setting=settings(params, [1.0], ["shipped"])[0]))
+    separations = np.array([truth["final_separation_stamp"] for truth in recorded.truths])
+    rebounds = [replace(r, stamp_s=float(np.ceil(separations[np.argmin(np.abs(separations - r.stamp_s))] * 250.0) / 250.0))
+                for r in recorded.rebounds]
+    assert max(r.stamp_s - t for r, t in zip(rebounds, separations)) > 0.0025  # lags past the window a 2 kHz camera needs
+
+    def extras(model_params):
+        labels = replay(StreamIdentifier("statistical", model_params["identification"], model_params), recorded.pressure,
+                        recorded.imu, rebounds, vibration=recorded.vibration)
+        matching = match(recorded.truths, labels, match_tolerance_s(params["identification"]))
+        assert not matching.missed
+        return [labels[k].impact_stamp_s for k in matching.extra]
+
+    assert all(stamp < rebounds[3].stamp_s for stamp in extras(params))
+    v = recorded.vibration
+    profile = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
+                        (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
+                        lambda model_params: [], (v.sample_stamps_s(), v.accel_mps2), [r.stamp_s for r in rebounds])
+    assert profile.camera_frame_rate_hz == pytest.approx(500.0)
+    assert extras(with_profile(copy.deepcopy(params), profile)) == []
