@@ -41,6 +41,7 @@ MAX_MODES = 3
 MIN_PEAK_PROMINENCE = 4.0  # a peak must stand this many times above the summed spectrum's median
 MIN_OWN_PROMINENCE = 0.5  # ... and at least this fraction of its own height (twice the spectrum beside it)
 MIN_IMPACTS = 3  # ring-downs needed
+MAX_IMPACTS = 200  # ring-downs read at the most (a long recording's first ones): the cost stays bounded
 BAND_FRACTION = 0.2  # half width of the band-pass around a mode, as a fraction of its frequency
 MIN_PERIODS = 3.0  # a decay is fitted over at least this many periods of the mode
 EDGE_PERIODS = 3.0  # periods of the mode left out at each end of a band-passed ring-down
@@ -86,6 +87,8 @@ def ring_downs(stamp_s: np.ndarray, accel_mps2: np.ndarray, onsets_s: Sequence[f
         if t.size * period < 0.9 * MIN_SEGMENT_S or np.any(np.diff(t) > 1.5 * period) or not np.isfinite(x).all():
             continue
         segments.append(x - np.polyval(np.polyfit(t - t[0], x, 1), t - t[0]))
+        if len(segments) >= MAX_IMPACTS:
+            break
     return segments
 
 
