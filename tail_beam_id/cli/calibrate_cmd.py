@@ -14,7 +14,7 @@ import yaml
 
 from tail_beam_id.cli.identify_cmd import profile_of, report_reading
 from tail_beam_sim import topics
-from tail_beam_sim.bags.read import read_sensors
+from tail_beam_sim.bags.read import read_runs
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, open_output_file, require_output_file
@@ -34,8 +34,12 @@ def run(args: argparse.Namespace) -> int:
     out = require_output_file("--out", args.out) if args.out else None  # before the work, not after
     # What calibration reads: the jack pressure (the sway) and the IMU (mounting, gain); either
     # will do (tail_beam_id.calibration.calibrate), the camera is not needed.
-    data = read_sensors(args.bag, required=(), namespace=args.namespace, any_of=(topics.JACK_PRESSURE, topics.IMU))
-    report_reading(data, "calibrate")
+    runs = read_runs(args.bag, required=(), namespace=args.namespace, any_of=(topics.JACK_PRESSURE, topics.IMU))
+    report_reading(runs[0], "calibrate", len(runs))
+    # Several time bases (a restarted simulator): the longest run is the support's recording.
+    data = max(runs, key=lambda run: run.pressure_stamp_s.size + run.imu_stamp_s.size)
+    if len(runs) > 1:
+        print(f"calibrate: {data.namespace} calibrated on run {runs.index(data) + 1} of {len(runs)}, the longest", file=sys.stderr)
     profile = profile_of(data, params)
     text = yaml.safe_dump(profile.parameters(), sort_keys=False)
     if out is not None:

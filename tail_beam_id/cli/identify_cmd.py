@@ -22,7 +22,7 @@ from tail_beam_id.methods import available_methods
 from tail_beam_id.replay import replay
 from tail_beam_id.calibration import SupportProfile, with_profile
 from tail_beam_id.calibration import calibrate as calibrate_support
-from tail_beam_sim.bags.read import IDENTIFY_TOPICS, BagSensors, read_sensors
+from tail_beam_sim.bags.read import IDENTIFY_TOPICS, BagSensors, read_runs
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
@@ -46,30 +46,36 @@ def identify_bag(bag: str, method: str | None = None, config: list[str] | None =
     in impact_stamp order; with ``calibrate`` (default: ``identification.self_calibrate``), on
     the bag's own support profile (labels say ``calibrated``). Any one of the sensor topics will
     do, as for id_node (the labels' ``signals`` say which were used). Gaps in the vibration's
-    running index and repeated samples are reported on stderr."""
+    running index and repeated samples are reported on stderr. A bag holding several time bases
+    (a restarted simulator) is identified run by run, as id_node starts afresh at each: the
+    labels of each run in turn, each run in impact_stamp order."""
     params = load_parameters(config or [])
-    data = read_sensors(bag, required=(), namespace=namespace, any_of=IDENTIFY_TOPICS)
-    report_reading(data, "identify")
+    runs = read_runs(bag, required=(), namespace=namespace, any_of=IDENTIFY_TOPICS)
+    report_reading(runs[0], "identify", len(runs))
     if calibrate is None:
         calibrate = bool(params["identification"].get("self_calibrate", False))
-    if calibrate:
-        try:
-            profile = profile_of(data, params)
-        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-            # Self-calibration is a refinement: a recording it cannot read is still identified,
-            # on the configured support, and the reason is said.
-            print(f"identify: {data.namespace} self-calibration failed ({type(exc).__name__}: {exc}); identified on the "
-                  "configured support (labels say calibrated: false)", file=sys.stderr)
-        else:
-            print(f"identify: {data.namespace} {describe_profile(profile)}", file=sys.stderr)
-            params = with_profile(params, profile)
-    return identify_sensors(data, params, method)
+    labels: list[Label] = []
+    for data in runs:
+        run_params = params
+        if calibrate:
+            try:
+                profile = profile_of(data, params)
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                # Self-calibration is a refinement: a recording it cannot read is still identified,
+                # on the configured support, and the reason is said.
+                print(f"identify: {data.namespace} self-calibration failed ({type(exc).__name__}: {exc}); identified on the "
+                      "configured support (labels say calibrated: false)", file=sys.stderr)
+            else:
+                print(f"identify: {data.namespace} {describe_profile(profile)}", file=sys.stderr)
+                run_params = with_profile(params, profile)
+        labels += identify_sensors(data, run_params, method)
+    return labels
 
 
-def report_reading(data: BagSensors, verb: str) -> None:
+def report_reading(data: BagSensors, verb: str, runs: int = 1) -> None:
     """Say on stderr what reading the bag left out: vibration samples missing from the running
-    index, samples recorded twice at one stamp; and a new time base within the bag, which is
-    read as one (id_node would start afresh there)."""
+    index, samples recorded twice at one stamp; and where a new time base begins within the bag
+    (each run is then taken alone, ``runs`` of them, as id_node starts afresh there)."""
     if data.vibration_gaps:
         print(f"{verb}: {data.namespace} vibration: {len(data.vibration_gaps)} gap(s), {data.vibration_lost_samples} samples lost "
               f"(first missing index {data.vibration_gaps[0][0]})", file=sys.stderr)
@@ -77,8 +83,7 @@ def report_reading(data: BagSensors, verb: str) -> None:
         print(f"{verb}: {data.namespace} {name}: {n} sample(s) at a stamp already read left out (the first kept)", file=sys.stderr)
     for name, (log_s, back_s) in data.time_jumps.items():
         print(f"{verb}: {data.namespace} {name}: stamps go back {back_s:.3f} s at log time {log_s:.3f} s (a restarted simulator or "
-              "a looped replay?): the bag is read as one time base, the runs' samples merged by stamp; id_node would start "
-              "afresh there: cut the bag at that log time to take each run alone", file=sys.stderr)
+              f"a looped replay): {runs} runs, each taken alone as id_node starts afresh there", file=sys.stderr)
 
 
 def describe_profile(profile: SupportProfile) -> str:

@@ -192,6 +192,22 @@ def _first_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
+@dataclass
+class _Run:
+    """One time base's decoded messages, as read (the arrays are assembled at the end)."""
+
+    pressure: list[tuple[float, float]] = field(default_factory=list)
+    imu: list[tuple[float, ...]] = field(default_factory=list)
+    vibration: list[tuple[int, float, np.ndarray, float, float]] = field(default_factory=list)
+    rebounds: list[tuple[float, np.ndarray]] = field(default_factory=list)
+    json_topics: dict[str, list[dict[str, Any]]] = field(
+        default_factory=lambda: {topics.LABEL: [], topics.IMPACT_TRUTH: [], topics.IMPACT_CMD: []})
+
+    def merged(self, other: _Run) -> _Run:
+        return _Run(self.pressure + other.pressure, self.imu + other.imu, self.vibration + other.vibration,
+                    self.rebounds + other.rebounds, {k: v + other.json_topics[k] for k, v in self.json_topics.items()})
+
+
 def read_sensors(
     path: str | os.PathLike[str], required: Iterable[str] = SENSOR_TOPICS, namespace: str | None = None, any_of: Iterable[str] = (),
 ) -> BagSensors:
@@ -200,50 +216,85 @@ def read_sensors(
     index order (a block recorded late is put back in its place, a repeated one dropped), with
     the index gaps listed; the pressure and IMU samples in stamp order, a sample at a stamp
     already read left out (counted in ``repeated_samples``: a topic recorded twice), as id_node
-    leaves out a repeated stamp."""
-    pressure: list[tuple[float, float]] = []
-    vibration: list[tuple[int, float, np.ndarray, float, float]] = []
+    leaves out a repeated stamp. A bag holding several time bases (``time_jumps``) comes back
+    merged by stamp: :func:`read_runs` takes each alone."""
+    runs, chosen, jumps, partial = _read(path, required, namespace, any_of)
+    whole = runs[0]
+    for run in runs[1:]:
+        whole = whole.merged(run)
+    return _assemble(whole, partial, chosen, jumps)
+
+
+def read_runs(
+    path: str | os.PathLike[str], required: Iterable[str] = SENSOR_TOPICS, namespace: str | None = None, any_of: Iterable[str] = (),
+) -> list[BagSensors]:
+    """As :func:`read_sensors`, one :class:`BagSensors` per time base, in recorded order: where a
+    sensor topic's stamps go back by more than TIME_JUMP_S (a restarted simulator, a looped
+    replay) its next messages belong to the next run, as id_node starts afresh there. Each
+    run's ``time_jumps`` are the whole bag's."""
+    runs, chosen, jumps, partial = _read(path, required, namespace, any_of)
+    return [_assemble(run, partial, chosen, jumps) for run in runs]
+
+
+def _read(path: str | os.PathLike[str], required: Iterable[str], namespace: str | None, any_of: Iterable[str]
+          ) -> tuple[list[_Run], str, dict[str, tuple[float, float]], bool]:
+    """The bag's messages decoded into runs (one per time base), the namespace read, the first
+    time jump of each topic (log time s, stamps back by s) and whether the bag is partial."""
+    runs = [_Run()]
     chosen = "/"
-    imu: list[tuple[float, ...]] = []
-    rebounds: list[tuple[float, np.ndarray]] = []
-    json_topics: dict[str, list[dict[str, Any]]] = {topics.LABEL: [], topics.IMPACT_TRUTH: [], topics.IMPACT_CMD: []}
     latest: dict[str, float] = {}
+    run_of: dict[str, int] = {}  # per sensor topic, the run its messages go to
     jumps: dict[str, tuple[float, float]] = {}
     for raw in raw_messages(path, None, required, namespace, any_of):
         if raw.topic not in topics.MSG_TYPES:
             continue
         chosen = topics.namespace_of(raw.full_topic)
         msg = TYPESTORE.deserialize_cdr(raw.data, raw.msgtype)
+        index = max(run_of.values(), default=0)  # a JSON topic's message: the newest run
         if raw.topic in SENSOR_TOPICS or raw.topic == topics.VIBRATION:
             # In recorded order, a stream whose stamps go back by more than TIME_JUMP_S started a
-            # new time base (a restarted simulator, a looped replay): noted, the first per topic.
+            # new time base (a restarted simulator, a looped replay): its messages from here on
+            # belong to its next run; the first jump per topic is noted.
             stamp = _stamp(msg)
-            if stamp < latest.get(raw.topic, -math.inf) - TIME_JUMP_S and raw.topic not in jumps:
-                jumps[raw.topic] = (raw.log_time_ns * 1e-9, latest[raw.topic] - stamp)
+            index = run_of.get(raw.topic, 0)
+            if stamp < latest.get(raw.topic, -math.inf) - TIME_JUMP_S:
+                jumps.setdefault(raw.topic, (raw.log_time_ns * 1e-9, latest[raw.topic] - stamp))
+                index += 1
+                latest[raw.topic] = stamp
+                if index == len(runs):
+                    runs.append(_Run())
             latest[raw.topic] = max(stamp, latest.get(raw.topic, -math.inf))
+            run_of[raw.topic] = index
+        run = runs[index]
         if raw.topic == topics.VIBRATION:
-            vibration.append(vibration_fields(msg))
-            continue
-        if raw.topic == topics.JACK_PRESSURE:
-            pressure.append((_stamp(msg), msg.fluid_pressure))
+            run.vibration.append(vibration_fields(msg))
+        elif raw.topic == topics.JACK_PRESSURE:
+            run.pressure.append((_stamp(msg), msg.fluid_pressure))
         elif raw.topic == topics.IMU:
             w, a = msg.angular_velocity, msg.linear_acceleration
-            imu.append((_stamp(msg), w.x, w.y, w.z, a.x, a.y, a.z))
+            run.imu.append((_stamp(msg), w.x, w.y, w.z, a.x, a.y, a.z))
         elif raw.topic == topics.REBOUND_VELOCITY:
             v = msg.twist.linear
-            rebounds.append((_stamp(msg), np.array([v.x, v.y, v.z])))
+            run.rebounds.append((_stamp(msg), np.array([v.x, v.y, v.z])))
         else:
-            json_topics[raw.topic].append(_json(msg.data))
-    p = np.array(pressure).reshape(-1, 2)
-    i = np.array(imu).reshape(-1, 7)
+            run.json_topics[raw.topic].append(_json(msg.data))
+    partial = (Path(path) / PARTIAL_DIR).is_dir() and any((Path(path) / PARTIAL_DIR).iterdir())
+    return runs, chosen, jumps, partial
+
+
+def _assemble(run: _Run, partial: bool, chosen: str, jumps: dict[str, tuple[float, float]]) -> BagSensors:
+    """One run's messages as arrays: samples in stamp order, each stamp once, vibration blocks
+    in index order with their gaps."""
+    p = np.array(run.pressure).reshape(-1, 2)
+    i = np.array(run.imu).reshape(-1, 7)
     p, i = p[np.argsort(p[:, 0], kind="stable")], i[np.argsort(i[:, 0], kind="stable")]
     (p, p_repeated), (i, i_repeated) = _first_of_each_stamp(p), _first_of_each_stamp(i)
     repeated = {name: n for name, n in ((topics.JACK_PRESSURE, p_repeated), (topics.IMU, i_repeated)) if n}
-    rebounds.sort(key=lambda r: r[0])
-    partial = (Path(path) / PARTIAL_DIR).is_dir() and any((Path(path) / PARTIAL_DIR).iterdir())
-    blocks = _vibration_blocks(vibration)
+    rebounds = sorted(run.rebounds, key=lambda r: r[0])
+    blocks = _vibration_blocks(run.vibration)
     gaps = BlockSequencer().push(blocks).gaps
-    return BagSensors(p[:, 0], p[:, 1], i[:, 0], i[:, 1:4], i[:, 4:7], rebounds, json_topics, partial, blocks, gaps, chosen, repeated, jumps)
+    return BagSensors(p[:, 0], p[:, 1], i[:, 0], i[:, 1:4], i[:, 4:7], rebounds, run.json_topics, partial, blocks, gaps, chosen,
+                      repeated, dict(jumps))
 
 
 def _first_of_each_stamp(rows: np.ndarray) -> tuple[np.ndarray, int]:

@@ -118,11 +118,13 @@ def test_calibrate_chooses_one_support_of_several(tmp_path, sandstone_records):
     assert chosen.returncode == 0 and "imu_mount_sign" in chosen.stdout, chosen.stderr[-3000:]
 
 
-def test_a_new_time_base_in_the_bag_is_said(tmp_path, sandstone_records):
+def test_a_new_time_base_in_the_bag_is_said_and_each_run_taken_alone(tmp_path, sandstone_records):
     """A bag holding two runs whose stamps both start at 0 (a simulator restarted while the
-    recorder ran on): identify and calibrate read it as one time base, and say so on stderr,
-    naming the topic, how far its stamps went back and the log time where they did (was: the
-    runs merged by stamp without a word)."""
+    recorder ran on): identify and calibrate say so on stderr, naming the topic, how far its
+    stamps went back and the log time where they did (was: the runs merged by stamp without a
+    word), and take each run alone, as id_node starts afresh at a time jump: the sandstone
+    impact of each run is labelled once, gangue, at its own stamp (merged, the two runs'
+    samples interleaved into one stream); calibrate says which run it used."""
     def later(records, shift_s):
         """The records with every header stamp and log time ``shift_s`` later."""
         out = []
@@ -140,4 +142,10 @@ def test_a_new_time_base_in_the_bag_is_said(tmp_path, sandstone_records):
     for verb in ("identify", "calibrate"):
         result = run(verb, str(bag))
         assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr[-3000:]
-        assert "imu: stamps go back" in result.stderr and "cut the bag at that log time" in result.stderr, result.stderr
+        assert "imu: stamps go back" in result.stderr and "2 runs, each taken alone" in result.stderr, result.stderr
+        if verb == "identify":
+            labels = [json.loads(line) for line in result.stdout.splitlines()]
+            assert [label["label"] for label in labels] == ["gangue", "gangue"], labels
+            assert labels[0]["impact_stamp"] - labels[1]["impact_stamp"] == pytest.approx(3.0, abs=1e-3)
+        else:
+            assert "calibrated on run" in result.stderr
