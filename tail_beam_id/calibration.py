@@ -41,7 +41,7 @@ from scipy.signal import welch
 from tail_beam_id.camera import frame_period_s
 from tail_beam_id.label import Label
 from tail_beam_id.modes import MIN_FREQUENCY_HZ as MIN_MODE_FREQUENCY_HZ
-from tail_beam_id.modes import RingingMode, ring_decay_s, ringing_modes
+from tail_beam_id.modes import RingingMode, ring_decay_s, ringing_modes, sample_noise
 from tail_beam_id.timing import UNUSUAL
 from tail_beam_sim.config import deep_merge
 from tail_beam_sim.errors import InputError
@@ -124,11 +124,9 @@ class SupportProfile:
 
 def robust_noise(values: np.ndarray) -> float | None:
     """Noise RMS of a sampled signal from the median absolute first difference (slow motion and
-    the odd impact barely move it), in the signal's unit."""
-    if values.size < 16:
-        return None
-    diff = np.diff(values)
-    return float(1.4826 * np.median(np.abs(diff - np.median(diff))) / math.sqrt(2.0))
+    the odd impact barely move it: tail_beam_id.modes.sample_noise), in the signal's unit; None
+    with fewer than 16 samples."""
+    return None if values.size < 16 else sample_noise(values)
 
 
 def mount_sign(accel_z_mps2: np.ndarray) -> float | None:
