@@ -116,7 +116,7 @@ def vibration_fields(msg: Any) -> tuple[int, float, np.ndarray, float, float]:
     that carries no block (tail_beam_sim.topics)."""
     stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
     samples = np.asarray(msg.ranges, dtype=np.float32)
-    index, period, range_mps2 = topics.block_header(msg.angle_min, msg.angle_max, msg.time_increment, msg.range_max)
+    index, period, range_mps2 = topics.block_header(msg.angle_min, msg.angle_max, msg.time_increment, msg.range_max, samples.size)
     return index, stamp, samples, period, range_mps2
 
 

@@ -147,13 +147,14 @@ class RecorderNode(Node):
             msg = deserialize_message(data, LaserScan)
             try:
                 index = topics.index_from_words(msg.angle_min, msg.angle_max)
+                length = topics.block_samples(len(msg.ranges))
             except InputError as exc:  # recorded as it came; `tail-beam identify` will name it too
                 self.refused_blocks += 1
                 if self.refused_blocks == 1 or self.refused_blocks % 1000 == 0:
-                    self.get_logger().warning(f"vibration: a message without a block index, recorded but not counted: {exc} "
+                    self.get_logger().warning(f"vibration: a message that carries no block, recorded but not counted: {exc} "
                                               f"({self.refused_blocks} so far)")
                 return
-            self.vibration.add(index, len(msg.ranges))
+            self.vibration.add(index, length)
 
     def _on_lost(self, info: QoSMessageLostInfo) -> None:
         self.lost_events += info.total_count_change
