@@ -137,7 +137,7 @@ def write_bag(
     finds the full set of topics with their types. Topics are stored fully qualified in
     ``namespace`` (``/imu``), as rosbag2 stores them.
     """
-    if storage not in STORAGES:
+    if not isinstance(storage, str) or storage not in STORAGES:
         raise InputError("storage", storage, f"must be one of {', '.join(STORAGES)}")
     bag_path = require_new_path("bag", path)
     ordered = sorted(records, key=lambda r: r[1])

@@ -54,7 +54,7 @@ class SegmentedBagWriter:
         self, path: str | os.PathLike[str], storage: str = "mcap", msg_types: Mapping[str, str] | None = None,
         compression: str = "zstd", max_duration_s: float = 0.0, max_size_bytes: int = 0,
     ) -> None:
-        if storage not in STORAGES:
+        if not isinstance(storage, str) or storage not in STORAGES:
             raise InputError("storage", storage, f"must be one of {', '.join(STORAGES)}")
         self.compression = compression
         self.max_duration_ns = int(max_duration_s * 1e9)  # 0: no split by duration
