@@ -118,3 +118,40 @@ def test_a_value_the_models_cannot_take_ends_start_up_with_one_line():
     assert "Traceback" not in result.stderr, result.stderr
     lines = [line for line in result.stderr.splitlines() if line.startswith("sim_node: error:")]
     assert len(lines) == 1 and "modes.bending_1.frequency_hz" in lines[0], result.stderr
+
+
+def test_a_start_offset_past_any_bag_is_named(tmp_path):
+    """-p replay.start_offset_s:=1e308 passed its check (>= 0, no upper bound) and overflowed
+    turning into nanoseconds (OverflowError out of bag_replay's start-up); now refused naming
+    replay.start_offset_s and its range (a bag's log time is int64 ns: under 9.2e9 s)."""
+    from bag_helpers import records, write_segments
+    from tail_beam_sim.ros.replay_node import ReplayNode
+
+    write_segments(tmp_path / "bag", [records(20)])
+    with ros_context() as (context, _):
+        overrides = [Parameter("replay.bag_path", value=str(tmp_path / "bag")), Parameter("replay.start_offset_s", value=1e308)]
+        with pytest.raises(InputError, match=r"replay\.start_offset_s = 1e\+308: must be in \[0, 1e\+09\] s"):
+            ReplayNode(context=context, parameter_overrides=overrides)
+
+
+def test_a_looping_replay_whose_bag_went_away_stops_with_one_line(tmp_path):
+    """bag_replay with replay.loop reopens its bag at each pass; a bag removed (or damaged at its
+    start) meanwhile raised InputError out of the timer, ending the process in a traceback. It
+    now stops as a bag found damaged part-way does: one logged line, exit status 1."""
+    import shutil
+
+    from bag_helpers import records, write_segments
+    from rosprobe import spin_until
+    from tail_beam_sim.ros.replay_node import ReplayNode
+
+    bag = tmp_path / "bag"
+    write_segments(bag, [records(20)])
+    with ros_context() as (context, executor):
+        overrides = [Parameter("replay.bag_path", value=str(bag)), Parameter("replay.loop", value=True),
+                     Parameter("replay.rate", value=100.0), Parameter("replay.wait_for_subscribers", value=0)]
+        node = ReplayNode(context=context, parameter_overrides=overrides)
+        executor.add_node(node)
+        assert spin_until(executor, lambda: node.loops >= 1, timeout_s=20)
+        shutil.rmtree(bag)
+        assert spin_until(executor, node.finished.done, timeout_s=20)
+    assert node.exit_status == 1
