@@ -15,6 +15,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, Protocol, runtime_checkable
 
 import rclpy
+from rclpy.exceptions import InvalidHandle
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.duration import Duration
@@ -51,6 +52,20 @@ SLICE_S = 0.1  # longest wait between two checks of the context, s
 ACK_TIMEOUT_S = 10.0  # how long a closing publisher waits for its subscribers to have everything, s
 
 
+def spin_once(executor: Executor, timeout_s: float) -> None:
+    """One ``spin_once`` of ``executor``, through an event of an entity destroyed meanwhile.
+
+    A subscription replaced while the middleware had an event queued for it (the recorder
+    re-subscribing an event topic when a publisher with other durability appears: an
+    incompatible-QoS event of the old one) makes ``EventsExecutor`` raise ``InvalidHandle``
+    taking that event. The entity is gone and its event with it; rclpy's own executors skip
+    such an event the same way (``rclpy.executors``: "the entity has already been destroyed")."""
+    try:
+        executor.spin_once(timeout_sec=timeout_s)
+    except InvalidHandle:
+        pass
+
+
 def spin(node: Node, done: Future | None = None) -> None:
     """Spin ``node`` on an EventsExecutor until shutdown (SIGINT, SIGTERM) or ``done``.
 
@@ -62,7 +77,7 @@ def spin(node: Node, done: Future | None = None) -> None:
     executor.add_node(node)
     try:
         while rclpy.ok(context=node.context) and not (done is not None and done.done()):
-            executor.spin_once(timeout_sec=SLICE_S)
+            spin_once(executor, SLICE_S)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
@@ -212,7 +227,7 @@ class NodeGroup:
         return self.add(node)
 
     def spin_once(self, timeout_s: float) -> None:
-        self.executor.spin_once(timeout_sec=timeout_s)
+        spin_once(self.executor, timeout_s)
 
     def close(self) -> None:
         """Close each node that has ``close()``, destroy them all and shut the context down."""
