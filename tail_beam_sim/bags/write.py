@@ -273,7 +273,7 @@ def repair(bag_path: str | os.PathLike[str]) -> RepairReport:
     segments = _open_segments(bag, report)
     suffixes = {p.suffix for p in files} | {p.suffix for seg in segments for p in seg}
     storage = old.get("storage_identifier") if old else None
-    if storage not in _SUFFIX:
+    if not isinstance(storage, str) or storage not in _SUFFIX:
         if not suffixes:
             raise InputError("bag", str(bag), "holds neither metadata.yaml nor storage files: nothing to repair")
         storage = "mcap" if ".mcap" in suffixes else "sqlite3"
