@@ -46,7 +46,7 @@ from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.errors import require_range
 from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_and_read, refuse_runtime_changes
-from tail_beam_sim.ros.spin import run_node
+from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
 
 
 MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
@@ -111,6 +111,7 @@ class IdNode(Node):
         self.create_subscription(Imu, topics.IMU, self._on_imu, sensor_qos)
         self.create_subscription(LaserScan, topics.VIBRATION, self._on_vibration, sensor_qos)
         self.create_subscription(TwistStamped, topics.REBOUND_VELOCITY, self._on_rebound, event_qos)
+        self._foreign = ForeignTypeWatch(self, {topic: topics.MSG_TYPES[topic] for topic in self._inbox})
         self.create_timer(period, self._tick)
         self._wake = self.create_timer(self.gated.gate.config.reorder_s + WAKE_MARGIN_S, self._on_wake)
         self._wake.cancel()

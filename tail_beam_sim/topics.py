@@ -85,11 +85,23 @@ def block_range_mps2(range_max: float) -> float:
     return value
 
 
-def block_header(angle_min: float, angle_max: float, time_increment: float, range_max: float) -> tuple[int, float, float]:
+def block_samples(count: int) -> int:
+    """A vibration block's sample count (len(ranges)); InputError for an empty one: it carries no
+    block, and taken as one it would claim its index from the real block that comes there."""
+    if count < 1:
+        raise InputError("vibration.ranges", f"{count} samples", "must hold at least one sample of the accelerometer")
+    return count
+
+
+def block_header(angle_min: float, angle_max: float, time_increment: float, range_max: float, samples: int) -> tuple[int, float, float]:
     """A vibration message's (first sample index, sample period s, measuring range m/s^2), each
-    checked as :func:`index_from_words`, :func:`block_period_s` and :func:`block_range_mps2` do:
-    the one reading of a block's header, for the topic and for bags."""
-    return index_from_words(angle_min, angle_max), block_period_s(time_increment), block_range_mps2(range_max)
+    checked as :func:`index_from_words`, :func:`block_period_s` and :func:`block_range_mps2` do,
+    and its sample count (``samples``) as :func:`block_samples`: the one reading of a block's
+    header, for the topic and for bags."""
+    index = index_from_words(angle_min, angle_max)
+    period, range_mps2 = block_period_s(time_increment), block_range_mps2(range_max)
+    block_samples(samples)
+    return index, period, range_mps2
 
 
 def stamp_ns(stamp_s: float) -> int:

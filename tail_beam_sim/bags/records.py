@@ -116,7 +116,7 @@ def vibration_fields(msg: Any) -> tuple[int, float, np.ndarray, float, float]:
     that carries no block (tail_beam_sim.topics)."""
     stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
     samples = np.asarray(msg.ranges, dtype=np.float32)
-    index, period, range_mps2 = topics.block_header(msg.angle_min, msg.angle_max, msg.time_increment, msg.range_max)
+    index, period, range_mps2 = topics.block_header(msg.angle_min, msg.angle_max, msg.time_increment, msg.range_max, samples.size)
     return index, stamp, samples, period, range_mps2
 
 
@@ -137,7 +137,7 @@ def write_bag(
     finds the full set of topics with their types. Topics are stored fully qualified in
     ``namespace`` (``/imu``), as rosbag2 stores them.
     """
-    if storage not in STORAGES:
+    if not isinstance(storage, str) or storage not in STORAGES:
         raise InputError("storage", storage, f"must be one of {', '.join(STORAGES)}")
     bag_path = require_new_path("bag", path)
     ordered = sorted(records, key=lambda r: r[1])

@@ -54,7 +54,7 @@ class SegmentedBagWriter:
         self, path: str | os.PathLike[str], storage: str = "mcap", msg_types: Mapping[str, str] | None = None,
         compression: str = "zstd", max_duration_s: float = 0.0, max_size_bytes: int = 0,
     ) -> None:
-        if storage not in STORAGES:
+        if not isinstance(storage, str) or storage not in STORAGES:
             raise InputError("storage", storage, f"must be one of {', '.join(STORAGES)}")
         self.compression = compression
         self.max_duration_ns = int(max_duration_s * 1e9)  # 0: no split by duration
@@ -273,7 +273,7 @@ def repair(bag_path: str | os.PathLike[str]) -> RepairReport:
     segments = _open_segments(bag, report)
     suffixes = {p.suffix for p in files} | {p.suffix for seg in segments for p in seg}
     storage = old.get("storage_identifier") if old else None
-    if storage not in _SUFFIX:
+    if not isinstance(storage, str) or storage not in _SUFFIX:
         if not suffixes:
             raise InputError("bag", str(bag), "holds neither metadata.yaml nor storage files: nothing to repair")
         storage = "mcap" if ".mcap" in suffixes else "sqlite3"

@@ -132,7 +132,7 @@ def vibration_blocks(messages: Sequence[LaserScan], refused: list[str] | None = 
     kept: list[tuple[LaserScan, int]] = []
     for m in messages:
         try:
-            index, period, _ = topics.block_header(m.angle_min, m.angle_max, m.time_increment, m.range_max)
+            index, period, _ = topics.block_header(m.angle_min, m.angle_max, m.time_increment, m.range_max, len(m.ranges))
             if kept and period != kept[0][0].time_increment:
                 raise InputError("vibration.time_increment", period, f"must be the stream's sample period, {kept[0][0].time_increment:g} s")
         except InputError as exc:

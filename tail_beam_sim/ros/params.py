@@ -8,6 +8,7 @@ only at start-up are guarded by :func:`refuse_runtime_changes`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -16,6 +17,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from tail_beam_sim.errors import InputError, shorten
 from tail_beam_sim.config import deep_merge, default_config_dir, flatten, load_parameters, read_parameter_file, unflatten
 
 
@@ -35,7 +37,61 @@ def declare_and_read(node: Node, defaults: dict[str, Any]) -> dict[str, Any]:
     dynamic = ParameterDescriptor(dynamic_typing=True)
     names = flatten(defaults)
     node.declare_parameters("", [(name, value, dynamic) for name, value in names.items()])
-    return unflatten({name: node.get_parameter(name).value for name in names})
+    say_unused_overrides(node)
+    values = {name: node.get_parameter(name).value for name in names}
+    for name, value in values.items():
+        require_kind(name, value, names[name])
+    return unflatten(values)
+
+
+def _finite_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def require_kind(name: str, value: Any, default: Any) -> None:
+    """InputError unless ``value`` is of the kind of its shipped ``default``: a finite number for
+    a number (an integer or a float: dynamic typing), text, true or false, a list of finite
+    numbers or of text. The ranges are checked where each value is used; this keeps a list
+    where a name goes, or NaN where a count goes, from reaching a model as a traceback."""
+    if isinstance(default, bool):
+        ok, kind = isinstance(value, bool), "must be true or false"
+    elif isinstance(default, (int, float)):
+        ok, kind = _finite_number(value), "must be a finite number"
+    elif isinstance(default, str):
+        ok, kind = isinstance(value, str), "must be text"
+    elif isinstance(default, (list, tuple)) and default and all(isinstance(x, str) for x in default):
+        ok, kind = isinstance(value, (list, tuple)) and all(isinstance(x, str) for x in value), "must be a list of text"
+    elif isinstance(default, (list, tuple)):
+        ok, kind = isinstance(value, (list, tuple)) and all(_finite_number(x) for x in value), "must be a list of finite numbers"
+    else:
+        return
+    if not ok:
+        raise InputError(name, value, f"{kind} (its default: {shorten(default, 40)})")
+
+
+NODE_CONFIG_FILES = ("sim_node.yaml", "id_node.yaml", "recorder.yaml", "replay.yaml")
+MAX_NAMED = 10  # most unused parameter names one log line lists
+
+
+def say_unused_overrides(node: Node) -> None:
+    """Name the overrides (``-p``, ``--params-file``) ``node`` has no parameter for: rclpy drops
+    them without a word, and a typo would pass for a setting. A warning for names no node of the
+    suite has; an information line for another node's (a ``/**`` file shared by the suite)."""
+    overrides = getattr(node, "_parameter_overrides", None) or {}  # rclpy keeps them there, no public accessor
+    unused = sorted(name for name in overrides if not node.has_parameter(name))
+    if not unused:
+        return
+    suite = set(flatten(config_defaults(NODE_CONFIG_FILES, with_physics=True)))
+    others = [n for n in unused if n in suite]
+    unknown = [n for n in unused if n not in suite]
+
+    def listed(names: list[str]) -> str:
+        return ", ".join(names[:MAX_NAMED]) + (f" and {len(names) - MAX_NAMED} more" if len(names) > MAX_NAMED else "")
+
+    if unknown:
+        node.get_logger().warning(f"ignored, not a parameter of {node.get_name()} nor of any tail_beam node (a typo?): {listed(unknown)}")
+    if others:
+        node.get_logger().info(f"ignored, parameters of other tail_beam nodes: {listed(others)}")
 
 
 ALL_PARAMETERS = None  # for refuse_runtime_changes: every parameter of the node

@@ -45,7 +45,7 @@ from tail_beam_sim.bags.write import SegmentedBagWriter
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.sensors import IndexSpan
 from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_and_read, refuse_runtime_changes
-from tail_beam_sim.ros.spin import run_node
+from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
 
 LOST_KEYS = ("tail_beam.vibration_lost_samples", "tail_beam.messages_lost_events")  # bag metadata custom_data
 DISCOVERY_PERIOD_S = 0.1  # how often the event topics' publishers are looked at, s
@@ -97,6 +97,7 @@ class RecorderNode(Node):
             if topic in ros_messages.EVENT_TOPICS:
                 self._events[topic] = (subscription, (DurabilityPolicy.VOLATILE, ReliabilityPolicy.RELIABLE))
         self.create_timer(DISCOVERY_PERIOD_S, self._follow_event_publishers)
+        self._foreign = ForeignTypeWatch(self, topics.MSG_TYPES)
         self.create_timer(segment_s, self.writer.close_segment)
         if flush_s < segment_s:
             self.create_timer(flush_s, self.writer.flush)
@@ -147,13 +148,14 @@ class RecorderNode(Node):
             msg = deserialize_message(data, LaserScan)
             try:
                 index = topics.index_from_words(msg.angle_min, msg.angle_max)
+                length = topics.block_samples(len(msg.ranges))
             except InputError as exc:  # recorded as it came; `tail-beam identify` will name it too
                 self.refused_blocks += 1
                 if self.refused_blocks == 1 or self.refused_blocks % 1000 == 0:
-                    self.get_logger().warning(f"vibration: a message without a block index, recorded but not counted: {exc} "
+                    self.get_logger().warning(f"vibration: a message that carries no block, recorded but not counted: {exc} "
                                               f"({self.refused_blocks} so far)")
                 return
-            self.vibration.add(index, len(msg.ranges))
+            self.vibration.add(index, length)
 
     def _on_lost(self, info: QoSMessageLostInfo) -> None:
         self.lost_events += info.total_count_change

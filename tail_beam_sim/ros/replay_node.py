@@ -53,7 +53,7 @@ class ReplayNode(Node):
         unknown = sorted(set(chosen) - set(topics.MSG_TYPES))
         if unknown or not chosen:
             raise InputError("replay.topics", chosen, f"must name some of {', '.join(topics.MSG_TYPES)}")
-        self.start_offset_s = require_range("replay.start_offset_s", params.get("start_offset_s", 0.0), 0.0, None, unit="s")
+        self.start_offset_s = require_range("replay.start_offset_s", params.get("start_offset_s", 0.0), 0.0, 1e9, unit="s")
         self.loop = bool(params.get("loop", False))
         self.namespace = params.get("namespace") or None
         self._chosen = chosen
@@ -93,7 +93,13 @@ class ReplayNode(Node):
             return  # a subscriber is behind: wait for it (the timing catches up afterwards)
         if self._next is None and self.loop and self.published:
             self.loops += 1
-            self._open()
+            try:
+                self._open()
+            except InputError as exc:  # the bag went away or was damaged since the last pass: as part-way
+                self.get_logger().error(f"replay stopped: pass {self.loops + 1}: {exc}")
+                self.exit_status = 1
+                self._next = None
+                self.loop = False
         if self._next is None:
             if not self.finished.done():
                 self.get_logger().info(f"replay done: {self.published} messages")

@@ -36,7 +36,7 @@ from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.errors import InputError, require_range, shorten
 from tail_beam_sim.ros.params import config_defaults, declare_and_read
-from tail_beam_sim.ros.spin import ACK_TIMEOUT_S, PublishBacklog, SubscriberGate, drain, run_node
+from tail_beam_sim.ros.spin import ACK_TIMEOUT_S, ForeignTypeWatch, PublishBacklog, SubscriberGate, drain, run_node
 from tail_beam_sim.physics.command import parse_command
 from tail_beam_sim.physics.scenario import PlannedImpact, load_scenario
 from tail_beam_sim.physics.solvers import SolverError
@@ -120,6 +120,7 @@ class SimNode(Node):
         self._clock_pub = self.create_publisher(Clock, "/clock", 10) if node.get("publish_clock") else None
         # Keep-all: a burst of commands waits in the reader's history instead of overwriting itself.
         self.create_subscription(String, topics.IMPACT_CMD, self._on_command, ros_messages.COMMAND_QOS)
+        self._foreign = ForeignTypeWatch(self, {topics.IMPACT_CMD: topics.MSG_TYPES[topics.IMPACT_CMD]})
         self._anchor: tuple[float, float] | None = None  # (wall s, simulation s) pacing origin
         self._last_activity_s = 0.0
         self._started = False  # simulation time held at 0 until the subscribers are there

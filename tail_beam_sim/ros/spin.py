@@ -7,6 +7,7 @@ down, so the nodes spin in short slices and check the context between them.
 from __future__ import annotations
 
 import os
+import re
 import sys
 import time
 from collections import deque
@@ -14,6 +15,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, Protocol, runtime_checkable
 
 import rclpy
+from rclpy.exceptions import InvalidHandle
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.duration import Duration
@@ -50,6 +52,20 @@ SLICE_S = 0.1  # longest wait between two checks of the context, s
 ACK_TIMEOUT_S = 10.0  # how long a closing publisher waits for its subscribers to have everything, s
 
 
+def spin_once(executor: Executor, timeout_s: float) -> None:
+    """One ``spin_once`` of ``executor``, through an event of an entity destroyed meanwhile.
+
+    A subscription replaced while the middleware had an event queued for it (the recorder
+    re-subscribing an event topic when a publisher with other durability appears: an
+    incompatible-QoS event of the old one) makes ``EventsExecutor`` raise ``InvalidHandle``
+    taking that event. The entity is gone and its event with it; rclpy's own executors skip
+    such an event the same way (``rclpy.executors``: "the entity has already been destroyed")."""
+    try:
+        executor.spin_once(timeout_sec=timeout_s)
+    except InvalidHandle:
+        pass
+
+
 def spin(node: Node, done: Future | None = None) -> None:
     """Spin ``node`` on an EventsExecutor until shutdown (SIGINT, SIGTERM) or ``done``.
 
@@ -61,7 +77,7 @@ def spin(node: Node, done: Future | None = None) -> None:
     executor.add_node(node)
     try:
         while rclpy.ok(context=node.context) and not (done is not None and done.done()):
-            executor.spin_once(timeout_sec=SLICE_S)
+            spin_once(executor, SLICE_S)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
@@ -108,6 +124,37 @@ class PublishBacklog:
             self._queue.popleft()
         self._held = False
         return True
+
+
+FOREIGN_TYPE_PERIOD_S = 1.0  # how often a node looks for publishers of another type on its topics, s
+
+
+class ForeignTypeWatch:
+    """Warns once per publisher that offers another message type on one of ``node``'s topics
+    (``{relative name: 'pkg/msg/Type'}``). DDS never matches the two, so none of its messages
+    arrives, and the Fast DDS of the pip wheels raises no incompatible-type event: without this,
+    a client publishing the wrong type would see its messages vanish without a word."""
+
+    def __init__(self, node: Node, expected: Mapping[str, str]) -> None:
+        self._node = node
+        self._expected = {node.resolve_topic_name(topic): msgtype for topic, msgtype in expected.items()}
+        self._said: set[tuple[str, str, str, str]] = set()
+        node.create_timer(FOREIGN_TYPE_PERIOD_S, self.check)
+
+    def check(self) -> None:
+        for topic, msgtype in self._expected.items():
+            for info in self._node.get_publishers_info_by_topic(topic):
+                if info.topic_type == msgtype:
+                    continue
+                publisher = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                key = (topic, info.topic_type, publisher, bytes(info.endpoint_gid).hex())
+                if key in self._said:
+                    continue
+                self._said.add(key)
+                self._node.get_logger().warning(
+                    f"{topic}: a publisher (node {publisher}) offers {info.topic_type}, not {msgtype}: "
+                    "none of its messages can reach this node"
+                )
 
 
 class SubscriberGate:
@@ -180,7 +227,7 @@ class NodeGroup:
         return self.add(node)
 
     def spin_once(self, timeout_s: float) -> None:
-        self.executor.spin_once(timeout_sec=timeout_s)
+        spin_once(self.executor, timeout_s)
 
     def close(self) -> None:
         """Close each node that has ``close()``, destroy them all and shut the context down."""
@@ -193,14 +240,34 @@ class NodeGroup:
         rclpy.try_shutdown(context=self.context)
 
 
+def rcl_error_line(exc: BaseException) -> str:
+    """An RCLError's message as one line, without rcl's source locations (``, at /project/src/parse.c:835``)."""
+    text = " ".join(str(exc).split())
+    return re.sub(r",? at /\S+:\d+", "", text).strip(" ,")
+
+
+def parameters_given(args: Sequence[str]) -> list[str]:
+    """The parameter names (``-p NAME:=VALUE``) and parameter files (``--params-file FILE``) of
+    a command line's ROS arguments, in order."""
+    given: list[str] = []
+    for flag, value in zip(args, args[1:]):
+        if flag in ("-p", "--param"):
+            given.append(value.split(":=", 1)[0])
+        elif flag == "--params-file":
+            given.append(f"--params-file {value}")
+    return given
+
+
 def run_node(make: Callable[[], Node], usage: NodeUsage | str, args: Sequence[str] | None = None) -> int:
     """The ``main`` of every executable: build the node, spin it, close and shut down.
 
     ``-h``/``--help`` prints ``usage`` and exits 0 before ROS starts (no node, no file). A
     :class:`FinishingNode` stops spinning when its ``finished`` future is done; a
     :class:`ClosingNode` is closed on the way out. Bad parameters end it with one line and exit
-    status 2; SIGINT and SIGTERM end it with status 0; a node that sets ``exit_status`` (a
-    replay that met a damaged bag) exits with it.
+    status 2, as do arguments rcl refuses (a --params-file that is no YAML or missing, a trailing
+    ``-p``) and any other failure to build the node from its parameters (a model that cannot take
+    a value: the line names the parameters set); SIGINT and SIGTERM end it with status 0; a node that sets ``exit_status`` (a replay
+    that met a damaged bag) exits with it.
     """
     if isinstance(usage, str):
         usage = NodeUsage(usage, (make.__doc__ or "").strip().split("\n\n")[0])
@@ -211,11 +278,21 @@ def run_node(make: Callable[[], Node], usage: NodeUsage | str, args: Sequence[st
         except BrokenPipeError:  # `... -h | head`: the reader left; not an error
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except RuntimeError as exc:  # rcl's RCLError: a --params-file that is no YAML or missing, a trailing -p, ...
+        print(f"{executable}: error: --ros-args: {rcl_error_line(exc)}", file=sys.stderr)
+        return 2
     try:
         node = make()
     except InputError as exc:
         print(f"{executable}: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    except Exception as exc:  # a value of the right kind that a model cannot take (1e308 Hz: its matrices overflow)
+        given = ", ".join(parameters_given(list(sys.argv[1:] if args is None else args))) or "none"
+        print(f"{executable}: error: the parameters do not make a working node ({type(exc).__name__}: "
+              f"{' '.join(str(exc).split())[:200]}); set on the command line: {given}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
     try:

@@ -322,3 +322,19 @@ def test_json_topics_holding_anything_read_as_unparsed_and_identify_goes_on(tmp_
         assert data.json_topics[name][4] == {"label": "coal"}
     result = run("tail-beam", "identify", str(tmp_path / "bag"), "--no-calibrate")
     assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr
+
+
+def test_bag_repair_of_metadata_whose_storage_is_no_name_repairs_from_the_files(tmp_path):
+    """A metadata.yaml whose storage_identifier is a list (``[1, 2]``): `bag repair` tested it
+    against its table of storages and raised TypeError (unhashable type: 'list'), a traceback
+    with exit 1, where bag info and identify name the bad metadata. It now tells the storage
+    from the files, as for a bag without metadata, and the repaired bag reads."""
+    bag = tmp_path / "bag"
+    write_segments(bag, [records(50)])
+    meta = bag / "metadata.yaml"
+    text = meta.read_text()
+    assert "storage_identifier: mcap" in text
+    meta.write_text(text.replace("storage_identifier: mcap", "storage_identifier: [1, 2]"))
+    result = run("tail-beam", "bag", "repair", str(bag))
+    assert "Traceback" not in result.stderr, result.stderr
+    assert result.returncode == 0 and "the bag reads: 100 messages" in result.stdout + result.stderr, result.stdout + result.stderr

@@ -360,3 +360,46 @@ def test_vibration_messages_that_carry_no_block_are_refused_by_name_and_nothing_
         read_sensors(tmp_path / "bag", required=(topics.VIBRATION,))
     info = subprocess.run([TAIL_BEAM, "bag", "info", str(tmp_path / "bag")], capture_output=True, text=True)
     assert info.returncode == 2 and "vibration.angle_min = nan" in info.stderr and "Traceback" not in info.stderr, info.stderr
+
+
+@pytest.mark.ros
+def test_an_empty_vibration_block_is_refused_by_name_and_hides_no_samples(tmp_path):
+    """A client publishes a vibration message with no samples (``ranges`` empty, a valid header)
+    at the index of the next real block. It carries no block: id_node refuses it with a line
+    naming ``vibration.ranges`` and goes on (alone in a tick's batch it raised ValueError out of
+    the tick, which ends the node), and the real block at that index is used, no sample counted lost; the recorder records
+    it and warns; reading the bag is refused naming the field (it took the empty block for the
+    index and dropped the real one as a repeat: 128 real samples silently lost)."""
+    from rcl_interfaces.msg import Log
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import LaserScan
+
+    from rosprobe import RELIABLE, Probe, ros_context, spin_for, spin_until
+    from tail_beam_id.id_node import IdNode
+    from tail_beam_sim.ros import messages as ros_messages
+    from tail_beam_sim.ros.recorder_node import RecorderNode
+
+    good = ros_messages.vibration_messages(blocks_of([0, 128, 256], n=128, rate_hz=25600.0))
+    empty = ros_messages.vibration_messages(blocks_of([128], n=128, rate_hz=25600.0))[0]
+    empty.ranges = []
+    empty.scan_time = 0.0
+    with ros_context() as (context, executor):
+        ident = IdNode(context=context, namespace="/feed", parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)])
+        recorder = RecorderNode(context=context, namespace="/feed", parameter_overrides=[Parameter("recorder.bag_path", value=str(tmp_path / "bag"))])
+        feeder = Probe(context, {"/rosout": Log}, namespace="/feed", name="feeder")
+        pub = feeder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
+        for node in (ident, recorder, feeder):
+            executor.add_node(node)
+        assert spin_until(executor, lambda: pub.get_subscription_count() >= 2)
+        for msg in (good[0], empty, good[1], good[2]):
+            pub.publish(msg)
+        assert spin_until(executor, lambda: ident.refused_blocks == 1 and recorder.refused_blocks == 1)
+        assert ident.received[topics.VIBRATION] == 4
+        spin_for(executor, 0.3)
+        log = " | ".join(x.msg for x in feeder.messages["/rosout"])
+        recorder.close()
+    assert ident.vibration_lost_samples == 0 and ident.vibration_late_blocks == 0
+    assert "vibration.ranges = " in log and "must hold at least one sample" in log, log
+    assert "recorded but not counted" in log, log
+    with pytest.raises(InputError, match=r"vibration\.ranges = "):
+        read_sensors(tmp_path / "bag", required=(topics.VIBRATION,))

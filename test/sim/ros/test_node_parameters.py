@@ -1,0 +1,157 @@
+"""Start-up parameters from a hostile or careless user: a --params-file that is no YAML or
+is missing, a trailing -p, a value of the wrong type, and a parameter name no node has. Each
+ends with one line naming it (exit status 2 for what stops the node), never a traceback, and a
+name the node does not know is never ignored without a word."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from rclpy.parameter import Parameter
+
+from rosprobe import ros_context
+from tail_beam_sim.errors import InputError
+
+pytestmark = [pytest.mark.ros]
+
+MAINS = {
+    "sim_node": "tail_beam_sim.ros.sim_node",
+    "id_node": "tail_beam_id.id_node",
+    "bag_recorder": "tail_beam_sim.ros.recorder_node",
+    "bag_replay": "tail_beam_sim.ros.replay_node",
+}
+
+
+def run_main(executable: str, *ros_args: str) -> subprocess.CompletedProcess:
+    """The executable's main (of this checkout, not the installed scripts) with ``--ros-args``."""
+    code = f"import sys; from {MAINS[executable]} import main; sys.exit(main())"
+    return subprocess.run([sys.executable, "-c", code, "--ros-args", *ros_args], capture_output=True, text=True, timeout=60)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("executable", sorted(MAINS))
+def test_a_params_file_that_is_no_yaml_or_missing_is_one_line_and_exit_2(tmp_path, executable):
+    """rclpy.init refuses a --params-file that is not YAML, one that does not exist and a
+    trailing -p with an RCLError; run_node let it out as a traceback with exit status 1."""
+    broken = tmp_path / "params.yaml"
+    broken.write_text("a: [b\n  c: }\n")
+    for args, needle in (
+        (("--params-file", str(broken)), str(broken)),
+        (("--params-file", str(tmp_path / "missing.yaml")), "missing.yaml"),
+        (("-p",), "-p"),
+    ):
+        result = run_main(executable, *args)
+        assert result.returncode == 2, (args, result.stderr)
+        assert "Traceback" not in result.stderr, result.stderr
+        lines = [line for line in result.stderr.splitlines() if line.startswith(f"{executable}: error:")]
+        assert len(lines) == 1 and needle in lines[0], result.stderr
+
+
+def test_a_storage_of_the_wrong_type_is_named(tmp_path):
+    """-p recorder.storage:=[1, 2] (a list where a name goes) raised TypeError (unhashable type:
+    'list') out of the recorder's start-up; now the InputError naming recorder.storage (and the
+    bag writer refuses a storage that is no name by itself, for its other callers)."""
+    from tail_beam_sim.bags.write import SegmentedBagWriter
+
+    with pytest.raises(InputError, match=r"storage = \[1, 2\]: must be one of mcap, sqlite3"):
+        SegmentedBagWriter(tmp_path / "direct", [1, 2])
+    from tail_beam_sim.ros.recorder_node import RecorderNode
+
+    with ros_context() as (context, _):
+        for value in ([1, 2], 3):
+            overrides = [Parameter("recorder.bag_path", value=str(tmp_path / "bag")), Parameter("recorder.storage", value=value)]
+            with pytest.raises(InputError, match=r"recorder\.storage = .*must be (text|one of mcap, sqlite3)"):
+                RecorderNode(context=context, parameter_overrides=overrides)
+
+
+def test_a_parameter_no_node_has_is_warned_not_ignored(capfd):
+    """``-p id_node.pol_period_s:=0.05`` (a typo) or a --params-file key no node declares was
+    dropped by rclpy without a word: the user believed it set. The node now warns once, naming
+    it; a parameter of another tail_beam node (a ``/**`` file shared by the suite) gets an
+    information line instead, and the node starts either way."""
+    from tail_beam_id.id_node import IdNode
+
+    overrides = [Parameter("id_node.pol_period_s", value=0.05), Parameter("sensors.imu_rate", value=5),
+                 Parameter("sim_node.realtime_factor", value=0.0), Parameter("id_node.poll_period_s", value=0.05)]
+    with ros_context() as (context, _):
+        IdNode(context=context, parameter_overrides=overrides).destroy_node()
+    err = capfd.readouterr().err
+    warned = [line for line in err.splitlines() if "WARN" in line and "not a parameter of" in line]
+    assert len(warned) == 1, err
+    assert "id_node.pol_period_s" in warned[0] and "sensors.imu_rate" in warned[0] and "realtime_factor" not in warned[0], warned
+    assert "id_node.poll_period_s" not in warned[0]
+    assert any("INFO" in line and "sim_node.realtime_factor" in line for line in err.splitlines()), err
+
+
+@pytest.mark.parametrize("name, value, allowed", [
+    ("support.plate_material", [1, 2], "must be text"),
+    ("stream.tier", [1, 2], "must be text"),
+    ("sensors.vibration_block_samples", float("nan"), "must be a finite number"),
+    ("sensors.vibration_oversample", float("nan"), "must be a finite number"),
+    ("modes.stations_m", "abc", "must be a list of finite numbers"),
+    ("modes.bending_1.shape", "abc", "must be a list of finite numbers"),
+    ("sim_node.publish_clock", "yes", "must be true or false"),
+])
+def test_a_parameter_of_the_wrong_type_is_named_at_start_up(name, value, allowed):
+    """Values of the wrong type for parameters the node hands its models unchecked: a list where
+    a name goes (TypeError: unhashable type), NaN where a count goes (ValueError: cannot convert
+    float NaN to integer), text where an array goes (ValueError: could not convert string to
+    float) all ended sim_node's start-up in a traceback. Each is now the InputError naming the
+    parameter and the type its default has."""
+    from tail_beam_sim.ros.sim_node import SimNode
+
+    with ros_context() as (context, _):
+        with pytest.raises(InputError, match=rf"{name} = .*{allowed}"):
+            SimNode(context=context, parameter_overrides=[Parameter(name, value=value)])
+
+
+@pytest.mark.slow
+def test_a_value_the_models_cannot_take_ends_start_up_with_one_line():
+    """-p modes.bending_1.frequency_hz:=1e308 is a finite number of the right type, but the modal
+    model's matrices overflow (LinAlgError out of sim_node's start-up, a traceback). Whatever a
+    model raises from the parameters given, the executable now ends with one line and exit 2,
+    naming the parameters set on its command line."""
+    result = run_main("sim_node", "-p", "modes.bending_1.frequency_hz:=1e308", "-p", "sim_node.realtime_factor:=0")
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr, result.stderr
+    lines = [line for line in result.stderr.splitlines() if line.startswith("sim_node: error:")]
+    assert len(lines) == 1 and "modes.bending_1.frequency_hz" in lines[0], result.stderr
+
+
+def test_a_start_offset_past_any_bag_is_named(tmp_path):
+    """-p replay.start_offset_s:=1e308 passed its check (>= 0, no upper bound) and overflowed
+    turning into nanoseconds (OverflowError out of bag_replay's start-up); now refused naming
+    replay.start_offset_s and its range (a bag's log time is int64 ns: under 9.2e9 s)."""
+    from bag_helpers import records, write_segments
+    from tail_beam_sim.ros.replay_node import ReplayNode
+
+    write_segments(tmp_path / "bag", [records(20)])
+    with ros_context() as (context, _):
+        overrides = [Parameter("replay.bag_path", value=str(tmp_path / "bag")), Parameter("replay.start_offset_s", value=1e308)]
+        with pytest.raises(InputError, match=r"replay\.start_offset_s = 1e\+308: must be in \[0, 1e\+09\] s"):
+            ReplayNode(context=context, parameter_overrides=overrides)
+
+
+def test_a_looping_replay_whose_bag_went_away_stops_with_one_line(tmp_path):
+    """bag_replay with replay.loop reopens its bag at each pass; a bag removed (or damaged at its
+    start) meanwhile raised InputError out of the timer, ending the process in a traceback. It
+    now stops as a bag found damaged part-way does: one logged line, exit status 1."""
+    import shutil
+
+    from bag_helpers import records, write_segments
+    from rosprobe import spin_until
+    from tail_beam_sim.ros.replay_node import ReplayNode
+
+    bag = tmp_path / "bag"
+    write_segments(bag, [records(20)])
+    with ros_context() as (context, executor):
+        overrides = [Parameter("replay.bag_path", value=str(bag)), Parameter("replay.loop", value=True),
+                     Parameter("replay.rate", value=100.0), Parameter("replay.wait_for_subscribers", value=0)]
+        node = ReplayNode(context=context, parameter_overrides=overrides)
+        executor.add_node(node)
+        assert spin_until(executor, lambda: node.loops >= 1, timeout_s=20)
+        shutil.rmtree(bag)
+        assert spin_until(executor, node.finished.done, timeout_s=20)
+    assert node.exit_status == 1
