@@ -78,7 +78,9 @@ class IdNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__("tail_beam_id", **kwargs)
-        params = declare_and_read(self, config_defaults(["id_node.yaml"], with_physics=True))
+        # A support profile (tail-beam calibrate --out) brings its `calibration` section: what makes
+        # the identifier decide as calibrated, as `tail-beam identify --config profile.yaml` does.
+        params = declare_and_read(self, config_defaults(["id_node.yaml"], with_physics=True), open_sections=("calibration",))
         node = params["id_node"]
         period = require_range("id_node.poll_period_s", node.get("poll_period_s"), 0.0, 10.0, low_open=True, unit="s")
         self.flush_after_idle_s = require_range("id_node.flush_after_idle_s", node.get("flush_after_idle_s"), 0.0, None, low_open=True, unit="s")
@@ -117,6 +119,8 @@ class IdNode(Node):
         self._wake.cancel()
         refuse_runtime_changes(self, ALL_PARAMETERS, "id_node reads its parameters at start-up only (restart it to change them)")
         self.get_logger().info(f"identifying with method {self.identifier.method.name}")
+        if self.identifier.calibrated:
+            self.get_logger().info("deciding with the support profile given (its calibration section): labels say calibrated: true")
         if calibration is not None:
             self.get_logger().info(f"calibration: learning the support from the first {learn_s:g} s of data "
                                    "(labels say calibrated: false until then)")

@@ -32,20 +32,35 @@ def config_defaults(files: Iterable[str], with_physics: bool) -> dict[str, Any]:
     return merged
 
 
-def declare_and_read(node: Node, defaults: dict[str, Any]) -> dict[str, Any]:
-    """Declare every default as a parameter of ``node``; return the values in effect, nested."""
+def declare_and_read(node: Node, defaults: dict[str, Any], open_sections: Iterable[str] = ()) -> dict[str, Any]:
+    """Declare every default as a parameter of ``node``, and every override (``-p``,
+    ``--params-file``) under one of ``open_sections`` (sections with no defaults, whose keys a
+    file brings: a support profile's ``calibration``); return the values in effect, nested."""
     dynamic = ParameterDescriptor(dynamic_typing=True)
     names = flatten(defaults)
     node.declare_parameters("", [(name, value, dynamic) for name, value in names.items()])
+    overrides = getattr(node, "_parameter_overrides", None) or {}  # rclpy keeps them there, no public accessor
+    opened = sorted(name for name in overrides if name not in names and any(name.startswith(f"{s}.") for s in open_sections))
+    node.declare_parameters("", [(name, overrides[name].value, dynamic) for name in opened])
     say_unused_overrides(node)
-    values = {name: node.get_parameter(name).value for name in names}
-    for name, value in values.items():
-        require_kind(name, value, names[name])
+    values = {name: node.get_parameter(name).value for name in [*names, *opened]}
+    for name in names:
+        require_kind(name, values[name], names[name])
     return unflatten(values)
 
 
 def _finite_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _numeric_text(value: object) -> bool:
+    """Text that reads as a finite number ('1.95e9')."""
+    if not isinstance(value, str):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except ValueError:
+        return False
 
 
 def require_kind(name: str, value: Any, default: Any) -> None:
@@ -55,8 +70,10 @@ def require_kind(name: str, value: Any, default: Any) -> None:
     where a name goes, or NaN where a count goes, from reaching a model as a traceback."""
     if isinstance(default, bool):
         ok, kind = isinstance(value, bool), "must be true or false"
-    elif isinstance(default, (int, float)):
-        ok, kind = _finite_number(value), "must be a finite number"
+    elif isinstance(default, (int, float)) or _numeric_text(default):
+        # A default such as 1.95e9 reads as text from config/ (YAML 1.1 wants 1.95e+9) but is a
+        # number to the models, and rcl reads it as one from a --params-file: either will do.
+        ok, kind = _finite_number(value) or _numeric_text(value), "must be a finite number"
     elif isinstance(default, str):
         ok, kind = isinstance(value, str), "must be text"
     elif isinstance(default, (list, tuple)) and default and all(isinstance(x, str) for x in default):

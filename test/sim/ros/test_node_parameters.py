@@ -155,3 +155,53 @@ def test_a_looping_replay_whose_bag_went_away_stops_with_one_line(tmp_path):
         shutil.rmtree(bag)
         assert spin_until(executor, node.finished.done, timeout_s=20)
     assert node.exit_status == 1
+
+
+def test_id_node_takes_a_support_profiles_calibration_section():
+    """A profile written by `tail-beam calibrate` holds a `calibration` section that no config/
+    default declares: rclpy dropped it, so id_node with `--params-file profile.yaml` decided as
+    uncalibrated while `tail-beam identify --config profile.yaml` decided as calibrated. id_node
+    now takes that section (and does not warn of it), so its labels say calibrated: true."""
+    from tail_beam_id.id_node import IdNode
+
+    overrides = [Parameter("calibration.rigid_mode_frequency_hz", value=38.1), Parameter("calibration.impacts_used", value=16),
+                 Parameter("calibration.ringing_modes_hz", value=[399.6, 1268.4]),
+                 Parameter("support.oil_bulk_modulus_pa", value=2.01e9)]
+    with ros_context() as (context, _):
+        node = IdNode(context=context, parameter_overrides=overrides)
+        try:
+            assert node.gated.identifier.calibrated
+            assert node.get_parameter("calibration.ringing_modes_hz").value == [399.6, 1268.4]
+        finally:
+            node.destroy_node()
+        plain = IdNode(context=context)
+        try:
+            assert not plain.gated.identifier.calibrated
+        finally:
+            plain.destroy_node()
+
+
+def test_numbers_config_reads_as_text_take_numbers_and_the_shipped_files_load():
+    """config/ writes 1.95e9 and the like, which PyYAML reads as text and rcl as a number: a
+    number for such a parameter (a profile's oil_bulk_modulus_pa, -p support.setting_pressure_pa:=2.1e7)
+    is taken, and so is every shipped parameter file given as --params-file (as rcl reads it);
+    text that is no number is refused by name."""
+    from tail_beam_id.id_node import IdNode
+    from tail_beam_sim.config import default_config_dir
+    from tail_beam_sim.ros.sim_node import SimNode
+
+    overrides = [Parameter("support.oil_bulk_modulus_pa", value=2.01e9), Parameter("support.setting_pressure_pa", value=2.1e7)]
+    with ros_context() as (context, _):
+        IdNode(context=context, parameter_overrides=overrides).destroy_node()
+        with pytest.raises(InputError, match="support.oil_bulk_modulus_pa"):
+            IdNode(context=context, parameter_overrides=[Parameter("support.oil_bulk_modulus_pa", value="stiff")])
+    import rclpy
+
+    files = sorted(f for f in default_config_dir().glob("*.yaml") if f.name != "impacts.yaml")  # impacts: a scene list, not parameters
+    context = rclpy.Context()
+    rclpy.init(args=["--ros-args", *(a for f in files for a in ("--params-file", str(f)))], context=context)
+    try:
+        SimNode(context=context).destroy_node()
+        IdNode(context=context).destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
