@@ -35,6 +35,21 @@ TIME_JUMP_S = 1.0  # stamps back by more than this on a stream: a new time base 
 _REPAIR_HINT = "run `tail-beam bag repair PATH` to recover what was written"
 
 
+def open_segments_note(path: str | os.PathLike[str]) -> str | None:
+    """One line when the bag has segments under ``.partial`` (open while a recorder writes, left
+    open by a killed one): no reader reads them, so what a command reports of the bag leaves
+    their messages out; ``tail-beam bag repair`` salvages them. None when there are none."""
+    partial = Path(path) / PARTIAL_DIR
+    try:
+        count = sum(1 for _ in partial.iterdir()) if partial.is_dir() and not partial.is_symlink() else 0
+    except OSError:
+        return None
+    if not count:
+        return None
+    return (f"{path}: {count} segment(s) in {PARTIAL_DIR} not read (its recorder is still writing it, or was killed): "
+            f"their messages are left out; after a killed recorder, run `tail-beam bag repair {path}` to salvage them")
+
+
 def contract_name(topic: str) -> str:
     """The contract name of a recorded topic: its last path component."""
     return topic.rstrip("/").rsplit("/", 1)[-1]

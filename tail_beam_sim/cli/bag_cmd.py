@@ -10,7 +10,7 @@ from pathlib import Path
 import yaml
 
 from tail_beam_sim import topics
-from tail_beam_sim.bags.read import ANY_NAMESPACE, raw_messages
+from tail_beam_sim.bags.read import ANY_NAMESPACE, open_segments_note, raw_messages
 from tail_beam_sim.bags.records import TYPESTORE, vibration_fields
 from tail_beam_sim.bags.write import METADATA, repair
 from tail_beam_sim.errors import InputError
@@ -58,6 +58,9 @@ def run_info(args: argparse.Namespace) -> int:
     lost = {k: v for k, v in custom.items() if k.startswith("tail_beam.")}
     if lost:
         print("  recorder: " + ", ".join(f"{k.removeprefix('tail_beam.')} {v}" for k, v in sorted(lost.items())))
+    note = open_segments_note(args.bag)
+    if note:
+        print(f"tail-beam bag info: {note}", file=sys.stderr)
     return 0
 
 

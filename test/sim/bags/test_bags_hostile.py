@@ -338,3 +338,26 @@ def test_bag_repair_of_metadata_whose_storage_is_no_name_repairs_from_the_files(
     result = run("tail-beam", "bag", "repair", str(bag))
     assert "Traceback" not in result.stderr, result.stderr
     assert result.returncode == 0 and "the bag reads: 100 messages" in result.stdout + result.stderr, result.stdout + result.stderr
+
+
+@pytest.mark.ros
+def test_a_killed_recorders_open_segment_is_said_by_every_reader(tmp_path):
+    """bag info, identify and bag_replay on a bag whose recorder was killed read the closed
+    segments and say on stderr that the open one (.partial) is left out and how to salvage it
+    (they reported the closed segments alone as the whole bag, without a word); after repair
+    nothing is said."""
+    data = records(600)
+    bag = tmp_path / "bag"
+    write_segments(bag, [data[:400], data[400:800], data[800:]], close=False)  # killed with the third segment open
+    commands = {"bag info": ["tail-beam", "bag", "info", str(bag)], "identify": ["tail-beam", "identify", str(bag), "--no-calibrate"],
+                "bag_replay": ["bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}", "-p", "replay.rate:=100.0"]}
+    for name, command in commands.items():
+        result = run(*command)
+        assert result.returncode == 0 and "Traceback" not in result.stderr, (name, result.stderr[-2000:])
+        said = [line for line in result.stderr.splitlines() if PARTIAL_DIR in line]
+        assert len(said) == 1 and "not read" in said[0] and f"tail-beam bag repair {bag}" in said[0], (name, result.stderr)
+    assert "800 messages" in run("tail-beam", "bag", "info", str(bag)).stdout  # the closed segments, read as they are
+    assert run("tail-beam", "bag", "repair", str(bag)).returncode == 0
+    for name, command in commands.items():
+        result = run(*command)
+        assert result.returncode == 0 and PARTIAL_DIR not in result.stderr, (name, result.stderr[-2000:])
