@@ -161,9 +161,11 @@ def raw_messages(
         reader.open()
     except Exception as exc:  # noqa: BLE001 - a hostile file can break the reader anywhere
         raise InputError("bag", str(bag), f"cannot be read ({_first_line(exc)}): truncated or damaged? {_REPAIR_HINT}") from None
+    # What the closed segments lack may lie in segments a killed recorder left open: say so.
+    unread = f"; {PARTIAL_DIR} holds segment(s) a recorder left open, which are not read: {_REPAIR_HINT}" if open_segments_note(bag) else ""
     try:
         if reader.message_count == 0:
-            raise InputError("bag", str(bag), "holds no messages")
+            raise InputError("bag", str(bag), f"holds no messages{unread}")
         chosen = choose_namespace(bag, reader.connections, namespace)
         support = [c for c in reader.connections if chosen is None or topics.namespace_of(c.topic) == chosen]
         by_name: dict[str, set[str]] = {}
@@ -175,15 +177,15 @@ def raw_messages(
         has = ", ".join(filled) or "none"
         for name in required:
             if name not in filled:
-                raise InputError("bag", str(bag), f"lacks messages on topic '{name}' ({topics.MSG_TYPES.get(name, '?')}); it has: {has}")
+                raise InputError("bag", str(bag), f"lacks messages on topic '{name}' ({topics.MSG_TYPES.get(name, '?')}); it has: {has}{unread}")
         any_of = tuple(any_of)
         if any_of and not set(any_of) & set(filled):
-            raise InputError("bag", str(bag), f"holds no messages on any of {', '.join(any_of)}; it has: {has}")
+            raise InputError("bag", str(bag), f"holds no messages on any of {', '.join(any_of)}; it has: {has}{unread}")
         names = set(wanted) if wanted is not None else set(by_name)
         connections = [c for c in support if contract_name(c.topic) in names]
         if not any(c.msgcount > 0 for c in connections):
             # An empty selection would read as "every topic" to the reader: refuse it here.
-            raise InputError("bag", str(bag), f"holds no messages on {', '.join(sorted(names)) or 'no topic'}; it has: {has}")
+            raise InputError("bag", str(bag), f"holds no messages on {', '.join(sorted(names)) or 'no topic'}; it has: {has}{unread}")
         listed = {id(c): c.msgcount for c in connections}
         read = dict.fromkeys(listed, 0)
         try:

@@ -361,3 +361,18 @@ def test_a_killed_recorders_open_segment_is_said_by_every_reader(tmp_path):
     for name, command in commands.items():
         result = run(*command)
         assert result.returncode == 0 and PARTIAL_DIR not in result.stderr, (name, result.stderr[-2000:])
+
+
+@pytest.mark.ros
+def test_a_recorder_killed_before_its_first_segment_closed_is_not_called_empty(tmp_path):
+    """A recorder killed within its first segment leaves metadata.yaml with no messages and the
+    open segment in .partial: bag info, identify and bag_replay said 'holds no messages' and no
+    more (a user would throw away a salvageable bag); now the one line says .partial holds
+    segments not read and to run bag repair, which recovers them."""
+    bag = tmp_path / "bag"
+    writer = write_segments(bag, [records(300)], close=False)
+    writer.flush()
+    for command in (["tail-beam", "bag", "info", str(bag)], ["tail-beam", "identify", str(bag)],
+                    ["bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}"]):
+        assert_one_line_error(run(*command), "holds no messages", PARTIAL_DIR, "tail-beam bag repair")
+    assert "the bag reads: 600 messages" in run("tail-beam", "bag", "repair", str(bag)).stdout
