@@ -143,10 +143,15 @@ def choose_namespace(bag: Path, connections: Iterable[Any], namespace: str | Non
 
 def raw_messages(
     path: str | os.PathLike[str], wanted: Iterable[str] | None = None, required: Iterable[str] = (), namespace: str | None = None,
-    any_of: Iterable[str] = (),
+    any_of: Iterable[str] = (), any_type: bool = False,
 ) -> Iterator[RawMessage]:
     """The bag's messages in log-time order (``wanted`` contract topics; None = all) of one
     support: ``namespace``, or the only one the bag holds (see :func:`choose_namespace`).
+
+    A contract topic recorded with another message type than the contract's (a hand-made or
+    foreign bag: the recorder subscribes with the contract's types) is refused by name, since
+    its messages would be decoded as what they are not; ``any_type`` reads it as it is
+    (``tail-beam bag info`` lists such a bag, ``bag repair`` checks it reads).
 
     Raises InputError before the first message if the bag is unreadable, empty, lacks a
     ``required`` topic, has messages on none of ``any_of`` (when given) or holds none of the
@@ -186,6 +191,12 @@ def raw_messages(
         if not any(c.msgcount > 0 for c in connections):
             # An empty selection would read as "every topic" to the reader: refuse it here.
             raise InputError("bag", str(bag), f"holds no messages on {', '.join(sorted(names)) or 'no topic'}; it has: {has}{unread}")
+        foreign = [c for c in connections if c.msgcount > 0 and contract_name(c.topic) in topics.MSG_TYPES
+                   and c.msgtype != topics.MSG_TYPES[contract_name(c.topic)]]
+        if foreign and not any_type:
+            c = foreign[0]
+            raise InputError("bag", str(bag), f"records topic '{c.topic}' as {c.msgtype}, not the contract's "
+                             f"{topics.MSG_TYPES[contract_name(c.topic)]} (docs/interface.md): not a bag of this suite's topics")
         listed = {id(c): c.msgcount for c in connections}
         read = dict.fromkeys(listed, 0)
         try:

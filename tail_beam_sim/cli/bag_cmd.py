@@ -35,7 +35,7 @@ def run_info(args: argparse.Namespace) -> int:
     spans: dict[str, IndexSpan] = {}
     periods: dict[str, float] = {}
     first = last = None
-    for raw in raw_messages(args.bag, namespace=ANY_NAMESPACE):
+    for raw in raw_messages(args.bag, namespace=ANY_NAMESPACE, any_type=True):
         name = raw.full_topic or raw.topic
         entry = counts.setdefault(name, [raw.msgtype, 0])
         entry[1] += 1
@@ -77,7 +77,7 @@ def run_repair(args: argparse.Namespace) -> int:
     """Repair, then read the whole bag back: say it reads, or say clearly that it does not."""
     report = repair(args.bag)
     try:
-        count = sum(1 for _ in raw_messages(args.bag))
+        count = sum(1 for _ in raw_messages(args.bag, any_type=True))
     except InputError as exc:
         print(f"tail-beam bag: error: could not repair {args.bag} ({report.summary()}): {exc.allowed}", file=sys.stderr)
         return 2

@@ -376,3 +376,33 @@ def test_a_recorder_killed_before_its_first_segment_closed_is_not_called_empty(t
                     ["bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}"]):
         assert_one_line_error(run(*command), "holds no messages", PARTIAL_DIR, "tail-beam bag repair")
     assert "the bag reads: 600 messages" in run("tail-beam", "bag", "repair", str(bag)).stdout
+
+
+def contract_bag_with_a_foreign_type(path: Path, topic: str, msgtype: str, msg) -> None:
+    """A bag of pressure and IMU samples plus one message on the contract topic ``topic``
+    recorded as ``msgtype`` (not the contract's type)."""
+    with Writer(path, version=9, storage_plugin=STORAGES["mcap"]) as writer:
+        connections = {}
+        for name, ns, raw in records(200):
+            if name not in connections:
+                connections[name] = writer.add_connection(f"/{name}", topics.MSG_TYPES[name], typestore=TYPESTORE)
+            writer.write(connections[name], ns, raw)
+        connection = writer.add_connection(f"/{topic}", msgtype, typestore=TYPESTORE)
+        writer.write(connection, 10**8, TYPESTORE.serialize_cdr(msg, msgtype))
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("topic, msgtype", [(topics.REBOUND_VELOCITY, "std_msgs/msg/String"), (topics.LABEL, "sensor_msgs/msg/Imu")])
+def test_a_contract_topic_recorded_with_another_type_is_refused_by_name(tmp_path, topic, msgtype):
+    """identify, calibrate and bag_replay on a bag holding /rebound_velocity as a String or
+    /label as an Imu: one line naming the topic and both types, exit 2 (was: AttributeError
+    traceback, exit 1); bag info still lists it."""
+    bag = tmp_path / "bag"
+    msg = (TYPESTORE.types[msgtype](data="hi") if msgtype.endswith("String") else
+           TYPESTORE.deserialize_cdr(dict((t, raw) for t, _, raw in records(1))[topics.IMU], msgtype))
+    contract_bag_with_a_foreign_type(bag, topic, msgtype, msg)
+    for command in (["tail-beam", "identify", str(bag)], ["tail-beam", "calibrate", str(bag)],
+                    ["bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}", "-p", "replay.topics:=[imu, rebound_velocity, label]"]):
+        assert_one_line_error(run(*command), f"'/{topic}'", msgtype, topics.MSG_TYPES[topic])
+    info = run("tail-beam", "bag", "info", str(bag))
+    assert info.returncode == 0 and msgtype in info.stdout, info.stderr
