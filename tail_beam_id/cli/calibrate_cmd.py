@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     # What calibration reads: the jack pressure (the sway) and the IMU (mounting, gain); either
     # will do (tail_beam_id.calibration.calibrate), the camera is not needed.
     runs = read_runs(args.bag, required=(), namespace=args.namespace, any_of=(topics.JACK_PRESSURE, topics.IMU))
-    report_reading(runs[0], "calibrate", len(runs))
+    report_reading(runs[0], "calibrate", len(runs), args.bag)
     # Several time bases (a restarted simulator): the longest run is the support's recording.
     data = max(runs, key=lambda run: run.pressure_stamp_s.size + run.imu_stamp_s.size)
     if len(runs) > 1:

@@ -22,7 +22,7 @@ from tail_beam_id.methods import available_methods
 from tail_beam_id.replay import replay
 from tail_beam_id.calibration import SupportProfile, with_profile
 from tail_beam_id.calibration import calibrate as calibrate_support
-from tail_beam_sim.bags.read import IDENTIFY_TOPICS, BagSensors, read_runs
+from tail_beam_sim.bags.read import IDENTIFY_TOPICS, BagSensors, open_segments_note, read_runs
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
@@ -51,7 +51,7 @@ def identify_bag(bag: str, method: str | None = None, config: list[str] | None =
     labels of each run in turn, each run in impact_stamp order."""
     params = load_parameters(config or [])
     runs = read_runs(bag, required=(), namespace=namespace, any_of=IDENTIFY_TOPICS)
-    report_reading(runs[0], "identify", len(runs))
+    report_reading(runs[0], "identify", len(runs), bag)
     if calibrate is None:
         calibrate = bool(params["identification"].get("self_calibrate", False))
     labels: list[Label] = []
@@ -72,10 +72,14 @@ def identify_bag(bag: str, method: str | None = None, config: list[str] | None =
     return labels
 
 
-def report_reading(data: BagSensors, verb: str, runs: int = 1) -> None:
-    """Say on stderr what reading the bag left out: vibration samples missing from the running
-    index, samples recorded twice at one stamp; and where a new time base begins within the bag
-    (each run is then taken alone, ``runs`` of them, as id_node starts afresh there)."""
+def report_reading(data: BagSensors, verb: str, runs: int = 1, bag: str | None = None) -> None:
+    """Say on stderr what reading the bag left out: segments a recorder left open (``bag``:
+    its path), vibration samples missing from the running index, samples recorded twice at one
+    stamp; and where a new time base begins within the bag (each run is then taken alone,
+    ``runs`` of them, as id_node starts afresh there)."""
+    note = open_segments_note(bag) if bag is not None else None
+    if note:
+        print(f"{verb}: {note}", file=sys.stderr)
     if data.vibration_gaps:
         print(f"{verb}: {data.namespace} vibration: {len(data.vibration_gaps)} gap(s), {data.vibration_lost_samples} samples lost "
               f"(first missing index {data.vibration_gaps[0][0]})", file=sys.stderr)

@@ -35,6 +35,21 @@ TIME_JUMP_S = 1.0  # stamps back by more than this on a stream: a new time base 
 _REPAIR_HINT = "run `tail-beam bag repair PATH` to recover what was written"
 
 
+def open_segments_note(path: str | os.PathLike[str]) -> str | None:
+    """One line when the bag has segments under ``.partial`` (open while a recorder writes, left
+    open by a killed one): no reader reads them, so what a command reports of the bag leaves
+    their messages out; ``tail-beam bag repair`` salvages them. None when there are none."""
+    partial = Path(path) / PARTIAL_DIR
+    try:
+        count = sum(1 for _ in partial.iterdir()) if partial.is_dir() and not partial.is_symlink() else 0
+    except OSError:
+        return None
+    if not count:
+        return None
+    return (f"{path}: {count} segment(s) in {PARTIAL_DIR} not read (its recorder is still writing it, or was killed): "
+            f"their messages are left out; after a killed recorder, run `tail-beam bag repair {path}` to salvage them")
+
+
 def contract_name(topic: str) -> str:
     """The contract name of a recorded topic: its last path component."""
     return topic.rstrip("/").rsplit("/", 1)[-1]
@@ -128,10 +143,15 @@ def choose_namespace(bag: Path, connections: Iterable[Any], namespace: str | Non
 
 def raw_messages(
     path: str | os.PathLike[str], wanted: Iterable[str] | None = None, required: Iterable[str] = (), namespace: str | None = None,
-    any_of: Iterable[str] = (),
+    any_of: Iterable[str] = (), any_type: bool = False,
 ) -> Iterator[RawMessage]:
     """The bag's messages in log-time order (``wanted`` contract topics; None = all) of one
     support: ``namespace``, or the only one the bag holds (see :func:`choose_namespace`).
+
+    A contract topic recorded with another message type than the contract's (a hand-made or
+    foreign bag: the recorder subscribes with the contract's types) is refused by name, since
+    its messages would be decoded as what they are not; ``any_type`` reads it as it is
+    (``tail-beam bag info`` lists such a bag, ``bag repair`` checks it reads).
 
     Raises InputError before the first message if the bag is unreadable, empty, lacks a
     ``required`` topic, has messages on none of ``any_of`` (when given) or holds none of the
@@ -146,9 +166,11 @@ def raw_messages(
         reader.open()
     except Exception as exc:  # noqa: BLE001 - a hostile file can break the reader anywhere
         raise InputError("bag", str(bag), f"cannot be read ({_first_line(exc)}): truncated or damaged? {_REPAIR_HINT}") from None
+    # What the closed segments lack may lie in segments a killed recorder left open: say so.
+    unread = f"; {PARTIAL_DIR} holds segment(s) a recorder left open, which are not read: {_REPAIR_HINT}" if open_segments_note(bag) else ""
     try:
         if reader.message_count == 0:
-            raise InputError("bag", str(bag), "holds no messages")
+            raise InputError("bag", str(bag), f"holds no messages{unread}")
         chosen = choose_namespace(bag, reader.connections, namespace)
         support = [c for c in reader.connections if chosen is None or topics.namespace_of(c.topic) == chosen]
         by_name: dict[str, set[str]] = {}
@@ -160,15 +182,21 @@ def raw_messages(
         has = ", ".join(filled) or "none"
         for name in required:
             if name not in filled:
-                raise InputError("bag", str(bag), f"lacks messages on topic '{name}' ({topics.MSG_TYPES.get(name, '?')}); it has: {has}")
+                raise InputError("bag", str(bag), f"lacks messages on topic '{name}' ({topics.MSG_TYPES.get(name, '?')}); it has: {has}{unread}")
         any_of = tuple(any_of)
         if any_of and not set(any_of) & set(filled):
-            raise InputError("bag", str(bag), f"holds no messages on any of {', '.join(any_of)}; it has: {has}")
+            raise InputError("bag", str(bag), f"holds no messages on any of {', '.join(any_of)}; it has: {has}{unread}")
         names = set(wanted) if wanted is not None else set(by_name)
         connections = [c for c in support if contract_name(c.topic) in names]
         if not any(c.msgcount > 0 for c in connections):
             # An empty selection would read as "every topic" to the reader: refuse it here.
-            raise InputError("bag", str(bag), f"holds no messages on {', '.join(sorted(names)) or 'no topic'}; it has: {has}")
+            raise InputError("bag", str(bag), f"holds no messages on {', '.join(sorted(names)) or 'no topic'}; it has: {has}{unread}")
+        foreign = [c for c in connections if c.msgcount > 0 and contract_name(c.topic) in topics.MSG_TYPES
+                   and c.msgtype != topics.MSG_TYPES[contract_name(c.topic)]]
+        if foreign and not any_type:
+            c = foreign[0]
+            raise InputError("bag", str(bag), f"records topic '{c.topic}' as {c.msgtype}, not the contract's "
+                             f"{topics.MSG_TYPES[contract_name(c.topic)]} (docs/interface.md): not a bag of this suite's topics")
         listed = {id(c): c.msgcount for c in connections}
         read = dict.fromkeys(listed, 0)
         try:

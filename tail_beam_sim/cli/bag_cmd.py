@@ -10,7 +10,7 @@ from pathlib import Path
 import yaml
 
 from tail_beam_sim import topics
-from tail_beam_sim.bags.read import ANY_NAMESPACE, raw_messages
+from tail_beam_sim.bags.read import ANY_NAMESPACE, open_segments_note, raw_messages
 from tail_beam_sim.bags.records import TYPESTORE, vibration_fields
 from tail_beam_sim.bags.write import METADATA, repair
 from tail_beam_sim.errors import InputError
@@ -35,7 +35,7 @@ def run_info(args: argparse.Namespace) -> int:
     spans: dict[str, IndexSpan] = {}
     periods: dict[str, float] = {}
     first = last = None
-    for raw in raw_messages(args.bag, namespace=ANY_NAMESPACE):
+    for raw in raw_messages(args.bag, namespace=ANY_NAMESPACE, any_type=True):
         name = raw.full_topic or raw.topic
         entry = counts.setdefault(name, [raw.msgtype, 0])
         entry[1] += 1
@@ -58,6 +58,9 @@ def run_info(args: argparse.Namespace) -> int:
     lost = {k: v for k, v in custom.items() if k.startswith("tail_beam.")}
     if lost:
         print("  recorder: " + ", ".join(f"{k.removeprefix('tail_beam.')} {v}" for k, v in sorted(lost.items())))
+    note = open_segments_note(args.bag)
+    if note:
+        print(f"tail-beam bag info: {note}", file=sys.stderr)
     return 0
 
 
@@ -74,7 +77,7 @@ def run_repair(args: argparse.Namespace) -> int:
     """Repair, then read the whole bag back: say it reads, or say clearly that it does not."""
     report = repair(args.bag)
     try:
-        count = sum(1 for _ in raw_messages(args.bag))
+        count = sum(1 for _ in raw_messages(args.bag, any_type=True))
     except InputError as exc:
         print(f"tail-beam bag: error: could not repair {args.bag} ({report.summary()}): {exc.allowed}", file=sys.stderr)
         return 2

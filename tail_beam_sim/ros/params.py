@@ -42,11 +42,53 @@ def declare_and_read(node: Node, defaults: dict[str, Any], open_sections: Iterab
     overrides = getattr(node, "_parameter_overrides", None) or {}  # rclpy keeps them there, no public accessor
     opened = sorted(name for name in overrides if name not in names and any(name.startswith(f"{s}.") for s in open_sections))
     node.declare_parameters("", [(name, overrides[name].value, dynamic) for name in opened])
+    guard_parameter_services(node)
     say_unused_overrides(node)
     values = {name: node.get_parameter(name).value for name in [*names, *opened]}
     for name in names:
         require_kind(name, values[name], names[name])
     return unflatten(values)
+
+
+PARAMETER_TYPES = frozenset(int(t) for t in Parameter.Type)  # the value types rcl_interfaces defines (0-9)
+
+
+def guard_parameter_services(node: Node) -> None:
+    """Refuse, naming the parameter, a ``set_parameters`` or ``set_parameters_atomically``
+    request that holds a value of no parameter type (``ParameterValue.type`` outside 0-9,
+    which only a hand-made request holds) or a name the node has no parameter for, before
+    rclpy's parameter service sees it: its ``Parameter.from_parameter_msg`` raised ValueError
+    out of the executor, so any participant of the domain ended the node with one service
+    call; and its refusal of an undeclared name named none (``undeclared parameter(s): []``)."""
+    for service in node.services:
+        name = service.srv_name.rsplit("/", 1)[-1]
+        if name not in ("set_parameters", "set_parameters_atomically"):
+            continue
+
+        def guarded(request, response, _inner=service.callback, _atomic=name == "set_parameters_atomically"):
+            def refusal(p) -> str | None:
+                if p.value.type not in PARAMETER_TYPES:
+                    return (f"{shorten(p.name, 60)}: value type {p.value.type} is no parameter type (must be one of "
+                            f"{min(PARAMETER_TYPES)}-{max(PARAMETER_TYPES)}, rcl_interfaces/ParameterType)")
+                if not node.has_parameter(p.name):
+                    return f"{shorten(p.name, 60)}: {node.get_name()} has no such parameter"
+                return None
+
+            reasons = [refusal(p) for p in request.parameters]
+            bad = [r for r in reasons if r is not None]
+            if not bad:
+                return _inner(request, response)
+            node.get_logger().warning(f"parameter change refused: {'; '.join(bad)}")
+            if _atomic:  # all or none
+                response.result = SetParametersResult(successful=False, reason="; ".join(bad))
+                return response
+            # One result per parameter: the others go to rclpy's service as they would have.
+            valid = [p for p, r in zip(request.parameters, reasons) if r is None]
+            answered = iter(_inner(type(request)(parameters=valid), type(response)()).results if valid else [])
+            response.results = [next(answered) if r is None else SetParametersResult(successful=False, reason=r) for r in reasons]
+            return response
+
+        service.callback = guarded
 
 
 def _finite_number(value: object) -> bool:

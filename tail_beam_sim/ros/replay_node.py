@@ -28,7 +28,7 @@ from rosgraph_msgs.msg import Clock
 
 from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
-from tail_beam_sim.bags.read import RawMessage, raw_messages
+from tail_beam_sim.bags.read import RawMessage, open_segments_note, raw_messages
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_and_read, refuse_runtime_changes
 from tail_beam_sim.ros.spin import PublishBacklog, SubscriberGate, drain, run_node
@@ -77,6 +77,9 @@ class ReplayNode(Node):
         self.create_timer(period, self._tick)
         refuse_runtime_changes(self, ALL_PARAMETERS, "bag_replay reads its parameters at start-up only (restart it to change them)")
         self.get_logger().info(f"replaying {', '.join(chosen)} of {params['bag_path']} at rate {self.rate:g}")
+        note = open_segments_note(self._bag_path)
+        if note:
+            self.get_logger().warning(note)
 
     def _open(self) -> None:
         """(Re)start at the first message at or after the start offset."""

@@ -338,3 +338,71 @@ def test_bag_repair_of_metadata_whose_storage_is_no_name_repairs_from_the_files(
     result = run("tail-beam", "bag", "repair", str(bag))
     assert "Traceback" not in result.stderr, result.stderr
     assert result.returncode == 0 and "the bag reads: 100 messages" in result.stdout + result.stderr, result.stdout + result.stderr
+
+
+@pytest.mark.ros
+def test_a_killed_recorders_open_segment_is_said_by_every_reader(tmp_path):
+    """bag info, identify and bag_replay on a bag whose recorder was killed read the closed
+    segments and say on stderr that the open one (.partial) is left out and how to salvage it
+    (they reported the closed segments alone as the whole bag, without a word); after repair
+    nothing is said."""
+    data = records(600)
+    bag = tmp_path / "bag"
+    write_segments(bag, [data[:400], data[400:800], data[800:]], close=False)  # killed with the third segment open
+    commands = {"bag info": ["tail-beam", "bag", "info", str(bag)], "identify": ["tail-beam", "identify", str(bag), "--no-calibrate"],
+                "bag_replay": ["bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}", "-p", "replay.rate:=100.0"]}
+    for name, command in commands.items():
+        result = run(*command)
+        assert result.returncode == 0 and "Traceback" not in result.stderr, (name, result.stderr[-2000:])
+        said = [line for line in result.stderr.splitlines() if PARTIAL_DIR in line]
+        assert len(said) == 1 and "not read" in said[0] and f"tail-beam bag repair {bag}" in said[0], (name, result.stderr)
+    assert "800 messages" in run("tail-beam", "bag", "info", str(bag)).stdout  # the closed segments, read as they are
+    assert run("tail-beam", "bag", "repair", str(bag)).returncode == 0
+    for name, command in commands.items():
+        result = run(*command)
+        assert result.returncode == 0 and PARTIAL_DIR not in result.stderr, (name, result.stderr[-2000:])
+
+
+@pytest.mark.ros
+def test_a_recorder_killed_before_its_first_segment_closed_is_not_called_empty(tmp_path):
+    """A recorder killed within its first segment leaves metadata.yaml with no messages and the
+    open segment in .partial: bag info, identify and bag_replay said 'holds no messages' and no
+    more (a user would throw away a salvageable bag); now the one line says .partial holds
+    segments not read and to run bag repair, which recovers them."""
+    bag = tmp_path / "bag"
+    writer = write_segments(bag, [records(300)], close=False)
+    writer.flush()
+    for command in (["tail-beam", "bag", "info", str(bag)], ["tail-beam", "identify", str(bag)],
+                    ["bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}"]):
+        assert_one_line_error(run(*command), "holds no messages", PARTIAL_DIR, "tail-beam bag repair")
+    assert "the bag reads: 600 messages" in run("tail-beam", "bag", "repair", str(bag)).stdout
+
+
+def contract_bag_with_a_foreign_type(path: Path, topic: str, msgtype: str, msg) -> None:
+    """A bag of pressure and IMU samples plus one message on the contract topic ``topic``
+    recorded as ``msgtype`` (not the contract's type)."""
+    with Writer(path, version=9, storage_plugin=STORAGES["mcap"]) as writer:
+        connections = {}
+        for name, ns, raw in records(200):
+            if name not in connections:
+                connections[name] = writer.add_connection(f"/{name}", topics.MSG_TYPES[name], typestore=TYPESTORE)
+            writer.write(connections[name], ns, raw)
+        connection = writer.add_connection(f"/{topic}", msgtype, typestore=TYPESTORE)
+        writer.write(connection, 10**8, TYPESTORE.serialize_cdr(msg, msgtype))
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("topic, msgtype", [(topics.REBOUND_VELOCITY, "std_msgs/msg/String"), (topics.LABEL, "sensor_msgs/msg/Imu")])
+def test_a_contract_topic_recorded_with_another_type_is_refused_by_name(tmp_path, topic, msgtype):
+    """identify, calibrate and bag_replay on a bag holding /rebound_velocity as a String or
+    /label as an Imu: one line naming the topic and both types, exit 2 (was: AttributeError
+    traceback, exit 1); bag info still lists it."""
+    bag = tmp_path / "bag"
+    msg = (TYPESTORE.types[msgtype](data="hi") if msgtype.endswith("String") else
+           TYPESTORE.deserialize_cdr(dict((t, raw) for t, _, raw in records(1))[topics.IMU], msgtype))
+    contract_bag_with_a_foreign_type(bag, topic, msgtype, msg)
+    for command in (["tail-beam", "identify", str(bag)], ["tail-beam", "calibrate", str(bag)],
+                    ["bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}", "-p", "replay.topics:=[imu, rebound_velocity, label]"]):
+        assert_one_line_error(run(*command), f"'/{topic}'", msgtype, topics.MSG_TYPES[topic])
+    info = run("tail-beam", "bag", "info", str(bag))
+    assert info.returncode == 0 and msgtype in info.stdout, info.stderr
