@@ -100,7 +100,8 @@ class IdNode(Node):
         self._newest: dict[str, tuple[float, float]] = {}
         self._due_s = math.inf  # stamp the next pending impact waits for (identifier.next_horizon_s), s
         self._timing_said: object | None = None  # the identifier's timing check whose suspicion was logged
-        self._woken_for_s = math.nan  # the due stamp the last wake was for (one wake each)
+        self._woken_for_s = math.nan  # the due stamp the last wake was for
+        self._woke_s = -math.inf  # wall clock the last wake ran, s (another for the same due only for data it could not take)
         self._last_arrival_s = time.monotonic()
         self._unflushed = False
         self.received = {topics.JACK_PRESSURE: 0, topics.IMU: 0, topics.VIBRATION: 0, topics.REBOUND_VELOCITY: 0}
@@ -142,9 +143,12 @@ class IdNode(Node):
 
     def _arm_wake(self) -> None:
         """Start the one-shot wake if every live stream (one heard from within stream_idle_s)
-        has passed the due stamp and no wake for it ran."""
+        has passed the due stamp, and no wake for it ran or data came that the last one could
+        not take (not yet held reorder_s when it ran): the impact may still wait on a stream
+        the identifier sees lag only in that data (an IMU that stopped)."""
         due = self._due_s
-        if due == self._woken_for_s or not self._wake.is_canceled():
+        held_by_wake_s = self._woke_s - self.gated.gate.config.reorder_s
+        if not self._wake.is_canceled() or (due == self._woken_for_s and self._last_arrival_s <= held_by_wake_s):
             return
         live_after_s = time.monotonic() - self.gated.gate.config.stream_idle_s
         live = [stamp for stamp, arrived in self._newest.values() if arrived >= live_after_s]
@@ -154,6 +158,7 @@ class IdNode(Node):
 
     def _on_wake(self) -> None:
         self._wake.cancel()
+        self._woke_s = time.monotonic()
         self._tick()
 
     def _on_pressure(self, msg: FluidPressure) -> None:
