@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_id.contact_fit import ContactFit
 from tail_beam_id.detection.imu import Pulse
 from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
@@ -157,6 +158,7 @@ def impact_features(
     impulse: ImuImpulse | None,
     pressure: PressureFit | None,
     rebound: tuple[float, np.ndarray] | None,
+    contact: ContactFit | None = None,
 ) -> dict[str, float]:
     """The feature dict of one impact from whatever signals there are (missing ones absent)."""
     features: dict[str, float] = {}
@@ -171,6 +173,12 @@ def impact_features(
         features["imu_pulse_polarity"] = float(pulse.polarity)
         features["imu_pulse_width_s"] = pulse.width_s
         features["imu_period_s"] = pulse.period_s
+        if contact is not None:
+            # The contact's half-sine duration from the pulse and the ringing (tail_beam_id.contact_fit;
+            # a channel too slow to show it gives its sample period). Without it (a fast channel's
+            # samples cut short) the acceleration features are not all there, and the models decide
+            # without them (methods.statistical.signals_of).
+            features["contact_duration_s"] = contact.duration_s
         estimates.append((moment, max(impulse.sigma_mps, impulse.ring_mps) * model.imu_moment_per_velocity))
     if pressure is not None and not pressure.saturated:
         features["moment_impulse_pressure_nms"] = pressure.moment_impulse_nms

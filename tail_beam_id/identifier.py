@@ -37,6 +37,7 @@ from tail_beam_id.buffers import Series
 from tail_beam_id import mounting
 from tail_beam_id.camera import FramePeriod
 from tail_beam_id.timing import OUTSIDE_NAME, UNUSUAL, SensorTiming, TimingConfig, judge
+from tail_beam_id.contact_fit import ContactFitConfig, fit_contact
 from tail_beam_id.detection.imu import DetectionConfig, Pulse, PulseDetector
 from tail_beam_id.detection.pressure import PressureDetector
 from tail_beam_id.features import VIBRATION_CHANNEL, BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
@@ -63,6 +64,7 @@ class IdentifierConfig:
     overlap_confidence_cap: float
     detection: DetectionConfig
     timing: TimingConfig
+    contact_fit: ContactFitConfig
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> IdentifierConfig:
@@ -97,6 +99,7 @@ class IdentifierConfig:
             overlap_confidence_cap=require_range("identification.overlap_confidence_cap", params.get("overlap_confidence_cap"), 0.5, 1.0),
             detection=DetectionConfig.from_params(params.get("detection") or {}),
             timing=TimingConfig.from_params(params.get("sensor_timing") or {}),
+            contact_fit=ContactFitConfig.from_params(params.get("contact_fit")),
         )
 
 
@@ -480,11 +483,12 @@ class StreamIdentifier:
             weak = impact.pulse.peak_sigma < cfg.detection.unconfirmed_pulse_sigma and not self._pressure_confirms(fit)
             if ringing or weak:
                 return None  # the beam still ringing, or noise: nothing else saw an impact
-        impulse = None
+        impulse = contact = None
         if impact.pulse is not None:
             series, values = (self.vibration, self._vibration_z()) if impact.channel == "vibration" else (self.imu, self._accel_z())
             impulse = imu_impulse(self.model, series.stamp_s, values, impact.pulse, cfg.impulse_pre_s, cfg.impulse_skip_s, post_s)
-        features = impact_features(self.model, impact.pulse, impulse, fit, impact.rebound)
+            contact = fit_contact(series.stamp_s, values, impact.pulse.onset_s, impact.pulse.period_s, impact.pulse.noise_mps2, cfg.contact_fit)
+        features = impact_features(self.model, impact.pulse, impulse, fit, impact.rebound, contact)
         signals = []
         if fit is not None and not fit.saturated:
             signals.append("jack_pressure")

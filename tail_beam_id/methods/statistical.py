@@ -39,7 +39,7 @@ SIGNAL_FEATURES: dict[str, tuple[tuple[str, float | None], ...]] = {
     "jack_pressure": (("moment_impulse_pressure_nms", 0.05), ("pressure_noise_pa", 1.0)),
     "imu": (
         ("moment_impulse_imu_nms", 0.05), ("imu_ring_ratio", 1e-3), ("imu_pulse_polarity", None),
-        ("imu_pulse_width_s", 1e-5), ("imu_noise_mps2", 1e-4), ("imu_period_s", 1e-6),
+        ("imu_pulse_width_s", 1e-5), ("imu_noise_mps2", 1e-4), ("imu_period_s", 1e-6), ("contact_duration_s", 1e-5),
     ),
     "rebound_velocity": (("rebound_speed_mps", 0.05),),
 }
@@ -90,8 +90,9 @@ def _check_temperature_size(key: str, model: Mapping[str, Any]) -> None:
 
 
 def signals_of(features: Mapping[str, float]) -> tuple[str, ...]:
-    """Which signals an impact's features came from (in SIGNAL_ORDER)."""
-    return tuple(s for s in SIGNAL_ORDER if SIGNAL_FEATURES[s][0][0] in features)
+    """Which signals an impact's features came from (in SIGNAL_ORDER): those whose features are
+    all there (an acceleration pulse whose contact duration could not be read counts as none)."""
+    return tuple(s for s in SIGNAL_ORDER if all(name in features for name, _ in SIGNAL_FEATURES[s]))
 
 
 def subset_key(signals: Sequence[str]) -> str:
