@@ -51,6 +51,7 @@ class ContactFitConfig:
     max_modes: int = 4  # damped sinusoids read from the ring-down, at most
     min_ring_samples: int = 24  # fewer samples in the ring-down (a slow channel): no fit
     min_mode_frequency_hz: float = 150.0  # slower poles are left to the quadratic (the sway)
+    max_fit_rate_hz: float = 51200.0  # a faster channel is read every k-th sample, at most this rate (cost)
 
     @classmethod
     def from_params(cls, section: Mapping[str, Any] | None) -> ContactFitConfig:
@@ -69,6 +70,8 @@ class ContactFitConfig:
                                                section.get("min_ring_samples", default.min_ring_samples), 8, 10000)),
             min_mode_frequency_hz=require_range("identification.contact_fit.min_mode_frequency_hz",
                                                 section.get("min_mode_frequency_hz", default.min_mode_frequency_hz), 0.0, 1e5, unit="Hz"),
+            max_fit_rate_hz=require_range("identification.contact_fit.max_fit_rate_hz",
+                                          section.get("max_fit_rate_hz", default.max_fit_rate_hz), 1000.0, 1e6, unit="Hz"),
         )
         if config.ring_end_s <= config.ring_start_s:
             raise InputError("identification.contact_fit.ring_end_s", config.ring_end_s, f"must be > ring_start_s ({config.ring_start_s:g} s)")
@@ -160,6 +163,11 @@ def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s
     inside = (stamp_s > onset_s - config.before_s) & (stamp_s <= onset_s + config.after_s)
     if ring.sum() < config.min_ring_samples or inside.sum() < 8 or not np.all(np.isfinite(accel[inside | ring])):
         return None
+    # Above max_fit_rate_hz every stride-th sample: the cost grows with the samples in the window,
+    # and a channel faster than the training's (10-50 kHz) is then read as they were.
+    stride = max(1, math.ceil(1.0 / (period_s * config.max_fit_rate_hz) - 1e-9))
+    ring, inside = np.flatnonzero(ring)[::stride], np.flatnonzero(inside)[::stride]
+    period_s *= stride
     poles = ringing_poles(accel[ring], period_s, config.max_modes, noise, config.min_mode_frequency_hz)
     t = stamp_s[inside] - onset_s
     y = accel[inside] - float(np.mean(accel[inside]))

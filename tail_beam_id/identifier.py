@@ -375,9 +375,12 @@ class StreamIdentifier:
         """Pulses of the acceleration channels: the vibration stream's, and the IMU's where the
         vibration stream does not cover them (before it began, after it stopped); an IMU pulse
         the vibration stream has not yet passed is held until it does or is declared stopped."""
-        vibration_z = self._vibration_z(final) if self.vibration.stamp_s.size else None
+        # A stream declared stopped gets no more samples: a pulse at its end is decided from what
+        # there is now, before a rebound it should claim is taken for an impact of its own.
+        vibration_ended = final or self.vibration_stop_s < math.inf
+        vibration_z = self._vibration_z(vibration_ended) if self.vibration.stamp_s.size else None
         if vibration_z is not None:
-            for pulse in self.vibration_detector.scan(self.vibration.stamp_s, vibration_z, self.vibration.base_index, final):
+            for pulse in self.vibration_detector.scan(self.vibration.stamp_s, vibration_z, self.vibration.base_index, vibration_ended):
                 self.impacts.pending.append(PendingImpact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration"))
         if self.vibration.seen:
             # IMU pulses already waiting from before the vibration stream was first seen.
@@ -386,7 +389,7 @@ class StreamIdentifier:
             self._held += [i.pulse for i in covered]  # type: ignore[misc]
         accel_z = self._accel_z()
         if accel_z is not None:
-            self._held += self.detector.scan(self.imu.stamp_s, accel_z, self.imu.base_index, final)
+            self._held += self.detector.scan(self.imu.stamp_s, accel_z, self.imu.base_index, final or self.imu_stop_s < math.inf)
         held, self._held = self._held, []
         for pulse in held:
             covered = self.vibration.seen and self.vibration_start_s <= pulse.onset_s <= min(self.vibration_stop_s, self.vibration.latest_s)
@@ -507,6 +510,8 @@ class StreamIdentifier:
             # not the IMU's period means): the physics method keeps a lag model of its own for it.
             features[VIBRATION_CHANNEL] = 1.0
         decision: Decision = self.method.decide(features)
+        if decision.signals is not None:  # the label says what the decision rested on (a pulse whose duration was not read: not it)
+            signals = [s for s in signals if ("imu" if s in ("imu", "vibration") else s) in decision.signals]
         confidence = decision.confidence
         if overlap:
             confidence = min(confidence, cfg.overlap_confidence_cap)

@@ -28,6 +28,9 @@ class Decision:
     estimates: dict[str, float] = field(default_factory=dict)
     # Features outside what the method was trained on (its confidence is capped for them).
     outside_training: tuple[str, ...] = ()
+    # The signals the decision rested on (jack_pressure, imu for either acceleration channel,
+    # rebound_velocity) when the method left some of those it was given aside; None: all of them.
+    signals: tuple[str, ...] | None = None
 
     @property
     def label(self) -> str:

@@ -151,9 +151,10 @@ class StatisticalMethod:
         """P(coal) from the model of the signals there are; on a calibrated support (a measured
         profile: ``support_calibrated``) from the models trained on calibrated features."""
         family = self.calibrated_subsets if features.get("support_calibrated") and self.calibrated_subsets else self.subsets
-        model = family.get(subset_key(signals_of(features)))
+        signals = signals_of(features)
+        model = family.get(subset_key(signals))
         if model is None:
-            return Decision(0.5, {})
+            return Decision(0.5, {}, signals=())
         names = [(n, f) for n, f in model["features"]]
         rows = self._lag_rows(features, names)
         low, high = (np.array(v) for v in model["envelope"])
@@ -174,7 +175,7 @@ class StatisticalMethod:
         if "rebound_delay_s" in features and "imu_period_s" in features:
             # The lag-corrected row (the middle lag) is the impact as the training's camera saw it.
             estimates.update(delay_check(model, names, z[len(rows) // 2], float(features["imu_period_s"])))
-        return Decision(p_coal, estimates, outside)
+        return Decision(p_coal, estimates, outside, signals)
 
     def _lag_rows(self, features: Mapping[str, float], names: Sequence[tuple[str, float | None]]) -> np.ndarray:
         """The model's inputs (K, d): one row, or, for a camera slower than the training's

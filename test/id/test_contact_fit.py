@@ -107,6 +107,7 @@ def test_labels_carry_the_duration_and_a_slow_imu_says_one_sample(params):
 
 @pytest.mark.parametrize("field, value", [
     ("ring_start_s", -1.0), ("ring_end_s", 0.001), ("max_duration_s", 1e-5), ("max_modes", 0), ("min_ring_samples", 2),
+    ("max_fit_rate_hz", 10.0),
 ])
 def test_bad_settings_are_refused_by_name(field, value):
     """A contact_fit setting out of its range (or of the wrong kind) is refused naming it."""
@@ -131,3 +132,41 @@ def test_a_stream_cut_short_gives_no_duration_and_the_models_decide_without_the_
                 "imu_noise_mps2": 0.2, "imu_period_s": period, "rebound_speed_mps": 3.0}
     assert signals_of(features) == ("rebound_velocity",)
     assert signals_of({**features, "contact_duration_s": 2e-4}) == ("imu", "rebound_velocity")
+
+
+def test_an_accelerometer_that_stops_during_a_pulse_gives_one_label_that_says_what_it_used(params):
+    """The tail-beam accelerometer's stream ends 2 ms after a contact while the IMU, pressure and
+    camera go on: the pulse at its end is decided once the stream is declared stopped, so the
+    camera's rebound is claimed by it (it was an impact of its own: two labels 85 us apart, one
+    extra), and the label's ``signals`` leave the accelerometer out, since without a ring-down
+    its contact duration was not read and the model decided without the pulse."""
+    from tail_beam_sim.physics.sensors import VibrationBlocks
+
+    result = impact(params, material="coal", radius_m=0.05, drop_height_m=3.0, position_m=1.0, restitution=0.6)
+    blocks = result.vibration
+    keep = blocks.sample_stamps_s() < result.contact_stamp_s + 0.002
+    per_block = np.add.reduceat(keep.astype(np.int64), blocks.offsets()[:-1])
+    has = per_block > 0
+    cut = VibrationBlocks(blocks.first_index[has], per_block[has], blocks.stamp_s[has], blocks.accel_mps2[keep],
+                          blocks.period_s, blocks.range_mps2, blocks.noise_variance)
+    labels = replay(StreamIdentifier("statistical"), result.pressure, result.imu, [result.rebound], vibration=cut)
+    assert len(labels) == 1
+    assert abs(labels[0].impact_stamp_s - result.contact_stamp_s) < 5e-4
+    assert "contact_duration_s" not in labels[0].features
+    assert labels[0].signals == ("jack_pressure", "rebound_velocity")
+
+
+def test_a_channel_faster_than_the_fit_rate_reads_as_one_at_it(params):
+    """A 100 kHz accelerometer is read every second sample (identification.contact_fit.
+    max_fit_rate_hz, 51.2 kHz): the same impact gives the duration a 51.2 kHz one gives within
+    10 %, and the same lowest ringing mode within 5 %."""
+    readings = {}
+    for rate_hz in (51200.0, 100000.0):
+        p = {**params, "sensors": {**params["sensors"], "vibration_rate_hz": rate_hz}}
+        result = impact(p, material="sandstone", radius_m=0.05, drop_height_m=3.0, position_m=1.0)
+        t, samples, period = _vibration(result)
+        readings[rate_hz] = fit_contact(t, samples, 0.0, period, 0.2, ContactFitConfig())
+    slow, fast = readings[51200.0], readings[100000.0]
+    assert fast.duration_s == pytest.approx(slow.duration_s, rel=0.10)
+    lowest = min(slow.mode_frequencies_hz)
+    assert min(fast.mode_frequencies_hz) == pytest.approx(lowest, rel=0.05)
