@@ -26,9 +26,12 @@ from tail_beam_sim.physics.simulate import SimulationResult, simulate
 from tail_beam_sim.physics.stream import StreamSimulator
 from tail_beam_id.supports import SupportDraw, draw_support, support_ranges
 
-# Evaluation scene sets. ``foreign`` records drawn supports as continuous streams
-# (support_streams; tail_beam_id.runs.run_foreign evaluates it), the others are single impacts.
-SCENE_SETS = ("paper", "stream", "mismatch", "foreign")
+# Evaluation scene sets. ``foreign`` records drawn supports as continuous streams of stream-scene
+# impacts, ``foreign_paper`` the same supports with the paper scene's (support_streams;
+# tail_beam_id.runs.run_foreign evaluates them), the others are single impacts.
+SCENE_SETS = ("paper", "stream", "mismatch", "foreign", "foreign_paper")
+# Foreign sets -> the scene whose impacts strike their supports.
+FOREIGN_SCENES = {"foreign": "stream", "foreign_paper": "paper"}
 # Training scene sets whose every impact strikes its own drawn support, with its own sensor
 # rates and noise (tail_beam_id.supports), from these ranges.
 DRAWN_SETS = {"varied": "training"}
@@ -207,13 +210,14 @@ class SupportStream:
 
 def support_streams(
     params: Mapping[str, Any], supports: int, impacts_per_support: int, seed: int, which: str = "foreign", tier: str | None = None,
-    setting: Setting | None = None,
+    setting: Setting | None = None, scene: str = "stream",
 ) -> Iterator[SupportStream]:
     """``supports`` drawn supports, each recorded as one continuous stream of
-    ``impacts_per_support`` stream-scene impacts (the beam still swaying from the earlier ones,
-    as on a face), like the bags a user records: what self-calibration works from. With
-    ``setting`` every support carries that setting's sensors (rates, accelerometer, noise
-    factor) instead of drawn ones; the supports and impacts are the same for any setting."""
+    ``impacts_per_support`` impacts of ``scene`` (stream or paper; the beam still swaying from
+    the earlier ones, as on a face), like the bags a user records: what self-calibration works
+    from. With ``setting`` every support carries that setting's sensors (rates, accelerometer,
+    noise factor) instead of drawn ones; the supports are the same for any setting and scene,
+    the impacts for any setting."""
     ev = evaluation_params(params)
     ranges = support_ranges(ev, which)
     rng = np.random.default_rng(np.random.SeedSequence([seed, 2]))
@@ -228,7 +232,7 @@ def support_streams(
         varied["stream"] = {**varied.get("stream", {}), "tier": tier or ev["tier"], "min_impact_gap_s": 0.0,
                             "command_lead_s": 0.001, "max_queued_impacts": impacts_per_support + 1}
         simulator = StreamSimulator.from_params(varied)
-        commands = [c for c, _, _ in draw_commands(params, "stream", impacts_per_support, seed + 1000 * index)]
+        commands = [c for c, _, _ in draw_commands(params, scene, impacts_per_support, seed + 1000 * index)]
         # Each contact gap_s to 1.5 gap_s after the one before. (Until this was cumulative, the
         # k-th impact was put at k gap_s times a random 1..1.5: impacts came in any order and
         # some within milliseconds of another, their features mixed.)

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 
-from tail_beam_id.dataset import Setting, SupportStream, simulate_set, support_streams
+from tail_beam_id.dataset import FOREIGN_SCENES, Setting, SupportStream, simulate_set, support_streams
 from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_id.label import Label, match, match_tolerance_s
 from tail_beam_id.replay import replay
@@ -37,6 +37,7 @@ class Record:
     extra_labels: int
     wall_s: float
     calibrated: bool = False  # identified with the support's own profile instead of config/
+    support: int | None = None  # a foreign set's support number (None: single impacts)
 
     @property
     def correct(self) -> bool:
@@ -125,6 +126,7 @@ def run_foreign(
     tier: str | None = None,
     profiles: Sequence[str] = FOREIGN_PROFILES[:2],
     chosen: Sequence[Setting | None] = (None,),
+    scene_set: str = "foreign",
 ) -> Iterator[Record]:
     """The ``foreign`` scene set: drawn supports each recorded as one stream, identified with
     the nominal config/, after self-calibration on the stream itself (no labels), and (for
@@ -132,17 +134,20 @@ def run_foreign(
     sensor settings (the same supports and impacts at each: the comparison with the nominal
     support at the same rates), None meaning the sensors drawn with the support. The record's
     setting is ``<setting key or drawn>/<profile>``. Labels that match no impact count as extra
-    on the stream's first record."""
+    on the stream's first record. ``scene_set`` (dataset.FOREIGN_SCENES) says which scene's
+    impacts strike the supports: foreign the stream's, foreign_paper the paper's."""
     for setting in chosen:
-        streams = support_streams(params, supports, impacts_per_support, seed, tier=tier, setting=setting)
+        streams = support_streams(params, supports, impacts_per_support, seed, tier=tier, setting=setting,
+                                  scene=FOREIGN_SCENES[scene_set])
         for number, recorded in enumerate(streams):
             yield from foreign_records(params, recorded, number, impacts_per_support, methods, profiles,
-                                        setting.key if setting is not None else DRAWN_SENSORS)
+                                        setting.key if setting is not None else DRAWN_SENSORS, scene_set)
 
 
 def foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: int, impacts_per_support: int,
-                     methods: Sequence[str], profiles: Sequence[str], sensors: str) -> Iterator[Record]:
-    """The records of one recorded support stream, under each profile and method."""
+                     methods: Sequence[str], profiles: Sequence[str], sensors: str, scene_set: str = "foreign") -> Iterator[Record]:
+    """The records of one recorded support stream, under each profile and method (their
+    ``index`` // ``impacts_per_support`` is the support's number)."""
     from tail_beam_id.calibration import calibrate, with_profile
 
     section = dict(params["identification"])
@@ -174,10 +179,10 @@ def foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: 
             for k, truth in enumerate(recorded.truths):
                 paired = matching.label_index(k)
                 yield Record(
-                    scene_set="foreign", setting=f"{sensors}/{profile}", method=method, window_s=float(section["window_s"]),
+                    scene_set=scene_set, setting=f"{sensors}/{profile}", method=method, window_s=float(section["window_s"]),
                     index=number * impacts_per_support + k, material=truth["material"], is_coal=truth["label"] == "coal",
                     radius_m=truth["radius_m"], contact_stamp_s=truth["contact_start_stamp"],
                     duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
                     label=None if paired is None else labels[paired], extra_labels=len(matching.extra) if k == 0 else 0,
-                    wall_s=wall / max(len(recorded.truths), 1), calibrated=profile != "nominal",
+                    wall_s=wall / max(len(recorded.truths), 1), calibrated=profile != "nominal", support=number,
                 )

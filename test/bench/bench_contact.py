@@ -5,12 +5,13 @@ place, scored on the paper and stream scenes of the nominal support and on forei
 (the true support known), all at the shipped sensors (25.6 kHz accelerometer, 5 kHz camera).
 Prints a table, asserts nothing, ships nothing.
 
-    python test/bench/bench_contact.py                  # about 2 minutes here
+    python test/bench/bench_contact.py                  # about 3 minutes here
     python test/bench/bench_contact.py --varied 800 --supports 5   # quicker, wider intervals
 
 Training: ``--varied`` impacts on drawn training supports (true profile) and ``--stream``
 impacts of the nominal support (training's seeds 9 and 7); tests: the paper scene (seed 41001),
-the stream scene (41002) and ``--supports`` foreign supports x 20 impacts (41004). Each row's
+the stream scene (41002) and ``--supports`` foreign supports x 20 impacts (41004) of the stream
+scene and, the same supports, of the paper scene (``foreign_paper``). Each row's
 network is fitted from two seeded starts and both are scored (a / b).
 """
 
@@ -32,14 +33,16 @@ def main() -> int:
     from tail_beam_id.evaluation import wilson
     from tail_beam_id.methods.statistical import base_vector, feature_list, network_logit
     from tail_beam_id.training import fit_network
+    from tail_beam_sim.cli.common import add_config_option
     from tail_beam_sim.config import load_parameters
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--varied", type=int, default=1500, help="training impacts on drawn supports")
     parser.add_argument("--stream", type=int, default=600, help="training impacts of the nominal support")
     parser.add_argument("--supports", type=int, default=10, help="foreign supports (20 impacts each)")
+    add_config_option(parser)
     args = parser.parse_args()
-    params = load_parameters()
+    params = load_parameters(args.config)
     seeds = evaluation_params(params)["seeds"]
     shipped = settings(params, [1.0], ["shipped"])
     started = time.perf_counter()
@@ -48,10 +51,13 @@ def main() -> int:
     tests = {
         "paper, nominal support": list(runs.run_set(params, "paper", 200, int(seeds["paper"]), shipped, ["statistical"])),
         "stream, nominal support": list(runs.run_set(params, "stream", 300, int(seeds["stream"]), shipped, ["statistical"])),
-        "foreign supports, true profile": [],
+        "stream, foreign supports, true profile": [],
+        "paper, foreign supports, true profile": [],
     }
-    for number, recorded in enumerate(runs.support_streams(params, args.supports, 20, int(seeds["foreign"]), setting=shipped[0])):
-        tests["foreign supports, true profile"] += list(runs.foreign_records(params, recorded, number, 20, ["statistical"], ["true"], "shipped"))
+    for scene, column in (("stream", "stream, foreign supports, true profile"), ("paper", "paper, foreign supports, true profile")):
+        streams = runs.support_streams(params, args.supports, 20, int(seeds["foreign"]), setting=shipped[0], scene=scene)
+        for number, recorded in enumerate(streams):
+            tests[column] += list(runs.foreign_records(params, recorded, number, 20, ["statistical"], ["true"], "shipped"))
     print(f"{len(train)} training impacts (simulated and identified in {time.perf_counter() - started:.0f} s)", file=sys.stderr)
     every = feature_list(("jack_pressure", "imu", "rebound_velocity"))
     without = [(n, f) for n, f in every if n != "contact_duration_s"]

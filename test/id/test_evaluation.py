@@ -151,3 +151,15 @@ def test_evaluate_compares_foreign_supports_with_the_nominal_one_at_the_same_set
     line = next(x for x in targets if x.strip().startswith("foreign nominal/x1/nominal threshold"))
     assert "vs stream nominal/x1" in line and "within 5:" in line
     assert "vs stream" not in next(x for x in targets if x.strip().startswith("foreign drawn/nominal threshold"))
+
+
+def test_evaluate_scores_the_paper_scene_on_every_foreign_support(capsys):
+    """`--sets foreign_paper`: the paper scene on the foreign supports, with a target line that
+    names the worst support and counts the supports below 99.5 % (issue 9: every support)."""
+    code = main(["evaluate", "--sets", "foreign_paper", "--count", "2", "--noise", "1", "--rates", "nominal",
+                 "--methods", "threshold", "--profiles", "nominal"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "foreign_paper nominal/x1/nominal" in out and "foreign_paper drawn/nominal" in out
+    line = next(x for x in out.splitlines() if x.strip().startswith("paper scene on foreign supports nominal/x1/nominal threshold"))
+    assert "worst support #0" in line and "of 1 supports below 99.5%" in line and "on every support:" in line
