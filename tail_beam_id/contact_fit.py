@@ -149,6 +149,24 @@ def _best(t: np.ndarray, y: np.ndarray, poles: np.ndarray, durations: np.ndarray
     return float(durations[best // starts.size]), float(starts[best % starts.size])
 
 
+def clipped_samples(accel: np.ndarray, where: np.ndarray) -> np.ndarray:
+    """The indices among ``where`` whose |value| is the largest there, when two or more share it:
+    a sensor clipped at its range (a true peak is one sample; the range itself need not be
+    known). Empty when nothing is clipped."""
+    if not where.size:
+        return where
+    magnitude = np.abs(accel[where])
+    at_limit = where[magnitude >= magnitude.max() * (1.0 - 1e-6)]
+    return at_limit if at_limit.size >= 2 else where[:0]
+
+
+def clipped_near(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, config: ContactFitConfig) -> bool:
+    """Whether the sensor clipped in the window the fit reads (before_s before the onset to
+    ring_end_s after it): the label then says the channel saturated."""
+    where = np.flatnonzero((stamp_s > onset_s - config.before_s) & (stamp_s <= onset_s + config.ring_end_s))
+    return bool(clipped_samples(accel, where).size)
+
+
 def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s: float, noise: float,
                 config: ContactFitConfig) -> ContactFit | None:
     """The contact's half-sine duration from the samples (stamps in s, acceleration along the
@@ -168,6 +186,15 @@ def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s
     stride = max(1, math.ceil(1.0 / (period_s * config.max_fit_rate_hz) - 1e-9))
     ring, inside = np.flatnonzero(ring)[::stride], np.flatnonzero(inside)[::stride]
     period_s *= stride
+    clipped = clipped_samples(accel, np.union1d(ring, inside))
+    if clipped.size:
+        # A sensor driven past its range reads its limit: those samples say only that the
+        # signal was beyond it, so the fit leaves them out (they read as a flat top, i.e. a
+        # long pulse shortened to its edges), and the ring-down is read after the last of them.
+        inside = np.setdiff1d(inside, clipped)
+        ring = ring[ring > clipped.max()]
+        if ring.size < config.min_ring_samples or inside.size < 8:
+            return None
     poles = ringing_poles(accel[ring], period_s, config.max_modes, noise, config.min_mode_frequency_hz)
     t = stamp_s[inside] - onset_s
     y = accel[inside] - float(np.mean(accel[inside]))

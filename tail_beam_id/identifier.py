@@ -37,7 +37,7 @@ from tail_beam_id.buffers import Series
 from tail_beam_id import mounting
 from tail_beam_id.camera import FramePeriod
 from tail_beam_id.timing import OUTSIDE_NAME, UNUSUAL, SensorTiming, TimingConfig, judge
-from tail_beam_id.contact_fit import ContactFitConfig, fit_contact
+from tail_beam_id.contact_fit import ContactFitConfig, clipped_near, fit_contact
 from tail_beam_id.detection.imu import DetectionConfig, Pulse, PulseDetector
 from tail_beam_id.detection.pressure import PressureDetector
 from tail_beam_id.features import VIBRATION_CHANNEL, BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
@@ -487,10 +487,13 @@ class StreamIdentifier:
             if ringing or weak:
                 return None  # the beam still ringing, or noise: nothing else saw an impact
         impulse = contact = None
+        saturated = ["jack_pressure"] if fit is not None and fit.saturated else []
         if impact.pulse is not None:
             series, values = (self.vibration, self._vibration_z()) if impact.channel == "vibration" else (self.imu, self._accel_z())
             impulse = imu_impulse(self.model, series.stamp_s, values, impact.pulse, cfg.impulse_pre_s, cfg.impulse_skip_s, post_s)
             contact = fit_contact(series.stamp_s, values, impact.pulse.onset_s, impact.pulse.period_s, impact.pulse.noise_mps2, cfg.contact_fit)
+            if clipped_near(series.stamp_s, values, impact.pulse.onset_s, cfg.contact_fit):
+                saturated.append(impact.channel)
         features = impact_features(self.model, impact.pulse, impulse, fit, impact.rebound, contact)
         signals = []
         if fit is not None and not fit.saturated:
@@ -526,7 +529,7 @@ class StreamIdentifier:
             impact_stamp_s=onset, decision=decision, confidence=confidence, method=self.method.name,
             compute_ms=(time.perf_counter() - started) * 1e3, data_latency_ms=(horizon - onset) * 1e3,
             signals=signals, overlap=overlap, calibrated=self.calibrated, features=features,
-            saturated=["jack_pressure"] if fit is not None and fit.saturated else [],
+            saturated=saturated,
             imu_inverted=self.mount_sign is not None and self.mount_sign < 0,
             vibration_inverted=impact.channel == "vibration" and self.vibration_mount_sign is not None and self.vibration_mount_sign < 0,
         )
