@@ -161,6 +161,7 @@ def simulate_set(
         yield from _simulate_drawn(params, scene_set, count, seed, tier)
         return
     noise_seeds = np.random.SeedSequence(seed).spawn(count)
+    fidelity = FidelitySettings.from_params(params)  # the given parameters' bending modes (config/'s by default)
     for index, (command, scale, law) in enumerate(draw_commands(params, scene_set, count, seed)):
         varied = copy.deepcopy(dict(params))
         for name, factor in scale.items():
@@ -173,7 +174,7 @@ def simulate_set(
                 **command, "contact_model": law, "pre_contact_s": ev["pre_contact_s"], "window_s": ev["window_s"],
             })
             scene = replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor))
-            results[setting.key] = simulate(scene, tier=tier, vibration=setting.has_vibration)
+            results[setting.key] = simulate(scene, tier=tier, settings=fidelity, vibration=setting.has_vibration)
         yield LabelledImpact(index, command, scale, law, results)
 
 
