@@ -81,11 +81,14 @@ class PressureFit:
 
 
 def fit_pressure(
-    model: BeamModel, stamp_s: np.ndarray, pressure_pa: np.ndarray, onset_s: float, pre_s: float, window_s: float
+    model: BeamModel, stamp_s: np.ndarray, pressure_pa: np.ndarray, onset_s: float, pre_s: float, window_s: float,
+    sway_drift: bool = False,
 ) -> PressureFit | None:
     """Least-squares fit of the pressure in [onset - pre, onset + window]: a constant plus the
     beam's free sway at its nominal frequency (earlier impacts still ringing) plus M times the
-    response to a unit moment impulse at the onset. None when too few samples."""
+    response to a unit moment impulse at the onset. With ``sway_drift`` the free sway may also
+    drift in frequency and decay across the window (t cos, t sin: their first order), which a
+    real sway does against the nominal one. None when too few samples."""
     inside = (stamp_s >= onset_s - pre_s) & (stamp_s <= onset_s + window_s)
     t = stamp_s[inside] - onset_s
     y = pressure_pa[inside]
@@ -94,14 +97,18 @@ def fit_pressure(
     saturated = _flat_lined(y)
     omega = 2.0 * math.pi * model.support.rigid_mode_frequency_hz
     template = model.pressure_response(t)
-    basis = np.vstack([np.ones_like(t), np.cos(omega * t), np.sin(omega * t), template]).T
+    columns = [np.ones_like(t), np.cos(omega * t), np.sin(omega * t)]
+    if sway_drift:
+        columns += [t * np.cos(omega * t), t * np.sin(omega * t)]
+    basis = np.vstack([*columns, template]).T
     coeffs, *_ = np.linalg.lstsq(basis, y - y.mean(), rcond=None)
     residual = y - y.mean() - basis @ coeffs
     dof = max(t.size - basis.shape[1], 1)
     noise = float(math.sqrt(np.sum(residual**2) / dof))
     covariance = np.linalg.pinv(basis.T @ basis) * noise**2
     peak = float(np.max(np.abs(model.pressure_response(np.linspace(0.0, window_s, 200)))))
-    return PressureFit(float(coeffs[3]), float(math.sqrt(covariance[3, 3])), noise, float(coeffs[3]) * peak, saturated)
+    k = len(columns)  # the moment impulse's column
+    return PressureFit(float(coeffs[k]), float(math.sqrt(covariance[k, k])), noise, float(coeffs[k]) * peak, saturated)
 
 
 def _flat_lined(values: np.ndarray) -> bool:

@@ -169,7 +169,8 @@ class StreamIdentifier:
         self.vibration_detector = PulseDetector(self.config.detection, sway_hz)
         c = self.config
         self.pressure_detector = PressureDetector(
-            self.model, c.detection.pressure_threshold_sigma, c.pressure_pre_s, c.window_s, c.detection.ring_window_s
+            self.model, c.detection.pressure_threshold_sigma, c.pressure_pre_s, c.window_s, c.detection.ring_window_s,
+            c.detection.pressure_drift_confirm_sigma,
         )
         self.camera = FramePeriod(_configured_frame_period_s(merged))  # the camera's frame period, s
         # Pending impacts, rebounds, recent decisions; its rebound windows follow the camera's frame.

@@ -56,6 +56,7 @@ class DetectionConfig:
     pressure_onset_uncertainty_s: float
     onset_before_rebound_max_s: float
     rebound_frame_allowance_s: float = 0.0005
+    pressure_drift_confirm_sigma: float = 2.5
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> DetectionConfig:
@@ -85,6 +86,8 @@ class DetectionConfig:
             pressure_onset_uncertainty_s=get("pressure_onset_uncertainty_s", 0.0, 1.0, "s"),
             onset_before_rebound_max_s=get("onset_before_rebound_max_s", 0.0, 1.0, "s"),
             rebound_frame_allowance_s=get("rebound_frame_allowance_s", 0.0, 1.0, "s"),
+            pressure_drift_confirm_sigma=require_range("identification.detection.pressure_drift_confirm_sigma",
+                                                       p.get("pressure_drift_confirm_sigma", cls.pressure_drift_confirm_sigma), 0.0, 1e3),
         )
 
 
