@@ -44,7 +44,7 @@ from tail_beam_id.features import VIBRATION_CHANNEL, BeamModel, PressureFit, fit
 from tail_beam_id.label import Label, make_label
 from tail_beam_id.methods import METHODS, Decision, Method, build_method
 from tail_beam_sim.config import load_parameters
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import InputError, require_range, require_section
 
 
 @dataclass(frozen=True)
@@ -97,9 +97,9 @@ class IdentifierConfig:
             camera_timeout_s=seconds("camera_timeout_s"),
             overlap_window_s=overlap,
             overlap_confidence_cap=require_range("identification.overlap_confidence_cap", params.get("overlap_confidence_cap"), 0.5, 1.0),
-            detection=DetectionConfig.from_params(params.get("detection") or {}),
-            timing=TimingConfig.from_params(params.get("sensor_timing") or {}),
-            contact_fit=ContactFitConfig.from_params(params.get("contact_fit")),
+            detection=DetectionConfig.from_params(require_section("identification.detection", params.get("detection"))),
+            timing=TimingConfig.from_params(require_section("identification.sensor_timing", params.get("sensor_timing"))),
+            contact_fit=ContactFitConfig.from_params(require_section("identification.contact_fit", params.get("contact_fit"))),
         )
 
 

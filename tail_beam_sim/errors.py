@@ -4,8 +4,9 @@ checks of user input that raise it (numbers in range, output paths that are no l
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 ECHO_CHARS = 80  # most characters of a bad value a message repeats (a hostile 1 MB value is cut)
 
@@ -92,6 +93,16 @@ def require_range(
     if too_low or too_high:
         raise InputError(field, value, allowed)
     return number
+
+
+def require_section(field: str, value: object) -> Mapping[str, Any]:
+    """Return the parameter section ``value`` (None, absent: an empty one), or raise InputError
+    naming the field when it is something else (a number or text where names and values go)."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise InputError(field, value, "must be a parameter section (names with their values), not a single value")
+    return value
 
 
 def require_int(field: str, value: object, low: int | None = None, high: int | None = None) -> int:

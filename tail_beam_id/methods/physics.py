@@ -26,7 +26,7 @@ from scipy.special import ndtr
 from tail_beam_id.features import VIBRATION_CHANNEL
 from tail_beam_id.methods import Decision
 from tail_beam_sim.physics.contact import effective_modulus_pa, hertz_constant, hertz_elastic_impact
-from tail_beam_sim.errors import InputError, require_int, require_range
+from tail_beam_sim.errors import InputError, require_int, require_range, require_section
 from tail_beam_sim.physics.materials import material_table, sphere_mass_kg
 from tail_beam_sim.physics.support import Support
 
@@ -157,7 +157,7 @@ class PhysicsMethod:
 
     @classmethod
     def from_model(cls, model: Mapping[str, Any], params: Mapping[str, Any]) -> PhysicsMethod:
-        config = PhysicsConfig.from_params(params["identification"].get("physics") or {})
+        config = PhysicsConfig.from_params(require_section("identification.physics", params["identification"].get("physics")))
         return cls(config, build_bank(config, params, model["duration_ratio"]), model["timing"], model.get("timing_vibration"))
 
     def _lag(self, period_s: float, vibration: bool = False) -> Mapping[str, float]:

@@ -31,7 +31,7 @@ import numpy as np
 
 from tail_beam_id.methods import Decision, cap_confidence, sigmoid
 from tail_beam_id.timing import UNUSUAL
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import InputError, require_range, require_section
 
 # Each signal's features, with the floor (in the feature's unit) below which a noisy reading is
 # clipped before taking its log; None = used as is (a sign or a ratio near 1).
@@ -134,7 +134,7 @@ class StatisticalMethod:
 
     @classmethod
     def from_model(cls, model: Mapping[str, Any], params: Mapping[str, Any]) -> StatisticalMethod:
-        section = (params.get("identification") or {}).get("statistical") or {}
+        section = require_section("identification.statistical", (params.get("identification") or {}).get("statistical"))
         cap = require_range("identification.statistical.outside_confidence_cap", section.get("outside_confidence_cap", 0.6), 0.5, 1.0)
         families = [model["subsets"], model.get("calibrated_subsets") or {}]
         stale = [key for family in families for key in family if "@" in key or "envelope" not in family[key]]

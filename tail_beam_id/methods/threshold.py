@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from tail_beam_id.methods import Decision, sigmoid
-from tail_beam_sim.errors import require_range
+from tail_beam_sim.errors import require_range, require_section
 
 FLOOR = 1e-9  # features are positive physical magnitudes; a noisy reading below this is clipped
 
@@ -40,7 +40,7 @@ class ThresholdMethod:
 
     @classmethod
     def from_model(cls, model: Mapping[str, Any], params: Mapping[str, Any]) -> ThresholdMethod:
-        section = params["identification"].get("threshold") or {}
+        section = require_section("identification.threshold", params["identification"].get("threshold"))
         cap = require_range("identification.threshold.extrapolation_confidence_cap", section.get("extrapolation_confidence_cap"), 0.5, 1.0)
         rules = [Rule(r["feature"], float(r["threshold"]), float(r["slope"]), tuple(r["seen"])) for r in model["rules"]]
         return cls(rules, cap)

@@ -38,7 +38,7 @@ import numpy as np
 
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.physics.contact import damping_factor, hertz_stiffness
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import InputError, require_range, require_section
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
 from tail_beam_sim.physics.solvers.pulse import contact_pulse
@@ -127,9 +127,7 @@ class FidelitySettings:
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> FidelitySettings:
-        section = params.get("fidelity") or {}
-        if not isinstance(section, Mapping):
-            raise InputError("fidelity", section, "must be a parameter section")
+        section = require_section("fidelity", params.get("fidelity"))
         tier = section.get("tier", "auto")
         if tier not in TIER_CHOICES:
             raise InputError("fidelity.tier", tier, f"must be one of {', '.join(TIER_CHOICES)}")

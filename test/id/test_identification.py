@@ -280,3 +280,12 @@ def test_pressure_alone_does_not_take_the_sway_of_earlier_impacts_for_new_ones(p
     found = sum(matched.label_index(k) is not None for k in range(len(truths)))
     assert len(matched.extra) <= 2
     assert found >= 10
+
+
+@pytest.mark.parametrize("section", ["detection", "sensor_timing", "contact_fit", "statistical"])
+def test_a_section_given_as_one_value_is_refused_by_name(params, section):
+    """A parameter file that sets a section of the identification settings to a single value
+    (``contact_fit: 5``) is refused naming it; it ended in an AttributeError traceback."""
+    broken = {**params["identification"], section: 5}
+    with pytest.raises(InputError, match=f"identification.{section} = 5: must be a parameter section"):
+        StreamIdentifier("statistical", params=broken, model_params={**params, "identification": broken})
