@@ -181,10 +181,12 @@ def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s
     inside = (stamp_s > onset_s - config.before_s) & (stamp_s <= onset_s + config.after_s)
     if ring.sum() < config.min_ring_samples or inside.sum() < 8 or not np.all(np.isfinite(accel[inside | ring])):
         return None
-    # Above max_fit_rate_hz every stride-th sample: the cost grows with the samples in the window,
-    # and a channel faster than the training's (10-50 kHz) is then read as they were.
+    # Above max_fit_rate_hz every stride-th sample from the window's first: the cost grows with
+    # the samples in the window, and a channel faster than the training's (10-50 kHz) is then
+    # read as one at period x stride would be.
     stride = max(1, math.ceil(1.0 / (period_s * config.max_fit_rate_hz) - 1e-9))
-    ring, inside = np.flatnonzero(ring)[::stride], np.flatnonzero(inside)[::stride]
+    kept = (np.arange(stamp_s.size) - int(np.argmax(inside))) % stride == 0
+    ring, inside = np.flatnonzero(ring & kept), np.flatnonzero(inside & kept)
     period_s *= stride
     clipped = clipped_samples(accel, np.union1d(ring, inside))
     if clipped.size:
