@@ -146,8 +146,8 @@ def run_foreign(
 
 def foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: int, impacts_per_support: int,
                      methods: Sequence[str], profiles: Sequence[str], sensors: str, scene_set: str = "foreign") -> Iterator[Record]:
-    """The records of one recorded support stream, under each profile and method (their
-    ``index`` // ``impacts_per_support`` is the support's number)."""
+    """The records of one recorded support stream (``number``: their ``support``), under each
+    profile and method."""
     from tail_beam_id.calibration import calibrate, with_profile
 
     section = dict(params["identification"])

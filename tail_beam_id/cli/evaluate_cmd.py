@@ -173,7 +173,7 @@ def foreign_paper_line(s: Summary, records: Sequence[Record]) -> str:
     for r in records:
         support = -1 if r.support is None else r.support
         total[support] = total.get(support, 0) + 1 + r.extra_labels
-        right[support] = right.get(support, 0) + int(r.label is not None and r.correct)
+        right[support] = right.get(support, 0) + int(r.correct)
     shares = {k: right[k] / total[k] for k in total}
     worst = min(shares, key=lambda k: (shares[k], k))
     below = sum(1 for v in shares.values() if v < PAPER_TARGET)

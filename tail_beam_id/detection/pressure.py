@@ -33,7 +33,7 @@ class PressureDetector:
     """Scans one pressure stream for impacts; remembers how far it got (a grid index)."""
 
     def __init__(self, model: BeamModel, threshold_sigma: float, pre_s: float, window_s: float, refractory_s: float,
-                 confirm_sigma: float = 2.5) -> None:
+                 confirm_sigma: float) -> None:
         self.model = model
         self.threshold_sigma = threshold_sigma
         self.confirm_sigma = confirm_sigma
