@@ -36,6 +36,10 @@ from tail_beam_sim.errors import InputError, require_range
 
 
 PENCIL_WIDTH = 24  # columns of the ring-down's Hankel matrix: 3 x the most poles (8) read from it
+# Durations of the first, coarse search (a log grid from min_duration_s to max_duration_s, each
+# 1.25 x the one before at the defaults). With 12 (1.46 x) the search could stop in a local
+# minimum: one particle read 69 or 122 us by the support it struck (README, Identification).
+COARSE_DURATIONS = 20
 
 
 @dataclass(frozen=True)
@@ -115,37 +119,49 @@ def ringing_poles(values: np.ndarray, period_s: float, max_modes: int, noise: fl
     return np.unique(np.round(poles, 6))[:max_modes]
 
 
-def _best(t: np.ndarray, y: np.ndarray, poles: np.ndarray, durations: np.ndarray, starts: np.ndarray) -> tuple[float, float]:
+def _best(t: np.ndarray, y: np.ndarray, sway: np.ndarray, poles: np.ndarray, durations: np.ndarray,
+          starts: np.ndarray) -> tuple[float, float]:
     """The (duration, start) among every pair of ``durations`` x ``starts`` whose basis fits
     ``y`` at ``t`` with the least residual, all candidates solved together. The basis: a
-    quadratic, the half-sine pulse, and the pulse convolved with exp(pole t) for each pole,
-    in closed form: ((-p sin wT - w cos wT) exp(p (t - d)+) + w exp(p t)) / (p^2 + w^2) with
-    w = pi / d and T = min(t, d), whose exponentials factor into t and d alone."""
+    quadratic (``sway``, N x 3 orthonormal; ``y`` comes with it taken out), the half-sine
+    pulse, and the pulse convolved with exp(pole t) for each pole, in closed form:
+    ((-p sin wT - w cos wT) exp(p (t - d)+) + w exp(p t)) / (p^2 + w^2) with w = pi / d and
+    T = min(t, d), whose exponentials factor into t and d alone."""
+    n = t.size
     d = durations[:, None, None]  # (D, 1, 1)
-    tt = np.broadcast_to(t[None, None, :] - starts[None, :, None], (durations.size, starts.size, t.size))  # (D, S, N)
-    after = tt > 0.0
+    since = t[None, :] - starts[:, None]  # time since each candidate start, (S, N)
+    after = since > 0.0
     w = math.pi / d
-    phase = w * np.clip(tt, 0.0, d)
-    sine, cosine = np.sin(phase), np.cos(phase)
-    rows = 4 + 2 * poles.size
-    basis = np.empty((durations.size, starts.size, rows, t.size))
-    basis[:, :, 0] = 1.0
-    basis[:, :, 1] = tt
-    basis[:, :, 2] = tt * tt
-    basis[:, :, 3] = np.where(after & (tt < d), sine, 0.0)
-    ended = tt > d
+    # Inside the pulse (few samples) the closed form in full; after it the response is the
+    # pulse's end value carried by exp(p t), a product of a (D,) and an (S, N) factor.
+    within = np.nonzero(after[None] & (since[None] < d))  # (D, S, N) indices inside the pulse
+    t_in, w_in = since[within[1], within[2]], w.ravel()[within[0]]
+    sine, cosine = np.sin(w_in * t_in), np.cos(w_in * t_in)
+    rows = 1 + 2 * poles.size
+    basis = np.zeros((durations.size, starts.size, rows, n))
+    basis[within[0], within[1], 0, within[2]] = sine
     for k, pole in enumerate(poles):
-        grows = np.exp(pole * np.clip(tt[0], 0.0, None))[None]  # exp(p t), (1, S, N)
-        carried = np.where(ended, grows * np.exp(-pole * d), 1.0)  # exp(p (t - d)) after the pulse
-        value = np.where(after, ((-pole * sine - w * cosine) * carried + w * grows) / (pole * pole + w * w), 0.0)
-        basis[:, :, 4 + 2 * k] = value.real
-        basis[:, :, 5 + 2 * k] = value.imag
-    basis = basis.reshape(-1, rows, t.size)
-    basis /= np.sqrt(np.sum(basis * basis, axis=2, keepdims=True)) + 1e-300
-    gram = basis @ np.ascontiguousarray(basis.transpose(0, 2, 1)) + 1e-9 * np.eye(rows)
-    projected = basis @ y
+        grows = np.where(after, np.exp(pole * np.where(after, since, 0.0)), 0.0)  # exp(p t) after the start, (S, N)
+        value = (w * (1.0 + np.exp(-pole * d)) / (pole * pole + w * w)) * grows[None]
+        value[within] = ((-pole * sine - w_in * cosine) + w_in * grows[within[1], within[2]]) / (pole * pole + w_in * w_in)
+        basis[:, :, 1 + 2 * k] = value.real
+        basis[:, :, 2 + 2 * k] = value.imag
+    basis = basis.reshape(-1, rows, n)
+    # The least squares against [sway, basis] from the basis' own products: with y orthogonal
+    # to the sway, taking the sway out of each column changes its Gram matrix by -(Q'B)'(Q'B)
+    # and leaves B'y as it is (cheaper than projecting every column); then each column scaled
+    # to unit norm, for the conditioning (a column all but inside the sway's span is floored at
+    # 1e-12 of its own norm, so that rounding never scales it to infinity).
+    on_sway = (basis.reshape(-1, n) @ sway).reshape(basis.shape[0], rows, sway.shape[1])
+    products = basis @ basis.transpose(0, 2, 1)
+    gram = products - on_sway @ on_sway.transpose(0, 2, 1)
+    norm = np.maximum(np.einsum("cii->ci", gram), 1e-12 * np.einsum("cii->ci", products)) + 1e-300
+    scale = 1.0 / np.sqrt(norm)
+    gram = gram * scale[:, :, None] * scale[:, None, :] + 1e-9 * np.eye(rows)
+    projected = (basis @ y) * scale
     coefficients = np.linalg.solve(gram, projected[..., None])[..., 0]
-    best = int(np.argmax(np.einsum("ck,ck->c", coefficients, projected)))
+    score = np.einsum("ck,ck->c", coefficients, projected)
+    best = int(np.argmax(np.where(np.isfinite(score), score, -np.inf)))
     return float(durations[best // starts.size]), float(starts[best % starts.size])
 
 
@@ -200,8 +216,11 @@ def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s
     poles = ringing_poles(accel[ring], period_s, config.max_modes, noise, config.min_mode_frequency_hz)
     t = stamp_s[inside] - onset_s
     y = accel[inside] - float(np.mean(accel[inside]))
-    coarse = np.exp(np.linspace(math.log(config.min_duration_s), math.log(config.max_duration_s), 12))
-    duration, start = _best(t, y, poles, coarse, np.arange(-3, 6) * period_s / 2.0)
+    sway = np.linalg.qr(np.stack([np.ones_like(t), t, t * t], axis=1))[0]  # the beam's sway: a quadratic, N x 3
+    y = y - sway @ (sway.T @ y)
+    coarse = np.exp(np.linspace(math.log(config.min_duration_s), math.log(config.max_duration_s), COARSE_DURATIONS))
+    duration, start = _best(t, y, sway, poles, coarse, np.arange(-3, 6) * period_s / 2.0)
     step = math.log(coarse[1] / coarse[0])
-    duration, start = _best(t, y, poles, duration * np.exp(np.linspace(-step, step, 13)), start + np.arange(-2, 3) * period_s / 6.0)
+    duration, start = _best(t, y, sway, poles, duration * np.exp(np.linspace(-step, step, 9)),
+                            start + np.arange(-2, 3) * period_s / 6.0)
     return ContactFit(duration, onset_s + start, tuple(float(p.imag / (2.0 * math.pi)) for p in poles))

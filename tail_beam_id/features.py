@@ -181,7 +181,7 @@ def impact_features(
         features["imu_pulse_width_s"] = pulse.width_s
         features["imu_period_s"] = pulse.period_s
         if contact is not None:
-            # The contact's half-sine duration from the pulse and the ringing (tail_beam_id.contact_fit;
+            # The contact's duration (the best-fitting pulse's) from the pulse and the ringing (tail_beam_id.contact_fit;
             # a channel too slow to show it gives its sample period). Without it (a fast channel's
             # samples cut short) the acceleration features are not all there, and the models decide
             # without them (methods.statistical.signals_of).
