@@ -14,7 +14,9 @@ decay) are read from the ring-down itself by the matrix pencil method, so the su
 need no profile and no config/. Then, for each candidate force pulse (a half-sine of duration
 tau starting at t0), the samples around the pulse are fitted by least squares with the pulse
 itself, its convolution with each pole's response and a quadratic for the beam's sway; the
-candidate with the least residual gives ``duration_s``. A hysteretic contact's force is not a
+candidate with the least residual gives ``duration_s``. Then once more with the poles read
+from a ring-down that starts soon after the contact just read: a stiff beam's modes that shape
+the pulse may ring out before the first ring-down starts. A hysteretic contact's force is not a
 half-sine (it peaks early and tails off), so ``duration_s`` is the half-sine that best matches
 the pulse, not the time to separation: shorter, and shorter still for low-restitution gangue.
 The models learn what it means across drawn supports and contact laws; it is a measurement of
@@ -48,6 +50,9 @@ class ContactFitConfig:
 
     ring_start_s: float = 0.0015  # the ring-down read for the poles starts here (the contact is over)
     ring_end_s: float = 0.006  # ... and ends here (<= the accelerometer's data window)
+    early_ring_start_s: float = 0.0005  # a second pass's ring-down starts no sooner than this
+    ring_after_contact_factor: float = 1.5  # ... nor sooner than this many first-pass durations
+    ring_after_contact_s: float = 0.0001  # ... plus this after the first pass's start
     before_s: float = 0.0003  # samples before the onset in the fit (the background)
     after_s: float = 0.003  # samples after the onset in the fit
     min_duration_s: float = 3.0e-5
@@ -68,6 +73,9 @@ class ContactFitConfig:
 
         config = cls(
             ring_start_s=seconds("ring_start_s"), ring_end_s=seconds("ring_end_s"), before_s=seconds("before_s"),
+            early_ring_start_s=seconds("early_ring_start_s"), ring_after_contact_s=seconds("ring_after_contact_s"),
+            ring_after_contact_factor=require_range("identification.contact_fit.ring_after_contact_factor",
+                                                    section.get("ring_after_contact_factor", default.ring_after_contact_factor), 1.0, 10.0),
             after_s=seconds("after_s"), min_duration_s=seconds("min_duration_s"), max_duration_s=seconds("max_duration_s"),
             max_modes=int(require_range("identification.contact_fit.max_modes", section.get("max_modes", default.max_modes), 1, 8)),
             min_ring_samples=int(require_range("identification.contact_fit.min_ring_samples",
@@ -87,7 +95,8 @@ class ContactFitConfig:
 
 @dataclass(frozen=True)
 class ContactFit:
-    """The best half-sine force pulse: its duration and start (s), and the ringing modes used (Hz)."""
+    """The best half-sine force pulse: its duration and start (s), and the support's ringing modes
+    (Hz) as the ring-down from ring_start_s reads them."""
 
     duration_s: float
     start_s: float
@@ -165,6 +174,28 @@ def _best(t: np.ndarray, y: np.ndarray, sway: np.ndarray, poles: np.ndarray, dur
     return float(durations[best // starts.size]), float(starts[best % starts.size])
 
 
+def _search(t: np.ndarray, y: np.ndarray, sway: np.ndarray, poles: np.ndarray, period_s: float,
+            config: ContactFitConfig) -> tuple[float, float]:
+    """(duration, start) of the best half-sine: every duration of a log grid (COARSE_DURATIONS)
+    with starts half a sample apart, then refined around the best."""
+    coarse = np.exp(np.linspace(math.log(config.min_duration_s), math.log(config.max_duration_s), COARSE_DURATIONS))
+    duration, start = _best(t, y, sway, poles, coarse, np.arange(-3, 6) * period_s / 2.0)
+    step = math.log(coarse[1] / coarse[0])
+    return _best(t, y, sway, poles, duration * np.exp(np.linspace(-step, step, 9)), start + np.arange(-2, 3) * period_s / 6.0)
+
+
+def _unbroken(where: np.ndarray, stamp_s: np.ndarray, period_s: float) -> np.ndarray:
+    """The longest run of ``where`` whose stamps step by one ``period_s``: the matrix pencil
+    needs evenly spaced samples, and a sample left out (not finite, lost with its block) would
+    shift every one after it by a period (one such gap at 1 ms turned a 323 us reading into
+    119 us)."""
+    if where.size < 2:
+        return where
+    breaks = np.flatnonzero(np.diff(stamp_s[where]) > 1.5 * period_s) + 1
+    runs = np.split(where, breaks)
+    return max(runs, key=len)
+
+
 def clipped_samples(accel: np.ndarray, where: np.ndarray) -> np.ndarray:
     """The indices among ``where`` whose |value| is the largest there, when two or more share it:
     a sensor clipped at its range (a true peak is one sample; the range itself need not be
@@ -213,14 +244,26 @@ def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s
         ring = ring[ring > clipped.max()]
         if ring.size < config.min_ring_samples or inside.size < 8:
             return None
-    poles = ringing_poles(accel[ring], period_s, config.max_modes, noise, config.min_mode_frequency_hz)
     t = stamp_s[inside] - onset_s
     y = accel[inside] - float(np.mean(accel[inside]))
     sway = np.linalg.qr(np.stack([np.ones_like(t), t, t * t], axis=1))[0]  # the beam's sway: a quadratic, N x 3
     y = y - sway @ (sway.T @ y)
-    coarse = np.exp(np.linspace(math.log(config.min_duration_s), math.log(config.max_duration_s), COARSE_DURATIONS))
-    duration, start = _best(t, y, sway, poles, coarse, np.arange(-3, 6) * period_s / 2.0)
-    step = math.log(coarse[1] / coarse[0])
-    duration, start = _best(t, y, sway, poles, duration * np.exp(np.linspace(-step, step, 9)),
-                            start + np.arange(-2, 3) * period_s / 6.0)
-    return ContactFit(duration, onset_s + start, tuple(float(p.imag / (2.0 * math.pi)) for p in poles))
+    ring = _unbroken(ring, stamp_s, period_s)
+    if ring.size < config.min_ring_samples:
+        return None
+    poles = ringing_poles(accel[ring], period_s, config.max_modes, noise, config.min_mode_frequency_hz)
+    duration, start = _search(t, y, sway, poles, period_s, config)
+    # A second pass whose ring-down starts soon after the contact the first pass read (not
+    # before early_ring_start_s): on a stiff beam the modes that shape the pulse ring out
+    # within a millisecond, before ring_start_s, and without them the reading split between
+    # two minima (one 25 mm coal read 113 or 289 us on one support; README, Identification).
+    early_s = max(config.early_ring_start_s, start + config.ring_after_contact_factor * duration + config.ring_after_contact_s)
+    if early_s < config.ring_start_s - period_s:
+        sooner = np.flatnonzero(kept & (stamp_s > onset_s + early_s) & (stamp_s <= onset_s + config.ring_end_s))
+        if clipped.size:
+            sooner = sooner[sooner > clipped.max()]
+        sooner = _unbroken(sooner, stamp_s, period_s)
+        if sooner.size >= config.min_ring_samples:
+            early = ringing_poles(accel[sooner], period_s, config.max_modes, noise, config.min_mode_frequency_hz)
+            duration, start = _search(t, y, sway, early, period_s, config)
+    return ContactFit(duration, onset_s + start, tuple(float(p.imag / (2.0 * math.pi)) for p in poles))  # the late ring-down's

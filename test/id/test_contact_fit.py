@@ -121,6 +121,42 @@ def test_a_stiffer_beam_does_not_move_the_reading(params):
     assert fits[1].duration_s == pytest.approx(fits[0].duration_s, rel=0.1)
 
 
+def test_a_beam_whose_modes_ring_out_early_reads_one_particle_alike(params):
+    """On a stiff beam (first mode 3.1 kHz, coupled modes near 7 and 20 kHz that ring out within
+    a millisecond, before the ring-down read from 1.5 ms) fifteen 25 mm coal particles, 3.3-3.7 m
+    and 0.9-1.1 m (contacts within 2 % of each other, Hertz: v^-1/5), read alike: at least 10
+    within 10 % of their median. The fit reads the poles again from a ring-down that starts
+    soon after the contact the first pass read; from 1.5 ms alone 8 were, the others split
+    between about 110 and 320 us."""
+    values = {"inertia_scale": 1.09, "jack_stiffness_scale": 1.37, "jack_damping_scale": 1.0, "bending_1_frequency_hz": 3146.0,
+              "damping_ratio": 0.025, "imu_from_hinge_m": 0.72, "imu_rate_hz": 2000.0, "pressure_rate_hz": 2000.0,
+              "camera_frame_rate_hz": 5000.0, "noise_factor": 1.0, "vibration_rate_hz": RATE_HZ}
+    stiff = SupportDraw(values, "flores").apply(params)
+    readings = []
+    for position_m in (0.9, 0.95, 1.0, 1.05, 1.1):
+        for height_m in (3.3, 3.5, 3.7):
+            result = impact(stiff, material="coal", radius_m=0.025, drop_height_m=height_m, position_m=position_m)
+            t, samples, period = _vibration(result)
+            readings.append(fit_contact(t, samples, 0.0, period, math.sqrt(result.vibration.noise_variance), ContactFitConfig()).duration_s)
+    median = float(np.median(readings))
+    assert sum(abs(r / median - 1.0) <= 0.1 for r in readings) >= 10, [round(r * 1e6) for r in readings]
+
+
+@pytest.mark.parametrize("gap_s", [0.001, 0.002, 0.004])
+def test_a_missing_sample_in_the_ring_down_does_not_move_the_reading(params, gap_s):
+    """One accelerometer sample missing (not finite and left out, or lost) in the ring-down the
+    poles are read from: the matrix pencil needs evenly spaced samples, so the fit reads them
+    from the longest unbroken run, and the duration is the one read with every sample within
+    5 %. (A sample missing 1 ms after a 50 mm coal's onset read 119 against 323 us, and the
+    label turned gangue at 0.92.)"""
+    result = impact(params, material="coal", radius_m=0.05, drop_height_m=3.0, position_m=1.0)
+    t, samples, period = _vibration(result)
+    whole = fit_contact(t, samples, 0.0, period, 0.2, ContactFitConfig())
+    kept = np.arange(t.size) != int(np.searchsorted(t, gap_s))
+    gapped = fit_contact(t[kept], samples[kept], 0.0, period, 0.2, ContactFitConfig())
+    assert gapped is not None and gapped.duration_s == pytest.approx(whole.duration_s, rel=0.05)
+
+
 def test_labels_carry_the_duration_and_a_slow_imu_says_one_sample(params):
     """id_node's and identify's labels carry ``contact_duration_s``: from the accelerometer's
     pulse, and where only a 2 kHz IMU saw the impact (too few samples of ring-down to read the
@@ -135,7 +171,7 @@ def test_labels_carry_the_duration_and_a_slow_imu_says_one_sample(params):
 
 @pytest.mark.parametrize("field, value", [
     ("ring_start_s", -1.0), ("ring_end_s", 0.001), ("max_duration_s", 1e-5), ("max_modes", 0), ("min_ring_samples", 2),
-    ("max_fit_rate_hz", 10.0),
+    ("max_fit_rate_hz", 10.0), ("early_ring_start_s", 0.0), ("ring_after_contact_factor", 0.5), ("ring_after_contact_s", "soon"),
 ])
 def test_bad_settings_are_refused_by_name(field, value):
     """A contact_fit setting out of its range (or of the wrong kind) is refused naming it."""
