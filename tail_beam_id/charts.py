@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from tail_beam_id.dataset import FOREIGN_SCENES
 from tail_beam_id.evaluation import Summary
 from tail_beam_sim.plotting import pyplot, save_figure
 
@@ -59,7 +60,7 @@ def accuracy_vs_size(items: Sequence[Summary], path: Path, window_s: float) -> P
     """Accuracy per radius bin at nominal noise and the configured data window: one panel per
     scene set with sizes, one line per rates and method."""
     plt = pyplot()
-    chosen = [s for s in items if (_noise(s.setting) == 1.0 or s.scene_set.startswith("foreign")) and len(s.by_size) > 1 and s.window_s == window_s]
+    chosen = [s for s in items if (_noise(s.setting) == 1.0 or s.scene_set in FOREIGN_SCENES) and len(s.by_size) > 1 and s.window_s == window_s]
     fig, axes = _panels(plt, chosen)
     for s in chosen:
         rates = s.setting.split("/x")[0]
@@ -73,7 +74,7 @@ def accuracy_vs_noise(items: Sequence[Summary], path: Path, window_s: float) -> 
     """Accuracy against the noise factor at the configured data window: one panel per scene
     set, one line per rates and method."""
     plt = pyplot()
-    chosen = [s for s in items if s.window_s == window_s and not s.scene_set.startswith("foreign")]
+    chosen = [s for s in items if s.window_s == window_s and s.scene_set not in FOREIGN_SCENES]
     fig, axes = _panels(plt, chosen)
     lines: dict[tuple[str, str, str], list[tuple[float, float]]] = {}
     for s in chosen:
