@@ -33,8 +33,11 @@ SCENE_SETS = ("paper", "stream", "mismatch", "foreign", "foreign_paper")
 # Foreign sets -> the scene whose impacts strike their supports.
 FOREIGN_SCENES = {"foreign": "stream", "foreign_paper": "paper"}
 # Training scene sets whose every impact strikes its own drawn support, with its own sensor
-# rates and noise (tail_beam_id.supports), from these ranges.
-DRAWN_SETS = {"varied": "training"}
+# rates and noise (tail_beam_id.supports), from these ranges; DRAWN_SCENES: the scene whose
+# impacts strike them (varied_paper: the paper scene's, which the stream's ranges hold only as
+# one point among many, on supports other than config/'s).
+DRAWN_SETS = {"varied": "training", "varied_paper": "training"}
+DRAWN_SCENES = {"varied": "stream", "varied_paper": "paper"}
 DRAWN_SETTING = "drawn"
 PERTURBED_SUPPORT = ("beam_inertia_about_hinge_kgm2", "jack_damping_nspm", "oil_bulk_modulus_pa")
 
@@ -179,13 +182,13 @@ def simulate_set(
 
 
 def _simulate_drawn(params: Mapping[str, Any], scene_set: str, count: int, seed: int, tier: str) -> Iterator[LabelledImpact]:
-    """Impacts of the stream scene, each on its own support drawn from the set's ranges."""
+    """Impacts of the set's scene (DRAWN_SCENES), each on its own support drawn from the set's ranges."""
     ev = evaluation_params(params)
     ranges = support_ranges(ev, DRAWN_SETS[scene_set])
     support_rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
     vibration_rng = np.random.default_rng(np.random.SeedSequence([seed, 3]))
     noise_seeds = np.random.SeedSequence(seed).spawn(count)
-    for index, (command, _, _) in enumerate(draw_commands(params, "stream", count, seed)):
+    for index, (command, _, _) in enumerate(draw_commands(params, DRAWN_SCENES[scene_set], count, seed)):
         draw = draw_support(ranges, support_rng, vibration_rng)
         varied = draw.apply(params)
         varied["sensors"]["seed"] = int(noise_seeds[index].generate_state(1)[0])

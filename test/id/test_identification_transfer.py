@@ -137,6 +137,28 @@ def test_drawn_supports_stay_inside_their_ranges(params):
     assert copy.deepcopy(params) == params  # the nominal parameters are not touched
 
 
+def test_the_drawn_paper_set_strikes_drawn_supports_with_the_paper_scenes_impacts(params):
+    """varied_paper (training): each impact is the paper scene's (its radius, drop and position,
+    the material's nominal restitution) on a support of its own, drawn from the training ranges
+    with its contact law, so the models learn that scene beyond config/'s support."""
+    from tail_beam_id.dataset import DRAWN_SETTING, simulate_set
+
+    ev = evaluation_params(params)
+    paper, ranges = ev["paper"], support_ranges(ev, "training")
+    impacts = list(simulate_set(params, "varied_paper", 3, 11, [], tier="modal"))
+    assert len(impacts) == 3
+    for item in impacts:
+        assert item.command["radius_m"] == paper["radius_m"][0] and item.command["drop_height_m"] == paper["drop_height_m"][0]
+        assert item.command["position_m"] == paper["position_m"][0] and "restitution" not in item.command
+        low, high = ranges["bending_1_frequency_hz"]
+        assert low <= item.support.values["bending_1_frequency_hz"] <= high
+        simulated = item.results[DRAWN_SETTING].scene
+        assert simulated.impact.radius_m == paper["radius_m"][0]
+        assert simulated.impact.restitution == params["materials"][item.command["material"]]["restitution"]
+        assert simulated.contact_model == item.support.contact_model
+    assert len({item.support.values["bending_1_frequency_hz"] for item in impacts}) == 3  # a support each
+
+
 def test_drawn_supports_have_the_accelerometer_at_the_configured_share(params):
     """About vibration_share of drawn supports have the accelerometer (rate in range, noise scaled as
     the others'), the rest none; drawn from its own generator, it leaves every other draw as it was."""
