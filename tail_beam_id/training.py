@@ -8,7 +8,8 @@ same files). The training impacts are the ``stream`` scene (nominal support, cal
 contact law) at every configured noise factor and sensor setting (the shipped one with the
 tail-beam accelerometer fed, as id_node feeds it, and the IMU-only ones), and ``varied``
 impacts on drawn supports, half of them with an accelerometer (each of those identified with
-it and again without it, so the IMU-only models see every support).
+it and again without it, so the IMU-only models see every support), and ``varied_paper``:
+the paper scene's impacts on drawn supports, which the stream's drawn restitutions never show.
 """
 
 from __future__ import annotations
