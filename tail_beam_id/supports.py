@@ -14,6 +14,10 @@ merged parameter dict; ranges live in ``identification.evaluation.supports`` (co
 - ``imu_rate_hz``, ``pressure_rate_hz``, ``camera_frame_rate_hz`` (log-uniform) and
   ``noise_factor`` (log-uniform, x every nominal noise RMS);
 - ``contact_models``: the hysteresis laws a particle may follow;
+- ``contact_damping_scale`` (optional, log-uniform): a factor on the law's hysteresis factor chi
+  (``support.contact_damping_scale``), so that a support's hysteresis may lie between and beyond
+  the published laws; drawn after everything else and only when the ranges name it, so that
+  ranges without it draw every support as before;
 - ``vibration_share`` and ``vibration_rate_hz`` (log-uniform): whether the support has the
   tail-beam accelerometer (topic ``vibration``) and at what rate; ``vibration_rate_hz`` is 0 in
   a draw without it (the IMU alone is then the acceleration channel). Drawn from a generator of
@@ -39,9 +43,11 @@ SCALED = {
 }
 NOISE_FIELDS = ("pressure_noise_pa", "imu_accel_noise_mps2", "imu_gyro_noise_radps", "camera_velocity_noise_mps",
                 "camera_velocity_noise_fraction", "vibration_noise_density_mps2_rthz")
-LOG_UNIFORM = {"bending_1_frequency_hz", "imu_rate_hz", "pressure_rate_hz", "camera_frame_rate_hz", "noise_factor", "vibration_rate_hz"}
+LOG_UNIFORM = {"bending_1_frequency_hz", "imu_rate_hz", "pressure_rate_hz", "camera_frame_rate_hz", "noise_factor", "vibration_rate_hz",
+               "contact_damping_scale"}
 RANGES = (*SCALED, "bending_1_frequency_hz", "damping_ratio", "imu_from_hinge_m", "imu_rate_hz", "pressure_rate_hz",
           "camera_frame_rate_hz", "noise_factor", "vibration_rate_hz")
+OPTIONAL_RANGES = ("contact_damping_scale",)  # drawn (log-uniform) only when the ranges name them
 
 
 @dataclass(frozen=True)
@@ -68,6 +74,8 @@ class SupportDraw:
         for key, (section, name) in SCALED.items():
             varied[section][name] = float(params[section][name]) * self.values[key]
         varied["support"]["imu_from_hinge_m"] = self.values["imu_from_hinge_m"]
+        if "contact_damping_scale" in self.values:
+            varied["support"]["contact_damping_scale"] = self.values["contact_damping_scale"]
         modes = varied["modes"]
         names = sorted((k for k in modes if k.startswith("bending_")), key=lambda k: int(k.split("_")[1]))
         if names:
@@ -99,7 +107,8 @@ class SupportDraw:
                 f"zeta {100 * v['damping_ratio']:.1f} %, IMU {v['imu_rate_hz'] / 1e3:.1f} kHz at {v['imu_from_hinge_m']:.2f} m, "
                 f"noise x{v['noise_factor']:.2f}, "
                 f"{f'accelerometer {self.vibration_rate_hz / 1e3:.1f} kHz' if self.vibration_rate_hz > 0 else 'no accelerometer'}, "
-                f"{self.contact_model}")
+                f"{self.contact_model}"
+                + (f" x{v['contact_damping_scale']:.2f}" if "contact_damping_scale" in v else ""))
 
 
 def support_ranges(evaluation: Mapping[str, Any], which: str) -> Mapping[str, Any]:
@@ -108,7 +117,7 @@ def support_ranges(evaluation: Mapping[str, Any], which: str) -> Mapping[str, An
     if not isinstance(supports, Mapping) or not isinstance(supports.get(which), Mapping):
         raise InputError(f"identification.evaluation.supports.{which}", None, "missing parameter section (config/identification.yaml)")
     ranges = supports[which]
-    for name in RANGES:
+    for name in (*RANGES, *(n for n in OPTIONAL_RANGES if n in ranges)):
         pair = ranges.get(name)
         if not (isinstance(pair, (list, tuple)) and len(pair) == 2 and all(isinstance(x, (int, float)) for x in pair) and 0 < pair[0] <= pair[1]):
             raise InputError(f"identification.evaluation.supports.{which}.{name}", pair, "must be [low, high] with 0 < low <= high")
@@ -137,6 +146,9 @@ def draw_support(ranges: Mapping[str, Any], rng: np.random.Generator, vibration_
     present = vib.uniform() < float(ranges["vibration_share"])
     rate = _draw(ranges["vibration_rate_hz"], "vibration_rate_hz", vib)
     values["vibration_rate_hz"] = rate if present else 0.0
+    for name in OPTIONAL_RANGES:
+        if name in ranges:
+            values[name] = _draw(ranges[name], name, rng)
     return SupportDraw(values, draw_law)
 
 

@@ -116,18 +116,20 @@ class Contacts:
     table_weight: np.ndarray
 
 
-def contact_chi(restitution: np.ndarray, contact_model: str) -> np.ndarray:
+def contact_chi(restitution: np.ndarray, contact_model: str, damping_scale: float = 1.0) -> np.ndarray:
     """chi of every impact, by the laws of :func:`~tail_beam_sim.physics.contact.damping_factor`
-    (the same formulas as one impact's)."""
-    return damping_factor(contact_model, np.asarray(restitution, dtype=float))
+    (the same formulas as one impact's), times the support's ``contact_damping_scale``."""
+    return damping_factor(contact_model, np.asarray(restitution, dtype=float)) * damping_scale
 
 
 def contacts(
-    structure: LinearStructure, batch: ImpactBatch, contact_model: str = "calibrated", positions: PositionTable | None = None
+    structure: LinearStructure, batch: ImpactBatch, contact_model: str = "calibrated", positions: PositionTable | None = None,
+    damping_scale: float = 1.0,
 ) -> Contacts:
-    """Every impact's contact from the pulse table's per-chi figures, vectorised."""
+    """Every impact's contact from the pulse table's per-chi figures, vectorised (``damping_scale``:
+    the support's contact_damping_scale)."""
     table = pulse_table()
-    chi = contact_chi(batch.restitution, contact_model)
+    chi = contact_chi(batch.restitution, contact_model, damping_scale)
     if np.any(chi > table.chi[-1]):
         raise InputError("restitution", float(batch.restitution[np.argmax(chi)]), f"too low for {contact_model}: chi beyond {table.chi[-1]:g}")
     i = np.clip(np.searchsorted(table.chi, chi, side="right") - 1, 0, table.chi.size - 2)
@@ -226,7 +228,7 @@ def summaries(support: Support, structure: LinearStructure, batch: ImpactBatch, 
     """Rebound, restitution, contact duration and peak force, peak jack pressure change (Pa)
     and whether a re-contact may follow, for every impact (arrays over impacts)."""
     positions = PositionTable(structure, batch.position_m, window_s)
-    c = contacts(structure, batch, contact_model, positions)
+    c = contacts(structure, batch, contact_model, positions, support.contact_damping_scale)
     x = batch.position_m
     plate_speed = c.impulse_ns * positions._at(positions.plate_speed_per_impulse, x)
     rebound = np.maximum(c.rebound_mps, 0.0)
@@ -258,7 +260,7 @@ def streams(
     """
     rng = np.random.default_rng(seed)
     positions = PositionTable(structure, batch.position_m, window_s)
-    c = contacts(structure, batch, contact_model, positions)
+    c = contacts(structure, batch, contact_model, positions, support.contact_damping_scale)
     shapes = positions.shape(batch.position_m)
     eigenvalues, vectors, _ = structure._eigen
     n = structure.size

@@ -41,6 +41,10 @@ class Support:
     drop_height_max_m: float
     impact_speed_min_mps: float
     impact_speed_max_mps: float
+    # Multiplies the contact law's hysteresis factor chi (dimensionless; 1 = the law as
+    # published): how much more or less than the law says a particle's contact with this
+    # support's wear plate dissipates (config/support.yaml).
+    contact_damping_scale: float = 1.0
 
     @property
     def piston_area_m2(self) -> float:
@@ -131,6 +135,8 @@ class Support:
             impact_zone_min_m=get("impact_zone_min_m", 0.0, length, "m", low_open=False),
             impact_zone_max_m=get("impact_zone_max_m", 0.0, length, "m", low_open=False),
             **limits("particle_radius", "m", "m"), **limits("drop_height", "m", "m"), **limits("impact_speed", "mps", "m/s"),
+            contact_damping_scale=require_range("support.contact_damping_scale", params.get("contact_damping_scale", 1.0), 0.1, 10.0,
+                                                unit="(dimensionless)"),
         )
         if support.impact_zone_min_m > support.impact_zone_max_m:
             raise InputError("support.impact_zone_min_m", support.impact_zone_min_m, "must not exceed impact_zone_max_m")

@@ -15,6 +15,7 @@ from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_id.replay import replay
 from tail_beam_id.supports import SupportDraw, draw_support, support_ranges
 from tail_beam_id.dataset import evaluation_params
+from tail_beam_sim.physics.scene import Scene
 
 RATES_HZ = (1000.0, 2000.0, 4000.0, 5000.0, 8000.0, 10000.0, 16000.0, 20000.0, 25600.0, 50000.0)
 
@@ -157,6 +158,26 @@ def test_the_drawn_paper_set_strikes_drawn_supports_with_the_paper_scenes_impact
         assert simulated.impact.restitution == params["materials"][item.command["material"]]["restitution"]
         assert simulated.contact_model == item.support.contact_model
     assert len({item.support.values["bending_1_frequency_hz"] for item in impacts}) == 3  # a support each
+
+
+def test_training_supports_draw_a_hysteresis_scale_without_moving_any_other_draw(params):
+    """Training's supports carry a contact_damping_scale from its range (log-uniform), which
+    reaches the simulated support; it is drawn last, so ranges without it (foreign's) draw every
+    support as before, and with it every other value is the same."""
+    ranges = support_ranges(evaluation_params(params), "training")
+    low, high = ranges["contact_damping_scale"]
+    without = {k: v for k, v in ranges.items() if k != "contact_damping_scale"}
+    scales = []
+    for k in range(40):
+        draw = draw_support(ranges, np.random.default_rng(k), np.random.default_rng(100 + k))
+        other = draw_support(without, np.random.default_rng(k), np.random.default_rng(100 + k))
+        assert {n: v for n, v in draw.values.items() if n != "contact_damping_scale"} == other.values
+        assert draw.contact_model == other.contact_model and "contact_damping_scale" not in other.values
+        scales.append(draw.values["contact_damping_scale"])
+        assert low <= scales[-1] <= high
+        assert Scene.from_params(draw.apply(params)).support.contact_damping_scale == scales[-1]
+    assert min(scales) < 0.8 and max(scales) > 1.25  # spread over the range, not stuck at 1
+    assert "contact_damping_scale" not in support_ranges(evaluation_params(params), "foreign")
 
 
 def test_drawn_supports_have_the_accelerometer_at_the_configured_share(params):
