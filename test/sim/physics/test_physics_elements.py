@@ -158,6 +158,7 @@ def test_the_supports_contact_damping_scale_multiplies_the_laws_hysteresis(scale
 
 @pytest.mark.parametrize("value", [0.0, -1.0, 20.0, "soft"])
 def test_a_contact_damping_scale_outside_its_range_is_refused_by_name(value):
+    """A scale of 0, negative, beyond 10 or not a number names support.contact_damping_scale."""
     from tail_beam_sim.errors import InputError
 
     params = deep_merge(load_parameters(), {"support": {"contact_damping_scale": value}})
