@@ -236,19 +236,24 @@ def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s
     ring, inside = np.flatnonzero(ring & kept), np.flatnonzero(inside & kept)
     period_s *= stride
     clipped = clipped_samples(accel, np.union1d(ring, inside))
-    if clipped.size:
-        # A sensor driven past its range reads its limit: those samples say only that the
-        # signal was beyond it, so the fit leaves them out (they read as a flat top, i.e. a
-        # long pulse shortened to its edges), and the ring-down is read after the last of them.
-        inside = np.setdiff1d(inside, clipped)
-        ring = ring[ring > clipped.max()]
-        if ring.size < config.min_ring_samples or inside.size < 8:
-            return None
+    # A sensor driven past its range reads its limit: those samples say only that the signal
+    # was beyond it, so the fit leaves them out (they read as a flat top, i.e. a long pulse
+    # shortened to its edges), and the ring-down is read after the last of them.
+    inside = np.setdiff1d(inside, clipped)
+    if inside.size < 8:
+        return None
+
+    def ring_down(from_s: float) -> np.ndarray:
+        """The kept, finite samples from ``from_s`` after the onset to ring_end_s, after any
+        clipped one: their longest unbroken run."""
+        where = np.flatnonzero(kept & (stamp_s > onset_s + from_s) & (stamp_s <= onset_s + config.ring_end_s) & np.isfinite(accel))
+        return _unbroken(where[where > clipped.max()] if clipped.size else where, stamp_s, period_s)
+
     t = stamp_s[inside] - onset_s
     y = accel[inside] - float(np.mean(accel[inside]))
     sway = np.linalg.qr(np.stack([np.ones_like(t), t, t * t], axis=1))[0]  # the beam's sway: a quadratic, N x 3
     y = y - sway @ (sway.T @ y)
-    ring = _unbroken(ring, stamp_s, period_s)
+    ring = ring_down(config.ring_start_s)
     if ring.size < config.min_ring_samples:
         return None
     poles = ringing_poles(accel[ring], period_s, config.max_modes, noise, config.min_mode_frequency_hz)
@@ -259,10 +264,7 @@ def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s
     # two minima (one 25 mm coal read 113 or 289 us on one support; README, Identification).
     early_s = max(config.early_ring_start_s, start + config.ring_after_contact_factor * duration + config.ring_after_contact_s)
     if early_s < config.ring_start_s - period_s:
-        sooner = np.flatnonzero(kept & (stamp_s > onset_s + early_s) & (stamp_s <= onset_s + config.ring_end_s))
-        if clipped.size:
-            sooner = sooner[sooner > clipped.max()]
-        sooner = _unbroken(sooner, stamp_s, period_s)
+        sooner = ring_down(early_s)
         if sooner.size >= config.min_ring_samples:
             early = ringing_poles(accel[sooner], period_s, config.max_modes, noise, config.min_mode_frequency_hz)
             duration, start = _search(t, y, sway, early, period_s, config)
