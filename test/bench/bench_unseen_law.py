@@ -60,12 +60,12 @@ def main() -> int:
     train += list(runs.run_set(params, "varied_paper", max(args.varied // 5, 1), 10, shipped, ["statistical"], true_profile=True))
     train += list(runs.run_set(params, "stream", args.stream, 7, shipped, ["statistical"]))
     tests: dict[str, list] = {}
-    foreign_laws: list[str] = []  # each foreign support's contact law (the same supports in both scenes)
+    foreign_laws: dict[int, str] = {}  # foreign support number -> its contact law (the same supports in both scenes)
     for scene_set, scene in FOREIGN_SCENES.items():
         tests[scene_set] = []
         for number, recorded in enumerate(runs.support_streams(params, args.supports, 20, int(seeds["foreign"]), setting=shipped[0],
                                                                scene=scene)):
-            foreign_laws[number:number + 1] = [recorded.support.contact_model]
+            foreign_laws[number] = recorded.support.contact_model
             tests[scene_set] += runs.foreign_records(params, recorded, number, 20, ["statistical"], ["true"], "shipped", scene_set)
     print(f"{len(train)} training impacts, {sum(map(len, tests.values()))} foreign test impacts "
           f"(simulated in {time.perf_counter() - started:.0f} s){' (hysteresis as published)' if args.no_scale else ''}",
@@ -95,7 +95,7 @@ def main() -> int:
     every = fitted(train)
     print("| law (foreign supports) | stream, trained with it | stream, left out | paper, trained with it | paper, left out |")
     print("| --- | --- | --- | --- | --- |")
-    for law in sorted(set(foreign_laws)):
+    for law in sorted(set(foreign_laws.values())):
         if law == "calibrated":
             continue  # the nominal support's own law: its stream is in every training set
         without = fitted([r for r in train if law_of.get((r.scene_set, r.index)) != law])
@@ -103,7 +103,7 @@ def main() -> int:
         for scene_set in FOREIGN_SCENES:
             mine = [r for r in tests[scene_set] if foreign_laws[r.support] == law]
             cells += [scored(every, mine), scored(without, mine)]
-        print(f"| {law} ({foreign_laws.count(law)}) | " + " | ".join(cells) + " |", flush=True)
+        print(f"| {law} ({list(foreign_laws.values()).count(law)}) | " + " | ".join(cells) + " |", flush=True)
     return 0
 
 
