@@ -13,6 +13,7 @@ import rclpy
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
 from std_msgs.msg import String
 
 from tail_beam_id.label import Label
@@ -64,6 +65,24 @@ def spin_until(executor: EventsExecutor, condition: Callable[[], bool], timeout_
     while not condition() and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.05)
     return condition()
+
+
+def call_until_answered(executor: EventsExecutor, send: Callable[[], Future], what: str,
+                        timeout_s: float = 30.0, resend_s: float = 5.0) -> Any:
+    """Send a service request with ``send()`` and spin until an answer comes, sending it again
+    every ``resend_s``; the first answer's result.
+
+    A server can be ready for a client's requests before it has matched the client's response
+    reader; its answer is then dropped with a "failed to send response (timeout)" warning and the
+    call hangs (the service discovery race of ros2/ros2#1253). Only for idempotent requests."""
+    deadline = time.monotonic() + timeout_s
+    futures: list[Future] = []
+    while time.monotonic() < deadline:
+        futures.append(send())
+        window_s = min(resend_s, deadline - time.monotonic())
+        if spin_until(executor, lambda: any(f.done() for f in futures), timeout_s=window_s):
+            return next(f for f in futures if f.done()).result()
+    raise AssertionError(f"{what} never answered {len(futures)} requests in {timeout_s:.0f} s")
 
 
 def spin_for(executor: EventsExecutor, duration_s: float) -> None:

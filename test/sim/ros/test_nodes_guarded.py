@@ -16,7 +16,7 @@ from geometry_msgs.msg import TwistStamped
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
 
-from rosprobe import RELIABLE, Probe, ros_context, spin_for, spin_until
+from rosprobe import RELIABLE, Probe, call_until_answered, ros_context, spin_for, spin_until
 from bag_helpers import records, write_segments
 from test_nodes_processes import BIN, Processes
 from tail_beam_sim import topics
@@ -41,9 +41,8 @@ def set_parameter(executor, node, target: str, name: str, value) -> tuple[bool, 
     """Set one parameter of the node ``target`` as any participant can; (successful, reason)."""
     client = AsyncParameterClient(node, target)
     assert spin_until(executor, lambda: client.services_are_ready(), timeout_s=30), f"{target}'s parameter services never came"
-    future = client.set_parameters([Parameter(name, value=value)])
-    assert spin_until(executor, future.done, timeout_s=30)
-    result = future.result().results[0]
+    answer = call_until_answered(executor, lambda: client.set_parameters([Parameter(name, value=value)]), f"{target}'s set_parameters")
+    result = answer.results[0]
     return result.successful, result.reason
 
 

@@ -9,7 +9,7 @@ from rcl_interfaces.srv import GetParameters, SetParameters, SetParametersAtomic
 from rclpy.parameter import Parameter
 
 from bag_helpers import records, write_segments
-from rosprobe import Probe, ros_context, spin_until
+from rosprobe import Probe, call_until_answered, ros_context, spin_until
 
 pytestmark = [pytest.mark.ros]
 
@@ -36,9 +36,7 @@ def build(kind: str, context, tmp_path):
 
 def call(executor, client, request):
     assert spin_until(executor, client.service_is_ready, timeout_s=30), f"{client.srv_name} never came"
-    future = client.call_async(request)
-    assert spin_until(executor, future.done, timeout_s=30), f"{client.srv_name} never answered"
-    return future.result()
+    return call_until_answered(executor, lambda: client.call_async(request), client.srv_name)
 
 
 @pytest.mark.parametrize("kind", ["sim_node", "id_node", "bag_recorder", "bag_replay"])
