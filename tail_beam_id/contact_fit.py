@@ -229,7 +229,7 @@ def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s
     if ring.sum() < config.min_ring_samples or inside.sum() < 8 or not np.all(np.isfinite(accel[inside | ring])):
         return None
     # Above max_fit_rate_hz every stride-th sample from the window's first: the cost grows with
-    # the samples in the window, and a channel faster than the training's (10-50 kHz) is then
+    # the samples in the window, and a channel faster than the training's (8-64 kHz) is then
     # read as one at period x stride would be.
     stride = max(1, math.ceil(1.0 / (period_s * config.max_fit_rate_hz) - 1e-9))
     kept = (np.arange(stamp_s.size) - int(np.argmax(inside))) % stride == 0

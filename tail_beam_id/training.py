@@ -357,7 +357,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         records, paper = load_cache(cache)
     else:
         records = collect(params, "stream", args.count, seed, args.tier)
-        # Supports other than the nominal one, at sensor rates drawn from 1-50 kHz.
+        # Supports other than the nominal one, at IMU rates drawn from 0.8-64 kHz.
         records += collect(params, "varied", varied_count, seed + 2, args.tier)
         # The same impacts as a calibrated identifier sees them (the support's profile known).
         records += collect(params, "varied", varied_count, seed + 2, args.tier, true_profile=True)
