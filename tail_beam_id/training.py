@@ -29,7 +29,7 @@ from tail_beam_id.dataset import DRAWN_SETS, evaluation_params, settings
 from tail_beam_id.features import VIBRATION_CHANNEL
 from tail_beam_id.methods import MODELS_DIR
 from tail_beam_id.methods.statistical import (
-    SIGNAL_ORDER, base_vector, delay_design, feature_list, network_logit, signals_of, size_feature, subset_key,
+    SIGNAL_ORDER, WITHOUT_DELAY, base_vector, delay_design, feature_list, network_logit, signals_of, size_feature, subset_key,
 )
 from tail_beam_id.label import Label
 from tail_beam_id.runs import Record, run_set
@@ -172,6 +172,9 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
                 # delays are the tight ones an offset clock shows in (tail_beam_id.timing).
                 subsets[subset_key(signals)]["delay_check"] = fit_delay_check(
                     [r for r in every if set(signals) <= set(signals_of(r.label.features))], names, subsets[subset_key(signals)])
+                # And a model without the delay, for cameras slower than any drawn here
+                # (methods.statistical.WITHOUT_DELAY).
+                subsets[subset_key(signals) + WITHOUT_DELAY] = fit_subset(usable, feature_list(signals, delay=False), held)
     return subsets
 
 

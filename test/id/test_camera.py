@@ -117,11 +117,11 @@ def slow_camera_stream(params):
 
 def test_a_slow_camera_is_recognised_and_its_lag_averaged_over(params, slow_camera_stream):
     """Identified with the shipped config/ (a 5 kHz camera), the labels say 200 us for the first
-    rebounds, then the camera's 1 ms read from the stamps (or, from the
-    fewest, a period longer still). Averaged over the lag a 1 kHz
-    camera may add, the delays read shorter contacts, and a shorter contact is a stiffer
-    particle: P(coal) falls on average against the decision that takes the whole delay for
-    contact, and no decision gets surer than the most confident lag allows."""
+    rebounds, then the camera's 1 ms read from the stamps (or, from the fewest, a period longer
+    still). A camera between the training's reference (5 kHz) and its slowest (2 kHz), here
+    2.5 kHz, is averaged over the lag it may add: the delays read shorter contacts, and a
+    shorter contact is a stiffer particle, so P(coal) falls on average against the decision that
+    takes the whole delay for contact, and no decision leaves the range of the lags' own."""
     chunk = slow_camera_stream
     labels = replay(StreamIdentifier("statistical", params["identification"], params), chunk.pressure, chunk.imu,
                     [r for _, r in chunk.rebounds], vibration=chunk.vibration)
@@ -134,12 +134,37 @@ def test_a_slow_camera_is_recognised_and_its_lag_averaged_over(params, slow_came
     shifts = []
     for label in labels:
         unaware = method.decide({**label.features, "camera_frame_period_s": 2e-4}).p_coal
-        averaged = method.decide({**label.features, "camera_frame_period_s": 1e-3}).p_coal
-        extremes = [method.decide({**label.features, "camera_frame_period_s": 2e-4,
-                                   "rebound_delay_s": label.features["rebound_delay_s"] + shift}).p_coal for shift in (1e-4, -9e-4)]
-        assert min(extremes) - 1e-9 <= averaged or averaged <= max(extremes) + 1e-9
+        averaged = method.decide({**label.features, "camera_frame_period_s": 4e-4}).p_coal
+        lags = [method.decide({**label.features, "camera_frame_period_s": 2e-4,
+                               "rebound_delay_s": label.features["rebound_delay_s"] + shift}).p_coal for shift in np.linspace(1e-4, -3e-4, 33)]
+        assert min(lags) - 1e-6 <= averaged <= max(lags) + 1e-6
         shifts.append(averaged - unaware)
     assert np.mean(shifts) < 0.0, shifts
+
+
+def test_a_camera_slower_than_any_trained_is_decided_without_the_delay(params, slow_camera_stream):
+    """A 1 kHz camera lags by up to 1 ms, more than the contact durations the delay tells apart:
+    its impacts are decided by the models trained without the delay, so moving the rebound stamp
+    anywhere within the frame changes nothing, and no timing check is made of a delay that
+    cannot show a clock offset. (Averaged over the lag instead, a 1 kHz camera's foreign supports
+    scored 76 and 74 % on the stream and the paper scene, against 83 and 94 % this way.)"""
+    chunk = slow_camera_stream
+    labels = replay(StreamIdentifier("statistical", params["identification"], params), chunk.pressure, chunk.imu,
+                    [r for _, r in chunk.rebounds], vibration=chunk.vibration)
+    method = StreamIdentifier("statistical", params["identification"], params).method
+    decided = [label for label in labels if label.features["camera_frame_period_s"] > 5e-4]
+    assert len(decided) >= 10 - MIN_REBOUNDS + 1
+    for label in decided:
+        assert "delay_residual" not in label.features
+        base = method.decide(label.features).p_coal
+        for shift in (-4e-4, -1e-4, 3e-4, 9e-4):
+            moved = {**label.features, "rebound_delay_s": label.features["rebound_delay_s"] + shift}
+            assert method.decide(moved).p_coal == base
+        # The same features with a camera the training knew: the delay counts again.
+        assert method.decide({**label.features, "camera_frame_period_s": 2e-4, "rebound_delay_s": 4e-4}).p_coal != \
+            method.decide({**label.features, "camera_frame_period_s": 2e-4, "rebound_delay_s": 9e-4}).p_coal
+    first = len(labels) - len(decided)  # the impacts before the camera's period was read
+    assert [label.material for label in decided] == ["gangue" if k % 2 == 0 else "coal" for k in range(first, 10)]
 
 
 def test_a_camera_as_fast_as_the_training_changes_nothing(params, slow_camera_stream):

@@ -259,6 +259,28 @@ def test_a_stale_or_broken_statistical_model_is_refused_with_how_to_fix_it(param
         build_method("statistical", params, str(broken))
 
 
+def test_the_shipped_models_can_decide_a_slow_cameras_impacts_without_the_delay(params):
+    """Every model that reads the rebound delay has a twin trained without it, in both families
+    (a camera slower than any trained is decided by the twin), with the same features less the
+    delay; a non-positive slowest camera rate is refused by name."""
+    import copy
+
+    from tail_beam_id.methods import load_model
+    from tail_beam_id.methods.statistical import WITHOUT_DELAY
+
+    model = load_model("statistical")
+    for family in ("subsets", "calibrated_subsets"):
+        with_delay = [key for key, subset in model[family].items() if any(name == "rebound_delay_s" for name, _ in subset["features"])]
+        assert with_delay, family
+        for key in with_delay:
+            twin = model[family][key + WITHOUT_DELAY]
+            assert [name for name, _ in twin["features"]] == [name for name, _ in model[family][key]["features"] if name != "rebound_delay_s"]
+    bad = copy.deepcopy(params)
+    bad["identification"]["statistical"]["slowest_delay_camera_frame_rate_hz"] = 0.0
+    with pytest.raises(InputError, match=r"identification\.statistical\.slowest_delay_camera_frame_rate_hz = 0\.0: must be in \(0"):
+        build_method("statistical", bad)
+
+
 def test_pressure_alone_does_not_take_the_sway_of_earlier_impacts_for_new_ones(params):
     """The last fall-back, the jack pressure alone, on a stream of 20 impacts 0.3-0.45 s apart
     on the nominal support: the beam sways from each impact for seconds, a little off the rigid
