@@ -119,7 +119,7 @@ class Contacts:
 def contact_chi(restitution: np.ndarray, contact_model: str, damping_scale: float = 1.0) -> np.ndarray:
     """chi of every impact, by the laws of :func:`~tail_beam_sim.physics.contact.damping_factor`
     (the same formulas as one impact's), times the support's ``contact_damping_scale``."""
-    return damping_factor(contact_model, np.asarray(restitution, dtype=float)) * damping_scale
+    return damping_factor(contact_model, np.asarray(restitution, dtype=float), damping_scale)
 
 
 def contacts(

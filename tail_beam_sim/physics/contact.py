@@ -68,13 +68,15 @@ CONTACT_LAWS = (*_PUBLISHED_LAWS, "calibrated")
 DEFAULT_CONTACT_LAW = "calibrated"
 
 
-def damping_factor(law: str, restitution: Number) -> Number:
+def damping_factor(law: str, restitution: Number, scale: float = 1.0) -> Number:
     """The dimensionless hysteresis factor chi of ``law`` for restitution e (a float, or an
-    array of restitutions for a batch of impacts)."""
+    array of restitutions for a batch of impacts), times ``scale``: the support's
+    contact_damping_scale (1 = the law as published). Every path that needs a contact's chi
+    (the solvers' problem, the batch, the fidelity estimate) takes it from here."""
     if law == "calibrated":
-        return calibrated_chi(restitution)
+        return calibrated_chi(restitution) * scale
     try:
-        return _PUBLISHED_LAWS[law](restitution)
+        return _PUBLISHED_LAWS[law](restitution) * scale
     except KeyError:
         raise InputError("contact_model", law, f"must be one of {', '.join(CONTACT_LAWS)}") from None
 

@@ -210,7 +210,7 @@ def model_errors(scene: Scene, needs: Needs, modes: Sequence[BendingMode]) -> di
     c_modal = modal.contact_compliance(shape_modal)
     mass = impact.mass_kg
     reduced = reduced_mass_kg(mass, c_rigid)
-    chi = damping_factor(scene.contact_model, impact.restitution) * support.contact_damping_scale
+    chi = damping_factor(scene.contact_model, impact.restitution, support.contact_damping_scale)
     stiffness = hertz_stiffness(impact.material, support.plate, impact.radius_m)
     pulse = contact_pulse(min(chi, 40.0), stiffness, reduced, impact.impact_speed_mps)
     width = pulse.width_s

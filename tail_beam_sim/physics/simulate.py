@@ -51,7 +51,7 @@ def build_problem(
         contact_shape=structure.contact_shape(impact.position_m),
         mass_kg=impact.mass_kg,
         hertz_stiffness=hertz_stiffness(impact.material, support.plate, impact.radius_m),
-        damping_factor=damping_factor(contact_model, impact.restitution) * support.contact_damping_scale,
+        damping_factor=damping_factor(contact_model, impact.restitution, support.contact_damping_scale),
         impact_speed_mps=impact.impact_speed_mps,
         gravity_mps2=support.gravity_mps2,
         window_s=window_s,
