@@ -20,6 +20,9 @@ read off its own signals:
   (tail_beam_id.camera): the identifier otherwise reads it from the stamps up to each impact,
   and assumes config/'s camera until four rebounds have come, so a slow camera's first impacts
   were decided as if its lag were a 5 kHz camera's;
+- the support's contact hysteresis (tail_beam_id.hysteresis): which of the trained hysteresis
+  bins the recording's impacts, taken together, fit best (no labels: each bin's coal share is
+  fitted too), so that the statistical method decides each impact knowing it;
 - the noise of each sensor.
 
 The result is a ROS 2 parameter file (``tail-beam calibrate BAG --out profile.yaml``) that
@@ -38,13 +41,15 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.signal import welch
 
+from tail_beam_id import hysteresis
 from tail_beam_id.camera import frame_period_s
 from tail_beam_id.label import Label
+from tail_beam_id.methods import load_model
 from tail_beam_id.modes import MIN_FREQUENCY_HZ as MIN_MODE_FREQUENCY_HZ
 from tail_beam_id.modes import RingingMode, ring_decay_s, ringing_modes, sample_noise
 from tail_beam_id.timing import UNUSUAL
 from tail_beam_sim.config import deep_merge
-from tail_beam_sim.errors import InputError
+from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.support import Support
 
@@ -81,6 +86,10 @@ class SupportProfile:
     ringing_damping_ratios: list[float] | None = None
     # The camera's frame rate read from the grid of every rebound stamp, Hz; None without a grid.
     camera_frame_rate_hz: float | None = None
+    # The weight of each hysteresis bin of the statistical model (tail_beam_id.hysteresis) and
+    # the impacts they rest on; None when too few impacts had every signal.
+    hysteresis_weights: list[float] | None = None
+    hysteresis_impacts: int | None = None
 
     @property
     def ring_decay_s(self) -> float | None:
@@ -95,6 +104,10 @@ class SupportProfile:
             return "no bending mode measured in the ringing"
         modes = ", ".join(f"{f:.0f} Hz ({100.0 * z:.1f} %)" for f, z in zip(self.ringing_modes_hz, self.ringing_damping_ratios))
         return f"ringing {modes}, ring_decay_s {self.ring_decay_s:.3g}"
+
+    def describe_hysteresis(self, bin_edges: Sequence[float]) -> str:
+        """The support's hysteresis as read, in a few words."""
+        return hysteresis.describe(self.hysteresis_weights, self.hysteresis_impacts or 0, bin_edges)
 
     def describe_camera(self) -> str:
         """The camera's frame as read from the rebound stamps, in a few words."""
@@ -183,13 +196,15 @@ def calibrate(
     identify: Callable[[dict[str, Any]], Sequence[Label]],
     ringing: tuple[np.ndarray, np.ndarray] | None = None,
     rebound_stamps_s: Sequence[float] = (),
+    hysteresis_model: Mapping[str, Any] | None = None,
 ) -> SupportProfile:
     """The profile of the support that recorded ``pressure`` (stamps s, Pa) and ``imu`` (stamps
     s, z specific force m/s^2). ``identify(params)`` must return the labels of the recording
     identified with those parameters (the IMU gain needs each impact's moment estimates, the
     modes each impact's onset). ``ringing`` (stamps s, m/s^2) is the channel the bending modes
     are read from: the tail-beam accelerometer where there is one (it sees modes up to ten
-    times higher), else the IMU's z. ``rebound_stamps_s`` (s) give the camera's frame."""
+    times higher), else the IMU's z. ``rebound_stamps_s`` (s) give the camera's frame.
+    ``hysteresis_model``: the statistical model's hysteresis network (default: the shipped one's)."""
     # A sample with a non-finite stamp or value is a lost sample here too, as for the identifier
     # (one NaN pressure sample made the spectrum, and so the whole calibration, fail).
     p_stamp, p_value = _finite(*pressure)
@@ -205,6 +220,8 @@ def calibrate(
     used = 0
     checked = unusual = None
     modes: list[RingingMode] = []
+    weights: list[float] | None = None
+    weighed = None
     if bulk is not None:
         calibrated = copy.deepcopy(dict(params))
         calibrated["support"]["oil_bulk_modulus_pa"] = bulk
@@ -233,6 +250,7 @@ def calibrate(
             bulk = bulk_modulus_for(calibrated, frequency) or bulk
             if not 0.2 < inertia / inertia_now < 5.0:
                 inertia, spread = None, None  # implausible: keep the configured beam
+        weights, weighed = _hysteresis_weights(params, labels, inertia, hysteresis_model)
     return SupportProfile(
         duration_s=duration, impacts_used=used, imu_mount_sign=sign, rigid_mode_frequency_hz=frequency,
         oil_bulk_modulus_pa=bulk, beam_inertia_about_hinge_kgm2=inertia, imu_gain_spread=spread,
@@ -240,7 +258,35 @@ def calibrate(
         delay_checked_impacts=checked, delay_unusual_impacts=unusual,
         ringing_modes_hz=[m.frequency_hz for m in modes] or None, ringing_damping_ratios=[m.damping_ratio for m in modes] or None,
         camera_frame_rate_hz=_camera_frame_rate_hz(rebound_stamps_s),
+        hysteresis_weights=weights, hysteresis_impacts=weighed,
     )
+
+
+def hysteresis_edges() -> list[float]:
+    """The hysteresis bins' edges of the statistical model (shipped), for saying what was read."""
+    model = load_model("statistical").get("hysteresis") or {}
+    return [float(e) for e in model.get("bin_edges", [])]
+
+
+def _hysteresis_weights(params: Mapping[str, Any], labels: Sequence[Label], inertia_kgm2: float | None,
+                        model: Mapping[str, Any] | None) -> tuple[list[float] | None, int | None]:
+    """The hysteresis bins' weights from the calibration pass's labels (their IMU moments as
+    the calibrated inertia gives them: the pass ran with config/'s beam), and the impacts used;
+    (None, None) when the statistical model has no hysteresis network."""
+    if model is None:
+        model = load_model("statistical").get("hysteresis")
+    if model is None:
+        return None, None
+    section = params["identification"]["statistical"]["hysteresis"]
+    min_impacts = int(require_range("identification.statistical.hysteresis.min_impacts", section.get("min_impacts", 8), 1, 1e6))
+    factor = 1.0 if inertia_kgm2 is None else inertia_kgm2 / float(params["support"]["beam_inertia_about_hinge_kgm2"])
+    features = []
+    for label in labels:
+        f = dict(label.features)
+        if "moment_impulse_imu_nms" in f:
+            f["moment_impulse_imu_nms"] *= factor
+        features.append(f)
+    return hysteresis.recording_weights(model, features, min_impacts)
 
 
 def _camera_frame_rate_hz(stamps_s: Sequence[float]) -> float | None:

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tail_beam_id.calibration import SupportProfile, calibrate, with_profile
+from tail_beam_id.calibration import SupportProfile, calibrate, hysteresis_edges, with_profile
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
 
 if TYPE_CHECKING:
@@ -104,7 +104,7 @@ class OnlineCalibration:
                         "staying on the configured support (labels say calibrated: false)")
             gain = f"{p.impacts_used} impacts for the IMU gain" if p.beam_inertia_about_hinge_kgm2 else "IMU gain not measured"
             return (f"calibration: sway {p.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus {p.oil_bulk_modulus_pa:.3g} Pa, "
-                    f"{gain}; labels from here on say calibrated: true")
+                    f"{gain}, {p.describe_hysteresis(hysteresis_edges())}; labels from here on say calibrated: true")
         return None
 
     def _streams(self) -> tuple[PressureStream, ImuStream, list[Rebound]]:
@@ -132,5 +132,7 @@ class OnlineCalibration:
         if not profile.calibrated:
             return Calibrated(profile, None, None)
         merged = with_profile(self.params, profile)
-        method = build_method(self.method_name, merged) if self.method_name == "physics" else None
+        # The physics method holds the support; the statistical one, the support's hysteresis.
+        rebuild = self.method_name == "physics" or (self.method_name == "statistical" and profile.hysteresis_weights is not None)
+        method = build_method(self.method_name, merged) if rebuild else None
         return Calibrated(profile, merged, method)

@@ -27,6 +27,7 @@ from scipy.optimize import minimize, minimize_scalar
 
 from tail_beam_id.dataset import DRAWN_SETS, evaluation_params, settings
 from tail_beam_id.features import VIBRATION_CHANNEL
+from tail_beam_id.hysteresis import bin_logits, joint_probabilities, latent_bin
 from tail_beam_id.methods import MODELS_DIR
 from tail_beam_id.methods.statistical import (
     SIGNAL_ORDER, WITHOUT_DELAY, base_vector, delay_design, feature_list, network_logit, signals_of, size_feature, subset_key,
@@ -104,6 +105,72 @@ def fit_network(z: np.ndarray, y: np.ndarray, seed: int, hidden: int = HIDDEN_UN
     return {"w1": w1.tolist(), "b1": b1.tolist(), "w2": w2.tolist(), "b2": b2}
 
 
+def _softmax_loss(theta: np.ndarray, z: np.ndarray, c: np.ndarray, h: int, m: int, l2: float) -> tuple[float, np.ndarray]:
+    """Mean cross-entropy of a one-hidden-layer tanh network with ``m`` softmax outputs (class
+    indices ``c``) plus ridge penalty, and its gradient."""
+    n, d = z.shape
+    w1, b1 = theta[: h * d].reshape(h, d), theta[h * d: h * d + h]
+    w2, b2 = theta[h * d + h: h * d + h + h * m].reshape(m, h), theta[-m:]
+    hidden = np.tanh(z @ w1.T + b1)
+    scores = hidden @ w2.T + b2
+    scores -= scores.max(axis=1, keepdims=True)
+    p = np.exp(scores)
+    p /= p.sum(axis=1, keepdims=True)
+    rows = np.arange(n)
+    loss = float(-np.mean(np.log(p[rows, c] + 1e-300)) + l2 * (np.sum(w1**2) + np.sum(w2**2)))
+    ds = p
+    ds[rows, c] -= 1.0
+    ds /= n
+    dhidden = (ds @ w2) * (1.0 - hidden**2)
+    grad = np.concatenate([(dhidden.T @ z + 2 * l2 * w1).ravel(), dhidden.sum(axis=0), (ds.T @ hidden + 2 * l2 * w2).ravel(), ds.sum(axis=0)])
+    return loss, grad
+
+
+HYSTERESIS_HIDDEN_UNITS = 24  # the hysteresis network's hidden layer (it has 2 x bins outputs)
+
+
+def fit_hysteresis(records: Sequence[Record], section: Mapping[str, Any], seed: int) -> dict[str, Any]:
+    """The network that reads an impact's class and its support's hysteresis bin together
+    (tail_beam_id.hysteresis), on the drawn supports' impacts identified knowing their support
+    (what a self-calibrated identifier sees) with every signal: standardised like the
+    statistical models, its temperature fitted on held-out impacts (each on a support no
+    training impact struck) with their support's true bin."""
+    edges = [float(e) for e in section["bin_edges"]]
+    names = feature_list(SIGNAL_ORDER)
+    usable = [r for r in records if r.calibrated and r.scene_set in DRAWN_SETS and r.hysteresis_latent is not None
+              and set(SIGNAL_ORDER) <= set(signals_of(r.label.features))]
+    if len(usable) < 200:
+        raise SystemExit(f"training: {len(usable)} drawn-support records carry their hysteresis (200 needed): "
+                         "simulate afresh (delete the --cache file)")
+    base = np.array([base_vector(r.label.features, names) for r in usable])
+    k = len(edges) + 1
+    bins = np.array([latent_bin(r.hysteresis_latent, edges) for r in usable])
+    classes = np.array([int(r.is_coal) for r in usable]) * k + bins
+    held = np.array([r.index % 4 == 0 for r in usable])  # a quarter of the supports, kept aside
+    envelope = np.percentile(base[~held], ENVELOPE_PERCENTILES, axis=0)
+    x = np.clip(base, envelope[0], envelope[1])
+    mean, scale = x[~held].mean(axis=0), x[~held].std(axis=0) + 1e-9
+    z = (x - mean) / scale
+    h, m, d = HYSTERESIS_HIDDEN_UNITS, 2 * k, z.shape[1]
+    rng = np.random.default_rng(seed)
+    theta = np.concatenate([rng.normal(0.0, 1.0 / math.sqrt(d), h * d), np.zeros(h), rng.normal(0.0, 0.1, h * m), np.zeros(m)])
+    result = minimize(_softmax_loss, theta, args=(z[~held], classes[~held], h, m, L2_PENALTY), jac=True, method="L-BFGS-B",
+                      options={"maxiter": 3000})
+    t = result.x
+    model = {
+        "features": [[n, f] for n, f in names], "mean": mean.tolist(), "scale": scale.tolist(), "envelope": envelope.tolist(),
+        "w1": t[: h * d].reshape(h, d).tolist(), "b1": t[h * d: h * d + h].tolist(),
+        "w2": t[h * d + h: h * d + h + h * m].reshape(m, h).tolist(), "b2": t[-m:].tolist(),
+        "prior": (np.bincount(classes[~held], minlength=m) / int((~held).sum())).tolist(),
+        "bin_edges": edges, "reference_restitution": float(section["reference_restitution"]),
+        "trained_on": int((~held).sum()), "calibrated_on": int(held.sum()),
+    }
+    joint = joint_probabilities(model, z[held])
+    logits = np.array([bin_logits(row)[b] for row, b in zip(joint, bins[held])])
+    model["temperature"] = fit_temperature(logits, (classes[held] >= k).astype(float))
+    return model
+
+
 def fit_temperature(logits: np.ndarray, y: np.ndarray) -> float:
     """The temperature T that makes sigmoid(logit / T) best calibrated on held-out impacts."""
     def loss(log_t: float) -> float:
@@ -132,7 +199,7 @@ def fit_size_temperature(logits: np.ndarray, y: np.ndarray, log_size: np.ndarray
     return math.exp(log_t), slope
 
 
-def train_statistical(records: Sequence[Record], seed: int) -> dict[str, Any]:
+def train_statistical(records: Sequence[Record], seed: int, hysteresis: Mapping[str, Any]) -> dict[str, Any]:
     """The statistical method's two families of models: ``subsets`` from the records identified
     with the nominal config/, ``calibrated_subsets`` from those identified on a known profile:
     the drawn supports' records identified knowing their support, and the nominal support's
@@ -142,6 +209,7 @@ def train_statistical(records: Sequence[Record], seed: int) -> dict[str, Any]:
     return {
         "subsets": train_family([r for r in records if not r.calibrated], seed),
         "calibrated_subsets": train_family([r for r in records if r.calibrated or r.scene_set not in DRAWN_SETS], seed),
+        "hysteresis": fit_hysteresis(records, hysteresis, seed),
     }
 
 
@@ -307,7 +375,7 @@ def timing_table(records: Sequence[Record], vibration: bool = False) -> list[dic
     return table
 
 
-CACHE_FORMAT = "tail_beam training records 2"  # 2: the accelerometer fed (vibration_channel)
+CACHE_FORMAT = "tail_beam training records 3"  # 2: the accelerometer fed (vibration_channel); 3: hysteresis_latent
 
 
 def save_cache(path: Path, records: Sequence[Record], paper: Sequence[Record]) -> None:
@@ -379,7 +447,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     paper_provenance = {"training_seed": seed + 1, "impacts": paper_count, "records": len(paper), "scene_set": "paper"}
     outputs = {
         "threshold": {**train_threshold(paper), "provenance": paper_provenance},
-        "statistical": {**train_statistical(records + paper, seed), "provenance": [provenance, paper_provenance]},
+        "statistical": {**train_statistical(records + paper, seed, params["identification"]["statistical"]["hysteresis"]), "provenance": [provenance, paper_provenance]},
         "physics": {"duration_ratio": duration_ratio_table(params), "timing": timing_table(records),
                     "timing_vibration": timing_table(records, vibration=True), "provenance": provenance},
     }

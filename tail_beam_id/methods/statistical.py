@@ -21,6 +21,12 @@ delay tells apart: its impacts are decided by twins of the models trained withou
 (``WITHOUT_DELAY``). Between that and the training's reference camera the decision is averaged
 over the lag the camera may have added (``_lag_rows``).
 
+On a support whose profile carries its contact hysteresis (``calibration.hysteresis_weights``,
+read by self-calibration from the recording's impacts: tail_beam_id.hysteresis), an impact with
+every signal has its logit moved by what knowing the support's hysteresis says
+(``hysteresis_shift`` in its features): the same rebound means coal on one support and mudstone
+on another, which no single impact tells.
+
 Why logarithms: the physics is a product of powers (moment impulse = m v0 (1 + e) x,
 contact duration ~ R (rho / E*)^0.4 v0^-0.2, rebound speed = e v0), so the material shows as a
 near-linear combination of the logs; the pairwise products let the model bend the boundary
@@ -35,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_id.hysteresis import hysteresis_shift, joint_inputs
 from tail_beam_id.methods import Decision, cap_confidence, sigmoid
 from tail_beam_id.timing import UNUSUAL
 from tail_beam_sim.errors import InputError, require_range, require_section
@@ -54,6 +61,7 @@ JOINT_FEATURES: dict[tuple[str, str], tuple[tuple[str, float | None], ...]] = {
     ("imu", "rebound_velocity"): (("rebound_delay_s", 5e-5),),
 }
 SIGNAL_ORDER = ("jack_pressure", "imu", "rebound_velocity")
+FULL_KEY = "+".join(SIGNAL_ORDER)  # the model of every signal: the one the support's hysteresis refines
 # The key suffix of a model fitted without the rebound delay, for a camera slower than any the
 # training drew: its lag (up to a frame) then swamps the contact duration the delay carries.
 WITHOUT_DELAY = "~without_delay"
@@ -137,7 +145,9 @@ class StatisticalMethod:
     def __init__(self, subsets: Mapping[str, Mapping[str, Any]], outside_confidence_cap: float,
                  calibrated_subsets: Mapping[str, Mapping[str, Any]] | None = None,
                  reference_frame_period_s: float = 1.0 / 5000.0,
-                 slowest_delay_frame_period_s: float = 1.0 / 2000.0) -> None:
+                 slowest_delay_frame_period_s: float = 1.0 / 2000.0,
+                 hysteresis: Mapping[str, Any] | None = None,
+                 hysteresis_weights: Sequence[float] | None = None) -> None:
         self.subsets = subsets
         self.calibrated_subsets = calibrated_subsets or {}
         self.outside_confidence_cap = outside_confidence_cap
@@ -145,6 +155,10 @@ class StatisticalMethod:
         # A camera frame longer than this (s) is decided without the rebound delay, where a model
         # without it was trained.
         self.slowest_delay_frame_period_s = slowest_delay_frame_period_s
+        # The network reading an impact's class with its support's hysteresis, and the support's
+        # bins' weights from its profile (tail_beam_id.hysteresis); None: decided without them.
+        self.hysteresis = hysteresis
+        self.hysteresis_weights = None if hysteresis is None or hysteresis_weights is None else list(hysteresis_weights)
 
     @classmethod
     def from_model(cls, model: Mapping[str, Any], params: Mapping[str, Any]) -> StatisticalMethod:
@@ -161,7 +175,9 @@ class StatisticalMethod:
                              section.get("reference_camera_frame_rate_hz", 5000.0), 0.0, 1e6, low_open=True, unit="Hz")
         slowest = require_range("identification.statistical.slowest_delay_camera_frame_rate_hz",
                                 section.get("slowest_delay_camera_frame_rate_hz", 2000.0), 0.0, 1e6, low_open=True, unit="Hz")
-        return cls(model["subsets"], cap, model.get("calibrated_subsets"), 1.0 / rate, 1.0 / slowest)
+        hysteresis = model.get("hysteresis")
+        weights = _profile_weights((params.get("calibration") or {}).get("hysteresis_weights"), hysteresis)
+        return cls(model["subsets"], cap, model.get("calibrated_subsets"), 1.0 / rate, 1.0 / slowest, hysteresis, weights)
 
     def decide(self, features: Mapping[str, float]) -> Decision:
         """P(coal) from the model of the signals there are; on a calibrated support (a measured
@@ -191,6 +207,14 @@ class StatisticalMethod:
         if outside:
             p_coal = cap_confidence(p_coal, self.outside_confidence_cap)
         estimates = {"logit": float(logit)}
+        if (self.hysteresis_weights is not None and family is self.calibrated_subsets and key == FULL_KEY
+                and len(rows) == 1 and not outside):
+            z_joint = joint_inputs(self.hysteresis, features)
+            if z_joint is not None:
+                # The support's hysteresis known from its recording moves the logit.
+                shift = hysteresis_shift(self.hysteresis, z_joint, self.hysteresis_weights)
+                estimates = {"logit": float(logit) + shift, "hysteresis_shift": shift}
+                p_coal = sigmoid(float(logit) + shift)
         if "rebound_delay_s" in dict(names) and "imu_period_s" in features:
             # The lag-corrected row (the middle lag) is the impact as the training's camera saw it.
             estimates.update(delay_check(model, names, z[len(rows) // 2], float(features["imu_period_s"])))
@@ -225,6 +249,23 @@ class StatisticalMethod:
         rows = np.repeat(x[None, :], LAG_ROWS, axis=0)
         rows[:, column] = np.log(np.maximum(delays, floor))
         return rows
+
+
+def _profile_weights(weights: Any, hysteresis: Mapping[str, Any] | None) -> list[float] | None:
+    """A profile's ``calibration.hysteresis_weights``, checked against the model's bins: one
+    finite non-negative weight per bin, summing to 1; None when the profile has none."""
+    if weights is None:
+        return None
+    field = "calibration.hysteresis_weights"
+    if hysteresis is None:
+        raise InputError(field, weights, "needs a statistical model with a hysteresis network: retrain (python -m tail_beam_id.training)")
+    bins = len(hysteresis["bin_edges"]) + 1
+    if (not isinstance(weights, Sequence) or isinstance(weights, str) or len(weights) != bins
+            or not all(isinstance(w, (int, float)) and not isinstance(w, bool) and math.isfinite(w) and w >= 0.0 for w in weights)
+            or abs(sum(weights) - 1.0) > 1e-3):
+        raise InputError(field, weights, f"must be {bins} non-negative weights summing to 1 (one per hysteresis bin of the "
+                                         "models): calibrate again (tail-beam calibrate) with these models")
+    return [float(w) for w in weights]
 
 
 def delay_design(z: np.ndarray, column: int) -> np.ndarray:

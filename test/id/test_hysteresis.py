@@ -1,0 +1,103 @@
+"""The support's contact hysteresis read from a recording (tail_beam_id.hysteresis): the latent's
+definition, the bins' weights from a recording's impacts (mix-invariant, unsure when the
+impacts cannot tell), and the profile's weights checked by name."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tail_beam_id.hysteresis import hysteresis_latent, hysteresis_shift, latent_bin, support_weights
+from tail_beam_id.methods import load_model
+from tail_beam_id.methods.statistical import StatisticalMethod
+from tail_beam_sim.errors import InputError
+
+
+def test_the_latent_is_zero_for_the_calibrated_law_and_follows_the_scale():
+    """The calibrated law as published is the reference (u = 0); a support's scale on chi adds
+    its log; Hunt-Crossley's chi = 3 (1 - e) / 2 (1 - 0.35 -> 0.975) over the calibrated one's."""
+    from tail_beam_sim.physics.contact import calibrated_chi
+
+    assert hysteresis_latent("calibrated", 1.0, 0.35) == pytest.approx(0.0, abs=1e-12)
+    assert hysteresis_latent("calibrated", 2.0, 0.35) == pytest.approx(math.log(2.0), rel=1e-12)
+    assert hysteresis_latent("hunt_crossley", 1.0, 0.35) == pytest.approx(math.log(0.975 / float(calibrated_chi(0.35))), rel=1e-9)
+    # Hunt-Crossley under-damps a low restitution (its formula holds near e = 1): u < 0.
+    assert hysteresis_latent("hunt_crossley", 1.0, 0.35) < -0.6
+    assert [latent_bin(u, [-1.0, 0.0, 1.0]) for u in (-2.0, -1.0, -0.5, 0.0, 0.5, 2.0)] == [0, 1, 1, 2, 2, 3]
+
+
+def _gaussian_joint(x: np.ndarray, means: dict[tuple[int, int], float], sigma: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """Joint posteriors (N, 4) of a two-bin model with 1-D Gaussian classes of equal training
+    shares (gangue b0, gangue b1, coal b0, coal b1) and that prior."""
+    order = [(0, 0), (0, 1), (1, 0), (1, 1)]  # (is coal, bin)
+    density = np.stack([np.exp(-0.5 * ((x - means[key]) / sigma) ** 2) for key in order], axis=1)
+    joint = density / density.sum(axis=1, keepdims=True)
+    return joint, np.full(4, 0.25)
+
+
+MEANS = {(0, 0): -2.0, (1, 0): 0.0, (0, 1): 0.0, (1, 1): 2.0}  # bin 1's classes sit 2 higher: bin 0's coal is bin 1's gangue
+
+
+def test_a_mixed_recording_names_its_bin_whatever_its_coal_share():
+    """Impacts of bin 0 name bin 0 whether the face dropped 20 % or 80 % coal: each bin's coal
+    share is fitted, so a skewed mix does not pass for the other hysteresis."""
+    rng = np.random.default_rng(1)
+    for coal_share in (0.2, 0.8):
+        coal = rng.uniform(size=40) < coal_share
+        x = np.where(coal, MEANS[(1, 0)], MEANS[(0, 0)]) + rng.normal(0.0, 0.5, 40)
+        joint, prior = _gaussian_joint(x, MEANS)
+        weights = support_weights(joint, prior)
+        assert weights[0] > 0.99, (coal_share, weights)
+
+
+def test_a_recording_that_cannot_tell_the_bins_apart_stays_unsure():
+    """Bin 0's coal and bin 1's gangue look alike: a recording of them alone (all coal of one
+    support, or all rock of the other) fits both bins, and the weights stay near even instead of
+    naming one (a confident wrong bin would move every label)."""
+    rng = np.random.default_rng(2)
+    x = MEANS[(1, 0)] + rng.normal(0.0, 0.5, 30)
+    joint, prior = _gaussian_joint(x, MEANS)
+    weights = support_weights(joint, prior)
+    assert 0.3 < weights[0] < 0.7, weights
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model("statistical")
+
+
+def test_the_shift_is_nothing_when_the_support_says_what_the_impact_says(model):
+    """Weighing the bins as the impact alone does adds nothing to its logit; weighing them
+    otherwise moves it (both ways across the bins)."""
+    hysteresis = model["hysteresis"]
+    rng = np.random.default_rng(3)
+    z = rng.normal(0.0, 1.0, len(hysteresis["features"]))
+    from tail_beam_id.hysteresis import joint_probabilities
+
+    joint = joint_probabilities(hysteresis, z[None, :])[0]
+    k = joint.size // 2
+    alone = (joint[:k] + joint[k:]) / (joint[:k] + joint[k:]).sum()
+    assert hysteresis_shift(hysteresis, z, alone) == pytest.approx(0.0, abs=1e-9)
+    shifts = [hysteresis_shift(hysteresis, z, np.eye(k)[b]) for b in range(k)]
+    assert max(shifts) - min(shifts) > 0.1
+
+
+@pytest.mark.parametrize("weights", [[0.5, 0.5], [1.2, -0.2, 0.0, 0.0, 0.0], [0.2] * 4 + [0.3], ["a"] * 5, [math.nan] + [0.25] * 4])
+def test_a_profiles_weights_are_checked_by_name(params, model, weights):
+    """A profile whose hysteresis weights are not one non-negative weight per bin of the models,
+    summing to 1, is refused naming calibration.hysteresis_weights (a profile made with other
+    models would weigh the wrong bins)."""
+    with pytest.raises(InputError, match=r"calibration\.hysteresis_weights"):
+        StatisticalMethod.from_model(model, {**params, "calibration": {"hysteresis_weights": weights}})
+
+
+def test_a_profiles_weights_reach_the_method(params, model):
+    """Weights that fit are taken as the profile gives them."""
+    k = len(model["hysteresis"]["bin_edges"]) + 1
+    weights = [0.0] * k
+    weights[1] = 1.0
+    method = StatisticalMethod.from_model(model, {**params, "calibration": {"hysteresis_weights": weights}})
+    assert method.hysteresis_weights == weights
+    assert StatisticalMethod.from_model(model, params).hysteresis_weights is None
