@@ -74,7 +74,7 @@ def run_set(
     nominal_scale = float(params["support"].get("contact_damping_scale", 1.0))
     for impact in simulate_set(params, scene_set, count, seed, chosen, tier):
         latent = (hysteresis_latent(impact.support.contact_model, float(impact.support.values.get("contact_damping_scale", 1.0)), reference)
-                  if impact.support is not None else hysteresis_latent(impact.law, nominal_scale, reference))
+                  if impact.support is not None else hysteresis_latent(impact.contact_model, nominal_scale, reference))
         model_params = params
         if true_profile and impact.support is not None:
             model_params = impact.support.apply(params)

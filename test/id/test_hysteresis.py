@@ -101,3 +101,25 @@ def test_a_profiles_weights_reach_the_method(params, model):
     method = StatisticalMethod.from_model(model, {**params, "calibration": {"hysteresis_weights": weights}})
     assert method.hysteresis_weights == weights
     assert StatisticalMethod.from_model(model, params).hysteresis_weights is None
+
+
+def test_training_records_carry_their_supports_latent(params):
+    """What the hysteresis network learns from: a nominal stream impact's support is config/'s
+    (calibrated law as published: u = 0), a drawn one's is its own law and scale's, and a
+    mismatch impact's its law's."""
+    from tail_beam_id.dataset import draw_commands, settings
+    from tail_beam_id.runs import run_set
+
+    shipped = settings(params, [1.0], ["shipped"])
+    reference = params["identification"]["statistical"]["hysteresis"]["reference_restitution"]
+    (nominal,) = [r for r in run_set(params, "stream", 1, 5, shipped, ["statistical"])]
+    assert nominal.hysteresis_latent == 0.0
+    drawn = list(run_set(params, "varied", 1, 5, shipped, ["statistical"]))
+    from tail_beam_id.dataset import simulate_set
+
+    (impact,) = list(simulate_set(params, "varied", 1, 5, shipped))
+    expected = hysteresis_latent(impact.support.contact_model, impact.support.values["contact_damping_scale"], reference)
+    assert drawn and all(r.hysteresis_latent == pytest.approx(expected, rel=1e-12) for r in drawn)
+    (_, _, law), = list(draw_commands(params, "mismatch", 1, 5))
+    (mismatch,) = [r for r in run_set(params, "mismatch", 1, 5, shipped, ["statistical"])]
+    assert mismatch.hysteresis_latent == pytest.approx(hysteresis_latent(law, 1.0, reference), rel=1e-12)

@@ -89,3 +89,21 @@ def test_the_worker_thread_gives_the_same_profile(params, recorded, calibrated_r
         gated.tick(1e3, {}, VibrationBlocks.empty(), [])
         time.sleep(0.05)
     assert gated.calibration.result.profile == calibrated_run[1].calibration.result.profile
+
+
+def test_online_calibration_hands_the_supports_hysteresis_to_the_method(params, recorded, calibrated_run):
+    """The hysteresis a learned window reads reaches the identifier's statistical method with the
+    rest of the profile, the log says it, and the three-signal labels after the window say how
+    far it moved them, none before it; a window with fewer impacts than it needs (3 s: 7 of
+    the 8 of identification.statistical.hysteresis.min_impacts) leaves it out and says so."""
+    _, short = calibrated_run
+    assert short.calibration.result.profile.hysteresis_weights is None
+    assert any("hysteresis not read (7 impacts" in note for note in short.notes)
+    labels, gated = run(params, recorded, OnlineCalibration(params, 5.0, "statistical", background=False))
+    profile = gated.calibration.result.profile
+    assert profile.hysteresis_weights is not None and profile.hysteresis_impacts >= 8
+    assert gated.identifier.method.hysteresis_weights == profile.hysteresis_weights
+    assert any("hysteresis u in" in note for note in gated.notes)
+    after = [l for l in labels if l.calibrated and set(l.signals) == {"jack_pressure", "imu", "rebound_velocity"}]
+    assert after and all("hysteresis_shift" in l.features for l in after)
+    assert not any("hysteresis_shift" in l.features for l in labels if not l.calibrated)

@@ -161,17 +161,21 @@ def test_id_node_takes_a_support_profiles_calibration_section():
     """A profile written by `tail-beam calibrate` holds a `calibration` section that no config/
     default declares: rclpy dropped it, so id_node with `--params-file profile.yaml` decided as
     uncalibrated while `tail-beam identify --config profile.yaml` decided as calibrated. id_node
-    now takes that section (and does not warn of it), so its labels say calibrated: true."""
+    now takes that section (and does not warn of it), so its labels say calibrated: true, and
+    the support's hysteresis the profile read reaches the statistical method."""
     from tail_beam_id.id_node import IdNode
 
+    weights = [0.0, 0.9, 0.1, 0.0, 0.0]
     overrides = [Parameter("calibration.rigid_mode_frequency_hz", value=38.1), Parameter("calibration.impacts_used", value=16),
                  Parameter("calibration.ringing_modes_hz", value=[399.6, 1268.4]),
+                 Parameter("calibration.hysteresis_weights", value=weights),
                  Parameter("support.oil_bulk_modulus_pa", value=2.01e9)]
     with ros_context() as (context, _):
         node = IdNode(context=context, parameter_overrides=overrides)
         try:
             assert node.gated.identifier.calibrated
             assert node.get_parameter("calibration.ringing_modes_hz").value == [399.6, 1268.4]
+            assert node.gated.identifier.method.hysteresis_weights == weights
         finally:
             node.destroy_node()
         plain = IdNode(context=context)
