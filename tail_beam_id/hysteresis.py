@@ -124,7 +124,7 @@ def recording_weights(model: Mapping[str, Any], features: Sequence[Mapping[str, 
 
 
 def describe(weights: Sequence[float] | None, impacts: int, bin_edges: Sequence[float]) -> str:
-    """The support's hysteresis in a few words ('hysteresis u in [-1.2, -0.6) (0.97), 18 impacts')."""
+    """The support's hysteresis in a few words ('hysteresis u in [-1, -0.5) (0.97), 18 impacts')."""
     if weights is None:
         return f"hysteresis not read ({impacts} impacts with every signal, too few)"
     best = int(np.argmax(weights))

@@ -84,7 +84,7 @@ def test_the_shift_is_nothing_when_the_support_says_what_the_impact_says(model):
     assert max(shifts) - min(shifts) > 0.1
 
 
-@pytest.mark.parametrize("weights", [[0.5, 0.5], [1.2, -0.2, 0.0, 0.0, 0.0], [0.2] * 4 + [0.3], ["a"] * 5, [math.nan] + [0.25] * 4])
+@pytest.mark.parametrize("weights", [[0.5, 0.5], [1.2, -0.2, 0.0, 0.0, 0.0, 0.0], [0.2] * 5 + [0.3], ["a"] * 6, [math.nan] + [0.2] * 5])
 def test_a_profiles_weights_are_checked_by_name(params, model, weights):
     """A profile whose hysteresis weights are not one non-negative weight per bin of the models,
     summing to 1, is refused naming calibration.hysteresis_weights (a profile made with other

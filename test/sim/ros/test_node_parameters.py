@@ -165,7 +165,7 @@ def test_id_node_takes_a_support_profiles_calibration_section():
     the support's hysteresis the profile read reaches the statistical method."""
     from tail_beam_id.id_node import IdNode
 
-    weights = [0.0, 0.9, 0.1, 0.0, 0.0]
+    weights = [0.0, 0.9, 0.1, 0.0, 0.0, 0.0]  # one per hysteresis bin of the shipped model
     overrides = [Parameter("calibration.rigid_mode_frequency_hz", value=38.1), Parameter("calibration.impacts_used", value=16),
                  Parameter("calibration.ringing_modes_hz", value=[399.6, 1268.4]),
                  Parameter("calibration.hysteresis_weights", value=weights),
