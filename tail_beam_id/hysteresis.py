@@ -14,8 +14,11 @@ drawn supports gives, for each impact, the joint probability of its class (gangu
 its support's bin. Over a recording's impacts the bins' likelihoods are summed, each with the
 coal share that fits it best (so a face that drops mostly coal or mostly rock does not pass
 for another hysteresis: Saerens et al. 2002's prior adjustment), and their posterior weights go
-into the support profile (``calibration.hysteresis_weights``). An impact is then decided by
-the network's coal probability in each bin, weighted by the support's.
+into the support profile (``calibration.hysteresis_weights``). The statistical method then
+moves an impact's logit by what the support's weights say against what the impact alone
+suggests (:func:`hysteresis_shift`): its own network stays the judge of the impact, and the
+joint network says only how knowing the support changes that (deciding by the joint network
+alone scored the foreign paper scene 96.0 % against 98.5 %, and the stream 89.0 % against 90.5 %).
 
 Pure numpy: no ROS. The network is fitted by tail_beam_id.training.fit_hysteresis.
 """
