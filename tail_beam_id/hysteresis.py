@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_id.methods.inputs import base_vector
 from tail_beam_sim.physics.contact import calibrated_chi, damping_factor
 
 EM_ITERATIONS = 100  # iterations of the coal share's fit in each bin
@@ -51,13 +52,10 @@ def latent_bin(latent: float, bin_edges: Sequence[float]) -> int:
 def joint_inputs(model: Mapping[str, Any], features: Mapping[str, float]) -> np.ndarray | None:
     """The network's standardised inputs for one impact's features, or None when one is
     missing or any lies outside the training envelope (the impact then gives no evidence)."""
-    x = []
-    for name, floor in model["features"]:
-        if name not in features:
-            return None
-        value = float(features[name])
-        x.append(value if floor is None else math.log(max(value, floor)))
-    row = np.array(x)
+    names = [(name, floor) for name, floor in model["features"]]
+    if any(name not in features for name, _ in names):
+        return None
+    row = base_vector(features, names)
     low, high = (np.array(v) for v in model["envelope"])
     if not np.all((row >= low) & (row <= high)):
         return None

@@ -43,6 +43,7 @@ import numpy as np
 
 from tail_beam_id.hysteresis import hysteresis_shift, joint_inputs
 from tail_beam_id.methods import Decision, cap_confidence, sigmoid
+from tail_beam_id.methods.inputs import base_vector
 from tail_beam_id.timing import UNUSUAL
 from tail_beam_sim.errors import InputError, require_range, require_section
 
@@ -124,15 +125,6 @@ def feature_list(signals: Sequence[str], delay: bool = True) -> list[tuple[str, 
         if all(s in signals for s in pair):
             chosen += list(extra)
     return chosen if delay else [f for f in chosen if f[0] != "rebound_delay_s"]
-
-
-def base_vector(features: Mapping[str, float], names: Sequence[tuple[str, float | None]]) -> np.ndarray:
-    """The model's inputs before expansion: logs of the clipped magnitudes, raw signs."""
-    values = []
-    for name, floor in names:
-        value = float(features[name])
-        values.append(value if floor is None else math.log(max(value, floor)))
-    return np.array(values)
 
 
 class StatisticalMethod:
