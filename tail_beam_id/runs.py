@@ -10,7 +10,6 @@ from typing import Any
 
 
 from tail_beam_id.dataset import FOREIGN_SCENES, Setting, SupportStream, simulate_set, support_streams
-from tail_beam_id.hysteresis import hysteresis_latent
 from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_id.label import Label, match, match_tolerance_s
 from tail_beam_id.replay import replay
@@ -39,9 +38,10 @@ class Record:
     wall_s: float
     calibrated: bool = False  # identified with the support's own profile instead of config/
     support: int | None = None  # a foreign set's support number (None: single impacts)
-    # The struck support's contact hysteresis latent (tail_beam_id.hysteresis; training learns
-    # to read it from a recording), None where it was not recorded.
-    hysteresis_latent: float | None = None
+    # The struck support's contact law and the factor on its hysteresis (support.contact_damping_scale):
+    # what training's hysteresis network learns to read from a recording (tail_beam_id.hysteresis).
+    contact_model: str | None = None
+    contact_damping_scale: float | None = None
 
     @property
     def correct(self) -> bool:
@@ -70,11 +70,10 @@ def run_set(
     tolerance_s = match_tolerance_s(params["identification"])
     built: dict[str, Any] = {}
     sections = [dict(params["identification"])] + [with_window(params["identification"], w) for w in windows_s]
-    reference = float(params["identification"]["statistical"]["hysteresis"]["reference_restitution"])
     nominal_scale = float(params["support"].get("contact_damping_scale", 1.0))
     for impact in simulate_set(params, scene_set, count, seed, chosen, tier):
-        latent = (hysteresis_latent(impact.support.contact_model, float(impact.support.values.get("contact_damping_scale", 1.0)), reference)
-                  if impact.support is not None else hysteresis_latent(impact.contact_model, nominal_scale, reference))
+        law, scale = ((impact.support.contact_model, float(impact.support.values.get("contact_damping_scale", 1.0)))
+                      if impact.support is not None else (impact.contact_model, nominal_scale))
         model_params = params
         if true_profile and impact.support is not None:
             model_params = impact.support.apply(params)
@@ -98,7 +97,7 @@ def run_set(
                         contact_stamp_s=result.contact_stamp_s,
                         duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
                         label=None if paired is None else labels[paired], extra_labels=len(matching.extra), wall_s=wall, calibrated=identifier.calibrated,
-                        hysteresis_latent=latent,
+                        contact_model=law, contact_damping_scale=scale,
                     )
 
 

@@ -27,7 +27,7 @@ from scipy.optimize import minimize, minimize_scalar
 
 from tail_beam_id.dataset import DRAWN_SETS, evaluation_params, settings
 from tail_beam_id.features import VIBRATION_CHANNEL
-from tail_beam_id.hysteresis import bin_logits, joint_probabilities, latent_bin
+from tail_beam_id.hysteresis import bin_logits, hysteresis_latent, joint_probabilities, latent_bin
 from tail_beam_id.methods import MODELS_DIR
 from tail_beam_id.methods.statistical import (
     SIGNAL_ORDER, WITHOUT_DELAY, base_vector, delay_design, feature_list, network_logit, signals_of, size_feature, subset_key,
@@ -35,6 +35,7 @@ from tail_beam_id.methods.statistical import (
 from tail_beam_id.label import Label
 from tail_beam_id.runs import Record, run_set
 from tail_beam_sim.config import load_parameters
+from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.contact import hertz_elastic_impact, hertz_stiffness
 from tail_beam_sim.physics.scene import Impact
 from tail_beam_sim.physics.simulate import build_problem
@@ -105,12 +106,17 @@ def fit_network(z: np.ndarray, y: np.ndarray, seed: int, hidden: int = HIDDEN_UN
     return {"w1": w1.tolist(), "b1": b1.tolist(), "w2": w2.tolist(), "b2": b2}
 
 
+def _softmax_unpack(theta: np.ndarray, d: int, h: int, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(w1 h x d, b1 h, w2 m x h, b2 m) of a softmax network's flat parameters."""
+    return (theta[: h * d].reshape(h, d), theta[h * d: h * d + h],
+            theta[h * d + h: h * d + h + h * m].reshape(m, h), theta[h * d + h + h * m:])
+
+
 def _softmax_loss(theta: np.ndarray, z: np.ndarray, c: np.ndarray, h: int, m: int, l2: float) -> tuple[float, np.ndarray]:
     """Mean cross-entropy of a one-hidden-layer tanh network with ``m`` softmax outputs (class
     indices ``c``) plus ridge penalty, and its gradient."""
     n, d = z.shape
-    w1, b1 = theta[: h * d].reshape(h, d), theta[h * d: h * d + h]
-    w2, b2 = theta[h * d + h: h * d + h + h * m].reshape(m, h), theta[-m:]
+    w1, b1, w2, b2 = _softmax_unpack(theta, d, h, m)
     hidden = np.tanh(z @ w1.T + b1)
     scores = hidden @ w2.T + b2
     scores -= scores.max(axis=1, keepdims=True)
@@ -129,22 +135,36 @@ def _softmax_loss(theta: np.ndarray, z: np.ndarray, c: np.ndarray, h: int, m: in
 HYSTERESIS_HIDDEN_UNITS = 24  # the hysteresis network's hidden layer (it has 2 x bins outputs)
 
 
+def hysteresis_section(section: Mapping[str, Any]) -> tuple[list[float], float]:
+    """(bin_edges, reference_restitution) of ``identification.statistical.hysteresis``, checked:
+    edges finite and strictly increasing, the restitution in (0, 0.999]."""
+    field = "identification.statistical.hysteresis"
+    edges = section.get("bin_edges")
+    if (not isinstance(edges, (list, tuple)) or not edges
+            or not all(isinstance(e, (int, float)) and not isinstance(e, bool) and math.isfinite(e) for e in edges)
+            or any(b <= a for a, b in zip(edges, edges[1:]))):
+        raise InputError(f"{field}.bin_edges", edges, "must be a non-empty list of finite numbers, strictly increasing")
+    # A restitution of 1 has no hysteresis (chi 0), so the latent's log needs it below 1.
+    reference = require_range(f"{field}.reference_restitution", section.get("reference_restitution"), 0.0, 0.999, low_open=True)
+    return [float(e) for e in edges], float(reference)
+
+
 def fit_hysteresis(records: Sequence[Record], section: Mapping[str, Any], seed: int) -> dict[str, Any]:
     """The network that reads an impact's class and its support's hysteresis bin together
     (tail_beam_id.hysteresis), on the drawn supports' impacts identified knowing their support
     (what a self-calibrated identifier sees) with every signal: standardised like the
     statistical models, its temperature fitted on held-out impacts (each on a support no
     training impact struck) with their support's true bin."""
-    edges = [float(e) for e in section["bin_edges"]]
+    edges, reference = hysteresis_section(section)
     names = feature_list(SIGNAL_ORDER)
-    usable = [r for r in records if r.calibrated and r.scene_set in DRAWN_SETS and r.hysteresis_latent is not None
+    usable = [r for r in records if r.calibrated and r.scene_set in DRAWN_SETS and r.contact_model is not None
               and set(SIGNAL_ORDER) <= set(signals_of(r.label.features))]
     if len(usable) < 200:
-        raise SystemExit(f"training: {len(usable)} drawn-support records carry their hysteresis (200 needed): "
+        raise SystemExit(f"training: {len(usable)} drawn-support records carry their contact law (200 needed): "
                          "simulate afresh (delete the --cache file)")
     base = np.array([base_vector(r.label.features, names) for r in usable])
     k = len(edges) + 1
-    bins = np.array([latent_bin(r.hysteresis_latent, edges) for r in usable])
+    bins = np.array([latent_bin(hysteresis_latent(r.contact_model, r.contact_damping_scale, reference), edges) for r in usable])
     classes = np.array([int(r.is_coal) for r in usable]) * k + bins
     held = np.array([r.index % 4 == 0 for r in usable])  # a quarter of the supports, kept aside
     envelope = np.percentile(base[~held], ENVELOPE_PERCENTILES, axis=0)
@@ -156,13 +176,12 @@ def fit_hysteresis(records: Sequence[Record], section: Mapping[str, Any], seed: 
     theta = np.concatenate([rng.normal(0.0, 1.0 / math.sqrt(d), h * d), np.zeros(h), rng.normal(0.0, 0.1, h * m), np.zeros(m)])
     result = minimize(_softmax_loss, theta, args=(z[~held], classes[~held], h, m, L2_PENALTY), jac=True, method="L-BFGS-B",
                       options={"maxiter": 3000})
-    t = result.x
+    w1, b1, w2, b2 = _softmax_unpack(result.x, d, h, m)
     model = {
         "features": [[n, f] for n, f in names], "mean": mean.tolist(), "scale": scale.tolist(), "envelope": envelope.tolist(),
-        "w1": t[: h * d].reshape(h, d).tolist(), "b1": t[h * d: h * d + h].tolist(),
-        "w2": t[h * d + h: h * d + h + h * m].reshape(m, h).tolist(), "b2": t[-m:].tolist(),
+        "w1": w1.tolist(), "b1": b1.tolist(), "w2": w2.tolist(), "b2": b2.tolist(),
         "prior": (np.bincount(classes[~held], minlength=m) / int((~held).sum())).tolist(),
-        "bin_edges": edges, "reference_restitution": float(section["reference_restitution"]),
+        "bin_edges": edges, "reference_restitution": reference,
         "trained_on": int((~held).sum()), "calibrated_on": int(held.sum()),
     }
     joint = joint_probabilities(model, z[held])
@@ -375,7 +394,7 @@ def timing_table(records: Sequence[Record], vibration: bool = False) -> list[dic
     return table
 
 
-CACHE_FORMAT = "tail_beam training records 3"  # 2: the accelerometer fed (vibration_channel); 3: hysteresis_latent
+CACHE_FORMAT = "tail_beam training records 4"  # 2: the accelerometer fed (vibration_channel); 4: each record's contact law and scale
 
 
 def save_cache(path: Path, records: Sequence[Record], paper: Sequence[Record]) -> None:

@@ -54,7 +54,6 @@ def main() -> int:
                for scene in ("paper", "stream")}
     print(f"{len(records)} training records, {args.supports} foreign supports x 2 scenes "
           f"(ready in {time.perf_counter() - started:.0f} s)", file=sys.stderr)
-    record_laws = _record_laws(params, records)
     tolerance = match_tolerance_s(params["identification"])
     base_model = load_model("statistical")
     laws = sorted({recorded.support.contact_model for recorded in streams["paper"]})
@@ -62,7 +61,7 @@ def main() -> int:
     print("| --- | --- | --- |")
     with tempfile.TemporaryDirectory() as folder:
         for law in laws:
-            kept = [r for r in records if record_laws.get((r.scene_set, r.index)) != law]
+            kept = [r for r in records if r.contact_model != law]
             model = {**base_model, "hysteresis": fit_hysteresis(kept, section, 7)}
             path = Path(folder) / f"statistical_without_{law}.json"
             path.write_text(json.dumps(model), encoding="utf-8")
@@ -91,28 +90,6 @@ def main() -> int:
             print(f"| {law} ({n // 20}) | {cells[0]} | {cells[1]} |", flush=True)
     print(f"\n({time.perf_counter() - started:.0f} s)", file=sys.stderr)
     return 0
-
-
-def _record_laws(params, records) -> dict[tuple[str, int], str]:
-    """Each drawn-support record's contact law, (scene set, index) -> law. Records keep their
-    support's latent, not its law; the draws are redone from training's seeds (draw i depends
-    only on the draws before it, so the training's count need not be known)."""
-    import numpy as np
-
-    from tail_beam_id.dataset import DRAWN_SETS, evaluation_params
-    from tail_beam_id.supports import draw_support, support_ranges
-
-    ev = evaluation_params(params)
-    seeds = {"varied": int(ev["training_seed"]) + 2, "varied_paper": int(ev["training_seed"]) + 3}
-    laws = {}
-    for scene_set, seed in seeds.items():
-        count = 1 + max((r.index for r in records if r.scene_set == scene_set), default=-1)
-        ranges = support_ranges(ev, DRAWN_SETS[scene_set])
-        support_rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
-        vibration_rng = np.random.default_rng(np.random.SeedSequence([seed, 3]))
-        for index in range(count):
-            laws[(scene_set, index)] = draw_support(ranges, support_rng, vibration_rng).contact_model
-    return laws
 
 
 def _identifier(params, recorded, model_path: str):

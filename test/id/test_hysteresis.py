@@ -40,9 +40,24 @@ def _gaussian_joint(x: np.ndarray, means: dict[tuple[int, int], float], sigma: f
 MEANS = {(0, 0): -2.0, (1, 0): 0.0, (0, 1): 0.0, (1, 1): 2.0}  # bin 1's classes sit 2 higher: bin 0's coal is bin 1's gangue
 
 
+def test_a_face_dropping_mostly_coal_is_not_read_as_another_hysteresis():
+    """Bin 0's classes at -1 (gangue) and +1 (coal), bin 1's at +0.5 and +1.5: a support of bin 0
+    whose face drops 90 % coal looks, at even shares, like bin 1's mix. With each bin's coal
+    share fitted bin 0 is named (median weight over 20 recordings of 40 impacts >= 0.95); with
+    the shares held at the training's even mix it was not (median 0.01)."""
+    means = {(0, 0): -1.0, (1, 0): 1.0, (0, 1): 0.5, (1, 1): 1.5}
+    named = []
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        coal = rng.uniform(size=40) < 0.9
+        x = np.where(coal, means[(1, 0)], means[(0, 0)]) + rng.normal(0.0, 0.6, 40)
+        joint, prior = _gaussian_joint(x, means, sigma=0.6)
+        named.append(support_weights(joint, prior)[0])
+    assert float(np.median(named)) >= 0.95, np.round(named, 2)
+
+
 def test_a_mixed_recording_names_its_bin_whatever_its_coal_share():
-    """Impacts of bin 0 name bin 0 whether the face dropped 20 % or 80 % coal: each bin's coal
-    share is fitted, so a skewed mix does not pass for the other hysteresis."""
+    """Impacts of bin 0 name bin 0 whether the face dropped 20 % or 80 % coal."""
     rng = np.random.default_rng(1)
     for coal_share in (0.2, 0.8):
         coal = rng.uniform(size=40) < coal_share
@@ -103,23 +118,35 @@ def test_a_profiles_weights_reach_the_method(params, model):
     assert StatisticalMethod.from_model(model, params).hysteresis_weights is None
 
 
-def test_training_records_carry_their_supports_latent(params):
+def test_training_records_carry_their_supports_law_and_scale(params):
     """What the hysteresis network learns from: a nominal stream impact's support is config/'s
-    (calibrated law as published: u = 0), a drawn one's is its own law and scale's, and a
-    mismatch impact's its law's."""
-    from tail_beam_id.dataset import draw_commands, settings
+    (the calibrated law, scale 1: latent 0), a drawn one's is its own law and scale, and a
+    mismatch impact's its law at config/'s scale."""
+    from tail_beam_id.dataset import draw_commands, settings, simulate_set
     from tail_beam_id.runs import run_set
 
     shipped = settings(params, [1.0], ["shipped"])
-    reference = params["identification"]["statistical"]["hysteresis"]["reference_restitution"]
-    (nominal,) = [r for r in run_set(params, "stream", 1, 5, shipped, ["statistical"])]
-    assert nominal.hysteresis_latent == 0.0
+    (nominal,) = list(run_set(params, "stream", 1, 5, shipped, ["statistical"]))
+    assert (nominal.contact_model, nominal.contact_damping_scale) == ("calibrated", 1.0)
+    assert hysteresis_latent(nominal.contact_model, nominal.contact_damping_scale, 0.35) == 0.0
     drawn = list(run_set(params, "varied", 1, 5, shipped, ["statistical"]))
-    from tail_beam_id.dataset import simulate_set
-
     (impact,) = list(simulate_set(params, "varied", 1, 5, shipped))
-    expected = hysteresis_latent(impact.support.contact_model, impact.support.values["contact_damping_scale"], reference)
-    assert drawn and all(r.hysteresis_latent == pytest.approx(expected, rel=1e-12) for r in drawn)
+    assert drawn and all((r.contact_model, r.contact_damping_scale)
+                         == (impact.support.contact_model, impact.support.values["contact_damping_scale"]) for r in drawn)
     (_, _, law), = list(draw_commands(params, "mismatch", 1, 5))
-    (mismatch,) = [r for r in run_set(params, "mismatch", 1, 5, shipped, ["statistical"])]
-    assert mismatch.hysteresis_latent == pytest.approx(hysteresis_latent(law, 1.0, reference), rel=1e-12)
+    (mismatch,) = list(run_set(params, "mismatch", 1, 5, shipped, ["statistical"]))
+    assert (mismatch.contact_model, mismatch.contact_damping_scale) == (law, 1.0)
+
+
+@pytest.mark.parametrize("change, field", [
+    ({"bin_edges": [0.0, -0.5]}, "bin_edges"), ({"bin_edges": []}, "bin_edges"), ({"bin_edges": [0.0, "x"]}, "bin_edges"),
+    ({"reference_restitution": 1.0}, "reference_restitution"), ({"reference_restitution": 0.0}, "reference_restitution"),
+])
+def test_training_refuses_a_bad_hysteresis_section_by_name(params, change, field):
+    """Unsorted or empty bins would put supports in the wrong bin silently, and a reference
+    restitution of 1 (no hysteresis) or 0 has no latent: refused naming the field."""
+    from tail_beam_id.training import hysteresis_section
+
+    section = {**params["identification"]["statistical"]["hysteresis"], **change}
+    with pytest.raises(InputError, match=rf"identification\.statistical\.hysteresis\.{field}"):
+        hysteresis_section(section)
