@@ -90,6 +90,7 @@ class SupportProfile:
     # the impacts they rest on; None when too few impacts had every signal.
     hysteresis_weights: list[float] | None = None
     hysteresis_impacts: int | None = None
+    hysteresis_bin_edges: list[float] | None = None  # the bins the weights are of (the model's)
 
     @property
     def ring_decay_s(self) -> float | None:
@@ -105,9 +106,11 @@ class SupportProfile:
         modes = ", ".join(f"{f:.0f} Hz ({100.0 * z:.1f} %)" for f, z in zip(self.ringing_modes_hz, self.ringing_damping_ratios))
         return f"ringing {modes}, ring_decay_s {self.ring_decay_s:.3g}"
 
-    def describe_hysteresis(self, bin_edges: Sequence[float]) -> str:
+    def describe_hysteresis(self) -> str:
         """The support's hysteresis as read, in a few words."""
-        return hysteresis.describe(self.hysteresis_weights, self.hysteresis_impacts or 0, bin_edges)
+        if self.hysteresis_impacts is None:
+            return "hysteresis not read (the statistical model has no hysteresis network)"
+        return hysteresis.describe(self.hysteresis_weights, self.hysteresis_impacts, self.hysteresis_bin_edges or [])
 
     def describe_camera(self) -> str:
         """The camera's frame as read from the rebound stamps, in a few words."""
@@ -221,7 +224,7 @@ def calibrate(
     checked = unusual = None
     modes: list[RingingMode] = []
     weights: list[float] | None = None
-    weighed = None
+    weighed = edges = None
     if bulk is not None:
         calibrated = copy.deepcopy(dict(params))
         calibrated["support"]["oil_bulk_modulus_pa"] = bulk
@@ -250,7 +253,7 @@ def calibrate(
             bulk = bulk_modulus_for(calibrated, frequency) or bulk
             if not 0.2 < inertia / inertia_now < 5.0:
                 inertia, spread = None, None  # implausible: keep the configured beam
-        weights, weighed = _hysteresis_weights(params, labels, inertia, hysteresis_model)
+        weights, weighed, edges = _hysteresis_weights(params, labels, inertia, hysteresis_model)
     return SupportProfile(
         duration_s=duration, impacts_used=used, imu_mount_sign=sign, rigid_mode_frequency_hz=frequency,
         oil_bulk_modulus_pa=bulk, beam_inertia_about_hinge_kgm2=inertia, imu_gain_spread=spread,
@@ -258,25 +261,19 @@ def calibrate(
         delay_checked_impacts=checked, delay_unusual_impacts=unusual,
         ringing_modes_hz=[m.frequency_hz for m in modes] or None, ringing_damping_ratios=[m.damping_ratio for m in modes] or None,
         camera_frame_rate_hz=_camera_frame_rate_hz(rebound_stamps_s),
-        hysteresis_weights=weights, hysteresis_impacts=weighed,
+        hysteresis_weights=weights, hysteresis_impacts=weighed, hysteresis_bin_edges=edges if weights is not None else None,
     )
 
 
-def hysteresis_edges() -> list[float]:
-    """The hysteresis bins' edges of the statistical model (shipped), for saying what was read."""
-    model = load_model("statistical").get("hysteresis") or {}
-    return [float(e) for e in model.get("bin_edges", [])]
-
-
 def _hysteresis_weights(params: Mapping[str, Any], labels: Sequence[Label], inertia_kgm2: float | None,
-                        model: Mapping[str, Any] | None) -> tuple[list[float] | None, int | None]:
+                        model: Mapping[str, Any] | None) -> tuple[list[float] | None, int | None, list[float] | None]:
     """The hysteresis bins' weights from the calibration pass's labels (their IMU moments as
-    the calibrated inertia gives them: the pass ran with config/'s beam), and the impacts used;
-    (None, None) when the statistical model has no hysteresis network."""
+    the calibrated inertia gives them: the pass ran with config/'s beam), the impacts used and
+    the bins' edges; (None, None, None) when the statistical model has no hysteresis network."""
     if model is None:
         model = load_model("statistical").get("hysteresis")
     if model is None:
-        return None, None
+        return None, None, None
     section = params["identification"]["statistical"]["hysteresis"]
     min_impacts = int(require_range("identification.statistical.hysteresis.min_impacts", section.get("min_impacts", 8), 1, 1e6))
     factor = 1.0 if inertia_kgm2 is None else inertia_kgm2 / float(params["support"]["beam_inertia_about_hinge_kgm2"])
@@ -286,7 +283,8 @@ def _hysteresis_weights(params: Mapping[str, Any], labels: Sequence[Label], iner
         if "moment_impulse_imu_nms" in f:
             f["moment_impulse_imu_nms"] *= factor
         features.append(f)
-    return hysteresis.recording_weights(model, features, min_impacts)
+    weights, used = hysteresis.recording_weights(model, features, min_impacts)
+    return weights, used, [float(e) for e in model["bin_edges"]]
 
 
 def _camera_frame_rate_hz(stamps_s: Sequence[float]) -> float | None:

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tail_beam_id.calibration import SupportProfile, calibrate, hysteresis_edges, with_profile
+from tail_beam_id.calibration import SupportProfile, calibrate, with_profile
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
 
 if TYPE_CHECKING:
@@ -104,7 +104,7 @@ class OnlineCalibration:
                         "staying on the configured support (labels say calibrated: false)")
             gain = f"{p.impacts_used} impacts for the IMU gain" if p.beam_inertia_about_hinge_kgm2 else "IMU gain not measured"
             return (f"calibration: sway {p.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus {p.oil_bulk_modulus_pa:.3g} Pa, "
-                    f"{gain}, {p.describe_hysteresis(hysteresis_edges())}; labels from here on say calibrated: true")
+                    f"{gain}, {p.describe_hysteresis()}; labels from here on say calibrated: true")
         return None
 
     def _streams(self) -> tuple[PressureStream, ImuStream, list[Rebound]]:

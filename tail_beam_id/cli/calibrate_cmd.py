@@ -12,7 +12,6 @@ import sys
 
 import yaml
 
-from tail_beam_id.calibration import hysteresis_edges
 from tail_beam_id.cli.identify_cmd import profile_of, report_reading
 from tail_beam_sim import topics
 from tail_beam_sim.bags.read import read_runs
@@ -59,6 +58,6 @@ def run(args: argparse.Namespace) -> int:
               f"the profile holds the noise, mounting and camera frame only ({c.describe_camera()})", file=sys.stderr)
     else:
         print(f"calibrate: sway {c.rigid_mode_frequency_hz:.2f} Hz, {c.impacts_used} impacts for the IMU gain, "
-              f"mount sign {c.imu_mount_sign}, {c.describe_modes()}, {c.describe_camera()}, {c.describe_hysteresis(hysteresis_edges())}",
+              f"mount sign {c.imu_mount_sign}, {c.describe_modes()}, {c.describe_camera()}, {c.describe_hysteresis()}",
               file=sys.stderr)
     return 0

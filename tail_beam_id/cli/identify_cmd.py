@@ -20,7 +20,7 @@ from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_id.label import Label
 from tail_beam_id.methods import available_methods
 from tail_beam_id.replay import replay
-from tail_beam_id.calibration import SupportProfile, hysteresis_edges, with_profile
+from tail_beam_id.calibration import SupportProfile, with_profile
 from tail_beam_id.calibration import calibrate as calibrate_support
 from tail_beam_sim.bags.read import IDENTIFY_TOPICS, BagSensors, open_segments_note, read_runs
 from tail_beam_sim.cli.common import add_config_option
@@ -97,7 +97,7 @@ def describe_profile(profile: SupportProfile) -> str:
                 "identified on the configured support (labels say calibrated: false)")
     gain = f"{profile.impacts_used} impacts for the IMU gain" if profile.beam_inertia_about_hinge_kgm2 else "IMU gain not measured"
     return (f"self-calibration: sway {profile.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus {profile.oil_bulk_modulus_pa:.3g} Pa, "
-            f"{gain}, {profile.describe_modes()}, {profile.describe_camera()}, {profile.describe_hysteresis(hysteresis_edges())} (labels say calibrated: true; --no-calibrate for id_node's uncalibrated labels)")
+            f"{gain}, {profile.describe_modes()}, {profile.describe_camera()}, {profile.describe_hysteresis()} (labels say calibrated: true; --no-calibrate for id_node's uncalibrated labels)")
 
 
 def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | None = None, phase: str = "identifying",

@@ -168,7 +168,8 @@ class StatisticalMethod:
         slowest = require_range("identification.statistical.slowest_delay_camera_frame_rate_hz",
                                 section.get("slowest_delay_camera_frame_rate_hz", 2000.0), 0.0, 1e6, low_open=True, unit="Hz")
         hysteresis = model.get("hysteresis")
-        weights = _profile_weights((params.get("calibration") or {}).get("hysteresis_weights"), hysteresis)
+        calibration = params.get("calibration") or {}
+        weights = _profile_weights(calibration.get("hysteresis_weights"), calibration.get("hysteresis_bin_edges"), hysteresis)
         return cls(model["subsets"], cap, model.get("calibrated_subsets"), 1.0 / rate, 1.0 / slowest, hysteresis, weights)
 
     def decide(self, features: Mapping[str, float]) -> Decision:
@@ -243,15 +244,22 @@ class StatisticalMethod:
         return rows
 
 
-def _profile_weights(weights: Any, hysteresis: Mapping[str, Any] | None) -> list[float] | None:
+def _profile_weights(weights: Any, edges: Any, hysteresis: Mapping[str, Any] | None) -> list[float] | None:
     """A profile's ``calibration.hysteresis_weights``, checked against the model's bins: one
-    finite non-negative weight per bin, summing to 1; None when the profile has none."""
+    finite non-negative weight per bin, summing to 1, and (where the profile says them) the
+    same bins' edges as the model's; None when the profile has none."""
     if weights is None:
         return None
     field = "calibration.hysteresis_weights"
     if hysteresis is None:
         raise InputError(field, weights, "needs a statistical model with a hysteresis network: retrain (python -m tail_beam_id.training)")
-    bins = len(hysteresis["bin_edges"]) + 1
+    model_edges = [float(e) for e in hysteresis["bin_edges"]]
+    if edges is not None and (isinstance(edges, str) or not isinstance(edges, Sequence) or len(edges) != len(model_edges)
+                              or not all(isinstance(e, (int, float)) and not isinstance(e, bool) and abs(e - m) <= 1e-9
+                                         for e, m in zip(edges, model_edges))):
+        raise InputError("calibration.hysteresis_bin_edges", edges, f"must be the models' bins ({model_edges}): the profile was "
+                                                                  "made with other models; calibrate again (tail-beam calibrate)")
+    bins = len(model_edges) + 1
     if (not isinstance(weights, Sequence) or isinstance(weights, str) or len(weights) != bins
             or not all(isinstance(w, (int, float)) and not isinstance(w, bool) and math.isfinite(w) and w >= 0.0 for w in weights)
             or abs(sum(weights) - 1.0) > 1e-3):

@@ -150,3 +150,16 @@ def test_training_refuses_a_bad_hysteresis_section_by_name(params, change, field
     section = {**params["identification"]["statistical"]["hysteresis"], **change}
     with pytest.raises(InputError, match=rf"identification\.statistical\.hysteresis\.{field}"):
         hysteresis_section(section)
+
+
+def test_a_profile_made_with_other_bins_is_refused_by_name(params, model):
+    """Weights of as many bins as the models' but of other edges (a profile calibrated with
+    other models) would weigh the wrong hysteresis: refused naming
+    calibration.hysteresis_bin_edges; the models' own edges are taken."""
+    edges = model["hysteresis"]["bin_edges"]
+    weights = [1.0] + [0.0] * len(edges)
+    other = [e + 0.25 for e in edges]
+    with pytest.raises(InputError, match=r"calibration\.hysteresis_bin_edges"):
+        StatisticalMethod.from_model(model, {**params, "calibration": {"hysteresis_weights": weights, "hysteresis_bin_edges": other}})
+    method = StatisticalMethod.from_model(model, {**params, "calibration": {"hysteresis_weights": weights, "hysteresis_bin_edges": edges}})
+    assert method.hysteresis_weights == weights

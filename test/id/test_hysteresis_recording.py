@@ -70,7 +70,7 @@ def test_the_supports_hysteresis_is_read_from_its_recording(params, profiles):
     assert _latent_mass(fl.hysteresis_weights, edges, False, -0.5) >= 0.9, fl.hysteresis_weights
     # The profile file carries them, for id_node and tail-beam identify --config.
     section = hc.parameters()["/**"]["ros__parameters"]["calibration"]
-    assert section["hysteresis_weights"] == hc.hysteresis_weights
+    assert section["hysteresis_weights"] == hc.hysteresis_weights and section["hysteresis_bin_edges"] == edges
 
 
 def test_labels_decided_knowing_the_hysteresis_are_no_worse_and_say_so(params, recordings, profiles):
