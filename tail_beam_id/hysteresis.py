@@ -16,7 +16,8 @@ coal share that fits it best (so a face that drops mostly coal or mostly rock do
 for another hysteresis: Saerens et al. 2002's prior adjustment), and their posterior weights go
 into the support profile (``calibration.hysteresis_weights``). The statistical method then
 moves an impact's logit by what the support's weights say against what the impact alone
-suggests (:func:`hysteresis_shift`): its own network stays the judge of the impact, and the
+suggests (:func:`hysteresis_shift`), as far as that moves the boundary and never to make a
+label surer (:func:`applied_shift`): its own network stays the judge of the impact, and the
 joint network says only how knowing the support changes that (deciding by the joint network
 alone scored the foreign paper scene 96.0 % against 98.5 %, and the stream 89.0 % against 90.5 %).
 
@@ -106,6 +107,22 @@ def hysteresis_shift(model: Mapping[str, Any], z: np.ndarray, weights: Sequence[
     known = float(np.dot(np.asarray(weights, dtype=float), p))
     unknown = float(np.dot(alone / alone.sum(), p))
     return _logit(known) - _logit(unknown)
+
+
+def applied_shift(logit: float, shift: float) -> float:
+    """The part of ``shift`` an impact's ``logit`` takes: all of it when it makes the label less
+    sure or turns it over, none when it would make the label surer than the impact alone says.
+
+    Knowing the support's hysteresis says where the boundary between coal and gangue lies on
+    it; how sure a label is stays the impact's own network's word. The joint network's per-bin
+    decisions transfer to unseen supports less well than the plain network's: taken whole, the
+    shift made labels surer where they were wrong too (foreign supports, self-calibrated, seed
+    41004: 36 wrong labels at confidence >= 0.9 in 3000 impacts of five settings, against 24
+    without it; bounded like this 20, with the same labels: README, Identification)."""
+    moved = logit + shift
+    if (moved > 0.0) == (logit > 0.0) and abs(moved) > abs(logit):
+        return 0.0
+    return shift
 
 
 def _logit(p: float) -> float:

@@ -24,8 +24,10 @@ over the lag the camera may have added (``_lag_rows``).
 On a support whose profile carries its contact hysteresis (``calibration.hysteresis_weights``,
 read by self-calibration from the recording's impacts: tail_beam_id.hysteresis), an impact with
 every signal has its logit moved by what knowing the support's hysteresis says
-(``hysteresis_shift`` in its features): the same rebound means coal on one support and mudstone
-on another, which no single impact tells.
+(``hysteresis_shift`` in its features, ``hysteresis_shift_read`` what the weights said): the
+same rebound means coal on one support and mudstone on another, which no single impact tells.
+The shift moves the boundary; it never makes a label surer than the impact alone says
+(tail_beam_id.hysteresis.applied_shift).
 
 Why logarithms: the physics is a product of powers (moment impulse = m v0 (1 + e) x,
 contact duration ~ R (rho / E*)^0.4 v0^-0.2, rebound speed = e v0), so the material shows as a
@@ -41,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.hysteresis import hysteresis_shift, joint_inputs
+from tail_beam_id.hysteresis import applied_shift, hysteresis_shift, joint_inputs
 from tail_beam_id.methods import Decision, cap_confidence, sigmoid
 from tail_beam_id.methods.inputs import base_vector
 from tail_beam_id.timing import UNUSUAL
@@ -204,9 +206,11 @@ class StatisticalMethod:
                 and len(rows) == 1 and not outside):
             z_joint = joint_inputs(self.hysteresis, features)
             if z_joint is not None:
-                # The support's hysteresis known from its recording moves the logit.
-                shift = hysteresis_shift(self.hysteresis, z_joint, self.hysteresis_weights)
-                estimates = {"logit": float(logit) + shift, "hysteresis_shift": shift}
+                # The support's hysteresis known from its recording moves the boundary: the
+                # logit takes the shift as far as it makes the label less sure or turns it.
+                said = hysteresis_shift(self.hysteresis, z_joint, self.hysteresis_weights)
+                shift = applied_shift(float(logit), said)
+                estimates = {"logit": float(logit) + shift, "hysteresis_shift": shift, "hysteresis_shift_read": said}
                 p_coal = sigmoid(float(logit) + shift)
         if "rebound_delay_s" in dict(names) and "imu_period_s" in features:
             # The lag-corrected row (the middle lag) is the impact as the training's camera saw it.

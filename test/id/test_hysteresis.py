@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from tail_beam_id.hysteresis import hysteresis_latent, hysteresis_shift, latent_bin, support_weights
+from tail_beam_id.hysteresis import applied_shift, hysteresis_latent, hysteresis_shift, latent_bin, support_weights
 from tail_beam_id.methods import load_model
 from tail_beam_id.methods.statistical import StatisticalMethod
 from tail_beam_sim.errors import InputError
@@ -163,3 +163,17 @@ def test_a_profile_made_with_other_bins_is_refused_by_name(params, model):
         StatisticalMethod.from_model(model, {**params, "calibration": {"hysteresis_weights": weights, "hysteresis_bin_edges": other}})
     method = StatisticalMethod.from_model(model, {**params, "calibration": {"hysteresis_weights": weights, "hysteresis_bin_edges": edges}})
     assert method.hysteresis_weights == weights
+
+
+@pytest.mark.parametrize(("logit", "shift", "applied"), [
+    (2.0, -1.5, -1.5),   # less sure: taken whole
+    (2.0, -3.0, -3.0),   # turned over (to -1.0): taken whole
+    (2.0, 1.0, 0.0),     # surer coal: refused, the impact's own 2.0 stands
+    (-2.0, -1.0, 0.0),   # surer gangue: refused
+    (-2.0, 5.0, 5.0),    # turned to coal at 3.0: taken whole, even though surer than 2.0
+    (0.5, 0.0, 0.0),
+])
+def test_the_hysteresis_moves_the_boundary_but_never_makes_a_label_surer(logit, shift, applied):
+    """The shift a label takes (applied_shift): all of it when it makes the label less sure or
+    turns it over, none when it would make the label surer in the direction it already had."""
+    assert applied_shift(logit, shift) == applied

@@ -76,7 +76,8 @@ def test_the_supports_hysteresis_is_read_from_its_recording(params, profiles):
 def test_labels_decided_knowing_the_hysteresis_are_no_worse_and_say_so(params, recordings, profiles):
     """On each support the labels with the profile's hysteresis are right at least as often as
     the same profile's without it, and every three-signal label says how far it moved
-    (``hysteresis_shift``); without the weights none does."""
+    (``hysteresis_shift``), which turned it or made it less sure, never surer; without the
+    weights none does."""
     tolerance = match_tolerance_s(params["identification"])
     for law, recorded in recordings.items():
         with_weights = with_profile(params, profiles[law])
@@ -92,4 +93,9 @@ def test_labels_decided_knowing_the_hysteresis_are_no_worse_and_say_so(params, r
             right[name] = sum(label.material == truth["label"] for truth, label in pairs)
             shifted = sum("hysteresis_shift" in label.features for _, label in pairs)
             assert (shifted >= IMPACTS // 2) if name == "with" else shifted == 0, (law, name, shifted)
+            for _, label in pairs:  # the shift turns a label or makes it less sure, never surer
+                if "hysteresis_shift" in label.features:
+                    logit, shift = label.features["logit"], label.features["hysteresis_shift"]
+                    assert shift in (0.0, label.features["hysteresis_shift_read"])
+                    assert (logit > 0) != (logit - shift > 0) or abs(logit) <= abs(logit - shift) + 1e-12, (law, logit, shift)
         assert right["with"] >= right["without"], (law, right)
