@@ -118,7 +118,7 @@ def applied_shift(logit: float, shift: float) -> float:
     decisions transfer to unseen supports less well than the plain network's: taken whole, the
     shift made labels surer where they were wrong too (foreign supports, self-calibrated, seed
     41004: 36 wrong labels at confidence >= 0.9 in 3000 impacts of five settings, against 24
-    without it; bounded like this 20, with the same labels: README, Identification)."""
+    without it; bounded like this 20, with the same labels: README, Supports other than the shipped one)."""
     moved = logit + shift
     if (moved > 0.0) == (logit > 0.0) and abs(moved) > abs(logit):
         return 0.0
