@@ -12,25 +12,48 @@ from tail_beam_id.dataset import settings, support_streams
 from tail_beam_id.identifier import StreamIdentifier
 from tail_beam_id.replay import replay
 from tail_beam_id.runs import foreign_records
-from tail_beam_id.timing import OUTSIDE_NAME, UNUSUAL, SensorTiming, TimingConfig
+from tail_beam_id.timing import OUTSIDE_NAME, UNUSUAL, SensorTiming, TimingConfig, judge
+from tail_beam_sim.errors import InputError
 
-CONFIG = TimingConfig(min_impacts=10, unusual_fraction=0.2, confidence_cap=0.6)
+CONFIG = TimingConfig(min_impacts=10, agreeing_rate=0.03, false_alarm=1e-3, confidence_cap=0.6)
 
 
 def test_a_recording_is_suspect_only_with_enough_impacts_and_enough_unusual_ones():
-    """1 unusual impact in 10 (about what agreeing clocks give: 1 %, and foreign supports' up to
-    5 %) is not enough; 2 in 10 are; 9 unusual in 9 are not yet (too few impacts to judge)."""
+    """2 unusual impacts in 10 are what agreeing clocks on a support unlike training's give now
+    and then (a foreign set's base rate is up to 2.4 %: P(>= 2 of 10) = 3.5 % at the 3 % the
+    rule allows) and are not enough; 4 in 12 are (P = 0.0003 < 0.001); 9 unusual in 9 are not
+    yet (too few impacts to judge); and once suspect, a recording stays so."""
     timing = SensorTiming(CONFIG)
     for k in range(10):
-        timing.add(k == 3)
-    assert not timing.suspect
+        timing.add(k in (3, 7))
+    assert not timing.suspect and timing.unusual == 2
     timing.add(True)
+    assert not timing.suspect  # 3 of 11: P = 0.004
     timing.add(True)
-    assert timing.suspect and timing.checked == 12 and timing.unusual == 3
+    assert timing.suspect and timing.checked == 12 and timing.unusual == 4  # P = 0.0003
+    for _ in range(30):
+        timing.add(False)
+    assert timing.suspect
     early = SensorTiming(CONFIG)
     for _ in range(9):
         early.add(True)
     assert not early.suspect
+
+
+@pytest.mark.parametrize(("checked", "fewest"), [(10, 4), (20, 5), (40, 7), (100, 10)])
+def test_the_unusual_count_a_recording_needs_follows_the_binomial_tail(checked, fewest):
+    """The fewest unusual delays that make a recording of ``checked`` impacts suspect are the
+    smallest k with P(X >= k) < 0.001 for X ~ Binomial(checked, 0.03), computed by hand:
+    P(X >= 4 | 10) = 1.5e-4 but P(X >= 3 | 10) = 2.8e-3; P(X >= 5 | 20) = 2.6e-4, P(>= 4) = 2.7e-3."""
+    assert not judge(checked, fewest - 1, CONFIG)
+    assert judge(checked, fewest, CONFIG)
+
+
+def test_a_bad_timing_section_is_refused_by_name():
+    """A rate of 0 or above 0.5, or a false-alarm rate of 0, names its field."""
+    for field, value in (("agreeing_rate", 0.0), ("agreeing_rate", 0.7), ("false_alarm", 0.0)):
+        with pytest.raises(InputError, match=f"identification.sensor_timing.{field}"):
+            TimingConfig.from_params({field: value})
 
 
 @pytest.fixture(scope="module")
