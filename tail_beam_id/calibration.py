@@ -272,15 +272,23 @@ def imu_gain(features: Sequence[Mapping[str, float]]) -> tuple[float, int, float
     2.7 times too high (foreign supports, seed 41004: README, Supports other than the shipped one)."""
     rows = [(f["moment_impulse_pressure_nms"], f.get("moment_impulse_sigma_nms", math.inf), f["imu_impulse_mps"])
             for f in features if {"moment_impulse_pressure_nms", "imu_impulse_mps"} <= f.keys()]
-    rows = [r for r in rows if all(math.isfinite(v) for v in r) and r[1] > 0.0 and r[2] > 0.0]
+    rows = [r for r in rows if all(math.isfinite(v) for v in r) and r[1] >= 0.0 and r[2] > 0.0]
     if len(rows) < MIN_IMPACTS:
         return None
     moment, sigma, impulse = (np.array(column) for column in zip(*rows))
-    w = 1.0 / sigma**2
-    information = float(np.sum(w * impulse**2))
-    gain = float(np.sum(w * moment * impulse) / information)
-    if not gain > GAIN_SIGMA / math.sqrt(information):
-        return None
+    noisy = sigma > 0.0
+    if not noisy.any():  # noise-free readings: equal weights, and any positive gain is clear of zero
+        gain = float(np.sum(moment * impulse) / np.sum(impulse**2))
+        if not gain > 0.0:
+            return None
+    else:
+        # A noise-free reading among noisy ones counts as the surest of them, not infinitely sure.
+        sigma = np.where(noisy, sigma, sigma[noisy].min())
+        w = 1.0 / sigma**2
+        information = float(np.sum(w * impulse**2))
+        gain = float(np.sum(w * moment * impulse) / information)
+        if not gain > GAIN_SIGMA / math.sqrt(information):
+            return None
     spread = float(1.4826 * np.median(np.abs(moment / (gain * impulse) - 1.0)))
     return gain, len(rows), spread
 

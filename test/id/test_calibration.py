@@ -342,3 +342,12 @@ def test_imu_gain_needs_impacts_and_a_fit_clear_of_zero():
                              {"moment_impulse_pressure_nms": 1.0}]
     assert imu_gain(broken) is None
     assert imu_gain(_gain_features(rng, 0.0, np.full(20, 1e-4), 0.5)) is None
+
+
+def test_imu_gain_from_noise_free_readings():
+    """A recording whose pressure moments carry no noise (sigma 0, e.g. a noise-free simulation)
+    gives the exact gain, alone or among noisy impacts, instead of none."""
+    exact = [{"moment_impulse_pressure_nms": 800.0 * i, "moment_impulse_sigma_nms": 0.0, "imu_impulse_mps": i} for i in (1e-3, 2e-3, 3e-3)]
+    assert imu_gain(exact)[0] == pytest.approx(800.0, rel=1e-12)
+    noisy = _gain_features(np.random.default_rng(5), 800.0, np.full(5, 2e-3), 0.05)
+    assert imu_gain(exact + noisy)[0] == pytest.approx(800.0, rel=0.02)
