@@ -233,7 +233,6 @@ def calibrate(
         if checks:
             checked, unusual = len(checks), int(sum(value > 0.5 for value in checks))
         fitted = imu_gain([label.features for label in labels])
-        used = 0 if fitted is None else fitted[1]
         r_stamp, r_accel = _finite(*ringing) if ringing is not None else (i_stamp, i_accel)
         modes = ringing_modes(r_stamp, r_accel, [label.impact_stamp_s for label in labels], min_frequency_hz=max(MIN_MODE_FREQUENCY_HZ, 2.0 * frequency))
         if fitted is not None:
