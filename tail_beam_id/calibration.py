@@ -240,11 +240,12 @@ def calibrate(
             inertia_now = float(params["support"]["beam_inertia_about_hinge_kgm2"])
             imu_from_hinge = float(params["support"]["imu_from_hinge_m"])
             inertia = gain * imu_from_hinge
-            # The sway frequency must still come out: the oil column follows the new inertia.
-            calibrated["support"]["beam_inertia_about_hinge_kgm2"] = inertia
-            bulk = bulk_modulus_for(calibrated, frequency) or bulk
             if not 0.2 < inertia / inertia_now < 5.0:
-                inertia, spread = None, None  # implausible: keep the configured beam
+                inertia, spread = None, None  # implausible: keep the configured beam (and its oil)
+            else:
+                # The sway frequency must still come out: the oil column follows the new inertia.
+                calibrated["support"]["beam_inertia_about_hinge_kgm2"] = inertia
+                bulk = bulk_modulus_for(calibrated, frequency) or bulk
         weights, weighed, edges = _hysteresis_weights(params, labels, inertia, hysteresis_model)
     return SupportProfile(
         duration_s=duration, impacts_used=used, imu_mount_sign=sign, rigid_mode_frequency_hz=frequency,

@@ -351,3 +351,23 @@ def test_imu_gain_from_noise_free_readings():
     assert imu_gain(exact)[0] == pytest.approx(800.0, rel=1e-12)
     noisy = _gain_features(np.random.default_rng(5), 800.0, np.full(5, 2e-3), 0.05)
     assert imu_gain(exact + noisy)[0] == pytest.approx(800.0, rel=0.02)
+
+
+def test_an_implausible_imu_gain_keeps_the_configured_beam_and_its_oil(params, recordings):
+    """An IMU whose impulses read 7 times low (a wrong scale factor) gives an inertia about 7 times
+    the configured one: refused as implausible, and the oil's bulk modulus is then the one that
+    gives the sway frequency with the configured beam (it used to be solved for the refused
+    inertia), as a profile without any IMU gain would have."""
+    from tail_beam_id.calibration import bulk_modulus_for
+
+    recorded = recordings[0]
+    plain = _identify(params, recorded)
+
+    def scaled(model_params):
+        return [replace(label, features={**label.features, "imu_impulse_mps": label.features["imu_impulse_mps"] / 7.0})
+                if "imu_impulse_mps" in label.features else label for label in plain(model_params)]
+
+    profile = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
+                        (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]), scaled)
+    assert profile.calibrated and profile.beam_inertia_about_hinge_kgm2 is None and profile.imu_gain_spread is None
+    assert profile.oil_bulk_modulus_pa == pytest.approx(bulk_modulus_for(params, profile.rigid_mode_frequency_hz), rel=1e-12)
