@@ -116,12 +116,6 @@ class Contacts:
     table_weight: np.ndarray
 
 
-def contact_chi(restitution: np.ndarray, contact_model: str, damping_scale: float = 1.0) -> np.ndarray:
-    """chi of every impact, by the laws of :func:`~tail_beam_sim.physics.contact.damping_factor`
-    (the same formulas as one impact's), times the support's ``contact_damping_scale``."""
-    return damping_factor(contact_model, np.asarray(restitution, dtype=float), damping_scale)
-
-
 def contacts(
     structure: LinearStructure, batch: ImpactBatch, contact_model: str = "calibrated", positions: PositionTable | None = None,
     damping_scale: float = 1.0,
@@ -129,7 +123,8 @@ def contacts(
     """Every impact's contact from the pulse table's per-chi figures, vectorised (``damping_scale``:
     the support's contact_damping_scale)."""
     table = pulse_table()
-    chi = contact_chi(batch.restitution, contact_model, damping_scale)
+    # chi of every impact by one impact's own formulas (contact.damping_factor), times the support's scale.
+    chi = damping_factor(contact_model, np.asarray(batch.restitution, dtype=float), damping_scale)
     if np.any(chi > table.chi[-1]):
         raise InputError("restitution", float(batch.restitution[np.argmax(chi)]), f"too low for {contact_model}: chi beyond {table.chi[-1]:g}")
     i = np.clip(np.searchsorted(table.chi, chi, side="right") - 1, 0, table.chi.size - 2)

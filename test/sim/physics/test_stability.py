@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tail_beam_sim.physics.batch import ImpactBatch, contact_chi, contacts
+from tail_beam_sim.physics.batch import ImpactBatch, contacts
+from tail_beam_sim.physics.contact import damping_factor
 from tail_beam_sim.physics.fidelity import TIERS, Needs, plan, shipped_settings, structure_for
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.simulate import build_problem, simulate
@@ -68,7 +69,7 @@ def test_lankarani_nikravesh_error_grows_as_restitution_falls_while_the_default_
     ln = errors["lankarani_nikravesh"]
     assert np.all(np.diff(ln) < 0) and ln[0] > 0.4 and ln[-1] < 0.03
     assert np.max(np.abs(errors["calibrated"])) < 1e-3
-    assert np.all(contact_chi(requested, "calibrated") > contact_chi(requested, "lankarani_nikravesh"))
+    assert np.all(damping_factor("calibrated", requested) > damping_factor("lankarani_nikravesh", requested))
 
 
 EXTREMES = {
