@@ -12,7 +12,7 @@ import sys
 
 import yaml
 
-from tail_beam_id.cli.identify_cmd import profile_of, report_reading
+from tail_beam_id.cli.identify_cmd import check_settings, profile_of, report_reading
 from tail_beam_sim import topics
 from tail_beam_sim.bags.read import read_runs
 from tail_beam_sim.cli.common import add_config_option
@@ -32,6 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     params = load_parameters(args.config)
     out = require_output_file("--out", args.out) if args.out else None  # before the work, not after
+    check_settings(params)
     # What calibration reads: the jack pressure (the sway) and the IMU (mounting, gain); either
     # will do (tail_beam_id.calibration.calibrate), the camera is not needed.
     runs = read_runs(args.bag, required=(), namespace=args.namespace, any_of=(topics.JACK_PRESSURE, topics.IMU))

@@ -50,6 +50,7 @@ def identify_bag(bag: str, method: str | None = None, config: list[str] | None =
     (a restarted simulator) is identified run by run, as id_node starts afresh at each: the
     labels of each run in turn, each run in impact_stamp order."""
     params = load_parameters(config or [])
+    check_settings(params, method)
     runs = read_runs(bag, required=(), namespace=namespace, any_of=IDENTIFY_TOPICS)
     report_reading(runs[0], "identify", len(runs), bag)
     if calibrate is None:
@@ -70,6 +71,12 @@ def identify_bag(bag: str, method: str | None = None, config: list[str] | None =
                 run_params = with_profile(params, profile)
         labels += identify_sensors(data, run_params, method)
     return labels
+
+
+def check_settings(params: dict[str, Any], method: str | None = None) -> None:
+    """Refuse bad identification settings (method, model, detection, sensor_timing, ...) by
+    name before a bag is read: identify and calibrate said so only after their pass over it."""
+    StreamIdentifier(method, params=params.get("identification"), model_params=params)
 
 
 def report_reading(data: BagSensors, verb: str, runs: int = 1, bag: str | None = None) -> None:

@@ -56,6 +56,20 @@ def test_a_bad_timing_section_is_refused_by_name():
             TimingConfig.from_params({field: value})
 
 
+@pytest.mark.parametrize("command", ["identify", "calibrate"])
+def test_identify_and_calibrate_refuse_a_bad_timing_section_before_they_read_the_bag(tmp_path, capsys, command):
+    """tail-beam identify and calibrate name a bad identification.sensor_timing value before
+    they read and self-calibrate the bag (they said so only after that pass): the bag here does
+    not exist, so an error naming the field can only come from a check made first."""
+    from tail_beam_sim.cli import main
+
+    config = tmp_path / "bad.yaml"
+    config.write_text("/**:\n  ros__parameters:\n    identification:\n      sensor_timing:\n        agreeing_rate: 0.7\n")
+    assert main([command, str(tmp_path / "no_such_bag"), "--config", str(config)]) == 2
+    error = capsys.readouterr().err
+    assert "identification.sensor_timing.agreeing_rate" in error and "no_such_bag" not in error
+
+
 @pytest.fixture(scope="module")
 def face(params):
     """The foreign set's first support (seed 41004, shipped sensors), 20 impacts as one stream."""
