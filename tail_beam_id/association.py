@@ -35,6 +35,7 @@ class PendingImpact:
     rebound: tuple[float, np.ndarray] | None = None  # (camera stamp s, velocity m/s in the plate frame)
     source: str = "imu"  # what detected it: imu (a pulse in an acceleration channel) | rebound | pressure
     channel: str = "imu"  # the acceleration channel of its pulse: imu | vibration
+    late_rebound: bool = False  # its rebound came after its window (a camera slower than known): ImpactAssociation.late_claimant
 
 
 class ImpactAssociation:
@@ -99,6 +100,31 @@ class ImpactAssociation:
             if lo <= stamp <= hi and stamp not in self.used_rebounds:
                 return stamp, velocity
         return None
+
+    def late_claimant(self, stamp_s: float) -> PendingImpact | None:
+        """The impact a rebound that no window claims was stamped late for, or None: the latest
+        onset before ``stamp_s`` (pending or decided) is a pulse's, still waiting without a
+        rebound, at most ``late_rebound_max_s`` before it. A camera slower than its frame is
+        known to be (tail_beam_id.camera: read from the 4th rebound on, up to 2 ms) stamps a
+        rebound up to a frame after the contact ended; another impact's onset in between means
+        the rebound may be that one's, and it is not given."""
+        late_s = self.config.detection.late_rebound_max_s
+        onsets = [i.onset_s for i in self.pending] + self.decided
+        before = [t for t in onsets if t < stamp_s]
+        if late_s <= 0.0 or not before:
+            return None
+        latest = max(before)
+        for impact in self.pending:
+            if (impact.onset_s == latest and impact.pulse is not None and impact.rebound is None
+                    and stamp_s - impact.onset_s <= late_s):
+                return impact
+        return None
+
+    def take_late_rebound(self, impact: PendingImpact, stamp_s: float, velocity_mps: np.ndarray) -> None:
+        """Give ``impact`` the rebound at ``stamp_s`` that came after its window (late_claimant)."""
+        impact.rebound = (stamp_s, velocity_mps)
+        impact.late_rebound = True
+        self.used_rebounds.add(stamp_s)
 
     def claimable(self, stamp_s: float) -> bool:
         """A pending impact without a rebound could still take the rebound at ``stamp_s``."""

@@ -414,6 +414,10 @@ class StreamIdentifier:
             claimable = self.impacts.claimable(stamp)
             orphan = self._accel_seen() and scanned >= stamp + c.rebound_early_tolerance_s
             if (imu_gone or imu_absent or orphan) and not claimable:
+                late = self.impacts.late_claimant(stamp) if orphan and not imu_gone else None
+                if late is not None:
+                    self.impacts.take_late_rebound(late, stamp, velocity)
+                    continue
                 self.impacts.used_rebounds.add(stamp)
                 onset = stamp - c.rebound_onset_lead_s
                 self.impacts.pending.append(PendingImpact(onset_s=onset, pulse=None, rebound=(stamp, velocity), source="rebound"))
@@ -452,7 +456,23 @@ class StreamIdentifier:
             return False
         if any(p.onset_s < impact.onset_s + overlap_s for p in self._held):
             return False
+        if self._late_rebound_undecided(impact):
+            return False
         return self.impacts.camera_settled(impact, self._newest_s())
+
+    def _late_rebound_undecided(self, impact: PendingImpact) -> bool:
+        """A rebound this impact may claim late (ImpactAssociation.late_claimant) has come, but
+        the acceleration channel has not yet been scanned past it: a pulse there would make it
+        that impact's instead. The impact waits (it would otherwise be decided without the
+        camera, and the rebound become an impact of its own)."""
+        if impact.pulse is None or impact.rebound is not None or self.config.detection.late_rebound_max_s <= 0.0:
+            return False
+        accel = self.vibration if self._vibration_in_use() else self.imu
+        if not self._live(accel, False):
+            return False
+        settled_s = self._imu_scanned_s() - self.config.detection.rebound_early_tolerance_s
+        return any(stamp not in self.impacts.used_rebounds and stamp > settled_s and not self.impacts.claimable(stamp)
+                   and self.impacts.late_claimant(stamp) is impact for stamp, _ in self.impacts.rebounds)
 
     def _imu_scanned_s(self) -> float:
         """Stamp up to which the detector has examined the acceleration channel in use (the
@@ -475,7 +495,7 @@ class StreamIdentifier:
         self.impacts.take_rebound(impact)
         overlap = self.impacts.overlapping(impact)
         onset = impact.onset_s
-        if impact.rebound is not None:
+        if impact.rebound is not None and not impact.late_rebound:
             before = cfg.detection.onset_before_rebound_max_s + self.impacts.slow_camera_s(impact.onset_s)
             onset = max(onset, impact.rebound[0] - before)
         window_s, post_s, _ = self.impacts.windows(impact)
@@ -507,6 +527,11 @@ class StreamIdentifier:
             features["support_calibrated"] = 1.0
         if impact.rebound is not None:
             frame_period = self.camera.period_at(impact.rebound[0])
+            if impact.late_rebound:
+                # Stamped after the window the known frame allows: the frame is at least the
+                # delay from the onset (erring long only makes the decision less sure).
+                frame_period = max(frame_period or 0.0, impact.rebound[0] - impact.onset_s, features.get("rebound_delay_s", 0.0))
+                features["rebound_late"] = 1.0
             if frame_period is not None:
                 features["camera_frame_period_s"] = frame_period
         if impulse is not None and impact.channel == "vibration":

@@ -57,6 +57,7 @@ class DetectionConfig:
     onset_before_rebound_max_s: float
     rebound_frame_allowance_s: float = 0.0005
     pressure_drift_confirm_sigma: float = 2.5
+    late_rebound_max_s: float = 0.025
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> DetectionConfig:
@@ -88,6 +89,8 @@ class DetectionConfig:
             rebound_frame_allowance_s=get("rebound_frame_allowance_s", 0.0, 1.0, "s"),
             pressure_drift_confirm_sigma=require_range("identification.detection.pressure_drift_confirm_sigma",
                                                        p.get("pressure_drift_confirm_sigma", cls.pressure_drift_confirm_sigma), 0.0, 1e3),
+            late_rebound_max_s=require_range("identification.detection.late_rebound_max_s",
+                                             p.get("late_rebound_max_s", cls.late_rebound_max_s), 0.0, 1.0, unit="s"),
         )
 
 

@@ -101,3 +101,39 @@ def test_the_camera_settles_on_a_lone_rebound_or_after_its_timeout(book):
     assert book.data_horizon_s(lone) == pytest.approx(2.0 + c.detection.max_contact_s + c.camera_timeout_s)  # the rebound not yet taken
     book.take_rebound(lone)
     assert book.data_horizon_s(lone) == pytest.approx(2.0 + c.vibration_window_s)  # the data window, later than the rebound
+
+
+def test_a_late_rebound_goes_to_the_latest_waiting_pulse_and_never_past_another_impact(book):
+    """late_rebound_max_s (25 ms): a rebound no window claims, 8 ms after a waiting pulse with no
+    rebound, is that pulse's (a 100 Hz camera's lag); not when the latest onset before it is
+    another impact's (decided, or a pulse between), not when the pulse already has a rebound,
+    not beyond 25 ms, not for an impact the camera detected."""
+    a = pulse_impact(1.0)
+    book.pending.append(a)
+    assert book.late_claimant(1.008) is a
+    assert book.late_claimant(1.026) is None  # beyond late_rebound_max_s
+    assert book.late_claimant(0.999) is None  # before the onset
+    b = pulse_impact(1.005)
+    book.pending.append(b)
+    assert book.late_claimant(1.008) is b  # the latest onset before the stamp
+    book.pending.remove(b)
+    book.decided.append(1.004)
+    assert book.late_claimant(1.008) is None  # a decided impact lies between
+    book.decided.clear()
+    book.take_late_rebound(a, 1.008, UP)
+    assert a.rebound is not None and a.late_rebound and 1.008 in book.used_rebounds
+    assert book.late_claimant(1.012) is None  # it has its rebound now
+    camera = PendingImpact(onset_s=2.0, pulse=None, rebound=None, source="rebound")
+    book.pending.append(camera)
+    assert book.late_claimant(2.008) is None
+
+
+def test_late_rebounds_can_be_switched_off(params):
+    """late_rebound_max_s: 0 turns the rule off (the rebound is then an impact of its own, as before)."""
+    import copy
+
+    section = copy.deepcopy(params["identification"])
+    section["detection"]["late_rebound_max_s"] = 0.0
+    book = ImpactAssociation(IdentifierConfig.from_params(section))
+    book.pending.append(pulse_impact(1.0))
+    assert book.late_claimant(1.008) is None

@@ -278,3 +278,36 @@ def test_a_slow_cameras_rebounds_stay_with_their_impacts(params):
                         lambda model_params: [], (v.sample_stamps_s(), v.accel_mps2), [r.stamp_s for r in rebounds])
     assert profile.camera_frame_rate_hz == pytest.approx(500.0)
     assert extras(with_profile(copy.deepcopy(params), profile)) == []
+
+
+@pytest.mark.parametrize("camera_hz", [100.0, 50.0])
+def test_a_camera_slower_than_its_frame_can_be_read_gives_no_extra_labels(params, camera_hz):
+    """A 100 Hz and a 50 Hz camera (10 and 20 ms frames, beyond the 2 ms the stamps are read to
+    and the configured 5 kHz): each rebound is stamped up to a frame after its contact ended,
+    far past its rebound window. Uncalibrated (the frame never known), every rebound stays with
+    its impact (before the late rule a 100 Hz camera's rebounds made 123 extra labels in 200
+    foreign impacts), no impact is missed, and a label with such a rebound assumes a frame at
+    least as long as its delay, so it is decided without the delay (never from a 10 ms lag read
+    as a contact)."""
+    from dataclasses import replace
+
+    from tail_beam_id.dataset import settings, support_streams
+    from tail_beam_id.identifier import StreamIdentifier
+    from tail_beam_id.label import match, match_tolerance_s
+    from tail_beam_id.replay import replay
+
+    recorded = next(support_streams(params, 1, 12, seed=41004, setting=settings(params, [1.0], ["shipped"])[0]))
+    separations = np.array([truth["final_separation_stamp"] for truth in recorded.truths])
+    rebounds = [replace(r, stamp_s=float(np.ceil(separations[np.argmin(np.abs(separations - r.stamp_s))] * camera_hz) / camera_hz))
+                for r in recorded.rebounds]
+    lags = [r.stamp_s - t for r, t in zip(rebounds, separations)]
+    assert max(lags) > 0.5 / camera_hz  # some lag far past the 3.5 ms window
+    labels = replay(StreamIdentifier("statistical", params["identification"], params), recorded.pressure,
+                    recorded.imu, rebounds, vibration=recorded.vibration)
+    matching = match(recorded.truths, labels, match_tolerance_s(params["identification"]))
+    assert not matching.missed and not matching.extra
+    late = [label for label in labels if label.features.get("rebound_late")]
+    assert late and all("rebound_velocity" in label.signals for label in labels)
+    for label in late:
+        assert label.features["camera_frame_period_s"] >= label.features["rebound_delay_s"] > 0.003
+        assert "delay_unusual" not in label.features  # decided without the delay
