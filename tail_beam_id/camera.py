@@ -91,6 +91,12 @@ class FramePeriod:
             estimate = frame_period_s(self.stamps_s) if len(self.stamps_s) >= MIN_REBOUNDS else None
         self.estimates_s.append(estimate)
 
+    def measured_at(self, stamp_s: float) -> float | None:
+        """The frame period (s) the stamps up to ``stamp_s`` gave, or None (fewer than
+        MIN_REBOUNDS, or on no grid): measured only, never the configured one."""
+        k = bisect.bisect_right(self.stamps_s, stamp_s)
+        return self.estimates_s[k - 1] if k else None
+
     def period_at(self, stamp_s: float) -> float | None:
         """The frame period (s) a rebound stamped ``stamp_s`` is decided with: measured from the
         stamps up to it if they gave one, else configured."""
@@ -101,6 +107,14 @@ class FramePeriod:
         if self.configured_s is not None and self.configured_s > measured and self.on_configured_grid[k - 1]:
             return self.configured_s
         return measured
+
+
+def may_be_slower(measured_s: float | None) -> bool:
+    """Whether a camera whose stamps gave ``measured_s`` (s; None: not measured) may have a
+    longer frame than that: its frame is unknown, or the stamps of a camera slower than
+    MAX_PERIOD_S fit a frame between half of it and it (a 240 Hz camera's 4.17 ms reads as
+    1.39 ms, a 100 Hz one's as 2 ms), so an estimate there is no proof of a fast camera."""
+    return measured_s is None or measured_s > MAX_PERIOD_S / 2.0
 
 
 def _on_grid(difference_s: float, period_s: float) -> bool:

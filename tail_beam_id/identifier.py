@@ -35,7 +35,7 @@ import numpy as np
 from tail_beam_id.association import ImpactAssociation, PendingImpact
 from tail_beam_id.buffers import Series
 from tail_beam_id import mounting
-from tail_beam_id.camera import FramePeriod
+from tail_beam_id.camera import FramePeriod, may_be_slower
 from tail_beam_id.timing import OUTSIDE_NAME, UNUSUAL, SensorTiming, TimingConfig, judge
 from tail_beam_id.contact_fit import ContactFitConfig, clipped_near, fit_contact
 from tail_beam_id.detection.imu import DetectionConfig, Pulse, PulseDetector
@@ -116,6 +116,16 @@ def _configured_frame_period_s(merged: Mapping[str, Any]) -> float | None:
     return 1.0 / require_range("sensors.camera_frame_rate_hz", rate, 0.0, 1e6, low_open=True, unit="Hz")
 
 
+def _profile_frame_period_s(merged: Mapping[str, Any]) -> float | None:
+    """The camera frame (s) a self-calibration pass read from the recording's rebound stamps
+    (its profile's ``calibration.camera_frame_rate_hz``), or None: unlike sensors.camera_frame_rate_hz,
+    a measurement, not a setting (config/'s 5 kHz is everyone's)."""
+    rate = (merged.get("calibration") or {}).get("camera_frame_rate_hz")
+    if not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0.0:
+        return None
+    return 1.0 / float(rate)
+
+
 def _profile_says_timing_suspect(merged: Mapping[str, Any], config: TimingConfig) -> bool:
     """A self-calibration pass over the recording (its profile's ``calibration`` section) found
     its sensor timing suspect (tail_beam_id.timing): then the labels are capped from the first."""
@@ -173,6 +183,7 @@ class StreamIdentifier:
             c.detection.pressure_drift_confirm_sigma,
         )
         self.camera = FramePeriod(_configured_frame_period_s(merged))  # the camera's frame period, s
+        self.profile_frame_s = _profile_frame_period_s(merged)  # the frame self-calibration measured, s (None: not)
         # Pending impacts, rebounds, recent decisions; its rebound windows follow the camera's frame.
         self.impacts = ImpactAssociation(self.config, self.camera.period_at)
         self.timing = SensorTiming(self.config.timing, _profile_says_timing_suspect(merged, self.config.timing))
@@ -201,6 +212,7 @@ class StreamIdentifier:
         if method is not None:
             self.method = method
         self.calibrated = bool((merged.get("calibration") or {}).get("rigid_mode_frequency_hz"))
+        self.profile_frame_s = _profile_frame_period_s(merged)
 
     # ---- input -------------------------------------------------------------------------------
     def add_pressure(self, stamp_s: np.ndarray, pressure_pa: np.ndarray) -> None:
@@ -414,7 +426,7 @@ class StreamIdentifier:
             claimable = self.impacts.claimable(stamp)
             orphan = self._accel_seen() and scanned >= stamp + c.rebound_early_tolerance_s
             if (imu_gone or imu_absent or orphan) and not claimable:
-                late = self.impacts.late_claimant(stamp) if orphan and not imu_gone else None
+                late = self.impacts.late_claimant(stamp) if orphan and not imu_gone and self._camera_may_be_slower(stamp) else None
                 if late is not None:
                     self.impacts.take_late_rebound(late, stamp, velocity)
                     continue
@@ -467,12 +479,22 @@ class StreamIdentifier:
         camera, and the rebound become an impact of its own)."""
         if impact.pulse is None or impact.rebound is not None or self.config.detection.late_rebound_max_s <= 0.0:
             return False
+        if not self._camera_may_be_slower(impact.onset_s + self.config.detection.late_rebound_max_s):
+            return False
         accel = self.vibration if self._vibration_in_use() else self.imu
         if not self._live(accel, False):
             return False
         settled_s = self._imu_scanned_s() - self.config.detection.rebound_early_tolerance_s
         return any(stamp not in self.impacts.used_rebounds and stamp > settled_s and not self.impacts.claimable(stamp)
                    and self.impacts.late_claimant(stamp) is impact for stamp, _ in self.impacts.rebounds)
+
+    def _camera_may_be_slower(self, stamp_s: float) -> bool:
+        """Whether the camera may be slower than its frame is known to be at ``stamp_s``
+        (tail_beam_id.camera.may_be_slower): measured from the stamps so far, else by the
+        self-calibration pass. A camera known to be fast stamps no rebound after its window:
+        one that comes there is another impact's (or a slow IMU's onset came early), not late."""
+        measured = self.camera.measured_at(stamp_s)
+        return may_be_slower(measured if measured is not None else self.profile_frame_s)
 
     def _imu_scanned_s(self) -> float:
         """Stamp up to which the detector has examined the acceleration channel in use (the

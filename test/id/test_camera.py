@@ -207,3 +207,17 @@ def test_with_an_imu_too_slow_to_read_the_contact_a_slow_cameras_delay_is_averag
     moved = [method.decide({**label.features, "rebound_delay_s": label.features["rebound_delay_s"] + 4e-4}).p_coal
              != method.decide(label.features).p_coal for label in decided]
     assert all(moved)
+
+
+def test_only_a_frame_measured_well_under_the_readable_limit_proves_a_fast_camera():
+    """may_be_slower: a camera slower than MAX_PERIOD_S (2 ms) has stamps that fit a frame between
+    1 and 2 ms (240 Hz: 4.17 ms / 3 = 1.39 ms; 100 Hz: 10 ms / 5 = 2 ms), so only an estimate of
+    1 ms or less, or none being unknown, decides; and the estimates are what frame_period_s reads."""
+    from tail_beam_id.camera import may_be_slower
+
+    assert may_be_slower(None) and may_be_slower(2e-3) and may_be_slower(1.39e-3)
+    assert not may_be_slower(2e-4) and not may_be_slower(1e-3)
+    for rate_hz, read_s in ((240.0, 1.0 / 720.0), (100.0, 2e-3), (5000.0, 2e-4)):
+        stamps = np.cumsum(np.random.default_rng(3).integers(30, 90, size=12)) / rate_hz
+        assert frame_period_s(stamps) == pytest.approx(read_s, rel=1e-6)
+        assert may_be_slower(frame_period_s(stamps)) == (rate_hz < 1000.0)
