@@ -222,6 +222,29 @@ def test_id_node_labels_from_what_remains_when_a_stream_stops():
         assert all(math.isfinite(lab.confidence) for lab in labels)
 
 
+def sensor_publishers(feeder: Probe) -> dict:
+    """The feeder's publishers of the four sensor topics, depths for a whole chunk."""
+    return {
+        topics.JACK_PRESSURE: feeder.create_publisher(FluidPressure, topics.JACK_PRESSURE, 10000),
+        topics.IMU: feeder.create_publisher(Imu, topics.IMU, 10000),
+        topics.VIBRATION: feeder.create_publisher(LaserScan, topics.VIBRATION, 1000),
+        topics.REBOUND_VELOCITY: feeder.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, 100),
+    }
+
+
+def stamp_ordered(chunk, rebounds) -> list:
+    """(topic, message) of a chunk's sensor data and ``rebounds``, in stamp order (a sensor's
+    own order kept at equal stamps), as a live face would publish them."""
+    messages = sorted(
+        [(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec, k, topic, m) for topic, batch in (
+            (topics.JACK_PRESSURE, ros_messages.pressure_messages(chunk.pressure)),
+            (topics.IMU, ros_messages.imu_messages(chunk.imu)),
+            (topics.VIBRATION, ros_messages.vibration_messages(chunk.vibration)),
+            (topics.REBOUND_VELOCITY, [ros_messages.rebound_message(r) for r in rebounds]),
+        ) for k, m in enumerate(batch)], key=lambda item: item[:2])
+    return [(topic, msg) for _, _, topic, msg in messages]
+
+
 def test_id_node_survives_a_restarted_simulator_and_a_stamp_from_the_future():
     """A stream whose stamps start again from 0 (sim_node restarted) and, before it, one IMU
     message stamped 1000 s ahead: id_node says so in its log and labels every impact of both
@@ -238,26 +261,15 @@ def test_id_node_survives_a_restarted_simulator_and_a_stamp_from_the_future():
     with ros_context() as (context, executor):
         ident = id_node(context)
         feeder = Probe(context, {topics.LABEL: String, "/rosout": Log}, name="feeder")
-        pubs = {
-            topics.JACK_PRESSURE: feeder.create_publisher(FluidPressure, topics.JACK_PRESSURE, 10000),
-            topics.IMU: feeder.create_publisher(Imu, topics.IMU, 10000),
-            topics.VIBRATION: feeder.create_publisher(LaserScan, topics.VIBRATION, 1000),
-            topics.REBOUND_VELOCITY: feeder.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, 100),
-        }
+        pubs = sensor_publishers(feeder)
         executor.add_node(ident)
         executor.add_node(feeder)
         assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()))
         future = ros_messages.imu_messages(chunk.imu)[100]
         future.header.stamp = ros_messages.time_msg(1000.0)
         for run in range(2):
-            messages = sorted(
-                [(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec, k, topic, m) for topic, batch in (
-                    (topics.JACK_PRESSURE, ros_messages.pressure_messages(chunk.pressure)),
-                    (topics.IMU, ros_messages.imu_messages(chunk.imu)),
-                    (topics.VIBRATION, ros_messages.vibration_messages(chunk.vibration)),
-                    (topics.REBOUND_VELOCITY, [ros_messages.rebound_message(r) for _, r in chunk.rebounds]),
-                ) for k, m in enumerate(batch)], key=lambda item: item[:2])
-            for i, (_, _, topic, msg) in enumerate(messages):
+            messages = stamp_ordered(chunk, [r for _, r in chunk.rebounds])
+            for i, (topic, msg) in enumerate(messages):
                 pubs[topic].publish(msg)
                 if run == 0 and i == len(messages) // 3:
                     pubs[topics.IMU].publish(future)
@@ -295,23 +307,11 @@ def test_id_node_gives_a_slow_cameras_late_rebounds_to_their_impacts_as_offline(
     with ros_context() as (context, executor):
         ident = id_node(context)
         feeder = Probe(context, {topics.LABEL: String}, name="feeder")
-        pubs = {
-            topics.JACK_PRESSURE: feeder.create_publisher(FluidPressure, topics.JACK_PRESSURE, 10000),
-            topics.IMU: feeder.create_publisher(Imu, topics.IMU, 10000),
-            topics.VIBRATION: feeder.create_publisher(LaserScan, topics.VIBRATION, 1000),
-            topics.REBOUND_VELOCITY: feeder.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, 100),
-        }
+        pubs = sensor_publishers(feeder)
         executor.add_node(ident)
         executor.add_node(feeder)
         assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()))
-        messages = sorted(
-            [(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec, k, topic, m) for topic, batch in (
-                (topics.JACK_PRESSURE, ros_messages.pressure_messages(chunk.pressure)),
-                (topics.IMU, ros_messages.imu_messages(chunk.imu)),
-                (topics.VIBRATION, ros_messages.vibration_messages(chunk.vibration)),
-                (topics.REBOUND_VELOCITY, [ros_messages.rebound_message(r) for r in rebounds]),
-            ) for k, m in enumerate(batch)], key=lambda item: item[:2])
-        for i, (_, _, topic, msg) in enumerate(messages):
+        for i, (topic, msg) in enumerate(stamp_ordered(chunk, rebounds)):
             pubs[topic].publish(msg)
             if i % 2000 == 0:
                 spin_for(executor, 0.05)
