@@ -221,10 +221,11 @@ class StatisticalMethod:
         return Decision(p_coal, estimates, outside, signals)
 
     def _camera_too_slow_for_the_delay(self, features: Mapping[str, float]) -> bool:
-        """Whether the impact's camera frame is longer than any the training drew: its lag, up to
-        a frame, is then more than the contact durations the delay tells apart (averaged over
-        their lags, a 1 kHz camera's foreign impacts scored 77.5 % with decisions near 0.6;
-        without the delay 86.0 %, against 90.0 % with a 5 kHz camera: bench_robustness.py)."""
+        """Whether to decide without the delay: the impact's camera frame is longer than any the
+        training drew, so its lag, up to a frame, is more than the contact durations the delay
+        tells apart (averaged over their lags, a 1 kHz camera's foreign impacts scored 77.5 %
+        with decisions near 0.6; without the delay 86.0 %, against 90.0 % with a 5 kHz camera:
+        bench_robustness.py), and the pulse gave the contact's duration (duration_read)."""
         return self._slower_than_trained(features) and duration_read(features)
 
     def _slower_than_trained(self, features: Mapping[str, float]) -> bool:
