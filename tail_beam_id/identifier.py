@@ -479,14 +479,15 @@ class StreamIdentifier:
         camera, and the rebound become an impact of its own)."""
         if impact.pulse is None or impact.rebound is not None or self.config.detection.late_rebound_max_s <= 0.0:
             return False
-        if not self._camera_may_be_slower(impact.onset_s + self.config.detection.late_rebound_max_s):
-            return False
         accel = self.vibration if self._vibration_in_use() else self.imu
         if not self._live(accel, False):
             return False
         settled_s = self._imu_scanned_s() - self.config.detection.rebound_early_tolerance_s
+        # The same conditions _rebound_impacts will claim it on, the camera's frame as known at
+        # the rebound's own stamp.
         return any(stamp not in self.impacts.used_rebounds and stamp > settled_s and not self.impacts.claimable(stamp)
-                   and self.impacts.late_claimant(stamp) is impact for stamp, _ in self.impacts.rebounds)
+                   and self._camera_may_be_slower(stamp) and self.impacts.late_claimant(stamp) is impact
+                   for stamp, _ in self.impacts.rebounds)
 
     def _camera_may_be_slower(self, stamp_s: float) -> bool:
         """Whether the camera may be slower than its frame is known to be at ``stamp_s``
