@@ -193,6 +193,9 @@ class StreamIdentifier:
         self._mount_block_s: float | None = None  # start of the next block the IMU comparison looks at, s
         self.vibration_start_s = math.inf  # first vibration stamp seen
         self.vibration_stop_s = math.inf  # stamp after which the vibration stream was declared stopped
+        # (declared stopped at, taken up again from) of each time the vibration stream came back
+        # after a stop, s: the IMU's pulses count there (_vibration_resumed).
+        self.vibration_outages: list[tuple[float, float]] = []
         self._held: list[Pulse] = []  # IMU pulses the vibration stream may yet cover
 
     def recalibrate(self, model_params: Mapping[str, Any], method: Method | None = None) -> None:
@@ -314,6 +317,7 @@ class StreamIdentifier:
             self.imu_stop_s = self.imu.latest_s
         if self.vibration.seen and not self._live(self.vibration, final) and self.vibration_stop_s == math.inf:
             self.vibration_stop_s = self.vibration.latest_s
+        self._vibration_resumed()
         self._detect_pulses(final)
         self._rebound_impacts(final)
         self._pressure_impacts(final)
@@ -326,6 +330,26 @@ class StreamIdentifier:
                 labels.append(label)
         self._trim()
         return labels
+
+    def _vibration_resumed(self) -> None:
+        """Take the vibration stream up again when samples stamped after its stop come and it
+        keeps up with the others (its driver restarted, its cable back): it was declared stopped
+        for good, and after a 300 ms gap the impacts were decided from the IMU and the
+        accelerometer in turn, one of them twice. The IMU's pulses count from the stop until the
+        detector has had a sway and a baseline window of the new samples (a step across the
+        gap is no pulse); the accelerometer's count from then on."""
+        if self.vibration_stop_s == math.inf or not self.vibration.latest_s > self.vibration_stop_s:
+            return
+        if not self._live(self.vibration, False):
+            return
+        first = float(self.vibration.stamp_s[np.searchsorted(self.vibration.stamp_s, self.vibration_stop_s, side="right")])
+        settle_s = self.config.detection.sway_window_s + self.config.detection.baseline_window_s
+        self.vibration_outages.append((self.vibration_stop_s, first + settle_s))
+        self.vibration_stop_s = math.inf
+
+    def _in_vibration_outage(self, stamp_s: float) -> bool:
+        """``stamp_s`` lies where the vibration stream was stopped before it came back."""
+        return any(stop < stamp_s < back for stop, back in self.vibration_outages)
 
     def _accel_z(self) -> np.ndarray | None:
         """The IMU's specific force along the plate normal, the right way up (+g at rest).
@@ -394,7 +418,8 @@ class StreamIdentifier:
         vibration_z = self._vibration_z(vibration_ended) if self.vibration.stamp_s.size else None
         if vibration_z is not None:
             for pulse in self.vibration_detector.scan(self.vibration.stamp_s, vibration_z, self.vibration.base_index, vibration_ended):
-                self.impacts.pending.append(PendingImpact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration"))
+                if not self._in_vibration_outage(pulse.onset_s):
+                    self.impacts.pending.append(PendingImpact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration"))
         if self.vibration.seen:
             # IMU pulses already waiting from before the vibration stream was first seen.
             covered = [i for i in self.impacts.pending if i.channel == "imu" and i.pulse is not None and i.onset_s >= self.vibration_start_s]
@@ -405,7 +430,8 @@ class StreamIdentifier:
             self._held += self.detector.scan(self.imu.stamp_s, accel_z, self.imu.base_index, final or self.imu_stop_s < math.inf)
         held, self._held = self._held, []
         for pulse in held:
-            covered = self.vibration.seen and self.vibration_start_s <= pulse.onset_s <= min(self.vibration_stop_s, self.vibration.latest_s)
+            covered = (self.vibration.seen and self.vibration_start_s <= pulse.onset_s <= min(self.vibration_stop_s, self.vibration.latest_s)
+                       and not self._in_vibration_outage(pulse.onset_s))
             if covered:
                 continue
             if self._vibration_in_use() and pulse.onset_s > self.vibration.latest_s and not final:
