@@ -188,6 +188,8 @@ class StreamIdentifier:
         self.impacts = ImpactAssociation(self.config, self.camera.period_at)
         self.timing = SensorTiming(self.config.timing, _profile_says_timing_suspect(merged, self.config.timing))
         self.imu_stop_s = math.inf  # stamp after which the IMU was declared stopped
+        # (declared stopped at, taken up again from) of each time the IMU came back, s.
+        self.imu_outages: list[tuple[float, float]] = []
         self.mount_sign: float | None = None  # +1: IMU z along the plate normal; -1: mounted upside down
         self.vibration_mount_sign: float | None = None  # the same for the tail-beam accelerometer
         self._mount_block_s: float | None = None  # start of the next block the IMU comparison looks at, s
@@ -318,6 +320,7 @@ class StreamIdentifier:
         if self.vibration.seen and not self._live(self.vibration, final) and self.vibration_stop_s == math.inf:
             self.vibration_stop_s = self.vibration.latest_s
         self._vibration_resumed()
+        self._imu_resumed()
         self._detect_pulses(final)
         self._rebound_impacts(final)
         self._pressure_impacts(final)
@@ -338,18 +341,36 @@ class StreamIdentifier:
         accelerometer in turn, one of them twice. The IMU's pulses count from the stop until the
         detector has had a sway and a baseline window of the new samples (a step across the
         gap is no pulse); the accelerometer's count from then on."""
-        if self.vibration_stop_s == math.inf or not self.vibration.latest_s > self.vibration_stop_s:
-            return
-        if not self._live(self.vibration, False):
-            return
-        first = float(self.vibration.stamp_s[np.searchsorted(self.vibration.stamp_s, self.vibration_stop_s, side="right")])
-        settle_s = self.config.detection.sway_window_s + self.config.detection.baseline_window_s
-        self.vibration_outages.append((self.vibration_stop_s, first + settle_s))
-        self.vibration_stop_s = math.inf
+        back = self._back_after_stop(self.vibration, self.vibration_stop_s)
+        if back is not None:
+            self.vibration_outages.append((self.vibration_stop_s, back))
+            self.vibration_stop_s = math.inf
+
+    def _imu_resumed(self) -> None:
+        """The same for the IMU: with the IMU alone, the jack pressure finds the impacts from its
+        stop until it is back (and only there), the IMU's pulses count from then on; before, the
+        pressure went on finding impacts beside the IMU's (1-2 extra labels in 20)."""
+        back = self._back_after_stop(self.imu, self.imu_stop_s)
+        if back is not None:
+            self.imu_outages.append((self.imu_stop_s, back))
+            self.imu_stop_s = math.inf
+
+    def _back_after_stop(self, series: Series, stop_s: float) -> float | None:
+        """When a stream declared stopped at ``stop_s`` has samples after it again and keeps up
+        with the others: the stamp from which its pulses count (its first new sample plus a
+        sway and a baseline window, what the detector needs of them); else None."""
+        if stop_s == math.inf or not series.latest_s > stop_s or not self._live(series, False):
+            return None
+        first = float(series.stamp_s[np.searchsorted(series.stamp_s, stop_s, side="right")])
+        return first + self.config.detection.sway_window_s + self.config.detection.baseline_window_s
 
     def _in_vibration_outage(self, stamp_s: float) -> bool:
         """``stamp_s`` lies where the vibration stream was stopped before it came back."""
         return any(stop < stamp_s < back for stop, back in self.vibration_outages)
+
+    def _in_imu_outage(self, stamp_s: float) -> bool:
+        """``stamp_s`` lies where the IMU was stopped before it came back."""
+        return any(stop < stamp_s < back for stop, back in self.imu_outages)
 
     def _accel_z(self) -> np.ndarray | None:
         """The IMU's specific force along the plate normal, the right way up (+g at rest).
@@ -427,7 +448,8 @@ class StreamIdentifier:
             self._held += [i.pulse for i in covered]  # type: ignore[misc]
         accel_z = self._accel_z()
         if accel_z is not None:
-            self._held += self.detector.scan(self.imu.stamp_s, accel_z, self.imu.base_index, final or self.imu_stop_s < math.inf)
+            self._held += [pulse for pulse in self.detector.scan(self.imu.stamp_s, accel_z, self.imu.base_index, final or self.imu_stop_s < math.inf)
+                           if not self._in_imu_outage(pulse.onset_s)]
         held, self._held = self._held, []
         for pulse in held:
             covered = (self.vibration.seen and self.vibration_start_s <= pulse.onset_s <= min(self.vibration_stop_s, self.vibration.latest_s)
@@ -471,11 +493,17 @@ class StreamIdentifier:
         """With the IMU stopped or absent, impacts found in the pressure (unless a rebound
         already stands for them)."""
         stop = self._accel_stop_s()
-        if stop == math.inf and not self._imu_absent(final):
+        # An IMU back after a stop: the pressure finishes the stretch it stood in for, no further.
+        unfinished = bool(self.imu_outages) and self.pressure_detector.scanned_s <= self.imu_outages[-1][1]
+        if stop == math.inf and not self._imu_absent(final) and not unfinished:
             return
+        if stop < math.inf:
+            self.pressure_detector.skip_to(stop)  # a new stop: the stretch since the last was the IMU's
         start = stop if stop < math.inf else -math.inf
         margin = self.config.detection.pressure_onset_uncertainty_s
         for onset in self.pressure_detector.scan(self.pressure.stamp_s, self.pressure.values[:, 0], start, final):
+            if stop == math.inf and not self._imu_absent(final) and not self._in_imu_outage(onset.onset_s):
+                continue  # after the IMU came back: its pulses find the impacts there
             known = [i.onset_s for i in self.impacts.pending if i.source == "rebound"] + self.impacts.decided
             if all(abs(onset.onset_s - t) > margin for t in known):
                 self.impacts.pending.append(PendingImpact(onset_s=onset.onset_s, pulse=None, source="pressure"))

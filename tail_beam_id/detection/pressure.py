@@ -43,6 +43,18 @@ class PressureDetector:
         self.next_grid: int | None = None
         self._run: list[tuple[float, float]] = []  # (onset, significance) of the current excursion
 
+    @property
+    def scanned_s(self) -> float:
+        """The next candidate onset the scan will try, s (-inf before the first scan)."""
+        return -math.inf if self.next_grid is None else self.next_grid * GRID_S
+
+    def skip_to(self, start_s: float) -> None:
+        """Go on from ``start_s`` (s), leaving what lies before it unscanned: a stretch in which
+        another channel found the impacts."""
+        if self.next_grid is not None and self.next_grid * GRID_S < start_s:
+            self.next_grid = math.ceil(start_s / GRID_S)
+            self._run = []
+
     def scan(self, stamp_s: np.ndarray, pressure_pa: np.ndarray, start_s: float, final: bool = False) -> list[PressureOnset]:
         """New onsets at or after ``start_s`` whose window lies inside the buffered samples."""
         if stamp_s.size < 8:

@@ -170,12 +170,16 @@ def test_an_impact_the_accelerometer_found_is_decided_on_its_shorter_window(para
         StreamIdentifier("statistical", {**section, "vibration_window_s": 2 * section["window_s"]}, params)
 
 
-def test_an_accelerometer_that_comes_back_after_a_gap_is_taken_up_again(params):
-    """The accelerometer's samples stop for 300 ms (longer than stream_timeout_s) and come again:
-    its driver restarted, its cable back. It was declared stopped for good, and after the gap
-    the impacts were decided from the IMU and the accelerometer in turn, one twice (an extra
-    label in 20). Now the IMU stands in from the stop until the accelerometer has had a sway
-    and a baseline window of its new samples, and the accelerometer decides every impact after."""
+@pytest.mark.parametrize("channel", ["vibration", "imu"])
+def test_an_acceleration_channel_that_comes_back_after_a_gap_is_taken_up_again(params, channel):
+    """The acceleration channel's samples stop for 300 ms (longer than stream_timeout_s) and come
+    again: its driver restarted, its cable back. ``vibration``: the accelerometer beside the
+    IMU was declared stopped for good, and after the gap the impacts were decided from the IMU
+    and the accelerometer in turn, one twice (an extra label in 20); now the IMU stands in from
+    the stop until the accelerometer has had a sway and a baseline window of its new samples.
+    ``imu``: the IMU alone; the jack pressure stood in from its stop and went on finding
+    impacts beside the IMU's once it was back (2 extra labels in 20); now it stands in only
+    there. Every impact after the channel is back is decided from it."""
     from tail_beam_id.dataset import settings, support_streams
     from tail_beam_id.label import match
 
@@ -184,17 +188,23 @@ def test_an_accelerometer_that_comes_back_after_a_gap_is_taken_up_again(params):
     identifier = StreamIdentifier("statistical", params["identification"], params)
     pressure, imu = recorded.pressure, recorded.imu
     stamps, accel = recorded.vibration.sample_stamps_s(), recorded.vibration.accel_mps2
-    kept = ~((stamps >= gap[0]) & (stamps < gap[1]))
-    stamps, accel = stamps[kept], accel[kept]
+    imu_kept = np.ones(imu.stamp_s.size, dtype=bool)
+    if channel == "vibration":
+        kept = ~((stamps >= gap[0]) & (stamps < gap[1]))
+        stamps, accel = stamps[kept], accel[kept]
+    else:
+        stamps, accel = stamps[:0], accel[:0]  # the IMU alone
+        imu_kept = ~((imu.stamp_s >= gap[0]) & (imu.stamp_s < gap[1]))
     rebounds = sorted(recorded.rebounds, key=lambda r: r.stamp_s)
-    first = min(pressure.stamp_s[0], imu.stamp_s[0], stamps[0])
-    edges = first + 0.005 * np.arange(int((stamps[-1] - first) / 0.005) + 3)  # shared edges: no sample twice or lost
+    first = min(pressure.stamp_s[0], imu.stamp_s[0])
+    last = max(pressure.stamp_s[-1], imu.stamp_s[-1])
+    edges = first + 0.005 * np.arange(int((last - first) / 0.005) + 3)  # shared edges: no sample twice or lost
     labels, taken = [], 0
     for low, high in zip(edges[:-1], edges[1:]):
         inside = (pressure.stamp_s >= low) & (pressure.stamp_s < high)
         if inside.any():
             identifier.add_pressure(pressure.stamp_s[inside], pressure.pressure_pa[inside])
-        inside = (imu.stamp_s >= low) & (imu.stamp_s < high)
+        inside = (imu.stamp_s >= low) & (imu.stamp_s < high) & imu_kept
         if inside.any():
             identifier.add_imu(imu.stamp_s[inside], imu.angular_velocity_radps[inside], imu.linear_acceleration_mps2[inside])
         inside = (stamps >= low) & (stamps < high)
@@ -207,8 +217,9 @@ def test_an_accelerometer_that_comes_back_after_a_gap_is_taken_up_again(params):
     labels += identifier.flush()
     matching = match(recorded.truths, labels, 0.005)
     assert not matching.missed and not matching.extra
-    assert len(identifier.vibration_outages) == 1 and identifier.vibration_outages[0][0] < gap[0]
-    back_s = identifier.vibration_outages[0][1]
+    outages = identifier.vibration_outages if channel == "vibration" else identifier.imu_outages
+    assert len(outages) == 1 and outages[0][0] < gap[0]
+    back_s = outages[0][1]
     assert gap[1] < back_s < gap[1] + 0.05
-    assert all("vibration" in label.signals for label in labels if label.impact_stamp_s > back_s)
-    assert all("vibration" not in label.signals for label in labels if gap[0] < label.impact_stamp_s < back_s)
+    assert all(channel in label.signals for label in labels if label.impact_stamp_s > back_s)
+    assert all(channel not in label.signals for label in labels if gap[0] < label.impact_stamp_s < back_s)
