@@ -6,7 +6,10 @@ once every live continuous stream (jack pressure, IMU) has passed its onset plus
 and the camera has either delivered the impact's rebound or has had ``camera_timeout_s`` of
 stamp time beyond the rebound window to do so. A continuous stream whose newest stamp lags the
 newest of the others by more than ``stream_timeout_s`` is declared stopped; labels then say
-which ``signals`` they used, and the methods' confidence falls with the signals they lose.
+which ``signals`` they used, and the methods' confidence falls with the signals they lose. An
+acceleration channel that comes back is taken up again once its detector has had a sway and a
+baseline window of the new samples (``vibration_outages``, ``imu_outages``); the channel that
+stood in for it (the IMU, or the jack pressure) keeps the stretch between.
 
 Acceleration channel: impacts are detected in the specific force along the plate normal. That
 is the IMU's ``linear_acceleration.z`` unless a high-rate tail-beam accelerometer
