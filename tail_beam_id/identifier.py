@@ -129,6 +129,11 @@ def _profile_frame_period_s(merged: Mapping[str, Any]) -> float | None:
     return 1.0 / float(rate)
 
 
+def _inside(outages: list[tuple[float, float]], stamp_s: float) -> bool:
+    """``stamp_s`` lies within one of the (stopped at, taken up again from) stretches, s."""
+    return any(stop < stamp_s < back for stop, back in outages)
+
+
 def _profile_says_timing_suspect(merged: Mapping[str, Any], config: TimingConfig) -> bool:
     """A self-calibration pass over the recording (its profile's ``calibration`` section) found
     its sensor timing suspect (tail_beam_id.timing): then the labels are capped from the first."""
@@ -191,8 +196,10 @@ class StreamIdentifier:
         self.impacts = ImpactAssociation(self.config, self.camera.period_at)
         self.timing = SensorTiming(self.config.timing, _profile_says_timing_suspect(merged, self.config.timing))
         self.imu_stop_s = math.inf  # stamp after which the IMU was declared stopped
-        # (declared stopped at, taken up again from) of each time the IMU came back, s.
+        # (declared stopped at, taken up again from) of each time the IMU came back, s; and of
+        # those, the ones the jack pressure stood in for (no other acceleration channel live).
         self.imu_outages: list[tuple[float, float]] = []
+        self._pressure_outages: list[tuple[float, float]] = []
         self.mount_sign: float | None = None  # +1: IMU z along the plate normal; -1: mounted upside down
         self.vibration_mount_sign: float | None = None  # the same for the tail-beam accelerometer
         self._mount_block_s: float | None = None  # start of the next block the IMU comparison looks at, s
@@ -356,6 +363,8 @@ class StreamIdentifier:
         back = self._back_after_stop(self.imu, self.imu_stop_s)
         if back is not None:
             self.imu_outages.append((self.imu_stop_s, back))
+            if self._accel_stop_s() < math.inf:  # no accelerometer live: the pressure stood in
+                self._pressure_outages.append((self.imu_stop_s, back))
             self.imu_stop_s = math.inf
 
     def _back_after_stop(self, series: Series, stop_s: float) -> float | None:
@@ -367,13 +376,6 @@ class StreamIdentifier:
         first = float(series.stamp_s[np.searchsorted(series.stamp_s, stop_s, side="right")])
         return first + self.config.detection.sway_window_s + self.config.detection.baseline_window_s
 
-    def _in_vibration_outage(self, stamp_s: float) -> bool:
-        """``stamp_s`` lies where the vibration stream was stopped before it came back."""
-        return any(stop < stamp_s < back for stop, back in self.vibration_outages)
-
-    def _in_imu_outage(self, stamp_s: float) -> bool:
-        """``stamp_s`` lies where the IMU was stopped before it came back."""
-        return any(stop < stamp_s < back for stop, back in self.imu_outages)
 
     def _accel_z(self) -> np.ndarray | None:
         """The IMU's specific force along the plate normal, the right way up (+g at rest).
@@ -442,7 +444,7 @@ class StreamIdentifier:
         vibration_z = self._vibration_z(vibration_ended) if self.vibration.stamp_s.size else None
         if vibration_z is not None:
             for pulse in self.vibration_detector.scan(self.vibration.stamp_s, vibration_z, self.vibration.base_index, vibration_ended):
-                if not self._in_vibration_outage(pulse.onset_s):
+                if not _inside(self.vibration_outages, pulse.onset_s):
                     self.impacts.pending.append(PendingImpact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration"))
         if self.vibration.seen:
             # IMU pulses already waiting from before the vibration stream was first seen.
@@ -452,11 +454,11 @@ class StreamIdentifier:
         accel_z = self._accel_z()
         if accel_z is not None:
             self._held += [pulse for pulse in self.detector.scan(self.imu.stamp_s, accel_z, self.imu.base_index, final or self.imu_stop_s < math.inf)
-                           if not self._in_imu_outage(pulse.onset_s)]
+                           if not _inside(self.imu_outages, pulse.onset_s)]
         held, self._held = self._held, []
         for pulse in held:
             covered = (self.vibration.seen and self.vibration_start_s <= pulse.onset_s <= min(self.vibration_stop_s, self.vibration.latest_s)
-                       and not self._in_vibration_outage(pulse.onset_s))
+                       and not _inside(self.vibration_outages, pulse.onset_s))
             if covered:
                 continue
             if self._vibration_in_use() and pulse.onset_s > self.vibration.latest_s and not final:
@@ -497,7 +499,7 @@ class StreamIdentifier:
         already stands for them)."""
         stop = self._accel_stop_s()
         # An IMU back after a stop: the pressure finishes the stretch it stood in for, no further.
-        unfinished = bool(self.imu_outages) and self.pressure_detector.scanned_s <= self.imu_outages[-1][1]
+        unfinished = bool(self._pressure_outages) and self.pressure_detector.scanned_s <= self._pressure_outages[-1][1]
         if stop == math.inf and not self._imu_absent(final) and not unfinished:
             return
         if stop < math.inf:
@@ -505,7 +507,7 @@ class StreamIdentifier:
         start = stop if stop < math.inf else -math.inf
         margin = self.config.detection.pressure_onset_uncertainty_s
         for onset in self.pressure_detector.scan(self.pressure.stamp_s, self.pressure.values[:, 0], start, final):
-            if stop == math.inf and not self._imu_absent(final) and not self._in_imu_outage(onset.onset_s):
+            if stop == math.inf and not self._imu_absent(final) and not _inside(self._pressure_outages, onset.onset_s):
                 continue  # after the IMU came back: its pulses find the impacts there
             known = [i.onset_s for i in self.impacts.pending if i.source == "rebound"] + self.impacts.decided
             if all(abs(onset.onset_s - t) > margin for t in known):
