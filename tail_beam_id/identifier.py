@@ -168,6 +168,9 @@ class StreamIdentifier:
         self.config = IdentifierConfig.from_params(section)
         merged = dict(model_params if model_params is not None else defaults)  # type: ignore[arg-type]
         merged["identification"] = section
+        # A profile's section (tail-beam calibrate), read by the methods and here: a number or
+        # text in its place is refused by name (it ended in an AttributeError).
+        require_section("calibration", merged.get("calibration"))
         if prebuilt is not None and prebuilt.name == self.config.method:
             self.method = prebuilt
         else:

@@ -311,3 +311,10 @@ def test_a_section_given_as_one_value_is_refused_by_name(params, section):
     broken = {**params["identification"], section: 5}
     with pytest.raises(InputError, match=f"identification.{section} = 5: must be a parameter section"):
         StreamIdentifier("statistical", params=broken, model_params={**params, "identification": broken})
+
+
+def test_a_profile_section_given_as_one_value_is_refused_by_name(params):
+    """``calibration: 5`` in a parameter file (where tail-beam calibrate writes the profile's
+    section) is refused naming it; it ended in an AttributeError inside the statistical method."""
+    with pytest.raises(InputError, match="calibration = 5: must be a parameter section"):
+        StreamIdentifier("statistical", params=params["identification"], model_params={**params, "calibration": 5})
