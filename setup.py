@@ -40,10 +40,11 @@ setup(
     zip_safe=False,
     entry_points={
         "console_scripts": [
-            "sim_node = tail_beam_sim.ros.sim_node:main",
-            "id_node = tail_beam_id.id_node:main",
-            "bag_recorder = tail_beam_sim.ros.recorder_node:main",
-            "bag_replay = tail_beam_sim.ros.replay_node:main",
+            # Through start.py: a stop signal during the imports ends the process quietly.
+            "sim_node = tail_beam_sim.ros.start:sim_node",
+            "id_node = tail_beam_id.start:id_node",
+            "bag_recorder = tail_beam_sim.ros.start:bag_recorder",
+            "bag_replay = tail_beam_sim.ros.start:bag_replay",
             "tail-beam = tail_beam_sim.cli:main",
         ],
         # The verbs of ``tail-beam``: each package contributes its own (as ros2cli and colcon do),

@@ -1,13 +1,17 @@
 """Running a node as an executable: init, spin until told to stop, shut down.
 
 ``EventsExecutor.spin()`` (rclpy 9) does not return when SIGINT or SIGTERM shuts the context
-down, so the nodes spin in short slices and check the context between them.
+down, so the nodes spin in short slices and check between them. An executable takes SIGINT and
+SIGTERM itself (:class:`StopRequest`) instead of rclpy's handlers: those shut the context down
+and raise KeyboardInterrupt wherever the signal lands, inside a callback too, which the
+executor then logged as a FATAL exception with its traceback on an ordinary Ctrl-C.
 """
 
 from __future__ import annotations
 
 import os
 import re
+import signal
 import sys
 import time
 from collections import deque
@@ -21,6 +25,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.publisher import Publisher
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.parameter import Parameter
 
@@ -66,17 +71,42 @@ def spin_once(executor: Executor, timeout_s: float) -> None:
         pass
 
 
-def spin(node: Node, done: Future | None = None) -> None:
-    """Spin ``node`` on an EventsExecutor until shutdown (SIGINT, SIGTERM) or ``done``.
+class StopRequest:
+    """SIGINT and SIGTERM as a request to stop, honoured between two callbacks.
 
-    SIGINT shuts the context down from the signal handler, possibly while a callback is
-    publishing: that callback then fails on the invalidated context ("publisher's context is
-    invalid"). Such a failure is the shutdown itself, not an error, and ends the spin quietly.
+    The first signal only sets ``requested``: the callback it lands in finishes, the spin loop
+    sees the flag and returns, and :func:`run_node` shuts the context down and closes the node
+    (which, told to stop, does not wait for its subscribers). A second signal raises
+    KeyboardInterrupt, for a stop that hangs."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.requested = False
+
+    def install(self) -> None:
+        for sig in self.SIGNALS:
+            signal.signal(sig, self._handle)
+
+    def _handle(self, signum: int, frame: object) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+
+def spin(node: Node, done: Future | None = None, stop: StopRequest | None = None) -> None:
+    """Spin ``node`` on an EventsExecutor until ``stop`` is requested, the context is shut down
+    (rclpy's own signal handlers, where the caller kept them) or ``done``.
+
+    A context shut down from a signal handler while a callback is publishing makes that
+    callback fail ("publisher's context is invalid"). Such a failure is the shutdown itself,
+    not an error, and ends the spin quietly.
     """
     executor: Executor = EventsExecutor(context=node.context)
     executor.add_node(node)
     try:
-        while rclpy.ok(context=node.context) and not (done is not None and done.done()):
+        while (rclpy.ok(context=node.context) and not (stop is not None and stop.requested)
+               and not (done is not None and done.done())):
             spin_once(executor, SLICE_S)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -278,8 +308,10 @@ def run_node(make: Callable[[], Node], usage: NodeUsage | str, args: Sequence[st
         except BrokenPipeError:  # `... -h | head`: the reader left; not an error
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    stop = StopRequest()
     try:
-        rclpy.init(args=args)
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        stop.install()
     except RuntimeError as exc:  # rcl's RCLError: a --params-file that is no YAML or missing, a trailing -p, ...
         print(f"{executable}: error: --ros-args: {rcl_error_line(exc)}", file=sys.stderr)
         return 2
@@ -296,8 +328,10 @@ def run_node(make: Callable[[], Node], usage: NodeUsage | str, args: Sequence[st
         rclpy.try_shutdown()
         return 2
     try:
-        spin(node, node.finished if isinstance(node, FinishingNode) else None)
+        spin(node, node.finished if isinstance(node, FinishingNode) else None, stop)
     finally:
+        if stop.requested:  # told to stop: close without waiting on subscribers (drain), as a shut-down context tells the node
+            rclpy.try_shutdown()
         try:
             if isinstance(node, ClosingNode):
                 node.close()

@@ -1,0 +1,41 @@
+"""The executables' entry points: a stop signal that comes while one is still starting ends it
+quietly.
+
+Importing a node's module (rclpy, numpy, scipy, the models) takes a second or more, and a
+SIGINT then used to end the process in a KeyboardInterrupt traceback from deep inside an
+import (SIGTERM: killed, status -15). This module imports nothing heavy, takes both signals
+first, and only then imports the node: a signal before the node spins exits with status 0 and
+no output; from :func:`tail_beam_sim.ros.spin.run_node` on, the node stops as usual.
+"""
+
+from __future__ import annotations
+
+import importlib
+import signal
+from typing import NoReturn
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def _exit_quietly(signum: int, frame: object) -> NoReturn:
+    raise SystemExit(0)
+
+
+def run(module: str) -> int:
+    """Take the stop signals, then run ``module``'s ``main()``; its exit status."""
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, _exit_quietly)
+    return int(importlib.import_module(module).main() or 0)
+
+
+def sim_node() -> int:
+    return run("tail_beam_sim.ros.sim_node")
+
+
+def bag_recorder() -> int:
+    return run("tail_beam_sim.ros.recorder_node")
+
+
+def bag_replay() -> int:
+    return run("tail_beam_sim.ros.replay_node")
+
