@@ -21,15 +21,15 @@ import sys
 from collections.abc import Sequence
 
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.physics.solvers import SolverError
 
 VERB_GROUP = "tail_beam.verbs"
 # Order of ``tail-beam --help`` for the verbs it knows; any other installed verb follows, by name.
-__all__ = ["EXIT_BAD_INPUT", "EXIT_SOLVER_FAILED", "EXIT_TIMEOUT", "EXIT_REFUSED", "EXIT_PIPE_CLOSED", "OneLineParser", "VERB_GROUP", "build_parser", "main"]
+__all__ = ["EXIT_BAD_INPUT", "EXIT_SOLVER_FAILED", "EXIT_TIMEOUT", "EXIT_REFUSED", "EXIT_INTERRUPTED", "EXIT_PIPE_CLOSED", "OneLineParser", "VERB_GROUP", "build_parser", "main"]
 EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 3
 EXIT_TIMEOUT = 4
 EXIT_REFUSED = 5
+EXIT_INTERRUPTED = 130  # 128 + SIGINT
 EXIT_PIPE_CLOSED = 141  # 128 + SIGPIPE, what a shell reports for a tool its pipe's reader left
 
 PREFERRED_ORDER = ("simulate", "sweep", "send", "identify", "calibrate", "evaluate", "bag", "demo", "bench")
@@ -56,27 +56,33 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``tail-beam`` console script."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
-        return int(args.func(args) or 0)
-    except InputError as exc:
-        print(f"tail-beam {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except SolverError as exc:
-        print(f"tail-beam {args.command}: solver failed: {exc}", file=sys.stderr)
-        return EXIT_SOLVER_FAILED
-    except KeyboardInterrupt:
-        print(f"tail-beam {args.command}: interrupted", file=sys.stderr)
-        return 130
-    except BrokenPipeError:
-        # The reader of stdout left (``| head``): nothing more can be said there, and Python's
-        # own flush at exit must not fail on it again, so stdout goes to /dev/null from here.
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-        return EXIT_PIPE_CLOSED
+    """Entry point of the ``tail-beam`` console script.
 
+    The verbs' modules (numpy, scipy, rosbags, the models) are imported inside the guard, so a
+    Ctrl-C while they load is ``interrupted`` (130) as it is later, not a traceback."""
+    command = None
+    try:
+        from tail_beam_sim.physics.solvers import SolverError
+
+        args = build_parser().parse_args(argv)
+        command = args.command
+        try:
+            return int(args.func(args) or 0)
+        except InputError as exc:
+            print(f"tail-beam {command}: error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except SolverError as exc:
+            print(f"tail-beam {command}: solver failed: {exc}", file=sys.stderr)
+            return EXIT_SOLVER_FAILED
+        except BrokenPipeError:
+            # The reader of stdout left (``| head``): nothing more can be said there, and Python's
+            # own flush at exit must not fail on it again, so stdout goes to /dev/null from here.
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            return EXIT_PIPE_CLOSED
+    except KeyboardInterrupt:
+        print(f"tail-beam{' ' + command if command else ''}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 if __name__ == "__main__":
     sys.exit(main())
