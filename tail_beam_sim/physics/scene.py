@@ -132,6 +132,13 @@ class SensorSpec:
     vibration_antialias_order: int = 4  # Butterworth low-pass before sampling
     vibration_antialias_cutoff_fraction: float = 0.4  # its cut-off over the sample rate
     vibration_oversample: int = 4  # the beam's response is computed this many times per sample
+    # How each IMU sample is made: 0 = the mean over its sample period (a boxcar); N >= 1 = a
+    # Butterworth low-pass of order N at imu_antialias_cutoff_fraction x the rate, then the value
+    # at the sample instant (a MEMS IMU's digital low-pass filter), the beam's response computed
+    # imu_oversample times per sample for it.
+    imu_antialias_order: int = 0
+    imu_antialias_cutoff_fraction: float = 0.25
+    imu_oversample: int = 4
 
     @property
     def vibration_noise_mps2(self) -> float:
@@ -186,6 +193,7 @@ class SensorSpec:
             camera_velocity_noise_mps=noise("camera_velocity_noise_mps", "m/s"),
             camera_velocity_noise_fraction=require_range("sensors.camera_velocity_noise_fraction", params.get("camera_velocity_noise_fraction"), 0.0, 1.0),
             **_vibration_params(params),
+            **_imu_filter_params(params),
         )
 
 
@@ -215,6 +223,19 @@ def _vibration_params(params: Mapping[str, Any]) -> dict[str, Any]:
             "sensors.vibration_antialias_cutoff_fraction", params["vibration_antialias_cutoff_fraction"], 0.0, 0.5, low_open=True)
     if "vibration_oversample" in params:
         out["vibration_oversample"] = _integer("vibration_oversample", params["vibration_oversample"], 2, 32)
+    return out
+
+
+def _imu_filter_params(params: Mapping[str, Any]) -> dict[str, Any]:
+    """The IMU's sampling filter in the ``sensors`` section (defaults where absent)."""
+    out: dict[str, Any] = {}
+    if "imu_antialias_order" in params:
+        out["imu_antialias_order"] = _integer("imu_antialias_order", params["imu_antialias_order"], 0, 10)
+    if "imu_antialias_cutoff_fraction" in params:
+        out["imu_antialias_cutoff_fraction"] = require_range(
+            "sensors.imu_antialias_cutoff_fraction", params["imu_antialias_cutoff_fraction"], 0.0, 0.5, low_open=True)
+    if "imu_oversample" in params:
+        out["imu_oversample"] = _integer("imu_oversample", params["imu_oversample"], 2, 32)
     return out
 
 

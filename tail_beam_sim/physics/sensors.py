@@ -28,6 +28,7 @@ where their unit normal draws come from.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -124,6 +125,43 @@ def imu_samples(trajectory: Trajectory, t_s: np.ndarray, period_s: float) -> tup
     return gyro, accel
 
 
+class ImuLowPass:
+    """An IMU behind a digital low-pass filter (``sensors.imu_antialias_order`` >= 1): its
+    specific force along z and its pitch rate, computed ``imu_oversample`` times per sample,
+    each through a Butterworth filter whose state is carried between calls, read at the sample
+    instants. Calls must come in order, each starting where the last one ended (the stream's
+    chunks); the first starts settled at its first sample (the beam at rest)."""
+
+    def __init__(self, spec: SensorSpec) -> None:
+        self.rate_hz = spec.imu_rate_hz
+        self.oversample = spec.imu_oversample
+        self._filters = [AntiAliasFilter(spec.imu_rate_hz, spec.imu_antialias_order, spec.imu_antialias_cutoff_fraction, spec.imu_oversample)
+                         for _ in range(2)]
+        self._next_dense: int | None = None
+
+    def __call__(self, sample_index: np.ndarray, response: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+        """Filtered (specific force z m/s^2, pitch rate rad/s) at samples ``sample_index``
+        (stamps index / rate); ``response(stamps_s)`` gives the beam's noise-free (specific
+        force z averaged over the dense period, pitch rate) at absolute stamps."""
+        if sample_index.size == 0:
+            return np.empty(0), np.empty(0)
+        m = self.oversample
+        first = self._next_dense if self._next_dense is not None else int(sample_index[0]) * m
+        dense_index = np.arange(first, int(sample_index[-1]) * m + 1)
+        self._next_dense = int(dense_index[-1]) + 1
+        accel, rate = response(dense_index / (m * self.rate_hz))
+        pick = sample_index * m - first
+        return self._filters[0](accel)[pick], self._filters[1](rate)[pick]
+
+
+def dense_imu_response(trajectory: Trajectory, t_s: np.ndarray, dense_period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """What :class:`ImuLowPass` filters: specific force along z at the IMU averaged over the
+    dense period centred on each instant (so the mean does not lag it; m/s^2) and the pitch rate
+    (rad/s), at ``t_s`` in the trajectory's time."""
+    rate = trajectory.problem.structure.imu_slope_shape @ trajectory.sample(t_s).qd
+    return mean_specific_force_z(trajectory, t_s + 0.5 * dense_period_s, dense_period_s), rate
+
+
 def sample_grid(start_s: float, end_s: float, rate_hz: float) -> np.ndarray:
     """Sample instants k / rate_hz of the absolute clock that fall in [start_s, end_s]."""
     first = math.ceil(start_s * rate_hz - 1e-9)
@@ -153,9 +191,15 @@ class SensorSuite:
         return PressureStream(stamp_s, noisy, noise.pressure_pa**2)
 
     def imu(self, trajectory: Trajectory, stamp_s: np.ndarray, contact_stamp_s: float) -> ImuStream:
-        """IMU samples at absolute stamps, each averaged over its sample period."""
+        """IMU samples at absolute stamps (on the rate's grid), each averaged over its sample
+        period, or behind the IMU's low-pass filter (``imu_antialias_order`` >= 1)."""
         noise = self.noise
-        gyro, accel = imu_samples(trajectory, stamp_s - contact_stamp_s, 1.0 / self.spec.imu_rate_hz)
+        spec = self.spec
+        gyro, accel = imu_samples(trajectory, stamp_s - contact_stamp_s, 1.0 / spec.imu_rate_hz)
+        if spec.imu_antialias_order > 0:
+            dense_period = 1.0 / (spec.imu_oversample * spec.imu_rate_hz)
+            index = np.rint(stamp_s * spec.imu_rate_hz).astype(np.int64)
+            accel[:, 2], gyro[:, 1] = ImuLowPass(spec)(index, lambda t: dense_imu_response(trajectory, t - contact_stamp_s, dense_period))
         gyro = noise.gyro(gyro, self._imu_rng.standard_normal(gyro.shape))
         accel = noise.accel(accel, self._imu_rng.standard_normal(accel.shape))
         return ImuStream(stamp_s, gyro, accel, noise.gyro_radps**2, noise.accel_mps2**2)

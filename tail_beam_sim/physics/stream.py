@@ -40,8 +40,8 @@ from tail_beam_sim.physics.fidelity import DEFAULT_TIER, get_tier, structure_for
 from tail_beam_sim.physics.materials import Material, material_table
 from tail_beam_sim.physics.scene import Impact, Scene, SensorSpec
 from tail_beam_sim.physics.sensors import (
-    AntiAliasFilter, ImuStream, PressureStream, Rebound, SensorSuite, VibrationBlocks, cut_blocks, imu_samples,
-    mean_specific_force_z,
+    AntiAliasFilter, ImuLowPass, ImuStream, PressureStream, Rebound, SensorSuite, VibrationBlocks, cut_blocks, dense_imu_response,
+    imu_samples, mean_specific_force_z,
 )
 from tail_beam_sim.physics.result import impact_truth
 from tail_beam_sim.physics.simulate import build_problem, histories, summarise
@@ -222,6 +222,7 @@ class StreamSimulator:
             sensors.vibration_rate_hz, sensors.vibration_antialias_order, sensors.vibration_antialias_cutoff_fraction,
             sensors.vibration_oversample,
         )
+        self._imu_lowpass = ImuLowPass(sensors) if sensors.imu_antialias_order > 0 else None  # None: period means
         self._next_dense_index = 0  # the accelerometer's next dense (oversampled) value
         self._vibration_tail = np.empty(0, dtype=np.float32)  # samples of the incomplete block
         self._vibration_tail_first = 0  # running index of the first of them
@@ -373,11 +374,21 @@ class StreamSimulator:
         gyro, accel = np.empty((stamps.size, 3)), np.empty((stamps.size, 3))
         for trajectory, start, mask in self._by_epoch(stamps):
             gyro[mask], accel[mask] = imu_samples(trajectory, _relative(stamps[mask], start), 1.0 / spec.imu_rate_hz)
+        if self._imu_lowpass is not None:
+            accel[:, 2], gyro[:, 1] = self._imu_lowpass(index, self._dense_imu_response)
         noise = self._suite.noise
         if index.size:
             unit = self._imu_noise.take(int(index[0]), index.size)
             gyro, accel = noise.gyro(gyro, unit[:, :3]), noise.accel(accel, unit[:, 3:])
         return ImuStream(stamps, gyro, accel, noise.gyro_radps**2, noise.accel_mps2**2)
+
+    def _dense_imu_response(self, stamps_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The beam's (specific force z, pitch rate) at the IMU for its low-pass filter, at absolute stamps."""
+        dense_period = 1.0 / (self.sensors.imu_oversample * self.sensors.imu_rate_hz)
+        accel, rate = np.empty(stamps_s.size), np.empty(stamps_s.size)
+        for trajectory, start, mask in self._by_epoch(stamps_s):
+            accel[mask], rate[mask] = dense_imu_response(trajectory, _relative(stamps_s[mask], start), dense_period)
+        return accel, rate
 
     def _vibration(self, until_s: float) -> VibrationBlocks:
         """The accelerometer up to ``until_s``: dense response, anti-alias filter, decimation,
