@@ -11,8 +11,10 @@ features (``delay_unusual``: outside the 0.5-99.5 % band of the training impacts
 which about 1 % of impacts are when the clocks agree (up to 2.4 % over a foreign set's
 supports) and a quarter to a half are when they are offset by 0.3 ms or more. This module
 counts them; once a recording has more than agreeing clocks would give but once in a thousand
-recordings (a binomial tail), its labels that used the delay are capped and say
-``sensor_timing`` among ``outside_training``. (A share of 20 % from the 10th impact on tripped
+recordings (a binomial tail), its labels that used the delay are decided again without it (the
+statistical method's twin fitted without the delay: an offset pushes every delay one way, the
+other signals still tell the materials apart), capped, and say ``sensor_timing`` among
+``outside_training``. (A share of 20 % from the 10th impact on tripped
 at its first look on 2 unusual of 10, which a foreign support's base rate gives often: 10 of 225
 foreign recordings with agreeing clocks were capped so, against 4 with the tail; README,
 Supports other than the shipped one.)
@@ -30,6 +32,9 @@ from tail_beam_sim.errors import require_range
 
 UNUSUAL = "delay_unusual"  # the decision estimate: 1.0 when the impact's delay is unusual, 0.0 when not
 OUTSIDE_NAME = "sensor_timing"  # what a capped label lists in outside_training
+# The feature (1.0) of an impact decided without its delay because the recording's delays were
+# found unlike the training's: methods with a twin fitted without the delay use it then.
+DELAY_UNTRUSTED = "delay_untrusted"
 
 
 @dataclass(frozen=True)
@@ -79,8 +84,8 @@ class SensorTiming:
         where = " (and the self-calibration pass over the recording found so)" if self.from_profile else ""
         return (f"{self.unusual} of {self.checked} impacts{where} have a delay from onset to camera stamp unlike the training's "
                 "for their size and speed: the camera's and the acceleration channel's clocks may be offset (README, "
-                f"Supports other than the shipped one); labels that use the delay are capped at {self.config.confidence_cap:g} "
-                f"and list {OUTSIDE_NAME} in outside_training")
+                "Supports other than the shipped one); labels that used the delay are decided without it, "
+                f"capped at {self.config.confidence_cap:g} and list {OUTSIDE_NAME} in outside_training")
 
 
 def judge(checked: int, unusual: int, config: TimingConfig) -> bool:

@@ -48,7 +48,7 @@ import numpy as np
 from tail_beam_id.hysteresis import applied_shift, hysteresis_shift, joint_inputs
 from tail_beam_id.methods import Decision, cap_confidence, sigmoid
 from tail_beam_id.methods.inputs import base_vector
-from tail_beam_id.timing import UNUSUAL
+from tail_beam_id.timing import DELAY_UNTRUSTED, UNUSUAL
 from tail_beam_sim.errors import InputError, require_range, require_section
 
 # Each signal's features, with the floor (in the feature's unit) below which a noisy reading is
@@ -182,7 +182,7 @@ class StatisticalMethod:
         family = self.calibrated_subsets if features.get("support_calibrated") and self.calibrated_subsets else self.subsets
         signals = signals_of(features)
         key = subset_key(signals)
-        if self._camera_too_slow_for_the_delay(features) and key + WITHOUT_DELAY in family:
+        if (self._camera_too_slow_for_the_delay(features) or features.get(DELAY_UNTRUSTED)) and key + WITHOUT_DELAY in family:
             key += WITHOUT_DELAY
         model = family.get(key)
         if model is None:
