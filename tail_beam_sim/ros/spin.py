@@ -31,6 +31,7 @@ from rclpy.parameter import Parameter
 
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.ros.usage import NodeUsage, asks_for_help
+from tail_beam_sim.ros.start import STOP_SIGNALS
 
 
 @runtime_checkable
@@ -79,13 +80,11 @@ class StopRequest:
     (which, told to stop, does not wait for its subscribers). A second signal raises
     KeyboardInterrupt, for a stop that hangs."""
 
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
     def __init__(self) -> None:
         self.requested = False
 
     def install(self) -> None:
-        for sig in self.SIGNALS:
+        for sig in STOP_SIGNALS:
             signal.signal(sig, self._handle)
 
     def _handle(self, signum: int, frame: object) -> None:
