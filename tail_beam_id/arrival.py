@@ -391,6 +391,10 @@ class GatedIdentifier:
         if report.late:
             self.notes.append(f"vibration: {report.late} block(s) arrived after a later one and were refused; "
                               f"{self.sequencer.late_blocks} in all")
+        if report.misindexed:
+            self.notes.append(f"vibration: {report.misindexed} block(s) refused whose running index (angle_min, angle_max) "
+                              "is behind the samples already used while their stamps are not: the publisher's index must "
+                              f"count the samples (docs/interface.md); {self.sequencer.misindexed_blocks} in all")
         if report.accepted.count:
             accepted = report.accepted
             self.gate.add("vibration", accepted.sample_stamps_s(), accepted.accel_mps2.astype(float).reshape(-1, 1), now_s)

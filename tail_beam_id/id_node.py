@@ -21,7 +21,9 @@ arrived, so that a label does not wait for the next period.
 The ``vibration`` blocks are decoded with numpy and kept in running-index order by a
 :class:`tail_beam_sim.physics.sensors.BlockSequencer`: a jump in the index is a lost block,
 logged with the count of samples missing; a block that comes after a later one was handed on
-is refused and counted (``vibration_lost_samples``, ``vibration_late_blocks``).
+is refused and counted (``vibration_lost_samples``, ``vibration_late_blocks``), and so is one
+whose index is behind while its stamp is not, logged as an index that does not count the
+samples (``vibration_misindexed_blocks``).
 """
 
 from __future__ import annotations
@@ -182,6 +184,11 @@ class IdNode(Node):
     @property
     def vibration_late_blocks(self) -> int:
         return self.gated.sequencer.late_blocks
+
+    @property
+    def vibration_misindexed_blocks(self) -> int:
+        """Blocks refused whose index is behind the stream's while their stamps are not."""
+        return self.gated.sequencer.misindexed_blocks
 
     @property
     def identifier(self) -> StreamIdentifier:

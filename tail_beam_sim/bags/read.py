@@ -306,6 +306,8 @@ def _read(path: str | os.PathLike[str], required: Iterable[str], namespace: str 
             run.rebounds.append((_stamp(msg), np.array([v.x, v.y, v.z])))
         else:
             run.json_topics[raw.topic].append(_json(msg.data))
+    for run in runs:
+        _check_index(run.vibration)
     partial = (Path(path) / PARTIAL_DIR).is_dir() and any((Path(path) / PARTIAL_DIR).iterdir())
     return runs, chosen, jumps, partial
 
@@ -334,10 +336,24 @@ def _first_of_each_stamp(rows: np.ndarray) -> tuple[np.ndarray, int]:
     return (rows, 0) if keep.all() else (rows[keep], int((~keep).sum()))
 
 
-def _vibration_blocks(decoded: list[tuple[int, float, np.ndarray, float, float]]) -> VibrationBlocks:
-    """Decoded vibration messages as blocks in index order (each index once); InputError when
-    they disagree on the sample period (two accelerometers on one topic, or a foreign message):
-    one period for all would misplace the others' samples in time."""
+def _check_index(decoded: list[tuple[int, float, np.ndarray, float, float]]) -> None:
+    """InputError naming the index fields when one run's blocks give overlapping running
+    indices to samples their stamps set apart (:meth:`VibrationBlocks.index_conflict`): taken
+    as they are, all but one of them would be dropped as repeats."""
+    blocks = _vibration_blocks(decoded, in_order=False)
+    conflict = blocks.index_conflict()
+    if conflict is not None:
+        (i, t, _), (j, u, _) = blocks.block(conflict[0]), blocks.block(conflict[1])
+        raise InputError("vibration.angle_min/angle_max", f"running index {i} at stamp {t:.6f} s and {j} at {u:.6f} s",
+                         "must be the running sample index: each block's is the one before it plus that block's sample "
+                         "count (docs/interface.md)")
+
+
+def _vibration_blocks(decoded: list[tuple[int, float, np.ndarray, float, float]], in_order: bool = True) -> VibrationBlocks:
+    """Decoded vibration messages as blocks in index order (each index once; as recorded
+    unless ``in_order``); InputError when they disagree on the sample period (two
+    accelerometers on one topic, or a foreign message): one period for all would misplace the
+    others' samples in time."""
     if not decoded:
         return VibrationBlocks.empty()
     periods = sorted({d[3] for d in decoded})
@@ -351,7 +367,7 @@ def _vibration_blocks(decoded: list[tuple[int, float, np.ndarray, float, float]]
         period_s=decoded[0][3],
         range_mps2=decoded[0][4],
     )
-    return blocks.sorted()
+    return blocks.sorted() if in_order else blocks
 
 
 def _stamp(msg: Any) -> float:

@@ -326,6 +326,21 @@ class VibrationBlocks:
         _, first = np.unique(self.first_index[order], return_index=True)
         return self.take(order[first])
 
+    def index_conflict(self) -> tuple[int, int] | None:
+        """The first two blocks (positions, in index order) whose running indices overlap while
+        their stamps are further apart than the indices say (by more than half the first block's
+        duration): a publisher whose ``angle_min``/``angle_max`` do not count the samples (every
+        block index 0, or a block count). None when index and stamps agree; an exact repeat
+        (same index, same stamp: a topic recorded twice) agrees."""
+        if self.count < 2:
+            return None
+        order = np.lexsort((self.stamp_s, self.first_index))
+        first, length, stamp = self.first_index[order], self.lengths[order], self.stamp_s[order]
+        overlap = first[1:] < first[:-1] + length[:-1]
+        off = np.abs(np.diff(stamp) - np.diff(first) * self.period_s) > 0.5 * length[:-1] * self.period_s
+        bad = np.flatnonzero(overlap & off)
+        return None if not bad.size else (int(order[bad[0]]), int(order[bad[0] + 1]))
+
     def take(self, order: np.ndarray) -> VibrationBlocks:
         """The blocks at positions ``order``, in that order."""
         edges = self.offsets()
@@ -370,6 +385,7 @@ class SequenceReport:
     accepted: VibrationBlocks  # the blocks to use, in index order
     gaps: list[tuple[int, int]]  # (first missing index, missing sample count), in order
     late: int  # blocks refused: they came after a later block was accepted (or repeated one)
+    misindexed: int = 0  # blocks refused whose index is behind the stream's while their stamp is not: the index does not count samples
 
 
 class BlockSequencer:
@@ -378,44 +394,53 @@ class BlockSequencer:
     Each call takes the blocks that arrived since the last one; it sorts them by index (a block
     late within one call is put back in order), accepts those that continue the stream, reports
     every jump in the index as a gap (samples lost), and refuses a block whose index is behind
-    what was already accepted (late past a later block, or a repeat) with a count. Totals are
-    kept in ``lost_samples``, ``lost_blocks`` (gaps) and ``late_blocks``.
+    what was already accepted (late past a later block, or a repeat) with a count, counted apart
+    (``misindexed``) when its stamp is not where its index puts it. Totals are kept in
+    ``lost_samples``, ``gap_count`` (gaps), ``late_blocks`` and ``misindexed_blocks``.
     """
 
     def __init__(self) -> None:
         self.next_index: int | None = None
+        self.next_stamp_s: float | None = None  # the stamp the sample at next_index has, s
         self.lost_samples = 0
         self.gap_count = 0
         self.late_blocks = 0
+        self.misindexed_blocks = 0
         self.accepted_samples = 0
 
     def restart(self) -> None:
         """The source started its running index again (a restarted simulator): the next block
         begins the stream anew; the totals are kept."""
         self.next_index = None
+        self.next_stamp_s = None
 
     def push(self, blocks: VibrationBlocks) -> SequenceReport:
-        ordered = blocks.sorted()
-        refused_repeats = blocks.count - ordered.count
-        keep = np.ones(ordered.count, dtype=bool)
+        order = np.lexsort((blocks.stamp_s, blocks.first_index))  # repeats kept: refused below like late blocks
+        keep = np.zeros(blocks.count, dtype=bool)
         gaps: list[tuple[int, int]] = []
-        expected = self.next_index
-        for b in range(ordered.count):
-            first, length = int(ordered.first_index[b]), int(ordered.lengths[b])
+        expected, expected_stamp = self.next_index, self.next_stamp_s
+        misindexed = 0
+        for k, b in enumerate(order):
+            first, length, stamp = int(blocks.first_index[b]), int(blocks.lengths[b]), float(blocks.stamp_s[b])
             if expected is not None and first < expected:
-                keep[b] = False
+                # Behind the stream: late or repeated when its stamp is where its index puts it,
+                # else its index does not count the samples (a publisher breaking the contract).
+                implied = None if expected_stamp is None else expected_stamp - (expected - first) * blocks.period_s
+                misindexed += int(implied is not None and abs(stamp - implied) > 0.5 * length * blocks.period_s)
                 continue
             if expected is not None and first > expected:
                 gaps.append((expected, first - expected))
-            expected = first + length
-        late = refused_repeats + int((~keep).sum())
-        accepted = ordered.select(keep)
-        self.next_index = expected
+            keep[k] = True
+            expected, expected_stamp = first + length, stamp + length * blocks.period_s
+        refused = int((~keep).sum())
+        accepted = blocks.take(order[keep])
+        self.next_index, self.next_stamp_s = expected, expected_stamp
         self.lost_samples += sum(n for _, n in gaps)
         self.gap_count += len(gaps)
-        self.late_blocks += late
+        self.late_blocks += refused - misindexed
+        self.misindexed_blocks += misindexed
         self.accepted_samples += accepted.sample_count
-        return SequenceReport(accepted, gaps, late)
+        return SequenceReport(accepted, gaps, refused - misindexed, misindexed)
 
 
 class IndexSpan:

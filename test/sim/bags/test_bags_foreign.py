@@ -149,3 +149,34 @@ def test_a_new_time_base_in_the_bag_is_said_and_each_run_taken_alone(tmp_path, s
             assert labels[0]["impact_stamp"] - labels[1]["impact_stamp"] == pytest.approx(3.0, abs=1e-3)
         else:
             assert "calibrated on run" in result.stderr
+
+
+def _reindexed(records, index_of_block):
+    """The records with each vibration block's index words set to ``index_of_block(k)`` (block k)."""
+    out, k = [], 0
+    for topic, ns, data in records:
+        if topic == topics.VIBRATION:
+            msg = bagio.TYPESTORE.deserialize_cdr(data, topics.MSG_TYPES[topic])
+            index = index_of_block(k)
+            msg.angle_min, msg.angle_max = float(index >> 24), float(index & (2**24 - 1))
+            data = bytes(bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic]))
+            k += 1
+        out.append((topic, ns, data))
+    return out
+
+
+@pytest.mark.parametrize(("name", "index_of_block"), [("every block index 0", lambda k: 0), ("a block count", lambda k: k)])
+def test_a_bag_whose_block_index_does_not_count_samples_is_refused_by_name(tmp_path, sandstone_records, name, index_of_block):
+    """A recorder or simulator that does not count samples in the blocks' index words (every
+    block index 0, or the block's number): identify and calibrate refuse the bag in one line
+    naming the index fields (was: all blocks but one dropped as repeats and the labels decided
+    on the IMU alone, without a word); the same blocks rightly indexed, and every block recorded
+    twice, read as they are."""
+    bad = write(tmp_path / "bad", _reindexed(sandstone_records, index_of_block))
+    for command in ("identify", "calibrate"):
+        result = run(command, str(bad))
+        assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr[-2000:]
+        assert "vibration.angle_min/angle_max" in result.stderr and "running sample index" in result.stderr
+    twice = [r for r in sandstone_records] + [r for r in sandstone_records if r[0] == topics.VIBRATION]
+    labels = labels_of(run("identify", "--no-calibrate", str(write(tmp_path / "twice", twice))))
+    assert len(labels) == 1 and "vibration" in labels[0]["signals"]

@@ -164,6 +164,42 @@ def test_a_late_block_is_put_back_in_order_or_refused_with_a_count():
     np.testing.assert_array_equal(report.accepted.first_index, [20])
 
 
+def blocks_stamped(first_indices, n: int = 4, rate_hz: float = 1000.0) -> VibrationBlocks:
+    """Blocks of n samples, block k stamped k n / rate_hz (one after another in time) whatever
+    index ``first_indices`` gives it."""
+    first = np.asarray(first_indices, dtype=np.int64)
+    stamps = np.arange(first.size) * n / rate_hz
+    return VibrationBlocks(first, np.full(first.size, n, dtype=np.int64), stamps, np.zeros(first.size * n, np.float32), 1.0 / rate_hz, 100.0)
+
+
+def test_an_index_that_does_not_count_samples_is_told_from_a_late_block():
+    """Blocks one after another in time whose index stays 0 (a publisher that ignores the index
+    words): the first is used, the others refused as misindexed, not as late, whether they come
+    one at a time or together; a truly late block (its stamp where its index puts it) is late."""
+    zeros = blocks_stamped([0, 0, 0, 0])
+    one_by_one = BlockSequencer()
+    for k in range(4):
+        one_by_one.push(zeros.select(np.arange(4) == k))
+    assert one_by_one.misindexed_blocks == 3 and one_by_one.late_blocks == 0 and one_by_one.accepted_samples == 4
+    together = BlockSequencer()
+    report = together.push(zeros)
+    assert report.misindexed == 3 and report.late == 0 and report.accepted.count == 1
+    late = BlockSequencer()
+    late.push(blocks_stamped([0, 4, 8]).select(np.array([True, False, True])))
+    report = late.push(blocks_stamped([0, 4, 8]).select(np.array([False, True, False])))
+    assert report.late == 1 and report.misindexed == 0
+
+
+@pytest.mark.parametrize(("first", "conflict"), [([0, 0, 0], (0, 1)), ([0, 1, 2], (0, 1)), ([0, 4, 8], None), ([0, 4, 12], None)])
+def test_blocks_whose_indices_overlap_while_their_stamps_do_not_are_a_conflict(first, conflict):
+    """index_conflict: overlapping index spans at stamps one block apart (index 0 throughout, or
+    a block count) are the first conflicting pair; a stream counting samples, gap or not, has
+    none, and neither has every block given twice (same index, same stamp)."""
+    assert blocks_stamped(first).index_conflict() == conflict
+    twice = blocks_of([0, 4, 8, 0, 4, 8])
+    assert twice.index_conflict() is None
+
+
 def test_the_recorders_count_is_independent_of_arrival_order():
     """IndexSpan: blocks 8, 0, 12 (4 missing) count 4 lost samples in any order."""
     for order in ([8, 0, 12], [12, 8, 0], [0, 8, 12]):
@@ -313,6 +349,32 @@ def test_id_node_reports_a_dropped_block_and_refuses_a_late_one():
         pub.publish(msgs[2])
         assert spin_until(executor, lambda: ident.vibration_late_blocks == 1)
         assert ident.received[topics.VIBRATION] == 4 and ident.vibration_lost_samples == 128
+
+
+@pytest.mark.ros
+def test_id_node_says_when_a_publishers_index_does_not_count_samples():
+    """A client whose blocks all carry index 0 while their stamps go on: id_node uses the first,
+    refuses the others as misindexed (not late) and logs that the index must count samples."""
+    from rcl_interfaces.msg import Log
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import LaserScan
+
+    from rosprobe import RELIABLE, Probe, ros_context, spin_until
+    from tail_beam_id.id_node import IdNode
+    from tail_beam_sim.ros import messages as ros_messages
+
+    with ros_context() as (context, executor):
+        ident = IdNode(context=context, namespace="/feed", parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)])
+        feeder = Probe(context, {"/rosout": Log}, namespace="/feed", name="feeder")
+        pub = feeder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
+        for node in (ident, feeder):
+            executor.add_node(node)
+        assert spin_until(executor, lambda: pub.get_subscription_count() >= 1)
+        for msg in ros_messages.vibration_messages(blocks_stamped([0, 0, 0], n=128, rate_hz=25600.0)):
+            pub.publish(msg)
+        assert spin_until(executor, lambda: ident.vibration_misindexed_blocks == 2)
+        assert spin_until(executor, lambda: any("index must count the samples" in x.msg for x in feeder.messages["/rosout"]))
+        assert ident.vibration_late_blocks == 0
 
 
 @pytest.mark.ros
