@@ -17,7 +17,9 @@ from __future__ import annotations
 import argparse
 from importlib.metadata import entry_points
 import os
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 
 from tail_beam_sim.errors import InputError
@@ -61,6 +63,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     The verbs' modules (numpy, scipy, rosbags, the models) are imported inside the guard, so a
     Ctrl-C while they load is ``interrupted`` (130) as it is later, not a traceback."""
     command = None
+    _INTERRUPT.install()
     try:
         from tail_beam_sim.physics.solvers import SolverError
 
@@ -83,6 +86,34 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"tail-beam{' ' + command if command else ''}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except Exception:
+        if not _INTERRUPT.received:
+            raise
+        # The Ctrl-C landed inside an extension module's initialisation, which turned it into
+        # another error (rclpy's ImportError: initialization failed): still an interruption.
+        print(f"tail-beam{' ' + command if command else ''}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+class _Interrupt:
+    """SIGINT as Python's own handler takes it (KeyboardInterrupt), remembered: an extension
+    module initialising when it lands may turn the KeyboardInterrupt into an error of its own."""
+
+    received = False
+
+    @classmethod
+    def install(cls) -> None:
+        cls.received = False
+        if threading.current_thread() is threading.main_thread():  # signal handlers belong to the main thread
+            signal.signal(signal.SIGINT, cls._handle)
+
+    @classmethod
+    def _handle(cls, signum: int, frame: object) -> None:
+        cls.received = True
+        raise KeyboardInterrupt
+
+
+_INTERRUPT = _Interrupt
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -15,17 +15,27 @@ import signal
 from typing import NoReturn
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+_stop_received = False  # a stop signal came while the executable was starting
 
 
 def _exit_quietly(signum: int, frame: object) -> NoReturn:
+    global _stop_received
+    _stop_received = True
     raise SystemExit(0)
 
 
 def run(module: str) -> int:
-    """Take the stop signals, then run ``module``'s ``main()``; its exit status."""
+    """Take the stop signals, then run ``module``'s ``main()``; its exit status. A stop that
+    lands inside an extension module's initialisation comes back as another error (rclpy's
+    ``ImportError: initialization failed``, its cause the SystemExit): still a quiet 0."""
     for sig in STOP_SIGNALS:
         signal.signal(sig, _exit_quietly)
-    return int(importlib.import_module(module).main() or 0)
+    try:
+        return int(importlib.import_module(module).main() or 0)
+    except Exception:
+        if _stop_received:
+            return 0
+        raise
 
 
 def sim_node() -> int:

@@ -24,3 +24,41 @@ def test_a_ctrl_c_while_tail_beam_loads_is_130_and_one_line(verb):
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err[-1500:]
     assert "Traceback" not in err and err.strip().endswith("interrupted"), err[-1500:]
+
+
+def test_a_ctrl_c_that_an_extension_turns_into_an_import_error_is_still_130(tmp_path):
+    """A Ctrl-C landing while a C extension initialises comes back as ``ImportError:
+    initialization failed`` with the KeyboardInterrupt as its cause (pybind11, rclpy; seen once
+    in the suite as a traceback and status 1): reproduced here by a parser builder that takes
+    the signal and raises so. Still 130 and one line."""
+    script = tmp_path / "run.py"
+    script.write_text(
+        "import os, signal, sys, time\n"
+        "import tail_beam_sim.cli as cli\n"
+        "def broken(*args, **kwargs):\n"
+        "    try:\n"
+        "        os.kill(os.getpid(), signal.SIGINT)\n"
+        "        time.sleep(5)\n"
+        "    except KeyboardInterrupt as exc:\n"
+        "        raise ImportError('initialization failed') from exc\n"
+        "cli.build_parser = broken\n"
+        "sys.exit(cli.main(['simulate']))\n"
+    )
+    result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 130, result.stderr[-1500:]
+    assert "Traceback" not in result.stderr and result.stderr.strip() == "tail-beam: interrupted", result.stderr[-1500:]
+
+
+def test_an_import_error_without_a_ctrl_c_is_not_called_an_interruption(tmp_path):
+    """The same error with no signal behind it is a real failure: it is not hidden as 130."""
+    script = tmp_path / "run.py"
+    script.write_text(
+        "import sys\n"
+        "import tail_beam_sim.cli as cli\n"
+        "def broken(*args, **kwargs):\n"
+        "    raise ImportError('initialization failed')\n"
+        "cli.build_parser = broken\n"
+        "sys.exit(cli.main(['simulate']))\n"
+    )
+    result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1 and "ImportError: initialization failed" in result.stderr, result.stderr[-1500:]
