@@ -32,6 +32,7 @@ import time
 from collections import OrderedDict
 from pathlib import Path
 
+import numpy as np
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -39,11 +40,12 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import LaserScan
 
 from tail_beam_sim import topics
+from tail_beam_sim.bags.read import TIME_JUMP_S
 from tail_beam_sim.bags.records import COMPRESSIONS
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.bags.write import SegmentedBagWriter
 from tail_beam_sim.errors import InputError, require_range
-from tail_beam_sim.physics.sensors import IndexSpan
+from tail_beam_sim.physics.sensors import BlockSequencer, IndexSpan, VibrationBlocks
 from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_and_read, refuse_runtime_changes
 from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
 
@@ -86,6 +88,7 @@ class RecorderNode(Node):
             raise InputError("recorder.bag_path" if exc.field == "bag" else f"recorder.{exc.field}", exc.value, exc.allowed) from None
         self.bag_path = self.writer.path
         self.vibration = IndexSpan()
+        self._sequence = BlockSequencer()  # the blocks in index order, for an index that does not count samples
         self.lost_events = 0
         self.refused_blocks = 0  # vibration messages without a readable block index (recorded, not counted)
         self.qos = ros_messages.stream_qos(depth)
@@ -156,6 +159,33 @@ class RecorderNode(Node):
                                               f"({self.refused_blocks} so far)")
                 return
             self.vibration.add(index, length)
+            self._check_index(msg, index)
+
+    def _check_index(self, msg: LaserScan, index: int) -> None:
+        """Warn when the block's index is behind the stream's while its stamp is not (a publisher
+        whose index words do not count samples: reading the bag will refuse it, naming them),
+        first and every 1000th time; a stream whose stamps go back by more than TIME_JUMP_S
+        started again (a restarted source) and is followed afresh."""
+        period = msg.time_increment
+        if not (math.isfinite(period) and period > 0.0):
+            return  # no block's period: `tail-beam identify` names it when it reads the bag
+        stamp = ros_messages.stamp_s(msg.header.stamp)
+        sequence = self._sequence
+        if sequence.next_stamp_s is not None and stamp < sequence.next_stamp_s - TIME_JUMP_S:
+            sequence.restart()
+        samples = np.frombuffer(msg.ranges, dtype=np.float32)
+        block = VibrationBlocks(np.array([index], dtype=np.int64), np.array([samples.size], dtype=np.int64), np.array([stamp]),
+                                samples, float(period), math.inf)
+        if sequence.push(block).misindexed and (sequence.misindexed_blocks == 1 or sequence.misindexed_blocks % 1000 == 0):
+            self.get_logger().warning(
+                f"vibration: the block stamped {stamp:.6f} s has running index {index}, behind the samples already "
+                "recorded while its stamp is not: the publisher's index (angle_min, angle_max) must count the samples "
+                f"(docs/interface.md); reading this bag will refuse it ({sequence.misindexed_blocks} such blocks so far)")
+
+    @property
+    def misindexed_blocks(self) -> int:
+        """Vibration blocks recorded whose index is behind the stream's while their stamps are not."""
+        return self._sequence.misindexed_blocks
 
     def _on_lost(self, info: QoSMessageLostInfo) -> None:
         self.lost_events += info.total_count_change

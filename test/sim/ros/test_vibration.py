@@ -352,9 +352,11 @@ def test_id_node_reports_a_dropped_block_and_refuses_a_late_one():
 
 
 @pytest.mark.ros
-def test_id_node_says_when_a_publishers_index_does_not_count_samples():
+def test_id_node_and_the_recorder_say_when_a_publishers_index_does_not_count_samples(tmp_path):
     """A client whose blocks all carry index 0 while their stamps go on: id_node uses the first,
-    refuses the others as misindexed (not late) and logs that the index must count samples."""
+    refuses the others as misindexed (not late) and logs that the index must count samples; the
+    recorder records them all and warns at once (not an hour later, when the bag is read);
+    reading the bag is refused, naming the index words."""
     from rcl_interfaces.msg import Log
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import LaserScan
@@ -362,19 +364,26 @@ def test_id_node_says_when_a_publishers_index_does_not_count_samples():
     from rosprobe import RELIABLE, Probe, ros_context, spin_until
     from tail_beam_id.id_node import IdNode
     from tail_beam_sim.ros import messages as ros_messages
+    from tail_beam_sim.ros.recorder_node import RecorderNode
 
     with ros_context() as (context, executor):
         ident = IdNode(context=context, namespace="/feed", parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)])
+        recorder = RecorderNode(context=context, namespace="/feed", parameter_overrides=[Parameter("recorder.bag_path", value=str(tmp_path / "bag"))])
         feeder = Probe(context, {"/rosout": Log}, namespace="/feed", name="feeder")
         pub = feeder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
-        for node in (ident, feeder):
+        for node in (ident, recorder, feeder):
             executor.add_node(node)
-        assert spin_until(executor, lambda: pub.get_subscription_count() >= 1)
+        assert spin_until(executor, lambda: pub.get_subscription_count() >= 2)
         for msg in ros_messages.vibration_messages(blocks_stamped([0, 0, 0], n=128, rate_hz=25600.0)):
             pub.publish(msg)
-        assert spin_until(executor, lambda: ident.vibration_misindexed_blocks == 2)
-        assert spin_until(executor, lambda: any("index must count the samples" in x.msg for x in feeder.messages["/rosout"]))
+        assert spin_until(executor, lambda: ident.vibration_misindexed_blocks == 2 and recorder.misindexed_blocks == 2)
+        assert spin_until(executor, lambda: sum("index must count the samples" in x.msg
+                                                or "(angle_min, angle_max) must count the samples" in x.msg
+                                                for x in feeder.messages["/rosout"]) >= 2)
         assert ident.vibration_late_blocks == 0
+        recorder.close()
+    with pytest.raises(InputError, match=r"vibration\.angle_min/angle_max"):
+        read_sensors(tmp_path / "bag", required=(topics.VIBRATION,))
 
 
 @pytest.mark.ros
