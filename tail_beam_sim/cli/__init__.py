@@ -21,6 +21,7 @@ import signal
 import sys
 import threading
 from collections.abc import Sequence
+from typing import Any
 
 from tail_beam_sim.errors import InputError
 
@@ -62,8 +63,16 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     The verbs' modules (numpy, scipy, rosbags, the models) are imported inside the guard, so a
     Ctrl-C while they load is ``interrupted`` (130) as it is later, not a traceback."""
+    previous = _Interrupt.install()
+    try:
+        return _run(argv)
+    finally:
+        _Interrupt.restore(previous)
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    """main() inside the Ctrl-C handler it installs."""
     command = None
-    _INTERRUPT.install()
     try:
         from tail_beam_sim.physics.solvers import SolverError
 
@@ -83,14 +92,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
             return EXIT_PIPE_CLOSED
-    except KeyboardInterrupt:
-        print(f"tail-beam{' ' + command if command else ''}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except Exception:
-        if not _INTERRUPT.received:
+    except (KeyboardInterrupt, Exception) as exc:
+        # Another error is an interruption too when a Ctrl-C came: it landed inside an extension
+        # module's initialisation, which turned it into one (rclpy's ImportError: initialization failed).
+        if not isinstance(exc, KeyboardInterrupt) and not _Interrupt.received:
             raise
-        # The Ctrl-C landed inside an extension module's initialisation, which turned it into
-        # another error (rclpy's ImportError: initialization failed): still an interruption.
         print(f"tail-beam{' ' + command if command else ''}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
 
@@ -102,18 +108,24 @@ class _Interrupt:
     received = False
 
     @classmethod
-    def install(cls) -> None:
+    def install(cls) -> Any:
+        """Take SIGINT (main thread only: signal handlers belong to it); the handler it replaced."""
         cls.received = False
-        if threading.current_thread() is threading.main_thread():  # signal handlers belong to the main thread
-            signal.signal(signal.SIGINT, cls._handle)
+        if threading.current_thread() is threading.main_thread():
+            return signal.signal(signal.SIGINT, cls._handle)
+        return None
+
+    @staticmethod
+    def restore(previous: Any) -> None:
+        """Give SIGINT back to ``previous`` (a library caller of main() keeps its own handler)."""
+        if previous is not None and threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, previous)
 
     @classmethod
     def _handle(cls, signum: int, frame: object) -> None:
         cls.received = True
         raise KeyboardInterrupt
 
-
-_INTERRUPT = _Interrupt
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -62,3 +62,20 @@ def test_an_import_error_without_a_ctrl_c_is_not_called_an_interruption(tmp_path
     )
     result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
     assert result.returncode == 1 and "ImportError: initialization failed" in result.stderr, result.stderr[-1500:]
+
+
+def test_main_gives_the_callers_ctrl_c_handler_back(capsys):
+    """main() takes SIGINT for its run (to tell an interruption from an extension's error) and
+    gives it back: a program that calls it keeps its own handler."""
+    from tail_beam_sim.cli import main
+
+    def own(signum, frame):  # pragma: no cover - never called
+        pass
+
+    before = signal.signal(signal.SIGINT, own)
+    try:
+        assert main(["simulate", "--radius-m", "-1"]) == 2
+        assert signal.getsignal(signal.SIGINT) is own
+    finally:
+        signal.signal(signal.SIGINT, before)
+    assert "radius" in capsys.readouterr().err
