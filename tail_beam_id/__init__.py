@@ -1,4 +1,9 @@
-"""Coal-gangue identification over the sensor streams: detection, features, methods, the
-stream identifier, its ROS node, evaluation and training (imports tail_beam_sim, never the reverse)."""
+"""Coal-gangue identification over the sensor streams (imports tail_beam_sim, never the reverse).
 
-__all__ = ["detection", "features", "methods", "identifier", "id_node", "evaluation", "training", "dataset", "runs", "replay", "charts", "cli"]
+Floors, lowest first; a module imports its own floor and those below only:
+``signals`` (what a recording says about each impact), ``methods`` (P(coal) from features),
+``stream`` (impacts found, paired and labelled over a stream), ``calibration`` (fitting to one
+support), ``ros`` (id_node), ``study`` (evaluation, training, charts), ``cli`` (the verbs).
+"""
+
+__all__ = ["calibration", "cli", "methods", "ros", "signals", "stream", "study"]

@@ -1,7 +1,7 @@
 """``tail-beam calibrate BAG``: a support profile from the support's own recording, no labels.
 
 Writes a ROS 2 parameter file (``--out``, default: printed) that ``tail-beam identify --config``
-and ``id_node --ros-args --params-file`` load; see tail_beam_id.calibration for what it
+and ``id_node --ros-args --params-file`` load; see tail_beam_id.calibration.offline for what it
 measures and how.
 """
 
@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
     out = require_output_file("--out", args.out) if args.out else None  # before the work, not after
     check_settings(params)
     # What calibration reads: the jack pressure (the sway) and the IMU (mounting, gain); either
-    # will do (tail_beam_id.calibration.calibrate), the camera is not needed.
+    # will do (tail_beam_id.calibration.offline.calibrate), the camera is not needed.
     runs = read_runs(args.bag, required=(), namespace=args.namespace, any_of=(topics.JACK_PRESSURE, topics.IMU))
     report_reading(runs[0], "calibrate", len(runs), args.bag)
     # Several time bases (a restarted simulator): the longest run is the support's recording.

@@ -16,7 +16,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from tail_beam_id.label import Label, Matching, match, match_tolerance_s
+from tail_beam_id.stream.label import Label, Matching, match, match_tolerance_s
 from tail_beam_sim.bags.records import STORAGES
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, require_new_path, require_range
@@ -44,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 @dataclass
 class Scoreboard:
-    """Impacts (truths) and labels as they arrive, paired by :func:`tail_beam_id.label.match`
+    """Impacts (truths) and labels as they arrive, paired by :func:`tail_beam_id.stream.label.match`
     within ``tolerance_s`` (s); prints progress."""
 
     count: int
@@ -158,7 +158,7 @@ def label_text(truth: Mapping[str, Any], label: Label | None) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tail_beam_id.id_node import IdNode
+    from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim import topics
     from tail_beam_sim.ros.recorder_node import RecorderNode, default_bag_path
     from tail_beam_sim.ros.sim_node import SimNode

@@ -12,12 +12,12 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from tail_beam_id.dataset import FOREIGN_SCENES, SCENE_SETS, evaluation_params, settings
-from tail_beam_id.evaluation import (
+from tail_beam_id.study.dataset import FOREIGN_SCENES, SCENE_SETS, evaluation_params, settings
+from tail_beam_id.study.evaluation import (
     Summary, format_confusion, format_sizes, format_table, group, large_particle_accuracy, summaries, wilson,
 )
 from tail_beam_id.methods import available_methods
-from tail_beam_id.runs import FOREIGN_PROFILES, Record, run_foreign, run_set
+from tail_beam_id.study.runs import FOREIGN_PROFILES, Record, run_foreign, run_set
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, open_output_file, require_output_file, require_range
@@ -119,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
             stream.write((json.dumps([s.as_dict() for s in items], indent=1) + "\n").encode("utf-8"))
         print(f"\nwrote {out / 'summary.json'}")
         if args.plot:
-            from tail_beam_id.charts import write_all
+            from tail_beam_id.study.charts import write_all
 
             for path in write_all(items, out, float(params["identification"]["window_s"])):
                 print(f"wrote {path}")

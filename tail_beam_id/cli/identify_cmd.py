@@ -16,12 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.identifier import StreamIdentifier
-from tail_beam_id.label import Label
+from tail_beam_id.stream.identifier import StreamIdentifier
+from tail_beam_id.stream.label import Label
 from tail_beam_id.methods import available_methods
-from tail_beam_id.replay import replay
-from tail_beam_id.calibration import SupportProfile, with_profile
-from tail_beam_id.calibration import calibrate as calibrate_support
+from tail_beam_id.stream.replay import replay
+from tail_beam_id.calibration.offline import SupportProfile, with_profile
+from tail_beam_id.calibration.offline import calibrate as calibrate_support
 from tail_beam_sim.bags.read import IDENTIFY_TOPICS, BagSensors, open_segments_note, read_runs
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
@@ -135,7 +135,7 @@ def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | Non
 
 
 def profile_of(data: BagSensors, params: dict[str, Any]) -> SupportProfile:
-    """The support profile of a bag's sensor data (tail_beam_id.calibration)."""
+    """The support profile of a bag's sensor data (tail_beam_id.calibration.offline)."""
     accel_z = data.linear_acceleration_mps2[:, 2] if data.linear_acceleration_mps2.size else np.zeros(0)
     ringing = (data.vibration.sample_stamps_s(), data.vibration.accel_mps2) if data.vibration.count else None
     return calibrate_support(params, (data.pressure_stamp_s, data.pressure_pa), (data.imu_stamp_s, accel_z),

@@ -1,5 +1,5 @@
 """The trained networks' inputs from an impact's features: shared by the statistical method and
-the support-hysteresis network (tail_beam_id.hysteresis)."""
+the support-hysteresis network (tail_beam_id.methods.hysteresis)."""
 
 from __future__ import annotations
 

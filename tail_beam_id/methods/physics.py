@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr
 
-from tail_beam_id.features import VIBRATION_CHANNEL
-from tail_beam_id.methods import Decision
+from tail_beam_id.signals.features import VIBRATION_CHANNEL
+from tail_beam_id.methods.base import Decision
 from tail_beam_sim.physics.contact import effective_modulus_pa, hertz_constant, hertz_elastic_impact
 from tail_beam_sim.errors import InputError, require_int, require_range, require_section
 from tail_beam_sim.physics.materials import material_table, sphere_mass_kg

@@ -6,10 +6,10 @@ signals available (so it still labels when a stream is gone), with temperature-s
 
 The acceleration features (the ``imu`` signal's) come from whichever channel the identifier
 used: the IMU, or the tail-beam accelerometer (``vibration``) while it is fed; the models decide
-both alike, trained on the IMU's (tail_beam_id.training.train_family says why).
+both alike, trained on the IMU's (tail_beam_id.study.training.train_family says why).
 
 Any sensor rate: the models are trained on supports and sensor rates drawn from wide ranges
-(tail_beam_id.supports), and the IMU sample period is a continuous input like any other
+(tail_beam_id.study.supports), and the IMU sample period is a continuous input like any other
 feature, never a category. Knowing its limits: each model keeps the envelope of its training
 inputs (the 0.1 and 99.9 percentiles of each); an impact outside it is clamped to the envelope
 before the pairwise products (no polynomial extrapolation), its confidence is capped and the
@@ -24,12 +24,12 @@ says of the contact's duration, and the decision is averaged over the lag the ca
 added (``_lag_rows``), as it is for any camera between the training's reference and slowest.
 
 On a support whose profile carries its contact hysteresis (``calibration.hysteresis_weights``,
-read by self-calibration from the recording's impacts: tail_beam_id.hysteresis), an impact with
+read by self-calibration from the recording's impacts: tail_beam_id.methods.hysteresis), an impact with
 every signal has its logit moved by what knowing the support's hysteresis says
 (``hysteresis_shift`` in its features, ``hysteresis_shift_read`` what the weights said): the
 same rebound means coal on one support and mudstone on another, which no single impact tells.
 The shift moves the boundary; it never makes a label surer than the impact alone says
-(tail_beam_id.hysteresis.applied_shift).
+(tail_beam_id.methods.hysteresis.applied_shift).
 
 Why logarithms: the physics is a product of powers (moment impulse = m v0 (1 + e) x,
 contact duration ~ R (rho / E*)^0.4 v0^-0.2, rebound speed = e v0), so the material shows as a
@@ -45,10 +45,10 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.hysteresis import applied_shift, hysteresis_shift, joint_inputs
-from tail_beam_id.methods import Decision, cap_confidence, sigmoid
+from tail_beam_id.methods.hysteresis import applied_shift, hysteresis_shift, joint_inputs
+from tail_beam_id.methods.base import Decision, cap_confidence, sigmoid
 from tail_beam_id.methods.inputs import base_vector
-from tail_beam_id.timing import DELAY_UNTRUSTED, UNUSUAL
+from tail_beam_id.signals.timing import DELAY_UNTRUSTED, UNUSUAL
 from tail_beam_sim.errors import InputError, require_range, require_section
 
 # Each signal's features, with the floor (in the feature's unit) below which a noisy reading is
@@ -73,7 +73,7 @@ WITHOUT_DELAY = "~without_delay"
 LAG_ROWS = 16  # lags a camera slower than the training's is averaged over
 SLOWER = 1.05  # a camera frame this many times the reference (or slowest) frame or longer counts as slower
 # The features that say how large an impact is (its moment impulse), in order of preference: a
-# model's temperature grows as it gets smaller (tail_beam_id.training.fit_size_temperature).
+# model's temperature grows as it gets smaller (tail_beam_id.study.training.fit_size_temperature).
 SIZE_FEATURES = ("moment_impulse_pressure_nms", "moment_impulse_imu_nms")
 
 
@@ -104,11 +104,11 @@ def _check_temperature_size(key: str, model: Mapping[str, Any]) -> None:
     field = f"statistical model {key}.temperature_size"
     names = [name for name, _ in model["features"]]
     if not isinstance(size, Mapping) or size.get("feature") not in names:
-        raise InputError(field, size, f"must name one of the model's features ({', '.join(names)}): retrain (python -m tail_beam_id.training)")
+        raise InputError(field, size, f"must name one of the model's features ({', '.join(names)}): retrain (python -m tail_beam_id.study.training)")
     for part in ("slope", "reference"):
         value = size.get(part)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise InputError(f"{field}.{part}", value, "must be a finite number: retrain (python -m tail_beam_id.training)")
+            raise InputError(f"{field}.{part}", value, "must be a finite number: retrain (python -m tail_beam_id.study.training)")
 
 
 def signals_of(features: Mapping[str, float]) -> tuple[str, ...]:
@@ -152,7 +152,7 @@ class StatisticalMethod:
         # without it was trained.
         self.slowest_delay_frame_period_s = slowest_delay_frame_period_s
         # The network reading an impact's class with its support's hysteresis, and the support's
-        # bins' weights from its profile (tail_beam_id.hysteresis); None: decided without them.
+        # bins' weights from its profile (tail_beam_id.methods.hysteresis); None: decided without them.
         self.hysteresis = hysteresis
         self.hysteresis_weights = None if hysteresis is None or hysteresis_weights is None else list(hysteresis_weights)
 
@@ -163,7 +163,7 @@ class StatisticalMethod:
         families = [model["subsets"], model.get("calibrated_subsets") or {}]
         stale = [key for family in families for key in family if "@" in key or "envelope" not in family[key]]
         if stale:
-            raise InputError("statistical model", stale[0], "is a per-rate model without an envelope: retrain (python -m tail_beam_id.training)")
+            raise InputError("statistical model", stale[0], "is a per-rate model without an envelope: retrain (python -m tail_beam_id.study.training)")
         for family in families:
             for key, subset in family.items():
                 _check_temperature_size(key, subset)
@@ -261,7 +261,7 @@ class StatisticalMethod:
 
 def duration_read(features: Mapping[str, float]) -> bool:
     """Whether the impact's contact duration was read from its pulse: a channel too slow for
-    that gives exactly its sample period (tail_beam_id.contact_fit.fit_contact). Without it the
+    that gives exactly its sample period (tail_beam_id.signals.contact_fit.fit_contact). Without it the
     delay is the only timing the impact has, and even a slow camera's, averaged over its lag,
     tells more than none: on 200 foreign impacts with a 1 kHz camera, a 2 kHz IMU alone scored
     65.0 % averaged against 59.0 % without the delay, a 5 kHz one 67.0 against 56.5 %; where the
@@ -279,7 +279,7 @@ def _profile_weights(weights: Any, edges: Any, hysteresis: Mapping[str, Any] | N
         return None
     field = "calibration.hysteresis_weights"
     if hysteresis is None:
-        raise InputError(field, weights, "needs a statistical model with a hysteresis network: retrain (python -m tail_beam_id.training)")
+        raise InputError(field, weights, "needs a statistical model with a hysteresis network: retrain (python -m tail_beam_id.study.training)")
     model_edges = [float(e) for e in hysteresis["bin_edges"]]
     if edges is not None and (isinstance(edges, str) or not isinstance(edges, Sequence) or len(edges) != len(model_edges)
                               or not all(isinstance(e, (int, float)) and not isinstance(e, bool) and abs(e - m) <= 1e-9
@@ -307,7 +307,7 @@ def delay_check(model: Mapping[str, Any], names: Sequence[tuple[str, float | Non
                 period_s: float) -> dict[str, float]:
     """``delay_residual`` (the standardised log delay less what the impact's other inputs predict)
     and ``delay_unusual`` (1.0 outside the training residuals' band at this IMU period, s), or
-    nothing when the model has no check or no band for the period (tail_beam_id.timing)."""
+    nothing when the model has no check or no band for the period (tail_beam_id.signals.timing)."""
     check = model.get("delay_check")
     if check is None:
         return {}

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from tail_beam_id.methods import Decision, sigmoid
+from tail_beam_id.methods.base import Decision, sigmoid
 from tail_beam_sim.errors import require_range, require_section
 
 FLOOR = 1e-9  # features are positive physical magnitudes; a noisy reading below this is clipped

@@ -42,8 +42,8 @@ def fit_refinement(logits: np.ndarray, is_coal: np.ndarray, prior_b: float, with
 
 
 def main() -> int:
-    from tail_beam_id.dataset import evaluation_params, settings
-    from tail_beam_id.runs import run_foreign
+    from tail_beam_id.study.dataset import evaluation_params, settings
+    from tail_beam_id.study.runs import run_foreign
     from tail_beam_sim.config import load_parameters
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -1,4 +1,4 @@
-"""What the contact's duration read from the acceleration pulse buys (tail_beam_id.contact_fit,
+"""What the contact's duration read from the acceleration pulse buys (tail_beam_id.signals.contact_fit,
 feature ``contact_duration_s``): networks like the statistical method's three-signal one,
 retrained without it, with it, and with the true contact duration (from impact_truth) in its
 place, scored on the paper and stream scenes of the nominal support and on foreign supports
@@ -28,11 +28,11 @@ ROWS = ("without contact_duration_s", "contact_duration_s read from the pulse", 
 
 
 def main() -> int:
-    import tail_beam_id.runs as runs
-    from tail_beam_id.dataset import evaluation_params, settings
-    from tail_beam_id.evaluation import wilson
+    import tail_beam_id.study.runs as runs
+    from tail_beam_id.study.dataset import evaluation_params, settings
+    from tail_beam_id.study.evaluation import wilson
     from tail_beam_id.methods.statistical import base_vector, feature_list, network_logit
-    from tail_beam_id.training import fit_network
+    from tail_beam_id.study.training import fit_network
     from tail_beam_sim.cli.common import add_config_option
     from tail_beam_sim.config import load_parameters
 

@@ -1,11 +1,11 @@
 """What reading the support's contact hysteresis from its recording buys on a law no training
 saw (issue 9: the independent evaluation's supports follow a hysteresis law of their own): the
-hysteresis network (tail_beam_id.hysteresis) refitted with one law left out, and the foreign
+hysteresis network (tail_beam_id.methods.hysteresis) refitted with one law left out, and the foreign
 supports of that law self-calibrated and identified with it and without the hysteresis (the
 shipped statistical networks either way, which did see every law: the "without" column is if
 anything flattered). Prints a table, asserts nothing, ships nothing.
 
-    python -m tail_beam_id.training --count 300 --varied-count 3000 --cache records.json  # once (6.5 min)
+    python -m tail_beam_id.study.training --count 300 --varied-count 3000 --cache records.json  # once (6.5 min)
     python test/bench/bench_hysteresis.py --cache records.json          # about 6 minutes here
     python test/bench/bench_hysteresis.py --varied 1000 --supports 10   # simulates its own, quicker, wider intervals
 
@@ -26,16 +26,16 @@ from pathlib import Path
 
 
 def main() -> int:
-    from tail_beam_id.calibration import calibrate, with_profile
-    from tail_beam_id.dataset import evaluation_params, settings, support_streams
-    from tail_beam_id.evaluation import wilson
-    from tail_beam_id.label import match, match_tolerance_s
+    from tail_beam_id.calibration.offline import calibrate, with_profile
+    from tail_beam_id.study.dataset import evaluation_params, settings, support_streams
+    from tail_beam_id.study.evaluation import wilson
+    from tail_beam_id.stream.label import match, match_tolerance_s
     from tail_beam_id.methods import load_model
-    from tail_beam_id.training import collect, fit_hysteresis, load_cache
+    from tail_beam_id.study.training import collect, fit_hysteresis, load_cache
     from tail_beam_sim.config import load_parameters
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cache", default=None, help="training records (python -m tail_beam_id.training --cache)")
+    parser.add_argument("--cache", default=None, help="training records (python -m tail_beam_id.study.training --cache)")
     parser.add_argument("--varied", type=int, default=1000, help="without --cache: stream-scene training impacts on drawn supports")
     parser.add_argument("--supports", type=int, default=30, help="foreign supports (20 impacts of each scene)")
     args = parser.parse_args()
@@ -94,8 +94,8 @@ def main() -> int:
 
 def _identifier(params, recorded, model_path: str):
     """identify(model_params): the recording's labels, the statistical method from ``model_path``."""
-    from tail_beam_id.identifier import StreamIdentifier
-    from tail_beam_id.replay import replay
+    from tail_beam_id.stream.identifier import StreamIdentifier
+    from tail_beam_id.stream.replay import replay
 
     section = params["identification"]
 

@@ -54,8 +54,8 @@ def run_identification(rate_hz: float, duration_s: float) -> dict[str, float | s
     from sensor_msgs.msg import FluidPressure
     from std_msgs.msg import String
 
-    from tail_beam_id.id_node import IdNode
-    from tail_beam_id.label import Label, match, match_tolerance_s
+    from tail_beam_id.ros.id_node import IdNode
+    from tail_beam_id.stream.label import Label, match, match_tolerance_s
     from tail_beam_sim.config import load_parameters
     from tail_beam_sim.ros import messages as ros_messages
 

@@ -32,11 +32,11 @@ ORACLES = {
 
 
 def main() -> int:
-    import tail_beam_id.runs as runs
-    from tail_beam_id.dataset import evaluation_params, settings, simulate_set
-    from tail_beam_id.evaluation import wilson
+    import tail_beam_id.study.runs as runs
+    from tail_beam_id.study.dataset import evaluation_params, settings, simulate_set
+    from tail_beam_id.study.evaluation import wilson
     from tail_beam_id.methods.statistical import base_vector, feature_list, network_logit
-    from tail_beam_id.training import fit_network
+    from tail_beam_id.study.training import fit_network
     from tail_beam_sim.config import load_parameters
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

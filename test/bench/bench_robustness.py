@@ -105,9 +105,9 @@ CHANGES: dict[str, tuple[str, Callable]] = {
 
 
 def main() -> int:
-    from tail_beam_id.dataset import evaluation_params, settings, support_streams
-    from tail_beam_id.evaluation import wilson
-    from tail_beam_id.runs import foreign_records
+    from tail_beam_id.study.dataset import evaluation_params, settings, support_streams
+    from tail_beam_id.study.evaluation import wilson
+    from tail_beam_id.study.runs import foreign_records
     from tail_beam_sim.config import load_parameters
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

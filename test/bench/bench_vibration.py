@@ -119,12 +119,12 @@ def run(rate_hz: float, duration_s: float, compression: str, workdir: Path, sim_
 
 
 def identification_scores(bag: Path, data, block_log_s: np.ndarray, label_log_s: np.ndarray) -> dict[str, object]:
-    """The live labels in the bag against its truths (tail_beam_id.label.match): correct of
+    """The live labels in the bag against its truths (tail_beam_id.stream.label.match): correct of
     matched, for all and for R >= 50 mm, extra labels, live = offline (`tail-beam identify`
     on the bag), and the wall latency of each label after the data of its contact's end: the
     recorder's log time of the label less that of the vibration block holding the contact end."""
     from tail_beam_id.cli.identify_cmd import identify_bag
-    from tail_beam_id.label import Label, match, match_tolerance_s
+    from tail_beam_id.stream.label import Label, match, match_tolerance_s
     from tail_beam_sim.config import load_parameters
 
     truths = data.json_topics.get("impact_truth", [])

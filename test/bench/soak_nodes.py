@@ -1,7 +1,7 @@
 """Soak: sim_node, id_node and bag_recorder as processes on a long generated stream at
 ``realtime_factor:=0``; prints the resident memory (RSS) of each every few seconds, then checks
 the bag: impacts (truths) = rebounds = the count asked for, each impact has its label by the
-suite's one matching rule (tail_beam_id.label.match) with no label left over, and the live
+suite's one matching rule (tail_beam_id.stream.label.match) with no label left over, and the live
 labels are those `tail-beam identify` gives on the bag.
 
     python test/bench/soak_nodes.py --impacts 1000          # about 8 minutes on a loaded 2-core machine
@@ -39,7 +39,7 @@ def rss_mb(pid: int) -> float:
 @dataclass
 class SoakResult:
     """Counts found in the bag and the RSS samples of each node (wall s, MB); ``matched``: truths
-    paired with a label, ``extra``: labels paired with none (tail_beam_id.label.match)."""
+    paired with a label, ``extra``: labels paired with none (tail_beam_id.stream.label.match)."""
 
     asked: int
     truths: int = 0
@@ -70,7 +70,7 @@ def soak(impacts: int, work: Path, sample_s: float = 5.0, timeout_s: float = 360
     """Run the three nodes on ``impacts`` generated impacts; return what the bag holds.
     ``recorder_params`` are extra ``name:=value`` overrides of the recorder (experiments);
     ``namespace`` puts the whole support under one."""
-    from tail_beam_id.label import Label, match, match_tolerance_s
+    from tail_beam_id.stream.label import Label, match, match_tolerance_s
     from tail_beam_sim import topics
     from tail_beam_sim.bags.read import read_sensors
     from tail_beam_sim.config import load_parameters

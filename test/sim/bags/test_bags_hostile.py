@@ -279,11 +279,11 @@ class _Planted:
 
 
 def test_a_tampered_training_cache_runs_no_code(tmp_path):
-    """python -m tail_beam_id.training --cache on a planted pickle: refused with one line, the planted code never runs."""
+    """python -m tail_beam_id.study.training --cache on a planted pickle: refused with one line, the planted code never runs."""
     marker = tmp_path / "marker"
     cache = tmp_path / "cache.json"
     cache.write_bytes(pickle.dumps(_Planted(marker)))
-    result = subprocess.run([sys.executable, "-m", "tail_beam_id.training", "--cache", str(cache)],
+    result = subprocess.run([sys.executable, "-m", "tail_beam_id.study.training", "--cache", str(cache)],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode != 0 and "cannot be read" in result.stderr and "Traceback" not in result.stderr
     assert not marker.exists()
@@ -291,9 +291,9 @@ def test_a_tampered_training_cache_runs_no_code(tmp_path):
 
 def test_the_training_cache_round_trips_as_json(tmp_path):
     """save_cache/load_cache give back equal records from a JSON file."""
-    from tail_beam_id.label import Label
-    from tail_beam_id.runs import Record
-    from tail_beam_id.training import load_cache, save_cache
+    from tail_beam_id.stream.label import Label
+    from tail_beam_id.study.runs import Record
+    from tail_beam_id.study.training import load_cache, save_cache
 
     label = Label(1.2501, "coal", 0.93, "threshold", latency_ms=0.7, data_latency_ms=12.0, signals=("imu",),
                   features={"rebound_speed_mps": 5.6}, outside_training=("pressure_noise_pa",))

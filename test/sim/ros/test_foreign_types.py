@@ -21,7 +21,7 @@ def test_a_publisher_of_the_wrong_type_on_a_contract_topic_is_named(tmp_path, ca
     warn once per publisher, naming the topic, the type it offers and the contract's."""
     from rclpy.parameter import Parameter
 
-    from tail_beam_id.id_node import IdNode
+    from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.ros.recorder_node import RecorderNode
     from tail_beam_sim.ros.sim_node import SimNode
 

@@ -48,7 +48,7 @@ def test_a_label_comes_when_its_data_is_in_not_on_the_next_periodic_tick(params,
     from std_msgs.msg import String
 
     from rosprobe import Probe, ros_context, spin_for, spin_until
-    from tail_beam_id.id_node import IdNode
+    from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.ros import messages as ros_messages
 
     chunk = stream_chunk(params, [(CONTACT_S, {"material": "sandstone", "radius_m": 0.06, "drop_height_m": 2.0, "position_m": 1.0})], CONTACT_S + 0.1)
@@ -90,7 +90,7 @@ def test_a_label_comes_when_its_data_is_in_not_on_the_next_periodic_tick(params,
 def test_the_inbox_splits_what_has_been_held_from_what_has_not():
     """id_node's inbox hands over the messages that arrived by the cutoff with the newest of
     their arrival times, then the later ones with theirs, and is empty after."""
-    from tail_beam_id.id_node import Inbox
+    from tail_beam_id.ros.id_node import Inbox
 
     inbox = Inbox()
     for message, arrived_s in (("a", 1.0), ("b", 2.0), ("c", 3.0)):

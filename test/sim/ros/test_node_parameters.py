@@ -18,7 +18,7 @@ pytestmark = [pytest.mark.ros]
 
 MAINS = {
     "sim_node": "tail_beam_sim.ros.sim_node",
-    "id_node": "tail_beam_id.id_node",
+    "id_node": "tail_beam_id.ros.id_node",
     "bag_recorder": "tail_beam_sim.ros.recorder_node",
     "bag_replay": "tail_beam_sim.ros.replay_node",
 }
@@ -71,7 +71,7 @@ def test_a_parameter_no_node_has_is_warned_not_ignored(capfd):
     dropped by rclpy without a word: the user believed it set. The node now warns once, naming
     it; a parameter of another tail_beam node (a ``/**`` file shared by the suite) gets an
     information line instead, and the node starts either way."""
-    from tail_beam_id.id_node import IdNode
+    from tail_beam_id.ros.id_node import IdNode
 
     overrides = [Parameter("id_node.pol_period_s", value=0.05), Parameter("sensors.imu_rate", value=5),
                  Parameter("sim_node.realtime_factor", value=0.0), Parameter("id_node.poll_period_s", value=0.05)]
@@ -163,7 +163,7 @@ def test_id_node_takes_a_support_profiles_calibration_section():
     uncalibrated while `tail-beam identify --config profile.yaml` decided as calibrated. id_node
     now takes that section (and does not warn of it), so its labels say calibrated: true, and
     the support's hysteresis the profile read reaches the statistical method."""
-    from tail_beam_id.id_node import IdNode
+    from tail_beam_id.ros.id_node import IdNode
 
     weights = [0.0, 0.9, 0.1, 0.0, 0.0, 0.0]  # one per hysteresis bin of the shipped model
     overrides = [Parameter("calibration.rigid_mode_frequency_hz", value=38.1), Parameter("calibration.impacts_used", value=16),
@@ -190,7 +190,7 @@ def test_numbers_config_reads_as_text_take_numbers_and_the_shipped_files_load():
     number for such a parameter (a profile's oil_bulk_modulus_pa, -p support.setting_pressure_pa:=2.1e7)
     is taken, and so is every shipped parameter file given as --params-file (as rcl reads it);
     text that is no number is refused by name."""
-    from tail_beam_id.id_node import IdNode
+    from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.config import default_config_dir
     from tail_beam_sim.ros.sim_node import SimNode
 

@@ -16,7 +16,7 @@ from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
 
 from rosprobe import Probe, ros_context, spin_for, spin_until
-from tail_beam_id.label import match, match_tolerance_s
+from tail_beam_id.stream.label import match, match_tolerance_s
 from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.config import default_config_dir, deep_merge, load_parameters
@@ -40,7 +40,7 @@ def sim_node(context, **overrides):
 
 
 def id_node(context, **overrides):
-    from tail_beam_id.id_node import IdNode
+    from tail_beam_id.ros.id_node import IdNode
 
     values = {"method": "threshold", "id_node.flush_after_idle_s": 0.3, **overrides}
     return IdNode(context=context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
@@ -147,7 +147,7 @@ def test_queue_overflow_is_a_warning_and_the_queued_impacts_all_happen():
 
 
 def test_id_node_labels_each_impact_of_a_live_sim_node():
-    """id_node labels each of a live sim_node's impacts (the suite's matching rule, tail_beam_id.label), in stamp order, missing no sample."""
+    """id_node labels each of a live sim_node's impacts (the suite's matching rule, tail_beam_id.stream.label), in stamp order, missing no sample."""
     with ros_context() as (context, executor):
         sim = sim_node(context, **{"sim_node.wait_for_subscribers": 1, "scenario.source": "generated", "scenario.count": 4})
         ident = id_node(context)
@@ -249,8 +249,8 @@ def test_id_node_survives_a_restarted_simulator_and_a_stamp_from_the_future():
     """A stream whose stamps start again from 0 (sim_node restarted) and, before it, one IMU
     message stamped 1000 s ahead: id_node says so in its log and labels every impact of both
     runs, the same labels offline identification gives each run (it went deaf before)."""
-    from tail_beam_id.identifier import StreamIdentifier
-    from tail_beam_id.replay import replay
+    from tail_beam_id.stream.identifier import StreamIdentifier
+    from tail_beam_id.stream.replay import replay
 
     chunk = offline_chunk()
     starts = [t["contact_start_stamp"] for _, t in chunk.truths]
@@ -293,8 +293,8 @@ def test_id_node_gives_a_slow_cameras_late_rebounds_to_their_impacts_as_offline(
     rebound was an impact of its own: two labels per impact)."""
     from dataclasses import replace
 
-    from tail_beam_id.identifier import StreamIdentifier
-    from tail_beam_id.replay import replay
+    from tail_beam_id.stream.identifier import StreamIdentifier
+    from tail_beam_id.stream.replay import replay
 
     chunk = offline_chunk()
     truths = [truth for _, truth in chunk.truths]

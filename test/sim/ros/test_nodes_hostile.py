@@ -23,7 +23,7 @@ def build(kind: str, context, tmp_path):
         from tail_beam_sim.ros.sim_node import SimNode
         return SimNode(context=context, parameter_overrides=given(**{"sim_node.realtime_factor": 0.0}))
     if kind == "id_node":
-        from tail_beam_id.id_node import IdNode
+        from tail_beam_id.ros.id_node import IdNode
         return IdNode(context=context, parameter_overrides=given(method="threshold"))
     if kind == "bag_recorder":
         from tail_beam_sim.ros.recorder_node import RecorderNode

@@ -16,7 +16,7 @@ from std_msgs.msg import String
 
 from rosprobe import Probe, ros_context, spin_for, spin_until
 from tail_beam_id.cli.identify_cmd import identify_bag
-from tail_beam_id.label import Label, match, match_tolerance_s
+from tail_beam_id.stream.label import Label, match, match_tolerance_s
 from tail_beam_id.methods import available_methods
 from tail_beam_sim import topics
 from tail_beam_sim.bags.read import raw_messages, read_sensors
@@ -79,7 +79,7 @@ def short_scenario(count: int, *extra: str) -> list[str]:
 
 def assert_same_labels(got: list[Label], expected: list[Label]) -> None:
     """Same impacts, labels, method and confidences (docs/interface.md: live and offline agree):
-    id_node hands its identifier the streams in stamp order (tail_beam_id/arrival.py), so its
+    id_node hands its identifier the streams in stamp order (tail_beam_id/ros/arrival), so its
     decisions cannot depend on how the middleware interleaved them."""
     assert [g.decision() for g in got] == [e.decision() for e in expected]
 

@@ -334,7 +334,7 @@ def test_id_node_reports_a_dropped_block_and_refuses_a_late_one():
     from sensor_msgs.msg import LaserScan
 
     from rosprobe import RELIABLE, Probe, ros_context, spin_until
-    from tail_beam_id.id_node import IdNode
+    from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.ros import messages as ros_messages
 
     with ros_context() as (context, executor):
@@ -362,7 +362,7 @@ def feeding_id_node_and_recorder(bag: Path) -> Iterator[tuple]:
     from sensor_msgs.msg import LaserScan
 
     from rosprobe import RELIABLE, Probe, ros_context, spin_until
-    from tail_beam_id.id_node import IdNode
+    from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.ros.recorder_node import RecorderNode
 
     with ros_context() as (context, executor):
@@ -445,7 +445,7 @@ def test_an_empty_vibration_block_is_refused_by_name_and_hides_no_samples(tmp_pa
     from sensor_msgs.msg import LaserScan
 
     from rosprobe import RELIABLE, Probe, ros_context, spin_for, spin_until
-    from tail_beam_id.id_node import IdNode
+    from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.ros import messages as ros_messages
     from tail_beam_sim.ros.recorder_node import RecorderNode
 

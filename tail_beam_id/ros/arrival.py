@@ -1,0 +1,423 @@
+"""What ``id_node`` receives, put in stamp order before the identifier sees it.
+
+Messages of the four sensor topics come over separate readers: a busy middleware delivers one
+topic's backlog seconds after another's, a few large vibration blocks overtake thousands of
+small pressure messages, a rebound overtakes the samples around it. Fed as they arrive, the
+identifier would see one stream lag the others and declare it stopped: labels would depend on
+arrival, not on the data, and live labels would differ from ``tail-beam identify`` on the bag.
+
+:class:`ArrivalGate` holds every sample until each live continuous stream (jack pressure, IMU,
+vibration) has reached its stamp, and until it has been held ``reorder_s`` of wall time (what
+a late message on another topic, a rebound, may need to catch up); then it releases all
+streams up to one common stamp, the watermark, as the offline replay does. A stream that has
+sent nothing for ``stream_idle_s`` of wall time no longer holds the others back (a sensor
+gone; at start-up, one not heard from ``stream_idle_s`` after the first is taken as absent): the identifier then sees it lag and declares it stopped, as it does on a bag in which
+that sensor ends.
+
+Time jumps: stamps that go back by more than ``time_jump_s`` on a continuous stream mean a new
+time base (a simulator restarted, a replay looped): :meth:`ArrivalGate.add` reports where the
+new epoch starts, so that the node can decide what it holds, start a fresh identifier and go on.
+A sample stamped more than ``time_jump_s`` ahead of the other live streams (a clock gone wrong)
+is held aside and counted: accepted once the others reach it, dropped when its stream goes
+on in the old time base (a clock gone wrong once), or the start of a new epoch when every
+stream that still talks jumped ahead.
+
+Pure numpy, no ROS: the node and the tests drive the same class.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from tail_beam_sim.errors import require_range
+from tail_beam_id.stream.release import Release, feed
+from tail_beam_sim.physics.sensors import BlockSequencer, VibrationBlocks
+
+if TYPE_CHECKING:
+    from tail_beam_id.stream.identifier import StreamIdentifier
+    from tail_beam_id.stream.label import Label
+    from tail_beam_id.calibration.online import OnlineCalibration
+
+CONTINUOUS = ("jack_pressure", "imu", "vibration")
+MAX_ASIDE_SAMPLES = 2_000_000  # samples held aside as "ahead of the others" (bounded memory)
+
+
+@dataclass(frozen=True)
+class GateConfig:
+    """The ``id_node`` arrival parameters, validated (wall-clock s unless named stamp)."""
+
+    reorder_s: float
+    stream_idle_s: float
+    time_jump_s: float
+
+    @classmethod
+    def from_params(cls, node: dict) -> GateConfig:
+        return cls(
+            reorder_s=require_range("id_node.reorder_s", node.get("reorder_s"), 0.0, 10.0, unit="s"),
+            stream_idle_s=require_range("id_node.stream_idle_s", node.get("stream_idle_s"), 0.0, 60.0, low_open=True, unit="s"),
+            time_jump_s=require_range("id_node.time_jump_s", node.get("time_jump_s"), 0.0, 1e6, low_open=True, unit="s"),
+        )
+
+
+@dataclass
+class _Chunk:
+    arrival_s: float  # wall clock
+    stamp_s: np.ndarray  # (T,) in order
+    values: np.ndarray  # (T, k)
+
+
+@dataclass
+class _Stream:
+    chunks: list[_Chunk] = field(default_factory=list)
+    latest_s: float = -math.inf  # newest stamp accepted (stamp time)
+    settled_s: float = -math.inf  # newest stamp held at least reorder_s
+    last_arrival_s: float = -math.inf  # wall clock of the last accepted chunk
+    last_seen_s: float = -math.inf  # wall clock of the last chunk, accepted or not
+    aside: list[_Chunk] = field(default_factory=list)  # samples far ahead of the others
+
+
+@dataclass
+class Counts:
+    """Samples and rebounds the gate did not pass on, by reason (reported in the node's log)."""
+
+    repeated_samples: int = 0  # stamp not after the stream's newest (a repeat, out of order)
+    ahead_samples: int = 0  # set aside: a run stamped more than time_jump_s ahead of the live streams
+    ahead_dropped: int = 0  # of those, dropped (the time base did not move)
+    refused_rebounds: int = 0  # rebound not finite, or stamped more than time_jump_s behind the watermark or ahead of the streams
+
+
+class ArrivalGate:
+    """Releases the continuous streams and rebounds in stamp order (module docstring)."""
+
+    def __init__(self, config: GateConfig) -> None:
+        self.config = config
+        self.streams = {name: _Stream() for name in CONTINUOUS}
+        self.rebounds: list[tuple[float, float, np.ndarray]] = []  # (arrival_s, stamp_s, velocity)
+        self.released_s = -math.inf  # the watermark last released
+        self.first_arrival_s = math.inf  # wall clock of the first sample
+        self.counts = Counts()
+
+    # ---- input ---------------------------------------------------------------------------
+    def backward_jump(self, name: str, stamp_s: np.ndarray) -> int | None:
+        """Index of the first of ``stamp_s`` more than ``time_jump_s`` behind what stream
+        ``name`` has accepted (a new time base), or None. For vibration blocks, which must be
+        split before their running index is sequenced; :meth:`add` finds it for samples."""
+        latest = self.streams[name].latest_s
+        back = np.flatnonzero(np.asarray(stamp_s) < latest - self.config.time_jump_s) if latest > -math.inf else []
+        return int(back[0]) if len(back) else None
+
+    def add(self, name: str, stamp_s: np.ndarray, values: np.ndarray, now_s: float) -> int | None:
+        """Samples of continuous stream ``name`` that arrived (wall clock ``now_s``), in arrival
+        order. Returns None, or the index of the first sample of a new time base (stamps back by
+        more than ``time_jump_s`` from what was accepted): that sample and the rest are not taken.
+
+        The samples are cut into runs at every step of more than ``time_jump_s`` either way. A
+        run that starts more than ``time_jump_s`` ahead of its own stream and of the other live
+        streams is set aside (with what continues it) until the others reach it (a stream
+        resuming during their backlog), its stream goes on in the old time base (a stamp gone
+        wrong: dropped) or every stream jumped (:meth:`forward_jump`). A backlog delivered at
+        once has no such step and passes."""
+        stamp_s = np.asarray(stamp_s, dtype=float)
+        values = np.asarray(values, dtype=float).reshape(stamp_s.size, -1)
+        stream = self.streams[name]
+        stream.last_seen_s = now_s
+        if self.first_arrival_s == math.inf:
+            self.first_arrival_s = now_s
+        jump = self.config.time_jump_s
+        previous = stream.aside[-1].stamp_s[-1] if stream.aside else stream.latest_s
+        steps = np.diff(np.concatenate([[previous], stamp_s]))
+        starts = [0, *(np.flatnonzero(np.abs(steps[1:]) > jump) + 1), stamp_s.size]
+        for lo, hi in zip(starts[:-1], starts[1:]):
+            first = stamp_s[lo]
+            if first < stream.latest_s - jump:
+                self._promote(now_s)
+                return lo
+            leap = steps[lo] > jump and first > self._reference_s(name, now_s) + jump
+            if leap or (stream.aside and first > stream.aside[-1].stamp_s[-1]):
+                self.counts.ahead_samples += hi - lo
+                if sum(c.stamp_s.size for c in stream.aside) + hi - lo <= MAX_ASIDE_SAMPLES:
+                    stream.aside.append(_Chunk(now_s, stamp_s[lo:hi], values[lo:hi]))
+                else:
+                    self.counts.ahead_dropped += hi - lo
+                continue
+            if stream.aside:  # the stream went on in the old time base: what it sent ahead was a stamp gone wrong
+                self.counts.ahead_dropped += sum(c.stamp_s.size for c in stream.aside)
+                stream.aside = []
+            self._accept(stream, stamp_s[lo:hi], values[lo:hi], now_s)
+        self._promote(now_s)
+        return None
+
+    def _accept(self, stream: _Stream, stamp_s: np.ndarray, values: np.ndarray, now_s: float) -> None:
+        """Hold samples for release (a repeat or a step back within time_jump_s refused, counted)."""
+        fresh = stamp_s > np.maximum.accumulate(np.concatenate([[stream.latest_s], stamp_s]))[:-1]
+        self.counts.repeated_samples += int((~fresh).sum())
+        if fresh.any():
+            stream.chunks.append(_Chunk(now_s, stamp_s[fresh], values[fresh]))
+            stream.latest_s = float(stamp_s[fresh][-1])
+            stream.last_arrival_s = now_s
+
+    def _promote(self, now_s: float) -> None:
+        """Accept what was set aside once the other live streams have come within time_jump_s of it."""
+        for name, stream in self.streams.items():
+            if stream.aside and stream.aside[0].stamp_s[0] <= self._reference_s(name, now_s) + self.config.time_jump_s:
+                aside, stream.aside = stream.aside, []
+                for chunk in aside:
+                    self._accept(stream, chunk.stamp_s, chunk.values, now_s)
+
+    def add_rebound(self, stamp_s: float, velocity_mps: np.ndarray, now_s: float) -> None:
+        """One rebound that arrived at wall clock ``now_s``; refused (counted) when its stamp or
+        velocity is not finite, or it is stamped more than ``time_jump_s`` behind what was
+        released or ahead of the live streams."""
+        if not (math.isfinite(stamp_s) and np.isfinite(velocity_mps).all()):
+            self.counts.refused_rebounds += 1  # no measurement; the identifier would leave it out too
+            return
+        behind = stamp_s < self.released_s - self.config.time_jump_s
+        ahead = stamp_s > self._reference_s("", now_s) + self.config.time_jump_s
+        if behind or ahead:
+            self.counts.refused_rebounds += 1
+            return
+        self.rebounds.append((now_s, float(stamp_s), np.asarray(velocity_mps, dtype=float)))
+
+    def _reference_s(self, name: str, now_s: float) -> float:
+        """Newest stamp of the other live streams (inf when there are none to compare with)."""
+        others = [s.latest_s for n, s in self.streams.items() if n != name and self._active(s, now_s)]
+        return max(others, default=math.inf)
+
+    def _active(self, stream: _Stream, now_s: float) -> bool:
+        return stream.latest_s > -math.inf and now_s - stream.last_arrival_s <= self.config.stream_idle_s
+
+    def forward_jump(self, now_s: float) -> bool:
+        """Every stream still talking sends only samples far ahead of what was accepted: the
+        time base moved forward (then :meth:`take_aside` gives them to the next epoch). A lone
+        stamp gone wrong is not a jump: its stream goes on in the old time base."""
+        talking = [s for s in self.streams.values() if now_s - s.last_seen_s <= self.config.stream_idle_s]
+        return bool(talking) and all(s.aside and s.last_arrival_s < s.aside[0].arrival_s for s in talking)
+
+    def take_aside(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """The samples held aside as ahead, per stream (and forget them)."""
+        out = {}
+        for name, stream in self.streams.items():
+            if stream.aside:
+                out[name] = (np.concatenate([c.stamp_s for c in stream.aside]), np.concatenate([c.values for c in stream.aside]))
+                stream.aside = []
+        return out
+
+    # ---- output --------------------------------------------------------------------------
+    def watermark(self, now_s: float) -> float:
+        """The stamp up to which every live continuous stream has delivered, and held for
+        ``reorder_s``; +inf when no stream is live (everything may go)."""
+        for stream in self.streams.values():
+            for chunk in stream.chunks:
+                if now_s - chunk.arrival_s >= self.config.reorder_s:
+                    stream.settled_s = max(stream.settled_s, float(chunk.stamp_s[-1]))
+        if now_s - self.first_arrival_s < self.config.stream_idle_s and any(s.latest_s == -math.inf for s in self.streams.values()):
+            return -math.inf  # start-up: a stream not heard from yet may still come
+        live = [s.settled_s for s in self.streams.values() if self._active(s, now_s)]
+        return min(live) if live else math.inf
+
+    def release(self, now_s: float, everything: bool = False) -> Release:
+        """Everything held with a stamp up to the watermark (all of it with ``everything``)."""
+        limit = math.inf if everything else self.watermark(now_s)
+        if limit == math.inf:
+            held = [s.chunks[-1].stamp_s[-1] for s in self.streams.values() if s.chunks]
+            limit = max(held, default=self.released_s)
+            limit = max(limit, max((r[1] for r in self.rebounds), default=limit))
+        out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        for name, stream in self.streams.items():
+            taken_t, taken_v, kept = [], [], []
+            for chunk in stream.chunks:
+                cut = int(np.searchsorted(chunk.stamp_s, limit, side="right"))
+                if cut:
+                    taken_t.append(chunk.stamp_s[:cut])
+                    taken_v.append(chunk.values[:cut])
+                if cut < chunk.stamp_s.size:
+                    kept.append(_Chunk(chunk.arrival_s, chunk.stamp_s[cut:], chunk.values[cut:]))
+            stream.chunks = kept
+            if taken_t:
+                out[name] = (np.concatenate(taken_t), np.concatenate(taken_v))
+        due = sorted((r for r in self.rebounds if r[1] <= limit), key=lambda r: r[1])
+        self.rebounds = [r for r in self.rebounds if r[1] > limit]
+        if limit > self.released_s:
+            self.released_s = limit
+        return Release(out, [(stamp, velocity) for _, stamp, velocity in due])
+
+
+
+Streams = dict[str, tuple[np.ndarray, np.ndarray]]  # stream name -> (stamp_s (T,), values (T, k))
+
+
+class GatedIdentifier:
+    """A :class:`StreamIdentifier` behind an :class:`ArrivalGate`, across time jumps: what
+    ``id_node`` runs each tick, free of ROS so that tests drive it the same way.
+
+    Each :meth:`tick` takes what arrived since the last one: the pressure (values (T, 1), Pa)
+    and IMU (values (T, 6): angular velocity rad/s then specific force m/s^2) samples as arrays
+    in arrival order, the vibration blocks as received, the rebounds; it returns the labels now
+    decided. A caller that knows when each message arrived gives them to :meth:`admit` in
+    batches of arrival time, then calls :meth:`decide`, so that each is held ``reorder_s`` from
+    its own arrival, not from the tick that took it. What the node should log (gaps, refusals,
+    time jumps) collects in ``notes``.
+    """
+
+    def __init__(self, new_identifier: Callable[[Any], StreamIdentifier], config: GateConfig,
+                 calibration: OnlineCalibration | None = None) -> None:
+        """``new_identifier(method)``: a fresh identifier reusing the trained ``method`` (None
+        the first time); ``calibration``: learn a support profile from the first data and
+        decide with it from then on (None: stay on the configured support)."""
+        self._new_identifier = new_identifier
+        self.calibration = calibration
+        self._profile: tuple[dict[str, Any], Any] | None = None  # (model params, method) once calibrated
+        self.identifier = new_identifier(None)
+        self.gate = ArrivalGate(config)
+        self.sequencer = BlockSequencer()
+        self.time_jumps = 0
+        self.notes: list[str] = []
+        self._counts_before = (0, 0, 0, 0)
+        self._counts_noted = (0, 0, 0, 0)
+        self._refused_before = 0  # non-finite samples refused by the identifiers of earlier epochs
+        self._refused_noted = 0  # the total already noted
+
+    def tick(self, now_s: float, arrivals: Streams, blocks: VibrationBlocks, rebounds: Sequence[tuple[float, np.ndarray]],
+             end_of_data: bool = False) -> list[Label]:
+        """Admit what arrived (all of it at wall clock ``now_s``); the labels of what is now
+        decided (with ``end_of_data``, of everything pending): :meth:`admit` then :meth:`decide`."""
+        labels = self.admit(now_s, arrivals, blocks, rebounds)
+        return labels + self.decide(now_s, end_of_data)
+
+    def admit(self, arrived_s: float, arrivals: Streams, blocks: VibrationBlocks,
+              rebounds: Sequence[tuple[float, np.ndarray]]) -> list[Label]:
+        """Admit what arrived, the newest of it at wall clock ``arrived_s`` (its hold of
+        ``reorder_s`` counts from then). Returns the labels decided by a time jump it found (what
+        was pending in the old time base), else none: :meth:`decide` gives the rest."""
+        labels: list[Label] = []
+        later: Streams = {}  # what belongs to a new time base
+        for name, (stamps, values) in arrivals.items():
+            cut = self.gate.add(name, stamps, values, arrived_s) if stamps.size else None
+            if cut is not None:
+                later[name] = (stamps[cut:], values[cut:])
+        vib_cut = self.gate.backward_jump("vibration", blocks.stamp_s) if blocks.count else None
+        old_blocks = blocks.select(np.arange(blocks.count) < (blocks.count if vib_cut is None else vib_cut))
+        self._admit_blocks(old_blocks, arrived_s)
+        stale_s = self.gate.released_s - self.gate.config.time_jump_s
+        if later or vib_cut is not None:  # stamps went back: decide the old time base, start afresh
+            name = next(iter(later), "vibration")
+            back_to = later[name][0][0] if name in later else blocks.stamp_s[vib_cut]
+            from_s = self.gate.streams[name].latest_s
+            for stamp, velocity in rebounds:
+                if stamp >= stale_s:
+                    self.gate.add_rebound(stamp, velocity, arrived_s)
+            labels += self._restart(arrived_s, f"{name} stamps went back from {from_s:.4f} s to {back_to:.4f} s "
+                                               "(a simulator restarted or a replay looped)")
+            for name, (stamps, values) in later.items():
+                self.gate.add(name, stamps, values, arrived_s)
+            self._admit_blocks(blocks.select(np.arange(blocks.count) >= (blocks.count if vib_cut is None else vib_cut)), arrived_s)
+            rebounds = [r for r in rebounds if r[0] < stale_s]
+        for stamp, velocity in rebounds:
+            self.gate.add_rebound(stamp, velocity, arrived_s)
+        if self.gate.forward_jump(arrived_s):
+            aside = self.gate.take_aside()
+            labels += self._restart(arrived_s, f"every stream's stamps moved ahead by more than {self.gate.config.time_jump_s:g} s")
+            for name, (stamps, values) in aside.items():
+                self.gate.add(name, stamps, values, arrived_s)
+        self._note_counts()
+        return labels
+
+    def decide(self, now_s: float, end_of_data: bool = False) -> list[Label]:
+        """Release what has been held ``reorder_s`` by wall clock ``now_s`` to the identifier; the
+        labels it now decides (with ``end_of_data``, of everything pending)."""
+        labels = self._decide(now_s, everything=end_of_data)
+        self._calibrate()
+        return labels
+
+    def next_horizon_s(self) -> float:
+        """Stamp every stream must pass before the next pending impact can be decided, s (inf:
+        none pending): :meth:`StreamIdentifier.next_horizon_s`."""
+        return self.identifier.next_horizon_s()
+
+    def _calibrate(self) -> None:
+        """Advance the online calibration; once it found a profile, decide with it."""
+        if self.calibration is None or self._profile is not None:
+            return
+        note = self.calibration.poll()
+        if note:
+            self.notes.append(note)
+        result = self.calibration.result
+        if result is not None and result.model_params is not None:
+            self._profile = (result.model_params, result.method)
+            self.identifier.recalibrate(*self._profile)
+
+    def _restart(self, now_s: float, why: str) -> list[Label]:
+        """Decide everything of the old time base; then a fresh identifier and gate."""
+        labels = self._decide(now_s, everything=True)
+        self.notes.append(f"time jump: {why}; decided what was pending ({len(labels)} labels), identifying afresh")
+        self.time_jumps += 1
+        self._counts_before = self.count_totals()
+        self._refused_before += sum(self.identifier.refused_samples.values())
+        self.identifier = self._new_identifier(self.identifier.method)
+        if self._profile is not None:  # the same support: keep its profile
+            self.identifier.recalibrate(*self._profile)
+        self.gate = ArrivalGate(self.gate.config)
+        self.sequencer.restart()
+        return labels
+
+    def _admit_blocks(self, blocks: VibrationBlocks, now_s: float) -> None:
+        """Vibration blocks into running-index order (gaps and late blocks noted), then the gate."""
+        if not blocks.count:
+            return
+        behind = self.sequencer.next_index is not None and blocks.first_index[0] < self.sequencer.next_index
+        if behind and blocks.stamp_s[0] > self.gate.streams["vibration"].latest_s + self.gate.config.time_jump_s:
+            self.sequencer.restart()  # the index began again with the clock ahead: a restarted source
+        report = self.sequencer.push(blocks)
+        if report.gaps:
+            missing = sum(n for _, n in report.gaps)
+            self.notes.append(f"vibration: {len(report.gaps)} gap(s), {missing} samples lost (first missing index "
+                              f"{report.gaps[0][0]}); {self.sequencer.lost_samples} lost in all")
+        if report.late:
+            self.notes.append(f"vibration: {report.late} block(s) arrived after a later one and were refused; "
+                              f"{self.sequencer.late_blocks} in all")
+        if report.misindexed:
+            self.notes.append(f"vibration: {report.misindexed} block(s) refused whose running index (angle_min, angle_max) "
+                              "is behind the samples already used while their stamps are not: the publisher's index must "
+                              f"count the samples (docs/interface.md); {self.sequencer.misindexed_blocks} in all")
+        if report.accepted.count:
+            accepted = report.accepted
+            self.gate.add("vibration", accepted.sample_stamps_s(), accepted.accel_mps2.astype(float).reshape(-1, 1), now_s)
+
+    def _decide(self, now_s: float, everything: bool) -> list[Label]:
+        """Feed the identifier what the gate releases; its labels (all pending with ``everything``)."""
+        release = self.gate.release(now_s, everything=everything)
+        if self.calibration is not None:
+            self.calibration.record(release)
+        feed(self.identifier, release)
+        refused = self._refused_before + sum(self.identifier.refused_samples.values())
+        if refused > self._refused_noted:
+            self._refused_noted = refused
+            counts = ", ".join(f"{name} {n}" for name, n in self.identifier.refused_samples.items() if n)
+            self.notes.append(f"identification: {refused} sample(s) with a non-finite stamp or value left out (totals; "
+                              f"this epoch: {counts})")
+        labels = self.identifier.poll()
+        if everything:
+            labels += self.identifier.flush()
+        return labels
+
+    def count_totals(self) -> tuple[int, int, int, int]:
+        """What the gates of every epoch refused or set aside: repeated samples, samples ahead,
+        of those dropped, rebounds out of the streams' time."""
+        c = self.gate.counts
+        now = (c.repeated_samples, c.ahead_samples, c.ahead_dropped, c.refused_rebounds)
+        return tuple(a + b for a, b in zip(now, self._counts_before))  # type: ignore[return-value]
+
+    def _note_counts(self) -> None:
+        total = self.count_totals()
+        if total != self._counts_noted:
+            self._counts_noted = total
+            self.notes.append(
+                f"arrival: {total[0]} repeated or out-of-order samples refused, {total[1]} samples stamped more than "
+                f"{self.gate.config.time_jump_s:g} s ahead of the other streams ({total[2]} of them dropped), "
+                f"{total[3]} rebounds refused (not finite, or stamped out of the streams' time) (totals)"
+            )

@@ -1,0 +1,263 @@
+"""``id_node``: a ROS 2 node over :class:`tail_beam_id.stream.identifier.StreamIdentifier`.
+
+Subscribes to ``jack_pressure``, ``imu``, ``vibration`` and ``rebound_velocity`` (never
+``impact_truth``), buffers what arrives, and every ``poll_period_s`` puts it in stamp order
+through an :class:`tail_beam_id.ros.arrival.ArrivalGate`, hands the identifier what every live
+stream has passed, and publishes its labels on ``label``. The identifier thus sees the streams
+as ``tail-beam identify`` sees them in a bag, whatever order and pace the middleware delivers
+them in: live and offline labels agree. When no sensor message has come for
+``flush_after_idle_s`` (the data ended, or every stream stopped) the pending impacts are
+decided from what there is. A time jump (stamps going back: a restarted simulator, a looped
+replay; every stream ahead at once) is logged, what was pending is decided, and identification
+starts afresh; a lone message stamped far ahead is set aside and counted, never let poison the
+streams. Spun by ``rclpy.experimental.EventsExecutor``, which keeps up with thousands of
+messages per second where the default executor loses some.
+
+Each message is held ``reorder_s`` from its own arrival (wall clock), not from the tick that
+takes it. Besides the periodic tick, a one-shot wake runs a tick ``reorder_s`` after the data
+the next pending impact waits for (its onset plus its data window, on every stream) has
+arrived, so that a label does not wait for the next period.
+
+The ``vibration`` blocks are decoded with numpy and kept in running-index order by a
+:class:`tail_beam_sim.physics.sensors.BlockSequencer`: a jump in the index is a lost block,
+logged with the count of samples missing; a block that comes after a later one was handed on
+is refused and counted (``vibration_lost_samples``, ``vibration_late_blocks``), and so is one
+whose index is behind while its stamp is not, logged as an index that does not count the
+samples (``vibration_misindexed_blocks``).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import sys
+import time
+
+import numpy as np
+from geometry_msgs.msg import TwistStamped
+from rclpy.node import Node
+from sensor_msgs.msg import FluidPressure, Imu, LaserScan
+from std_msgs.msg import String
+
+from tail_beam_id.ros.arrival import GateConfig, GatedIdentifier
+from tail_beam_id.stream.identifier import StreamIdentifier
+from tail_beam_id.stream.label import Label
+from tail_beam_id.methods import Method
+from tail_beam_id.calibration.online import OnlineCalibration
+from tail_beam_sim import topics
+from tail_beam_sim.ros import messages as ros_messages
+from tail_beam_sim.errors import require_range
+from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_and_read, refuse_runtime_changes
+from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
+
+
+MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
+WAKE_MARGIN_S = 2e-4  # the wake runs this long after the hold has passed, s (a timer may fire a little early)
+
+
+class Inbox:
+    """The messages of one topic since the last tick, each with its wall-clock arrival time (s)."""
+
+    def __init__(self) -> None:
+        self.messages: list = []
+        self.arrived_s: list[float] = []
+
+    def put(self, message: object, now_s: float) -> None:
+        self.messages.append(message)
+        self.arrived_s.append(now_s)
+
+    def take(self, cutoff_s: float) -> tuple[tuple[list, float], tuple[list, float]]:
+        """Empty the inbox: (messages arrived by ``cutoff_s``, the newest one's arrival s), then
+        (the later ones, the newest one's arrival s); -inf for an empty part."""
+        k = bisect.bisect_right(self.arrived_s, cutoff_s)
+        times, messages = self.arrived_s, self.messages
+        self.messages, self.arrived_s = [], []
+        return (messages[:k], times[k - 1] if k else -math.inf), (messages[k:], times[-1] if k < len(times) else -math.inf)
+
+
+class IdNode(Node):
+    """Labels each impact in the sensor streams coal or gangue."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("tail_beam_id", **kwargs)
+        # A support profile (tail-beam calibrate --out) brings its `calibration` section: what makes
+        # the identifier decide as calibrated, as `tail-beam identify --config profile.yaml` does.
+        params = declare_and_read(self, config_defaults(["id_node.yaml"], with_physics=True), open_sections=("calibration",))
+        node = params["id_node"]
+        period = require_range("id_node.poll_period_s", node.get("poll_period_s"), 0.0, 10.0, low_open=True, unit="s")
+        self.flush_after_idle_s = require_range("id_node.flush_after_idle_s", node.get("flush_after_idle_s"), 0.0, None, low_open=True, unit="s")
+        depth = int(require_range("id_node.qos_depth", node.get("qos_depth"), 0, 1e6))
+        method = params.get("method") or None
+
+        def new_identifier(trained: Method | None) -> StreamIdentifier:
+            return StreamIdentifier(method, params=params["identification"], model_params=params, prebuilt=trained)
+
+        learn_s = require_range("id_node.calibrate_online_s", node.get("calibrate_online_s"), 0.0, 3600.0, unit="s")
+        calibration = None
+        if learn_s > 0.0:
+            calibration = OnlineCalibration(params, learn_s, method or params["identification"]["method"])
+        self.gated = GatedIdentifier(new_identifier, GateConfig.from_params(node), calibration)
+        self._inbox = {topic: Inbox() for topic in (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION, topics.REBOUND_VELOCITY)}
+        # Continuous topic -> (newest stamp arrived, its wall-clock arrival), s: the wake's test.
+        self._newest: dict[str, tuple[float, float]] = {}
+        self._due_s = math.inf  # stamp the next pending impact waits for (identifier.next_horizon_s), s
+        self._timing_said: object | None = None  # the identifier's timing check whose suspicion was logged
+        self._woken_for_s = math.nan  # the due stamp the last wake was for
+        self._woke_s = -math.inf  # wall clock the last wake ran, s (another for the same due only for data it could not take)
+        self._last_arrival_s = time.monotonic()
+        self._unflushed = False
+        self.received = {topics.JACK_PRESSURE: 0, topics.IMU: 0, topics.VIBRATION: 0, topics.REBOUND_VELOCITY: 0}
+        self.published = 0
+        self.refused_blocks = 0  # vibration messages that carried no block (their index, period or range out of range)
+        sensor_qos = ros_messages.stream_qos(depth)
+        event_qos = ros_messages.EVENT_QOS
+        self._label_pub = self.create_publisher(String, topics.LABEL, ros_messages.EVENT_PUBLISHER_QOS)
+        self.create_subscription(FluidPressure, topics.JACK_PRESSURE, self._on_pressure, sensor_qos)
+        self.create_subscription(Imu, topics.IMU, self._on_imu, sensor_qos)
+        self.create_subscription(LaserScan, topics.VIBRATION, self._on_vibration, sensor_qos)
+        self.create_subscription(TwistStamped, topics.REBOUND_VELOCITY, self._on_rebound, event_qos)
+        self._foreign = ForeignTypeWatch(self, {topic: topics.MSG_TYPES[topic] for topic in self._inbox})
+        self.create_timer(period, self._tick)
+        self._wake = self.create_timer(self.gated.gate.config.reorder_s + WAKE_MARGIN_S, self._on_wake)
+        self._wake.cancel()
+        refuse_runtime_changes(self, ALL_PARAMETERS, "id_node reads its parameters at start-up only (restart it to change them)")
+        self.get_logger().info(f"identifying with method {self.identifier.method.name}")
+        if self.identifier.calibrated:
+            self.get_logger().info("deciding with the support profile given (its calibration section): labels say calibrated: true")
+        if calibration is not None:
+            self.get_logger().info(f"calibration: learning the support from the first {learn_s:g} s of data "
+                                   "(labels say calibrated: false until then)")
+
+    def _arrived(self, topic: str, message: object, last_stamp_s: float | None = None) -> None:
+        """Keep a message with its arrival time; for a continuous topic (``last_stamp_s``: its
+        newest sample's stamp) arm the wake once every stream has passed the due stamp."""
+        now = time.monotonic()
+        self._inbox[topic].put(message, now)
+        self.received[topic] += 1
+        self._last_arrival_s = now
+        self._unflushed = True
+        if last_stamp_s is None:
+            return
+        if last_stamp_s > self._newest.get(topic, (-math.inf, 0.0))[0]:
+            self._newest[topic] = (last_stamp_s, now)
+        if last_stamp_s >= self._due_s:
+            self._arm_wake()
+
+    def _arm_wake(self) -> None:
+        """Start the one-shot wake if every live stream (one heard from within stream_idle_s)
+        has passed the due stamp, and no wake for it ran or data came that the last one could
+        not take (not yet held reorder_s when it ran): the impact may still wait on a stream
+        the identifier sees lag only in that data (an IMU that stopped)."""
+        due = self._due_s
+        held_by_wake_s = self._woke_s - self.gated.gate.config.reorder_s
+        if not self._wake.is_canceled() or (due == self._woken_for_s and self._last_arrival_s <= held_by_wake_s):
+            return
+        live_after_s = time.monotonic() - self.gated.gate.config.stream_idle_s
+        live = [stamp for stamp, arrived in self._newest.values() if arrived >= live_after_s]
+        if live and min(live) >= due:
+            self._woken_for_s = due
+            self._wake.reset()
+
+    def _on_wake(self) -> None:
+        self._wake.cancel()
+        self._woke_s = time.monotonic()
+        self._tick()
+
+    def _on_pressure(self, msg: FluidPressure) -> None:
+        self._arrived(topics.JACK_PRESSURE, msg, ros_messages.stamp_s(msg.header.stamp))
+
+    def _on_imu(self, msg: Imu) -> None:
+        self._arrived(topics.IMU, msg, ros_messages.stamp_s(msg.header.stamp))
+
+    def _on_vibration(self, msg: LaserScan) -> None:
+        increment = msg.time_increment
+        last = ros_messages.stamp_s(msg.header.stamp) + (increment * (len(msg.ranges) - 1) if math.isfinite(increment) and increment > 0.0 else 0.0)
+        self._arrived(topics.VIBRATION, msg, last)
+
+    def _on_rebound(self, msg: TwistStamped) -> None:
+        self._arrived(topics.REBOUND_VELOCITY, msg)
+
+    @property
+    def vibration_lost_samples(self) -> int:
+        return self.gated.sequencer.lost_samples
+
+    @property
+    def vibration_late_blocks(self) -> int:
+        return self.gated.sequencer.late_blocks
+
+    @property
+    def vibration_misindexed_blocks(self) -> int:
+        """Blocks refused whose index is behind the stream's while their stamps are not."""
+        return self.gated.sequencer.misindexed_blocks
+
+    @property
+    def identifier(self) -> StreamIdentifier:
+        return self.gated.identifier
+
+    def _admit(self, part: dict[str, list], arrived_s: float) -> list[Label]:
+        """Hand the gated identifier one batch of messages (the newest arrived at ``arrived_s``)."""
+        arrivals: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        if part[topics.JACK_PRESSURE]:
+            stamps, pressure = ros_messages.pressure_arrays(part[topics.JACK_PRESSURE])
+            arrivals[topics.JACK_PRESSURE] = (stamps, pressure.reshape(-1, 1))
+        if part[topics.IMU]:
+            stamps, gyro, accel = ros_messages.imu_arrays(part[topics.IMU])
+            arrivals[topics.IMU] = (stamps, np.hstack([gyro, accel]))
+        refused: list[str] = []
+        blocks = ros_messages.vibration_blocks(part[topics.VIBRATION], refused)
+        if refused:
+            self.refused_blocks += len(refused)
+            reasons = list(dict.fromkeys(refused))  # each distinct reason once
+            shown = "; ".join(reasons[:MAX_REASONS]) + (f"; and {len(reasons) - MAX_REASONS} more" if len(reasons) > MAX_REASONS else "")
+            self.get_logger().warning(f"vibration: {len(refused)} message(s) refused: {shown} ({self.refused_blocks} refused in all)")
+        rebounds = [ros_messages.rebound_values(m) for m in part[topics.REBOUND_VELOCITY]]
+        return self.gated.admit(arrived_s, arrivals, blocks, rebounds)
+
+    def _tick(self) -> None:
+        """Hand the gated identifier what arrived, in two batches (held long enough by now, and
+        not yet); publish the labels it decides; arm the wake for the next pending impact."""
+        now = time.monotonic()
+        parts: tuple[dict[str, list], dict[str, list]] = ({}, {})
+        arrived_s = [-math.inf, -math.inf]
+        for topic, inbox in self._inbox.items():
+            for k, (messages, newest_s) in enumerate(inbox.take(now - self.gated.gate.config.reorder_s)):
+                parts[k][topic] = messages
+                arrived_s[k] = max(arrived_s[k], newest_s)
+        labels: list[Label] = []
+        jumps = self.gated.time_jumps
+        for part, batch_s in zip(parts, arrived_s):
+            if batch_s > -math.inf:
+                labels += self._admit(part, batch_s)
+        if self.gated.time_jumps != jumps:  # a new time base: the stamps seen so far say nothing of it
+            self._newest.clear()
+        idle = self._unflushed and now - self._last_arrival_s > self.flush_after_idle_s
+        self._publish(labels + self.gated.decide(now, end_of_data=idle))
+        if idle:
+            self._unflushed = False
+        for note in self.gated.notes:
+            self.get_logger().warning(note)
+        self.gated.notes.clear()
+        timing = self.identifier.timing
+        if timing.suspect and timing is not self._timing_said:
+            self._timing_said = timing  # once per identifier (a new time base starts a new one)
+            self.get_logger().warning(f"sensor timing: {timing.describe()}")
+        self._due_s = self.gated.next_horizon_s()
+        self._arm_wake()
+
+    def _publish(self, labels: list[Label]) -> None:
+        for label in labels:
+            self._label_pub.publish(String(data=label.to_json()))
+            self.published += 1
+            self.get_logger().info(
+                f"impact at {label.impact_stamp_s:.4f} s: {label.material} ({label.confidence:.2f}, {label.method}, "
+                f"signals {', '.join(label.signals)})"
+            )
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run id_node until shut down."""
+    return run_node(IdNode, "id_node", args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

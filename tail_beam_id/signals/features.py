@@ -1,0 +1,210 @@
+"""Features of one detected impact, from the three signals, in physical units.
+
+What the sensors can carry about a particle (docs/physics.md): the rigid beam answers to the
+moment of the contact impulse about the hinge, M = J x (N m s), which both the IMU pulse and
+the jack pressure measure; the camera gives the rebound speed; the time from the IMU pulse
+to the camera's end-of-contact stamp, and the IMU pulse's own width at high IMU rates, carry
+the contact duration, i.e. the particle's stiffness. Every feature is named with its unit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from tail_beam_id.signals.contact_fit import ContactFit
+from tail_beam_id.signals.imu_detection import Pulse
+from tail_beam_sim.physics.materials import material_table
+from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
+from tail_beam_sim.physics.support import Support
+
+SIGNALS = ("jack_pressure", "imu", "rebound_velocity")
+# Feature flag (1.0 when present) of an impact whose acceleration features (the imu_* names, the
+# rebound delay) came from the tail-beam accelerometer's ``vibration`` stream, not the IMU.
+VIBRATION_CHANNEL = "vibration_channel"
+
+
+@dataclass(frozen=True)
+class BeamModel:
+    """The identifier's belief about the support: the nominal rigid beam from config/."""
+
+    support: Support
+    structure: LinearStructure
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> BeamModel:
+        """The nominal beam from the merged ``support`` and ``materials`` parameters."""
+        support = Support.from_params(params.get("support"), material_table(params))
+        return cls(support, rigid_beam(support))
+
+    @property
+    def imu_moment_per_velocity(self) -> float:
+        """Moment impulse about the hinge per m/s of plate velocity at the IMU, N m s / (m/s)."""
+        return self.support.beam_inertia_about_hinge_kgm2 / self.support.imu_from_hinge_m
+
+    def imu_velocity_response(self, t_s: np.ndarray) -> np.ndarray:
+        """Plate velocity at the IMU (away from the particle) per m/s given to it at t = 0 by an
+        impulse, on the rigid beam: 1 just after, then the 40 Hz sway; 0 before."""
+        s = self.structure
+        unit_moment = np.zeros(s.size)
+        unit_moment[0] = 1.0
+        qd0 = s.inv_mass @ unit_moment
+        _, qd = s.propagate(np.zeros(s.size), qd0, np.clip(t_s, 0.0, None))
+        response = (s.imu_shape @ qd) / (s.imu_shape @ qd0)
+        return np.where(t_s >= 0.0, response, 0.0)
+
+    def pressure_response(self, t_s: np.ndarray) -> np.ndarray:
+        """Jack pressure change per unit moment impulse at t = 0, Pa / (N m s); 0 before it."""
+        s = self.structure
+        unit_moment = np.zeros(s.size)
+        unit_moment[0] = 1.0
+        qd0 = s.inv_mass @ unit_moment
+        after = np.clip(t_s, 0.0, None)
+        q, qd = s.propagate(np.zeros(s.size), qd0, after)
+        response = s.pressure_pa(q, qd) - s.setting_pressure_pa
+        return np.where(t_s >= 0.0, response, 0.0)
+
+
+@dataclass(frozen=True)
+class PressureFit:
+    """Moment impulse fitted to the jack pressure around an onset, with its standard error."""
+
+    moment_impulse_nms: float
+    sigma_nms: float
+    noise_pa: float
+    swing_pa: float
+    saturated: bool
+
+
+def fit_pressure(
+    model: BeamModel, stamp_s: np.ndarray, pressure_pa: np.ndarray, onset_s: float, pre_s: float, window_s: float,
+    sway_drift: bool = False,
+) -> PressureFit | None:
+    """Least-squares fit of the pressure in [onset - pre, onset + window]: a constant plus the
+    beam's free sway at its nominal frequency (earlier impacts still ringing) plus M times the
+    response to a unit moment impulse at the onset. With ``sway_drift`` the free sway may also
+    drift in frequency and decay across the window (t cos, t sin: their first order), which a
+    real sway does against the nominal one. None when too few samples."""
+    inside = (stamp_s >= onset_s - pre_s) & (stamp_s <= onset_s + window_s)
+    t = stamp_s[inside] - onset_s
+    y = pressure_pa[inside]
+    if t.size < 8 or not np.any(t > 0):
+        return None
+    saturated = _flat_lined(y)
+    omega = 2.0 * math.pi * model.support.rigid_mode_frequency_hz
+    template = model.pressure_response(t)
+    columns = [np.ones_like(t), np.cos(omega * t), np.sin(omega * t)]
+    if sway_drift:
+        columns += [t * np.cos(omega * t), t * np.sin(omega * t)]
+    basis = np.vstack([*columns, template]).T
+    coeffs, *_ = np.linalg.lstsq(basis, y - y.mean(), rcond=None)
+    residual = y - y.mean() - basis @ coeffs
+    dof = max(t.size - basis.shape[1], 1)
+    noise = float(math.sqrt(np.sum(residual**2) / dof))
+    covariance = np.linalg.pinv(basis.T @ basis) * noise**2
+    peak = float(np.max(np.abs(model.pressure_response(np.linspace(0.0, window_s, 200)))))
+    k = len(columns)  # the moment impulse's column
+    return PressureFit(float(coeffs[k]), float(math.sqrt(covariance[k, k])), noise, float(coeffs[k]) * peak, saturated)
+
+
+def _flat_lined(values: np.ndarray) -> bool:
+    """True when a clipped transducer shows: two or more samples exactly at the window's extreme."""
+    return bool(np.sum(values == values.max()) >= 2 or np.sum(values == values.min()) >= 2)
+
+
+@dataclass(frozen=True)
+class ImuImpulse:
+    """Velocity given to the plate at the IMU by the contact (m/s), its standard error, and the
+    RMS of what the rigid beam does not explain after it (bending modes ringing), m/s."""
+
+    velocity_mps: float
+    sigma_mps: float
+    ring_mps: float
+
+
+def imu_impulse(
+    model: BeamModel, stamp_s: np.ndarray, accel_z: np.ndarray, pulse: Pulse, pre_s: float, skip_s: float, post_s: float
+) -> ImuImpulse | None:
+    """The pulse's velocity change, fitted in the velocity domain so the bending modes' ringing
+    averages out: the specific force before the pulse gives the background (constant plus the
+    beam's free sway); the plate velocity after it, integrated from the samples, is fitted with
+    the rigid beam's response to an impulse at the onset, from ``skip_s`` (the contact is
+    over) to ``post_s`` after the onset."""
+    period = pulse.period_s
+    before = (stamp_s >= pulse.onset_s - pre_s) & (stamp_s < pulse.onset_s)
+    after = (stamp_s >= pulse.onset_s) & (stamp_s <= pulse.onset_s + post_s)
+    if before.sum() < 4 or after.sum() < 2:
+        return None
+    omega = 2.0 * math.pi * model.support.rigid_mode_frequency_hz
+    t_before = stamp_s[before] - pulse.onset_s
+    basis = np.vstack([np.ones_like(t_before), np.cos(omega * t_before), np.sin(omega * t_before)]).T
+    coeffs, *_ = np.linalg.lstsq(basis, accel_z[before], rcond=None)
+    t_after = stamp_s[after] - pulse.onset_s
+    background = coeffs[0] + coeffs[1] * np.cos(omega * t_after) + coeffs[2] * np.sin(omega * t_after)
+    # Plate velocity change at the end of each sample: specific force = g - plate acceleration.
+    velocity = -np.cumsum(accel_z[after] - background) * period
+    response = model.imu_velocity_response(stamp_s[after] - pulse.onset_s)
+    use = stamp_s[after] >= pulse.onset_s + skip_s
+    if not use.any():
+        return None
+    r, v = response[use], velocity[use]
+    fitted = float(np.dot(r, v) / np.dot(r, r))
+    residual = v - fitted * r
+    ring = float(math.sqrt(np.mean(residual**2)))
+    sigma = pulse.noise_mps2 * period * math.sqrt(max(after.sum(), 1) / 2.0)
+    return ImuImpulse(fitted, sigma, ring)
+
+
+def impact_features(
+    model: BeamModel,
+    pulse: Pulse | None,
+    impulse: ImuImpulse | None,
+    pressure: PressureFit | None,
+    rebound: tuple[float, np.ndarray] | None,
+    contact: ContactFit | None = None,
+) -> dict[str, float]:
+    """The feature dict of one impact from whatever signals there are (missing ones absent)."""
+    features: dict[str, float] = {}
+    estimates = []
+    if pulse is not None and impulse is not None:
+        moment = impulse.velocity_mps * model.imu_moment_per_velocity
+        features["moment_impulse_imu_nms"] = moment
+        features["imu_impulse_mps"] = impulse.velocity_mps
+        features["imu_ring_ratio"] = impulse.ring_mps / max(abs(impulse.velocity_mps), 1e-12)
+        features["imu_pulse_sigma"] = pulse.peak_sigma
+        features["imu_noise_mps2"] = pulse.noise_mps2
+        features["imu_pulse_polarity"] = float(pulse.polarity)
+        features["imu_pulse_width_s"] = pulse.width_s
+        features["imu_period_s"] = pulse.period_s
+        if contact is not None:
+            # The contact's duration (the best-fitting pulse's) from the pulse and the ringing (tail_beam_id.signals.contact_fit;
+            # a channel too slow to show it gives its sample period). Without it (a fast channel's
+            # samples cut short) the acceleration features are not all there, and the models decide
+            # without them (methods.statistical.signals_of).
+            features["contact_duration_s"] = contact.duration_s
+        estimates.append((moment, max(impulse.sigma_mps, impulse.ring_mps) * model.imu_moment_per_velocity))
+    if pressure is not None and not pressure.saturated:
+        features["moment_impulse_pressure_nms"] = pressure.moment_impulse_nms
+        features["pressure_swing_pa"] = pressure.swing_pa
+        features["pressure_noise_pa"] = pressure.noise_pa
+        estimates.append((pressure.moment_impulse_nms, pressure.sigma_nms))
+    if estimates:
+        weights = np.array([1.0 / max(s, 1e-12) ** 2 for _, s in estimates])
+        values = np.array([m for m, _ in estimates])
+        features["moment_impulse_nms"] = float(np.sum(weights * values) / weights.sum())
+        features["moment_impulse_sigma_nms"] = float(1.0 / math.sqrt(weights.sum()))
+    if rebound is not None:
+        stamp, velocity = rebound
+        features["rebound_speed_mps"] = float(velocity[2])
+        # Across the plate the true rebound is zero (a normal impact): what the camera reads
+        # there is its noise, m/s.
+        features["rebound_cross_mps"] = float(math.hypot(velocity[0], velocity[1]))
+        if pulse is not None:
+            # From the start of the first deviating IMU sample to the camera's end-of-contact
+            # stamp: the contact duration plus up to one IMU period and one camera frame.
+            features["rebound_delay_s"] = float(stamp - (pulse.first_stamp_s - pulse.period_s))
+    return features
