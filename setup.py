@@ -18,7 +18,9 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     description="Emulated instrumented tail beam of a top-coal-caving support, with coal-gangue identification",
-    packages=find_packages(include=["tail_beam_sim", "tail_beam_sim.*", "tail_beam_id", "tail_beam_id.*"]),
+    packages=find_packages(
+        include=["tail_beam_sim", "tail_beam_sim.*", "tail_beam_id", "tail_beam_id.*"]
+    ),
     package_data={"tail_beam_id": ["models/*.json"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
@@ -30,10 +32,16 @@ setup(
     extras_require={
         "ros": ROS_WHEELS,
         "plot": ["matplotlib>=3.7"],
-        "test": ["pytest>=8", "pytest-xdist>=3", "mcap>=1.1", "mcap-ros2-support>=0.5"],
+        "test": ["pytest>=8", "pytest-xdist>=3", "mcap>=1.1", "mcap-ros2-support>=0.5", "ruff>=0.6"],
         "colcon": [
-            "colcon-core", "colcon-ros", "colcon-python-setup-py", "colcon-package-selection",
-            "colcon-recursive-crawl", "colcon-library-path", "colcon-bash", "ros-ament-package",
+            "colcon-core",
+            "colcon-ros",
+            "colcon-python-setup-py",
+            "colcon-package-selection",
+            "colcon-recursive-crawl",
+            "colcon-library-path",
+            "colcon-bash",
+            "ros-ament-package",
             "setuptools<80",
         ],
     },

@@ -17,7 +17,15 @@ import yaml
 
 from tail_beam_sim.errors import InputError
 
-DEFAULT_FILES = ("support.yaml", "materials.yaml", "sensors.yaml", "scene.yaml", "identification.yaml", "modes.yaml", "fidelity.yaml")
+DEFAULT_FILES = (
+    "support.yaml",
+    "materials.yaml",
+    "sensors.yaml",
+    "scene.yaml",
+    "identification.yaml",
+    "modes.yaml",
+    "fidelity.yaml",
+)
 CONFIG_DIR_ENV = "TAIL_BEAM_CONFIG_DIR"
 
 
@@ -51,7 +59,9 @@ def read_parameter_file(path: str | os.PathLike[str]) -> dict[str, Any]:
     try:
         text = file_path.read_text(encoding="utf-8")
     except OSError as exc:
-        raise InputError("config", str(path), f"must be a readable file ({exc.strerror})") from None
+        raise InputError(
+            "config", str(path), f"must be a readable file ({exc.strerror})"
+        ) from None
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:

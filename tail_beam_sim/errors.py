@@ -23,7 +23,10 @@ def shorten(value: object, limit: int = ECHO_CHARS) -> str:
         return f"{text[:limit]}… ({total} chars)"
     try:
         text = repr(value)
-    except (RecursionError, ValueError):  # a structure nested too deep, an int past the digit limit
+    except (
+        RecursionError,
+        ValueError,
+    ):  # a structure nested too deep, an int past the digit limit
         return f"<{type(value).__name__}>"
     return text if len(text) <= limit else f"{text[:limit]}… ({len(text)} chars)"
 
@@ -86,8 +89,14 @@ def require_range(
     try:
         number = require_finite(field, value, allow_text=allow_text)
     except InputError:
-        what = "a number, not text" if isinstance(value, str) and not allow_text else "a finite number"
-        raise InputError(field, value, allowed if allowed.endswith("finite number") else f"{allowed} ({what})") from None
+        what = (
+            "a number, not text"
+            if isinstance(value, str) and not allow_text
+            else "a finite number"
+        )
+        raise InputError(
+            field, value, allowed if allowed.endswith("finite number") else f"{allowed} ({what})"
+        ) from None
     too_low = low is not None and (number <= low if low_open else number < low)
     too_high = high is not None and number > high
     if too_low or too_high:
@@ -101,7 +110,11 @@ def require_section(field: str, value: object) -> Mapping[str, Any]:
     if value is None:
         return {}
     if not isinstance(value, Mapping):
-        raise InputError(field, value, "must be a parameter section (names with their values), not a single value")
+        raise InputError(
+            field,
+            value,
+            "must be a parameter section (names with their values), not a single value",
+        )
     return value
 
 
@@ -131,7 +144,11 @@ def require_new_path(field: str, path: object) -> Path:
     """
     target = Path(str(path))
     if target.is_symlink():
-        raise InputError(field, str(target), f"is a symbolic link (to {_link_text(target)}): give a new path, not a link")
+        raise InputError(
+            field,
+            str(target),
+            f"is a symbolic link (to {_link_text(target)}): give a new path, not a link",
+        )
     if target.exists():
         raise InputError(field, str(target), "must not exist yet (a new one is written)")
     return target
@@ -145,7 +162,11 @@ def require_output_file(field: str, path: object) -> Path:
     """
     target = Path(str(path))
     if target.is_symlink():
-        raise InputError(field, str(target), f"is a symbolic link (to {_link_text(target)}): refusing to write through it")
+        raise InputError(
+            field,
+            str(target),
+            f"is a symbolic link (to {_link_text(target)}): refusing to write through it",
+        )
     if target.is_dir():
         raise InputError(field, str(target), "is a directory: give a file name")
     return target
@@ -165,5 +186,7 @@ def open_output_file(field: str, path: object) -> BinaryIO:
     try:
         fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o644)
     except OSError as exc:
-        raise InputError(field, str(target), f"cannot be written ({exc.strerror or exc})") from None
+        raise InputError(
+            field, str(target), f"cannot be written ({exc.strerror or exc})"
+        ) from None
     return os.fdopen(fd, "wb")

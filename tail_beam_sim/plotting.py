@@ -16,7 +16,9 @@ def pyplot() -> Any:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        raise InputError("--plot", "matplotlib", "plots need matplotlib: pip install 'tail_beam[plot]'") from None
+        raise InputError(
+            "--plot", "matplotlib", "plots need matplotlib: pip install 'tail_beam[plot]'"
+        ) from None
     return plt
 
 
@@ -49,22 +51,45 @@ def plot_response(result: Any, path: str | Path) -> Path:
     contact = h["contact_force_n"] > 0
     if contact.any():
         first, last = h["time_s"][contact][[0, -1]]
-        span = (h["time_s"] >= first - 0.2 * (last - first)) & (h["time_s"] <= last + 0.2 * (last - first))
+        span = (h["time_s"] >= first - 0.2 * (last - first)) & (
+            h["time_s"] <= last + 0.2 * (last - first)
+        )
         inset.plot(h["time_s"][span] * 1e6, h["contact_force_n"][span] / 1e3, color="tab:red")
         inset.set_xlabel("µs", fontsize=8)
         inset.tick_params(labelsize=7)
     p0 = result.scene.support.setting_pressure_pa
     axes[1].plot(t_ms, (h["jack_pressure_pa"] - p0) / 1e3, label="model")
-    axes[1].plot((result.pressure.stamp_s - stamp0) * 1e3, (result.pressure.pressure_pa - p0) / 1e3, ".", ms=2, alpha=0.6, label="transducer")
+    axes[1].plot(
+        (result.pressure.stamp_s - stamp0) * 1e3,
+        (result.pressure.pressure_pa - p0) / 1e3,
+        ".",
+        ms=2,
+        alpha=0.6,
+        label="transducer",
+    )
     axes[1].set_ylabel(f"jack pressure − {p0 / 1e6:g} MPa (kPa)")
     axes[1].legend(loc="upper right", fontsize=8)
     g = result.scene.support.gravity_mps2
     axes[2].plot(t_ms, h["imu_specific_force_mps2"] - g, label="model (instantaneous)")
-    axes[2].plot((result.imu.stamp_s - stamp0) * 1e3, result.imu.linear_acceleration_mps2[:, 2] - g, ".", ms=2, alpha=0.6, label="IMU (sample mean)")
+    axes[2].plot(
+        (result.imu.stamp_s - stamp0) * 1e3,
+        result.imu.linear_acceleration_mps2[:, 2] - g,
+        ".",
+        ms=2,
+        alpha=0.6,
+        label="IMU (sample mean)",
+    )
     axes[2].set_ylabel("IMU f_z − g (m/s²)")
     axes[2].legend(loc="upper right", fontsize=8)
     axes[3].plot(t_ms, h["imu_angular_velocity_radps"] * 1e3, label="model")
-    axes[3].plot((result.imu.stamp_s - stamp0) * 1e3, result.imu.angular_velocity_radps[:, 1] * 1e3, ".", ms=2, alpha=0.6, label="gyro")
+    axes[3].plot(
+        (result.imu.stamp_s - stamp0) * 1e3,
+        result.imu.angular_velocity_radps[:, 1] * 1e3,
+        ".",
+        ms=2,
+        alpha=0.6,
+        label="gyro",
+    )
     axes[3].set_ylabel("ω_y (mrad/s)")
     axes[3].set_xlabel("time from first contact (ms)")
     axes[3].legend(loc="upper right", fontsize=8)

@@ -24,6 +24,7 @@ MSG_TYPES: dict[str, str] = {
     LABEL: "std_msgs/msg/String",
 }
 
+
 def qualified(namespace: str, name: str) -> str:
     """The fully qualified name of contract topic ``name`` in ``namespace`` (``/`` or
     ``/support_07``), as rosbag2 stores it: ``/imu``, ``/support_07/imu``."""
@@ -62,7 +63,11 @@ def index_from_words(angle_min: float, angle_max: float) -> int:
     for name, word in (("angle_min", angle_min), ("angle_max", angle_max)):
         value = float(word)
         if not (math.isfinite(value) and 0.0 <= value < INDEX_WORD and value == math.floor(value)):
-            raise InputError(f"vibration.{name}", word, "must be a whole number in [0, 2**24): a word of the block's running sample index")
+            raise InputError(
+                f"vibration.{name}",
+                word,
+                "must be a whole number in [0, 2**24): a word of the block's running sample index",
+            )
     return int(angle_min) * INDEX_WORD + int(angle_max)
 
 
@@ -73,7 +78,11 @@ def block_period_s(time_increment: float) -> float:
     """A vibration block's sample period (LaserScan time_increment), s; InputError unless in (0, 1] s."""
     value = float(time_increment)
     if not (math.isfinite(value) and 0.0 < value <= MAX_BLOCK_PERIOD_S):
-        raise InputError("vibration.time_increment", time_increment, f"must be the sample period, in (0, {MAX_BLOCK_PERIOD_S:g}] s")
+        raise InputError(
+            "vibration.time_increment",
+            time_increment,
+            f"must be the sample period, in (0, {MAX_BLOCK_PERIOD_S:g}] s",
+        )
     return value
 
 
@@ -81,7 +90,11 @@ def block_range_mps2(range_max: float) -> float:
     """A vibration block's measuring range (LaserScan range_max), m/s^2; InputError unless finite and > 0."""
     value = float(range_max)
     if not (math.isfinite(value) and value > 0.0):
-        raise InputError("vibration.range_max", range_max, "must be the accelerometer's measuring range, a finite number > 0 m/s^2")
+        raise InputError(
+            "vibration.range_max",
+            range_max,
+            "must be the accelerometer's measuring range, a finite number > 0 m/s^2",
+        )
     return value
 
 
@@ -89,11 +102,17 @@ def block_samples(count: int) -> int:
     """A vibration block's sample count (len(ranges)); InputError for an empty one: it carries no
     block, and taken as one it would claim its index from the real block that comes there."""
     if count < 1:
-        raise InputError("vibration.ranges", f"{count} samples", "must hold at least one sample of the accelerometer")
+        raise InputError(
+            "vibration.ranges",
+            f"{count} samples",
+            "must hold at least one sample of the accelerometer",
+        )
     return count
 
 
-def block_header(angle_min: float, angle_max: float, time_increment: float, range_max: float, samples: int) -> tuple[int, float, float]:
+def block_header(
+    angle_min: float, angle_max: float, time_increment: float, range_max: float, samples: int
+) -> tuple[int, float, float]:
     """A vibration message's (first sample index, sample period s, measuring range m/s^2), each
     checked as :func:`index_from_words`, :func:`block_period_s` and :func:`block_range_mps2` do,
     and its sample count (``samples``) as :func:`block_samples`: the one reading of a block's

@@ -23,7 +23,10 @@ def _domain_id() -> int:
     """A per-run base plus the worker index: ``$TAIL_BEAM_TEST_DOMAIN_BASE`` (for runs side by
     side on one machine that must never meet), else 1..48 from xdist's run id or this process."""
     run = os.environ.get("PYTEST_XDIST_TESTRUNUID") or f"{os.getpid()}"
-    base = int(os.environ.get("TAIL_BEAM_TEST_DOMAIN_BASE") or int(hashlib.sha256(run.encode()).hexdigest(), 16) % 12 * 4 + 1)
+    base = int(
+        os.environ.get("TAIL_BEAM_TEST_DOMAIN_BASE")
+        or int(hashlib.sha256(run.encode()).hexdigest(), 16) % 12 * 4 + 1
+    )
     worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
     return base + int(worker.removeprefix("gw") or 0) % 4
 

@@ -16,11 +16,19 @@ PRE_CONTACT_S = 0.25
 WINDOW_S = 0.08
 
 
-def impact(params: dict[str, Any], tier: str = "modal", noise: float = 1.0, sensors: dict[str, Any] | None = None, **fields: Any) -> SimulationResult:
+def impact(
+    params: dict[str, Any],
+    tier: str = "modal",
+    noise: float = 1.0,
+    sensors: dict[str, Any] | None = None,
+    **fields: Any,
+) -> SimulationResult:
     """Simulate one impact (impact fields as in impact_cmd) with its own baseline."""
     varied = copy.deepcopy(params)
     varied["sensors"].update(sensors or {})
-    scene = Scene.from_params(varied, {"pre_contact_s": PRE_CONTACT_S, "window_s": WINDOW_S, **fields})
+    scene = Scene.from_params(
+        varied, {"pre_contact_s": PRE_CONTACT_S, "window_s": WINDOW_S, **fields}
+    )
     if noise != 1.0:
         from dataclasses import replace
 
@@ -34,7 +42,13 @@ def stream_chunk(params, commands, until_s, **stream_options):
     """A continuous stream of impacts at given contact stamps (the beam carries its motion),
     as the simulator's Chunk: pressure, imu, vibration blocks, rebounds and truths."""
     varied = copy.deepcopy(params)
-    varied["stream"] = {"tier": "modal", "min_impact_gap_s": 0.0, "command_lead_s": 0.001, "max_queued_impacts": 20, **stream_options}
+    varied["stream"] = {
+        "tier": "modal",
+        "min_impact_gap_s": 0.0,
+        "command_lead_s": 0.001,
+        "max_queued_impacts": 20,
+        **stream_options,
+    }
     simulator = StreamSimulator.from_params(varied)
     for stamp, command in commands:
         simulator.submit(command, contact_stamp_s=stamp)

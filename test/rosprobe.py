@@ -40,11 +40,19 @@ def ros_context() -> Iterator[tuple[rclpy.Context, EventsExecutor]]:
 class Probe(Node):
     """Records every message of the given topics and publishes impact commands."""
 
-    def __init__(self, context: rclpy.Context, topics: dict[str, type], namespace: str = "", name: str = "probe") -> None:
+    def __init__(
+        self,
+        context: rclpy.Context,
+        topics: dict[str, type],
+        namespace: str = "",
+        name: str = "probe",
+    ) -> None:
         super().__init__(name, namespace=namespace, context=context)
         self.messages: dict[str, list[Any]] = {topic: [] for topic in topics}
         for topic, msg_type in topics.items():
-            self.create_subscription(msg_type, topic, lambda msg, t=topic: self.messages[t].append(msg), RELIABLE)
+            self.create_subscription(
+                msg_type, topic, lambda msg, t=topic: self.messages[t].append(msg), RELIABLE
+            )
         self.command_pub = self.create_publisher(String, "impact_cmd", RELIABLE)
 
     def send(self, command: dict[str, Any] | str) -> None:
@@ -59,7 +67,9 @@ class Probe(Node):
         return [Label.from_json(m.data) for m in self.messages[topic]]
 
 
-def spin_until(executor: EventsExecutor, condition: Callable[[], bool], timeout_s: float = 30.0) -> bool:
+def spin_until(
+    executor: EventsExecutor, condition: Callable[[], bool], timeout_s: float = 30.0
+) -> bool:
     """Spin until ``condition()`` holds or the deadline passes; returns the condition."""
     deadline = time.monotonic() + timeout_s
     while not condition() and time.monotonic() < deadline:
@@ -67,8 +77,13 @@ def spin_until(executor: EventsExecutor, condition: Callable[[], bool], timeout_
     return condition()
 
 
-def call_until_answered(executor: EventsExecutor, send: Callable[[], Future], what: str,
-                        timeout_s: float = 30.0, resend_s: float = 5.0) -> Any:
+def call_until_answered(
+    executor: EventsExecutor,
+    send: Callable[[], Future],
+    what: str,
+    timeout_s: float = 30.0,
+    resend_s: float = 5.0,
+) -> Any:
     """Send a service request with ``send()`` and spin until an answer comes, sending it again
     every ``resend_s``; the first answer's result.
 

@@ -9,7 +9,15 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
-ROS_PACKAGES = {"rclpy", "rcl_interfaces", "std_msgs", "sensor_msgs", "geometry_msgs", "rosgraph_msgs", "builtin_interfaces"}
+ROS_PACKAGES = {
+    "rclpy",
+    "rcl_interfaces",
+    "std_msgs",
+    "sensor_msgs",
+    "geometry_msgs",
+    "rosgraph_msgs",
+    "builtin_interfaces",
+}
 # Layers of tail_beam_sim, lowest first: a module may import its own layer and those below.
 SIM_LAYERS = ["base", "physics", "bags", "ros", "cli"]
 BASE_MODULES = {"errors", "config", "topics", "plotting", "spec"}
@@ -59,8 +67,10 @@ def id_floor(module: str) -> str | None:
 
 def import_graph(found: dict[str, Path]) -> dict[str, set[str]]:
     """module -> the package's modules it imports (lazy and type-checking imports count)."""
-    return {module: {name for name in imported(path) if name in found and name != module}
-            for module, path in found.items()}
+    return {
+        module: {name for name in imported(path) if name in found and name != module}
+        for module, path in found.items()
+    }
 
 
 def circles(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -106,8 +116,11 @@ def test_sim_imports_go_downward(module):
     """physics <- bags <- ros <- cli: no module imports a layer above its own (the package's own
     ``__init__`` is its public face and re-exports the core)."""
     rank = SIM_LAYERS.index(sim_layer(module))
-    upward = [name for name in imported(SIM[module])
-              if name.startswith("tail_beam_sim.") and SIM_LAYERS.index(sim_layer(name)) > rank]
+    upward = [
+        name
+        for name in imported(SIM[module])
+        if name.startswith("tail_beam_sim.") and SIM_LAYERS.index(sim_layer(name)) > rank
+    ]
     assert not upward, f"{module} ({sim_layer(module)}) imports upward: {upward}"
 
 
@@ -121,8 +134,11 @@ def test_every_id_module_has_a_floor():
 def test_id_imports_go_downward(module):
     """signals <- methods <- stream <- calibration <- ros <- study <- cli."""
     rank = ID_FLOORS.index(id_floor(module))
-    upward = [name for name in imported(ID[module])
-              if name.startswith("tail_beam_id.") and ID_FLOORS.index(id_floor(name)) > rank]
+    upward = [
+        name
+        for name in imported(ID[module])
+        if name.startswith("tail_beam_id.") and ID_FLOORS.index(id_floor(name)) > rank
+    ]
     assert not upward, f"{module} ({id_floor(module)}) imports upward: {upward}"
 
 
@@ -151,13 +167,20 @@ def test_only_ros_rooms_import_ros(module):
     ros = {name for name in imported(path) if name.split(".")[0] in ROS_PACKAGES}
     allowed = module.startswith("tail_beam_sim.ros") or module == "tail_beam_id.ros.id_node"
     assert allowed or not ros, f"{module} imports {sorted(ros)}"
-    assert "_rclpy_pybind11" not in path.read_text(), f"{module} reaches into rclpy's private binding"
+    assert "_rclpy_pybind11" not in path.read_text(), (
+        f"{module} reaches into rclpy's private binding"
+    )
 
 
 def test_physics_imports_no_ros_and_no_bags():
     """The physics core is pure numpy/scipy: importing it loads neither rclpy nor rosbags."""
-    heavy = {name for module, path in SIM.items() if sim_layer(module) == "physics"
-             for name in imported(path) if name.split(".")[0] in ROS_PACKAGES | {"rosbags", "mcap"}}
+    heavy = {
+        name
+        for module, path in SIM.items()
+        if sim_layer(module) == "physics"
+        for name in imported(path)
+        if name.split(".")[0] in ROS_PACKAGES | {"rosbags", "mcap"}
+    }
     assert not heavy
 
 
@@ -170,7 +193,9 @@ def test_verbs_come_from_the_entry_point_group():
     assert verbs["identify"].startswith("tail_beam_id.")
 
 
-@pytest.mark.parametrize("package", sorted(m for m, p in {**SIM, **ID}.items() if p.name == "__init__.py"))
+@pytest.mark.parametrize(
+    "package", sorted(m for m, p in {**SIM, **ID}.items() if p.name == "__init__.py")
+)
 def test_every_package_declares_its_public_names(package):
     """Each package says what it exports (``__all__``), so a star import or a reader knows the API."""
     path = SIM.get(package) or ID[package]
@@ -178,12 +203,24 @@ def test_every_package_declares_its_public_names(package):
 
 
 TEST_ROOT = REPO / "test"
-TEST_FOLDERS = {"sim/base", "sim/physics", "sim/bags", "sim/ros", "sim/cli", ".", *(f"id/{floor}" for floor in ("signals", "methods", "stream", "calibration", "ros", "study"))}
+TEST_FOLDERS = {
+    "sim/base",
+    "sim/physics",
+    "sim/bags",
+    "sim/ros",
+    "sim/cli",
+    ".",
+    *(f"id/{floor}" for floor in ("signals", "methods", "stream", "calibration", "ros", "study")),
+}
 
 
 def test_tests_sit_in_one_folder_per_layer():
     """Every test module lives in the folder of the layer it pins (docs/architecture.md)."""
-    misplaced = [str(p.relative_to(TEST_ROOT)) for p in TEST_ROOT.rglob("test_*.py") if str(p.parent.relative_to(TEST_ROOT)) not in TEST_FOLDERS]
+    misplaced = [
+        str(p.relative_to(TEST_ROOT))
+        for p in TEST_ROOT.rglob("test_*.py")
+        if str(p.parent.relative_to(TEST_ROOT)) not in TEST_FOLDERS
+    ]
     assert not misplaced
     assert [p.name for p in TEST_ROOT.glob("test_*.py")] == ["test_layout.py"]
 
@@ -193,6 +230,10 @@ def test_every_test_says_what_it_pins():
     bare = []
     for path in TEST_ROOT.rglob("test_*.py"):
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.name.startswith("test_") and not ast.get_docstring(node):
+            if (
+                isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+                and node.name.startswith("test_")
+                and not ast.get_docstring(node)
+            ):
                 bare.append(f"{path.relative_to(TEST_ROOT)}::{node.name}")
     assert not bare

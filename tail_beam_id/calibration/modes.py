@@ -32,21 +32,35 @@ import numpy as np
 from scipy.signal import butter, find_peaks, hilbert, sosfiltfilt
 
 SKIP_S = 0.0015  # ring-down starts this long after the onset (the longest contact, 1 ms, and the filter's delay), s
-MAX_SEGMENT_S = 0.25  # ring-down taken at most this long (a lightly damped 120 Hz mode rings for 0.3 s), s
+MAX_SEGMENT_S = (
+    0.25  # ring-down taken at most this long (a lightly damped 120 Hz mode rings for 0.3 s), s
+)
 MIN_SEGMENT_S = 0.01  # shorter ring-downs (the next impact came too soon) are not used, s
 NEXT_IMPACT_MARGIN_S = 0.001  # a ring-down ends this long before the next impact's onset, s
-MIN_FREQUENCY_HZ = 60.0  # modes are looked for above the beam's sway on the jack (nominal 39 Hz), Hz
-NYQUIST_FRACTION = 0.4  # ... and below this fraction of the sample rate (the anti-alias filter), Hz per Hz
+MIN_FREQUENCY_HZ = (
+    60.0  # modes are looked for above the beam's sway on the jack (nominal 39 Hz), Hz
+)
+NYQUIST_FRACTION = (
+    0.4  # ... and below this fraction of the sample rate (the anti-alias filter), Hz per Hz
+)
 MAX_MODES = 3  # modes reported at the most: the strongest peaks
 MIN_PEAK_PROMINENCE = 4.0  # a peak must stand this many times above the summed spectrum's median
-MIN_OWN_PROMINENCE = 0.5  # ... and at least this fraction of its own height (twice the spectrum beside it)
+MIN_OWN_PROMINENCE = (
+    0.5  # ... and at least this fraction of its own height (twice the spectrum beside it)
+)
 MIN_IMPACTS = 3  # ring-downs needed
-MAX_IMPACTS = 200  # ring-downs read at the most (a long recording's first ones): the cost stays bounded
+MAX_IMPACTS = (
+    200  # ring-downs read at the most (a long recording's first ones): the cost stays bounded
+)
 BAND_FRACTION = 0.2  # half width of the band-pass around a mode, as a fraction of its frequency
 MIN_PERIODS = 3.0  # a decay is fitted over at least this many periods of the mode
 EDGE_PERIODS = 3.0  # periods of the mode left out at each end of a band-passed ring-down
-NOISE_FLOOR = 3.0  # a ring-down is read while its envelope stands this many times over the band's noise
-MIN_DECAY = 0.3  # ... and must fall by at least exp(-this) meanwhile (a steady tone is no ring-down)
+NOISE_FLOOR = (
+    3.0  # a ring-down is read while its envelope stands this many times over the band's noise
+)
+MIN_DECAY = (
+    0.3  # ... and must fall by at least exp(-this) meanwhile (a steady tone is no ring-down)
+)
 
 
 @dataclass(frozen=True)
@@ -64,8 +78,13 @@ class RingingMode:
         return 1.0 / (self.damping_ratio * 2.0 * math.pi * self.frequency_hz)
 
 
-def ring_downs(stamp_s: np.ndarray, accel_mps2: np.ndarray, onsets_s: Sequence[float], skip_s: float = SKIP_S,
-               max_segment_s: float = MAX_SEGMENT_S) -> list[np.ndarray]:
+def ring_downs(
+    stamp_s: np.ndarray,
+    accel_mps2: np.ndarray,
+    onsets_s: Sequence[float],
+    skip_s: float = SKIP_S,
+    max_segment_s: float = MAX_SEGMENT_S,
+) -> list[np.ndarray]:
     """Each impact's ring-down: the samples from ``skip_s`` after its onset (s) to the next
     impact (less a margin) or ``max_segment_s``, with a line removed; ring-downs shorter than
     MIN_SEGMENT_S, or with a sample missing (a gap in the stamps), are left out."""
@@ -84,7 +103,11 @@ def ring_downs(stamp_s: np.ndarray, accel_mps2: np.ndarray, onsets_s: Sequence[f
             continue
         lo, hi = np.searchsorted(stamp_s, [onset + skip_s, end])
         t, x = stamp_s[lo:hi], accel_mps2[lo:hi]
-        if t.size * period < 0.9 * MIN_SEGMENT_S or np.any(np.diff(t) > 1.5 * period) or not np.isfinite(x).all():
+        if (
+            t.size * period < 0.9 * MIN_SEGMENT_S
+            or np.any(np.diff(t) > 1.5 * period)
+            or not np.isfinite(x).all()
+        ):
             continue
         segments.append(x - np.polyval(np.polyfit(t - t[0], x, 1), t - t[0]))
         if len(segments) >= MAX_IMPACTS:
@@ -92,12 +115,16 @@ def ring_downs(stamp_s: np.ndarray, accel_mps2: np.ndarray, onsets_s: Sequence[f
     return segments
 
 
-def mode_frequencies(segments: Sequence[np.ndarray], period_s: float, min_frequency_hz: float = MIN_FREQUENCY_HZ) -> list[float]:
+def mode_frequencies(
+    segments: Sequence[np.ndarray], period_s: float, min_frequency_hz: float = MIN_FREQUENCY_HZ
+) -> list[float]:
     """The strongest peaks (Hz, at most MAX_MODES, ascending) of the ring-downs' summed
     normalised power spectra between ``min_frequency_hz`` and NYQUIST_FRACTION of the rate."""
     if len(segments) < MIN_IMPACTS:
         return []
-    n = 1 << int(math.ceil(math.log2(8 * max(len(s) for s in segments))))  # zero-padded: fine peak positions
+    n = 1 << int(
+        math.ceil(math.log2(8 * max(len(s) for s in segments)))
+    )  # zero-padded: fine peak positions
     freq = np.fft.rfftfreq(n, period_s)
     total = np.zeros(freq.size)
     for s in segments:
@@ -125,16 +152,25 @@ def sample_noise(accel_mps2: np.ndarray) -> float:
     difference: impacts and their ringing occupy little of a recording, and a bending mode
     moves little from one sample to the next, so the median sees the noise."""
     diff = np.diff(np.asarray(accel_mps2, dtype=float))
-    return float(1.4826 * np.median(np.abs(diff - np.median(diff))) / math.sqrt(2.0)) if diff.size else 0.0
+    return (
+        float(1.4826 * np.median(np.abs(diff - np.median(diff))) / math.sqrt(2.0))
+        if diff.size
+        else 0.0
+    )
 
 
-def decay_rate(segment: np.ndarray, period_s: float, frequency_hz: float, noise_mps2: float) -> float | None:
+def decay_rate(
+    segment: np.ndarray, period_s: float, frequency_hz: float, noise_mps2: float
+) -> float | None:
     """The decay rate (1/s) of the ring-down's component at ``frequency_hz``: the slope of its
     envelope (band-passed, Hilbert) in log, from its peak to where it sinks to NOISE_FLOOR times
     the band's noise (the channel's ``noise_mps2`` per sample, narrowed to the band); None
     where that stretch is shorter than MIN_PERIODS periods, or the mode does not decay."""
     rate = 1.0 / period_s
-    low, high = frequency_hz * (1.0 - BAND_FRACTION), min(frequency_hz * (1.0 + BAND_FRACTION), 0.49 * rate)
+    low, high = (
+        frequency_hz * (1.0 - BAND_FRACTION),
+        min(frequency_hz * (1.0 + BAND_FRACTION), 0.49 * rate),
+    )
     if not low < high:
         return None
     sos = butter(2, [low, high], btype="band", fs=rate, output="sos")
@@ -157,8 +193,12 @@ def decay_rate(segment: np.ndarray, period_s: float, frequency_hz: float, noise_
     return sigma
 
 
-def ringing_modes(stamp_s: np.ndarray, accel_mps2: np.ndarray, onsets_s: Sequence[float],
-                  min_frequency_hz: float = MIN_FREQUENCY_HZ) -> list[RingingMode]:
+def ringing_modes(
+    stamp_s: np.ndarray,
+    accel_mps2: np.ndarray,
+    onsets_s: Sequence[float],
+    min_frequency_hz: float = MIN_FREQUENCY_HZ,
+) -> list[RingingMode]:
     """The bending modes (ascending frequency) that the impacts at ``onsets_s`` (s) set ringing
     in the acceleration samples (``stamp_s`` s, ``accel_mps2`` m/s^2), each with its damping;
     a mode whose damping no ring-down gave is left out; [] with fewer than MIN_IMPACTS usable
@@ -171,13 +211,21 @@ def ringing_modes(stamp_s: np.ndarray, accel_mps2: np.ndarray, onsets_s: Sequenc
     noise = sample_noise(accel_mps2)
     modes = []
     for frequency in mode_frequencies(segments, period, min_frequency_hz):
-        rates = [r for r in (decay_rate(s, period, frequency, noise) for s in segments) if r is not None]
+        rates = [
+            r for r in (decay_rate(s, period, frequency, noise) for s in segments) if r is not None
+        ]
         if len(rates) >= MIN_IMPACTS:
-            modes.append(RingingMode(frequency, float(np.median(rates)) / (2.0 * math.pi * frequency), len(rates)))
+            modes.append(
+                RingingMode(
+                    frequency, float(np.median(rates)) / (2.0 * math.pi * frequency), len(rates)
+                )
+            )
     return modes
 
 
-def ring_decay_s(modes: Sequence[RingingMode], low_s: float = 0.002, high_s: float = 2.0) -> float | None:
+def ring_decay_s(
+    modes: Sequence[RingingMode], low_s: float = 0.002, high_s: float = 2.0
+) -> float | None:
     """The detector's ``ring_decay_s`` for these modes (s): the slowest mode's decay time, so
     that the envelope it follows never dies away faster than the beam's ringing; None without
     modes."""

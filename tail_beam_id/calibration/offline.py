@@ -41,13 +41,12 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.signal import welch
 
-from tail_beam_id.methods import hysteresis
-from tail_beam_id.signals.camera import frame_period_s
-from tail_beam_id.stream.label import Label
-from tail_beam_id.methods import load_model
 from tail_beam_id.calibration.modes import MIN_FREQUENCY_HZ as MIN_MODE_FREQUENCY_HZ
 from tail_beam_id.calibration.modes import RingingMode, ring_decay_s, ringing_modes, sample_noise
+from tail_beam_id.methods import hysteresis, load_model
+from tail_beam_id.signals.camera import frame_period_s
 from tail_beam_id.signals.timing import UNUSUAL
+from tail_beam_id.stream.label import Label
 from tail_beam_sim.config import deep_merge
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.materials import material_table
@@ -59,7 +58,9 @@ MIN_PEAK_RATIO = 8.0  # the sway peak must stand this far above the spectrum's m
 # short to resolve it (one 55 ms impact put a 39.3 Hz sway at 37.2 Hz: 18 Hz bins) measures nothing.
 MAX_BIN_FRACTION = 0.05
 MIN_IMPACTS = 3  # impacts needed for the IMU gain
-GAIN_SIGMA = 5.0  # the IMU gain is measured when its fit is this many standard errors clear of zero
+GAIN_SIGMA = (
+    5.0  # the IMU gain is measured when its fit is this many standard errors clear of zero
+)
 
 
 @dataclass(frozen=True)
@@ -97,20 +98,30 @@ class SupportProfile:
         """The detector's ring_decay_s for the measured modes (s), or None."""
         if not self.ringing_modes_hz or not self.ringing_damping_ratios:
             return None
-        return ring_decay_s([RingingMode(f, z, 0) for f, z in zip(self.ringing_modes_hz, self.ringing_damping_ratios)])
+        return ring_decay_s(
+            [
+                RingingMode(f, z, 0)
+                for f, z in zip(self.ringing_modes_hz, self.ringing_damping_ratios)
+            ]
+        )
 
     def describe_modes(self) -> str:
         """The measured bending modes in a few words ('ringing 400 Hz (3.7 %), 1269 Hz (1.5 %)')."""
         if not self.ringing_modes_hz or not self.ringing_damping_ratios:
             return "no bending mode measured in the ringing"
-        modes = ", ".join(f"{f:.0f} Hz ({100.0 * z:.1f} %)" for f, z in zip(self.ringing_modes_hz, self.ringing_damping_ratios))
+        modes = ", ".join(
+            f"{f:.0f} Hz ({100.0 * z:.1f} %)"
+            for f, z in zip(self.ringing_modes_hz, self.ringing_damping_ratios)
+        )
         return f"ringing {modes}, ring_decay_s {self.ring_decay_s:.3g}"
 
     def describe_hysteresis(self) -> str:
         """The support's hysteresis as read, in a few words."""
         if self.hysteresis_impacts is None:
             return "hysteresis not read (the statistical model has no hysteresis network)"
-        return hysteresis.describe(self.hysteresis_weights, self.hysteresis_impacts, self.hysteresis_bin_edges or [])
+        return hysteresis.describe(
+            self.hysteresis_weights, self.hysteresis_impacts, self.hysteresis_bin_edges or []
+        )
 
     def describe_camera(self) -> str:
         """The camera's frame as read from the rebound stamps, in a few words."""
@@ -162,15 +173,20 @@ def sway_frequency(stamp_s: np.ndarray, pressure_pa: np.ndarray) -> float | None
     period = float(np.median(np.diff(stamp_s)))
     rate = 1.0 / period
     segment = min(stamp_s.size, int(2.0 * rate))  # 0.5 Hz resolution where the recording allows
-    freq, power = welch(pressure_pa - np.mean(pressure_pa), fs=rate, nperseg=segment, detrend="linear")
+    freq, power = welch(
+        pressure_pa - np.mean(pressure_pa), fs=rate, nperseg=segment, detrend="linear"
+    )
     band = (freq >= SWAY_BAND_HZ[0]) & (freq <= min(SWAY_BAND_HZ[1], 0.4 * rate))
     if band.sum() < 5:
         return None
     index = np.flatnonzero(band)
     peak = index[int(np.argmax(power[band]))]
-    if power[peak] < MIN_PEAK_RATIO * float(np.median(power[band])) or peak in (index[0], index[-1]):
+    if power[peak] < MIN_PEAK_RATIO * float(np.median(power[band])) or peak in (
+        index[0],
+        index[-1],
+    ):
         return None
-    y0, y1, y2 = np.log(power[peak - 1:peak + 2])
+    y0, y1, y2 = np.log(power[peak - 1 : peak + 2])
     shift = 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2) if (y0 - 2 * y1 + y2) != 0 else 0.0
     found = float(freq[peak] + shift * (freq[1] - freq[0]))
     return found if freq[1] - freq[0] <= MAX_BIN_FRACTION * found else None
@@ -183,13 +199,21 @@ def bulk_modulus_for(params: Mapping[str, Any], frequency_hz: float) -> float | 
 
     def mismatch(log_scale: float) -> float:
         varied = copy.deepcopy(dict(params["support"]))
-        varied["oil_bulk_modulus_pa"] = float(params["support"]["oil_bulk_modulus_pa"]) * math.exp(log_scale)
-        return math.log(Support.from_params(varied, materials).rigid_mode_frequency_hz / frequency_hz)
+        varied["oil_bulk_modulus_pa"] = float(params["support"]["oil_bulk_modulus_pa"]) * math.exp(
+            log_scale
+        )
+        return math.log(
+            Support.from_params(varied, materials).rigid_mode_frequency_hz / frequency_hz
+        )
 
     try:
-        return float(params["support"]["oil_bulk_modulus_pa"]) * math.exp(brentq(mismatch, math.log(0.02), math.log(50.0), xtol=1e-6))
+        return float(params["support"]["oil_bulk_modulus_pa"]) * math.exp(
+            brentq(mismatch, math.log(0.02), math.log(50.0), xtol=1e-6)
+        )
     except ValueError:
-        return None  # no oil column in that range gives it: the wall or the rod limits the stiffness
+        return (
+            None  # no oil column in that range gives it: the wall or the rod limits the stiffness
+        )
 
 
 def calibrate(
@@ -213,8 +237,14 @@ def calibrate(
     p_stamp, p_value = _finite(*pressure)
     i_stamp, i_accel = _finite(*imu)
     if p_stamp.size == 0 and i_stamp.size == 0:
-        raise InputError("bag", "no jack_pressure and no imu", "calibration needs the recording's jack pressure or IMU")
-    duration = float(max(np.ptp(p_stamp) if p_stamp.size else 0.0, np.ptp(i_stamp) if i_stamp.size else 0.0))
+        raise InputError(
+            "bag",
+            "no jack_pressure and no imu",
+            "calibration needs the recording's jack pressure or IMU",
+        )
+    duration = float(
+        max(np.ptp(p_stamp) if p_stamp.size else 0.0, np.ptp(i_stamp) if i_stamp.size else 0.0)
+    )
     sign = mount_sign(i_accel)
     frequency = sway_frequency(p_stamp, p_value)
     bulk = bulk_modulus_for(params, frequency) if frequency is not None else None
@@ -234,7 +264,12 @@ def calibrate(
             checked, unusual = len(checks), int(sum(value > 0.5 for value in checks))
         fitted = imu_gain([label.features for label in labels])
         r_stamp, r_accel = _finite(*ringing) if ringing is not None else (i_stamp, i_accel)
-        modes = ringing_modes(r_stamp, r_accel, [label.impact_stamp_s for label in labels], min_frequency_hz=max(MIN_MODE_FREQUENCY_HZ, 2.0 * frequency))
+        modes = ringing_modes(
+            r_stamp,
+            r_accel,
+            [label.impact_stamp_s for label in labels],
+            min_frequency_hz=max(MIN_MODE_FREQUENCY_HZ, 2.0 * frequency),
+        )
         if fitted is not None:
             gain, used, spread = fitted  # N m s per m/s at the IMU = inertia / IMU distance
             inertia_now = float(params["support"]["beam_inertia_about_hinge_kgm2"])
@@ -248,13 +283,23 @@ def calibrate(
                 bulk = bulk_modulus_for(calibrated, frequency) or bulk
         weights, weighed, edges = _hysteresis_weights(params, labels, inertia, hysteresis_model)
     return SupportProfile(
-        duration_s=duration, impacts_used=used, imu_mount_sign=sign, rigid_mode_frequency_hz=frequency,
-        oil_bulk_modulus_pa=bulk, beam_inertia_about_hinge_kgm2=inertia, imu_gain_spread=spread,
-        pressure_noise_pa=robust_noise(p_value), imu_accel_noise_mps2=robust_noise(i_accel),
-        delay_checked_impacts=checked, delay_unusual_impacts=unusual,
-        ringing_modes_hz=[m.frequency_hz for m in modes] or None, ringing_damping_ratios=[m.damping_ratio for m in modes] or None,
+        duration_s=duration,
+        impacts_used=used,
+        imu_mount_sign=sign,
+        rigid_mode_frequency_hz=frequency,
+        oil_bulk_modulus_pa=bulk,
+        beam_inertia_about_hinge_kgm2=inertia,
+        imu_gain_spread=spread,
+        pressure_noise_pa=robust_noise(p_value),
+        imu_accel_noise_mps2=robust_noise(i_accel),
+        delay_checked_impacts=checked,
+        delay_unusual_impacts=unusual,
+        ringing_modes_hz=[m.frequency_hz for m in modes] or None,
+        ringing_damping_ratios=[m.damping_ratio for m in modes] or None,
         camera_frame_rate_hz=_camera_frame_rate_hz(rebound_stamps_s),
-        hysteresis_weights=weights, hysteresis_impacts=weighed, hysteresis_bin_edges=edges if weights is not None else None,
+        hysteresis_weights=weights,
+        hysteresis_impacts=weighed,
+        hysteresis_bin_edges=edges if weights is not None else None,
     )
 
 
@@ -270,14 +315,23 @@ def imu_gain(features: Sequence[Mapping[str, float]]) -> tuple[float, int, float
     moment stood 5 sigma clear picked those that noise had pushed up, and on the paper scene's
     25 mm spheres, where 3 to 12 of 20 impacts stood clear, that read the beam's inertia 1.2 to
     2.7 times too high (foreign supports, seed 41004: README, Supports other than the shipped one)."""
-    rows = [(f["moment_impulse_pressure_nms"], f.get("moment_impulse_sigma_nms", math.inf), f["imu_impulse_mps"])
-            for f in features if {"moment_impulse_pressure_nms", "imu_impulse_mps"} <= f.keys()]
+    rows = [
+        (
+            f["moment_impulse_pressure_nms"],
+            f.get("moment_impulse_sigma_nms", math.inf),
+            f["imu_impulse_mps"],
+        )
+        for f in features
+        if {"moment_impulse_pressure_nms", "imu_impulse_mps"} <= f.keys()
+    ]
     rows = [r for r in rows if all(math.isfinite(v) for v in r) and r[1] >= 0.0 and r[2] > 0.0]
     if len(rows) < MIN_IMPACTS:
         return None
     moment, sigma, impulse = (np.array(column) for column in zip(*rows))
     noisy = sigma > 0.0
-    if not noisy.any():  # noise-free readings: equal weights, and any positive gain is clear of zero
+    if (
+        not noisy.any()
+    ):  # noise-free readings: equal weights, and any positive gain is clear of zero
         gain = float(np.sum(moment * impulse) / np.sum(impulse**2))
         if not gain > 0.0:
             return None
@@ -293,8 +347,12 @@ def imu_gain(features: Sequence[Mapping[str, float]]) -> tuple[float, int, float
     return gain, len(rows), spread
 
 
-def _hysteresis_weights(params: Mapping[str, Any], labels: Sequence[Label], inertia_kgm2: float | None,
-                        model: Mapping[str, Any] | None) -> tuple[list[float] | None, int | None, list[float] | None]:
+def _hysteresis_weights(
+    params: Mapping[str, Any],
+    labels: Sequence[Label],
+    inertia_kgm2: float | None,
+    model: Mapping[str, Any] | None,
+) -> tuple[list[float] | None, int | None, list[float] | None]:
     """The hysteresis bins' weights from the calibration pass's labels (their IMU moments as
     the calibrated inertia gives them: the pass ran with config/'s beam), the impacts used and
     the bins' edges; (None, None, None) when the statistical model has no hysteresis network."""
@@ -303,8 +361,19 @@ def _hysteresis_weights(params: Mapping[str, Any], labels: Sequence[Label], iner
     if model is None:
         return None, None, None
     section = params["identification"]["statistical"]["hysteresis"]
-    min_impacts = int(require_range("identification.statistical.hysteresis.min_impacts", section.get("min_impacts", 8), 1, 1e6))
-    factor = 1.0 if inertia_kgm2 is None else inertia_kgm2 / float(params["support"]["beam_inertia_about_hinge_kgm2"])
+    min_impacts = int(
+        require_range(
+            "identification.statistical.hysteresis.min_impacts",
+            section.get("min_impacts", 8),
+            1,
+            1e6,
+        )
+    )
+    factor = (
+        1.0
+        if inertia_kgm2 is None
+        else inertia_kgm2 / float(params["support"]["beam_inertia_about_hinge_kgm2"])
+    )
     features = []
     for label in labels:
         f = dict(label.features)

@@ -25,9 +25,9 @@ from tail_beam_id.calibration.offline import SupportProfile, calibrate, with_pro
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
 
 if TYPE_CHECKING:
-    from tail_beam_id.stream.release import Release
-    from tail_beam_id.stream.label import Label
     from tail_beam_id.methods import Method
+    from tail_beam_id.stream.label import Label
+    from tail_beam_id.stream.release import Release
 
 
 @dataclass(frozen=True)
@@ -42,7 +42,9 @@ class Calibrated:
 class OnlineCalibration:
     """Learns a support profile from the first ``learn_s`` (stamp s) of released data."""
 
-    def __init__(self, params: Mapping[str, Any], learn_s: float, method: str, background: bool = True) -> None:
+    def __init__(
+        self, params: Mapping[str, Any], learn_s: float, method: str, background: bool = True
+    ) -> None:
         """``params``: the node's merged parameters (nominal support); ``method``: the
         identification method in use; ``background``: compute in a worker thread (the node)
         or at once (tests)."""
@@ -73,13 +75,19 @@ class OnlineCalibration:
                 self._imu.append((stamps, values))
             else:
                 continue  # the vibration: the profile is read from the IMU and the jack
-            self._first_s = float(stamps[0]) if self._first_s is None else min(self._first_s, float(stamps[0]))
+            self._first_s = (
+                float(stamps[0]) if self._first_s is None else min(self._first_s, float(stamps[0]))
+            )
             self._last_s = max(self._last_s, float(stamps[-1]))
         self._rebounds += list(release.rebounds)
 
     def poll(self) -> str | None:
         """Advance; a line for the log when something happened."""
-        if self.state == "learning" and self._first_s is not None and self._last_s - self._first_s >= self.learn_s:
+        if (
+            self.state == "learning"
+            and self._first_s is not None
+            and self._last_s - self._first_s >= self.learn_s
+        ):
             self.state = "calibrating"
             pressure, imu, rebounds = self._streams()
             self._pressure, self._imu, self._rebounds = [], [], []
@@ -100,11 +108,19 @@ class OnlineCalibration:
                 return f"calibration: failed ({type(exc).__name__}: {exc}); staying on the configured support"
             p = self.result.profile
             if self.result.model_params is None:
-                return ("calibration: no clear sway of the beam in the jack pressure (too few impacts?); "
-                        "staying on the configured support (labels say calibrated: false)")
-            gain = f"{p.impacts_used} impacts for the IMU gain" if p.beam_inertia_about_hinge_kgm2 else "IMU gain not measured"
-            return (f"calibration: sway {p.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus {p.oil_bulk_modulus_pa:.3g} Pa, "
-                    f"{gain}, {p.describe_hysteresis()}; labels from here on say calibrated: true")
+                return (
+                    "calibration: no clear sway of the beam in the jack pressure (too few impacts?); "
+                    "staying on the configured support (labels say calibrated: false)"
+                )
+            gain = (
+                f"{p.impacts_used} impacts for the IMU gain"
+                if p.beam_inertia_about_hinge_kgm2
+                else "IMU gain not measured"
+            )
+            return (
+                f"calibration: sway {p.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus {p.oil_bulk_modulus_pa:.3g} Pa, "
+                f"{gain}, {p.describe_hysteresis()}; labels from here on say calibrated: true"
+            )
         return None
 
     def _streams(self) -> tuple[PressureStream, ImuStream, list[Rebound]]:
@@ -117,22 +133,40 @@ class OnlineCalibration:
         i_t, i_v = joined(self._imu, 6)
         pressure = PressureStream(p_t, p_v, 0.0)
         imu = ImuStream(i_t, i_v[:, :3], i_v[:, 3:], 0.0, 0.0)
-        return pressure, imu, [Rebound(stamp, velocity, velocity) for stamp, velocity in self._rebounds]
+        return (
+            pressure,
+            imu,
+            [Rebound(stamp, velocity, velocity) for stamp, velocity in self._rebounds],
+        )
 
-    def _calibrate(self, pressure: PressureStream, imu: ImuStream, rebounds: list[Rebound]) -> Calibrated:
+    def _calibrate(
+        self, pressure: PressureStream, imu: ImuStream, rebounds: list[Rebound]
+    ) -> Calibrated:
         """The profile of the learned window (as ``tail-beam calibrate`` on a bag of it)."""
-        from tail_beam_id.stream.identifier import StreamIdentifier
         from tail_beam_id.methods import build_method
+        from tail_beam_id.stream.identifier import StreamIdentifier
         from tail_beam_id.stream.replay import replay
 
         def identify(model_params: Mapping[str, Any]) -> list[Label]:
-            return replay(StreamIdentifier("statistical", model_params["identification"], model_params), pressure, imu, rebounds)
+            return replay(
+                StreamIdentifier("statistical", model_params["identification"], model_params),
+                pressure,
+                imu,
+                rebounds,
+            )
 
-        profile = calibrate(self.params, (pressure.stamp_s, pressure.pressure_pa), (imu.stamp_s, imu.linear_acceleration_mps2[:, 2]), identify)
+        profile = calibrate(
+            self.params,
+            (pressure.stamp_s, pressure.pressure_pa),
+            (imu.stamp_s, imu.linear_acceleration_mps2[:, 2]),
+            identify,
+        )
         if not profile.calibrated:
             return Calibrated(profile, None, None)
         merged = with_profile(self.params, profile)
         # The physics method holds the support; the statistical one, the support's hysteresis.
-        rebuild = self.method_name == "physics" or (self.method_name == "statistical" and profile.hysteresis_weights is not None)
+        rebuild = self.method_name == "physics" or (
+            self.method_name == "statistical" and profile.hysteresis_weights is not None
+        )
         method = build_method(self.method_name, merged) if rebuild else None
         return Calibrated(profile, merged, method)

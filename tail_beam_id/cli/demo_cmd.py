@@ -23,22 +23,50 @@ from tail_beam_sim.errors import InputError, require_new_path, require_range
 
 # Fields the scoreboard reads of a truth, and their types: a message without them (another
 # process on the topic, a foreign tool) is skipped, not trusted; a label must read as a Label.
-TRUTH_FIELDS = {"contact_start_stamp": (int, float), "label": str, "material": str, "radius_m": (int, float), "position_m": (int, float)}
+TRUTH_FIELDS = {
+    "contact_start_stamp": (int, float),
+    "label": str,
+    "material": str,
+    "radius_m": (int, float),
+    "position_m": (int, float),
+}
 LABELS = ("coal", "gangue")
 LATE_S = 2.0  # wall time after which an impact is shown without its label, s
 SETTLE_S = 1.5  # wall time the identifier gets after the data ends, s (its flush comes first)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("demo", help="simulate a caving stream, identify it live and record it, then score it")
-    parser.add_argument("--count", type=int, default=20, help="particles in the stream (default 20)")
-    parser.add_argument("--gangue-fraction", type=float, default=0.5, help="share of gangue particles (default 0.5)")
-    parser.add_argument("--seed", type=int, default=1, help="seed of the generated stream (default 1)")
-    parser.add_argument("--realtime-factor", type=float, default=1.0, help="simulation s per wall s; 0 = as fast as possible")
+    parser = sub.add_parser(
+        "demo", help="simulate a caving stream, identify it live and record it, then score it"
+    )
+    parser.add_argument(
+        "--count", type=int, default=20, help="particles in the stream (default 20)"
+    )
+    parser.add_argument(
+        "--gangue-fraction",
+        type=float,
+        default=0.5,
+        help="share of gangue particles (default 0.5)",
+    )
+    parser.add_argument(
+        "--seed", type=int, default=1, help="seed of the generated stream (default 1)"
+    )
+    parser.add_argument(
+        "--realtime-factor",
+        type=float,
+        default=1.0,
+        help="simulation s per wall s; 0 = as fast as possible",
+    )
     parser.add_argument("--method", help="identification method (default: identification.method)")
-    parser.add_argument("--bag", help="bag directory to create (default out/bags/demo_<UTC date-time>)")
-    parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap", help="bag storage (default mcap)")
-    parser.add_argument("--namespace", default="", help="run the support under this namespace, e.g. /support_07")
+    parser.add_argument(
+        "--bag", help="bag directory to create (default out/bags/demo_<UTC date-time>)"
+    )
+    parser.add_argument(
+        "--storage", choices=sorted(STORAGES), default="mcap", help="bag storage (default mcap)"
+    )
+    parser.add_argument(
+        "--namespace", default="", help="run the support under this namespace, e.g. /support_07"
+    )
     parser.set_defaults(func=run)
 
 
@@ -74,8 +102,11 @@ class Scoreboard:
         if item is None:
             self.skipped[topic] = self.skipped.get(topic, 0) + 1
             if self.skipped[topic] == 1:
-                print(f"warning: skipping messages on {topic} that are not the suite's {kind} JSON "
-                      f"(another publisher on the topic?): {text[:60]!r}", flush=True)
+                print(
+                    f"warning: skipping messages on {topic} that are not the suite's {kind} JSON "
+                    f"(another publisher on the topic?): {text[:60]!r}",
+                    flush=True,
+                )
             return
         self.add(kind, item)
 
@@ -100,13 +131,19 @@ class Scoreboard:
             self.shown.add(id(truth))
             if label is not None:
                 self.shown.add(id(label))
-            print(f"[{index:>3}/{self.count}] {truth['contact_start_stamp']:8.3f} s  {impact_text(truth):<44} -> {label_text(truth, label)}", flush=True)
+            print(
+                f"[{index:>3}/{self.count}] {truth['contact_start_stamp']:8.3f} s  {impact_text(truth):<44} -> {label_text(truth, label)}",
+                flush=True,
+            )
         extra = set(matching.extra)
         for number, label in enumerate(self.labels):
             late = final or now - self.arrived[id(label)] > LATE_S
             if id(label) not in self.shown and late and number in extra:
                 self.shown.add(id(label))
-                print(f"          {label.impact_stamp_s:8.3f} s  {'(no impact here)':<44} -> {label.material} ({label.confidence:.2f}): false detection", flush=True)
+                print(
+                    f"          {label.impact_stamp_s:8.3f} s  {'(no impact here)':<44} -> {label.material} ({label.confidence:.2f}): false detection",
+                    flush=True,
+                )
 
     def table(self) -> str:
         """Confusion table (missed impacts count as wrong) and accuracy."""
@@ -121,14 +158,19 @@ class Scoreboard:
         extra = len(matching.extra)
         lines = [
             f"{'':>14} {'label coal':>11} {'label gangue':>13} {'no label':>9}",
-            *(f"{'truth ' + name:>14} {r[0]:>11} {r[1]:>13} {r[2]:>9}" for name, r in rows.items()),
+            *(
+                f"{'truth ' + name:>14} {r[0]:>11} {r[1]:>13} {r[2]:>9}"
+                for name, r in rows.items()
+            ),
             f"false detections (labels with no impact): {extra}",
             f"accuracy: {correct}/{total} = {100.0 * correct / max(total, 1):.1f} % (an impact without a label counts as wrong)",
         ]
         return "\n".join(lines)
 
 
-def parse_message(text: str, fields: Mapping[str, type | tuple[type, ...]]) -> dict[str, Any] | None:
+def parse_message(
+    text: str, fields: Mapping[str, type | tuple[type, ...]]
+) -> dict[str, Any] | None:
     """The JSON object in ``text`` if it has every field with its type (finite numbers), else None."""
     try:
         item = json.loads(text)
@@ -146,8 +188,10 @@ def parse_message(text: str, fields: Mapping[str, type | tuple[type, ...]]) -> d
 
 
 def impact_text(truth: Mapping[str, Any]) -> str:
-    return (f"{truth['material']:<9} R {truth['radius_m'] * 1e3:3.0f} mm, {truth.get('drop_height_m') or 0:.1f} m, "
-            f"at {truth['position_m']:.2f} m")
+    return (
+        f"{truth['material']:<9} R {truth['radius_m'] * 1e3:3.0f} mm, {truth.get('drop_height_m') or 0:.1f} m, "
+        f"at {truth['position_m']:.2f} m"
+    )
 
 
 def label_text(truth: Mapping[str, Any], label: Label | None) -> str:
@@ -173,20 +217,50 @@ def run(args: argparse.Namespace) -> int:
     group = NodeGroup()
     try:
         common = {"context": group.context, "namespace": args.namespace}
-        recorder = group.add(RecorderNode(**common, parameter_overrides=overrides({"recorder.bag_path": str(bag), "recorder.storage": args.storage})))
-        id_values = {"id_node.flush_after_idle_s": 0.5, **({"method": args.method} if args.method else {})}
+        recorder = group.add(
+            RecorderNode(
+                **common,
+                parameter_overrides=overrides(
+                    {"recorder.bag_path": str(bag), "recorder.storage": args.storage}
+                ),
+            )
+        )
+        id_values = {
+            "id_node.flush_after_idle_s": 0.5,
+            **({"method": args.method} if args.method else {}),
+        }
         identifier = group.add(IdNode(**common, parameter_overrides=overrides(id_values)))
-        sim = group.add(SimNode(**common, parameter_overrides=overrides({
-            "scenario.source": "generated", "scenario.count": args.count, "scenario.seed": args.seed,
-            "scenario.gangue_fraction": float(args.gangue_fraction), "sim_node.realtime_factor": float(args.realtime_factor),
-            "sim_node.exit_after_idle_s": 0.5, "sim_node.wait_for_subscribers": 2,
-        })))
-        group.listener("tail_beam_demo", args.namespace, {
-            topics.IMPACT_TRUTH: lambda data: board.receive("truth", topics.IMPACT_TRUTH, data),
-            topics.LABEL: lambda data: board.receive("label", topics.LABEL, data),
-        })
-        print(f"simulating {args.count} particles (seed {args.seed}, realtime factor {args.realtime_factor:g}); "
-              f"identifying with {identifier.identifier.method.name}; recording to {bag}", flush=True)
+        sim = group.add(
+            SimNode(
+                **common,
+                parameter_overrides=overrides(
+                    {
+                        "scenario.source": "generated",
+                        "scenario.count": args.count,
+                        "scenario.seed": args.seed,
+                        "scenario.gangue_fraction": float(args.gangue_fraction),
+                        "sim_node.realtime_factor": float(args.realtime_factor),
+                        "sim_node.exit_after_idle_s": 0.5,
+                        "sim_node.wait_for_subscribers": 2,
+                    }
+                ),
+            )
+        )
+        group.listener(
+            "tail_beam_demo",
+            args.namespace,
+            {
+                topics.IMPACT_TRUTH: lambda data: board.receive(
+                    "truth", topics.IMPACT_TRUTH, data
+                ),
+                topics.LABEL: lambda data: board.receive("label", topics.LABEL, data),
+            },
+        )
+        print(
+            f"simulating {args.count} particles (seed {args.seed}, realtime factor {args.realtime_factor:g}); "
+            f"identifying with {identifier.identifier.method.name}; recording to {bag}",
+            flush=True,
+        )
         started = time.monotonic()
         done_at = None
         while done_at is None or time.monotonic() - done_at < SETTLE_S:
@@ -204,10 +278,14 @@ def run(args: argparse.Namespace) -> int:
     print(board.table())
     v = recorder.vibration
     sim_s = sim.stream.time_s
-    print(f"vibration: {v.samples} samples in {v.blocks} blocks recorded, {v.samples / max(sim_s, 1e-9):,.0f} samples per s over "
-          f"{sim_s:.1f} s of simulation ({wall_s:.1f} s wall, start-up included); lost: recorder {v.lost_samples} samples, identifier {identifier.vibration_lost_samples} samples "
-          f"and {identifier.vibration_late_blocks} late blocks")
+    print(
+        f"vibration: {v.samples} samples in {v.blocks} blocks recorded, {v.samples / max(sim_s, 1e-9):,.0f} samples per s over "
+        f"{sim_s:.1f} s of simulation ({wall_s:.1f} s wall, start-up included); lost: recorder {v.lost_samples} samples, identifier {identifier.vibration_lost_samples} samples "
+        f"and {identifier.vibration_late_blocks} late blocks"
+    )
     print(f"bag: {bag} ({recorder.writer.message_count} messages, {args.storage})")
     print(f"  offline: tail-beam identify {bag}")
-    print(f"  replay:  bag_replay --ros-args -p replay.bag_path:={bag} -p \"replay.topics:=[jack_pressure, imu, vibration, rebound_velocity]\"")
+    print(
+        f'  replay:  bag_replay --ros-args -p replay.bag_path:={bag} -p "replay.topics:=[jack_pressure, imu, vibration, rebound_velocity]"'
+    )
     return 0

@@ -12,11 +12,18 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from tail_beam_id.methods import available_methods
 from tail_beam_id.study.dataset import FOREIGN_SCENES, SCENE_SETS, evaluation_params, settings
 from tail_beam_id.study.evaluation import (
-    Summary, format_confusion, format_sizes, format_table, group, large_particle_accuracy, summaries, wilson,
+    Summary,
+    format_confusion,
+    format_sizes,
+    format_table,
+    group,
+    large_particle_accuracy,
+    summaries,
+    wilson,
 )
-from tail_beam_id.methods import available_methods
 from tail_beam_id.study.runs import FOREIGN_PROFILES, Record, run_foreign, run_set
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
@@ -42,21 +49,44 @@ def _numbers(text: str, field: str, low: float, high: float) -> list[float]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("evaluate", help="accuracy and latency of the identification methods on simulated scene sets")
-    parser.add_argument("--sets", default=",".join(SCENE_SETS), help="scene sets, comma-separated (default: all)")
+    parser = sub.add_parser(
+        "evaluate",
+        help="accuracy and latency of the identification methods on simulated scene sets",
+    )
+    parser.add_argument(
+        "--sets", default=",".join(SCENE_SETS), help="scene sets, comma-separated (default: all)"
+    )
     parser.add_argument("--methods", default=None, help="methods, comma-separated (default: all)")
-    parser.add_argument("--noise", default=None, help="noise factors, comma-separated (default: config, 1,3,10)")
-    parser.add_argument("--rates", default=None,
-                        help="sensor settings, comma-separated (default: config: shipped,nominal; shipped has the "
-                             "tail-beam accelerometer, nominal, mid and fast the IMU alone); the foreign set records its "
-                             "supports with each of these and with sensors drawn with each support (setting drawn)")
-    parser.add_argument("--count", type=int, default=None, help="impacts per scene set (default: config)")
-    parser.add_argument("--windows-ms", default="", help="extra data windows to run each method at, ms (accuracy-latency trade-off)")
-    parser.add_argument("--profiles", default="nominal,self-calibrated",
-                        help="foreign set: how the identifier knows each support: nominal (config/), self-calibrated "
-                             "(tail-beam calibrate on its own stream), true (the drawn support itself: the ceiling)")
+    parser.add_argument(
+        "--noise", default=None, help="noise factors, comma-separated (default: config, 1,3,10)"
+    )
+    parser.add_argument(
+        "--rates",
+        default=None,
+        help="sensor settings, comma-separated (default: config: shipped,nominal; shipped has the "
+        "tail-beam accelerometer, nominal, mid and fast the IMU alone); the foreign set records its "
+        "supports with each of these and with sensors drawn with each support (setting drawn)",
+    )
+    parser.add_argument(
+        "--count", type=int, default=None, help="impacts per scene set (default: config)"
+    )
+    parser.add_argument(
+        "--windows-ms",
+        default="",
+        help="extra data windows to run each method at, ms (accuracy-latency trade-off)",
+    )
+    parser.add_argument(
+        "--profiles",
+        default="nominal,self-calibrated",
+        help="foreign set: how the identifier knows each support: nominal (config/), self-calibrated "
+        "(tail-beam calibrate on its own stream), true (the drawn support itself: the ceiling)",
+    )
     parser.add_argument("--tier", default=None, help="simulation tier (default: config, modal)")
-    parser.add_argument("--out", default=None, help=f"directory for summary.json and the PNG charts (with --plot, default {DEFAULT_OUT})")
+    parser.add_argument(
+        "--out",
+        default=None,
+        help=f"directory for summary.json and the PNG charts (with --plot, default {DEFAULT_OUT})",
+    )
     parser.add_argument("--plot", action="store_true", help="write the PNG charts into --out")
     add_config_option(parser)
     parser.set_defaults(func=run)
@@ -66,13 +96,21 @@ def run(args: argparse.Namespace) -> int:
     params = load_parameters(args.config)
     ev = evaluation_params(params)
     sets = _names(args.sets, SCENE_SETS, "--sets")
-    methods = _names(args.methods, available_methods(), "--methods") if args.methods else available_methods()
+    methods = (
+        _names(args.methods, available_methods(), "--methods")
+        if args.methods
+        else available_methods()
+    )
     chosen = settings(
         params,
         _numbers(args.noise, "--noise", 0.0, 1e3) if args.noise else None,
         args.rates.split(",") if args.rates else None,
     )
-    windows = [w / 1e3 for w in _numbers(args.windows_ms, "--windows-ms", 0.0, 1e3)] if args.windows_ms else []
+    windows = (
+        [w / 1e3 for w in _numbers(args.windows_ms, "--windows-ms", 0.0, 1e3)]
+        if args.windows_ms
+        else []
+    )
     count = args.count if args.count is not None else int(ev["impacts_per_set"])
     if count < 1:
         raise InputError("--count", count, "must be >= 1")
@@ -85,16 +123,40 @@ def run(args: argparse.Namespace) -> int:
     for scene_set in sets:
         if scene_set in FOREIGN_SCENES:
             per_support = int(ev["foreign_impacts_per_support"])
-            supports = max(1, math.ceil(count / per_support)) if args.count is not None else int(ev["foreign_supports"])
+            supports = (
+                max(1, math.ceil(count / per_support))
+                if args.count is not None
+                else int(ev["foreign_supports"])
+            )
             profiles = _names(args.profiles, FOREIGN_PROFILES, "--profiles")
             # Each support with each chosen sensor setting (compared with the nominal support at
             # the same setting), and with sensors drawn with it (rates 1-50 kHz, noise x0.4-4).
-            records += run_foreign(params, supports, per_support, int(ev["seeds"][scene_set]), methods, args.tier, profiles,
-                                   [*chosen, None], scene_set)
+            records += run_foreign(
+                params,
+                supports,
+                per_support,
+                int(ev["seeds"][scene_set]),
+                methods,
+                args.tier,
+                profiles,
+                [*chosen, None],
+                scene_set,
+            )
             continue
-        records += run_set(params, scene_set, count, int(ev["seeds"][scene_set]), chosen, methods, args.tier, windows)
+        records += run_set(
+            params,
+            scene_set,
+            count,
+            int(ev["seeds"][scene_set]),
+            chosen,
+            methods,
+            args.tier,
+            windows,
+        )
     items = summaries(records, ev["size_bins_m"])
-    print(f"{count} impacts per set, {len(chosen)} settings, tier {args.tier or ev['tier']}, {time.monotonic() - started:.0f} s")
+    print(
+        f"{count} impacts per set, {len(chosen)} settings, tier {args.tier or ev['tier']}, {time.monotonic() - started:.0f} s"
+    )
     print(format_table(items))
     print("\nconfusion (nominal noise):")
     for s in items:
@@ -116,7 +178,9 @@ def run(args: argparse.Namespace) -> int:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         with open_output_file("--out", out / "summary.json") as stream:
-            stream.write((json.dumps([s.as_dict() for s in items], indent=1) + "\n").encode("utf-8"))
+            stream.write(
+                (json.dumps([s.as_dict() for s in items], indent=1) + "\n").encode("utf-8")
+            )
         print(f"\nwrote {out / 'summary.json'}")
         if args.plot:
             from tail_beam_id.study.charts import write_all
@@ -132,17 +196,31 @@ LARGE_RADIUS_M = 0.05
 AFTER_END_TARGET_MS = 20.0  # issue 10: a label at most this long after the contact's end, ms
 
 
-def shipped_targets(records: Sequence[Record], items: Sequence[Summary], window_s: float) -> list[str]:
+def shipped_targets(
+    records: Sequence[Record], items: Sequence[Summary], window_s: float
+) -> list[str]:
     """Issue 10's targets, per stream setting at nominal noise and method (configured window):
     accuracy over every size and over radius >= 50 mm with extra labels counted against it
     (correct / (impacts + extra labels)), and the data latency from the contact's end."""
     lines = []
     for s in items:
-        if s.scene_set != "stream" or not s.setting.endswith("/x1") or abs(s.window_s - window_s) > 1e-9:
+        if (
+            s.scene_set != "stream"
+            or not s.setting.endswith("/x1")
+            or abs(s.window_s - window_s) > 1e-9
+        ):
             continue
-        chosen = [r for r in records if (r.scene_set, r.setting, r.method, r.window_s) == (s.scene_set, s.setting, s.method, s.window_s)]
+        chosen = [
+            r
+            for r in records
+            if (r.scene_set, r.setting, r.method, r.window_s)
+            == (s.scene_set, s.setting, s.method, s.window_s)
+        ]
         parts = []
-        for label, low, target in (("all sizes", 0.0, STREAM_ALL_TARGET), (f"radius >= {1e3 * LARGE_RADIUS_M:g} mm", LARGE_RADIUS_M, STREAM_LARGE_TARGET)):
+        for label, low, target in (
+            ("all sizes", 0.0, STREAM_ALL_TARGET),
+            (f"radius >= {1e3 * LARGE_RADIUS_M:g} mm", LARGE_RADIUS_M, STREAM_LARGE_TARGET),
+        ):
             group_ = [r for r in chosen if r.radius_m >= low]
             extras = sum(r.extra_labels for r in group_)
             hits = sum(r.correct for r in group_)
@@ -150,18 +228,24 @@ def shipped_targets(records: Sequence[Record], items: Sequence[Summary], window_
             if not total:
                 continue
             ci = wilson(hits, total)
-            parts.append(f"{label} {100 * hits / total:.1f}% (CI {100 * ci[0]:.1f}-{100 * ci[1]:.1f}, n {len(group_)}, "
-                         f"missed {sum(1 for r in group_ if r.label is None)}, extra {extras}) -> >= {100 * target:g}%: "
-                         f"{'met' if hits / total >= target else 'NOT met'}")
+            parts.append(
+                f"{label} {100 * hits / total:.1f}% (CI {100 * ci[0]:.1f}-{100 * ci[1]:.1f}, n {len(group_)}, "
+                f"missed {sum(1 for r in group_ if r.label is None)}, extra {extras}) -> >= {100 * target:g}%: "
+                f"{'met' if hits / total >= target else 'NOT met'}"
+            )
         after = s.extra.get("data_latency_after_contact_end_ms", {})
         if after and not math.isnan(after.get("max", math.nan)):
-            parts.append(f"data after contact end median {after['median']:.1f} / p95 {after['p95']:.1f} / max {after['max']:.1f} ms "
-                         f"-> <= {AFTER_END_TARGET_MS:g} ms: {'met' if after['max'] <= AFTER_END_TARGET_MS else 'NOT met'}")
+            parts.append(
+                f"data after contact end median {after['median']:.1f} / p95 {after['p95']:.1f} / max {after['max']:.1f} ms "
+                f"-> <= {AFTER_END_TARGET_MS:g} ms: {'met' if after['max'] <= AFTER_END_TARGET_MS else 'NOT met'}"
+            )
         lines.append(f"stream {s.setting} {s.method}: " + "; ".join(parts))
     return lines
 
 
-PAPER_TARGET = 0.995  # issue 4 and issue 9: the paper scene, on the nominal support and on every foreign one
+PAPER_TARGET = (
+    0.995  # issue 4 and issue 9: the paper scene, on the nominal support and on every foreign one
+)
 
 
 def foreign_paper_line(s: Summary, records: Sequence[Record]) -> str:
@@ -177,10 +261,12 @@ def foreign_paper_line(s: Summary, records: Sequence[Record]) -> str:
     shares = {k: right[k] / total[k] for k in total}
     worst = min(shares, key=lambda k: (shares[k], k))
     below = sum(1 for v in shares.values() if v < PAPER_TARGET)
-    return (f"paper scene on foreign supports {s.setting} {s.method}: {100 * s.accuracy:.1f}% (CI {100 * s.accuracy_ci[0]:.1f}-"
-            f"{100 * s.accuracy_ci[1]:.1f}, n {s.n}); worst support #{worst} {right[worst]}/{total[worst]}; {below} of {len(shares)} "
-            f"supports below {100 * PAPER_TARGET:g}% -> target >= {100 * PAPER_TARGET:g}% on every support: "
-            f"{'met' if below == 0 else 'NOT met'}; wrong at >= 0.9 {s.extra['confident_wrong']}, ECE {s.extra['ece']:.3f}")
+    return (
+        f"paper scene on foreign supports {s.setting} {s.method}: {100 * s.accuracy:.1f}% (CI {100 * s.accuracy_ci[0]:.1f}-"
+        f"{100 * s.accuracy_ci[1]:.1f}, n {s.n}); worst support #{worst} {right[worst]}/{total[worst]}; {below} of {len(shares)} "
+        f"supports below {100 * PAPER_TARGET:g}% -> target >= {100 * PAPER_TARGET:g}% on every support: "
+        f"{'met' if below == 0 else 'NOT met'}; wrong at >= 0.9 {s.extra['confident_wrong']}, ECE {s.extra['ece']:.3f}"
+    )
 
 
 def targets(records: Sequence[Record], items: Sequence[Summary]) -> list[str]:
@@ -188,7 +274,9 @@ def targets(records: Sequence[Record], items: Sequence[Summary]) -> list[str]:
     lines = []
     groups = group(records)
 
-    def best(scene_set: str, setting: str, min_radius: float = 0.0) -> tuple[str, float, tuple[float, float], int] | None:
+    def best(
+        scene_set: str, setting: str, min_radius: float = 0.0
+    ) -> tuple[str, float, tuple[float, float], int] | None:
         found = []
         for (s, st, method, window), rs in groups.items():
             if s == scene_set and st == setting:
@@ -201,41 +289,74 @@ def targets(records: Sequence[Record], items: Sequence[Summary]) -> list[str]:
     for setting in settings_x1:
         paper = best("paper", setting)
         if paper:
-            lines.append(f"paper {setting}: best {paper[0]} {100 * paper[1]:.1f}% (CI {100 * paper[2][0]:.1f}-{100 * paper[2][1]:.1f}, n {paper[3]}) "
-                         f"-> target >= 99.5%: {'met' if paper[1] >= 0.995 else 'NOT met'}")
+            lines.append(
+                f"paper {setting}: best {paper[0]} {100 * paper[1]:.1f}% (CI {100 * paper[2][0]:.1f}-{100 * paper[2][1]:.1f}, n {paper[3]}) "
+                f"-> target >= 99.5%: {'met' if paper[1] >= 0.995 else 'NOT met'}"
+            )
         stream = best("stream", setting, 0.05)
         if stream:
-            lines.append(f"stream {setting}, radius >= 50 mm: best {stream[0]} {100 * stream[1]:.1f}% (CI {100 * stream[2][0]:.1f}-{100 * stream[2][1]:.1f}, n {stream[3]}) "
-                         f"-> target >= 95%: {'met' if stream[1] >= 0.95 else 'NOT met'}")
+            lines.append(
+                f"stream {setting}, radius >= 50 mm: best {stream[0]} {100 * stream[1]:.1f}% (CI {100 * stream[2][0]:.1f}-{100 * stream[2][1]:.1f}, n {stream[3]}) "
+                f"-> target >= 95%: {'met' if stream[1] >= 0.95 else 'NOT met'}"
+            )
         for s in items:
             if s.scene_set == "stream" and s.setting == setting:
-                twin = next((m for m in items if m.scene_set == "mismatch" and m.setting == setting and m.method == s.method and m.window_s == s.window_s), None)
+                twin = next(
+                    (
+                        m
+                        for m in items
+                        if m.scene_set == "mismatch"
+                        and m.setting == setting
+                        and m.method == s.method
+                        and m.window_s == s.window_s
+                    ),
+                    None,
+                )
                 if twin:
                     gap = 100 * (s.accuracy - twin.accuracy)
-                    lines.append(f"mismatch {setting} {s.method} {1e3 * s.window_s:g} ms: {100 * twin.accuracy:.1f}% vs stream {100 * s.accuracy:.1f}% "
-                                 f"({gap:+.1f} points) -> within 3 points: {'met' if gap <= 3.0 else 'NOT met'}")
+                    lines.append(
+                        f"mismatch {setting} {s.method} {1e3 * s.window_s:g} ms: {100 * twin.accuracy:.1f}% vs stream {100 * s.accuracy:.1f}% "
+                        f"({gap:+.1f} points) -> within 3 points: {'met' if gap <= 3.0 else 'NOT met'}"
+                    )
     for s in items:
         if s.scene_set == "foreign_paper":
-            lines.append(foreign_paper_line(s, groups[(s.scene_set, s.setting, s.method, s.window_s)]))
+            lines.append(
+                foreign_paper_line(s, groups[(s.scene_set, s.setting, s.method, s.window_s)])
+            )
         elif s.scene_set in FOREIGN_SCENES:
             # The foreign supports at a sensor setting against the nominal support's stream scene
             # at the same setting (issue 9: within 5 points at each rate).
             sensors = s.setting.rsplit("/", 1)[0]
-            twin = next((m for m in items if m.scene_set == "stream" and m.setting == sensors and m.method == s.method
-                         and m.window_s == s.window_s), None)
+            twin = next(
+                (
+                    m
+                    for m in items
+                    if m.scene_set == "stream"
+                    and m.setting == sensors
+                    and m.method == s.method
+                    and m.window_s == s.window_s
+                ),
+                None,
+            )
             gap = ""
             if twin is not None:
                 points = 100 * (s.accuracy - twin.accuracy)
                 gap = f" ({points:+.1f} points vs stream {twin.setting} {100 * twin.accuracy:.1f}% -> within 5: {'met' if points >= -5.0 else 'NOT met'})"
-            lines.append(f"foreign {s.setting} {s.method} {1e3 * s.window_s:g} ms: {100 * s.accuracy:.1f}% (CI {100 * s.accuracy_ci[0]:.1f}-{100 * s.accuracy_ci[1]:.1f}, n {s.n})"
-                         f"{gap}; extra labels {s.false_labels} ({100 * s.false_labels / s.n:.1f}%, target <= 1%); "
-                         f"wrong at >= 0.9 {s.extra['confident_wrong']} ({100 * s.extra['confident_wrong'] / s.n:.1f}%, target <= 1%; "
-                         f"{s.extra['confident_wrong_if_calibrated']:.1f} if those labels' confidences were exact); "
-                         f"ECE {s.extra['ece']:.3f} (target <= 0.05)")
+            lines.append(
+                f"foreign {s.setting} {s.method} {1e3 * s.window_s:g} ms: {100 * s.accuracy:.1f}% (CI {100 * s.accuracy_ci[0]:.1f}-{100 * s.accuracy_ci[1]:.1f}, n {s.n})"
+                f"{gap}; extra labels {s.false_labels} ({100 * s.false_labels / s.n:.1f}%, target <= 1%); "
+                f"wrong at >= 0.9 {s.extra['confident_wrong']} ({100 * s.extra['confident_wrong'] / s.n:.1f}%, target <= 1%; "
+                f"{s.extra['confident_wrong_if_calibrated']:.1f} if those labels' confidences were exact); "
+                f"ECE {s.extra['ece']:.3f} (target <= 0.05)"
+            )
     compute = [s.compute_ms["median"] for s in items if not math.isnan(s.compute_ms["median"])]
     latency = [s.data_latency_ms["max"] for s in items if not math.isnan(s.data_latency_ms["max"])]
     if compute:
-        lines.append(f"compute per impact, worst group median {max(compute):.2f} ms -> target < 5 ms: {'met' if max(compute) < 5.0 else 'NOT met'}")
+        lines.append(
+            f"compute per impact, worst group median {max(compute):.2f} ms -> target < 5 ms: {'met' if max(compute) < 5.0 else 'NOT met'}"
+        )
     if latency:
-        lines.append(f"label after contact (data latency), worst case {max(latency):.1f} ms -> target <= 50 ms: {'met' if max(latency) <= 50.0 else 'NOT met'}")
+        lines.append(
+            f"label after contact (data latency), worst case {max(latency):.1f} ms -> target <= 50 ms: {'met' if max(latency) <= 50.0 else 'NOT met'}"
+        )
     return lines

@@ -16,12 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.stream.identifier import StreamIdentifier
-from tail_beam_id.stream.label import Label
-from tail_beam_id.methods import available_methods
-from tail_beam_id.stream.replay import replay
 from tail_beam_id.calibration.offline import SupportProfile, with_profile
 from tail_beam_id.calibration.offline import calibrate as calibrate_support
+from tail_beam_id.methods import available_methods
+from tail_beam_id.stream.identifier import StreamIdentifier
+from tail_beam_id.stream.label import Label
+from tail_beam_id.stream.replay import replay
 from tail_beam_sim.bags.read import IDENTIFY_TOPICS, BagSensors, open_segments_note, read_runs
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
@@ -29,19 +29,39 @@ from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("identify", help="label every impact of a recorded bag (one JSON object per line)")
-    parser.add_argument("bag", help="rosbag2 bag directory holding the support's jack_pressure, imu, vibration and/or rebound_velocity")
-    parser.add_argument("--method", choices=available_methods(), help="identification method (default: identification.method)")
-    parser.add_argument("--calibrate", action=argparse.BooleanOptionalAction, default=None,
-                        help="calibrate to the bag's own support first (tail-beam calibrate), then identify "
-                             "(default: identification.self_calibrate, on); --no-calibrate gives id_node's labels")
-    parser.add_argument("--namespace", help="the support to identify when the bag holds several, e.g. /support_07")
+    parser = sub.add_parser(
+        "identify", help="label every impact of a recorded bag (one JSON object per line)"
+    )
+    parser.add_argument(
+        "bag",
+        help="rosbag2 bag directory holding the support's jack_pressure, imu, vibration and/or rebound_velocity",
+    )
+    parser.add_argument(
+        "--method",
+        choices=available_methods(),
+        help="identification method (default: identification.method)",
+    )
+    parser.add_argument(
+        "--calibrate",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="calibrate to the bag's own support first (tail-beam calibrate), then identify "
+        "(default: identification.self_calibrate, on); --no-calibrate gives id_node's labels",
+    )
+    parser.add_argument(
+        "--namespace", help="the support to identify when the bag holds several, e.g. /support_07"
+    )
     add_config_option(parser)
     parser.set_defaults(func=run)
 
 
-def identify_bag(bag: str, method: str | None = None, config: list[str] | None = None, calibrate: bool | None = None,
-                 namespace: str | None = None) -> list[dict]:
+def identify_bag(
+    bag: str,
+    method: str | None = None,
+    config: list[str] | None = None,
+    calibrate: bool | None = None,
+    namespace: str | None = None,
+) -> list[dict]:
     """Labels of every impact in ``bag`` (of the support ``namespace`` when it holds several),
     in impact_stamp order; with ``calibrate`` (default: ``identification.self_calibrate``), on
     the bag's own support profile (labels say ``calibrated``). Any one of the sensor topics will
@@ -64,8 +84,11 @@ def identify_bag(bag: str, method: str | None = None, config: list[str] | None =
             except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
                 # Self-calibration is a refinement: a recording it cannot read is still identified,
                 # on the configured support, and the reason is said.
-                print(f"identify: {data.namespace} self-calibration failed ({type(exc).__name__}: {exc}); identified on the "
-                      "configured support (labels say calibrated: false)", file=sys.stderr)
+                print(
+                    f"identify: {data.namespace} self-calibration failed ({type(exc).__name__}: {exc}); identified on the "
+                    "configured support (labels say calibrated: false)",
+                    file=sys.stderr,
+                )
             else:
                 print(f"identify: {data.namespace} {describe_profile(profile)}", file=sys.stderr)
                 run_params = with_profile(params, profile)
@@ -88,34 +111,58 @@ def report_reading(data: BagSensors, verb: str, runs: int = 1, bag: str | None =
     if note:
         print(f"{verb}: {note}", file=sys.stderr)
     if data.vibration_gaps:
-        print(f"{verb}: {data.namespace} vibration: {len(data.vibration_gaps)} gap(s), {data.vibration_lost_samples} samples lost "
-              f"(first missing index {data.vibration_gaps[0][0]})", file=sys.stderr)
+        print(
+            f"{verb}: {data.namespace} vibration: {len(data.vibration_gaps)} gap(s), {data.vibration_lost_samples} samples lost "
+            f"(first missing index {data.vibration_gaps[0][0]})",
+            file=sys.stderr,
+        )
     for name, n in data.repeated_samples.items():
-        print(f"{verb}: {data.namespace} {name}: {n} sample(s) at a stamp already read left out (the first kept)", file=sys.stderr)
+        print(
+            f"{verb}: {data.namespace} {name}: {n} sample(s) at a stamp already read left out (the first kept)",
+            file=sys.stderr,
+        )
     for name, (log_s, back_s) in data.time_jumps.items():
-        print(f"{verb}: {data.namespace} {name}: stamps go back {back_s:.3f} s at log time {log_s:.3f} s (a restarted simulator or "
-              f"a looped replay): {runs} runs, each taken alone as id_node starts afresh there", file=sys.stderr)
+        print(
+            f"{verb}: {data.namespace} {name}: stamps go back {back_s:.3f} s at log time {log_s:.3f} s (a restarted simulator or "
+            f"a looped replay): {runs} runs, each taken alone as id_node starts afresh there",
+            file=sys.stderr,
+        )
 
 
 def describe_profile(profile: SupportProfile) -> str:
     """One line on what self-calibration measured (or that it kept config/)."""
     if not profile.calibrated:
-        return ("self-calibration: no clear sway of the beam in the jack pressure (too few impacts, or too short); "
-                "identified on the configured support (labels say calibrated: false)")
-    gain = f"{profile.impacts_used} impacts for the IMU gain" if profile.beam_inertia_about_hinge_kgm2 else "IMU gain not measured"
-    return (f"self-calibration: sway {profile.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus {profile.oil_bulk_modulus_pa:.3g} Pa, "
-            f"{gain}, {profile.describe_modes()}, {profile.describe_camera()}, {profile.describe_hysteresis()} (labels say calibrated: true; --no-calibrate for id_node's uncalibrated labels)")
+        return (
+            "self-calibration: no clear sway of the beam in the jack pressure (too few impacts, or too short); "
+            "identified on the configured support (labels say calibrated: false)"
+        )
+    gain = (
+        f"{profile.impacts_used} impacts for the IMU gain"
+        if profile.beam_inertia_about_hinge_kgm2
+        else "IMU gain not measured"
+    )
+    return (
+        f"self-calibration: sway {profile.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus {profile.oil_bulk_modulus_pa:.3g} Pa, "
+        f"{gain}, {profile.describe_modes()}, {profile.describe_camera()}, {profile.describe_hysteresis()} (labels say calibrated: true; --no-calibrate for id_node's uncalibrated labels)"
+    )
 
 
-def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | None = None, phase: str = "identifying",
-                     report: bool = True) -> list[Label]:
+def identify_sensors(
+    data: BagSensors,
+    params: dict[str, Any],
+    method: str | None = None,
+    phase: str = "identifying",
+    report: bool = True,
+) -> list[Label]:
     """Labels of the bag's sensor data under ``params``, in impact_stamp order; on a terminal,
     a progress line on stderr (``phase``) while a long recording is worked through. With
     ``report`` the samples and rebounds left out (not finite) are said on stderr: once per bag,
     not again for self-calibration's pass over the same data."""
     identifier = StreamIdentifier(method, params=params["identification"], model_params=params)
     pressure = PressureStream(data.pressure_stamp_s, data.pressure_pa, 0.0)
-    imu = ImuStream(data.imu_stamp_s, data.angular_velocity_radps, data.linear_acceleration_mps2, 0.0, 0.0)
+    imu = ImuStream(
+        data.imu_stamp_s, data.angular_velocity_radps, data.linear_acceleration_mps2, 0.0, 0.0
+    )
     rebounds = [Rebound(stamp, velocity, velocity) for stamp, velocity in data.rebounds]
     vibration = data.vibration if data.vibration.count else None
     line = ProgressLine(sys.stderr, f"identify: {data.namespace} {phase}")
@@ -125,22 +172,44 @@ def identify_sensors(data: BagSensors, params: dict[str, Any], method: str | Non
         return sorted(labels, key=lambda label: label.impact_stamp_s)
     refused = {name: n for name, n in identifier.refused_samples.items() if n}
     for name, n in refused.items():
-        print(f"identify: {data.namespace} {name}: {n} sample(s) with a non-finite stamp or value left out", file=sys.stderr)
+        print(
+            f"identify: {data.namespace} {name}: {n} sample(s) with a non-finite stamp or value left out",
+            file=sys.stderr,
+        )
     if identifier.refused_rebounds:
-        print(f"identify: {data.namespace} rebound_velocity: {identifier.refused_rebounds} message(s) with a non-finite "
-              "stamp or velocity left out", file=sys.stderr)
+        print(
+            f"identify: {data.namespace} rebound_velocity: {identifier.refused_rebounds} message(s) with a non-finite "
+            "stamp or velocity left out",
+            file=sys.stderr,
+        )
     if identifier.timing.suspect:
-        print(f"identify: {data.namespace} sensor timing: {identifier.timing.describe()}", file=sys.stderr)
+        print(
+            f"identify: {data.namespace} sensor timing: {identifier.timing.describe()}",
+            file=sys.stderr,
+        )
     return sorted(labels, key=lambda label: label.impact_stamp_s)
 
 
 def profile_of(data: BagSensors, params: dict[str, Any]) -> SupportProfile:
     """The support profile of a bag's sensor data (tail_beam_id.calibration.offline)."""
-    accel_z = data.linear_acceleration_mps2[:, 2] if data.linear_acceleration_mps2.size else np.zeros(0)
-    ringing = (data.vibration.sample_stamps_s(), data.vibration.accel_mps2) if data.vibration.count else None
-    return calibrate_support(params, (data.pressure_stamp_s, data.pressure_pa), (data.imu_stamp_s, accel_z),
-                             lambda calibrated: identify_sensors(data, calibrated, "statistical", phase="self-calibrating", report=False),
-                             ringing, [stamp for stamp, _ in data.rebounds])
+    accel_z = (
+        data.linear_acceleration_mps2[:, 2] if data.linear_acceleration_mps2.size else np.zeros(0)
+    )
+    ringing = (
+        (data.vibration.sample_stamps_s(), data.vibration.accel_mps2)
+        if data.vibration.count
+        else None
+    )
+    return calibrate_support(
+        params,
+        (data.pressure_stamp_s, data.pressure_pa),
+        (data.imu_stamp_s, accel_z),
+        lambda calibrated: identify_sensors(
+            data, calibrated, "statistical", phase="self-calibrating", report=False
+        ),
+        ringing,
+        [stamp for stamp, _ in data.rebounds],
+    )
 
 
 class ProgressLine:
@@ -159,7 +228,9 @@ class ProgressLine:
     def update(self, done_s: float, total_s: float) -> None:
         if not self.enabled or total_s < self.MIN_PROGRESS_S:
             return
-        self.stream.write(f"\r{self.what}: {done_s:.0f} of {total_s:.0f} s of data ({100.0 * done_s / total_s:.0f} %)")
+        self.stream.write(
+            f"\r{self.what}: {done_s:.0f} of {total_s:.0f} s of data ({100.0 * done_s / total_s:.0f} %)"
+        )
         self.stream.flush()
         self.shown = True
 

@@ -12,7 +12,14 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from tail_beam_id.methods.base import MODELS_DIR, Decision, Method, cap_confidence, load_model, sigmoid
+from tail_beam_id.methods.base import (
+    MODELS_DIR,
+    Decision,
+    Method,
+    cap_confidence,
+    load_model,
+    sigmoid,
+)
 from tail_beam_sim.errors import InputError
 
 
@@ -56,5 +63,13 @@ def build_method(name: str, params: Mapping[str, Any], model_path: str | None = 
 
 
 __all__ = [
-    "Decision", "METHODS", "Method", "MODELS_DIR", "available_methods", "build_method", "cap_confidence", "load_model", "sigmoid",
+    "Decision",
+    "METHODS",
+    "Method",
+    "MODELS_DIR",
+    "available_methods",
+    "build_method",
+    "cap_confidence",
+    "load_model",
+    "sigmoid",
 ]

@@ -65,9 +65,15 @@ def load_model(name: str, path: str | Path | None = None) -> dict[str, Any]:
     try:
         return json.loads(file.read_text(encoding="utf-8"))
     except OSError as exc:
-        raise InputError(f"identification.{name}.model", str(file), f"must be a readable JSON file ({exc.strerror})") from None
+        raise InputError(
+            f"identification.{name}.model",
+            str(file),
+            f"must be a readable JSON file ({exc.strerror})",
+        ) from None
     except json.JSONDecodeError as exc:
-        raise InputError(f"identification.{name}.model", str(file), f"must be valid JSON ({exc.msg})") from None
+        raise InputError(
+            f"identification.{name}.model", str(file), f"must be valid JSON ({exc.msg})"
+        ) from None
 
 
 __all__ = ["Decision", "MODELS_DIR", "Method", "cap_confidence", "load_model", "sigmoid"]

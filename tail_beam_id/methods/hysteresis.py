@@ -39,10 +39,15 @@ EM_ITERATIONS = 100  # iterations of the coal share's fit in each bin
 SHARE_LIMITS = (0.02, 0.98)  # the coal share a bin's fit may take
 
 
-def hysteresis_latent(law: str, contact_damping_scale: float, reference_restitution: float) -> float:
+def hysteresis_latent(
+    law: str, contact_damping_scale: float, reference_restitution: float
+) -> float:
     """The support's latent u: log(chi of ``law`` times its scale / chi of the calibrated law),
     both at ``reference_restitution``."""
-    return math.log(float(damping_factor(law, reference_restitution, contact_damping_scale)) / float(calibrated_chi(reference_restitution)))
+    return math.log(
+        float(damping_factor(law, reference_restitution, contact_damping_scale))
+        / float(calibrated_chi(reference_restitution))
+    )
 
 
 def latent_bin(latent: float, bin_edges: Sequence[float]) -> int:
@@ -102,7 +107,9 @@ def hysteresis_shift(model: Mapping[str, Any], z: np.ndarray, weights: Sequence[
     by the support's bins, less the one weighted by the bins the impact alone suggests."""
     joint = joint_probabilities(model, z[None, :])[0]
     k = joint.size // 2
-    p = 1.0 / (1.0 + np.exp(-np.clip(bin_logits(joint) / float(model["temperature"]), -700.0, 700.0)))
+    p = 1.0 / (
+        1.0 + np.exp(-np.clip(bin_logits(joint) / float(model["temperature"]), -700.0, 700.0))
+    )
     alone = joint[:k] + joint[k:]
     known = float(np.dot(np.asarray(weights, dtype=float), p))
     unknown = float(np.dot(alone / alone.sum(), p))
@@ -130,7 +137,9 @@ def _logit(p: float) -> float:
     return math.log(p / (1.0 - p))
 
 
-def recording_weights(model: Mapping[str, Any], features: Sequence[Mapping[str, float]], min_impacts: int) -> tuple[list[float] | None, int]:
+def recording_weights(
+    model: Mapping[str, Any], features: Sequence[Mapping[str, float]], min_impacts: int
+) -> tuple[list[float] | None, int]:
     """(the bins' weights, the impacts they rest on) for a recording's impacts' features; the
     weights are None with fewer than ``min_impacts`` usable impacts (all the model's features
     there, inside its envelope)."""

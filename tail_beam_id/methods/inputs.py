@@ -9,7 +9,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 
-def base_vector(features: Mapping[str, float], names: Sequence[tuple[str, float | None]]) -> np.ndarray:
+def base_vector(
+    features: Mapping[str, float], names: Sequence[tuple[str, float | None]]
+) -> np.ndarray:
     """The model's inputs before expansion: logs of the clipped magnitudes (each name's floor,
     in the feature's unit), raw values where the floor is None (signs, ratios near 1)."""
     values = []

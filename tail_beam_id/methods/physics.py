@@ -23,10 +23,14 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr
 
-from tail_beam_id.signals.features import VIBRATION_CHANNEL
 from tail_beam_id.methods.base import Decision
-from tail_beam_sim.physics.contact import effective_modulus_pa, hertz_constant, hertz_elastic_impact
+from tail_beam_id.signals.features import VIBRATION_CHANNEL
 from tail_beam_sim.errors import InputError, require_int, require_range, require_section
+from tail_beam_sim.physics.contact import (
+    effective_modulus_pa,
+    hertz_constant,
+    hertz_elastic_impact,
+)
 from tail_beam_sim.physics.materials import material_table, sphere_mass_kg
 from tail_beam_sim.physics.support import Support
 
@@ -60,21 +64,53 @@ class PhysicsConfig:
             value = p.get(name)
             if not isinstance(value, (list, tuple)) or len(value) != 2:
                 raise InputError(f"identification.physics.{name}", value, "must be [low, high]")
-            low = require_range(f"identification.physics.{name}[0]", value[0], 0.0, None, low_open=True)
+            low = require_range(
+                f"identification.physics.{name}[0]", value[0], 0.0, None, low_open=True
+            )
             return low, require_range(f"identification.physics.{name}[1]", value[1], low, None)
 
         return cls(
             prior_radius_m=pair("prior_radius_m"),
             prior_drop_height_m=pair("prior_drop_height_m"),
             prior_position_m=pair("prior_position_m"),
-            prior_samples=require_int("identification.physics.prior_samples", p.get("prior_samples"), 100, 10**6),
+            prior_samples=require_int(
+                "identification.physics.prior_samples", p.get("prior_samples"), 100, 10**6
+            ),
             seed=int(p.get("seed", 0)),
-            moment_model_error=require_range("identification.physics.moment_model_error", p.get("moment_model_error"), 0.0, 1.0),
-            duration_model_error=require_range("identification.physics.duration_model_error", p.get("duration_model_error"), 0.0, 1.0),
-            rebound_noise_mps=require_range("identification.physics.rebound_noise_mps", p.get("rebound_noise_mps"), 0.0, None, low_open=True),
-            rebound_noise_fraction=require_range("identification.physics.rebound_noise_fraction", p.get("rebound_noise_fraction"), 0.0, 1.0),
-            outlier_log_likelihood=require_range("identification.physics.outlier_log_likelihood", p.get("outlier_log_likelihood"), None, 0.0),
-            outlier_confidence_cap=require_range("identification.physics.outlier_confidence_cap", p.get("outlier_confidence_cap"), 0.5, 1.0),
+            moment_model_error=require_range(
+                "identification.physics.moment_model_error", p.get("moment_model_error"), 0.0, 1.0
+            ),
+            duration_model_error=require_range(
+                "identification.physics.duration_model_error",
+                p.get("duration_model_error"),
+                0.0,
+                1.0,
+            ),
+            rebound_noise_mps=require_range(
+                "identification.physics.rebound_noise_mps",
+                p.get("rebound_noise_mps"),
+                0.0,
+                None,
+                low_open=True,
+            ),
+            rebound_noise_fraction=require_range(
+                "identification.physics.rebound_noise_fraction",
+                p.get("rebound_noise_fraction"),
+                0.0,
+                1.0,
+            ),
+            outlier_log_likelihood=require_range(
+                "identification.physics.outlier_log_likelihood",
+                p.get("outlier_log_likelihood"),
+                None,
+                0.0,
+            ),
+            outlier_confidence_cap=require_range(
+                "identification.physics.outlier_confidence_cap",
+                p.get("outlier_confidence_cap"),
+                0.5,
+                1.0,
+            ),
         )
 
 
@@ -101,16 +137,22 @@ def duration_ratio(restitution: np.ndarray, table: Mapping[str, Any]) -> np.ndar
     return np.interp(restitution, table["restitution"], table["ratio"])
 
 
-def build_bank(config: PhysicsConfig, params: Mapping[str, Any], ratio_table: Mapping[str, Any]) -> PriorBank:
+def build_bank(
+    config: PhysicsConfig, params: Mapping[str, Any], ratio_table: Mapping[str, Any]
+) -> PriorBank:
     """Draw the prior particles (seeded): equal coal and gangue odds, gangue materials equal."""
     materials = material_table(params)
     support = Support.from_params(params["support"], materials)
-    names = tuple(sorted(n for n, m in materials.items() if m.material_class in ("coal", "gangue")))
+    names = tuple(
+        sorted(n for n, m in materials.items() if m.material_class in ("coal", "gangue"))
+    )
     coal = [n for n in names if materials[n].is_coal]
     gangue = [n for n in names if not materials[n].is_coal]
     rng = np.random.default_rng(config.seed)
     n = config.prior_samples
-    columns: dict[str, list[np.ndarray]] = {k: [] for k in ("material", "log_prior", "rho", "estar", "r", "v", "e")}
+    columns: dict[str, list[np.ndarray]] = {
+        k: [] for k in ("material", "log_prior", "rho", "estar", "r", "v", "e")
+    }
     for index, name in enumerate(names):
         m = materials[name]
         share = 0.5 / len(coal) if m.is_coal else 0.5 / max(len(gangue), 1)
@@ -130,11 +172,22 @@ def build_bank(config: PhysicsConfig, params: Mapping[str, Any], ratio_table: Ma
     elastic = hertz_elastic_impact(hertz_constant(cat["estar"], cat["r"]), mass, cat["v"])
     duration = elastic["duration_s"] * duration_ratio(cat["e"], ratio_table)
     return PriorBank(
-        material=cat["material"].astype(int), names=names,
+        material=cat["material"].astype(int),
+        names=names,
         is_coal=np.array([materials[names[i]].is_coal for i in cat["material"].astype(int)]),
-        log_prior=cat["log_prior"], density_kgpm3=cat["rho"], modulus_pa=cat["estar"], radius_m=cat["r"],
-        speed_mps=cat["v"], restitution=cat["e"], impulse_ns=mass * cat["v"] * (1.0 + cat["e"]),
-        log_impulse_span=np.log(mass * cat["v"] * (1.0 + cat["e"]) * (config.prior_position_m[1] - config.prior_position_m[0])),
+        log_prior=cat["log_prior"],
+        density_kgpm3=cat["rho"],
+        modulus_pa=cat["estar"],
+        radius_m=cat["r"],
+        speed_mps=cat["v"],
+        restitution=cat["e"],
+        impulse_ns=mass * cat["v"] * (1.0 + cat["e"]),
+        log_impulse_span=np.log(
+            mass
+            * cat["v"]
+            * (1.0 + cat["e"])
+            * (config.prior_position_m[1] - config.prior_position_m[0])
+        ),
         duration_s=duration,
     )
 
@@ -144,21 +197,39 @@ class PhysicsMethod:
 
     name = "physics"
 
-    def __init__(self, config: PhysicsConfig, bank: PriorBank, timing: list[Mapping[str, float]],
-                 timing_vibration: list[Mapping[str, float]] | None = None) -> None:
+    def __init__(
+        self,
+        config: PhysicsConfig,
+        bank: PriorBank,
+        timing: list[Mapping[str, float]],
+        timing_vibration: list[Mapping[str, float]] | None = None,
+    ) -> None:
         self.config = config
         self.bank = bank
         self.timing = sorted(timing, key=lambda t: t["imu_period_s"])
         # The lag when the accelerometer is the channel (its anti-alias filter delays the onset);
         # the IMU's when the model file has none.
-        self.timing_vibration = sorted(timing_vibration, key=lambda t: t["imu_period_s"]) if timing_vibration else self.timing
+        self.timing_vibration = (
+            sorted(timing_vibration, key=lambda t: t["imu_period_s"])
+            if timing_vibration
+            else self.timing
+        )
         self.rebound_speed_mps = bank.restitution * bank.speed_mps
-        self._duration_terms: dict[tuple[bool, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._duration_terms: dict[
+            tuple[bool, float], tuple[np.ndarray, np.ndarray, np.ndarray]
+        ] = {}
 
     @classmethod
     def from_model(cls, model: Mapping[str, Any], params: Mapping[str, Any]) -> PhysicsMethod:
-        config = PhysicsConfig.from_params(require_section("identification.physics", params["identification"].get("physics")))
-        return cls(config, build_bank(config, params, model["duration_ratio"]), model["timing"], model.get("timing_vibration"))
+        config = PhysicsConfig.from_params(
+            require_section("identification.physics", params["identification"].get("physics"))
+        )
+        return cls(
+            config,
+            build_bank(config, params, model["duration_ratio"]),
+            model["timing"],
+            model.get("timing_vibration"),
+        )
 
     def _lag(self, period_s: float, vibration: bool = False) -> Mapping[str, float]:
         """The camera-minus-onset lag model at this IMU (or, with ``vibration``, accelerometer)
@@ -173,13 +244,17 @@ class PhysicsMethod:
             "std_s": float(np.interp(x, log_p, [t["std_s"] for t in table])),
         }
 
-    def _duration_model(self, period_s: float, vibration: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _duration_model(
+        self, period_s: float, vibration: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per prior particle: expected camera-minus-onset delay (s), 1 / its spread (1/s) and
         that reciprocal's log, for the channel's lag model at this period (cached per period)."""
         lag = self._lag(period_s, vibration)
         key = (vibration, round(period_s, 9))
         if key not in self._duration_terms and len(self._duration_terms) >= DURATION_CACHE_SIZE:
-            self._duration_terms.pop(next(iter(self._duration_terms)))  # one support streams at one rate: keep a few
+            self._duration_terms.pop(
+                next(iter(self._duration_terms))
+            )  # one support streams at one rate: keep a few
         if key not in self._duration_terms:
             b = self.bank
             sigma = np.hypot(lag["std_s"], self.config.duration_model_error * b.duration_s)
@@ -192,7 +267,9 @@ class PhysicsMethod:
         log_l = np.zeros(b.impulse_ns.size)
         moment = features.get("moment_impulse_nms")
         if moment is not None:
-            sigma = math.hypot(features.get("moment_impulse_sigma_nms", 0.0), c.moment_model_error * abs(moment))
+            sigma = math.hypot(
+                features.get("moment_impulse_sigma_nms", 0.0), c.moment_model_error * abs(moment)
+            )
             low, high = c.prior_position_m
             upper = (b.impulse_ns * high - moment) / sigma
             lower = (b.impulse_ns * low - moment) / sigma
@@ -203,11 +280,16 @@ class PhysicsMethod:
             log_l += log_mass - b.log_impulse_span
         speed = features.get("rebound_speed_mps")
         if speed is not None:
-            sigma = math.hypot(c.rebound_noise_mps + c.rebound_noise_fraction * abs(speed), features.get("rebound_cross_mps", 0.0))
+            sigma = math.hypot(
+                c.rebound_noise_mps + c.rebound_noise_fraction * abs(speed),
+                features.get("rebound_cross_mps", 0.0),
+            )
             log_l += -0.5 * ((speed - self.rebound_speed_mps) / sigma) ** 2 - math.log(sigma)
         delay = features.get("rebound_delay_s")
         if delay is not None and "imu_period_s" in features:
-            expected, inverse_sigma, log_inverse_sigma = self._duration_model(features["imu_period_s"], bool(features.get(VIBRATION_CHANNEL)))
+            expected, inverse_sigma, log_inverse_sigma = self._duration_model(
+                features["imu_period_s"], bool(features.get(VIBRATION_CHANNEL))
+            )
             log_l += log_inverse_sigma - 0.5 * ((delay - expected) * inverse_sigma) ** 2
         return log_l
 
@@ -249,11 +331,18 @@ class PhysicsMethod:
         best = 0.0
         speed = features.get("rebound_speed_mps")
         if speed is not None:
-            best -= math.log(math.hypot(c.rebound_noise_mps + c.rebound_noise_fraction * abs(speed), features.get("rebound_cross_mps", 0.0)))
+            best -= math.log(
+                math.hypot(
+                    c.rebound_noise_mps + c.rebound_noise_fraction * abs(speed),
+                    features.get("rebound_cross_mps", 0.0),
+                )
+            )
         delay = features.get("rebound_delay_s")
         if delay is not None and "imu_period_s" in features:
             lag = self._lag(features["imu_period_s"], bool(features.get(VIBRATION_CHANNEL)))
-            best -= math.log(math.hypot(lag["std_s"], c.duration_model_error * max(delay - lag["mean_s"], 1e-5)))
+            best -= math.log(
+                math.hypot(lag["std_s"], c.duration_model_error * max(delay - lag["mean_s"], 1e-5))
+            )
         moment = features.get("moment_impulse_nms")
         if moment is not None:
             low, high = c.prior_position_m

@@ -45,8 +45,8 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.methods.hysteresis import applied_shift, hysteresis_shift, joint_inputs
 from tail_beam_id.methods.base import Decision, cap_confidence, sigmoid
+from tail_beam_id.methods.hysteresis import applied_shift, hysteresis_shift, joint_inputs
 from tail_beam_id.methods.inputs import base_vector
 from tail_beam_id.signals.timing import DELAY_UNTRUSTED, UNUSUAL
 from tail_beam_sim.errors import InputError, require_range, require_section
@@ -56,8 +56,13 @@ from tail_beam_sim.errors import InputError, require_range, require_section
 SIGNAL_FEATURES: dict[str, tuple[tuple[str, float | None], ...]] = {
     "jack_pressure": (("moment_impulse_pressure_nms", 0.05), ("pressure_noise_pa", 1.0)),
     "imu": (
-        ("moment_impulse_imu_nms", 0.05), ("imu_ring_ratio", 1e-3), ("imu_pulse_polarity", None),
-        ("imu_pulse_width_s", 1e-5), ("imu_noise_mps2", 1e-4), ("imu_period_s", 1e-6), ("contact_duration_s", 1e-5),
+        ("moment_impulse_imu_nms", 0.05),
+        ("imu_ring_ratio", 1e-3),
+        ("imu_pulse_polarity", None),
+        ("imu_pulse_width_s", 1e-5),
+        ("imu_noise_mps2", 1e-4),
+        ("imu_period_s", 1e-6),
+        ("contact_duration_s", 1e-5),
     ),
     "rebound_velocity": (("rebound_speed_mps", 0.05),),
 }
@@ -66,7 +71,9 @@ JOINT_FEATURES: dict[tuple[str, str], tuple[tuple[str, float | None], ...]] = {
     ("imu", "rebound_velocity"): (("rebound_delay_s", 5e-5),),
 }
 SIGNAL_ORDER = ("jack_pressure", "imu", "rebound_velocity")
-FULL_KEY = "+".join(SIGNAL_ORDER)  # the model of every signal: the one the support's hysteresis refines
+FULL_KEY = "+".join(
+    SIGNAL_ORDER
+)  # the model of every signal: the one the support's hysteresis refines
 # The key suffix of a model fitted without the rebound delay, for a camera slower than any the
 # training drew: its lag (up to a frame) then swamps the contact duration the delay carries.
 WITHOUT_DELAY = "~without_delay"
@@ -91,7 +98,9 @@ def temperature_of(model: Mapping[str, Any], x: np.ndarray) -> float:
     if size is None:
         return temperature
     column = [name for name, _ in model["features"]].index(size["feature"])
-    return temperature * math.exp(float(size["slope"]) * (float(size["reference"]) - float(x[column])))
+    return temperature * math.exp(
+        float(size["slope"]) * (float(size["reference"]) - float(x[column]))
+    )
 
 
 def _check_temperature_size(key: str, model: Mapping[str, Any]) -> None:
@@ -104,17 +113,31 @@ def _check_temperature_size(key: str, model: Mapping[str, Any]) -> None:
     field = f"statistical model {key}.temperature_size"
     names = [name for name, _ in model["features"]]
     if not isinstance(size, Mapping) or size.get("feature") not in names:
-        raise InputError(field, size, f"must name one of the model's features ({', '.join(names)}): retrain (python -m tail_beam_id.study.training)")
+        raise InputError(
+            field,
+            size,
+            f"must name one of the model's features ({', '.join(names)}): retrain (python -m tail_beam_id.study.training)",
+        )
     for part in ("slope", "reference"):
         value = size.get(part)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise InputError(f"{field}.{part}", value, "must be a finite number: retrain (python -m tail_beam_id.study.training)")
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not math.isfinite(value)
+        ):
+            raise InputError(
+                f"{field}.{part}",
+                value,
+                "must be a finite number: retrain (python -m tail_beam_id.study.training)",
+            )
 
 
 def signals_of(features: Mapping[str, float]) -> tuple[str, ...]:
     """Which signals an impact's features came from (in SIGNAL_ORDER): those whose features are
     all there (an acceleration pulse whose contact duration could not be read counts as none)."""
-    return tuple(s for s in SIGNAL_ORDER if all(name in features for name, _ in SIGNAL_FEATURES[s]))
+    return tuple(
+        s for s in SIGNAL_ORDER if all(name in features for name, _ in SIGNAL_FEATURES[s])
+    )
 
 
 def subset_key(signals: Sequence[str]) -> str:
@@ -138,51 +161,105 @@ class StatisticalMethod:
 
     name = "statistical"
 
-    def __init__(self, subsets: Mapping[str, Mapping[str, Any]], outside_confidence_cap: float,
-                 calibrated_subsets: Mapping[str, Mapping[str, Any]] | None = None,
-                 reference_frame_period_s: float = 1.0 / 5000.0,
-                 slowest_delay_frame_period_s: float = 1.0 / 2000.0,
-                 hysteresis: Mapping[str, Any] | None = None,
-                 hysteresis_weights: Sequence[float] | None = None) -> None:
+    def __init__(
+        self,
+        subsets: Mapping[str, Mapping[str, Any]],
+        outside_confidence_cap: float,
+        calibrated_subsets: Mapping[str, Mapping[str, Any]] | None = None,
+        reference_frame_period_s: float = 1.0 / 5000.0,
+        slowest_delay_frame_period_s: float = 1.0 / 2000.0,
+        hysteresis: Mapping[str, Any] | None = None,
+        hysteresis_weights: Sequence[float] | None = None,
+    ) -> None:
         self.subsets = subsets
         self.calibrated_subsets = calibrated_subsets or {}
         self.outside_confidence_cap = outside_confidence_cap
-        self.reference_frame_period_s = reference_frame_period_s  # the training streams' camera frame, s
+        self.reference_frame_period_s = (
+            reference_frame_period_s  # the training streams' camera frame, s
+        )
         # A camera frame longer than this (s) is decided without the rebound delay, where a model
         # without it was trained.
         self.slowest_delay_frame_period_s = slowest_delay_frame_period_s
         # The network reading an impact's class with its support's hysteresis, and the support's
         # bins' weights from its profile (tail_beam_id.methods.hysteresis); None: decided without them.
         self.hysteresis = hysteresis
-        self.hysteresis_weights = None if hysteresis is None or hysteresis_weights is None else list(hysteresis_weights)
+        self.hysteresis_weights = (
+            None if hysteresis is None or hysteresis_weights is None else list(hysteresis_weights)
+        )
 
     @classmethod
     def from_model(cls, model: Mapping[str, Any], params: Mapping[str, Any]) -> StatisticalMethod:
-        section = require_section("identification.statistical", (params.get("identification") or {}).get("statistical"))
-        cap = require_range("identification.statistical.outside_confidence_cap", section.get("outside_confidence_cap", 0.6), 0.5, 1.0)
+        section = require_section(
+            "identification.statistical", (params.get("identification") or {}).get("statistical")
+        )
+        cap = require_range(
+            "identification.statistical.outside_confidence_cap",
+            section.get("outside_confidence_cap", 0.6),
+            0.5,
+            1.0,
+        )
         families = [model["subsets"], model.get("calibrated_subsets") or {}]
-        stale = [key for family in families for key in family if "@" in key or "envelope" not in family[key]]
+        stale = [
+            key
+            for family in families
+            for key in family
+            if "@" in key or "envelope" not in family[key]
+        ]
         if stale:
-            raise InputError("statistical model", stale[0], "is a per-rate model without an envelope: retrain (python -m tail_beam_id.study.training)")
+            raise InputError(
+                "statistical model",
+                stale[0],
+                "is a per-rate model without an envelope: retrain (python -m tail_beam_id.study.training)",
+            )
         for family in families:
             for key, subset in family.items():
                 _check_temperature_size(key, subset)
-        rate = require_range("identification.statistical.reference_camera_frame_rate_hz",
-                             section.get("reference_camera_frame_rate_hz", 5000.0), 0.0, 1e6, low_open=True, unit="Hz")
-        slowest = require_range("identification.statistical.slowest_delay_camera_frame_rate_hz",
-                                section.get("slowest_delay_camera_frame_rate_hz", 2000.0), 0.0, 1e6, low_open=True, unit="Hz")
+        rate = require_range(
+            "identification.statistical.reference_camera_frame_rate_hz",
+            section.get("reference_camera_frame_rate_hz", 5000.0),
+            0.0,
+            1e6,
+            low_open=True,
+            unit="Hz",
+        )
+        slowest = require_range(
+            "identification.statistical.slowest_delay_camera_frame_rate_hz",
+            section.get("slowest_delay_camera_frame_rate_hz", 2000.0),
+            0.0,
+            1e6,
+            low_open=True,
+            unit="Hz",
+        )
         hysteresis = model.get("hysteresis")
         calibration = params.get("calibration") or {}
-        weights = _profile_weights(calibration.get("hysteresis_weights"), calibration.get("hysteresis_bin_edges"), hysteresis)
-        return cls(model["subsets"], cap, model.get("calibrated_subsets"), 1.0 / rate, 1.0 / slowest, hysteresis, weights)
+        weights = _profile_weights(
+            calibration.get("hysteresis_weights"),
+            calibration.get("hysteresis_bin_edges"),
+            hysteresis,
+        )
+        return cls(
+            model["subsets"],
+            cap,
+            model.get("calibrated_subsets"),
+            1.0 / rate,
+            1.0 / slowest,
+            hysteresis,
+            weights,
+        )
 
     def decide(self, features: Mapping[str, float]) -> Decision:
         """P(coal) from the model of the signals there are; on a calibrated support (a measured
         profile: ``support_calibrated``) from the models trained on calibrated features."""
-        family = self.calibrated_subsets if features.get("support_calibrated") and self.calibrated_subsets else self.subsets
+        family = (
+            self.calibrated_subsets
+            if features.get("support_calibrated") and self.calibrated_subsets
+            else self.subsets
+        )
         signals = signals_of(features)
         key = subset_key(signals)
-        if (self._camera_too_slow_for_the_delay(features) or features.get(DELAY_UNTRUSTED)) and key + WITHOUT_DELAY in family:
+        if (
+            self._camera_too_slow_for_the_delay(features) or features.get(DELAY_UNTRUSTED)
+        ) and key + WITHOUT_DELAY in family:
             key += WITHOUT_DELAY
         model = family.get(key)
         if model is None:
@@ -191,7 +268,9 @@ class StatisticalMethod:
         rows = self._lag_rows(features, names)
         low, high = (np.array(v) for v in model["envelope"])
         middle = rows[len(rows) // 2]
-        outside = tuple(name for (name, _), v, lo, hi in zip(names, middle, low, high) if not lo <= v <= hi)
+        outside = tuple(
+            name for (name, _), v, lo, hi in zip(names, middle, low, high) if not lo <= v <= hi
+        )
         clipped = np.clip(rows, low, high)
         z = (clipped - np.array(model["mean"])) / np.array(model["scale"])
         logits = network_logit(model, z) / temperature_of(model, clipped[len(rows) // 2])
@@ -204,20 +283,35 @@ class StatisticalMethod:
         if outside:
             p_coal = cap_confidence(p_coal, self.outside_confidence_cap)
         estimates = {"logit": float(logit)}
-        if (self.hysteresis_weights is not None and family is self.calibrated_subsets and key == FULL_KEY
-                and len(rows) == 1 and not outside):
+        if (
+            self.hysteresis_weights is not None
+            and family is self.calibrated_subsets
+            and key == FULL_KEY
+            and len(rows) == 1
+            and not outside
+        ):
             z_joint = joint_inputs(self.hysteresis, features)
             if z_joint is not None:
                 # The support's hysteresis known from its recording moves the boundary: the
                 # logit takes the shift as far as it makes the label less sure or turns it.
                 said = hysteresis_shift(self.hysteresis, z_joint, self.hysteresis_weights)
                 shift = applied_shift(float(logit), said)
-                estimates = {"logit": float(logit) + shift, "hysteresis_shift": shift, "hysteresis_shift_read": said}
+                estimates = {
+                    "logit": float(logit) + shift,
+                    "hysteresis_shift": shift,
+                    "hysteresis_shift_read": said,
+                }
                 p_coal = sigmoid(float(logit) + shift)
-        if "rebound_delay_s" in dict(names) and "imu_period_s" in features and not self._slower_than_trained(features):
+        if (
+            "rebound_delay_s" in dict(names)
+            and "imu_period_s" in features
+            and not self._slower_than_trained(features)
+        ):
             # The lag-corrected row (the middle lag) is the impact as the training's camera saw it.
             # (A camera slower than any trained lags more than the check's band allows for.)
-            estimates.update(delay_check(model, names, z[len(rows) // 2], float(features["imu_period_s"])))
+            estimates.update(
+                delay_check(model, names, z[len(rows) // 2], float(features["imu_period_s"]))
+            )
         return Decision(p_coal, estimates, outside, signals)
 
     def _camera_too_slow_for_the_delay(self, features: Mapping[str, float]) -> bool:
@@ -231,9 +325,15 @@ class StatisticalMethod:
     def _slower_than_trained(self, features: Mapping[str, float]) -> bool:
         """The impact has a delay and its camera frame is longer than the slowest the training drew."""
         period = features.get("camera_frame_period_s")
-        return "rebound_delay_s" in features and period is not None and period > SLOWER * self.slowest_delay_frame_period_s
+        return (
+            "rebound_delay_s" in features
+            and period is not None
+            and period > SLOWER * self.slowest_delay_frame_period_s
+        )
 
-    def _lag_rows(self, features: Mapping[str, float], names: Sequence[tuple[str, float | None]]) -> np.ndarray:
+    def _lag_rows(
+        self, features: Mapping[str, float], names: Sequence[tuple[str, float | None]]
+    ) -> np.ndarray:
         """The model's inputs (K, d): one row, or, for a camera slower than the training's
         (``camera_frame_period_s`` > the reference), one per lag the camera may have added.
 
@@ -271,7 +371,9 @@ def duration_read(features: Mapping[str, float]) -> bool:
     return duration is not None and period is not None and duration != period
 
 
-def _profile_weights(weights: Any, edges: Any, hysteresis: Mapping[str, Any] | None) -> list[float] | None:
+def _profile_weights(
+    weights: Any, edges: Any, hysteresis: Mapping[str, Any] | None
+) -> list[float] | None:
     """A profile's ``calibration.hysteresis_weights``, checked against the model's bins: one
     finite non-negative weight per bin, summing to 1, and (where the profile says them) the
     same bins' edges as the model's; None when the profile has none."""
@@ -279,19 +381,47 @@ def _profile_weights(weights: Any, edges: Any, hysteresis: Mapping[str, Any] | N
         return None
     field = "calibration.hysteresis_weights"
     if hysteresis is None:
-        raise InputError(field, weights, "needs a statistical model with a hysteresis network: retrain (python -m tail_beam_id.study.training)")
+        raise InputError(
+            field,
+            weights,
+            "needs a statistical model with a hysteresis network: retrain (python -m tail_beam_id.study.training)",
+        )
     model_edges = [float(e) for e in hysteresis["bin_edges"]]
-    if edges is not None and (isinstance(edges, str) or not isinstance(edges, Sequence) or len(edges) != len(model_edges)
-                              or not all(isinstance(e, (int, float)) and not isinstance(e, bool) and abs(e - m) <= 1e-9
-                                         for e, m in zip(edges, model_edges))):
-        raise InputError("calibration.hysteresis_bin_edges", edges, f"must be the models' bins ({model_edges}): the profile was "
-                                                                  "made with other models; calibrate again (tail-beam calibrate)")
+    if edges is not None and (
+        isinstance(edges, str)
+        or not isinstance(edges, Sequence)
+        or len(edges) != len(model_edges)
+        or not all(
+            isinstance(e, (int, float)) and not isinstance(e, bool) and abs(e - m) <= 1e-9
+            for e, m in zip(edges, model_edges)
+        )
+    ):
+        raise InputError(
+            "calibration.hysteresis_bin_edges",
+            edges,
+            f"must be the models' bins ({model_edges}): the profile was "
+            "made with other models; calibrate again (tail-beam calibrate)",
+        )
     bins = len(model_edges) + 1
-    if (not isinstance(weights, Sequence) or isinstance(weights, str) or len(weights) != bins
-            or not all(isinstance(w, (int, float)) and not isinstance(w, bool) and math.isfinite(w) and w >= 0.0 for w in weights)
-            or abs(sum(weights) - 1.0) > 1e-3):
-        raise InputError(field, weights, f"must be {bins} non-negative weights summing to 1 (one per hysteresis bin of the "
-                                         "models): calibrate again (tail-beam calibrate) with these models")
+    if (
+        not isinstance(weights, Sequence)
+        or isinstance(weights, str)
+        or len(weights) != bins
+        or not all(
+            isinstance(w, (int, float))
+            and not isinstance(w, bool)
+            and math.isfinite(w)
+            and w >= 0.0
+            for w in weights
+        )
+        or abs(sum(weights) - 1.0) > 1e-3
+    ):
+        raise InputError(
+            field,
+            weights,
+            f"must be {bins} non-negative weights summing to 1 (one per hysteresis bin of the "
+            "models): calibrate again (tail-beam calibrate) with these models",
+        )
     return [float(w) for w in weights]
 
 
@@ -300,11 +430,17 @@ def delay_design(z: np.ndarray, column: int) -> np.ndarray:
     but the delay (``column``), their pairwise products and squares, and 1."""
     x = np.delete(z, column, axis=1)
     upper = np.triu_indices(x.shape[1])
-    return np.hstack([x, (x[:, :, None] * x[:, None, :])[:, upper[0], upper[1]], np.ones((x.shape[0], 1))])
+    return np.hstack(
+        [x, (x[:, :, None] * x[:, None, :])[:, upper[0], upper[1]], np.ones((x.shape[0], 1))]
+    )
 
 
-def delay_check(model: Mapping[str, Any], names: Sequence[tuple[str, float | None]], z: np.ndarray,
-                period_s: float) -> dict[str, float]:
+def delay_check(
+    model: Mapping[str, Any],
+    names: Sequence[tuple[str, float | None]],
+    z: np.ndarray,
+    period_s: float,
+) -> dict[str, float]:
     """``delay_residual`` (the standardised log delay less what the impact's other inputs predict)
     and ``delay_unusual`` (1.0 outside the training residuals' band at this IMU period, s), or
     nothing when the model has no check or no band for the period (tail_beam_id.signals.timing)."""

@@ -40,9 +40,19 @@ class ThresholdMethod:
 
     @classmethod
     def from_model(cls, model: Mapping[str, Any], params: Mapping[str, Any]) -> ThresholdMethod:
-        section = require_section("identification.threshold", params["identification"].get("threshold"))
-        cap = require_range("identification.threshold.extrapolation_confidence_cap", section.get("extrapolation_confidence_cap"), 0.5, 1.0)
-        rules = [Rule(r["feature"], float(r["threshold"]), float(r["slope"]), tuple(r["seen"])) for r in model["rules"]]
+        section = require_section(
+            "identification.threshold", params["identification"].get("threshold")
+        )
+        cap = require_range(
+            "identification.threshold.extrapolation_confidence_cap",
+            section.get("extrapolation_confidence_cap"),
+            0.5,
+            1.0,
+        )
+        rules = [
+            Rule(r["feature"], float(r["threshold"]), float(r["slope"]), tuple(r["seen"]))
+            for r in model["rules"]
+        ]
         return cls(rules, cap)
 
     def decide(self, features: Mapping[str, float]) -> Decision:

@@ -28,20 +28,20 @@ Pure numpy, no ROS: the node and the tests drive the same class.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tail_beam_sim.errors import require_range
 from tail_beam_id.stream.release import Release, feed
+from tail_beam_sim.errors import require_range
 from tail_beam_sim.physics.sensors import BlockSequencer, VibrationBlocks
 
 if TYPE_CHECKING:
+    from tail_beam_id.calibration.online import OnlineCalibration
     from tail_beam_id.stream.identifier import StreamIdentifier
     from tail_beam_id.stream.label import Label
-    from tail_beam_id.calibration.online import OnlineCalibration
 
 CONTINUOUS = ("jack_pressure", "imu", "vibration")
 MAX_ASIDE_SAMPLES = 2_000_000  # samples held aside as "ahead of the others" (bounded memory)
@@ -58,9 +58,20 @@ class GateConfig:
     @classmethod
     def from_params(cls, node: dict) -> GateConfig:
         return cls(
-            reorder_s=require_range("id_node.reorder_s", node.get("reorder_s"), 0.0, 10.0, unit="s"),
-            stream_idle_s=require_range("id_node.stream_idle_s", node.get("stream_idle_s"), 0.0, 60.0, low_open=True, unit="s"),
-            time_jump_s=require_range("id_node.time_jump_s", node.get("time_jump_s"), 0.0, 1e6, low_open=True, unit="s"),
+            reorder_s=require_range(
+                "id_node.reorder_s", node.get("reorder_s"), 0.0, 10.0, unit="s"
+            ),
+            stream_idle_s=require_range(
+                "id_node.stream_idle_s",
+                node.get("stream_idle_s"),
+                0.0,
+                60.0,
+                low_open=True,
+                unit="s",
+            ),
+            time_jump_s=require_range(
+                "id_node.time_jump_s", node.get("time_jump_s"), 0.0, 1e6, low_open=True, unit="s"
+            ),
         )
 
 
@@ -86,7 +97,9 @@ class Counts:
     """Samples and rebounds the gate did not pass on, by reason (reported in the node's log)."""
 
     repeated_samples: int = 0  # stamp not after the stream's newest (a repeat, out of order)
-    ahead_samples: int = 0  # set aside: a run stamped more than time_jump_s ahead of the live streams
+    ahead_samples: int = (
+        0  # set aside: a run stamped more than time_jump_s ahead of the live streams
+    )
     ahead_dropped: int = 0  # of those, dropped (the time base did not move)
     refused_rebounds: int = 0  # rebound not finite, or stamped more than time_jump_s behind the watermark or ahead of the streams
 
@@ -108,7 +121,11 @@ class ArrivalGate:
         ``name`` has accepted (a new time base), or None. For vibration blocks, which must be
         split before their running index is sequenced; :meth:`add` finds it for samples."""
         latest = self.streams[name].latest_s
-        back = np.flatnonzero(np.asarray(stamp_s) < latest - self.config.time_jump_s) if latest > -math.inf else []
+        back = (
+            np.flatnonzero(np.asarray(stamp_s) < latest - self.config.time_jump_s)
+            if latest > -math.inf
+            else []
+        )
         return int(back[0]) if len(back) else None
 
     def add(self, name: str, stamp_s: np.ndarray, values: np.ndarray, now_s: float) -> int | None:
@@ -152,7 +169,9 @@ class ArrivalGate:
         self._promote(now_s)
         return None
 
-    def _accept(self, stream: _Stream, stamp_s: np.ndarray, values: np.ndarray, now_s: float) -> None:
+    def _accept(
+        self, stream: _Stream, stamp_s: np.ndarray, values: np.ndarray, now_s: float
+    ) -> None:
         """Hold samples for release (a repeat or a step back within time_jump_s refused, counted)."""
         fresh = stamp_s > np.maximum.accumulate(np.concatenate([[stream.latest_s], stamp_s]))[:-1]
         self.counts.repeated_samples += int((~fresh).sum())
@@ -164,7 +183,11 @@ class ArrivalGate:
     def _promote(self, now_s: float) -> None:
         """Accept what was set aside once the other live streams have come within time_jump_s of it."""
         for name, stream in self.streams.items():
-            if stream.aside and stream.aside[0].stamp_s[0] <= self._reference_s(name, now_s) + self.config.time_jump_s:
+            if (
+                stream.aside
+                and stream.aside[0].stamp_s[0]
+                <= self._reference_s(name, now_s) + self.config.time_jump_s
+            ):
                 aside, stream.aside = stream.aside, []
                 for chunk in aside:
                     self._accept(stream, chunk.stamp_s, chunk.values, now_s)
@@ -174,7 +197,9 @@ class ArrivalGate:
         velocity is not finite, or it is stamped more than ``time_jump_s`` behind what was
         released or ahead of the live streams."""
         if not (math.isfinite(stamp_s) and np.isfinite(velocity_mps).all()):
-            self.counts.refused_rebounds += 1  # no measurement; the identifier would leave it out too
+            self.counts.refused_rebounds += (
+                1  # no measurement; the identifier would leave it out too
+            )
             return
         behind = stamp_s < self.released_s - self.config.time_jump_s
         ahead = stamp_s > self._reference_s("", now_s) + self.config.time_jump_s
@@ -185,25 +210,37 @@ class ArrivalGate:
 
     def _reference_s(self, name: str, now_s: float) -> float:
         """Newest stamp of the other live streams (inf when there are none to compare with)."""
-        others = [s.latest_s for n, s in self.streams.items() if n != name and self._active(s, now_s)]
+        others = [
+            s.latest_s for n, s in self.streams.items() if n != name and self._active(s, now_s)
+        ]
         return max(others, default=math.inf)
 
     def _active(self, stream: _Stream, now_s: float) -> bool:
-        return stream.latest_s > -math.inf and now_s - stream.last_arrival_s <= self.config.stream_idle_s
+        return (
+            stream.latest_s > -math.inf
+            and now_s - stream.last_arrival_s <= self.config.stream_idle_s
+        )
 
     def forward_jump(self, now_s: float) -> bool:
         """Every stream still talking sends only samples far ahead of what was accepted: the
         time base moved forward (then :meth:`take_aside` gives them to the next epoch). A lone
         stamp gone wrong is not a jump: its stream goes on in the old time base."""
-        talking = [s for s in self.streams.values() if now_s - s.last_seen_s <= self.config.stream_idle_s]
-        return bool(talking) and all(s.aside and s.last_arrival_s < s.aside[0].arrival_s for s in talking)
+        talking = [
+            s for s in self.streams.values() if now_s - s.last_seen_s <= self.config.stream_idle_s
+        ]
+        return bool(talking) and all(
+            s.aside and s.last_arrival_s < s.aside[0].arrival_s for s in talking
+        )
 
     def take_aside(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """The samples held aside as ahead, per stream (and forget them)."""
         out = {}
         for name, stream in self.streams.items():
             if stream.aside:
-                out[name] = (np.concatenate([c.stamp_s for c in stream.aside]), np.concatenate([c.values for c in stream.aside]))
+                out[name] = (
+                    np.concatenate([c.stamp_s for c in stream.aside]),
+                    np.concatenate([c.values for c in stream.aside]),
+                )
                 stream.aside = []
         return out
 
@@ -215,7 +252,9 @@ class ArrivalGate:
             for chunk in stream.chunks:
                 if now_s - chunk.arrival_s >= self.config.reorder_s:
                     stream.settled_s = max(stream.settled_s, float(chunk.stamp_s[-1]))
-        if now_s - self.first_arrival_s < self.config.stream_idle_s and any(s.latest_s == -math.inf for s in self.streams.values()):
+        if now_s - self.first_arrival_s < self.config.stream_idle_s and any(
+            s.latest_s == -math.inf for s in self.streams.values()
+        ):
             return -math.inf  # start-up: a stream not heard from yet may still come
         live = [s.settled_s for s in self.streams.values() if self._active(s, now_s)]
         return min(live) if live else math.inf
@@ -247,7 +286,6 @@ class ArrivalGate:
         return Release(out, [(stamp, velocity) for _, stamp, velocity in due])
 
 
-
 Streams = dict[str, tuple[np.ndarray, np.ndarray]]  # stream name -> (stamp_s (T,), values (T, k))
 
 
@@ -264,14 +302,20 @@ class GatedIdentifier:
     time jumps) collects in ``notes``.
     """
 
-    def __init__(self, new_identifier: Callable[[Any], StreamIdentifier], config: GateConfig,
-                 calibration: OnlineCalibration | None = None) -> None:
+    def __init__(
+        self,
+        new_identifier: Callable[[Any], StreamIdentifier],
+        config: GateConfig,
+        calibration: OnlineCalibration | None = None,
+    ) -> None:
         """``new_identifier(method)``: a fresh identifier reusing the trained ``method`` (None
         the first time); ``calibration``: learn a support profile from the first data and
         decide with it from then on (None: stay on the configured support)."""
         self._new_identifier = new_identifier
         self.calibration = calibration
-        self._profile: tuple[dict[str, Any], Any] | None = None  # (model params, method) once calibrated
+        self._profile: tuple[dict[str, Any], Any] | None = (
+            None  # (model params, method) once calibrated
+        )
         self.identifier = new_identifier(None)
         self.gate = ArrivalGate(config)
         self.sequencer = BlockSequencer()
@@ -282,15 +326,26 @@ class GatedIdentifier:
         self._refused_before = 0  # non-finite samples refused by the identifiers of earlier epochs
         self._refused_noted = 0  # the total already noted
 
-    def tick(self, now_s: float, arrivals: Streams, blocks: VibrationBlocks, rebounds: Sequence[tuple[float, np.ndarray]],
-             end_of_data: bool = False) -> list[Label]:
+    def tick(
+        self,
+        now_s: float,
+        arrivals: Streams,
+        blocks: VibrationBlocks,
+        rebounds: Sequence[tuple[float, np.ndarray]],
+        end_of_data: bool = False,
+    ) -> list[Label]:
         """Admit what arrived (all of it at wall clock ``now_s``); the labels of what is now
         decided (with ``end_of_data``, of everything pending): :meth:`admit` then :meth:`decide`."""
         labels = self.admit(now_s, arrivals, blocks, rebounds)
         return labels + self.decide(now_s, end_of_data)
 
-    def admit(self, arrived_s: float, arrivals: Streams, blocks: VibrationBlocks,
-              rebounds: Sequence[tuple[float, np.ndarray]]) -> list[Label]:
+    def admit(
+        self,
+        arrived_s: float,
+        arrivals: Streams,
+        blocks: VibrationBlocks,
+        rebounds: Sequence[tuple[float, np.ndarray]],
+    ) -> list[Label]:
         """Admit what arrived, the newest of it at wall clock ``arrived_s`` (its hold of
         ``reorder_s`` counts from then). Returns the labels decided by a time jump it found (what
         was pending in the old time base), else none: :meth:`decide` gives the rest."""
@@ -301,27 +356,42 @@ class GatedIdentifier:
             if cut is not None:
                 later[name] = (stamps[cut:], values[cut:])
         vib_cut = self.gate.backward_jump("vibration", blocks.stamp_s) if blocks.count else None
-        old_blocks = blocks.select(np.arange(blocks.count) < (blocks.count if vib_cut is None else vib_cut))
+        old_blocks = blocks.select(
+            np.arange(blocks.count) < (blocks.count if vib_cut is None else vib_cut)
+        )
         self._admit_blocks(old_blocks, arrived_s)
         stale_s = self.gate.released_s - self.gate.config.time_jump_s
-        if later or vib_cut is not None:  # stamps went back: decide the old time base, start afresh
+        if (
+            later or vib_cut is not None
+        ):  # stamps went back: decide the old time base, start afresh
             name = next(iter(later), "vibration")
             back_to = later[name][0][0] if name in later else blocks.stamp_s[vib_cut]
             from_s = self.gate.streams[name].latest_s
             for stamp, velocity in rebounds:
                 if stamp >= stale_s:
                     self.gate.add_rebound(stamp, velocity, arrived_s)
-            labels += self._restart(arrived_s, f"{name} stamps went back from {from_s:.4f} s to {back_to:.4f} s "
-                                               "(a simulator restarted or a replay looped)")
+            labels += self._restart(
+                arrived_s,
+                f"{name} stamps went back from {from_s:.4f} s to {back_to:.4f} s "
+                "(a simulator restarted or a replay looped)",
+            )
             for name, (stamps, values) in later.items():
                 self.gate.add(name, stamps, values, arrived_s)
-            self._admit_blocks(blocks.select(np.arange(blocks.count) >= (blocks.count if vib_cut is None else vib_cut)), arrived_s)
+            self._admit_blocks(
+                blocks.select(
+                    np.arange(blocks.count) >= (blocks.count if vib_cut is None else vib_cut)
+                ),
+                arrived_s,
+            )
             rebounds = [r for r in rebounds if r[0] < stale_s]
         for stamp, velocity in rebounds:
             self.gate.add_rebound(stamp, velocity, arrived_s)
         if self.gate.forward_jump(arrived_s):
             aside = self.gate.take_aside()
-            labels += self._restart(arrived_s, f"every stream's stamps moved ahead by more than {self.gate.config.time_jump_s:g} s")
+            labels += self._restart(
+                arrived_s,
+                f"every stream's stamps moved ahead by more than {self.gate.config.time_jump_s:g} s",
+            )
             for name, (stamps, values) in aside.items():
                 self.gate.add(name, stamps, values, arrived_s)
         self._note_counts()
@@ -354,7 +424,9 @@ class GatedIdentifier:
     def _restart(self, now_s: float, why: str) -> list[Label]:
         """Decide everything of the old time base; then a fresh identifier and gate."""
         labels = self._decide(now_s, everything=True)
-        self.notes.append(f"time jump: {why}; decided what was pending ({len(labels)} labels), identifying afresh")
+        self.notes.append(
+            f"time jump: {why}; decided what was pending ({len(labels)} labels), identifying afresh"
+        )
         self.time_jumps += 1
         self._counts_before = self.count_totals()
         self._refused_before += sum(self.identifier.refused_samples.values())
@@ -369,24 +441,42 @@ class GatedIdentifier:
         """Vibration blocks into running-index order (gaps and late blocks noted), then the gate."""
         if not blocks.count:
             return
-        behind = self.sequencer.next_index is not None and blocks.first_index[0] < self.sequencer.next_index
-        if behind and blocks.stamp_s[0] > self.gate.streams["vibration"].latest_s + self.gate.config.time_jump_s:
+        behind = (
+            self.sequencer.next_index is not None
+            and blocks.first_index[0] < self.sequencer.next_index
+        )
+        if (
+            behind
+            and blocks.stamp_s[0]
+            > self.gate.streams["vibration"].latest_s + self.gate.config.time_jump_s
+        ):
             self.sequencer.restart()  # the index began again with the clock ahead: a restarted source
         report = self.sequencer.push(blocks)
         if report.gaps:
             missing = sum(n for _, n in report.gaps)
-            self.notes.append(f"vibration: {len(report.gaps)} gap(s), {missing} samples lost (first missing index "
-                              f"{report.gaps[0][0]}); {self.sequencer.lost_samples} lost in all")
+            self.notes.append(
+                f"vibration: {len(report.gaps)} gap(s), {missing} samples lost (first missing index "
+                f"{report.gaps[0][0]}); {self.sequencer.lost_samples} lost in all"
+            )
         if report.late:
-            self.notes.append(f"vibration: {report.late} block(s) arrived after a later one and were refused; "
-                              f"{self.sequencer.late_blocks} in all")
+            self.notes.append(
+                f"vibration: {report.late} block(s) arrived after a later one and were refused; "
+                f"{self.sequencer.late_blocks} in all"
+            )
         if report.misindexed:
-            self.notes.append(f"vibration: {report.misindexed} block(s) refused whose running index (angle_min, angle_max) "
-                              "is behind the samples already used while their stamps are not: the publisher's index must "
-                              f"count the samples (docs/interface.md); {self.sequencer.misindexed_blocks} in all")
+            self.notes.append(
+                f"vibration: {report.misindexed} block(s) refused whose running index (angle_min, angle_max) "
+                "is behind the samples already used while their stamps are not: the publisher's index must "
+                f"count the samples (docs/interface.md); {self.sequencer.misindexed_blocks} in all"
+            )
         if report.accepted.count:
             accepted = report.accepted
-            self.gate.add("vibration", accepted.sample_stamps_s(), accepted.accel_mps2.astype(float).reshape(-1, 1), now_s)
+            self.gate.add(
+                "vibration",
+                accepted.sample_stamps_s(),
+                accepted.accel_mps2.astype(float).reshape(-1, 1),
+                now_s,
+            )
 
     def _decide(self, now_s: float, everything: bool) -> list[Label]:
         """Feed the identifier what the gate releases; its labels (all pending with ``everything``)."""
@@ -397,9 +487,13 @@ class GatedIdentifier:
         refused = self._refused_before + sum(self.identifier.refused_samples.values())
         if refused > self._refused_noted:
             self._refused_noted = refused
-            counts = ", ".join(f"{name} {n}" for name, n in self.identifier.refused_samples.items() if n)
-            self.notes.append(f"identification: {refused} sample(s) with a non-finite stamp or value left out (totals; "
-                              f"this epoch: {counts})")
+            counts = ", ".join(
+                f"{name} {n}" for name, n in self.identifier.refused_samples.items() if n
+            )
+            self.notes.append(
+                f"identification: {refused} sample(s) with a non-finite stamp or value left out (totals; "
+                f"this epoch: {counts})"
+            )
         labels = self.identifier.poll()
         if everything:
             labels += self.identifier.flush()

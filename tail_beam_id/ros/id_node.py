@@ -39,20 +39,26 @@ from rclpy.node import Node
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
 
+from tail_beam_id.calibration.online import OnlineCalibration
+from tail_beam_id.methods import Method
 from tail_beam_id.ros.arrival import GateConfig, GatedIdentifier
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label
-from tail_beam_id.methods import Method
-from tail_beam_id.calibration.online import OnlineCalibration
 from tail_beam_sim import topics
-from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.errors import require_range
-from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_and_read, refuse_runtime_changes
+from tail_beam_sim.ros import messages as ros_messages
+from tail_beam_sim.ros.params import (
+    ALL_PARAMETERS,
+    config_defaults,
+    declare_and_read,
+    refuse_runtime_changes,
+)
 from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
 
-
 MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
-WAKE_MARGIN_S = 2e-4  # the wake runs this long after the hold has passed, s (a timer may fire a little early)
+WAKE_MARGIN_S = (
+    2e-4  # the wake runs this long after the hold has passed, s (a timer may fire a little early)
+)
 
 
 class Inbox:
@@ -72,7 +78,10 @@ class Inbox:
         k = bisect.bisect_right(self.arrived_s, cutoff_s)
         times, messages = self.arrived_s, self.messages
         self.messages, self.arrived_s = [], []
-        return (messages[:k], times[k - 1] if k else -math.inf), (messages[k:], times[-1] if k < len(times) else -math.inf)
+        return (messages[:k], times[k - 1] if k else -math.inf), (
+            messages[k:],
+            times[-1] if k < len(times) else -math.inf,
+        )
 
 
 class IdNode(Node):
@@ -82,51 +91,105 @@ class IdNode(Node):
         super().__init__("tail_beam_id", **kwargs)
         # A support profile (tail-beam calibrate --out) brings its `calibration` section: what makes
         # the identifier decide as calibrated, as `tail-beam identify --config profile.yaml` does.
-        params = declare_and_read(self, config_defaults(["id_node.yaml"], with_physics=True), open_sections=("calibration",))
+        params = declare_and_read(
+            self,
+            config_defaults(["id_node.yaml"], with_physics=True),
+            open_sections=("calibration",),
+        )
         node = params["id_node"]
-        period = require_range("id_node.poll_period_s", node.get("poll_period_s"), 0.0, 10.0, low_open=True, unit="s")
-        self.flush_after_idle_s = require_range("id_node.flush_after_idle_s", node.get("flush_after_idle_s"), 0.0, None, low_open=True, unit="s")
+        period = require_range(
+            "id_node.poll_period_s", node.get("poll_period_s"), 0.0, 10.0, low_open=True, unit="s"
+        )
+        self.flush_after_idle_s = require_range(
+            "id_node.flush_after_idle_s",
+            node.get("flush_after_idle_s"),
+            0.0,
+            None,
+            low_open=True,
+            unit="s",
+        )
         depth = int(require_range("id_node.qos_depth", node.get("qos_depth"), 0, 1e6))
         method = params.get("method") or None
 
         def new_identifier(trained: Method | None) -> StreamIdentifier:
-            return StreamIdentifier(method, params=params["identification"], model_params=params, prebuilt=trained)
+            return StreamIdentifier(
+                method, params=params["identification"], model_params=params, prebuilt=trained
+            )
 
-        learn_s = require_range("id_node.calibrate_online_s", node.get("calibrate_online_s"), 0.0, 3600.0, unit="s")
+        learn_s = require_range(
+            "id_node.calibrate_online_s", node.get("calibrate_online_s"), 0.0, 3600.0, unit="s"
+        )
         calibration = None
         if learn_s > 0.0:
-            calibration = OnlineCalibration(params, learn_s, method or params["identification"]["method"])
+            calibration = OnlineCalibration(
+                params, learn_s, method or params["identification"]["method"]
+            )
         self.gated = GatedIdentifier(new_identifier, GateConfig.from_params(node), calibration)
-        self._inbox = {topic: Inbox() for topic in (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION, topics.REBOUND_VELOCITY)}
+        self._inbox = {
+            topic: Inbox()
+            for topic in (
+                topics.JACK_PRESSURE,
+                topics.IMU,
+                topics.VIBRATION,
+                topics.REBOUND_VELOCITY,
+            )
+        }
         # Continuous topic -> (newest stamp arrived, its wall-clock arrival), s: the wake's test.
         self._newest: dict[str, tuple[float, float]] = {}
-        self._due_s = math.inf  # stamp the next pending impact waits for (identifier.next_horizon_s), s
-        self._timing_said: object | None = None  # the identifier's timing check whose suspicion was logged
+        self._due_s = (
+            math.inf
+        )  # stamp the next pending impact waits for (identifier.next_horizon_s), s
+        self._timing_said: object | None = (
+            None  # the identifier's timing check whose suspicion was logged
+        )
         self._woken_for_s = math.nan  # the due stamp the last wake was for
         self._woke_s = -math.inf  # wall clock the last wake ran, s (another for the same due only for data it could not take)
         self._last_arrival_s = time.monotonic()
         self._unflushed = False
-        self.received = {topics.JACK_PRESSURE: 0, topics.IMU: 0, topics.VIBRATION: 0, topics.REBOUND_VELOCITY: 0}
+        self.received = {
+            topics.JACK_PRESSURE: 0,
+            topics.IMU: 0,
+            topics.VIBRATION: 0,
+            topics.REBOUND_VELOCITY: 0,
+        }
         self.published = 0
         self.refused_blocks = 0  # vibration messages that carried no block (their index, period or range out of range)
         sensor_qos = ros_messages.stream_qos(depth)
         event_qos = ros_messages.EVENT_QOS
-        self._label_pub = self.create_publisher(String, topics.LABEL, ros_messages.EVENT_PUBLISHER_QOS)
-        self.create_subscription(FluidPressure, topics.JACK_PRESSURE, self._on_pressure, sensor_qos)
+        self._label_pub = self.create_publisher(
+            String, topics.LABEL, ros_messages.EVENT_PUBLISHER_QOS
+        )
+        self.create_subscription(
+            FluidPressure, topics.JACK_PRESSURE, self._on_pressure, sensor_qos
+        )
         self.create_subscription(Imu, topics.IMU, self._on_imu, sensor_qos)
         self.create_subscription(LaserScan, topics.VIBRATION, self._on_vibration, sensor_qos)
-        self.create_subscription(TwistStamped, topics.REBOUND_VELOCITY, self._on_rebound, event_qos)
-        self._foreign = ForeignTypeWatch(self, {topic: topics.MSG_TYPES[topic] for topic in self._inbox})
+        self.create_subscription(
+            TwistStamped, topics.REBOUND_VELOCITY, self._on_rebound, event_qos
+        )
+        self._foreign = ForeignTypeWatch(
+            self, {topic: topics.MSG_TYPES[topic] for topic in self._inbox}
+        )
         self.create_timer(period, self._tick)
-        self._wake = self.create_timer(self.gated.gate.config.reorder_s + WAKE_MARGIN_S, self._on_wake)
+        self._wake = self.create_timer(
+            self.gated.gate.config.reorder_s + WAKE_MARGIN_S, self._on_wake
+        )
         self._wake.cancel()
-        refuse_runtime_changes(self, ALL_PARAMETERS, "id_node reads its parameters at start-up only (restart it to change them)")
+        refuse_runtime_changes(
+            self,
+            ALL_PARAMETERS,
+            "id_node reads its parameters at start-up only (restart it to change them)",
+        )
         self.get_logger().info(f"identifying with method {self.identifier.method.name}")
         if self.identifier.calibrated:
-            self.get_logger().info("deciding with the support profile given (its calibration section): labels say calibrated: true")
+            self.get_logger().info(
+                "deciding with the support profile given (its calibration section): labels say calibrated: true"
+            )
         if calibration is not None:
-            self.get_logger().info(f"calibration: learning the support from the first {learn_s:g} s of data "
-                                   "(labels say calibrated: false until then)")
+            self.get_logger().info(
+                f"calibration: learning the support from the first {learn_s:g} s of data "
+                "(labels say calibrated: false until then)"
+            )
 
     def _arrived(self, topic: str, message: object, last_stamp_s: float | None = None) -> None:
         """Keep a message with its arrival time; for a continuous topic (``last_stamp_s``: its
@@ -150,7 +213,9 @@ class IdNode(Node):
         the identifier sees lag only in that data (an IMU that stopped)."""
         due = self._due_s
         held_by_wake_s = self._woke_s - self.gated.gate.config.reorder_s
-        if not self._wake.is_canceled() or (due == self._woken_for_s and self._last_arrival_s <= held_by_wake_s):
+        if not self._wake.is_canceled() or (
+            due == self._woken_for_s and self._last_arrival_s <= held_by_wake_s
+        ):
             return
         live_after_s = time.monotonic() - self.gated.gate.config.stream_idle_s
         live = [stamp for stamp, arrived in self._newest.values() if arrived >= live_after_s]
@@ -171,7 +236,11 @@ class IdNode(Node):
 
     def _on_vibration(self, msg: LaserScan) -> None:
         increment = msg.time_increment
-        last = ros_messages.stamp_s(msg.header.stamp) + (increment * (len(msg.ranges) - 1) if math.isfinite(increment) and increment > 0.0 else 0.0)
+        last = ros_messages.stamp_s(msg.header.stamp) + (
+            increment * (len(msg.ranges) - 1)
+            if math.isfinite(increment) and increment > 0.0
+            else 0.0
+        )
         self._arrived(topics.VIBRATION, msg, last)
 
     def _on_rebound(self, msg: TwistStamped) -> None:
@@ -208,8 +277,12 @@ class IdNode(Node):
         if refused:
             self.refused_blocks += len(refused)
             reasons = list(dict.fromkeys(refused))  # each distinct reason once
-            shown = "; ".join(reasons[:MAX_REASONS]) + (f"; and {len(reasons) - MAX_REASONS} more" if len(reasons) > MAX_REASONS else "")
-            self.get_logger().warning(f"vibration: {len(refused)} message(s) refused: {shown} ({self.refused_blocks} refused in all)")
+            shown = "; ".join(reasons[:MAX_REASONS]) + (
+                f"; and {len(reasons) - MAX_REASONS} more" if len(reasons) > MAX_REASONS else ""
+            )
+            self.get_logger().warning(
+                f"vibration: {len(refused)} message(s) refused: {shown} ({self.refused_blocks} refused in all)"
+            )
         rebounds = [ros_messages.rebound_values(m) for m in part[topics.REBOUND_VELOCITY]]
         return self.gated.admit(arrived_s, arrivals, blocks, rebounds)
 
@@ -220,7 +293,9 @@ class IdNode(Node):
         parts: tuple[dict[str, list], dict[str, list]] = ({}, {})
         arrived_s = [-math.inf, -math.inf]
         for topic, inbox in self._inbox.items():
-            for k, (messages, newest_s) in enumerate(inbox.take(now - self.gated.gate.config.reorder_s)):
+            for k, (messages, newest_s) in enumerate(
+                inbox.take(now - self.gated.gate.config.reorder_s)
+            ):
                 parts[k][topic] = messages
                 arrived_s[k] = max(arrived_s[k], newest_s)
         labels: list[Label] = []
@@ -228,7 +303,9 @@ class IdNode(Node):
         for part, batch_s in zip(parts, arrived_s):
             if batch_s > -math.inf:
                 labels += self._admit(part, batch_s)
-        if self.gated.time_jumps != jumps:  # a new time base: the stamps seen so far say nothing of it
+        if (
+            self.gated.time_jumps != jumps
+        ):  # a new time base: the stamps seen so far say nothing of it
             self._newest.clear()
         idle = self._unflushed and now - self._last_arrival_s > self.flush_after_idle_s
         self._publish(labels + self.gated.decide(now, end_of_data=idle))

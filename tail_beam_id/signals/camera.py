@@ -17,7 +17,9 @@ from collections.abc import Sequence
 import numpy as np
 
 GRID_TOLERANCE_S = 1e-6  # how far a stamp may lie off the frame grid (clock jitter, ns rounding, float epoch stamps), s
-MIN_PERIOD_S = 20e-6  # the fastest camera recognised (50 kHz): below it any stamps fit some grid, s
+MIN_PERIOD_S = (
+    20e-6  # the fastest camera recognised (50 kHz): below it any stamps fit some grid, s
+)
 MAX_PERIOD_S = 0.002  # the slowest (500 Hz), s
 # Rebounds needed. With 3 differences, twice the true period fits by chance 1 time in 8 (until a
 # later stamp falls on an odd frame); that only makes decisions less sure, while the configured
@@ -27,7 +29,9 @@ MIN_REBOUNDS = 4
 MAX_REBOUNDS = 64  # rebounds kept for the estimate (the grid does not change)
 
 
-def frame_period_s(stamps_s: Sequence[float], tolerance_s: float = GRID_TOLERANCE_S) -> float | None:
+def frame_period_s(
+    stamps_s: Sequence[float], tolerance_s: float = GRID_TOLERANCE_S
+) -> float | None:
     """The longest frame period (s) up to ``MAX_PERIOD_S`` on whose grid every stamp lies within
     ``tolerance_s``, or None: too few stamps (< ``MIN_REBOUNDS``), or none of ``MIN_PERIOD_S``
     or more (stamps on no grid: a camera stamped by its host's clock, say).
@@ -73,22 +77,34 @@ class FramePeriod:
         self.configured_s = configured_s
         self.stamps_s: list[float] = []
         self.estimates_s: list[float | None] = []  # [k]: the estimate from the first k + 1 stamps
-        self.on_configured_grid: list[bool] = []  # [k]: the first k + 1 stamps all lie on the configured frame's grid
+        self.on_configured_grid: list[
+            bool
+        ] = []  # [k]: the first k + 1 stamps all lie on the configured frame's grid
 
     def add(self, stamp_s: float) -> None:
         """A rebound's stamp (s), in stamp order (repeats and older ones ignored); estimates
         again until ``MAX_REBOUNDS`` have come. While the stamps fit the last estimate only the
         new difference is checked, so a rebound costs microseconds, not a search."""
-        if len(self.stamps_s) >= MAX_REBOUNDS or not math.isfinite(stamp_s) or (self.stamps_s and stamp_s <= self.stamps_s[-1]):
+        if (
+            len(self.stamps_s) >= MAX_REBOUNDS
+            or not math.isfinite(stamp_s)
+            or (self.stamps_s and stamp_s <= self.stamps_s[-1])
+        ):
             return
         self.stamps_s.append(float(stamp_s))
-        fits = self.configured_s is not None and _on_grid(stamp_s - self.stamps_s[0], self.configured_s)
-        self.on_configured_grid.append(fits and (self.on_configured_grid[-1] if self.on_configured_grid else True))
+        fits = self.configured_s is not None and _on_grid(
+            stamp_s - self.stamps_s[0], self.configured_s
+        )
+        self.on_configured_grid.append(
+            fits and (self.on_configured_grid[-1] if self.on_configured_grid else True)
+        )
         last = self.estimates_s[-1] if self.estimates_s else None
         if last is not None and _on_grid(stamp_s - self.stamps_s[-2], last):
             estimate: float | None = last
         else:
-            estimate = frame_period_s(self.stamps_s) if len(self.stamps_s) >= MIN_REBOUNDS else None
+            estimate = (
+                frame_period_s(self.stamps_s) if len(self.stamps_s) >= MIN_REBOUNDS else None
+            )
         self.estimates_s.append(estimate)
 
     def measured_at(self, stamp_s: float) -> float | None:
@@ -104,7 +120,11 @@ class FramePeriod:
         measured = self.estimates_s[k - 1] if k else None
         if measured is None:
             return self.configured_s
-        if self.configured_s is not None and self.configured_s > measured and self.on_configured_grid[k - 1]:
+        if (
+            self.configured_s is not None
+            and self.configured_s > measured
+            and self.on_configured_grid[k - 1]
+        ):
             return self.configured_s
         return measured
 

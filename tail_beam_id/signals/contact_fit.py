@@ -36,7 +36,6 @@ import numpy as np
 
 from tail_beam_sim.errors import InputError, require_range
 
-
 PENCIL_WIDTH = 24  # columns of the ring-down's Hankel matrix: 3 x the most poles (8) read from it
 # Durations of the first, coarse search (a log grid from min_duration_s to max_duration_s, each
 # 1.25 x the one before at the defaults). With 12 (1.46 x) the search could stop in a local
@@ -48,7 +47,9 @@ COARSE_DURATIONS = 20
 class ContactFitConfig:
     """The ``identification.contact_fit`` section: times in s after (or before) the onset."""
 
-    ring_start_s: float = 0.0015  # the ring-down read for the poles starts here (the contact is over)
+    ring_start_s: float = (
+        0.0015  # the ring-down read for the poles starts here (the contact is over)
+    )
     ring_end_s: float = 0.006  # ... and ends here (<= the accelerometer's data window)
     early_ring_start_s: float = 0.0005  # a second pass's ring-down starts no sooner than this
     ring_after_contact_factor: float = 1.5  # ... nor sooner than this many first-pass durations
@@ -60,7 +61,9 @@ class ContactFitConfig:
     max_modes: int = 4  # damped sinusoids read from the ring-down, at most
     min_ring_samples: int = 24  # fewer samples in the ring-down (a slow channel): no fit
     min_mode_frequency_hz: float = 150.0  # slower poles are left to the quadratic (the sway)
-    max_fit_rate_hz: float = 51200.0  # a faster channel is read every k-th sample, at most this rate (cost)
+    max_fit_rate_hz: float = (
+        51200.0  # a faster channel is read every k-th sample, at most this rate (cost)
+    )
 
     @classmethod
     def from_params(cls, section: Mapping[str, Any] | None) -> ContactFitConfig:
@@ -68,28 +71,73 @@ class ContactFitConfig:
         default = cls()
 
         def seconds(name: str, high: float = 0.1) -> float:
-            return require_range(f"identification.contact_fit.{name}", section.get(name, getattr(default, name)), 0.0, high,
-                                 low_open=True, unit="s")
+            return require_range(
+                f"identification.contact_fit.{name}",
+                section.get(name, getattr(default, name)),
+                0.0,
+                high,
+                low_open=True,
+                unit="s",
+            )
 
         config = cls(
-            ring_start_s=seconds("ring_start_s"), ring_end_s=seconds("ring_end_s"), before_s=seconds("before_s"),
-            early_ring_start_s=seconds("early_ring_start_s"), ring_after_contact_s=seconds("ring_after_contact_s"),
-            ring_after_contact_factor=require_range("identification.contact_fit.ring_after_contact_factor",
-                                                    section.get("ring_after_contact_factor", default.ring_after_contact_factor), 1.0, 10.0),
-            after_s=seconds("after_s"), min_duration_s=seconds("min_duration_s"), max_duration_s=seconds("max_duration_s"),
-            max_modes=int(require_range("identification.contact_fit.max_modes", section.get("max_modes", default.max_modes), 1, 8)),
-            min_ring_samples=int(require_range("identification.contact_fit.min_ring_samples",
-                                               section.get("min_ring_samples", default.min_ring_samples), 8, 10000)),
-            min_mode_frequency_hz=require_range("identification.contact_fit.min_mode_frequency_hz",
-                                                section.get("min_mode_frequency_hz", default.min_mode_frequency_hz), 0.0, 1e5, unit="Hz"),
-            max_fit_rate_hz=require_range("identification.contact_fit.max_fit_rate_hz",
-                                          section.get("max_fit_rate_hz", default.max_fit_rate_hz), 1000.0, 1e6, unit="Hz"),
+            ring_start_s=seconds("ring_start_s"),
+            ring_end_s=seconds("ring_end_s"),
+            before_s=seconds("before_s"),
+            early_ring_start_s=seconds("early_ring_start_s"),
+            ring_after_contact_s=seconds("ring_after_contact_s"),
+            ring_after_contact_factor=require_range(
+                "identification.contact_fit.ring_after_contact_factor",
+                section.get("ring_after_contact_factor", default.ring_after_contact_factor),
+                1.0,
+                10.0,
+            ),
+            after_s=seconds("after_s"),
+            min_duration_s=seconds("min_duration_s"),
+            max_duration_s=seconds("max_duration_s"),
+            max_modes=int(
+                require_range(
+                    "identification.contact_fit.max_modes",
+                    section.get("max_modes", default.max_modes),
+                    1,
+                    8,
+                )
+            ),
+            min_ring_samples=int(
+                require_range(
+                    "identification.contact_fit.min_ring_samples",
+                    section.get("min_ring_samples", default.min_ring_samples),
+                    8,
+                    10000,
+                )
+            ),
+            min_mode_frequency_hz=require_range(
+                "identification.contact_fit.min_mode_frequency_hz",
+                section.get("min_mode_frequency_hz", default.min_mode_frequency_hz),
+                0.0,
+                1e5,
+                unit="Hz",
+            ),
+            max_fit_rate_hz=require_range(
+                "identification.contact_fit.max_fit_rate_hz",
+                section.get("max_fit_rate_hz", default.max_fit_rate_hz),
+                1000.0,
+                1e6,
+                unit="Hz",
+            ),
         )
         if config.ring_end_s <= config.ring_start_s:
-            raise InputError("identification.contact_fit.ring_end_s", config.ring_end_s, f"must be > ring_start_s ({config.ring_start_s:g} s)")
+            raise InputError(
+                "identification.contact_fit.ring_end_s",
+                config.ring_end_s,
+                f"must be > ring_start_s ({config.ring_start_s:g} s)",
+            )
         if config.max_duration_s <= config.min_duration_s:
-            raise InputError("identification.contact_fit.max_duration_s", config.max_duration_s,
-                             f"must be > min_duration_s ({config.min_duration_s:g} s)")
+            raise InputError(
+                "identification.contact_fit.max_duration_s",
+                config.max_duration_s,
+                f"must be > min_duration_s ({config.min_duration_s:g} s)",
+            )
         return config
 
 
@@ -103,7 +151,9 @@ class ContactFit:
     mode_frequencies_hz: tuple[float, ...]
 
 
-def ringing_poles(values: np.ndarray, period_s: float, max_modes: int, noise: float, min_frequency_hz: float) -> np.ndarray:
+def ringing_poles(
+    values: np.ndarray, period_s: float, max_modes: int, noise: float, min_frequency_hz: float
+) -> np.ndarray:
     """Continuous-time poles (1/s, upper half-plane, decaying) of the damped sinusoids in a
     ring-down, by the matrix pencil: as many as its Hankel matrix has singular values clear of
     the noise (at least one, at most ``max_modes``), poles slower than ``min_frequency_hz``
@@ -128,8 +178,14 @@ def ringing_poles(values: np.ndarray, period_s: float, max_modes: int, noise: fl
     return np.unique(np.round(poles, 6))[:max_modes]
 
 
-def _best(t: np.ndarray, y: np.ndarray, sway: np.ndarray, poles: np.ndarray, durations: np.ndarray,
-          starts: np.ndarray) -> tuple[float, float]:
+def _best(
+    t: np.ndarray,
+    y: np.ndarray,
+    sway: np.ndarray,
+    poles: np.ndarray,
+    durations: np.ndarray,
+    starts: np.ndarray,
+) -> tuple[float, float]:
     """The (duration, start) among every pair of ``durations`` x ``starts`` whose basis fits
     ``y`` at ``t`` with the least residual, all candidates solved together. The basis: a
     quadratic (``sway``, N x 3 orthonormal; ``y`` comes with it taken out), the half-sine
@@ -150,9 +206,13 @@ def _best(t: np.ndarray, y: np.ndarray, sway: np.ndarray, poles: np.ndarray, dur
     basis = np.zeros((durations.size, starts.size, rows, n))
     basis[within[0], within[1], 0, within[2]] = sine
     for k, pole in enumerate(poles):
-        grows = np.where(after, np.exp(pole * np.where(after, since, 0.0)), 0.0)  # exp(p t) after the start, (S, N)
+        grows = np.where(
+            after, np.exp(pole * np.where(after, since, 0.0)), 0.0
+        )  # exp(p t) after the start, (S, N)
         value = (w * (1.0 + np.exp(-pole * d)) / (pole * pole + w * w)) * grows[None]
-        value[within] = ((-pole * sine - w_in * cosine) + w_in * grows[within[1], within[2]]) / (pole * pole + w_in * w_in)
+        value[within] = ((-pole * sine - w_in * cosine) + w_in * grows[within[1], within[2]]) / (
+            pole * pole + w_in * w_in
+        )
         basis[:, :, 1 + 2 * k] = value.real
         basis[:, :, 2 + 2 * k] = value.imag
     basis = basis.reshape(-1, rows, n)
@@ -174,14 +234,31 @@ def _best(t: np.ndarray, y: np.ndarray, sway: np.ndarray, poles: np.ndarray, dur
     return float(durations[best // starts.size]), float(starts[best % starts.size])
 
 
-def _search(t: np.ndarray, y: np.ndarray, sway: np.ndarray, poles: np.ndarray, period_s: float,
-            config: ContactFitConfig) -> tuple[float, float]:
+def _search(
+    t: np.ndarray,
+    y: np.ndarray,
+    sway: np.ndarray,
+    poles: np.ndarray,
+    period_s: float,
+    config: ContactFitConfig,
+) -> tuple[float, float]:
     """(duration, start) of the best half-sine: every duration of a log grid (COARSE_DURATIONS)
     with starts half a sample apart, then refined around the best."""
-    coarse = np.exp(np.linspace(math.log(config.min_duration_s), math.log(config.max_duration_s), COARSE_DURATIONS))
+    coarse = np.exp(
+        np.linspace(
+            math.log(config.min_duration_s), math.log(config.max_duration_s), COARSE_DURATIONS
+        )
+    )
     duration, start = _best(t, y, sway, poles, coarse, np.arange(-3, 6) * period_s / 2.0)
     step = math.log(coarse[1] / coarse[0])
-    return _best(t, y, sway, poles, duration * np.exp(np.linspace(-step, step, 9)), start + np.arange(-2, 3) * period_s / 6.0)
+    return _best(
+        t,
+        y,
+        sway,
+        poles,
+        duration * np.exp(np.linspace(-step, step, 9)),
+        start + np.arange(-2, 3) * period_s / 6.0,
+    )
 
 
 def _unbroken(where: np.ndarray, stamp_s: np.ndarray, period_s: float) -> np.ndarray:
@@ -207,15 +284,25 @@ def clipped_samples(accel: np.ndarray, where: np.ndarray) -> np.ndarray:
     return at_limit if at_limit.size >= 2 else where[:0]
 
 
-def clipped_near(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, config: ContactFitConfig) -> bool:
+def clipped_near(
+    stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, config: ContactFitConfig
+) -> bool:
     """Whether the sensor clipped in the window the fit reads (before_s before the onset to
     ring_end_s after it): the label then says the channel saturated."""
-    where = np.flatnonzero((stamp_s > onset_s - config.before_s) & (stamp_s <= onset_s + config.ring_end_s))
+    where = np.flatnonzero(
+        (stamp_s > onset_s - config.before_s) & (stamp_s <= onset_s + config.ring_end_s)
+    )
     return bool(clipped_samples(accel, where).size)
 
 
-def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s: float, noise: float,
-                config: ContactFitConfig) -> ContactFit | None:
+def fit_contact(
+    stamp_s: np.ndarray,
+    accel: np.ndarray,
+    onset_s: float,
+    period_s: float,
+    noise: float,
+    config: ContactFitConfig,
+) -> ContactFit | None:
     """The contact's half-sine duration from the samples (stamps in s, acceleration along the
     plate normal in m/s^2) around a pulse whose onset is ``onset_s``. A channel too slow for a
     ring-down of ``min_ring_samples`` gives its sample period (the contact fell within one
@@ -226,7 +313,11 @@ def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s
         return ContactFit(period_s, onset_s, ())
     ring = (stamp_s > onset_s + config.ring_start_s) & (stamp_s <= onset_s + config.ring_end_s)
     inside = (stamp_s > onset_s - config.before_s) & (stamp_s <= onset_s + config.after_s)
-    if ring.sum() < config.min_ring_samples or inside.sum() < 8 or not np.all(np.isfinite(accel[inside | ring])):
+    if (
+        ring.sum() < config.min_ring_samples
+        or inside.sum() < 8
+        or not np.all(np.isfinite(accel[inside | ring]))
+    ):
         return None
     # Above max_fit_rate_hz every stride-th sample from the window's first: the cost grows with
     # the samples in the window, and a channel faster than the training's (8-64 kHz) is then
@@ -246,26 +337,44 @@ def fit_contact(stamp_s: np.ndarray, accel: np.ndarray, onset_s: float, period_s
     def ring_down(from_s: float) -> np.ndarray:
         """The kept, finite samples from ``from_s`` after the onset to ring_end_s, after any
         clipped one: their longest unbroken run."""
-        where = np.flatnonzero(kept & (stamp_s > onset_s + from_s) & (stamp_s <= onset_s + config.ring_end_s) & np.isfinite(accel))
-        return _unbroken(where[where > clipped.max()] if clipped.size else where, stamp_s, period_s)
+        where = np.flatnonzero(
+            kept
+            & (stamp_s > onset_s + from_s)
+            & (stamp_s <= onset_s + config.ring_end_s)
+            & np.isfinite(accel)
+        )
+        return _unbroken(
+            where[where > clipped.max()] if clipped.size else where, stamp_s, period_s
+        )
 
     t = stamp_s[inside] - onset_s
     y = accel[inside] - float(np.mean(accel[inside]))
-    sway = np.linalg.qr(np.stack([np.ones_like(t), t, t * t], axis=1))[0]  # the beam's sway: a quadratic, N x 3
+    sway = np.linalg.qr(np.stack([np.ones_like(t), t, t * t], axis=1))[
+        0
+    ]  # the beam's sway: a quadratic, N x 3
     y = y - sway @ (sway.T @ y)
     ring = ring_down(config.ring_start_s)
     if ring.size < config.min_ring_samples:
         return None
-    poles = ringing_poles(accel[ring], period_s, config.max_modes, noise, config.min_mode_frequency_hz)
+    poles = ringing_poles(
+        accel[ring], period_s, config.max_modes, noise, config.min_mode_frequency_hz
+    )
     duration, start = _search(t, y, sway, poles, period_s, config)
     # A second pass whose ring-down starts soon after the contact the first pass read (not
     # before early_ring_start_s): on a stiff beam the modes that shape the pulse ring out
     # within a millisecond, before ring_start_s, and without them the reading split between
     # two minima (one 25 mm coal read 113 or 289 us on one support; README, Identification).
-    early_s = max(config.early_ring_start_s, start + config.ring_after_contact_factor * duration + config.ring_after_contact_s)
+    early_s = max(
+        config.early_ring_start_s,
+        start + config.ring_after_contact_factor * duration + config.ring_after_contact_s,
+    )
     if early_s < config.ring_start_s - period_s:
         sooner = ring_down(early_s)
         if sooner.size >= config.min_ring_samples:
-            early = ringing_poles(accel[sooner], period_s, config.max_modes, noise, config.min_mode_frequency_hz)
+            early = ringing_poles(
+                accel[sooner], period_s, config.max_modes, noise, config.min_mode_frequency_hz
+            )
             duration, start = _search(t, y, sway, early, period_s, config)
-    return ContactFit(duration, onset_s + start, tuple(float(p.imag / (2.0 * math.pi)) for p in poles))  # the late ring-down's
+    return ContactFit(
+        duration, onset_s + start, tuple(float(p.imag / (2.0 * math.pi)) for p in poles)
+    )  # the late ring-down's

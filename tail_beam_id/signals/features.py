@@ -81,7 +81,12 @@ class PressureFit:
 
 
 def fit_pressure(
-    model: BeamModel, stamp_s: np.ndarray, pressure_pa: np.ndarray, onset_s: float, pre_s: float, window_s: float,
+    model: BeamModel,
+    stamp_s: np.ndarray,
+    pressure_pa: np.ndarray,
+    onset_s: float,
+    pre_s: float,
+    window_s: float,
     sway_drift: bool = False,
 ) -> PressureFit | None:
     """Least-squares fit of the pressure in [onset - pre, onset + window]: a constant plus the
@@ -108,7 +113,13 @@ def fit_pressure(
     covariance = np.linalg.pinv(basis.T @ basis) * noise**2
     peak = float(np.max(np.abs(model.pressure_response(np.linspace(0.0, window_s, 200)))))
     k = len(columns)  # the moment impulse's column
-    return PressureFit(float(coeffs[k]), float(math.sqrt(covariance[k, k])), noise, float(coeffs[k]) * peak, saturated)
+    return PressureFit(
+        float(coeffs[k]),
+        float(math.sqrt(covariance[k, k])),
+        noise,
+        float(coeffs[k]) * peak,
+        saturated,
+    )
 
 
 def _flat_lined(values: np.ndarray) -> bool:
@@ -127,7 +138,13 @@ class ImuImpulse:
 
 
 def imu_impulse(
-    model: BeamModel, stamp_s: np.ndarray, accel_z: np.ndarray, pulse: Pulse, pre_s: float, skip_s: float, post_s: float
+    model: BeamModel,
+    stamp_s: np.ndarray,
+    accel_z: np.ndarray,
+    pulse: Pulse,
+    pre_s: float,
+    skip_s: float,
+    post_s: float,
 ) -> ImuImpulse | None:
     """The pulse's velocity change, fitted in the velocity domain so the bending modes' ringing
     averages out: the specific force before the pulse gives the background (constant plus the
@@ -141,10 +158,14 @@ def imu_impulse(
         return None
     omega = 2.0 * math.pi * model.support.rigid_mode_frequency_hz
     t_before = stamp_s[before] - pulse.onset_s
-    basis = np.vstack([np.ones_like(t_before), np.cos(omega * t_before), np.sin(omega * t_before)]).T
+    basis = np.vstack(
+        [np.ones_like(t_before), np.cos(omega * t_before), np.sin(omega * t_before)]
+    ).T
     coeffs, *_ = np.linalg.lstsq(basis, accel_z[before], rcond=None)
     t_after = stamp_s[after] - pulse.onset_s
-    background = coeffs[0] + coeffs[1] * np.cos(omega * t_after) + coeffs[2] * np.sin(omega * t_after)
+    background = (
+        coeffs[0] + coeffs[1] * np.cos(omega * t_after) + coeffs[2] * np.sin(omega * t_after)
+    )
     # Plate velocity change at the end of each sample: specific force = g - plate acceleration.
     velocity = -np.cumsum(accel_z[after] - background) * period
     response = model.imu_velocity_response(stamp_s[after] - pulse.onset_s)
@@ -186,7 +207,9 @@ def impact_features(
             # samples cut short) the acceleration features are not all there, and the models decide
             # without them (methods.statistical.signals_of).
             features["contact_duration_s"] = contact.duration_s
-        estimates.append((moment, max(impulse.sigma_mps, impulse.ring_mps) * model.imu_moment_per_velocity))
+        estimates.append(
+            (moment, max(impulse.sigma_mps, impulse.ring_mps) * model.imu_moment_per_velocity)
+        )
     if pressure is not None and not pressure.saturated:
         features["moment_impulse_pressure_nms"] = pressure.moment_impulse_nms
         features["pressure_swing_pa"] = pressure.swing_pa

@@ -65,7 +65,14 @@ class DetectionConfig:
         p = params or {}
 
         def get(name: str, low: float, high: float, unit: str = "") -> float:
-            return require_range(f"identification.detection.{name}", p.get(name), low, high, low_open=True, unit=unit)
+            return require_range(
+                f"identification.detection.{name}",
+                p.get(name),
+                low,
+                high,
+                low_open=True,
+                unit=unit,
+            )
 
         return cls(
             accel_threshold_sigma=get("accel_threshold_sigma", 0.0, 1e3),
@@ -87,10 +94,19 @@ class DetectionConfig:
             pressure_onset_uncertainty_s=get("pressure_onset_uncertainty_s", 0.0, 1.0, "s"),
             onset_before_rebound_max_s=get("onset_before_rebound_max_s", 0.0, 1.0, "s"),
             rebound_frame_allowance_s=get("rebound_frame_allowance_s", 0.0, 1.0, "s"),
-            pressure_drift_confirm_sigma=require_range("identification.detection.pressure_drift_confirm_sigma",
-                                                       p.get("pressure_drift_confirm_sigma", cls.pressure_drift_confirm_sigma), 0.0, 1e3),
-            late_rebound_max_s=require_range("identification.detection.late_rebound_max_s",
-                                             p.get("late_rebound_max_s", cls.late_rebound_max_s), 0.0, 1.0, unit="s"),
+            pressure_drift_confirm_sigma=require_range(
+                "identification.detection.pressure_drift_confirm_sigma",
+                p.get("pressure_drift_confirm_sigma", cls.pressure_drift_confirm_sigma),
+                0.0,
+                1e3,
+            ),
+            late_rebound_max_s=require_range(
+                "identification.detection.late_rebound_max_s",
+                p.get("late_rebound_max_s", cls.late_rebound_max_s),
+                0.0,
+                1.0,
+                unit="s",
+            ),
         )
 
 
@@ -133,7 +149,9 @@ def extrapolation_weights(length: int) -> np.ndarray:
     return np.linalg.pinv(basis)[0]
 
 
-def background_fit(values: np.ndarray, lo: int, hi: int, excluded: np.ndarray, max_degree: int = 2) -> np.ndarray:
+def background_fit(
+    values: np.ndarray, lo: int, hi: int, excluded: np.ndarray, max_degree: int = 2
+) -> np.ndarray:
     """Polynomial (in sample index, about ``hi``) fitted to values[lo:hi] outside ``excluded``:
     quadratic with 12 samples or more, linear with 8 or more, else constant (a high degree on
     few samples extrapolates wildly), at most ``max_degree``. Returns 3 coefficients, constant
@@ -152,7 +170,9 @@ def background_fit(values: np.ndarray, lo: int, hi: int, excluded: np.ndarray, m
     return coeffs
 
 
-def background_values(values: np.ndarray, ends: np.ndarray, baseline: int, excluded: np.ndarray) -> np.ndarray:
+def background_values(
+    values: np.ndarray, ends: np.ndarray, baseline: int, excluded: np.ndarray
+) -> np.ndarray:
     """``background_fit(values, e - baseline, e, excluded)[0]`` for every ``e`` in ``ends`` at
     once: the background each sample just after a pulse is compared with (the fit over the
     samples before it that no pulse covers, at the sample). Same degrees as ``background_fit``;
@@ -173,12 +193,20 @@ def background_values(values: np.ndarray, ends: np.ndarray, baseline: int, exclu
     for d in range(3):
         rows = (degree == d) & (kept > 0)
         if rows.any():
-            normal = np.stack([np.stack([moments[rows, p + q] for q in range(d + 1)], axis=-1) for p in range(d + 1)], axis=-2)
-            out[rows] = np.linalg.solve(normal, rhs[rows, :d + 1, None])[:, 0, 0]
+            normal = np.stack(
+                [
+                    np.stack([moments[rows, p + q] for q in range(d + 1)], axis=-1)
+                    for p in range(d + 1)
+                ],
+                axis=-2,
+            )
+            out[rows] = np.linalg.solve(normal, rhs[rows, : d + 1, None])[:, 0, 0]
     return out
 
 
-RING_RUN_DECAYS = 20.0  # a run of ringing samples followed at once spans at most this many ring_decay_s
+RING_RUN_DECAYS = (
+    20.0  # a run of ringing samples followed at once spans at most this many ring_decay_s
+)
 
 
 class PulseDetector:
@@ -190,12 +218,16 @@ class PulseDetector:
 
     def __init__(self, config: DetectionConfig, sway_frequency_hz: float | None = None) -> None:
         self.config = config
-        self.sway_frequency_hz = sway_frequency_hz  # the beam's free sway (the identifier's beam model), Hz
+        self.sway_frequency_hz = (
+            sway_frequency_hz  # the beam's free sway (the identifier's beam model), Hz
+        )
         self.cursor = 0  # next sample index (absolute) to examine
         self.spans: list[tuple[int, int]] = []  # absolute (first, last) sample of each pulse found
         self.period_s: float | None = None  # the IMU sample period, s, read from the stamps
         self.ring: tuple[float, float] | None = None  # ringing envelope: (stamp s, level m/s^2)
-        self._sigma_cache: dict[int, float] = {}  # noise RMS per block, by its first absolute index
+        self._sigma_cache: dict[
+            int, float
+        ] = {}  # noise RMS per block, by its first absolute index
 
     def geometry(self, period_s: float) -> tuple[int, int, int]:
         """(baseline samples, noise block samples, most samples a pulse spans) at this period."""
@@ -205,7 +237,9 @@ class PulseDetector:
         span = int(math.ceil(c.max_contact_s / period_s)) + 1
         return baseline, block, span
 
-    def noise(self, accel_z: np.ndarray, k: int, baseline: int, block: int, base_index: int) -> float:
+    def noise(
+        self, accel_z: np.ndarray, k: int, baseline: int, block: int, base_index: int
+    ) -> float:
         """Noise RMS for local sample ``k``: MAD of the prediction residuals over the previous
         whole block of samples (the first block for early samples). Blocks are aligned to the
         absolute sample index, so the value never depends on how the stream was chunked."""
@@ -215,10 +249,20 @@ class PulseDetector:
             # A stream that resumed after a gap may have had that block trimmed away: use the
             # oldest whole block still buffered instead.
             lo = min(max(start - base_index, baseline), max(accel_z.size - block, baseline))
-            self._sigma_cache[start] = robust_sigma(self._residual(accel_z, lo, lo + block, baseline))
+            self._sigma_cache[start] = robust_sigma(
+                self._residual(accel_z, lo, lo + block, baseline)
+            )
         return self._sigma_cache[start]
 
-    def _block_sigmas(self, accel_z: np.ndarray, start: int, stop: int, baseline: int, block: int, base_index: int) -> np.ndarray:
+    def _block_sigmas(
+        self,
+        accel_z: np.ndarray,
+        start: int,
+        stop: int,
+        baseline: int,
+        block: int,
+        base_index: int,
+    ) -> np.ndarray:
         """Noise RMS for every sample in [start, stop), one value per aligned block."""
         sigma = np.empty(stop - start)
         k = start
@@ -226,17 +270,21 @@ class PulseDetector:
             absolute = base_index + k
             block_end = ((absolute - baseline) // block + 1) * block + baseline - base_index
             end = min(block_end, stop)
-            sigma[k - start:end - start] = self.noise(accel_z, k, baseline, block, base_index)
+            sigma[k - start : end - start] = self.noise(accel_z, k, baseline, block, base_index)
             k = end
         return sigma
 
     @staticmethod
     def _residual(accel_z: np.ndarray, lo: int, hi: int, baseline: int) -> np.ndarray:
         """Residuals of samples lo..hi-1 from the one-step quadratic prediction."""
-        windows = np.lib.stride_tricks.sliding_window_view(accel_z[lo - baseline:hi - 1], baseline)
+        windows = np.lib.stride_tricks.sliding_window_view(
+            accel_z[lo - baseline : hi - 1], baseline
+        )
         return accel_z[lo:hi] - windows @ extrapolation_weights(baseline)
 
-    def scan(self, stamp_s: np.ndarray, accel_z: np.ndarray, base_index: int = 0, final: bool = False) -> list[Pulse]:
+    def scan(
+        self, stamp_s: np.ndarray, accel_z: np.ndarray, base_index: int = 0, final: bool = False
+    ) -> list[Pulse]:
         """New pulses in the buffered stream (``base_index`` = absolute index of element 0).
 
         Every sample is examined as it arrives (the tests are causal: a sample is compared with
@@ -258,7 +306,7 @@ class PulseDetector:
         self._sigma_cache = {k: v for k, v in self._sigma_cache.items() if k >= base_index}
         mask = np.zeros(n, dtype=bool)
         for first, last in self.spans:
-            mask[first - base_index:last - base_index + 1] = True
+            mask[first - base_index : last - base_index + 1] = True
         if n < baseline + block:
             if not final:
                 return []
@@ -271,17 +319,21 @@ class PulseDetector:
         # Samples over the plain noise threshold (ringing only raises it): the only candidates
         # outside the few samples after a pulse, which are checked one by one.
         sigma = self._block_sigmas(accel_z, start, stop, baseline, block, base_index)
-        candidates = np.flatnonzero(np.abs(residual) > self.config.accel_threshold_sigma * sigma) + start
+        candidates = (
+            np.flatnonzero(np.abs(residual) > self.config.accel_threshold_sigma * sigma) + start
+        )
         pulses: list[Pulse] = []
         k = start
         while k < stop:
             ringing = self._ringing(float(stamp_s[k]), float(sigma[k - start]))
             if ringing:
-                run_end = self._ring_run(stamp_s, accel_z, residual, sigma, mask, k, stop, start, baseline)
+                run_end = self._ring_run(
+                    stamp_s, accel_z, residual, sigma, mask, k, stop, start, baseline
+                )
                 if run_end > k:
                     k = run_end
                     continue
-            dirty = mask[max(k - baseline, 0):k].any()
+            dirty = mask[max(k - baseline, 0) : k].any()
             if not dirty and not ringing:
                 following = int(np.searchsorted(candidates, k))
                 if following == candidates.size:
@@ -297,13 +349,20 @@ class PulseDetector:
             noise = sigma[k - start]
             if noise > 0.0 and abs(deviation) > self._threshold(float(stamp_s[k]), noise):
                 if not final and k + span + 1 >= n:
-                    self.cursor = base_index + k  # its pulse is not all in yet: look again from here
+                    self.cursor = (
+                        base_index + k
+                    )  # its pulse is not all in yet: look again from here
                     return pulses
-                pulse = self._grow(stamp_s, accel_z, mask, k, baseline, span, noise, period, base_index)
+                pulse = self._grow(
+                    stamp_s, accel_z, mask, k, baseline, span, noise, period, base_index
+                )
                 pulses.append(pulse)
-                mask[pulse.first_index - base_index:pulse.last_index - base_index + 1] = True
+                mask[pulse.first_index - base_index : pulse.last_index - base_index + 1] = True
                 self.spans.append((pulse.first_index, pulse.last_index))
-                self.ring = (float(stamp_s[pulse.last_index - base_index]), pulse.peak_sigma * noise)
+                self.ring = (
+                    float(stamp_s[pulse.last_index - base_index]),
+                    pulse.peak_sigma * noise,
+                )
                 k = pulse.last_index - base_index + 1
             else:
                 if ringing:
@@ -313,8 +372,16 @@ class PulseDetector:
         return pulses
 
     def _ring_run(
-        self, stamp_s: np.ndarray, accel_z: np.ndarray, residual: np.ndarray, sigma: np.ndarray, mask: np.ndarray,
-        k: int, stop: int, start: int, baseline: int,
+        self,
+        stamp_s: np.ndarray,
+        accel_z: np.ndarray,
+        residual: np.ndarray,
+        sigma: np.ndarray,
+        mask: np.ndarray,
+        k: int,
+        stop: int,
+        start: int,
+        baseline: int,
     ) -> int:
         """Follow the ringing over samples ``k``.. at once, as the sample-by-sample walk does
         (each raises the envelope it exceeds), for as long as every sample rings and stays under
@@ -324,27 +391,41 @@ class PulseDetector:
         c = self.config
         stamp0, level0 = self.ring  # type: ignore[misc]
         t0 = float(stamp_s[k])
-        end = k + int(np.searchsorted(stamp_s[k:stop], t0 + RING_RUN_DECAYS * c.ring_decay_s, side="right"))
+        end = k + int(
+            np.searchsorted(stamp_s[k:stop], t0 + RING_RUN_DECAYS * c.ring_decay_s, side="right")
+        )
         t = stamp_s[k:end]
-        deviation = residual[k - start:end - start].copy()
-        lo = max(k - baseline, 0)  # masked samples in the baseline before each of the run's samples
+        deviation = residual[k - start : end - start].copy()
+        lo = max(
+            k - baseline, 0
+        )  # masked samples in the baseline before each of the run's samples
         masked = np.concatenate([[0], np.cumsum(mask[lo:end])])
         rows = np.arange(k, end)
         dirty = masked[rows - lo] - masked[np.maximum(rows - baseline, 0) - lo] > 0
         if dirty.any():
-            deviation[dirty] = accel_z[rows[dirty]] - background_values(accel_z, rows[dirty], baseline, mask)
+            deviation[dirty] = accel_z[rows[dirty]] - background_values(
+                accel_z, rows[dirty], baseline, mask
+            )
         magnitude = np.abs(deviation)
         growth = np.exp((t - t0) / c.ring_decay_s)
         # Envelope in units of exp(t / ring_decay_s) after t0: entry 0 the state before k.
-        candidate = np.concatenate([[level0 * math.exp((stamp0 - t0) / c.ring_decay_s)], magnitude * growth])
+        candidate = np.concatenate(
+            [[level0 * math.exp((stamp0 - t0) / c.ring_decay_s)], magnitude * growth]
+        )
         running = np.maximum.accumulate(candidate)
         raises = candidate > np.concatenate([[-math.inf], running[:-1]])
         setter = np.maximum.accumulate(np.where(raises, np.arange(candidate.size), 0))
         before = running[:-1] / growth  # decayed envelope before each sample, m/s^2
-        since = t - np.concatenate([[stamp0], t])[setter[:-1]]  # since the envelope was last raised, s
-        noise = sigma[k - start:end - start]
-        ringing = (since < c.ring_window_s) | (c.ring_fraction * before > c.accel_threshold_sigma * noise)
-        over = (noise > 0.0) & (magnitude > np.maximum(c.accel_threshold_sigma * noise, c.ring_fraction * before))
+        since = (
+            t - np.concatenate([[stamp0], t])[setter[:-1]]
+        )  # since the envelope was last raised, s
+        noise = sigma[k - start : end - start]
+        ringing = (since < c.ring_window_s) | (
+            c.ring_fraction * before > c.accel_threshold_sigma * noise
+        )
+        over = (noise > 0.0) & (
+            magnitude > np.maximum(c.accel_threshold_sigma * noise, c.ring_fraction * before)
+        )
         halt = np.flatnonzero(over | ~ringing)
         r = int(halt[0]) if halt.size else end - k
         if r == 0:
@@ -376,7 +457,9 @@ class PulseDetector:
         threshold = c.accel_threshold_sigma * sigma
         if self.ring is not None:
             stamp, level = self.ring
-            threshold = max(threshold, c.ring_fraction * level * math.exp(-(stamp_s - stamp) / c.ring_decay_s))
+            threshold = max(
+                threshold, c.ring_fraction * level * math.exp(-(stamp_s - stamp) / c.ring_decay_s)
+            )
         return threshold
 
     def _follow_ring(self, stamp_s: float, magnitude: float) -> None:
@@ -387,7 +470,13 @@ class PulseDetector:
             self.ring = (stamp_s, magnitude)
 
     def _pulse_background(
-        self, stamp_s: np.ndarray, accel_z: np.ndarray, lo: int, baseline: int, mask: np.ndarray, period: float,
+        self,
+        stamp_s: np.ndarray,
+        accel_z: np.ndarray,
+        lo: int,
+        baseline: int,
+        mask: np.ndarray,
+        period: float,
     ) -> Callable[[np.ndarray], np.ndarray]:
         """The background a pulse's samples (from ``lo`` on) are compared with, as a function of
         sample index: a constant plus the beam's free sway (cosine and sine at its frequency)
@@ -408,15 +497,25 @@ class PulseDetector:
 
             def sway(index: np.ndarray) -> np.ndarray:
                 tau = (index - lo) * period
-                return coeffs[0] + coeffs[1] * np.cos(omega * tau) + coeffs[2] * np.sin(omega * tau)
+                return (
+                    coeffs[0] + coeffs[1] * np.cos(omega * tau) + coeffs[2] * np.sin(omega * tau)
+                )
 
             return sway
         line = background_fit(accel_z, lo - baseline, lo, mask, max_degree=1)
         return lambda index: line[0] + line[1] * (index - lo)
 
     def _grow(
-        self, stamp_s: np.ndarray, accel_z: np.ndarray, mask: np.ndarray, k: int, baseline: int,
-        span: int, sigma: float, period: float, base_index: int,
+        self,
+        stamp_s: np.ndarray,
+        accel_z: np.ndarray,
+        mask: np.ndarray,
+        k: int,
+        baseline: int,
+        span: int,
+        sigma: float,
+        period: float,
+        base_index: int,
     ) -> Pulse:
         """The whole deviating run of samples from its first over-threshold sample ``k``."""
         c = self.config
@@ -426,10 +525,10 @@ class PulseDetector:
         # too far) for the first sample past onset_threshold_sigma.
         lookback = max(ONSET_LOOKBACK_MIN_SAMPLES, int(round(c.onset_lookback_s / period)))
         lo = max(k - lookback, baseline)
-        while mask[lo - baseline:k].any() and lo < k:
+        while mask[lo - baseline : k].any() and lo < k:
             lo += 1
         background = self._pulse_background(stamp_s, accel_z, lo, baseline, mask, period)
-        before = accel_z[lo:k + 1] - background(np.arange(lo, k + 1))
+        before = accel_z[lo : k + 1] - background(np.arange(lo, k + 1))
         past = np.abs(before) > c.onset_threshold_sigma * sigma
         first = lo + int(np.argmax(past)) if past.any() else k
         # At least up to k: at a slow rate (1 kHz and under) the look-back can reach further
@@ -440,11 +539,15 @@ class PulseDetector:
         for j in range(1, deviation.size):
             # The run reaches at least the sample that set the detection off: an early sample
             # past the onset threshold does not cut the contact itself off.
-            if first + j > k and (abs(deviation[j]) <= c.extend_threshold_sigma * sigma or mask[first + j]):
+            if first + j > k and (
+                abs(deviation[j]) <= c.extend_threshold_sigma * sigma or mask[first + j]
+            ):
                 break
             last = first + j
         weight = np.abs(deviation[: last - first + 1])
-        times = stamp_s[first:last + 1] - 0.5 * period  # middle of each sample's averaging period
+        times = (
+            stamp_s[first : last + 1] - 0.5 * period
+        )  # middle of each sample's averaging period
         centre = float(np.sum(weight * times) / weight.sum())
         variance = float(np.sum(weight * (times - centre) ** 2) / weight.sum())
         return Pulse(

@@ -15,11 +15,17 @@ from __future__ import annotations
 
 import numpy as np
 
-GRAVITY_FRACTION = 0.5  # a median reading beyond this x g (either sign) is gravity: the sensor is DC-coupled
+GRAVITY_FRACTION = (
+    0.5  # a median reading beyond this x g (either sign) is gravity: the sensor is DC-coupled
+)
 BLOCK_S = 0.25  # the stretch of recording each IMU comparison looks at, s
-SMOOTH_S = 0.005  # moving average before the comparison (the sway and the low modes, not the ringing), s
+SMOOTH_S = (
+    0.005  # moving average before the comparison (the sway and the low modes, not the ringing), s
+)
 MIN_CORRELATION = 0.6  # |correlation| that settles the sign
-MOTION_NOISE_RATIO = 10.0  # the IMU's smoothed z must swing this many times its noise RMS (the beam moved)
+MOTION_NOISE_RATIO = (
+    10.0  # the IMU's smoothed z must swing this many times its noise RMS (the beam moved)
+)
 GIVE_UP_S = 10.0  # of accelerometer data without an answer (no IMU, or a beam that never moved): as configured
 
 
@@ -33,7 +39,12 @@ def sign_from_gravity(first_mps2: np.ndarray, gravity_mps2: float) -> float | No
 
 
 def sign_from_imu(
-    vib_stamp_s: np.ndarray, vib_mps2: np.ndarray, imu_stamp_s: np.ndarray, imu_z_mps2: np.ndarray, start_s: float, end_s: float,
+    vib_stamp_s: np.ndarray,
+    vib_mps2: np.ndarray,
+    imu_stamp_s: np.ndarray,
+    imu_z_mps2: np.ndarray,
+    start_s: float,
+    end_s: float,
 ) -> float | None:
     """+1 or -1: the accelerometer's z against the IMU's (the right way up) over [start_s,
     end_s); None when the beam did not move enough there or the two do not clearly agree.
@@ -59,7 +70,11 @@ def sign_from_imu(
     a = np.convolve(vib - np.median(vib), kernel, mode="valid")
     b = np.convolve(imu - np.median(imu), kernel, mode="valid")
     noise = 1.4826 * float(np.median(np.abs(np.diff(imu)))) / np.sqrt(2.0) / np.sqrt(width)
-    if a.size < 8 or np.ptp(b) < MOTION_NOISE_RATIO * max(noise, 1e-12) or not (np.std(a) > 0.0 and np.std(b) > 0.0):
+    if (
+        a.size < 8
+        or np.ptp(b) < MOTION_NOISE_RATIO * max(noise, 1e-12)
+        or not (np.std(a) > 0.0 and np.std(b) > 0.0)
+    ):
         return None
     correlation = float(np.corrcoef(a, b)[0, 1])
     if abs(correlation) < MIN_CORRELATION:

@@ -32,8 +32,15 @@ class PressureOnset:
 class PressureDetector:
     """Scans one pressure stream for impacts; remembers how far it got (a grid index)."""
 
-    def __init__(self, model: BeamModel, threshold_sigma: float, pre_s: float, window_s: float, refractory_s: float,
-                 confirm_sigma: float) -> None:
+    def __init__(
+        self,
+        model: BeamModel,
+        threshold_sigma: float,
+        pre_s: float,
+        window_s: float,
+        refractory_s: float,
+        confirm_sigma: float,
+    ) -> None:
         self.model = model
         self.threshold_sigma = threshold_sigma
         self.confirm_sigma = confirm_sigma
@@ -55,7 +62,9 @@ class PressureDetector:
             self.next_grid = math.ceil(start_s / GRID_S)
             self._run = []
 
-    def scan(self, stamp_s: np.ndarray, pressure_pa: np.ndarray, start_s: float, final: bool = False) -> list[PressureOnset]:
+    def scan(
+        self, stamp_s: np.ndarray, pressure_pa: np.ndarray, start_s: float, final: bool = False
+    ) -> list[PressureOnset]:
         """New onsets at or after ``start_s`` whose window lies inside the buffered samples."""
         if stamp_s.size < 8:
             return []
@@ -67,7 +76,11 @@ class PressureDetector:
             onset = self.next_grid * GRID_S
             self.next_grid += 1
             fit = fit_pressure(self.model, stamp_s, pressure_pa, onset, self.pre_s, self.window_s)
-            z = fit.moment_impulse_nms / fit.sigma_nms if fit is not None and fit.sigma_nms > 0 and not fit.saturated else 0.0
+            z = (
+                fit.moment_impulse_nms / fit.sigma_nms
+                if fit is not None and fit.sigma_nms > 0 and not fit.saturated
+                else 0.0
+            )
             if z > self.threshold_sigma:
                 self._run.append((onset, z))
                 continue
@@ -76,7 +89,9 @@ class PressureDetector:
                 if self._confirmed(stamp_s, pressure_pa, best[0]):
                     found.append(PressureOnset(*best))
                 self._run = []
-                self.next_grid = max(self.next_grid, math.ceil((best[0] + self.refractory_s) / GRID_S))
+                self.next_grid = max(
+                    self.next_grid, math.ceil((best[0] + self.refractory_s) / GRID_S)
+                )
         if final and self._run:
             best = max(self._run, key=lambda item: item[1])
             if self._confirmed(stamp_s, pressure_pa, best[0]):
@@ -90,5 +105,11 @@ class PressureDetector:
         beam swaying from an earlier impact at a frequency a little off the nominal one (the
         model's is the rigid beam's; a real support's differs) otherwise reads as a new impact
         every ring window: on streams of the nominal support 157 extra labels for 60 impacts."""
-        fit = fit_pressure(self.model, stamp_s, pressure_pa, onset_s, self.pre_s, self.window_s, sway_drift=True)
-        return fit is not None and fit.sigma_nms > 0 and fit.moment_impulse_nms >= self.confirm_sigma * fit.sigma_nms
+        fit = fit_pressure(
+            self.model, stamp_s, pressure_pa, onset_s, self.pre_s, self.window_s, sway_drift=True
+        )
+        return (
+            fit is not None
+            and fit.sigma_nms > 0
+            and fit.moment_impulse_nms >= self.confirm_sigma * fit.sigma_nms
+        )

@@ -30,7 +30,9 @@ from scipy.special import bdtrc
 
 from tail_beam_sim.errors import require_range
 
-UNUSUAL = "delay_unusual"  # the decision estimate: 1.0 when the impact's delay is unusual, 0.0 when not
+UNUSUAL = (
+    "delay_unusual"  # the decision estimate: 1.0 when the impact's delay is unusual, 0.0 when not
+)
 OUTSIDE_NAME = "sensor_timing"  # what a capped label lists in outside_training
 # The feature (1.0) of an impact decided without its delay because the recording's delays were
 # found unlike the training's: methods with a twin fitted without the delay use it then.
@@ -53,10 +55,22 @@ class TimingConfig:
     def from_params(cls, section: Mapping[str, Any]) -> TimingConfig:
         name = "identification.sensor_timing"
         return cls(
-            min_impacts=int(require_range(f"{name}.min_impacts", section.get("min_impacts", 10), 1, 1e6)),
-            agreeing_rate=require_range(f"{name}.agreeing_rate", section.get("agreeing_rate", 0.03), 0.0, 0.5, low_open=True),
-            false_alarm=require_range(f"{name}.false_alarm", section.get("false_alarm", 1e-3), 0.0, 0.5, low_open=True),
-            confidence_cap=require_range(f"{name}.confidence_cap", section.get("confidence_cap", 0.6), 0.5, 1.0),
+            min_impacts=int(
+                require_range(f"{name}.min_impacts", section.get("min_impacts", 10), 1, 1e6)
+            ),
+            agreeing_rate=require_range(
+                f"{name}.agreeing_rate",
+                section.get("agreeing_rate", 0.03),
+                0.0,
+                0.5,
+                low_open=True,
+            ),
+            false_alarm=require_range(
+                f"{name}.false_alarm", section.get("false_alarm", 1e-3), 0.0, 0.5, low_open=True
+            ),
+            confidence_cap=require_range(
+                f"{name}.confidence_cap", section.get("confidence_cap", 0.6), 0.5, 1.0
+            ),
         )
 
 
@@ -81,11 +95,17 @@ class SensorTiming:
 
     def describe(self) -> str:
         """One line for the log."""
-        where = " (and the self-calibration pass over the recording found so)" if self.from_profile else ""
-        return (f"{self.unusual} of {self.checked} impacts{where} have a delay from onset to camera stamp unlike the training's "
-                "for their size and speed: the camera's and the acceleration channel's clocks may be offset (README, "
-                "Supports other than the shipped one); labels that used the delay are decided without it, "
-                f"capped at {self.config.confidence_cap:g} and list {OUTSIDE_NAME} in outside_training")
+        where = (
+            " (and the self-calibration pass over the recording found so)"
+            if self.from_profile
+            else ""
+        )
+        return (
+            f"{self.unusual} of {self.checked} impacts{where} have a delay from onset to camera stamp unlike the training's "
+            "for their size and speed: the camera's and the acceleration channel's clocks may be offset (README, "
+            "Supports other than the shipped one); labels that used the delay are decided without it, "
+            f"capped at {self.config.confidence_cap:g} and list {OUTSIDE_NAME} in outside_training"
+        )
 
 
 def judge(checked: int, unusual: int, config: TimingConfig) -> bool:

@@ -32,8 +32,12 @@ class PendingImpact:
 
     onset_s: float
     pulse: Pulse | None
-    rebound: tuple[float, np.ndarray] | None = None  # (camera stamp s, velocity m/s in the plate frame)
-    source: str = "imu"  # what detected it: imu (a pulse in an acceleration channel) | rebound | pressure
+    rebound: tuple[float, np.ndarray] | None = (
+        None  # (camera stamp s, velocity m/s in the plate frame)
+    )
+    source: str = (
+        "imu"  # what detected it: imu (a pulse in an acceleration channel) | rebound | pressure
+    )
     channel: str = "imu"  # the acceleration channel of its pulse: imu | vibration
     late_rebound: bool = False  # its rebound came after its window (a camera slower than known): ImpactAssociation.late_claimant
 
@@ -42,16 +46,24 @@ class ImpactAssociation:
     """The pending impacts, the camera's rebounds and the recently decided onsets, and the rules
     that associate them (module docstring)."""
 
-    def __init__(self, config: IdentifierConfig, frame_period_at: Callable[[float], float | None] = lambda stamp_s: None) -> None:
+    def __init__(
+        self,
+        config: IdentifierConfig,
+        frame_period_at: Callable[[float], float | None] = lambda stamp_s: None,
+    ) -> None:
         """``frame_period_at(stamp)``: the camera's frame period (s) as known from the rebound
         stamps up to ``stamp`` (tail_beam_id.signals.camera.FramePeriod.period_at), or None."""
         self.config = config
         self.frame_period_at = frame_period_at
         self.pending: list[PendingImpact] = []
-        self.rebounds: list[tuple[float, np.ndarray]] = []  # (stamp s, velocity m/s), in stamp order
+        self.rebounds: list[
+            tuple[float, np.ndarray]
+        ] = []  # (stamp s, velocity m/s), in stamp order
         self.refused_rebounds = 0  # rebounds with a non-finite stamp or velocity, left out
         self.used_rebounds: set[float] = set()  # stamps of rebounds given to an impact
-        self.decided: list[float] = []  # onsets of recently decided impacts (overlap and ringing checks), s
+        self.decided: list[
+            float
+        ] = []  # onsets of recently decided impacts (overlap and ringing checks), s
 
     def add_rebound(self, stamp_s: float, velocity_mps: np.ndarray) -> None:
         """One rebound: the camera's stamp (s) and the particle's velocity (3,) in the plate frame.
@@ -81,14 +93,21 @@ class ImpactAssociation:
         camera's frame is, as known at ``stamp_s``, s: a slower camera stamps a rebound up to a
         frame after the contact ended."""
         period = self.frame_period_at(stamp_s)
-        return 0.0 if period is None else max(0.0, period - self.config.detection.rebound_frame_allowance_s)
+        return (
+            0.0
+            if period is None
+            else max(0.0, period - self.config.detection.rebound_frame_allowance_s)
+        )
 
     def rebound_window(self, impact: PendingImpact) -> tuple[float, float]:
         """Stamps a rebound of this impact may carry, s (widened for a slow camera)."""
         c = self.config.detection
         late = c.max_contact_s + self.slow_camera_s(impact.onset_s)
         if impact.source == "pressure":
-            return impact.onset_s - c.pressure_onset_uncertainty_s, impact.onset_s + late + c.pressure_onset_uncertainty_s
+            return (
+                impact.onset_s - c.pressure_onset_uncertainty_s,
+                impact.onset_s + late + c.pressure_onset_uncertainty_s,
+            )
         if impact.pulse is None:
             return impact.onset_s, impact.rebound[0] if impact.rebound else impact.onset_s + late
         return impact.pulse.onset_s - c.rebound_early_tolerance_s, impact.pulse.onset_s + late
@@ -115,12 +134,18 @@ class ImpactAssociation:
             return None
         latest = max(before)
         for impact in self.pending:
-            if (impact.onset_s == latest and impact.pulse is not None and impact.rebound is None
-                    and stamp_s - impact.onset_s <= late_s):
+            if (
+                impact.onset_s == latest
+                and impact.pulse is not None
+                and impact.rebound is None
+                and stamp_s - impact.onset_s <= late_s
+            ):
                 return impact
         return None
 
-    def take_late_rebound(self, impact: PendingImpact, stamp_s: float, velocity_mps: np.ndarray) -> None:
+    def take_late_rebound(
+        self, impact: PendingImpact, stamp_s: float, velocity_mps: np.ndarray
+    ) -> None:
         """Give ``impact`` the rebound at ``stamp_s`` that came after its window (late_claimant)."""
         impact.rebound = (stamp_s, velocity_mps)
         impact.late_rebound = True
@@ -128,12 +153,19 @@ class ImpactAssociation:
 
     def claimable(self, stamp_s: float) -> bool:
         """A pending impact without a rebound could still take the rebound at ``stamp_s``."""
-        return any(i.rebound is None and self.rebound_window(i)[0] <= stamp_s <= self.rebound_window(i)[1] for i in self.pending)
+        return any(
+            i.rebound is None and self.rebound_window(i)[0] <= stamp_s <= self.rebound_window(i)[1]
+            for i in self.pending
+        )
 
     def neighbours(self, impact: PendingImpact) -> list[PendingImpact]:
         """Pending impacts whose onsets fall within the overlap window of this one's."""
         overlap_s = self.windows(impact)[2]
-        return [o for o in self.pending if o is not impact and abs(o.onset_s - impact.onset_s) < overlap_s]
+        return [
+            o
+            for o in self.pending
+            if o is not impact and abs(o.onset_s - impact.onset_s) < overlap_s
+        ]
 
     def overlapping(self, impact: PendingImpact) -> bool:
         """Another impact within the overlap window that something besides the IMU confirms (its
@@ -143,7 +175,10 @@ class ImpactAssociation:
             if other.source != "imu" or other.rebound is not None:
                 return True
             lo, hi = self.rebound_window(other)
-            if any(lo <= stamp <= hi and stamp != own and stamp not in self.used_rebounds for stamp, _ in self.rebounds):
+            if any(
+                lo <= stamp <= hi and stamp != own and stamp not in self.used_rebounds
+                for stamp, _ in self.rebounds
+            ):
                 return True
         return any(abs(t - impact.onset_s) < self.windows(impact)[2] for t in self.decided)
 

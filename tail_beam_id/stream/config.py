@@ -38,19 +38,36 @@ class IdentifierConfig:
             raise InputError("identification", params, "missing parameter section")
 
         def seconds(name: str) -> float:
-            return require_range(f"identification.{name}", params.get(name), 0.0, 10.0, low_open=True, unit="s")
+            return require_range(
+                f"identification.{name}", params.get(name), 0.0, 10.0, low_open=True, unit="s"
+            )
 
         method = params.get("method")
         if method not in METHODS:
-            raise InputError("identification.method", method, f"must be one of {', '.join(METHODS)}")
+            raise InputError(
+                "identification.method", method, f"must be one of {', '.join(METHODS)}"
+            )
         window = seconds("window_s")
         overlap = seconds("overlap_window_s")
         if seconds("impulse_post_s") > window:
-            raise InputError("identification.impulse_post_s", params.get("impulse_post_s"), f"must be <= window_s ({window:g} s)")
+            raise InputError(
+                "identification.impulse_post_s",
+                params.get("impulse_post_s"),
+                f"must be <= window_s ({window:g} s)",
+            )
         if overlap > window:
-            raise InputError("identification.overlap_window_s", overlap, f"must be <= window_s ({window:g} s)")
+            raise InputError(
+                "identification.overlap_window_s", overlap, f"must be <= window_s ({window:g} s)"
+            )
         vibration_window = params.get("vibration_window_s", window)
-        vibration_window = require_range("identification.vibration_window_s", vibration_window, 0.0, window, low_open=True, unit="s")
+        vibration_window = require_range(
+            "identification.vibration_window_s",
+            vibration_window,
+            0.0,
+            window,
+            low_open=True,
+            unit="s",
+        )
         return cls(
             method=method,
             window_s=window,
@@ -62,10 +79,21 @@ class IdentifierConfig:
             stream_timeout_s=seconds("stream_timeout_s"),
             camera_timeout_s=seconds("camera_timeout_s"),
             overlap_window_s=overlap,
-            overlap_confidence_cap=require_range("identification.overlap_confidence_cap", params.get("overlap_confidence_cap"), 0.5, 1.0),
-            detection=DetectionConfig.from_params(require_section("identification.detection", params.get("detection"))),
-            timing=TimingConfig.from_params(require_section("identification.sensor_timing", params.get("sensor_timing"))),
-            contact_fit=ContactFitConfig.from_params(require_section("identification.contact_fit", params.get("contact_fit"))),
+            overlap_confidence_cap=require_range(
+                "identification.overlap_confidence_cap",
+                params.get("overlap_confidence_cap"),
+                0.5,
+                1.0,
+            ),
+            detection=DetectionConfig.from_params(
+                require_section("identification.detection", params.get("detection"))
+            ),
+            timing=TimingConfig.from_params(
+                require_section("identification.sensor_timing", params.get("sensor_timing"))
+            ),
+            contact_fit=ContactFitConfig.from_params(
+                require_section("identification.contact_fit", params.get("contact_fit"))
+            ),
         )
 
 

@@ -30,29 +30,44 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
-from tail_beam_id.stream.association import ImpactAssociation, PendingImpact
-from tail_beam_id.stream.config import IdentifierConfig
-from tail_beam_id.stream.buffers import Series
+from tail_beam_id.methods import Decision, Method, build_method
 from tail_beam_id.signals import mounting
 from tail_beam_id.signals.camera import FramePeriod, may_be_slower
-from tail_beam_id.signals.timing import DELAY_UNTRUSTED, OUTSIDE_NAME, UNUSUAL, SensorTiming, TimingConfig, judge
-from tail_beam_id.signals.contact_fit import ContactFitConfig, clipped_near, fit_contact
-from tail_beam_id.signals.imu_detection import DetectionConfig, Pulse, PulseDetector
+from tail_beam_id.signals.contact_fit import clipped_near, fit_contact
+from tail_beam_id.signals.features import (
+    VIBRATION_CHANNEL,
+    BeamModel,
+    PressureFit,
+    fit_pressure,
+    impact_features,
+    imu_impulse,
+)
+from tail_beam_id.signals.imu_detection import Pulse, PulseDetector
 from tail_beam_id.signals.pressure_detection import PressureDetector
-from tail_beam_id.signals.features import VIBRATION_CHANNEL, BeamModel, PressureFit, fit_pressure, imu_impulse, impact_features
+from tail_beam_id.signals.timing import (
+    DELAY_UNTRUSTED,
+    OUTSIDE_NAME,
+    UNUSUAL,
+    SensorTiming,
+    TimingConfig,
+    judge,
+)
+from tail_beam_id.stream.association import ImpactAssociation, PendingImpact
+from tail_beam_id.stream.buffers import Series
+from tail_beam_id.stream.config import IdentifierConfig
 from tail_beam_id.stream.label import Label, make_label
-from tail_beam_id.methods import METHODS, Decision, Method, build_method
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, require_range, require_section
 
-
 MOUNT_SAMPLES = 16  # IMU samples whose median gravity reading gives the mounting's sign
-VIBRATION_MOUNT_SAMPLES = 64  # accelerometer samples whose median gravity reading gives its mounting's sign
+VIBRATION_MOUNT_SAMPLES = (
+    64  # accelerometer samples whose median gravity reading gives its mounting's sign
+)
 
 
 def _configured_frame_period_s(merged: Mapping[str, Any]) -> float | None:
@@ -61,7 +76,9 @@ def _configured_frame_period_s(merged: Mapping[str, Any]) -> float | None:
     rate = (merged.get("sensors") or {}).get("camera_frame_rate_hz")
     if rate is None:
         return None
-    return 1.0 / require_range("sensors.camera_frame_rate_hz", rate, 0.0, 1e6, low_open=True, unit="Hz")
+    return 1.0 / require_range(
+        "sensors.camera_frame_rate_hz", rate, 0.0, 1e6, low_open=True, unit="Hz"
+    )
 
 
 def _profile_frame_period_s(merged: Mapping[str, Any]) -> float | None:
@@ -83,7 +100,10 @@ def _profile_says_timing_suspect(merged: Mapping[str, Any], config: TimingConfig
     """A self-calibration pass over the recording (its profile's ``calibration`` section) found
     its sensor timing suspect (tail_beam_id.signals.timing): then the labels are capped from the first."""
     calibration = merged.get("calibration") or {}
-    checked, unusual = calibration.get("delay_checked_impacts"), calibration.get("delay_unusual_impacts")
+    checked, unusual = (
+        calibration.get("delay_checked_impacts"),
+        calibration.get("delay_unusual_impacts"),
+    )
     if not isinstance(checked, int) or not isinstance(unusual, int):
         return False
     return judge(checked, unusual, config)
@@ -135,24 +155,40 @@ class StreamIdentifier:
         self.vibration_detector = PulseDetector(self.config.detection, sway_hz)
         c = self.config
         self.pressure_detector = PressureDetector(
-            self.model, c.detection.pressure_threshold_sigma, c.pressure_pre_s, c.window_s, c.detection.ring_window_s,
+            self.model,
+            c.detection.pressure_threshold_sigma,
+            c.pressure_pre_s,
+            c.window_s,
+            c.detection.ring_window_s,
             c.detection.pressure_drift_confirm_sigma,
         )
-        self.camera = FramePeriod(_configured_frame_period_s(merged))  # the camera's frame period, s
-        self.profile_frame_s = _profile_frame_period_s(merged)  # the frame self-calibration measured, s (None: not)
+        self.camera = FramePeriod(
+            _configured_frame_period_s(merged)
+        )  # the camera's frame period, s
+        self.profile_frame_s = _profile_frame_period_s(
+            merged
+        )  # the frame self-calibration measured, s (None: not)
         # Pending impacts, rebounds, recent decisions; its rebound windows follow the camera's frame.
         self.impacts = ImpactAssociation(self.config, self.camera.period_at)
-        self.timing = SensorTiming(self.config.timing, _profile_says_timing_suspect(merged, self.config.timing))
+        self.timing = SensorTiming(
+            self.config.timing, _profile_says_timing_suspect(merged, self.config.timing)
+        )
         self.imu_stop_s = math.inf  # stamp after which the IMU was declared stopped
         # (declared stopped at, taken up again from) of each time the IMU came back, s; and of
         # those, the ones the jack pressure stood in for (no other acceleration channel live).
         self.imu_outages: list[tuple[float, float]] = []
         self._pressure_outages: list[tuple[float, float]] = []
-        self.mount_sign: float | None = None  # +1: IMU z along the plate normal; -1: mounted upside down
+        self.mount_sign: float | None = (
+            None  # +1: IMU z along the plate normal; -1: mounted upside down
+        )
         self.vibration_mount_sign: float | None = None  # the same for the tail-beam accelerometer
-        self._mount_block_s: float | None = None  # start of the next block the IMU comparison looks at, s
+        self._mount_block_s: float | None = (
+            None  # start of the next block the IMU comparison looks at, s
+        )
         self.vibration_start_s = math.inf  # first vibration stamp seen
-        self.vibration_stop_s = math.inf  # stamp after which the vibration stream was declared stopped
+        self.vibration_stop_s = (
+            math.inf
+        )  # stamp after which the vibration stream was declared stopped
         # (declared stopped at, taken up again from) of each time the vibration stream came back
         # after a stop, s: the IMU's pulses count there (_vibration_resumed).
         self.vibration_outages: list[tuple[float, float]] = []
@@ -163,11 +199,15 @@ class StreamIdentifier:
         the merged parameters with the profile in; ``method``: the method built for them, when
         it depends on the support). Pending impacts keep their data; only decisions change."""
         merged = dict(model_params)
-        merged["identification"] = dict(merged.get("identification") or {}, method=self.config.method)
+        merged["identification"] = dict(
+            merged.get("identification") or {}, method=self.config.method
+        )
         self.model = BeamModel.from_params(merged)
         self.pressure_detector.model = self.model
         # The ringing the profile measured (tail_beam_id.calibration.modes) sets how long the detectors follow it.
-        ring_decay = ((model_params.get("identification") or {}).get("detection") or {}).get("ring_decay_s")
+        ring_decay = ((model_params.get("identification") or {}).get("detection") or {}).get(
+            "ring_decay_s"
+        )
         for detector in (self.detector, self.vibration_detector):
             detector.sway_frequency_hz = self.model.support.rigid_mode_frequency_hz
             if ring_decay is not None:
@@ -183,16 +223,27 @@ class StreamIdentifier:
         stamps = np.atleast_1d(np.asarray(stamp_s, dtype=float))
         values = np.atleast_1d(np.asarray(pressure_pa, dtype=float)).reshape(-1, 1)
         if stamps.size != values.shape[0]:
-            raise InputError("pressure_pa", values.shape, f"must hold one value per stamp ({stamps.size})")
+            raise InputError(
+                "pressure_pa", values.shape, f"must hold one value per stamp ({stamps.size})"
+            )
         self.pressure.append(*self._finite("jack_pressure", stamps, values))
 
-    def add_imu(self, stamp_s: np.ndarray, angular_velocity_radps: np.ndarray, linear_acceleration_mps2: np.ndarray) -> None:
+    def add_imu(
+        self,
+        stamp_s: np.ndarray,
+        angular_velocity_radps: np.ndarray,
+        linear_acceleration_mps2: np.ndarray,
+    ) -> None:
         """IMU samples: stamps (s), angular velocity (T, 3) rad/s, specific force (T, 3) m/s^2."""
         stamps = np.atleast_1d(np.asarray(stamp_s, dtype=float))
         gyro = np.asarray(angular_velocity_radps, dtype=float).reshape(-1, 3)
         accel = np.asarray(linear_acceleration_mps2, dtype=float).reshape(-1, 3)
         if gyro.shape[0] != stamps.size or accel.shape[0] != stamps.size:
-            raise InputError("imu", (gyro.shape, accel.shape), f"must hold (T, 3) arrays for T = {stamps.size} stamps")
+            raise InputError(
+                "imu",
+                (gyro.shape, accel.shape),
+                f"must hold (T, 3) arrays for T = {stamps.size} stamps",
+            )
         self.imu.append(*self._finite("imu", stamps, np.hstack([gyro, accel])))
 
     def add_vibration(self, stamp_s: np.ndarray, accel_mps2: np.ndarray) -> None:
@@ -202,13 +253,19 @@ class StreamIdentifier:
         stamps = np.atleast_1d(np.asarray(stamp_s, dtype=float))
         values = np.atleast_1d(np.asarray(accel_mps2, dtype=float)).reshape(-1, 1)
         if stamps.size != values.shape[0]:
-            raise InputError("vibration accel_mps2", values.shape, f"must hold one value per stamp ({stamps.size})")
+            raise InputError(
+                "vibration accel_mps2",
+                values.shape,
+                f"must hold one value per stamp ({stamps.size})",
+            )
         stamps, values = self._finite("vibration", stamps, values)
         if stamps.size and self.vibration_start_s == math.inf:
             self.vibration_start_s = float(stamps[0])
         self.vibration.append(stamps, values)
 
-    def _finite(self, name: str, stamps: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _finite(
+        self, name: str, stamps: np.ndarray, values: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The samples whose stamp and values are all finite; the others counted in
         ``refused_samples`` (a missing sample, as a lost message is, never a number)."""
         ok = np.isfinite(stamps) & np.isfinite(values).all(axis=1)
@@ -243,7 +300,10 @@ class StreamIdentifier:
         """Stamp the streams must pass before the earliest pending impact can be decided (its
         onset plus its data window), s; inf when nothing is pending. A live consumer polls as
         soon as its data is in (``id_node``'s wake) instead of on its next periodic tick."""
-        return min((i.onset_s + self.impacts.windows(i)[0] for i in self.impacts.pending), default=math.inf)
+        return min(
+            (i.onset_s + self.impacts.windows(i)[0] for i in self.impacts.pending),
+            default=math.inf,
+        )
 
     # ---- internals ---------------------------------------------------------------------------
     def _newest_s(self) -> float:
@@ -261,7 +321,14 @@ class StreamIdentifier:
 
     def _accel_stop_s(self) -> float:
         """Stamp after which no acceleration channel is live (inf while one is), s."""
-        stops = [stop for series, stop in ((self.imu, self.imu_stop_s), (self.vibration, self.vibration_stop_s)) if series.seen]
+        stops = [
+            stop
+            for series, stop in (
+                (self.imu, self.imu_stop_s),
+                (self.vibration, self.vibration_stop_s),
+            )
+            if series.seen
+        ]
         return max(stops, default=math.inf)
 
     def _live(self, series: Series, final: bool) -> bool:
@@ -275,7 +342,11 @@ class StreamIdentifier:
             series.join()
         if self.imu.seen and not self._live(self.imu, final) and self.imu_stop_s == math.inf:
             self.imu_stop_s = self.imu.latest_s
-        if self.vibration.seen and not self._live(self.vibration, final) and self.vibration_stop_s == math.inf:
+        if (
+            self.vibration.seen
+            and not self._live(self.vibration, final)
+            and self.vibration_stop_s == math.inf
+        ):
             self.vibration_stop_s = self.vibration.latest_s
         self._vibration_resumed()
         self._imu_resumed()
@@ -322,8 +393,9 @@ class StreamIdentifier:
         if stop_s == math.inf or not series.latest_s > stop_s or not self._live(series, False):
             return None
         first = float(series.stamp_s[np.searchsorted(series.stamp_s, stop_s, side="right")])
-        return first + self.config.detection.sway_window_s + self.config.detection.baseline_window_s
-
+        return (
+            first + self.config.detection.sway_window_s + self.config.detection.baseline_window_s
+        )
 
     def _accel_z(self) -> np.ndarray | None:
         """The IMU's specific force along the plate normal, the right way up (+g at rest).
@@ -334,7 +406,9 @@ class StreamIdentifier:
         if self.mount_sign is None:
             if self.imu.stamp_s.size < MOUNT_SAMPLES:
                 return None
-            self.mount_sign = -1.0 if float(np.median(self.imu.values[:MOUNT_SAMPLES, 5])) < 0.0 else 1.0
+            self.mount_sign = (
+                -1.0 if float(np.median(self.imu.values[:MOUNT_SAMPLES, 5])) < 0.0 else 1.0
+            )
         return self.imu.values[:, 5] * self.mount_sign
 
     def _vibration_z(self, final: bool = False) -> np.ndarray | None:
@@ -351,7 +425,9 @@ class StreamIdentifier:
         if self.vibration_mount_sign is None:
             if self.vibration.stamp_s.size < VIBRATION_MOUNT_SAMPLES and not final:
                 return None
-            sign = mounting.sign_from_gravity(self.vibration.values[:VIBRATION_MOUNT_SAMPLES, 0], self.model.support.gravity_mps2)
+            sign = mounting.sign_from_gravity(
+                self.vibration.values[:VIBRATION_MOUNT_SAMPLES, 0], self.model.support.gravity_mps2
+            )
             if sign is None:
                 sign = self._vibration_sign_from_imu(final)
             if sign is None:
@@ -371,8 +447,14 @@ class StreamIdentifier:
             complete = min(self.imu.latest_s, self.vibration.latest_s) >= end
             if not (complete or final):
                 break
-            sign = mounting.sign_from_imu(self.vibration.stamp_s, self.vibration.values[:, 0], self.imu.stamp_s, imu_z,
-                                          self._mount_block_s, end if complete else math.inf)
+            sign = mounting.sign_from_imu(
+                self.vibration.stamp_s,
+                self.vibration.values[:, 0],
+                self.imu.stamp_s,
+                imu_z,
+                self._mount_block_s,
+                end if complete else math.inf,
+            )
             if sign is not None:
                 return sign
             if not complete:  # the end of the data: the last, partial block
@@ -391,22 +473,47 @@ class StreamIdentifier:
         vibration_ended = final or self.vibration_stop_s < math.inf
         vibration_z = self._vibration_z(vibration_ended) if self.vibration.stamp_s.size else None
         if vibration_z is not None:
-            for pulse in self.vibration_detector.scan(self.vibration.stamp_s, vibration_z, self.vibration.base_index, vibration_ended):
+            for pulse in self.vibration_detector.scan(
+                self.vibration.stamp_s, vibration_z, self.vibration.base_index, vibration_ended
+            ):
                 if not _inside(self.vibration_outages, pulse.onset_s):
-                    self.impacts.pending.append(PendingImpact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration"))
+                    self.impacts.pending.append(
+                        PendingImpact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration")
+                    )
         if self.vibration.seen:
             # IMU pulses already waiting from before the vibration stream was first seen.
-            covered = [i for i in self.impacts.pending if i.channel == "imu" and i.pulse is not None and i.onset_s >= self.vibration_start_s]
-            self.impacts.pending = [i for i in self.impacts.pending if not any(i is c for c in covered)]
+            covered = [
+                i
+                for i in self.impacts.pending
+                if i.channel == "imu"
+                and i.pulse is not None
+                and i.onset_s >= self.vibration_start_s
+            ]
+            self.impacts.pending = [
+                i for i in self.impacts.pending if not any(i is c for c in covered)
+            ]
             self._held += [i.pulse for i in covered]  # type: ignore[misc]
         accel_z = self._accel_z()
         if accel_z is not None:
-            self._held += [pulse for pulse in self.detector.scan(self.imu.stamp_s, accel_z, self.imu.base_index, final or self.imu_stop_s < math.inf)
-                           if not _inside(self.imu_outages, pulse.onset_s)]
+            self._held += [
+                pulse
+                for pulse in self.detector.scan(
+                    self.imu.stamp_s,
+                    accel_z,
+                    self.imu.base_index,
+                    final or self.imu_stop_s < math.inf,
+                )
+                if not _inside(self.imu_outages, pulse.onset_s)
+            ]
         held, self._held = self._held, []
         for pulse in held:
-            covered = (self.vibration.seen and self.vibration_start_s <= pulse.onset_s <= min(self.vibration_stop_s, self.vibration.latest_s)
-                       and not _inside(self.vibration_outages, pulse.onset_s))
+            covered = (
+                self.vibration.seen
+                and self.vibration_start_s
+                <= pulse.onset_s
+                <= min(self.vibration_stop_s, self.vibration.latest_s)
+                and not _inside(self.vibration_outages, pulse.onset_s)
+            )
             if covered:
                 continue
             if self._vibration_in_use() and pulse.onset_s > self.vibration.latest_s and not final:
@@ -423,43 +530,71 @@ class StreamIdentifier:
             if stamp in self.impacts.used_rebounds:
                 continue
             imu_gone = stamp > self._accel_stop_s() + c.max_contact_s
-            imu_absent = not self._accel_seen() and (final or self._newest_s() >= stamp + self.config.stream_timeout_s)
+            imu_absent = not self._accel_seen() and (
+                final or self._newest_s() >= stamp + self.config.stream_timeout_s
+            )
             claimable = self.impacts.claimable(stamp)
             orphan = self._accel_seen() and scanned >= stamp + c.rebound_early_tolerance_s
             if (imu_gone or imu_absent or orphan) and not claimable:
-                late = self.impacts.late_claimant(stamp) if orphan and not imu_gone and self._camera_may_be_slower(stamp) else None
+                late = (
+                    self.impacts.late_claimant(stamp)
+                    if orphan and not imu_gone and self._camera_may_be_slower(stamp)
+                    else None
+                )
                 if late is not None:
                     self.impacts.take_late_rebound(late, stamp, velocity)
                     continue
                 self.impacts.used_rebounds.add(stamp)
                 onset = stamp - c.rebound_onset_lead_s
-                self.impacts.pending.append(PendingImpact(onset_s=onset, pulse=None, rebound=(stamp, velocity), source="rebound"))
+                self.impacts.pending.append(
+                    PendingImpact(
+                        onset_s=onset, pulse=None, rebound=(stamp, velocity), source="rebound"
+                    )
+                )
 
     def _imu_absent(self, final: bool) -> bool:
         """No acceleration channel (IMU, vibration) at all, after the pressure has run
         ``stream_timeout_s`` without one."""
         if self._accel_seen() or not self.pressure.stamp_s.size:
             return False
-        return final or self.pressure.latest_s >= self.pressure.stamp_s[0] + self.config.stream_timeout_s
+        return (
+            final
+            or self.pressure.latest_s >= self.pressure.stamp_s[0] + self.config.stream_timeout_s
+        )
 
     def _pressure_impacts(self, final: bool) -> None:
         """With the IMU stopped or absent, impacts found in the pressure (unless a rebound
         already stands for them)."""
         stop = self._accel_stop_s()
         # An IMU back after a stop: the pressure finishes the stretch it stood in for, no further.
-        unfinished = bool(self._pressure_outages) and self.pressure_detector.scanned_s <= self._pressure_outages[-1][1]
+        unfinished = (
+            bool(self._pressure_outages)
+            and self.pressure_detector.scanned_s <= self._pressure_outages[-1][1]
+        )
         if stop == math.inf and not self._imu_absent(final) and not unfinished:
             return
         if stop < math.inf:
-            self.pressure_detector.skip_to(stop)  # a new stop: the stretch since the last was the IMU's
+            self.pressure_detector.skip_to(
+                stop
+            )  # a new stop: the stretch since the last was the IMU's
         start = stop if stop < math.inf else -math.inf
         margin = self.config.detection.pressure_onset_uncertainty_s
-        for onset in self.pressure_detector.scan(self.pressure.stamp_s, self.pressure.values[:, 0], start, final):
-            if stop == math.inf and not self._imu_absent(final) and not _inside(self._pressure_outages, onset.onset_s):
+        for onset in self.pressure_detector.scan(
+            self.pressure.stamp_s, self.pressure.values[:, 0], start, final
+        ):
+            if (
+                stop == math.inf
+                and not self._imu_absent(final)
+                and not _inside(self._pressure_outages, onset.onset_s)
+            ):
                 continue  # after the IMU came back: its pulses find the impacts there
-            known = [i.onset_s for i in self.impacts.pending if i.source == "rebound"] + self.impacts.decided
+            known = [
+                i.onset_s for i in self.impacts.pending if i.source == "rebound"
+            ] + self.impacts.decided
             if all(abs(onset.onset_s - t) > margin for t in known):
-                self.impacts.pending.append(PendingImpact(onset_s=onset.onset_s, pulse=None, source="pressure"))
+                self.impacts.pending.append(
+                    PendingImpact(onset_s=onset.onset_s, pulse=None, source="pressure")
+                )
 
     def _ready(self, impact: PendingImpact) -> bool:
         """Every live stream has passed the impact's data window, the acceleration channel has
@@ -484,7 +619,11 @@ class StreamIdentifier:
         the acceleration channel has not yet been scanned past it: a pulse there would make it
         that impact's instead. The impact waits (it would otherwise be decided without the
         camera, and the rebound become an impact of its own)."""
-        if impact.pulse is None or impact.rebound is not None or self.config.detection.late_rebound_max_s <= 0.0:
+        if (
+            impact.pulse is None
+            or impact.rebound is not None
+            or self.config.detection.late_rebound_max_s <= 0.0
+        ):
             return False
         accel = self.vibration if self._vibration_in_use() else self.imu
         if not self._live(accel, False):
@@ -492,9 +631,14 @@ class StreamIdentifier:
         settled_s = self._imu_scanned_s() - self.config.detection.rebound_early_tolerance_s
         # The same conditions _rebound_impacts will claim it on, the camera's frame as known at
         # the rebound's own stamp.
-        return any(stamp not in self.impacts.used_rebounds and stamp > settled_s and not self.impacts.claimable(stamp)
-                   and self._camera_may_be_slower(stamp) and self.impacts.late_claimant(stamp) is impact
-                   for stamp, _ in self.impacts.rebounds)
+        return any(
+            stamp not in self.impacts.used_rebounds
+            and stamp > settled_s
+            and not self.impacts.claimable(stamp)
+            and self._camera_may_be_slower(stamp)
+            and self.impacts.late_claimant(stamp) is impact
+            for stamp, _ in self.impacts.rebounds
+        )
 
     def _camera_may_be_slower(self, stamp_s: float) -> bool:
         """Whether the camera may be slower than its frame is known to be at ``stamp_s``
@@ -526,23 +670,57 @@ class StreamIdentifier:
         overlap = self.impacts.overlapping(impact)
         onset = impact.onset_s
         if impact.rebound is not None and not impact.late_rebound:
-            before = cfg.detection.onset_before_rebound_max_s + self.impacts.slow_camera_s(impact.onset_s)
+            before = cfg.detection.onset_before_rebound_max_s + self.impacts.slow_camera_s(
+                impact.onset_s
+            )
             onset = max(onset, impact.rebound[0] - before)
         window_s, post_s, _ = self.impacts.windows(impact)
         fit: PressureFit | None = None
         if self.pressure.stamp_s.size:
-            fit = fit_pressure(self.model, self.pressure.stamp_s, self.pressure.values[:, 0], onset, cfg.pressure_pre_s, window_s)
+            fit = fit_pressure(
+                self.model,
+                self.pressure.stamp_s,
+                self.pressure.values[:, 0],
+                onset,
+                cfg.pressure_pre_s,
+                window_s,
+            )
         if impact.pulse is not None and impact.rebound is None:
-            ringing = any(0.0 < impact.onset_s - t < cfg.detection.ring_window_s for t in self.impacts.decided)
-            weak = impact.pulse.peak_sigma < cfg.detection.unconfirmed_pulse_sigma and not self._pressure_confirms(fit)
+            ringing = any(
+                0.0 < impact.onset_s - t < cfg.detection.ring_window_s
+                for t in self.impacts.decided
+            )
+            weak = (
+                impact.pulse.peak_sigma < cfg.detection.unconfirmed_pulse_sigma
+                and not self._pressure_confirms(fit)
+            )
             if ringing or weak:
                 return None  # the beam still ringing, or noise: nothing else saw an impact
         impulse = contact = None
         saturated = ["jack_pressure"] if fit is not None and fit.saturated else []
         if impact.pulse is not None:
-            series, values = (self.vibration, self._vibration_z()) if impact.channel == "vibration" else (self.imu, self._accel_z())
-            impulse = imu_impulse(self.model, series.stamp_s, values, impact.pulse, cfg.impulse_pre_s, cfg.impulse_skip_s, post_s)
-            contact = fit_contact(series.stamp_s, values, impact.pulse.onset_s, impact.pulse.period_s, impact.pulse.noise_mps2, cfg.contact_fit)
+            series, values = (
+                (self.vibration, self._vibration_z())
+                if impact.channel == "vibration"
+                else (self.imu, self._accel_z())
+            )
+            impulse = imu_impulse(
+                self.model,
+                series.stamp_s,
+                values,
+                impact.pulse,
+                cfg.impulse_pre_s,
+                cfg.impulse_skip_s,
+                post_s,
+            )
+            contact = fit_contact(
+                series.stamp_s,
+                values,
+                impact.pulse.onset_s,
+                impact.pulse.period_s,
+                impact.pulse.noise_mps2,
+                cfg.contact_fit,
+            )
             if clipped_near(series.stamp_s, values, impact.pulse.onset_s, cfg.contact_fit):
                 saturated.append(impact.channel)
         features = impact_features(self.model, impact.pulse, impulse, fit, impact.rebound, contact)
@@ -560,7 +738,11 @@ class StreamIdentifier:
             if impact.late_rebound:
                 # Stamped after the window the known frame allows: the frame is at least the
                 # delay from the onset (erring long only makes the decision less sure).
-                frame_period = max(frame_period or 0.0, impact.rebound[0] - impact.onset_s, features.get("rebound_delay_s", 0.0))
+                frame_period = max(
+                    frame_period or 0.0,
+                    impact.rebound[0] - impact.onset_s,
+                    features.get("rebound_delay_s", 0.0),
+                )
                 features["rebound_late"] = 1.0
             if frame_period is not None:
                 features["camera_frame_period_s"] = frame_period
@@ -575,26 +757,45 @@ class StreamIdentifier:
             timing_suspect = self.timing.suspect
             if timing_suspect:
                 decision = self._decide_without_the_delay(features, decision)
-        if decision.signals is not None:  # the label says what the decision rested on (a pulse whose duration was not read: not it)
-            signals = [s for s in signals if ("imu" if s in ("imu", "vibration") else s) in decision.signals]
+        if (
+            decision.signals is not None
+        ):  # the label says what the decision rested on (a pulse whose duration was not read: not it)
+            signals = [
+                s
+                for s in signals
+                if ("imu" if s in ("imu", "vibration") else s) in decision.signals
+            ]
         confidence = decision.confidence
         if overlap:
             confidence = min(confidence, cfg.overlap_confidence_cap)
         if timing_suspect:
             confidence = min(confidence, cfg.timing.confidence_cap)
-            decision = replace(decision, outside_training=(*decision.outside_training, OUTSIDE_NAME))
+            decision = replace(
+                decision, outside_training=(*decision.outside_training, OUTSIDE_NAME)
+            )
         self.impacts.decided.append(impact.onset_s)
         horizon = self.impacts.data_horizon_s(impact)
         return make_label(
-            impact_stamp_s=onset, decision=decision, confidence=confidence, method=self.method.name,
-            compute_ms=(time.perf_counter() - started) * 1e3, data_latency_ms=(horizon - onset) * 1e3,
-            signals=signals, overlap=overlap, calibrated=self.calibrated, features=features,
+            impact_stamp_s=onset,
+            decision=decision,
+            confidence=confidence,
+            method=self.method.name,
+            compute_ms=(time.perf_counter() - started) * 1e3,
+            data_latency_ms=(horizon - onset) * 1e3,
+            signals=signals,
+            overlap=overlap,
+            calibrated=self.calibrated,
+            features=features,
             saturated=saturated,
             imu_inverted=self.mount_sign is not None and self.mount_sign < 0,
-            vibration_inverted=impact.channel == "vibration" and self.vibration_mount_sign is not None and self.vibration_mount_sign < 0,
+            vibration_inverted=impact.channel == "vibration"
+            and self.vibration_mount_sign is not None
+            and self.vibration_mount_sign < 0,
         )
 
-    def _decide_without_the_delay(self, features: dict[str, float], decision: Decision) -> Decision:
+    def _decide_without_the_delay(
+        self, features: dict[str, float], decision: Decision
+    ) -> Decision:
         """The decision of the method's twin without the rebound delay, once the recording's
         delays are found unlike the training's (the camera's and the acceleration channel's clocks
         offset: tail_beam_id.signals.timing): a delay shifted by an offset pushes every label one way,
@@ -613,7 +814,11 @@ class StreamIdentifier:
         """The jack pressure saw a moment impulse ``pressure_confirm_sigma`` standard errors
         above zero at this onset."""
         threshold = self.config.detection.pressure_confirm_sigma
-        return fit is not None and not fit.saturated and fit.moment_impulse_nms > threshold * fit.sigma_nms
+        return (
+            fit is not None
+            and not fit.saturated
+            and fit.moment_impulse_nms > threshold * fit.sigma_nms
+        )
 
     def _trim(self) -> None:
         """Drop data no pending or future decision can need (bounded memory on long streams):
@@ -621,13 +826,21 @@ class StreamIdentifier:
         pending onset, and never trims past what the IMU detector has not examined yet (a
         backlogged IMU may lag the pressure by more than that look-back: trimming by the newest
         stamp of any topic would cut into it and make the result depend on arrival order)."""
-        keep_s = 4.0 * max(self.config.detection.noise_block_s, self.config.pressure_pre_s + self.config.window_s)
+        keep_s = 4.0 * max(
+            self.config.detection.noise_block_s, self.config.pressure_pre_s + self.config.window_s
+        )
         horizon = self._newest_s()
         if self.imu.seen and self.imu_stop_s == math.inf:
             horizon = min(horizon, self._scanned_s(self.imu, self.detector))
         if self._vibration_in_use():
             horizon = min(horizon, self._scanned_s(self.vibration, self.vibration_detector))
-        oldest_needed = min([i.onset_s for i in self.impacts.pending] + [p.onset_s for p in self._held], default=horizon) - keep_s
+        oldest_needed = (
+            min(
+                [i.onset_s for i in self.impacts.pending] + [p.onset_s for p in self._held],
+                default=horizon,
+            )
+            - keep_s
+        )
         if self.imu.stamp_s.size and self.imu.stamp_s[0] < oldest_needed - keep_s:
             self.imu.trim_before(oldest_needed)
         if self.pressure.stamp_s.size and self.pressure.stamp_s[0] < oldest_needed - keep_s:

@@ -17,9 +17,9 @@ from __future__ import annotations
 import bisect
 import json
 import math
-from functools import cached_property
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 from tail_beam_id.methods import Decision
@@ -27,16 +27,33 @@ from tail_beam_sim.errors import InputError, require_finite, require_range
 
 TRUTH_STAMP = "contact_start_stamp"  # the impact_truth field a label's stamp is compared with, s
 LABEL_STAMP = "impact_stamp"  # the label field holding the detected contact start, s
-MATCH_TOLERANCE_MAX_S = 0.1  # above this a label could reach a neighbouring impact of a stream (>= 0.2 s apart), s
+MATCH_TOLERANCE_MAX_S = (
+    0.1  # above this a label could reach a neighbouring impact of a stream (>= 0.2 s apart), s
+)
 
 
 MATERIALS = ("coal", "gangue")  # the values of a label's "label" field
 # The label JSON keys this module reads and writes (docs/interface.md); any other key of a label
 # is another identifier's, kept in Label.extra.
-JSON_KEYS = frozenset({
-    LABEL_STAMP, "label", "confidence", "method", "latency_ms", "data_latency_ms", "signals", "overlap", "calibrated",
-    "features", "non_finite_features", "saturated", "imu_mount", "vibration_mount", "outside_training",
-})
+JSON_KEYS = frozenset(
+    {
+        LABEL_STAMP,
+        "label",
+        "confidence",
+        "method",
+        "latency_ms",
+        "data_latency_ms",
+        "signals",
+        "overlap",
+        "calibrated",
+        "features",
+        "non_finite_features",
+        "saturated",
+        "imu_mount",
+        "vibration_mount",
+        "outside_training",
+    }
+)
 
 
 @dataclass(frozen=True)
@@ -56,7 +73,9 @@ class Label:
     material: str
     confidence: float
     method: str
-    latency_ms: float | None = None  # None: not measured (a label from another identifier may not say)
+    latency_ms: float | None = (
+        None  # None: not measured (a label from another identifier may not say)
+    )
     data_latency_ms: float | None = None
     signals: tuple[str, ...] = ()
     overlap: bool = False
@@ -64,10 +83,16 @@ class Label:
     features: Mapping[str, float] = field(default_factory=dict)
     non_finite_features: tuple[str, ...] = ()
     saturated: tuple[str, ...] = ()
-    imu_mount: str | None = None  # "inverted" when the IMU read -g (mounted upside down, corrected)
-    vibration_mount: str | None = None  # "inverted" when the tail-beam accelerometer read -g (corrected)
+    imu_mount: str | None = (
+        None  # "inverted" when the IMU read -g (mounted upside down, corrected)
+    )
+    vibration_mount: str | None = (
+        None  # "inverted" when the tail-beam accelerometer read -g (corrected)
+    )
     outside_training: tuple[str, ...] = ()
-    extra: Mapping[str, Any] = field(default_factory=dict)  # keys of another identifier's label, kept as they came
+    extra: Mapping[str, Any] = field(
+        default_factory=dict
+    )  # keys of another identifier's label, kept as they came
 
     def decision(self) -> tuple[float, str, float, str]:
         """What live and offline identification of the same data agree on exactly (the compute
@@ -77,14 +102,28 @@ class Label:
     def as_dict(self) -> dict[str, Any]:
         """The ``label`` JSON object: the contract's fields first, then the suite's; the
         optional keys only when they say something; a timing that was not measured (None) left out."""
-        out: dict[str, Any] = {LABEL_STAMP: self.impact_stamp_s, "label": self.material, "confidence": self.confidence,
-                               "method": self.method}
+        out: dict[str, Any] = {
+            LABEL_STAMP: self.impact_stamp_s,
+            "label": self.material,
+            "confidence": self.confidence,
+            "method": self.method,
+        }
         for key in ("latency_ms", "data_latency_ms"):
             if getattr(self, key) is not None:
                 out[key] = getattr(self, key)
-        out.update(signals=list(self.signals), overlap=self.overlap, calibrated=self.calibrated, features=dict(self.features))
-        optional = {"non_finite_features": list(self.non_finite_features), "saturated": list(self.saturated),
-                    "imu_mount": self.imu_mount, "vibration_mount": self.vibration_mount, "outside_training": list(self.outside_training)}
+        out.update(
+            signals=list(self.signals),
+            overlap=self.overlap,
+            calibrated=self.calibrated,
+            features=dict(self.features),
+        )
+        optional = {
+            "non_finite_features": list(self.non_finite_features),
+            "saturated": list(self.saturated),
+            "imu_mount": self.imu_mount,
+            "vibration_mount": self.vibration_mount,
+            "outside_training": list(self.outside_training),
+        }
         out.update({k: v for k, v in optional.items() if v})
         out.update({k: v for k, v in self.extra.items() if k not in out})
         return out
@@ -98,10 +137,14 @@ class Label:
         """Read a ``label`` object (from a topic, a bag or a file); raise InputError naming the
         field (``<where>.<field>``) and what it allows for anything else."""
         if not isinstance(obj, Mapping):
-            raise InputError(where, obj, "must be a JSON object with impact_stamp, label, confidence and method")
+            raise InputError(
+                where, obj, "must be a JSON object with impact_stamp, label, confidence and method"
+            )
         for key in (LABEL_STAMP, "label", "confidence", "method"):
             if key not in obj:
-                raise InputError(f"{where}.{key}", None, "is required (docs/interface.md, label JSON)")
+                raise InputError(
+                    f"{where}.{key}", None, "is required (docs/interface.md, label JSON)"
+                )
         material = obj["label"]
         if material not in MATERIALS:
             raise InputError(f"{where}.label", material, f"must be one of {', '.join(MATERIALS)}")
@@ -110,7 +153,9 @@ class Label:
         return cls(
             impact_stamp_s=_number(obj[LABEL_STAMP], f"{where}.{LABEL_STAMP}"),
             material=material,
-            confidence=require_range(f"{where}.confidence", _number(obj["confidence"], f"{where}.confidence"), 0.0, 1.0),
+            confidence=require_range(
+                f"{where}.confidence", _number(obj["confidence"], f"{where}.confidence"), 0.0, 1.0
+            ),
             method=obj["method"],
             latency_ms=_optional_number(obj, "latency_ms", where),
             data_latency_ms=_optional_number(obj, "data_latency_ms", where),
@@ -134,11 +179,15 @@ class Label:
         try:
             obj = json.loads(text, parse_constant=_refuse_constant)
         except _NotStrictJson as exc:
-            raise InputError(where, text, f"must be strict JSON ({exc} is not strict JSON)") from None
+            raise InputError(
+                where, text, f"must be strict JSON ({exc} is not strict JSON)"
+            ) from None
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise InputError(where, text, f"must be a JSON object ({exc})") from None
         except RecursionError:
-            raise InputError(where, text, "must be a JSON object (nested too deep to read)") from None
+            raise InputError(
+                where, text, "must be a JSON object (nested too deep to read)"
+            ) from None
         return cls.from_dict(obj, where)
 
 
@@ -191,8 +240,14 @@ def _mount(obj: Mapping[str, Any], key: str, where: str) -> str | None:
 
 def match_tolerance_s(section: Mapping[str, Any]) -> float:
     """``identification.match_tolerance_s`` of the ``identification`` section, validated (0, 0.1] s."""
-    return require_range("identification.match_tolerance_s", section.get("match_tolerance_s"), 0.0, MATCH_TOLERANCE_MAX_S,
-                         low_open=True, unit="s")
+    return require_range(
+        "identification.match_tolerance_s",
+        section.get("match_tolerance_s"),
+        0.0,
+        MATCH_TOLERANCE_MAX_S,
+        low_open=True,
+        unit="s",
+    )
 
 
 @dataclass(frozen=True)
@@ -216,7 +271,9 @@ class Matching:
         return self._by_truth.get(truth)
 
 
-def match_stamps(truth_stamps_s: Sequence[float], label_stamps_s: Sequence[float], tolerance_s: float) -> Matching:
+def match_stamps(
+    truth_stamps_s: Sequence[float], label_stamps_s: Sequence[float], tolerance_s: float
+) -> Matching:
     """The rule of this module on bare stamps (s): truths' contact starts, labels' impact stamps."""
     order = sorted(range(len(label_stamps_s)), key=lambda j: label_stamps_s[j])
     ordered = [label_stamps_s[j] for j in order]
@@ -242,9 +299,15 @@ def match_stamps(truth_stamps_s: Sequence[float], label_stamps_s: Sequence[float
     )
 
 
-def match(truths: Sequence[Mapping[str, Any]], labels: Sequence[Label], tolerance_s: float) -> Matching:
+def match(
+    truths: Sequence[Mapping[str, Any]], labels: Sequence[Label], tolerance_s: float
+) -> Matching:
     """Pair ``impact_truth`` objects with labels by the rule of this module."""
-    return match_stamps([float(t[TRUTH_STAMP]) for t in truths], [label.impact_stamp_s for label in labels], tolerance_s)
+    return match_stamps(
+        [float(t[TRUTH_STAMP]) for t in truths],
+        [label.impact_stamp_s for label in labels],
+        tolerance_s,
+    )
 
 
 def make_label(
@@ -268,7 +331,10 @@ def make_label(
     impact's features, to which the method's estimates are added. A value that is no finite
     number never reaches the JSON (strict parsers refuse NaN and Infinity): such a feature is left
     out and named in ``non_finite_features``, and such a confidence becomes 0.5 (no idea)."""
-    every = {**{k: float(v) for k, v in features.items()}, **{k: float(v) for k, v in decision.estimates.items()}}
+    every = {
+        **{k: float(v) for k, v in features.items()},
+        **{k: float(v) for k, v in decision.estimates.items()},
+    }
     return Label(
         impact_stamp_s=impact_stamp_s,
         material=decision.label,

@@ -62,7 +62,11 @@ def replay(
             identifier.add_pressure(pressure.stamp_s[take], pressure.pressure_pa[take])
         if i_cut is not None and i_cut[k + 1] > i_cut[k]:
             take = slice(i_cut[k], i_cut[k + 1])
-            identifier.add_imu(imu.stamp_s[take], imu.angular_velocity_radps[take], imu.linear_acceleration_mps2[take])
+            identifier.add_imu(
+                imu.stamp_s[take],
+                imu.angular_velocity_radps[take],
+                imu.linear_acceleration_mps2[take],
+            )
         if v_cut is not None and v_cut[k + 1] > v_cut[k]:
             take = slice(v_cut[k], v_cut[k + 1])
             identifier.add_vibration(vib_stamps[take], vibration.accel_mps2[take].astype(float))
@@ -90,12 +94,16 @@ def _in_stamp_order(stream: Any) -> Any:
         return stream
     order = np.argsort(stream.stamp_s, kind="stable")
     fields = {f.name: getattr(stream, f.name) for f in dataclasses.fields(stream)}
-    return dataclasses.replace(stream, **{k: v[order] for k, v in fields.items() if isinstance(v, np.ndarray) and v.shape[:1] == order.shape})
+    return dataclasses.replace(
+        stream,
+        **{
+            k: v[order]
+            for k, v in fields.items()
+            if isinstance(v, np.ndarray) and v.shape[:1] == order.shape
+        },
+    )
 
 
 def stream_arrays(result: Any) -> tuple[PressureStream, ImuStream, list[Rebound]]:
     """The sensor streams of a SimulationResult, for :func:`replay`."""
     return result.pressure, result.imu, [result.rebound]
-
-
-

@@ -25,24 +25,41 @@ def accuracy_vs_latency(items: Sequence[Summary], path: Path) -> Path:
     """Accuracy (95 % CI bars) against median data latency plus median compute time, ms."""
     plt = pyplot()
     sets = sorted({s.scene_set for s in items})
-    fig, axes = plt.subplots(1, len(sets), figsize=(5.0 * len(sets), 4.2), squeeze=False, constrained_layout=True)
+    fig, axes = plt.subplots(
+        1, len(sets), figsize=(5.0 * len(sets), 4.2), squeeze=False, constrained_layout=True
+    )
     colours = {}
     for ax, scene_set in zip(axes[0], sets):
         for s in (i for i in items if i.scene_set == scene_set):
             x = s.data_latency_ms["median"] + s.compute_ms["median"]
             colour = colours.setdefault(s.setting, f"C{len(colours) % 10}")
             ax.errorbar(
-                x, 100 * s.accuracy, yerr=[[100 * (s.accuracy - s.accuracy_ci[0])], [100 * (s.accuracy_ci[1] - s.accuracy)]],
-                fmt=MARKERS.get(s.method, "x"), color=colour, ms=6, capsize=2, alpha=0.85,
+                x,
+                100 * s.accuracy,
+                yerr=[
+                    [100 * (s.accuracy - s.accuracy_ci[0])],
+                    [100 * (s.accuracy_ci[1] - s.accuracy)],
+                ],
+                fmt=MARKERS.get(s.method, "x"),
+                color=colour,
+                ms=6,
+                capsize=2,
+                alpha=0.85,
             )
         ax.set_title(f"{scene_set}")
         ax.set_xlabel("latency after contact: data + compute, median (ms)")
         ax.set_ylabel("accuracy (%)")
         ax.grid(alpha=0.3)
-    handles = [plt.Line2D([], [], marker=m, ls="", color="k", label=name) for name, m in MARKERS.items()]
-    handles += [plt.Line2D([], [], marker="o", ls="", color=c, label=k) for k, c in colours.items()]
+    handles = [
+        plt.Line2D([], [], marker=m, ls="", color="k", label=name) for name, m in MARKERS.items()
+    ]
+    handles += [
+        plt.Line2D([], [], marker="o", ls="", color=c, label=k) for k, c in colours.items()
+    ]
     axes[0][-1].legend(handles=handles, fontsize=7, loc="lower right")
-    fig.suptitle("accuracy against latency (shape: method, colour: rates/noise; one point per data window)")
+    fig.suptitle(
+        "accuracy against latency (shape: method, colour: rates/noise; one point per data window)"
+    )
     return save_figure(fig, path, 100, "--out")
 
 
@@ -50,7 +67,13 @@ def _panels(plt, items: Sequence[Summary]):  # type: ignore[no-untyped-def]
     """One subplot per scene set, side by side (one empty panel saying so when there is nothing
     to chart, e.g. a run too small to fill two size bins)."""
     sets = sorted({s.scene_set for s in items})
-    fig, axes = plt.subplots(1, max(len(sets), 1), figsize=(4.6 * max(len(sets), 1), 4.2), squeeze=False, constrained_layout=True)
+    fig, axes = plt.subplots(
+        1,
+        max(len(sets), 1),
+        figsize=(4.6 * max(len(sets), 1), 4.2),
+        squeeze=False,
+        constrained_layout=True,
+    )
     if not sets:
         axes[0][0].text(0.5, 0.5, "no data for this chart in this run", ha="center", va="center")
     return fig, dict(zip(sets, axes[0]))
@@ -60,14 +83,32 @@ def accuracy_vs_size(items: Sequence[Summary], path: Path, window_s: float) -> P
     """Accuracy per radius bin at nominal noise and the configured data window: one panel per
     scene set with sizes, one line per rates and method."""
     plt = pyplot()
-    chosen = [s for s in items if (_noise(s.setting) == 1.0 or s.scene_set in FOREIGN_SCENES) and len(s.by_size) > 1 and s.window_s == window_s]
+    chosen = [
+        s
+        for s in items
+        if (_noise(s.setting) == 1.0 or s.scene_set in FOREIGN_SCENES)
+        and len(s.by_size) > 1
+        and s.window_s == window_s
+    ]
     fig, axes = _panels(plt, chosen)
     for s in chosen:
         rates = s.setting.split("/x")[0]
         centres = [1e3 * (b["radius_m"][0] * b["radius_m"][1]) ** 0.5 for b in s.by_size]
-        axes[s.scene_set].plot(centres, [100 * b["accuracy"] for b in s.by_size], marker=MARKERS.get(s.method, "x"),
-                               ls="-" if rates == "nominal" else "--", label=f"{rates} {s.method}")
-    return _save_log_x_panels(plt, fig, axes, path, f"noise x1, window {1e3 * window_s:g} ms", "particle radius (mm, bin centre)")
+        axes[s.scene_set].plot(
+            centres,
+            [100 * b["accuracy"] for b in s.by_size],
+            marker=MARKERS.get(s.method, "x"),
+            ls="-" if rates == "nominal" else "--",
+            label=f"{rates} {s.method}",
+        )
+    return _save_log_x_panels(
+        plt,
+        fig,
+        axes,
+        path,
+        f"noise x1, window {1e3 * window_s:g} ms",
+        "particle radius (mm, bin centre)",
+    )
 
 
 def accuracy_vs_noise(items: Sequence[Summary], path: Path, window_s: float) -> Path:
@@ -78,15 +119,26 @@ def accuracy_vs_noise(items: Sequence[Summary], path: Path, window_s: float) -> 
     fig, axes = _panels(plt, chosen)
     lines: dict[tuple[str, str, str], list[tuple[float, float]]] = {}
     for s in chosen:
-        lines.setdefault((s.scene_set, s.setting.split("/x")[0], s.method), []).append((_noise(s.setting), 100 * s.accuracy))
+        lines.setdefault((s.scene_set, s.setting.split("/x")[0], s.method), []).append(
+            (_noise(s.setting), 100 * s.accuracy)
+        )
     for (scene_set, rates, method), points in sorted(lines.items()):
         points.sort()
-        axes[scene_set].plot([p[0] for p in points], [p[1] for p in points], marker=MARKERS.get(method, "x"),
-                             ls="-" if rates == "nominal" else "--", label=f"{rates} {method}")
-    return _save_log_x_panels(plt, fig, axes, path, f"window {1e3 * window_s:g} ms", "sensor noise (x nominal RMS)")
+        axes[scene_set].plot(
+            [p[0] for p in points],
+            [p[1] for p in points],
+            marker=MARKERS.get(method, "x"),
+            ls="-" if rates == "nominal" else "--",
+            label=f"{rates} {method}",
+        )
+    return _save_log_x_panels(
+        plt, fig, axes, path, f"window {1e3 * window_s:g} ms", "sensor noise (x nominal RMS)"
+    )
 
 
-def _save_log_x_panels(plt: Any, fig: Any, axes: dict[str, Any], path: Path, subtitle: str, xlabel: str) -> Path:
+def _save_log_x_panels(
+    plt: Any, fig: Any, axes: dict[str, Any], path: Path, subtitle: str, xlabel: str
+) -> Path:
     """Finish accuracy panels on a log x axis, titled ``<scene set> (<subtitle>)``, and save."""
     for name, ax in axes.items():
         ax.set_xscale("log")
@@ -108,8 +160,12 @@ def reliability_diagram(items: Sequence[Summary], path: Path, window_s: float) -
     for s in chosen:
         bins = s.extra["reliability"]
         ax = axes[s.scene_set]
-        ax.plot([b["confidence"] for b in bins], [b["accuracy"] for b in bins], marker=MARKERS.get(s.method, "x"),
-                label=f"{s.setting} {s.method} (ECE {s.extra['ece']:.3f})")
+        ax.plot(
+            [b["confidence"] for b in bins],
+            [b["accuracy"] for b in bins],
+            marker=MARKERS.get(s.method, "x"),
+            label=f"{s.setting} {s.method} (ECE {s.extra['ece']:.3f})",
+        )
     for name, ax in axes.items():
         ax.plot([0.5, 1.0], [0.5, 1.0], color="k", lw=0.8, ls="--")
         ax.set_xlim(0.5, 1.0)

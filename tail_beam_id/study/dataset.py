@@ -18,13 +18,13 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_id.study.supports import SupportDraw, draw_support, support_ranges
 from tail_beam_sim.config import section
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.fidelity import FidelitySettings
+from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.simulate import SimulationResult, simulate
 from tail_beam_sim.physics.stream import StreamSimulator
-from tail_beam_id.study.supports import SupportDraw, draw_support, support_ranges
 
 # Evaluation scene sets. ``foreign`` records drawn supports as continuous streams of stream-scene
 # impacts, ``foreign_paper`` the same supports with the paper scene's (support_streams;
@@ -42,8 +42,14 @@ DRAWN_SETTING = "drawn"
 PERTURBED_SUPPORT = ("beam_inertia_about_hinge_kgm2", "jack_damping_nspm", "oil_bulk_modulus_pa")
 
 
-RATE_FIELDS = ("pressure_rate_hz", "imu_rate_hz", "camera_frame_rate_hz")  # every setting names these, Hz
-VIBRATION_FIELD = "vibration_rate_hz"  # the accelerometer's rate, Hz; 0 or absent = no accelerometer
+RATE_FIELDS = (
+    "pressure_rate_hz",
+    "imu_rate_hz",
+    "camera_frame_rate_hz",
+)  # every setting names these, Hz
+VIBRATION_FIELD = (
+    "vibration_rate_hz"  # the accelerometer's rate, Hz; 0 or absent = no accelerometer
+)
 VIBRATION_RATE_RANGE_HZ = (1000.0, 100000.0)  # what sensors.vibration_rate_hz accepts, Hz
 
 
@@ -67,7 +73,10 @@ class Setting:
 
     def sensors(self) -> dict[str, float]:
         """The ``sensors`` parameters this setting sets (the accelerometer's rate only when it has one)."""
-        return {**self.rates_hz, **({VIBRATION_FIELD: self.vibration_rate_hz} if self.has_vibration else {})}
+        return {
+            **self.rates_hz,
+            **({VIBRATION_FIELD: self.vibration_rate_hz} if self.has_vibration else {}),
+        }
 
 
 @dataclass
@@ -92,13 +101,20 @@ def evaluation_params(params: Mapping[str, Any]) -> Mapping[str, Any]:
 
 
 def settings(
-    params: Mapping[str, Any], noise_factors: Sequence[float] | None = None, rate_names: Sequence[str] | None = None, every_rate: bool = False
+    params: Mapping[str, Any],
+    noise_factors: Sequence[float] | None = None,
+    rate_names: Sequence[str] | None = None,
+    every_rate: bool = False,
 ) -> list[Setting]:
     """Every (noise factor, rates) combination asked for (default: the config's noise factors
     and default rates, or every rate with ``every_rate``)."""
     ev = evaluation_params(params)
     rates = ev["rates"]
-    names = list(rate_names) if rate_names else (list(rates) if every_rate else list(ev["default_rates"]))
+    names = (
+        list(rate_names)
+        if rate_names
+        else (list(rates) if every_rate else list(ev["default_rates"]))
+    )
     for name in names:
         if name not in rates:
             raise InputError("rates", name, f"must be one of {', '.join(rates)}")
@@ -106,24 +122,43 @@ def settings(
     for factor in factors:
         if not (factor >= 0.0 and math.isfinite(factor)):
             raise InputError("noise", factor, "must be a finite factor >= 0")
-    return [Setting(float(f), name, {k: float(rates[name][k]) for k in RATE_FIELDS}, _vibration_rate(rates[name], name))
-            for name in names for f in factors]
+    return [
+        Setting(
+            float(f),
+            name,
+            {k: float(rates[name][k]) for k in RATE_FIELDS},
+            _vibration_rate(rates[name], name),
+        )
+        for name in names
+        for f in factors
+    ]
 
 
 def _vibration_rate(rates: Mapping[str, Any], name: str) -> float:
     """A setting's accelerometer rate (Hz), checked: 0 (or absent) for none, else in range."""
     for field in RATE_FIELDS:
         if field not in rates:
-            raise InputError(f"identification.evaluation.rates.{name}.{field}", None, "missing (Hz)")
+            raise InputError(
+                f"identification.evaluation.rates.{name}.{field}", None, "missing (Hz)"
+            )
     value = rates.get(VIBRATION_FIELD, 0.0)
     low, high = VIBRATION_RATE_RANGE_HZ
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (value == 0.0 or low <= value <= high):
-        raise InputError(f"identification.evaluation.rates.{name}.{VIBRATION_FIELD}", value,
-                         f"must be 0 (no accelerometer) or in [{low:g}, {high:g}] Hz")
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not (value == 0.0 or low <= value <= high)
+    ):
+        raise InputError(
+            f"identification.evaluation.rates.{name}.{VIBRATION_FIELD}",
+            value,
+            f"must be 0 (no accelerometer) or in [{low:g}, {high:g}] Hz",
+        )
     return float(value)
 
 
-def draw_commands(params: Mapping[str, Any], scene_set: str, count: int, seed: int) -> Iterator[tuple[dict[str, Any], dict[str, float], str]]:
+def draw_commands(
+    params: Mapping[str, Any], scene_set: str, count: int, seed: int
+) -> Iterator[tuple[dict[str, Any], dict[str, float], str]]:
     """(impact command, support scale factors, contact law) for ``count`` impacts of a set."""
     if scene_set not in SCENE_SETS and scene_set not in DRAWN_SETS:
         raise InputError("scene_set", scene_set, f"must be one of {', '.join(SCENE_SETS)}")
@@ -140,21 +175,33 @@ def draw_commands(params: Mapping[str, Any], scene_set: str, count: int, seed: i
         radius = float(math.exp(rng.uniform(math.log(low_r), math.log(high_r))))
         height = float(rng.uniform(*ranges["drop_height_m"]))
         position = float(rng.uniform(*ranges["position_m"]))
-        command: dict[str, Any] = {"material": material, "radius_m": radius, "drop_height_m": height, "position_m": position}
+        command: dict[str, Any] = {
+            "material": material,
+            "radius_m": radius,
+            "drop_height_m": height,
+            "position_m": position,
+        }
         if ranges["restitution"] == "range":
             command["restitution"] = float(rng.uniform(*materials[material]["restitution_range"]))
         scale = {name: 1.0 for name in PERTURBED_SUPPORT}
         law = "calibrated"
         if scene_set == "mismatch":
             span = float(ev["support_perturbation"])
-            scale = {name: float(rng.uniform(1.0 - span, 1.0 + span)) for name in PERTURBED_SUPPORT}
+            scale = {
+                name: float(rng.uniform(1.0 - span, 1.0 + span)) for name in PERTURBED_SUPPORT
+            }
             laws = ev["mismatch_contact_models"]
             law = laws[int(rng.integers(len(laws)))]
         yield command, scale, law
 
 
 def simulate_set(
-    params: Mapping[str, Any], scene_set: str, count: int, seed: int, chosen: Sequence[Setting], tier: str | None = None
+    params: Mapping[str, Any],
+    scene_set: str,
+    count: int,
+    seed: int,
+    chosen: Sequence[Setting],
+    tier: str | None = None,
 ) -> Iterator[LabelledImpact]:
     """Simulate ``count`` impacts of ``scene_set`` at every setting in ``chosen`` (a drawn set:
     once, on its own support at its own rates and noise; ``chosen`` does not apply)."""
@@ -164,7 +211,9 @@ def simulate_set(
         yield from _simulate_drawn(params, scene_set, count, seed, tier)
         return
     noise_seeds = np.random.SeedSequence(seed).spawn(count)
-    fidelity = FidelitySettings.from_params(params)  # the given parameters' bending modes (config/'s by default)
+    fidelity = FidelitySettings.from_params(
+        params
+    )  # the given parameters' bending modes (config/'s by default)
     for index, (command, scale, law) in enumerate(draw_commands(params, scene_set, count, seed)):
         varied = copy.deepcopy(dict(params))
         for name, factor in scale.items():
@@ -173,29 +222,52 @@ def simulate_set(
         noise_seed = int(noise_seeds[index].generate_state(1)[0])
         for setting in chosen:
             varied["sensors"] = {**params["sensors"], **setting.sensors(), "seed": noise_seed}
-            scene = Scene.from_params(varied, {
-                **command, "contact_model": law, "pre_contact_s": ev["pre_contact_s"], "window_s": ev["window_s"],
-            })
+            scene = Scene.from_params(
+                varied,
+                {
+                    **command,
+                    "contact_model": law,
+                    "pre_contact_s": ev["pre_contact_s"],
+                    "window_s": ev["window_s"],
+                },
+            )
             scene = replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor))
-            results[setting.key] = simulate(scene, tier=tier, settings=fidelity, vibration=setting.has_vibration)
+            results[setting.key] = simulate(
+                scene, tier=tier, settings=fidelity, vibration=setting.has_vibration
+            )
         yield LabelledImpact(index, command, scale, law, results)
 
 
-def _simulate_drawn(params: Mapping[str, Any], scene_set: str, count: int, seed: int, tier: str) -> Iterator[LabelledImpact]:
+def _simulate_drawn(
+    params: Mapping[str, Any], scene_set: str, count: int, seed: int, tier: str
+) -> Iterator[LabelledImpact]:
     """Impacts of the set's scene (DRAWN_SCENES), each on its own support drawn from the set's ranges."""
     ev = evaluation_params(params)
     ranges = support_ranges(ev, DRAWN_SETS[scene_set])
     support_rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
     vibration_rng = np.random.default_rng(np.random.SeedSequence([seed, 3]))
     noise_seeds = np.random.SeedSequence(seed).spawn(count)
-    for index, (command, _, _) in enumerate(draw_commands(params, DRAWN_SCENES[scene_set], count, seed)):
+    for index, (command, _, _) in enumerate(
+        draw_commands(params, DRAWN_SCENES[scene_set], count, seed)
+    ):
         draw = draw_support(ranges, support_rng, vibration_rng)
         varied = draw.apply(params)
         varied["sensors"]["seed"] = int(noise_seeds[index].generate_state(1)[0])
-        scene = Scene.from_params(varied, {
-            **command, "contact_model": draw.contact_model, "pre_contact_s": ev["pre_contact_s"], "window_s": ev["window_s"],
-        })
-        result = simulate(scene, tier=tier, settings=FidelitySettings.from_params(varied), vibration=draw.vibration_rate_hz > 0.0)
+        scene = Scene.from_params(
+            varied,
+            {
+                **command,
+                "contact_model": draw.contact_model,
+                "pre_contact_s": ev["pre_contact_s"],
+                "window_s": ev["window_s"],
+            },
+        )
+        result = simulate(
+            scene,
+            tier=tier,
+            settings=FidelitySettings.from_params(varied),
+            vibration=draw.vibration_rate_hz > 0.0,
+        )
         yield LabelledImpact(index, command, {}, draw.contact_model, {DRAWN_SETTING: result}, draw)
 
 
@@ -204,17 +276,27 @@ class SupportStream:
     """A continuous recording of one drawn support: its streams and every impact's truth."""
 
     support: SupportDraw
-    params: dict[str, Any]  # the merged parameters describing the support (what a perfect profile would hold)
+    params: dict[
+        str, Any
+    ]  # the merged parameters describing the support (what a perfect profile would hold)
     pressure: Any
     imu: Any
     rebounds: list[Any]
     truths: list[dict[str, Any]]
-    vibration: Any = None  # the accelerometer's blocks (VibrationBlocks); None when the support has none
+    vibration: Any = (
+        None  # the accelerometer's blocks (VibrationBlocks); None when the support has none
+    )
 
 
 def support_streams(
-    params: Mapping[str, Any], supports: int, impacts_per_support: int, seed: int, which: str = "foreign", tier: str | None = None,
-    setting: Setting | None = None, scene: str = "stream",
+    params: Mapping[str, Any],
+    supports: int,
+    impacts_per_support: int,
+    seed: int,
+    which: str = "foreign",
+    tier: str | None = None,
+    setting: Setting | None = None,
+    scene: str = "stream",
 ) -> Iterator[SupportStream]:
     """``supports`` drawn supports, each recorded as one continuous stream of
     ``impacts_per_support`` impacts of ``scene`` (stream or paper; the beam still swaying from
@@ -230,13 +312,22 @@ def support_streams(
     for index in range(supports):
         draw = draw_support(ranges, rng, vibration_rng)
         if setting is not None:
-            draw = draw.with_sensors(setting.rates_hz, setting.vibration_rate_hz, setting.noise_factor)
+            draw = draw.with_sensors(
+                setting.rates_hz, setting.vibration_rate_hz, setting.noise_factor
+            )
         varied = draw.apply(params)
         varied["sensors"]["seed"] = int(rng.integers(2**31))
-        varied["stream"] = {**varied.get("stream", {}), "tier": tier or ev["tier"], "min_impact_gap_s": 0.0,
-                            "command_lead_s": 0.001, "max_queued_impacts": impacts_per_support + 1}
+        varied["stream"] = {
+            **varied.get("stream", {}),
+            "tier": tier or ev["tier"],
+            "min_impact_gap_s": 0.0,
+            "command_lead_s": 0.001,
+            "max_queued_impacts": impacts_per_support + 1,
+        }
         simulator = StreamSimulator.from_params(varied)
-        commands = [c for c, _, _ in draw_commands(params, scene, impacts_per_support, seed + 1000 * index)]
+        commands = [
+            c for c, _, _ in draw_commands(params, scene, impacts_per_support, seed + 1000 * index)
+        ]
         # Each contact gap_s to 1.5 gap_s after the one before. (Until this was cumulative, the
         # k-th impact was put at k gap_s times a random 1..1.5: impacts came in any order and
         # some within milliseconds of another, their features mixed.)
@@ -245,5 +336,12 @@ def support_streams(
             simulator.submit(command, contact_stamp_s=stamp)
             stamp += gap_s * (1.0 + 0.5 * rng.uniform())
         chunk = simulator.advance(stamp + 0.2)
-        yield SupportStream(draw, varied, chunk.pressure, chunk.imu, [r for _, r in chunk.rebounds], [t for _, t in chunk.truths],
-                            chunk.vibration if draw.vibration_rate_hz > 0.0 else None)
+        yield SupportStream(
+            draw,
+            varied,
+            chunk.pressure,
+            chunk.imu,
+            [r for _, r in chunk.rebounds],
+            [t for _, t in chunk.truths],
+            chunk.vibration if draw.vibration_rate_hz > 0.0 else None,
+        )

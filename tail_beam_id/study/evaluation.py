@@ -21,7 +21,15 @@ from tail_beam_id.study.runs import Record
 
 Z95 = 1.959964  # two-sided 95 % normal quantile
 CONFIDENT = 0.9  # a wrong label at or above this confidence counts as confidently wrong
-RELIABILITY_BINS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0)  # confidence bins of the calibration figures
+RELIABILITY_BINS = (
+    0.5,
+    0.6,
+    0.7,
+    0.8,
+    0.9,
+    0.95,
+    1.0,
+)  # confidence bins of the calibration figures
 
 
 def wilson(successes: int, total: int) -> tuple[float, float]:
@@ -65,7 +73,11 @@ def _percentiles(values: Sequence[float]) -> dict[str, float]:
     if not values:
         return {"median": math.nan, "p95": math.nan, "max": math.nan}
     array = np.asarray(values, dtype=float)
-    return {"median": float(np.median(array)), "p95": float(np.percentile(array, 95)), "max": float(array.max())}
+    return {
+        "median": float(np.median(array)),
+        "p95": float(np.percentile(array, 95)),
+        "max": float(array.max()),
+    }
 
 
 def reliability(records: Sequence[Record]) -> tuple[float, list[dict[str, float]]]:
@@ -77,15 +89,26 @@ def reliability(records: Sequence[Record]) -> tuple[float, list[dict[str, float]
         return math.nan, []
     confidence = np.array([r.label.confidence for r in labelled])
     correct = np.array([r.correct for r in labelled], dtype=float)
-    index = np.clip(np.searchsorted(RELIABILITY_BINS, confidence, side="right") - 1, 0, len(RELIABILITY_BINS) - 2)
+    index = np.clip(
+        np.searchsorted(RELIABILITY_BINS, confidence, side="right") - 1,
+        0,
+        len(RELIABILITY_BINS) - 2,
+    )
     bins, ece = [], 0.0
     for b in range(len(RELIABILITY_BINS) - 1):
         inside = index == b
         if inside.any():
             accuracy, mean_conf = float(correct[inside].mean()), float(confidence[inside].mean())
             ece += inside.sum() / confidence.size * abs(accuracy - mean_conf)
-            bins.append({"low": RELIABILITY_BINS[b], "high": RELIABILITY_BINS[b + 1], "n": int(inside.sum()),
-                         "accuracy": accuracy, "confidence": mean_conf})
+            bins.append(
+                {
+                    "low": RELIABILITY_BINS[b],
+                    "high": RELIABILITY_BINS[b + 1],
+                    "n": int(inside.sum()),
+                    "accuracy": accuracy,
+                    "confidence": mean_conf,
+                }
+            )
     return float(ece), bins
 
 
@@ -109,21 +132,41 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
         confusion["coal" if r.is_coal else "gangue"][said] += 1
     by_size = []
     for low, high in zip(size_bins_m[:-1], size_bins_m[1:]):
-        group = [r for r in records if low <= r.radius_m < high or (high == size_bins_m[-1] and r.radius_m == high)]
+        group = [
+            r
+            for r in records
+            if low <= r.radius_m < high or (high == size_bins_m[-1] and r.radius_m == high)
+        ]
         if group:
             hits = sum(r.correct for r in group)
-            by_size.append({"radius_m": [low, high], "n": len(group), "accuracy": hits / len(group), "ci": wilson(hits, len(group))})
+            by_size.append(
+                {
+                    "radius_m": [low, high],
+                    "n": len(group),
+                    "accuracy": hits / len(group),
+                    "ci": wilson(hits, len(group)),
+                }
+            )
     labelled = [r for r in records if r.label]
     data_latency = [(data_horizon_s(r) - r.contact_stamp_s) * 1e3 for r in labelled]
     after_end = [(data_horizon_s(r) - (r.contact_stamp_s + r.duration_s)) * 1e3 for r in labelled]
     wrong_conf = [r.label.confidence for r in labelled if not r.correct]
     calibration = reliability(records)
     return Summary(
-        scene_set=first.scene_set, setting=first.setting, method=first.method, window_s=first.window_s, n=n,
-        accuracy=correct / n, accuracy_ci=wilson(correct, n), balanced_accuracy=balanced,
+        scene_set=first.scene_set,
+        setting=first.setting,
+        method=first.method,
+        window_s=first.window_s,
+        n=n,
+        accuracy=correct / n,
+        accuracy_ci=wilson(correct, n),
+        balanced_accuracy=balanced,
         balanced_ci=(max(0.0, balanced - half), min(1.0, balanced + half)),
-        detected=len(labelled), false_labels=sum(r.extra_labels for r in records), confusion=confusion,
-        by_size=by_size, data_latency_ms=_percentiles(data_latency),
+        detected=len(labelled),
+        false_labels=sum(r.extra_labels for r in records),
+        confusion=confusion,
+        by_size=by_size,
+        data_latency_ms=_percentiles(data_latency),
         compute_ms=_percentiles([r.label.latency_ms for r in labelled]),
         mean_confidence_wrong=float(np.mean(wrong_conf)) if wrong_conf else math.nan,
         # Wall-clock to process each impact's whole stream (detection over every sample, then
@@ -132,15 +175,20 @@ def summarise(records: Sequence[Record], size_bins_m: Sequence[float]) -> Summar
             "stream_processing_ms": _percentiles([1e3 * r.wall_s for r in records]),
             # From the contact's end (final separation) to the newest stamp the label needed, ms.
             "data_latency_after_contact_end_ms": _percentiles(after_end),
-            "confident_wrong": sum(1 for r in labelled if not r.correct and r.label.confidence >= CONFIDENT),
+            "confident_wrong": sum(
+                1 for r in labelled if not r.correct and r.label.confidence >= CONFIDENT
+            ),
             # How many of the labels at >= 0.9 a calibrated identifier with these confidences gets
             # wrong, on average: sum(1 - confidence). A count of confident wrong labels near it is
             # honest confidence; only surer labels (better features), not recalibration, lower it.
-            "confident_wrong_if_calibrated": float(sum(1.0 - r.label.confidence for r in labelled if r.label.confidence >= CONFIDENT)),
+            "confident_wrong_if_calibrated": float(
+                sum(1.0 - r.label.confidence for r in labelled if r.label.confidence >= CONFIDENT)
+            ),
             "outside_training": sum(1 for r in labelled if r.label.outside_training),
             # Extra labels count against accuracy too: correct / (impacts + labels with no impact).
             "accuracy_with_extras": correct / (n + sum(r.extra_labels for r in records)),
-            "ece": calibration[0], "reliability": calibration[1],
+            "ece": calibration[0],
+            "reliability": calibration[1],
         },
     )
 
@@ -163,7 +211,9 @@ def summaries(records: Sequence[Record], size_bins_m: Sequence[float]) -> list[S
     return [summarise(g, size_bins_m) for g in group(records).values()]
 
 
-def large_particle_accuracy(records: Sequence[Record], min_radius_m: float) -> tuple[float, tuple[float, float], int]:
+def large_particle_accuracy(
+    records: Sequence[Record], min_radius_m: float
+) -> tuple[float, tuple[float, float], int]:
     """Accuracy (and its interval, count) over impacts of radius >= ``min_radius_m``."""
     chosen = [r for r in records if r.radius_m >= min_radius_m]
     hits = sum(r.correct for r in chosen)
@@ -197,7 +247,10 @@ def format_confusion(s: Summary) -> str:
 
 
 def format_sizes(s: Summary) -> str:
-    parts = [f"{1e3 * b['radius_m'][0]:.0f}-{1e3 * b['radius_m'][1]:.0f} mm: {100 * b['accuracy']:.0f}% (n {b['n']})" for b in s.by_size]
+    parts = [
+        f"{1e3 * b['radius_m'][0]:.0f}-{1e3 * b['radius_m'][1]:.0f} mm: {100 * b['accuracy']:.0f}% (n {b['n']})"
+        for b in s.by_size
+    ]
     return f"{s.scene_set} {s.setting} {s.method} {1e3 * s.window_s:g} ms: " + "; ".join(parts)
 
 

@@ -8,11 +8,16 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-
-from tail_beam_id.study.dataset import FOREIGN_SCENES, Setting, SupportStream, simulate_set, support_streams
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label, match, match_tolerance_s
 from tail_beam_id.stream.replay import replay
+from tail_beam_id.study.dataset import (
+    FOREIGN_SCENES,
+    Setting,
+    SupportStream,
+    simulate_set,
+    support_streams,
+)
 
 
 @dataclass
@@ -69,11 +74,19 @@ def run_set(
     the same impact at a site with the IMU alone; training uses it)."""
     tolerance_s = match_tolerance_s(params["identification"])
     built: dict[str, Any] = {}
-    sections = [dict(params["identification"])] + [with_window(params["identification"], w) for w in windows_s]
+    sections = [dict(params["identification"])] + [
+        with_window(params["identification"], w) for w in windows_s
+    ]
     nominal_scale = float(params["support"].get("contact_damping_scale", 1.0))
     for impact in simulate_set(params, scene_set, count, seed, chosen, tier):
-        law, scale = ((impact.support.contact_model, float(impact.support.values.get("contact_damping_scale", 1.0)))
-                      if impact.support is not None else (impact.contact_model, nominal_scale))
+        law, scale = (
+            (
+                impact.support.contact_model,
+                float(impact.support.values.get("contact_damping_scale", 1.0)),
+            )
+            if impact.support is not None
+            else (impact.contact_model, nominal_scale)
+        )
         model_params = params
         if true_profile and impact.support is not None:
             model_params = impact.support.apply(params)
@@ -82,26 +95,48 @@ def run_set(
             truth = result.truth()
             for method in methods:
                 for section in sections:
-                    reuse = built.get(method) if model_params is params or method != "physics" else None
+                    reuse = (
+                        built.get(method)
+                        if model_params is params or method != "physics"
+                        else None
+                    )
                     identifier = StreamIdentifier(method, section, model_params, prebuilt=reuse)
                     if model_params is params:
                         built[method] = identifier.method
                     started = time.perf_counter()
-                    labels = replay(identifier, result.pressure, result.imu, [result.rebound], vibration=vibration)
+                    labels = replay(
+                        identifier,
+                        result.pressure,
+                        result.imu,
+                        [result.rebound],
+                        vibration=vibration,
+                    )
                     wall = time.perf_counter() - started
                     matching = match([truth], labels, tolerance_s)
                     paired = matching.label_index(0)
                     yield Record(
-                        scene_set=scene_set, setting=key, method=method, window_s=float(section["window_s"]), index=impact.index,
-                        material=truth["material"], is_coal=truth["label"] == "coal", radius_m=truth["radius_m"],
+                        scene_set=scene_set,
+                        setting=key,
+                        method=method,
+                        window_s=float(section["window_s"]),
+                        index=impact.index,
+                        material=truth["material"],
+                        is_coal=truth["label"] == "coal",
+                        radius_m=truth["radius_m"],
                         contact_stamp_s=result.contact_stamp_s,
                         duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
-                        label=None if paired is None else labels[paired], extra_labels=len(matching.extra), wall_s=wall, calibrated=identifier.calibrated,
-                        contact_model=law, contact_damping_scale=scale,
+                        label=None if paired is None else labels[paired],
+                        extra_labels=len(matching.extra),
+                        wall_s=wall,
+                        calibrated=identifier.calibrated,
+                        contact_model=law,
+                        contact_damping_scale=scale,
                     )
 
 
-def _feeds(results: Mapping[str, Any], without_vibration_too: bool) -> Iterator[tuple[str, Any, Any]]:
+def _feeds(
+    results: Mapping[str, Any], without_vibration_too: bool
+) -> Iterator[tuple[str, Any, Any]]:
     """(setting key, result, the vibration blocks to feed or None) of each result, and of each
     result with the accelerometer once more without it when asked."""
     for key, result in results.items():
@@ -115,14 +150,18 @@ def with_window(section: Mapping[str, Any], window_s: float) -> dict[str, Any]:
     it shrink with it."""
     changed = dict(section)
     changed["window_s"] = window_s
-    changed["vibration_window_s"] = window_s  # every impact at this window, the accelerometer's too
+    changed["vibration_window_s"] = (
+        window_s  # every impact at this window, the accelerometer's too
+    )
     changed["impulse_post_s"] = min(float(section["impulse_post_s"]), window_s)
     changed["overlap_window_s"] = min(float(section["overlap_window_s"]), window_s)
     return changed
 
 
 FOREIGN_PROFILES = ("nominal", "self-calibrated", "true")  # how the identifier knows the support
-DRAWN_SENSORS = "drawn"  # the foreign set's setting whose sensors (rates, noise) are drawn with each support
+DRAWN_SENSORS = (
+    "drawn"  # the foreign set's setting whose sensors (rates, noise) are drawn with each support
+)
 
 
 def run_foreign(
@@ -145,15 +184,38 @@ def run_foreign(
     on the stream's first record. ``scene_set`` (dataset.FOREIGN_SCENES) says which scene's
     impacts strike the supports: foreign the stream's, foreign_paper the paper's."""
     for setting in chosen:
-        streams = support_streams(params, supports, impacts_per_support, seed, tier=tier, setting=setting,
-                                  scene=FOREIGN_SCENES[scene_set])
+        streams = support_streams(
+            params,
+            supports,
+            impacts_per_support,
+            seed,
+            tier=tier,
+            setting=setting,
+            scene=FOREIGN_SCENES[scene_set],
+        )
         for number, recorded in enumerate(streams):
-            yield from foreign_records(params, recorded, number, impacts_per_support, methods, profiles,
-                                        setting.key if setting is not None else DRAWN_SENSORS, scene_set)
+            yield from foreign_records(
+                params,
+                recorded,
+                number,
+                impacts_per_support,
+                methods,
+                profiles,
+                setting.key if setting is not None else DRAWN_SENSORS,
+                scene_set,
+            )
 
 
-def foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: int, impacts_per_support: int,
-                     methods: Sequence[str], profiles: Sequence[str], sensors: str, scene_set: str = "foreign") -> Iterator[Record]:
+def foreign_records(
+    params: Mapping[str, Any],
+    recorded: SupportStream,
+    number: int,
+    impacts_per_support: int,
+    methods: Sequence[str],
+    profiles: Sequence[str],
+    sensors: str,
+    scene_set: str = "foreign",
+) -> Iterator[Record]:
     """The records of one recorded support stream (``number``: their ``support``), under each
     profile and method."""
     from tail_beam_id.calibration.offline import calibrate, with_profile
@@ -163,10 +225,19 @@ def foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: 
 
     def identify(model_params: Mapping[str, Any], method: str) -> tuple[list[Label], float]:
         # The profile's detection settings (the ringing it measured) with the evaluation's section.
-        detection = {**section.get("detection", {}), **(model_params.get("identification", {}).get("detection") or {})}
+        detection = {
+            **section.get("detection", {}),
+            **(model_params.get("identification", {}).get("detection") or {}),
+        }
         identifier = StreamIdentifier(method, {**section, "detection": detection}, model_params)
         started = time.perf_counter()
-        labels = replay(identifier, recorded.pressure, recorded.imu, recorded.rebounds, vibration=recorded.vibration)
+        labels = replay(
+            identifier,
+            recorded.pressure,
+            recorded.imu,
+            recorded.rebounds,
+            vibration=recorded.vibration,
+        )
         return labels, time.perf_counter() - started
 
     for profile in profiles:
@@ -175,11 +246,14 @@ def foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: 
             model_params = {**recorded.params, "calibration": {"rigid_mode_frequency_hz": "known"}}
         elif profile == "self-calibrated":
             v = recorded.vibration
-            found = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
-                              (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
-                              lambda calibrated: identify(calibrated, "statistical")[0],
-                              (v.sample_stamps_s(), v.accel_mps2) if v is not None and v.count else None,
-                              [r.stamp_s for r in recorded.rebounds])
+            found = calibrate(
+                params,
+                (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
+                (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
+                lambda calibrated: identify(calibrated, "statistical")[0],
+                (v.sample_stamps_s(), v.accel_mps2) if v is not None and v.count else None,
+                [r.stamp_s for r in recorded.rebounds],
+            )
             model_params = with_profile(params, found)
         for method in methods:
             labels, wall = identify(model_params, method)
@@ -187,10 +261,19 @@ def foreign_records(params: Mapping[str, Any], recorded: SupportStream, number: 
             for k, truth in enumerate(recorded.truths):
                 paired = matching.label_index(k)
                 yield Record(
-                    scene_set=scene_set, setting=f"{sensors}/{profile}", method=method, window_s=float(section["window_s"]),
-                    index=number * impacts_per_support + k, material=truth["material"], is_coal=truth["label"] == "coal",
-                    radius_m=truth["radius_m"], contact_stamp_s=truth["contact_start_stamp"],
+                    scene_set=scene_set,
+                    setting=f"{sensors}/{profile}",
+                    method=method,
+                    window_s=float(section["window_s"]),
+                    index=number * impacts_per_support + k,
+                    material=truth["material"],
+                    is_coal=truth["label"] == "coal",
+                    radius_m=truth["radius_m"],
+                    contact_stamp_s=truth["contact_start_stamp"],
                     duration_s=truth["final_separation_stamp"] - truth["contact_start_stamp"],
-                    label=None if paired is None else labels[paired], extra_labels=len(matching.extra) if k == 0 else 0,
-                    wall_s=wall / max(len(recorded.truths), 1), calibrated=profile != "nominal", support=number,
+                    label=None if paired is None else labels[paired],
+                    extra_labels=len(matching.extra) if k == 0 else 0,
+                    wall_s=wall / max(len(recorded.truths), 1),
+                    calibrated=profile != "nominal",
+                    support=number,
                 )

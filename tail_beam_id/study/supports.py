@@ -41,12 +41,34 @@ SCALED = {
     "jack_stiffness_scale": ("support", "oil_bulk_modulus_pa"),
     "jack_damping_scale": ("support", "jack_damping_nspm"),
 }
-NOISE_FIELDS = ("pressure_noise_pa", "imu_accel_noise_mps2", "imu_gyro_noise_radps", "camera_velocity_noise_mps",
-                "camera_velocity_noise_fraction", "vibration_noise_density_mps2_rthz")
-LOG_UNIFORM = {"bending_1_frequency_hz", "imu_rate_hz", "pressure_rate_hz", "camera_frame_rate_hz", "noise_factor", "vibration_rate_hz",
-               "contact_damping_scale"}
-RANGES = (*SCALED, "bending_1_frequency_hz", "damping_ratio", "imu_from_hinge_m", "imu_rate_hz", "pressure_rate_hz",
-          "camera_frame_rate_hz", "noise_factor", "vibration_rate_hz")
+NOISE_FIELDS = (
+    "pressure_noise_pa",
+    "imu_accel_noise_mps2",
+    "imu_gyro_noise_radps",
+    "camera_velocity_noise_mps",
+    "camera_velocity_noise_fraction",
+    "vibration_noise_density_mps2_rthz",
+)
+LOG_UNIFORM = {
+    "bending_1_frequency_hz",
+    "imu_rate_hz",
+    "pressure_rate_hz",
+    "camera_frame_rate_hz",
+    "noise_factor",
+    "vibration_rate_hz",
+    "contact_damping_scale",
+}
+RANGES = (
+    *SCALED,
+    "bending_1_frequency_hz",
+    "damping_ratio",
+    "imu_from_hinge_m",
+    "imu_rate_hz",
+    "pressure_rate_hz",
+    "camera_frame_rate_hz",
+    "noise_factor",
+    "vibration_rate_hz",
+)
 OPTIONAL_RANGES = ("contact_damping_scale",)  # drawn (log-uniform) only when the ranges name them
 
 
@@ -77,7 +99,9 @@ class SupportDraw:
         if "contact_damping_scale" in self.values:
             varied["support"]["contact_damping_scale"] = self.values["contact_damping_scale"]
         modes = varied["modes"]
-        names = sorted((k for k in modes if k.startswith("bending_")), key=lambda k: int(k.split("_")[1]))
+        names = sorted(
+            (k for k in modes if k.startswith("bending_")), key=lambda k: int(k.split("_")[1])
+        )
         if names:
             ratio = self.values["bending_1_frequency_hz"] / float(modes[names[0]]["frequency_hz"])
             for name in names:
@@ -87,50 +111,85 @@ class SupportDraw:
                 mode["frequency_hz"] = float(mode["frequency_hz"]) * ratio
                 mode["damping_ratio"] = self.values["damping_ratio"]
                 mode["modal_mass_kg"] = float(mode["modal_mass_kg"]) * self.values["inertia_scale"]
-                mode["rigid_coupling_kgm"] = float(mode["rigid_coupling_kgm"]) * self.values["inertia_scale"]
+                mode["rigid_coupling_kgm"] = (
+                    float(mode["rigid_coupling_kgm"]) * self.values["inertia_scale"]
+                )
         for rate in ("imu_rate_hz", "pressure_rate_hz", "camera_frame_rate_hz"):
             varied["sensors"][rate] = self.values[rate]
         if self.vibration_rate_hz > 0.0:
             varied["sensors"]["vibration_rate_hz"] = self.vibration_rate_hz
         return varied
 
-    def with_sensors(self, rates_hz: Mapping[str, float], vibration_rate_hz: float, noise_factor: float) -> SupportDraw:
+    def with_sensors(
+        self, rates_hz: Mapping[str, float], vibration_rate_hz: float, noise_factor: float
+    ) -> SupportDraw:
         """The same support and contact law with other sensors: ``rates_hz`` (pressure, IMU and
         camera rates, Hz), the accelerometer's rate (Hz, 0 = none) and the noise factor."""
-        values = {**self.values, **{k: float(v) for k, v in rates_hz.items()},
-                  "vibration_rate_hz": float(vibration_rate_hz), "noise_factor": float(noise_factor)}
+        values = {
+            **self.values,
+            **{k: float(v) for k, v in rates_hz.items()},
+            "vibration_rate_hz": float(vibration_rate_hz),
+            "noise_factor": float(noise_factor),
+        }
         return SupportDraw(values, self.contact_model)
 
     def describe(self) -> str:
         v = self.values
-        return (f"inertia x{v['inertia_scale']:.2f}, jack x{v['jack_stiffness_scale']:.2f}, mode 1 {v['bending_1_frequency_hz']:.0f} Hz "
-                f"zeta {100 * v['damping_ratio']:.1f} %, IMU {v['imu_rate_hz'] / 1e3:.1f} kHz at {v['imu_from_hinge_m']:.2f} m, "
-                f"noise x{v['noise_factor']:.2f}, "
-                f"{f'accelerometer {self.vibration_rate_hz / 1e3:.1f} kHz' if self.vibration_rate_hz > 0 else 'no accelerometer'}, "
-                f"{self.contact_model}"
-                + (f" x{v['contact_damping_scale']:.2f}" if "contact_damping_scale" in v else ""))
+        return (
+            f"inertia x{v['inertia_scale']:.2f}, jack x{v['jack_stiffness_scale']:.2f}, mode 1 {v['bending_1_frequency_hz']:.0f} Hz "
+            f"zeta {100 * v['damping_ratio']:.1f} %, IMU {v['imu_rate_hz'] / 1e3:.1f} kHz at {v['imu_from_hinge_m']:.2f} m, "
+            f"noise x{v['noise_factor']:.2f}, "
+            f"{f'accelerometer {self.vibration_rate_hz / 1e3:.1f} kHz' if self.vibration_rate_hz > 0 else 'no accelerometer'}, "
+            f"{self.contact_model}"
+            + (f" x{v['contact_damping_scale']:.2f}" if "contact_damping_scale" in v else "")
+        )
 
 
 def support_ranges(evaluation: Mapping[str, Any], which: str) -> Mapping[str, Any]:
     """The ``supports.<which>`` ranges (training or foreign), checked."""
     supports = evaluation.get("supports")
     if not isinstance(supports, Mapping) or not isinstance(supports.get(which), Mapping):
-        raise InputError(f"identification.evaluation.supports.{which}", None, "missing parameter section (config/identification.yaml)")
+        raise InputError(
+            f"identification.evaluation.supports.{which}",
+            None,
+            "missing parameter section (config/identification.yaml)",
+        )
     ranges = supports[which]
     for name in (*RANGES, *(n for n in OPTIONAL_RANGES if n in ranges)):
         pair = ranges.get(name)
-        if not (isinstance(pair, (list, tuple)) and len(pair) == 2 and all(isinstance(x, (int, float)) for x in pair) and 0 < pair[0] <= pair[1]):
-            raise InputError(f"identification.evaluation.supports.{which}.{name}", pair, "must be [low, high] with 0 < low <= high")
+        if not (
+            isinstance(pair, (list, tuple))
+            and len(pair) == 2
+            and all(isinstance(x, (int, float)) for x in pair)
+            and 0 < pair[0] <= pair[1]
+        ):
+            raise InputError(
+                f"identification.evaluation.supports.{which}.{name}",
+                pair,
+                "must be [low, high] with 0 < low <= high",
+            )
     share = ranges.get("vibration_share")
     if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0.0 <= share <= 1.0:
-        raise InputError(f"identification.evaluation.supports.{which}.vibration_share", share, "must be a fraction in [0, 1]")
+        raise InputError(
+            f"identification.evaluation.supports.{which}.vibration_share",
+            share,
+            "must be a fraction in [0, 1]",
+        )
     laws = ranges.get("contact_models")
     if not isinstance(laws, (list, tuple)) or not laws:
-        raise InputError(f"identification.evaluation.supports.{which}.contact_models", laws, "must be a non-empty list of contact laws")
+        raise InputError(
+            f"identification.evaluation.supports.{which}.contact_models",
+            laws,
+            "must be a non-empty list of contact laws",
+        )
     return ranges
 
 
-def draw_support(ranges: Mapping[str, Any], rng: np.random.Generator, vibration_rng: np.random.Generator | None = None) -> SupportDraw:
+def draw_support(
+    ranges: Mapping[str, Any],
+    rng: np.random.Generator,
+    vibration_rng: np.random.Generator | None = None,
+) -> SupportDraw:
     """One support from ``ranges`` (uniform, or log-uniform for frequencies, rates and noise).
     The accelerometer (present with probability ``vibration_share``, and its rate) is drawn from
     ``vibration_rng`` (default ``rng``), so a caller that gives it a generator of its own draws
@@ -154,4 +213,8 @@ def draw_support(ranges: Mapping[str, Any], rng: np.random.Generator, vibration_
 
 def _draw(pair: Any, name: str, rng: np.random.Generator) -> float:
     low, high = (float(x) for x in pair)
-    return float(math.exp(rng.uniform(math.log(low), math.log(high)))) if name in LOG_UNIFORM else float(rng.uniform(low, high))
+    return (
+        float(math.exp(rng.uniform(math.log(low), math.log(high))))
+        if name in LOG_UNIFORM
+        else float(rng.uniform(low, high))
+    )

@@ -15,8 +15,8 @@ the paper scene's impacts on drawn supports, which the stream's drawn restitutio
 from __future__ import annotations
 
 import argparse
-import json
 import dataclasses
+import json
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -25,36 +25,67 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from tail_beam_id.study.dataset import DRAWN_SETS, evaluation_params, settings
-from tail_beam_id.signals.features import VIBRATION_CHANNEL
-from tail_beam_id.methods.hysteresis import bin_logits, hysteresis_latent, joint_probabilities, latent_bin
 from tail_beam_id.methods import MODELS_DIR
-from tail_beam_id.methods.statistical import (
-    SIGNAL_ORDER, WITHOUT_DELAY, base_vector, delay_design, feature_list, network_logit, signals_of, size_feature, subset_key,
+from tail_beam_id.methods.hysteresis import (
+    bin_logits,
+    hysteresis_latent,
+    joint_probabilities,
+    latent_bin,
 )
+from tail_beam_id.methods.statistical import (
+    SIGNAL_ORDER,
+    WITHOUT_DELAY,
+    base_vector,
+    delay_design,
+    feature_list,
+    network_logit,
+    signals_of,
+    size_feature,
+    subset_key,
+)
+from tail_beam_id.signals.features import VIBRATION_CHANNEL
 from tail_beam_id.stream.label import Label
+from tail_beam_id.study.dataset import DRAWN_SETS, evaluation_params, settings
 from tail_beam_id.study.runs import Record, run_set
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.contact import hertz_elastic_impact, hertz_stiffness
+from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.scene import Impact
 from tail_beam_sim.physics.simulate import build_problem
 from tail_beam_sim.physics.solvers import solve
-from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.support import Support
 
 L2_PENALTY = 1e-3  # ridge penalty on the standardised logistic weights
 HOLDOUT_FRACTION = 0.25  # share of training impacts kept aside to fit the temperature
-MIN_UNSEEN_IMPACTS = 50  # held-out drawn-support impacts needed to fit the temperature on them alone
+MIN_UNSEEN_IMPACTS = (
+    50  # held-out drawn-support impacts needed to fit the temperature on them alone
+)
 ENVELOPE_PERCENTILES = (0.1, 99.9)  # a model's training envelope: these percentiles of each input
 THRESHOLD_FEATURES = ("rebound_speed_mps", "moment_impulse_nms", "pressure_swing_pa")
 
 
-def collect(params: Mapping[str, Any], scene_set: str, count: int, seed: int, tier: str | None, true_profile: bool = False) -> list[Record]:
+def collect(
+    params: Mapping[str, Any],
+    scene_set: str,
+    count: int,
+    seed: int,
+    tier: str | None,
+    true_profile: bool = False,
+) -> list[Record]:
     """Feature records of ``count`` training impacts at every setting (detected ones only); an
     impact with the accelerometer on a drawn support is identified with and without it."""
-    records = run_set(params, scene_set, count, seed, settings(params, every_rate=True), ["threshold"], tier,
-                      true_profile=true_profile, without_vibration_too=scene_set in DRAWN_SETS)
+    records = run_set(
+        params,
+        scene_set,
+        count,
+        seed,
+        settings(params, every_rate=True),
+        ["threshold"],
+        tier,
+        true_profile=true_profile,
+        without_vibration_too=scene_set in DRAWN_SETS,
+    )
     return [r for r in records if r.label is not None]
 
 
@@ -69,21 +100,32 @@ def _nll(w: np.ndarray, x: np.ndarray, y: np.ndarray, l2: float) -> tuple[float,
 
 def fit_logistic(x: np.ndarray, y: np.ndarray, l2: float = L2_PENALTY) -> np.ndarray:
     """Weights (then bias) of a ridge logistic regression."""
-    result = minimize(_nll, np.zeros(x.shape[1] + 1), args=(x, y, l2), jac=True, method="L-BFGS-B", options={"maxiter": 2000})
+    result = minimize(
+        _nll,
+        np.zeros(x.shape[1] + 1),
+        args=(x, y, l2),
+        jac=True,
+        method="L-BFGS-B",
+        options={"maxiter": 2000},
+    )
     return result.x
 
 
 HIDDEN_UNITS = 16  # the statistical method's hidden layer
 
 
-def _mlp_unpack(theta: np.ndarray, d: int, h: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+def _mlp_unpack(
+    theta: np.ndarray, d: int, h: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     w1 = theta[: h * d].reshape(h, d)
-    b1 = theta[h * d: h * d + h]
-    w2 = theta[h * d + h: h * d + 2 * h]
+    b1 = theta[h * d : h * d + h]
+    w2 = theta[h * d + h : h * d + 2 * h]
     return w1, b1, w2, float(theta[-1])
 
 
-def _mlp_loss(theta: np.ndarray, z: np.ndarray, y: np.ndarray, h: int, l2: float) -> tuple[float, np.ndarray]:
+def _mlp_loss(
+    theta: np.ndarray, z: np.ndarray, y: np.ndarray, h: int, l2: float
+) -> tuple[float, np.ndarray]:
     """Mean logistic loss of a one-hidden-layer tanh network plus ridge penalty, and its gradient."""
     n, d = z.shape
     w1, b1, w2, b2 = _mlp_unpack(theta, d, h)
@@ -92,27 +134,58 @@ def _mlp_loss(theta: np.ndarray, z: np.ndarray, y: np.ndarray, h: int, l2: float
     loss = float(np.mean(np.logaddexp(0.0, s) - y * s) + l2 * (np.sum(w1**2) + np.sum(w2**2)))
     ds = (1.0 / (1.0 + np.exp(-s)) - y) / n
     dhidden = np.outer(ds, w2) * (1.0 - hidden**2)
-    grad = np.concatenate([(dhidden.T @ z + 2 * l2 * w1).ravel(), dhidden.sum(axis=0), hidden.T @ ds + 2 * l2 * w2, [ds.sum()]])
+    grad = np.concatenate(
+        [
+            (dhidden.T @ z + 2 * l2 * w1).ravel(),
+            dhidden.sum(axis=0),
+            hidden.T @ ds + 2 * l2 * w2,
+            [ds.sum()],
+        ]
+    )
     return loss, grad
 
 
-def fit_network(z: np.ndarray, y: np.ndarray, seed: int, hidden: int = HIDDEN_UNITS, l2: float = L2_PENALTY) -> dict[str, Any]:
+def fit_network(
+    z: np.ndarray, y: np.ndarray, seed: int, hidden: int = HIDDEN_UNITS, l2: float = L2_PENALTY
+) -> dict[str, Any]:
     """Weights of the statistical method's network (L-BFGS from a seeded small start)."""
     d = z.shape[1]
     rng = np.random.default_rng(seed)
-    theta = np.concatenate([rng.normal(0.0, 1.0 / math.sqrt(d), hidden * d), np.zeros(hidden), rng.normal(0.0, 0.1, hidden), [0.0]])
-    result = minimize(_mlp_loss, theta, args=(z, y, hidden, l2), jac=True, method="L-BFGS-B", options={"maxiter": 3000})
+    theta = np.concatenate(
+        [
+            rng.normal(0.0, 1.0 / math.sqrt(d), hidden * d),
+            np.zeros(hidden),
+            rng.normal(0.0, 0.1, hidden),
+            [0.0],
+        ]
+    )
+    result = minimize(
+        _mlp_loss,
+        theta,
+        args=(z, y, hidden, l2),
+        jac=True,
+        method="L-BFGS-B",
+        options={"maxiter": 3000},
+    )
     w1, b1, w2, b2 = _mlp_unpack(result.x, d, hidden)
     return {"w1": w1.tolist(), "b1": b1.tolist(), "w2": w2.tolist(), "b2": b2}
 
 
-def _softmax_unpack(theta: np.ndarray, d: int, h: int, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _softmax_unpack(
+    theta: np.ndarray, d: int, h: int, m: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(w1 h x d, b1 h, w2 m x h, b2 m) of a softmax network's flat parameters."""
-    return (theta[: h * d].reshape(h, d), theta[h * d: h * d + h],
-            theta[h * d + h: h * d + h + h * m].reshape(m, h), theta[h * d + h + h * m:])
+    return (
+        theta[: h * d].reshape(h, d),
+        theta[h * d : h * d + h],
+        theta[h * d + h : h * d + h + h * m].reshape(m, h),
+        theta[h * d + h + h * m :],
+    )
 
 
-def _softmax_loss(theta: np.ndarray, z: np.ndarray, c: np.ndarray, h: int, m: int, l2: float) -> tuple[float, np.ndarray]:
+def _softmax_loss(
+    theta: np.ndarray, z: np.ndarray, c: np.ndarray, h: int, m: int, l2: float
+) -> tuple[float, np.ndarray]:
     """Mean cross-entropy of a one-hidden-layer tanh network with ``m`` softmax outputs (class
     indices ``c``) plus ridge penalty, and its gradient."""
     n, d = z.shape
@@ -128,7 +201,14 @@ def _softmax_loss(theta: np.ndarray, z: np.ndarray, c: np.ndarray, h: int, m: in
     ds[rows, c] -= 1.0
     ds /= n
     dhidden = (ds @ w2) * (1.0 - hidden**2)
-    grad = np.concatenate([(dhidden.T @ z + 2 * l2 * w1).ravel(), dhidden.sum(axis=0), (ds.T @ hidden + 2 * l2 * w2).ravel(), ds.sum(axis=0)])
+    grad = np.concatenate(
+        [
+            (dhidden.T @ z + 2 * l2 * w1).ravel(),
+            dhidden.sum(axis=0),
+            (ds.T @ hidden + 2 * l2 * w2).ravel(),
+            ds.sum(axis=0),
+        ]
+    )
     return loss, grad
 
 
@@ -140,16 +220,34 @@ def hysteresis_section(section: Mapping[str, Any]) -> tuple[list[float], float]:
     edges finite and strictly increasing, the restitution in (0, 0.999]."""
     field = "identification.statistical.hysteresis"
     edges = section.get("bin_edges")
-    if (not isinstance(edges, (list, tuple)) or not edges
-            or not all(isinstance(e, (int, float)) and not isinstance(e, bool) and math.isfinite(e) for e in edges)
-            or any(b <= a for a, b in zip(edges, edges[1:]))):
-        raise InputError(f"{field}.bin_edges", edges, "must be a non-empty list of finite numbers, strictly increasing")
+    if (
+        not isinstance(edges, (list, tuple))
+        or not edges
+        or not all(
+            isinstance(e, (int, float)) and not isinstance(e, bool) and math.isfinite(e)
+            for e in edges
+        )
+        or any(b <= a for a, b in zip(edges, edges[1:]))
+    ):
+        raise InputError(
+            f"{field}.bin_edges",
+            edges,
+            "must be a non-empty list of finite numbers, strictly increasing",
+        )
     # A restitution of 1 has no hysteresis (chi 0), so the latent's log needs it below 1.
-    reference = require_range(f"{field}.reference_restitution", section.get("reference_restitution"), 0.0, 0.999, low_open=True)
+    reference = require_range(
+        f"{field}.reference_restitution",
+        section.get("reference_restitution"),
+        0.0,
+        0.999,
+        low_open=True,
+    )
     return [float(e) for e in edges], float(reference)
 
 
-def fit_hysteresis(records: Sequence[Record], section: Mapping[str, Any], seed: int) -> dict[str, Any]:
+def fit_hysteresis(
+    records: Sequence[Record], section: Mapping[str, Any], seed: int
+) -> dict[str, Any]:
     """The network that reads an impact's class and its support's hysteresis bin together
     (tail_beam_id.methods.hysteresis), on the drawn supports' impacts identified knowing their support
     (what a self-calibrated identifier sees) with every signal: standardised like the
@@ -157,14 +255,29 @@ def fit_hysteresis(records: Sequence[Record], section: Mapping[str, Any], seed: 
     training impact struck) with their support's true bin."""
     edges, reference = hysteresis_section(section)
     names = feature_list(SIGNAL_ORDER)
-    usable = [r for r in records if r.calibrated and r.scene_set in DRAWN_SETS and r.contact_model is not None
-              and set(SIGNAL_ORDER) <= set(signals_of(r.label.features))]
+    usable = [
+        r
+        for r in records
+        if r.calibrated
+        and r.scene_set in DRAWN_SETS
+        and r.contact_model is not None
+        and set(SIGNAL_ORDER) <= set(signals_of(r.label.features))
+    ]
     if len(usable) < 200:
-        raise SystemExit(f"training: {len(usable)} drawn-support records carry their contact law (200 needed): "
-                         "simulate afresh (delete the --cache file)")
+        raise SystemExit(
+            f"training: {len(usable)} drawn-support records carry their contact law (200 needed): "
+            "simulate afresh (delete the --cache file)"
+        )
     base = np.array([base_vector(r.label.features, names) for r in usable])
     k = len(edges) + 1
-    bins = np.array([latent_bin(hysteresis_latent(r.contact_model, r.contact_damping_scale, reference), edges) for r in usable])
+    bins = np.array(
+        [
+            latent_bin(
+                hysteresis_latent(r.contact_model, r.contact_damping_scale, reference), edges
+            )
+            for r in usable
+        ]
+    )
     classes = np.array([int(r.is_coal) for r in usable]) * k + bins
     held = np.array([r.index % 4 == 0 for r in usable])  # a quarter of the supports, kept aside
     envelope = np.percentile(base[~held], ENVELOPE_PERCENTILES, axis=0)
@@ -173,16 +286,37 @@ def fit_hysteresis(records: Sequence[Record], section: Mapping[str, Any], seed: 
     z = (x - mean) / scale
     h, m, d = HYSTERESIS_HIDDEN_UNITS, 2 * k, z.shape[1]
     rng = np.random.default_rng(seed)
-    theta = np.concatenate([rng.normal(0.0, 1.0 / math.sqrt(d), h * d), np.zeros(h), rng.normal(0.0, 0.1, h * m), np.zeros(m)])
-    result = minimize(_softmax_loss, theta, args=(z[~held], classes[~held], h, m, L2_PENALTY), jac=True, method="L-BFGS-B",
-                      options={"maxiter": 3000})
+    theta = np.concatenate(
+        [
+            rng.normal(0.0, 1.0 / math.sqrt(d), h * d),
+            np.zeros(h),
+            rng.normal(0.0, 0.1, h * m),
+            np.zeros(m),
+        ]
+    )
+    result = minimize(
+        _softmax_loss,
+        theta,
+        args=(z[~held], classes[~held], h, m, L2_PENALTY),
+        jac=True,
+        method="L-BFGS-B",
+        options={"maxiter": 3000},
+    )
     w1, b1, w2, b2 = _softmax_unpack(result.x, d, h, m)
     model = {
-        "features": [[n, f] for n, f in names], "mean": mean.tolist(), "scale": scale.tolist(), "envelope": envelope.tolist(),
-        "w1": w1.tolist(), "b1": b1.tolist(), "w2": w2.tolist(), "b2": b2.tolist(),
+        "features": [[n, f] for n, f in names],
+        "mean": mean.tolist(),
+        "scale": scale.tolist(),
+        "envelope": envelope.tolist(),
+        "w1": w1.tolist(),
+        "b1": b1.tolist(),
+        "w2": w2.tolist(),
+        "b2": b2.tolist(),
         "prior": (np.bincount(classes[~held], minlength=m) / int((~held).sum())).tolist(),
-        "bin_edges": edges, "reference_restitution": reference,
-        "trained_on": int((~held).sum()), "calibrated_on": int(held.sum()),
+        "bin_edges": edges,
+        "reference_restitution": reference,
+        "trained_on": int((~held).sum()),
+        "calibrated_on": int(held.sum()),
     }
     joint = joint_probabilities(model, z[held])
     logits = np.array([bin_logits(row)[b] for row, b in zip(joint, bins[held])])
@@ -192,6 +326,7 @@ def fit_hysteresis(records: Sequence[Record], section: Mapping[str, Any], seed: 
 
 def fit_temperature(logits: np.ndarray, y: np.ndarray) -> float:
     """The temperature T that makes sigmoid(logit / T) best calibrated on held-out impacts."""
+
     def loss(log_t: float) -> float:
         z = logits / math.exp(log_t)
         return float(np.mean(np.logaddexp(0.0, z) - y * z))
@@ -199,7 +334,9 @@ def fit_temperature(logits: np.ndarray, y: np.ndarray) -> float:
     return float(math.exp(minimize_scalar(loss, bounds=(-3.0, 3.0), method="bounded").x))
 
 
-def fit_size_temperature(logits: np.ndarray, y: np.ndarray, log_size: np.ndarray, reference: float) -> tuple[float, float]:
+def fit_size_temperature(
+    logits: np.ndarray, y: np.ndarray, log_size: np.ndarray, reference: float
+) -> tuple[float, float]:
     """(T, slope) that make sigmoid(logit / (T exp(slope (reference - log_size)))) best calibrated
     on held-out impacts: a temperature that grows as the impact gets smaller (``log_size``: the
     log of its moment impulse; ``reference``: the training median of it). A small particle's
@@ -213,12 +350,19 @@ def fit_size_temperature(logits: np.ndarray, y: np.ndarray, log_size: np.ndarray
         return float(np.mean(np.logaddexp(0.0, z) - y * z))
 
     start = math.log(fit_temperature(logits, y))
-    result = minimize(loss, np.array([start, 0.0]), method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-7, "maxiter": 2000})
+    result = minimize(
+        loss,
+        np.array([start, 0.0]),
+        method="Nelder-Mead",
+        options={"xatol": 1e-4, "fatol": 1e-7, "maxiter": 2000},
+    )
     log_t, slope = (float(v) for v in result.x)
     return math.exp(log_t), slope
 
 
-def train_statistical(records: Sequence[Record], seed: int, hysteresis: Mapping[str, Any]) -> dict[str, Any]:
+def train_statistical(
+    records: Sequence[Record], seed: int, hysteresis: Mapping[str, Any]
+) -> dict[str, Any]:
     """The statistical method's two families of models: ``subsets`` from the records identified
     with the nominal config/, ``calibrated_subsets`` from those identified on a known profile:
     the drawn supports' records identified knowing their support, and the nominal support's
@@ -227,7 +371,9 @@ def train_statistical(records: Sequence[Record], seed: int, hysteresis: Mapping[
     streams of the nominal support at the shipped layout (88.7 against 91.7 %, 240 impacts)."""
     return {
         "subsets": train_family([r for r in records if not r.calibrated], seed),
-        "calibrated_subsets": train_family([r for r in records if r.calibrated or r.scene_set not in DRAWN_SETS], seed),
+        "calibrated_subsets": train_family(
+            [r for r in records if r.calibrated or r.scene_set not in DRAWN_SETS], seed
+        ),
         "hysteresis": fit_hysteresis(records, hysteresis, seed),
     }
 
@@ -245,7 +391,9 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
     every = list(records)
     rng = np.random.default_rng(seed)
     impacts = sorted({(r.scene_set, r.index) for r in records})
-    chosen = rng.choice(len(impacts), size=max(1, int(len(impacts) * HOLDOUT_FRACTION)), replace=False)
+    chosen = rng.choice(
+        len(impacts), size=max(1, int(len(impacts) * HOLDOUT_FRACTION)), replace=False
+    )
     held = {impacts[i] for i in chosen}
     subsets: dict[str, Any] = {}
     for mask in range(1, 2 ** len(SIGNAL_ORDER)):
@@ -258,10 +406,15 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
                 # The check of the delay is fitted on the accelerometer's impacts too: its
                 # delays are the tight ones an offset clock shows in (tail_beam_id.signals.timing).
                 subsets[subset_key(signals)]["delay_check"] = fit_delay_check(
-                    [r for r in every if set(signals) <= set(signals_of(r.label.features))], names, subsets[subset_key(signals)])
+                    [r for r in every if set(signals) <= set(signals_of(r.label.features))],
+                    names,
+                    subsets[subset_key(signals)],
+                )
                 # And a model without the delay, for cameras slower than any drawn here
                 # (methods.statistical.WITHOUT_DELAY).
-                subsets[subset_key(signals) + WITHOUT_DELAY] = fit_subset(usable, feature_list(signals, delay=False), held)
+                subsets[subset_key(signals) + WITHOUT_DELAY] = fit_subset(
+                    usable, feature_list(signals, delay=False), held
+                )
     return subsets
 
 
@@ -270,30 +423,54 @@ DELAY_CHECK_MIN_RECORDS = 50  # records an IMU-period band needs for its residua
 DELAY_CHECK_RIDGE = 1e-3  # ridge penalty of the delay regression (per record)
 
 
-def fit_delay_check(records: Sequence[Record], names: Sequence[tuple[str, float | None]], model: Mapping[str, Any]) -> dict[str, Any]:
+def fit_delay_check(
+    records: Sequence[Record], names: Sequence[tuple[str, float | None]], model: Mapping[str, Any]
+) -> dict[str, Any]:
     """The statistical method's check of an impact's delay from onset to camera stamp
     (tail_beam_id.signals.timing): a ridge regression of the standardised log delay on the model's other
     inputs (with their pairwise products), and per band of IMU periods (TIMING_BIN_EDGES_S) the
     0.5-99.5 % band of the training residuals (None where too few records fall)."""
     low_env, high_env = (np.array(v) for v in model["envelope"])
-    z = (np.clip(np.array([base_vector(r.label.features, names) for r in records]), low_env, high_env)
-         - np.array(model["mean"])) / np.array(model["scale"])
+    z = (
+        np.clip(
+            np.array([base_vector(r.label.features, names) for r in records]), low_env, high_env
+        )
+        - np.array(model["mean"])
+    ) / np.array(model["scale"])
     column = [n for n, _ in names].index("rebound_delay_s")
     x = delay_design(z, column)
-    weights = np.linalg.solve(x.T @ x + DELAY_CHECK_RIDGE * len(x) * np.eye(x.shape[1]), x.T @ z[:, column])
+    weights = np.linalg.solve(
+        x.T @ x + DELAY_CHECK_RIDGE * len(x) * np.eye(x.shape[1]), x.T @ z[:, column]
+    )
     residual = z[:, column] - x @ weights
-    band = np.searchsorted(np.array(TIMING_BIN_EDGES_S), [r.label.features["imu_period_s"] for r in records])
+    band = np.searchsorted(
+        np.array(TIMING_BIN_EDGES_S), [r.label.features["imu_period_s"] for r in records]
+    )
     low: list[float | None] = []
     high: list[float | None] = []
     for b in range(len(TIMING_BIN_EDGES_S) + 1):
         inside = residual[band == b]
-        bounds = np.percentile(inside, DELAY_CHECK_PERCENTILES) if inside.size >= DELAY_CHECK_MIN_RECORDS else (None, None)
+        bounds = (
+            np.percentile(inside, DELAY_CHECK_PERCENTILES)
+            if inside.size >= DELAY_CHECK_MIN_RECORDS
+            else (None, None)
+        )
         low.append(None if bounds[0] is None else float(bounds[0]))
         high.append(None if bounds[1] is None else float(bounds[1]))
-    return {"weights": weights.tolist(), "bands_s": list(TIMING_BIN_EDGES_S), "low": low, "high": high, "fitted_on": len(records)}
+    return {
+        "weights": weights.tolist(),
+        "bands_s": list(TIMING_BIN_EDGES_S),
+        "low": low,
+        "high": high,
+        "fitted_on": len(records),
+    }
 
 
-def fit_subset(records: Sequence[Record], names: Sequence[tuple[str, float | None]], held: set[tuple[str, int]]) -> dict[str, Any]:
+def fit_subset(
+    records: Sequence[Record],
+    names: Sequence[tuple[str, float | None]],
+    held: set[tuple[str, int]],
+) -> dict[str, Any]:
     """Standardise, fit the logistic weights on the training impacts, the temperature on the
     held-out impacts of drawn supports: each struck a support no training impact struck, as a
     user's support is one the model never saw (issue 9: probabilities calibrated on unseen
@@ -317,11 +494,19 @@ def fit_subset(records: Sequence[Record], names: Sequence[tuple[str, float | Non
         column = [n for n, _ in names].index(size)
         reference = float(np.median(x[train, column]))
         temperature, slope = fit_size_temperature(logits, y[fit_on], x[fit_on, column], reference)
-        calibration = {"temperature": temperature, "temperature_size": {"feature": size, "reference": reference, "slope": slope}}
+        calibration = {
+            "temperature": temperature,
+            "temperature_size": {"feature": size, "reference": reference, "slope": slope},
+        }
     return {
-        "features": [[n, f] for n, f in names], "mean": mean.tolist(), "scale": scale.tolist(),
-        **network, **calibration, "envelope": envelope.tolist(),
-        "trained_on": int(train.sum()), "calibrated_on": int((~train).sum()),
+        "features": [[n, f] for n, f in names],
+        "mean": mean.tolist(),
+        "scale": scale.tolist(),
+        **network,
+        **calibration,
+        "envelope": envelope.tolist(),
+        "trained_on": int(train.sum()),
+        "calibrated_on": int((~train).sum()),
     }
 
 
@@ -331,8 +516,13 @@ def train_threshold(records: Sequence[Record]) -> dict[str, Any]:
     accelerometer's settings repeat their impacts)."""
     rules = []
     for name in THRESHOLD_FEATURES:
-        usable = [r for r in records if name in r.label.features and r.setting.endswith("/x1")
-                  and not r.label.features.get(VIBRATION_CHANNEL)]
+        usable = [
+            r
+            for r in records
+            if name in r.label.features
+            and r.setting.endswith("/x1")
+            and not r.label.features.get(VIBRATION_CHANNEL)
+        ]
         if len(usable) < 50:
             continue
         x = np.log(np.maximum([r.label.features[name] for r in usable], 1e-9))[:, None]
@@ -342,10 +532,15 @@ def train_threshold(records: Sequence[Record]) -> dict[str, Any]:
         predicted = (slope * (x[:, 0] - math.log(threshold))) > 0
         balanced = 0.5 * (np.mean(predicted[y == 1]) + np.mean(~predicted[y == 0]))
         values = [r.label.features[name] for r in usable]
-        rules.append({
-            "feature": name, "threshold": threshold, "slope": slope, "seen": [float(min(values)), float(max(values))],
-            "training_balanced_accuracy": float(balanced),
-        })
+        rules.append(
+            {
+                "feature": name,
+                "threshold": threshold,
+                "slope": slope,
+                "seen": [float(min(values)), float(max(values))],
+                "training_balanced_accuracy": float(balanced),
+            }
+        )
     rules.sort(key=lambda r: -r["training_balanced_accuracy"])
     return {"rules": rules}
 
@@ -359,16 +554,27 @@ def duration_ratio_table(params: Mapping[str, Any]) -> dict[str, list[float]]:
     ratios = []
     for e in grid:
         impact = Impact.from_mapping(
-            {"material": "coal", "radius_m": 0.025, "impact_speed_mps": 5.0, "position_m": 1.0, "restitution": float(e)},
-            materials, support,
+            {
+                "material": "coal",
+                "radius_m": 0.025,
+                "impact_speed_mps": 5.0,
+                "position_m": 1.0,
+                "restitution": float(e),
+            },
+            materials,
+            support,
         )
         trajectory = solve(build_problem(support, impact, "calibrated", 0.01))
-        elastic = hertz_elastic_impact(hertz_stiffness(impact.material, support.plate, 0.025), impact.mass_kg, 5.0)
+        elastic = hertz_elastic_impact(
+            hertz_stiffness(impact.material, support.plate, 0.025), impact.mass_kg, 5.0
+        )
         ratios.append(trajectory.contacts[0].duration_s / elastic["duration_s"])
     return {"restitution": grid.tolist(), "ratio": [float(r) for r in ratios]}
 
 
-TIMING_BIN_EDGES_S = tuple(float(x) for x in np.geomspace(1.0 / 60000.0, 1.0 / 800.0, 9))  # IMU periods, s
+TIMING_BIN_EDGES_S = tuple(
+    float(x) for x in np.geomspace(1.0 / 60000.0, 1.0 / 800.0, 9)
+)  # IMU periods, s
 
 
 def timing_table(records: Sequence[Record], vibration: bool = False) -> list[dict[str, float]]:
@@ -382,15 +588,23 @@ def timing_table(records: Sequence[Record], vibration: bool = False) -> list[dic
         f = r.label.features
         if "rebound_delay_s" in f:
             band = int(np.searchsorted(TIMING_BIN_EDGES_S, f["imu_period_s"]))
-            by_band.setdefault(band, []).append((f["imu_period_s"], f["rebound_delay_s"] - r.duration_s))
+            by_band.setdefault(band, []).append(
+                (f["imu_period_s"], f["rebound_delay_s"] - r.duration_s)
+            )
     table = []
     for _, rows in sorted(by_band.items()):
         if len(rows) < 10:
             continue
         periods, lag = (np.array(v) for v in zip(*rows))
         median = float(np.median(lag))
-        table.append({"imu_period_s": float(np.exp(np.mean(np.log(periods)))), "mean_s": median,
-                      "std_s": float(1.4826 * np.median(np.abs(lag - median))), "count": len(rows)})
+        table.append(
+            {
+                "imu_period_s": float(np.exp(np.mean(np.log(periods)))),
+                "mean_s": median,
+                "std_s": float(1.4826 * np.median(np.abs(lag - median))),
+                "count": len(rows),
+            }
+        )
     return table
 
 
@@ -400,19 +614,31 @@ CACHE_FORMAT = "tail_beam training records 4"  # 2: the accelerometer fed (vibra
 def save_cache(path: Path, records: Sequence[Record], paper: Sequence[Record]) -> None:
     """Keep the simulated training records as JSON: data only, nothing a reader executes
     (a pickle would run any code a tampered cache holds)."""
-    payload = {"format": CACHE_FORMAT, "stream": [_record_json(r) for r in records], "paper": [_record_json(r) for r in paper]}
+    payload = {
+        "format": CACHE_FORMAT,
+        "stream": [_record_json(r) for r in records],
+        "paper": [_record_json(r) for r in paper],
+    }
     path.write_text(json.dumps(payload), encoding="utf-8")
 
 
 def _record_json(record: Record) -> dict[str, Any]:
     """A record as JSON data, its label as the ``label`` JSON object."""
-    return {**dataclasses.asdict(record), "label": None if record.label is None else record.label.as_dict()}
+    return {
+        **dataclasses.asdict(record),
+        "label": None if record.label is None else record.label.as_dict(),
+    }
 
 
 def _record(data: dict[str, Any]) -> Record:
     """The record :func:`_record_json` wrote."""
     label = data.get("label")
-    return Record(**{**data, "label": None if label is None else Label.from_dict(label, "cache record label")})
+    return Record(
+        **{
+            **data,
+            "label": None if label is None else Label.from_dict(label, "cache record label"),
+        }
+    )
 
 
 def load_cache(path: Path) -> tuple[list[Record], list[Record]]:
@@ -422,18 +648,42 @@ def load_cache(path: Path) -> tuple[list[Record], list[Record]]:
         if payload.get("format") != CACHE_FORMAT:
             raise ValueError(f"not a {CACHE_FORMAT!r} file")
         return [_record(r) for r in payload["stream"]], [_record(r) for r in payload["paper"]]
-    except (ValueError, TypeError, KeyError, AttributeError) as exc:  # InputError (a bad label) is a ValueError
-        raise SystemExit(f"training: error: --cache {path}: cannot be read ({exc}); delete it to simulate afresh") from None
+    except (
+        ValueError,
+        TypeError,
+        KeyError,
+        AttributeError,
+    ) as exc:  # InputError (a bad label) is a ValueError
+        raise SystemExit(
+            f"training: error: --cache {path}: cannot be read ({exc}); delete it to simulate afresh"
+        ) from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description="train the identification methods (writes tail_beam_id/models/*.json)")
-    parser.add_argument("--count", type=int, default=400, help="training impacts (each at every setting)")
-    parser.add_argument("--varied-count", type=int, default=1500, help="training impacts on drawn supports (each once)")
-    parser.add_argument("--varied-paper-count", type=int, default=None,
-                        help="paper-scene training impacts on drawn supports (default: a fifth of --varied-count)")
+    parser = argparse.ArgumentParser(
+        description="train the identification methods (writes tail_beam_id/models/*.json)"
+    )
+    parser.add_argument(
+        "--count", type=int, default=400, help="training impacts (each at every setting)"
+    )
+    parser.add_argument(
+        "--varied-count",
+        type=int,
+        default=1500,
+        help="training impacts on drawn supports (each once)",
+    )
+    parser.add_argument(
+        "--varied-paper-count",
+        type=int,
+        default=None,
+        help="paper-scene training impacts on drawn supports (default: a fifth of --varied-count)",
+    )
     parser.add_argument("--tier", default=None, help="simulation tier (default: the evaluation's)")
-    parser.add_argument("--cache", default=None, help="JSON file keeping the simulated training records (reused if present)")
+    parser.add_argument(
+        "--cache",
+        default=None,
+        help="JSON file keeping the simulated training records (reused if present)",
+    )
     args = parser.parse_args(argv)
     params = load_parameters()
     seed = int(evaluation_params(params)["training_seed"])
@@ -441,7 +691,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise SystemExit("training_seed must differ from every evaluation seed")
     paper_count = max(args.count // 4, 60)
     varied_count = args.varied_count
-    varied_paper_count = args.varied_count // 5 if args.varied_paper_count is None else args.varied_paper_count
+    varied_paper_count = (
+        args.varied_count // 5 if args.varied_paper_count is None else args.varied_paper_count
+    )
     cache = Path(args.cache) if args.cache else None
     if cache is not None and cache.is_file():
         records, paper = load_cache(cache)
@@ -454,21 +706,44 @@ def main(argv: Sequence[str] | None = None) -> int:
         # The paper scene's impacts on drawn supports, both ways: without them the models knew
         # that scene on config/'s support alone (foreign_paper 93.7 % against 99.8 % on it).
         records += collect(params, "varied_paper", varied_paper_count, seed + 3, args.tier)
-        records += collect(params, "varied_paper", varied_paper_count, seed + 3, args.tier, true_profile=True)
+        records += collect(
+            params, "varied_paper", varied_paper_count, seed + 3, args.tier, true_profile=True
+        )
         # The threshold is the study's idea for the study's scene: tuned on paper-scene impacts.
         paper = collect(params, "paper", paper_count, seed + 1, args.tier)
         if cache is not None:
             save_cache(cache, records, paper)
-    provenance = {"training_seed": seed, "impacts": args.count, "varied_impacts": varied_count, "varied_seed": seed + 2,
-                  "varied_paper_impacts": varied_paper_count, "varied_paper_seed": seed + 3,
-                  "records": len(records), "vibration_records": sum(1 for r in records if r.label.features.get(VIBRATION_CHANNEL)),
-                  "scene_set": "stream+varied+varied_paper"}
-    paper_provenance = {"training_seed": seed + 1, "impacts": paper_count, "records": len(paper), "scene_set": "paper"}
+    provenance = {
+        "training_seed": seed,
+        "impacts": args.count,
+        "varied_impacts": varied_count,
+        "varied_seed": seed + 2,
+        "varied_paper_impacts": varied_paper_count,
+        "varied_paper_seed": seed + 3,
+        "records": len(records),
+        "vibration_records": sum(1 for r in records if r.label.features.get(VIBRATION_CHANNEL)),
+        "scene_set": "stream+varied+varied_paper",
+    }
+    paper_provenance = {
+        "training_seed": seed + 1,
+        "impacts": paper_count,
+        "records": len(paper),
+        "scene_set": "paper",
+    }
     outputs = {
         "threshold": {**train_threshold(paper), "provenance": paper_provenance},
-        "statistical": {**train_statistical(records + paper, seed, params["identification"]["statistical"]["hysteresis"]), "provenance": [provenance, paper_provenance]},
-        "physics": {"duration_ratio": duration_ratio_table(params), "timing": timing_table(records),
-                    "timing_vibration": timing_table(records, vibration=True), "provenance": provenance},
+        "statistical": {
+            **train_statistical(
+                records + paper, seed, params["identification"]["statistical"]["hysteresis"]
+            ),
+            "provenance": [provenance, paper_provenance],
+        },
+        "physics": {
+            "duration_ratio": duration_ratio_table(params),
+            "timing": timing_table(records),
+            "timing_vibration": timing_table(records, vibration=True),
+            "provenance": provenance,
+        },
     }
     for name, model in outputs.items():
         path = MODELS_DIR / f"{name}.json"

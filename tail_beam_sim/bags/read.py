@@ -41,13 +41,19 @@ def open_segments_note(path: str | os.PathLike[str]) -> str | None:
     their messages out; ``tail-beam bag repair`` salvages them. None when there are none."""
     partial = Path(path) / PARTIAL_DIR
     try:
-        count = sum(1 for _ in partial.iterdir()) if partial.is_dir() and not partial.is_symlink() else 0
+        count = (
+            sum(1 for _ in partial.iterdir())
+            if partial.is_dir() and not partial.is_symlink()
+            else 0
+        )
     except OSError:
         return None
     if not count:
         return None
-    return (f"{path}: {count} segment(s) in {PARTIAL_DIR} not read (its recorder is still writing it, or was killed): "
-            f"their messages are left out; after a killed recorder, run `tail-beam bag repair {path}` to salvage them")
+    return (
+        f"{path}: {count} segment(s) in {PARTIAL_DIR} not read (its recorder is still writing it, or was killed): "
+        f"their messages are left out; after a killed recorder, run `tail-beam bag repair {path}` to salvage them"
+    )
 
 
 def contract_name(topic: str) -> str:
@@ -59,12 +65,20 @@ def check_bag_path(path: str | os.PathLike[str]) -> Path:
     """Return the bag directory, or InputError saying why it is not a readable bag."""
     bag = Path(path)
     if bag.is_symlink() and not bag.exists():
-        raise InputError("bag", str(bag), f"is a dangling symbolic link (to {os.readlink(bag)!r}): give the bag directory")
+        raise InputError(
+            "bag",
+            str(bag),
+            f"is a dangling symbolic link (to {os.readlink(bag)!r}): give the bag directory",
+        )
     if not bag.exists():
         raise InputError("bag", str(bag), "does not exist")
     if bag.is_file():
         if bag.suffix in (".mcap", ".db3"):
-            raise InputError("bag", str(bag), "is a storage file; give the bag directory that holds it and metadata.yaml")
+            raise InputError(
+                "bag",
+                str(bag),
+                "is a storage file; give the bag directory that holds it and metadata.yaml",
+            )
         raise InputError("bag", str(bag), "is not a rosbag2 bag directory")
     if not bag.is_dir():
         raise InputError("bag", str(bag), "is not a rosbag2 bag directory")
@@ -75,7 +89,9 @@ def check_bag_path(path: str | os.PathLike[str]) -> Path:
         raise InputError("bag", str(bag), f"cannot be listed ({exc.strerror or exc})") from None
     if not has_metadata:
         if storage_files:
-            raise InputError("bag", str(bag), f"has no metadata.yaml (its writer was killed?); {_REPAIR_HINT}")
+            raise InputError(
+                "bag", str(bag), f"has no metadata.yaml (its writer was killed?); {_REPAIR_HINT}"
+            )
         raise InputError("bag", str(bag), "is not a rosbag2 bag (no metadata.yaml)")
     return bag
 
@@ -103,11 +119,19 @@ class BagSensors:
     rebounds: list[tuple[float, np.ndarray]]
     json_topics: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     partial: bool = False  # the bag had segments a killed recorder left open
-    vibration: VibrationBlocks = field(default_factory=VibrationBlocks.empty)  # in index order, each block once
-    vibration_gaps: list[tuple[int, int]] = field(default_factory=list)  # (first missing index, samples missing)
+    vibration: VibrationBlocks = field(
+        default_factory=VibrationBlocks.empty
+    )  # in index order, each block once
+    vibration_gaps: list[tuple[int, int]] = field(
+        default_factory=list
+    )  # (first missing index, samples missing)
     namespace: str = "/"  # the support's namespace the topics were read from
-    repeated_samples: dict[str, int] = field(default_factory=dict)  # per topic: samples at a stamp already read, left out
-    time_jumps: dict[str, tuple[float, float]] = field(default_factory=dict)  # per topic, the first: (log time s, stamps back by s)
+    repeated_samples: dict[str, int] = field(
+        default_factory=dict
+    )  # per topic: samples at a stamp already read, left out
+    time_jumps: dict[str, tuple[float, float]] = field(
+        default_factory=dict
+    )  # per topic, the first: (log time s, stamps back by s)
 
     @property
     def vibration_lost_samples(self) -> int:
@@ -117,7 +141,13 @@ class BagSensors:
 
 def namespaces(connections: Iterable[Any]) -> list[str]:
     """The namespaces under which a bag holds contract topics, sorted."""
-    return sorted({topics.namespace_of(c.topic) for c in connections if contract_name(c.topic) in topics.MSG_TYPES})
+    return sorted(
+        {
+            topics.namespace_of(c.topic)
+            for c in connections
+            if contract_name(c.topic) in topics.MSG_TYPES
+        }
+    )
 
 
 def _normalise(namespace: str) -> str:
@@ -132,18 +162,30 @@ def choose_namespace(bag: Path, connections: Iterable[Any], namespace: str | Non
     present = namespaces(connections)
     if namespace is None or namespace == "":
         if len(present) > 1:
-            raise InputError("bag", str(bag), f"holds the topics of several supports (namespaces {', '.join(present)}); "
-                             "choose one with --namespace (bag_replay: replay.namespace)")
+            raise InputError(
+                "bag",
+                str(bag),
+                f"holds the topics of several supports (namespaces {', '.join(present)}); "
+                "choose one with --namespace (bag_replay: replay.namespace)",
+            )
         return present[0] if present else None
     chosen = _normalise(namespace)
     if chosen not in present:
-        raise InputError("namespace", namespace, f"not in the bag {bag}; it holds {', '.join(present) or 'no contract topic'}")
+        raise InputError(
+            "namespace",
+            namespace,
+            f"not in the bag {bag}; it holds {', '.join(present) or 'no contract topic'}",
+        )
     return chosen
 
 
 def raw_messages(
-    path: str | os.PathLike[str], wanted: Iterable[str] | None = None, required: Iterable[str] = (), namespace: str | None = None,
-    any_of: Iterable[str] = (), any_type: bool = False,
+    path: str | os.PathLike[str],
+    wanted: Iterable[str] | None = None,
+    required: Iterable[str] = (),
+    namespace: str | None = None,
+    any_of: Iterable[str] = (),
+    any_type: bool = False,
 ) -> Iterator[RawMessage]:
     """The bag's messages in log-time order (``wanted`` contract topics; None = all) of one
     support: ``namespace``, or the only one the bag holds (see :func:`choose_namespace`).
@@ -165,14 +207,26 @@ def raw_messages(
         reader = AnyReader([bag], default_typestore=TYPESTORE)
         reader.open()
     except Exception as exc:  # noqa: BLE001 - a hostile file can break the reader anywhere
-        raise InputError("bag", str(bag), f"cannot be read ({_first_line(exc)}): truncated or damaged? {_REPAIR_HINT}") from None
+        raise InputError(
+            "bag",
+            str(bag),
+            f"cannot be read ({_first_line(exc)}): truncated or damaged? {_REPAIR_HINT}",
+        ) from None
     # What the closed segments lack may lie in segments a killed recorder left open: say so.
-    unread = f"; {PARTIAL_DIR} holds segment(s) a recorder left open, which are not read: {_REPAIR_HINT}" if open_segments_note(bag) else ""
+    unread = (
+        f"; {PARTIAL_DIR} holds segment(s) a recorder left open, which are not read: {_REPAIR_HINT}"
+        if open_segments_note(bag)
+        else ""
+    )
     try:
         if reader.message_count == 0:
             raise InputError("bag", str(bag), f"holds no messages{unread}")
         chosen = choose_namespace(bag, reader.connections, namespace)
-        support = [c for c in reader.connections if chosen is None or topics.namespace_of(c.topic) == chosen]
+        support = [
+            c
+            for c in reader.connections
+            if chosen is None or topics.namespace_of(c.topic) == chosen
+        ]
         by_name: dict[str, set[str]] = {}
         for connection in support:
             by_name.setdefault(contract_name(connection.topic), set()).add(connection.topic)
@@ -182,32 +236,65 @@ def raw_messages(
         has = ", ".join(filled) or "none"
         for name in required:
             if name not in filled:
-                raise InputError("bag", str(bag), f"lacks messages on topic '{name}' ({topics.MSG_TYPES.get(name, '?')}); it has: {has}{unread}")
+                raise InputError(
+                    "bag",
+                    str(bag),
+                    f"lacks messages on topic '{name}' ({topics.MSG_TYPES.get(name, '?')}); it has: {has}{unread}",
+                )
         any_of = tuple(any_of)
         if any_of and not set(any_of) & set(filled):
-            raise InputError("bag", str(bag), f"holds no messages on any of {', '.join(any_of)}; it has: {has}{unread}")
+            raise InputError(
+                "bag",
+                str(bag),
+                f"holds no messages on any of {', '.join(any_of)}; it has: {has}{unread}",
+            )
         names = set(wanted) if wanted is not None else set(by_name)
         connections = [c for c in support if contract_name(c.topic) in names]
         if not any(c.msgcount > 0 for c in connections):
             # An empty selection would read as "every topic" to the reader: refuse it here.
-            raise InputError("bag", str(bag), f"holds no messages on {', '.join(sorted(names)) or 'no topic'}; it has: {has}{unread}")
-        foreign = [c for c in connections if c.msgcount > 0 and contract_name(c.topic) in topics.MSG_TYPES
-                   and c.msgtype != topics.MSG_TYPES[contract_name(c.topic)]]
+            raise InputError(
+                "bag",
+                str(bag),
+                f"holds no messages on {', '.join(sorted(names)) or 'no topic'}; it has: {has}{unread}",
+            )
+        foreign = [
+            c
+            for c in connections
+            if c.msgcount > 0
+            and contract_name(c.topic) in topics.MSG_TYPES
+            and c.msgtype != topics.MSG_TYPES[contract_name(c.topic)]
+        ]
         if foreign and not any_type:
             c = foreign[0]
-            raise InputError("bag", str(bag), f"records topic '{c.topic}' as {c.msgtype}, not the contract's "
-                             f"{topics.MSG_TYPES[contract_name(c.topic)]} (docs/interface.md): not a bag of this suite's topics")
+            raise InputError(
+                "bag",
+                str(bag),
+                f"records topic '{c.topic}' as {c.msgtype}, not the contract's "
+                f"{topics.MSG_TYPES[contract_name(c.topic)]} (docs/interface.md): not a bag of this suite's topics",
+            )
         listed = {id(c): c.msgcount for c in connections}
         read = dict.fromkeys(listed, 0)
         try:
             for connection, log_ns, data in reader.messages(connections=connections):
                 read[id(connection)] += 1
-                yield RawMessage(contract_name(connection.topic), connection.msgtype, log_ns, bytes(data), connection.topic)
+                yield RawMessage(
+                    contract_name(connection.topic),
+                    connection.msgtype,
+                    log_ns,
+                    bytes(data),
+                    connection.topic,
+                )
         except Exception as exc:  # noqa: BLE001 - as above
-            raise InputError("bag", str(bag), f"is truncated or damaged ({_first_line(exc)}); {_REPAIR_HINT}") from None
+            raise InputError(
+                "bag", str(bag), f"is truncated or damaged ({_first_line(exc)}); {_REPAIR_HINT}"
+            ) from None
         short = sum(listed.values()) - sum(read.values())
         if any(read[key] < listed[key] for key in listed):
-            raise InputError("bag", str(bag), f"is truncated: {short} of the messages its metadata lists are missing; {_REPAIR_HINT}")
+            raise InputError(
+                "bag",
+                str(bag),
+                f"is truncated: {short} of the messages its metadata lists are missing; {_REPAIR_HINT}",
+            )
     finally:
         try:
             reader.close()
@@ -229,15 +316,24 @@ class _Run:
     vibration: list[tuple[int, float, np.ndarray, float, float]] = field(default_factory=list)
     rebounds: list[tuple[float, np.ndarray]] = field(default_factory=list)
     json_topics: dict[str, list[dict[str, Any]]] = field(
-        default_factory=lambda: {topics.LABEL: [], topics.IMPACT_TRUTH: [], topics.IMPACT_CMD: []})
+        default_factory=lambda: {topics.LABEL: [], topics.IMPACT_TRUTH: [], topics.IMPACT_CMD: []}
+    )
 
     def merged(self, other: _Run) -> _Run:
-        return _Run(self.pressure + other.pressure, self.imu + other.imu, self.vibration + other.vibration,
-                    self.rebounds + other.rebounds, {k: v + other.json_topics[k] for k, v in self.json_topics.items()})
+        return _Run(
+            self.pressure + other.pressure,
+            self.imu + other.imu,
+            self.vibration + other.vibration,
+            self.rebounds + other.rebounds,
+            {k: v + other.json_topics[k] for k, v in self.json_topics.items()},
+        )
 
 
 def read_sensors(
-    path: str | os.PathLike[str], required: Iterable[str] = SENSOR_TOPICS, namespace: str | None = None, any_of: Iterable[str] = (),
+    path: str | os.PathLike[str],
+    required: Iterable[str] = SENSOR_TOPICS,
+    namespace: str | None = None,
+    any_of: Iterable[str] = (),
 ) -> BagSensors:
     """Read and decode one support's sensor topics (and its JSON topics) into arrays, all or
     nothing (``required``, ``any_of``: :func:`raw_messages`). The vibration blocks come back in
@@ -254,7 +350,10 @@ def read_sensors(
 
 
 def read_runs(
-    path: str | os.PathLike[str], required: Iterable[str] = SENSOR_TOPICS, namespace: str | None = None, any_of: Iterable[str] = (),
+    path: str | os.PathLike[str],
+    required: Iterable[str] = SENSOR_TOPICS,
+    namespace: str | None = None,
+    any_of: Iterable[str] = (),
 ) -> list[BagSensors]:
     """As :func:`read_sensors`, one :class:`BagSensors` per time base, in recorded order: where a
     sensor topic's stamps go back by more than TIME_JUMP_S (a restarted simulator, a looped
@@ -264,8 +363,12 @@ def read_runs(
     return [_assemble(run, partial, chosen, jumps) for run in runs]
 
 
-def _read(path: str | os.PathLike[str], required: Iterable[str], namespace: str | None, any_of: Iterable[str]
-          ) -> tuple[list[_Run], str, dict[str, tuple[float, float]], bool]:
+def _read(
+    path: str | os.PathLike[str],
+    required: Iterable[str],
+    namespace: str | None,
+    any_of: Iterable[str],
+) -> tuple[list[_Run], str, dict[str, tuple[float, float]], bool]:
     """The bag's messages decoded into runs (one per time base), the namespace read, the first
     time jump of each topic (log time s, stamps back by s) and whether the bag is partial."""
     runs = [_Run()]
@@ -312,19 +415,36 @@ def _read(path: str | os.PathLike[str], required: Iterable[str], namespace: str 
     return runs, chosen, jumps, partial
 
 
-def _assemble(run: _Run, partial: bool, chosen: str, jumps: dict[str, tuple[float, float]]) -> BagSensors:
+def _assemble(
+    run: _Run, partial: bool, chosen: str, jumps: dict[str, tuple[float, float]]
+) -> BagSensors:
     """One run's messages as arrays: samples in stamp order, each stamp once, vibration blocks
     in index order with their gaps."""
     p = np.array(run.pressure).reshape(-1, 2)
     i = np.array(run.imu).reshape(-1, 7)
     p, i = p[np.argsort(p[:, 0], kind="stable")], i[np.argsort(i[:, 0], kind="stable")]
     (p, p_repeated), (i, i_repeated) = _first_of_each_stamp(p), _first_of_each_stamp(i)
-    repeated = {name: n for name, n in ((topics.JACK_PRESSURE, p_repeated), (topics.IMU, i_repeated)) if n}
+    repeated = {
+        name: n for name, n in ((topics.JACK_PRESSURE, p_repeated), (topics.IMU, i_repeated)) if n
+    }
     rebounds = sorted(run.rebounds, key=lambda r: r[0])
     blocks = _vibration_blocks(run.vibration)
     gaps = BlockSequencer().push(blocks).gaps
-    return BagSensors(p[:, 0], p[:, 1], i[:, 0], i[:, 1:4], i[:, 4:7], rebounds, run.json_topics, partial, blocks, gaps, chosen,
-                      repeated, dict(jumps))
+    return BagSensors(
+        p[:, 0],
+        p[:, 1],
+        i[:, 0],
+        i[:, 1:4],
+        i[:, 4:7],
+        rebounds,
+        run.json_topics,
+        partial,
+        blocks,
+        gaps,
+        chosen,
+        repeated,
+        dict(jumps),
+    )
 
 
 def _first_of_each_stamp(rows: np.ndarray) -> tuple[np.ndarray, int]:
@@ -344,12 +464,17 @@ def _check_index(decoded: list[tuple[int, float, np.ndarray, float, float]]) -> 
     conflict = blocks.index_conflict()
     if conflict is not None:
         (i, t, _), (j, u, _) = blocks.block(conflict[0]), blocks.block(conflict[1])
-        raise InputError("vibration.angle_min/angle_max", f"running index {i} at stamp {t:.6f} s and {j} at {u:.6f} s",
-                         "must be the running sample index: each block's is the one before it plus that block's sample "
-                         "count (docs/interface.md)")
+        raise InputError(
+            "vibration.angle_min/angle_max",
+            f"running index {i} at stamp {t:.6f} s and {j} at {u:.6f} s",
+            "must be the running sample index: each block's is the one before it plus that block's sample "
+            "count (docs/interface.md)",
+        )
 
 
-def _vibration_blocks(decoded: list[tuple[int, float, np.ndarray, float, float]], in_order: bool = True) -> VibrationBlocks:
+def _vibration_blocks(
+    decoded: list[tuple[int, float, np.ndarray, float, float]], in_order: bool = True
+) -> VibrationBlocks:
     """Decoded vibration messages as blocks in index order (each index once; as recorded
     unless ``in_order``); InputError when they disagree on the sample period (two
     accelerometers on one topic, or a foreign message): one period for all would misplace the
@@ -358,7 +483,11 @@ def _vibration_blocks(decoded: list[tuple[int, float, np.ndarray, float, float]]
         return VibrationBlocks.empty()
     periods = sorted({d[3] for d in decoded})
     if len(periods) > 1:
-        raise InputError("vibration.time_increment", periods[:3], f"must be one sample period for the whole bag (first: {decoded[0][3]:g} s)")
+        raise InputError(
+            "vibration.time_increment",
+            periods[:3],
+            f"must be one sample period for the whole bag (first: {decoded[0][3]:g} s)",
+        )
     blocks = VibrationBlocks(
         first_index=np.array([d[0] for d in decoded], dtype=np.int64),
         lengths=np.array([d[2].size for d in decoded], dtype=np.int64),

@@ -22,7 +22,10 @@ from tail_beam_sim.physics.sensors import VibrationBlocks
 
 TYPESTORE = get_typestore(Stores.ROS2_KILTED)
 STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
-COMPRESSIONS = ("zstd", "none")  # mcap chunk compression (rosbag2's zstd storage presets); sqlite3 files are never compressed
+COMPRESSIONS = (
+    "zstd",
+    "none",
+)  # mcap chunk compression (rosbag2's zstd storage presets); sqlite3 files are never compressed
 
 
 def open_writer(path: Path, storage: str, compression: str = "zstd") -> Writer:
@@ -36,6 +39,7 @@ def open_writer(path: Path, storage: str, compression: str = "zstd") -> Writer:
     if compression == "zstd" and storage == "mcap":
         writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
     return writer
+
 
 _T = TYPESTORE.types
 _Time = _T["builtin_interfaces/msg/Time"]
@@ -55,7 +59,9 @@ BagRecord = tuple[str, int, Any]  # (topic, log time ns, rosbags message)
 def header(stamp_s: float, frame_id: str) -> Any:
     """A std_msgs/Header at ``stamp_s`` seconds of simulation time."""
     ns = topics.stamp_ns(stamp_s)
-    return _Header(stamp=_Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id=frame_id)
+    return _Header(
+        stamp=_Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id=frame_id
+    )
 
 
 def string_msg(payload: dict[str, Any] | str) -> Any:
@@ -63,15 +69,23 @@ def string_msg(payload: dict[str, Any] | str) -> Any:
     return _String(data=payload if isinstance(payload, str) else json.dumps(payload))
 
 
-def pressure_msgs(stamp_s: np.ndarray, pressure_pa: np.ndarray, variance_pa2: float) -> Iterator[BagRecord]:
+def pressure_msgs(
+    stamp_s: np.ndarray, pressure_pa: np.ndarray, variance_pa2: float
+) -> Iterator[BagRecord]:
     """jack_pressure messages, one per sample."""
     for stamp, value in zip(stamp_s.tolist(), pressure_pa.tolist()):
-        msg = _FluidPressure(header=header(stamp, topics.FRAME_JACK), fluid_pressure=value, variance=variance_pa2)
+        msg = _FluidPressure(
+            header=header(stamp, topics.FRAME_JACK), fluid_pressure=value, variance=variance_pa2
+        )
         yield topics.JACK_PRESSURE, topics.stamp_ns(stamp), msg
 
 
 def imu_msgs(
-    stamp_s: np.ndarray, gyro_radps: np.ndarray, accel_mps2: np.ndarray, gyro_variance: float, accel_variance: float
+    stamp_s: np.ndarray,
+    gyro_radps: np.ndarray,
+    accel_mps2: np.ndarray,
+    gyro_variance: float,
+    accel_variance: float,
 ) -> Iterator[BagRecord]:
     """imu messages, one per sample; no orientation estimate (covariance[0] = -1, REP 145)."""
     no_orientation = np.zeros(9)
@@ -102,9 +116,15 @@ def vibration_msgs(blocks: VibrationBlocks) -> Iterator[BagRecord]:
         stamp = float(blocks.stamp_s[b])
         length = int(blocks.lengths[b])
         msg = _LaserScan(
-            header=header(stamp, topics.FRAME_ACCELEROMETER), angle_min=high, angle_max=low, angle_increment=0.0,
-            time_increment=period, scan_time=period * length, range_min=-float(blocks.range_mps2),
-            range_max=float(blocks.range_mps2), ranges=np.asarray(blocks.accel_mps2[edges[b] : edges[b + 1]], dtype=np.float32),
+            header=header(stamp, topics.FRAME_ACCELEROMETER),
+            angle_min=high,
+            angle_max=low,
+            angle_increment=0.0,
+            time_increment=period,
+            scan_time=period * length,
+            range_min=-float(blocks.range_mps2),
+            range_max=float(blocks.range_mps2),
+            ranges=np.asarray(blocks.accel_mps2[edges[b] : edges[b + 1]], dtype=np.float32),
             intensities=empty,
         )
         yield topics.VIBRATION, topics.stamp_ns(stamp), msg
@@ -116,7 +136,9 @@ def vibration_fields(msg: Any) -> tuple[int, float, np.ndarray, float, float]:
     that carries no block (tail_beam_sim.topics)."""
     stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
     samples = np.asarray(msg.ranges, dtype=np.float32)
-    index, period, range_mps2 = topics.block_header(msg.angle_min, msg.angle_max, msg.time_increment, msg.range_max, samples.size)
+    index, period, range_mps2 = topics.block_header(
+        msg.angle_min, msg.angle_max, msg.time_increment, msg.range_max, samples.size
+    )
     return index, stamp, samples, period, range_mps2
 
 
@@ -129,7 +151,11 @@ def rebound_msg(stamp_s: float, velocity_mps: np.ndarray) -> BagRecord:
 
 
 def write_bag(
-    path: str | Path, records: Iterable[BagRecord], storage: str = "mcap", compression: str = "zstd", namespace: str = "/"
+    path: str | Path,
+    records: Iterable[BagRecord],
+    storage: str = "mcap",
+    compression: str = "zstd",
+    namespace: str = "/",
 ) -> int:
     """Write ``records`` (any order) to a new rosbag2 bag at ``path``; returns the count.
 
@@ -145,14 +171,20 @@ def write_bag(
     try:
         writer.open()
     except (OSError, WriterError) as exc:
-        raise InputError("bag", str(bag_path), f"cannot be created ({getattr(exc, 'strerror', None) or exc})") from None
+        raise InputError(
+            "bag", str(bag_path), f"cannot be created ({getattr(exc, 'strerror', None) or exc})"
+        ) from None
     try:
         connections = {
-            topic: writer.add_connection(topics.qualified(namespace, topic), msgtype, typestore=TYPESTORE)
+            topic: writer.add_connection(
+                topics.qualified(namespace, topic), msgtype, typestore=TYPESTORE
+            )
             for topic, msgtype in topics.MSG_TYPES.items()
         }
         for topic, time_ns, msg in ordered:
-            writer.write(connections[topic], time_ns, TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic]))
+            writer.write(
+                connections[topic], time_ns, TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic])
+            )
     except BaseException:
         writer.abort()
         raise
@@ -169,9 +201,21 @@ def result_records(result: Any, command: dict[str, Any] | None = None) -> list[B
     records: list[BagRecord] = []
     if command is not None:
         records.append((topics.IMPACT_CMD, 0, string_msg(command)))
-    records.extend(pressure_msgs(result.pressure.stamp_s, result.pressure.pressure_pa, result.pressure.variance_pa2))
+    records.extend(
+        pressure_msgs(
+            result.pressure.stamp_s, result.pressure.pressure_pa, result.pressure.variance_pa2
+        )
+    )
     imu = result.imu
-    records.extend(imu_msgs(imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, imu.gyro_variance, imu.accel_variance))
+    records.extend(
+        imu_msgs(
+            imu.stamp_s,
+            imu.angular_velocity_radps,
+            imu.linear_acceleration_mps2,
+            imu.gyro_variance,
+            imu.accel_variance,
+        )
+    )
     records.extend(vibration_msgs(result.vibration))
     records.append(rebound_msg(result.rebound.stamp_s, result.rebound.velocity_mps))
     end_stamp = result.contact_stamp_s + result.scene.window_s

@@ -51,8 +51,13 @@ class SegmentedBagWriter:
     """Writes serialized messages to a rosbag2 bag, one closed segment at a time."""
 
     def __init__(
-        self, path: str | os.PathLike[str], storage: str = "mcap", msg_types: Mapping[str, str] | None = None,
-        compression: str = "zstd", max_duration_s: float = 0.0, max_size_bytes: int = 0,
+        self,
+        path: str | os.PathLike[str],
+        storage: str = "mcap",
+        msg_types: Mapping[str, str] | None = None,
+        compression: str = "zstd",
+        max_duration_s: float = 0.0,
+        max_size_bytes: int = 0,
     ) -> None:
         if not isinstance(storage, str) or storage not in STORAGES:
             raise InputError("storage", storage, f"must be one of {', '.join(STORAGES)}")
@@ -69,7 +74,9 @@ class SegmentedBagWriter:
             self.path.mkdir(parents=True)
             (self.path / PARTIAL_DIR).mkdir()
         except OSError as exc:
-            raise InputError("bag", str(self.path), f"cannot be created ({exc.strerror or exc})") from None
+            raise InputError(
+                "bag", str(self.path), f"cannot be created ({exc.strerror or exc})"
+            ) from None
         self._index = 0
         self._writer: Writer | None = None
         self._connections: dict[str, Any] = {}
@@ -91,7 +98,11 @@ class SegmentedBagWriter:
         self.message_count += 1
 
     def _split_due(self, log_time_ns: int) -> bool:
-        if self.max_duration_ns and self._segment_start_ns is not None and log_time_ns - self._segment_start_ns >= self.max_duration_ns:
+        if (
+            self.max_duration_ns
+            and self._segment_start_ns is not None
+            and log_time_ns - self._segment_start_ns >= self.max_duration_ns
+        ):
             return True
         return bool(self.max_size_bytes) and self.segment_size_bytes() >= self.max_size_bytes
 
@@ -113,7 +124,8 @@ class SegmentedBagWriter:
         self._writer.open()
         self._segment_payload_bytes = 0
         self._connections = {
-            topic: self._writer.add_connection(topic, msgtype, typestore=TYPESTORE) for topic, msgtype in self.msg_types.items()
+            topic: self._writer.add_connection(topic, msgtype, typestore=TYPESTORE)
+            for topic, msgtype in self.msg_types.items()
         }
 
     def flush(self) -> None:
@@ -159,15 +171,26 @@ _DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 
 
 def _info(path: Path) -> dict[str, Any]:
-    return yaml.load((path / METADATA).read_text(encoding="utf-8"), Loader=_LOADER)["rosbag2_bagfile_information"]
+    return yaml.load((path / METADATA).read_text(encoding="utf-8"), Loader=_LOADER)[
+        "rosbag2_bagfile_information"
+    ]
 
 
 def empty_info(storage: str) -> dict[str, Any]:
     """rosbag2 (version 9) metadata of a bag with no file yet."""
     return {
-        "version": 9, "storage_identifier": storage, "relative_file_paths": [], "duration": {"nanoseconds": 0},
-        "starting_time": {"nanoseconds_since_epoch": 0}, "message_count": 0, "topics_with_message_count": [],
-        "compression_format": "", "compression_mode": "", "files": [], "custom_data": {}, "ros_distro": "rosbags",
+        "version": 9,
+        "storage_identifier": storage,
+        "relative_file_paths": [],
+        "duration": {"nanoseconds": 0},
+        "starting_time": {"nanoseconds_since_epoch": 0},
+        "message_count": 0,
+        "topics_with_message_count": [],
+        "compression_format": "",
+        "compression_mode": "",
+        "files": [],
+        "custom_data": {},
+        "ros_distro": "rosbags",
     }
 
 
@@ -176,7 +199,9 @@ def merge_info(bag: dict[str, Any], segment: dict[str, Any]) -> dict[str, Any]:
     merged = {**bag, "files": bag["files"] + segment["files"]}
     merged["relative_file_paths"] = [f["path"] for f in merged["files"]]
     merged["message_count"] = bag["message_count"] + segment["message_count"]
-    totals = {item["topic_metadata"]["name"]: dict(item) for item in bag["topics_with_message_count"]}
+    totals = {
+        item["topic_metadata"]["name"]: dict(item) for item in bag["topics_with_message_count"]
+    }
     for item in segment["topics_with_message_count"]:
         name = item["topic_metadata"]["name"]
         if name in totals:
@@ -187,13 +212,18 @@ def merge_info(bag: dict[str, Any], segment: dict[str, Any]) -> dict[str, Any]:
     filled = [f for f in merged["files"] if f["message_count"]]
     if filled:
         start = min(f["starting_time"]["nanoseconds_since_epoch"] for f in filled)
-        end = max(f["starting_time"]["nanoseconds_since_epoch"] + f["duration"]["nanoseconds"] for f in filled)
+        end = max(
+            f["starting_time"]["nanoseconds_since_epoch"] + f["duration"]["nanoseconds"]
+            for f in filled
+        )
         merged["starting_time"] = {"nanoseconds_since_epoch": start}
         merged["duration"] = {"nanoseconds": end - start}
     return merged
 
 
-def adopt_segment(bag: Path, segment: Path, bag_info: dict[str, Any] | None = None) -> dict[str, Any]:
+def adopt_segment(
+    bag: Path, segment: Path, bag_info: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """Move a closed segment bag's storage file into ``bag`` and list it in the metadata;
     returns the bag's new metadata. ``bag_info`` is the bag's current metadata if the caller
     keeps it (else it is read from disk)."""
@@ -216,7 +246,9 @@ def write_metadata(bag: Path, info: dict[str, Any]) -> None:
     if tmp.is_symlink() or tmp.is_file():
         tmp.unlink()
     with tmp.open("x", encoding="utf-8") as stream:
-        stream.write(yaml.dump({"rosbag2_bagfile_information": info}, Dumper=_DUMPER, sort_keys=False))
+        stream.write(
+            yaml.dump({"rosbag2_bagfile_information": info}, Dumper=_DUMPER, sort_keys=False)
+        )
     os.replace(tmp, bag / METADATA)
 
 
@@ -225,17 +257,25 @@ class RepairReport:
     """What :func:`repair` did to a bag."""
 
     kept_files: int = 0  # closed storage files that read whole, kept as they were
-    rewritten: int = 0  # open segments and damaged or unlisted files whose complete messages were rewritten
+    rewritten: int = (
+        0  # open segments and damaged or unlisted files whose complete messages were rewritten
+    )
     salvaged_messages: int = 0  # messages in the rewritten files
-    lost: list[str] = field(default_factory=list)  # storage files or open segments with nothing readable
-    kept_aside: list[str] = field(default_factory=list)  # damaged closed files, renamed *.damaged (not deleted)
+    lost: list[str] = field(
+        default_factory=list
+    )  # storage files or open segments with nothing readable
+    kept_aside: list[str] = field(
+        default_factory=list
+    )  # damaged closed files, renamed *.damaged (not deleted)
     unknown_type_messages: int = 0  # complete messages of types the suite cannot write (left out)
     skipped_links: list[str] = field(default_factory=list)  # symbolic links in the bag, left alone
 
     def summary(self) -> str:
         """One line: what was kept, salvaged, lost and left alone."""
-        parts = [f"kept {self.kept_files} closed file(s)",
-                 f"salvaged {self.salvaged_messages} messages into {self.rewritten} rewritten file(s)"]
+        parts = [
+            f"kept {self.kept_files} closed file(s)",
+            f"salvaged {self.salvaged_messages} messages into {self.rewritten} rewritten file(s)",
+        ]
         if self.lost:
             parts.append(f"nothing readable in {', '.join(self.lost)}")
         if self.kept_aside:
@@ -243,7 +283,9 @@ class RepairReport:
         if self.unknown_type_messages:
             parts.append(f"left out {self.unknown_type_messages} messages of unknown types")
         if self.skipped_links:
-            parts.append(f"left alone symbolic link(s), not followed: {', '.join(self.skipped_links)}")
+            parts.append(
+                f"left alone symbolic link(s), not followed: {', '.join(self.skipped_links)}"
+            )
         return "; ".join(parts)
 
 
@@ -264,7 +306,11 @@ def repair(bag_path: str | os.PathLike[str]) -> RepairReport:
     """
     bag = Path(bag_path)
     if bag.is_symlink():
-        raise InputError("bag", str(bag), f"is a symbolic link (to {os.readlink(bag)!r}): repair the bag directory itself")
+        raise InputError(
+            "bag",
+            str(bag),
+            f"is a symbolic link (to {os.readlink(bag)!r}): repair the bag directory itself",
+        )
     if not bag.is_dir():
         raise InputError("bag", str(bag), "does not exist (or is not a bag directory)")
     report = RepairReport()
@@ -275,19 +321,37 @@ def repair(bag_path: str | os.PathLike[str]) -> RepairReport:
     storage = old.get("storage_identifier") if old else None
     if not isinstance(storage, str) or storage not in _SUFFIX:
         if not suffixes:
-            raise InputError("bag", str(bag), "holds neither metadata.yaml nor storage files: nothing to repair")
+            raise InputError(
+                "bag", str(bag), "holds neither metadata.yaml nor storage files: nothing to repair"
+            )
         storage = "mcap" if ".mcap" in suffixes else "sqlite3"
     work = bag / _REPAIR_DIR
     if work.is_symlink():
-        raise InputError("bag", str(bag), f"holds {_REPAIR_DIR} as a symbolic link: remove it, then repair again")
+        raise InputError(
+            "bag",
+            str(bag),
+            f"holds {_REPAIR_DIR} as a symbolic link: remove it, then repair again",
+        )
     shutil.rmtree(work, ignore_errors=True)
     work.mkdir()
     listed = [entry["path"] for entry in old["files"]] if old else []
-    topic_meta = {t["topic_metadata"]["name"]: t["topic_metadata"] for t in old["topics_with_message_count"]} if old else {}
+    topic_meta = (
+        {
+            t["topic_metadata"]["name"]: t["topic_metadata"]
+            for t in old["topics_with_message_count"]
+        }
+        if old
+        else {}
+    )
     info = empty_info(storage)
     for path in files:
         records, complete = _read_storage(path)
-        if path.name in listed and complete and path.suffix == _SUFFIX[storage] and all(r[0] in topic_meta for r in records):
+        if (
+            path.name in listed
+            and complete
+            and path.suffix == _SUFFIX[storage]
+            and all(r[0] in topic_meta for r in records)
+        ):
             info = merge_info(info, _file_info(path.name, records, topic_meta))
             report.kept_files += 1
         else:
@@ -299,8 +363,16 @@ def repair(bag_path: str | os.PathLike[str]) -> RepairReport:
                 report.kept_aside.append(path.name + DAMAGED_SUFFIX)
     for segment in segments:
         records = [r for path in segment for r in _read_storage(path)[0]]
-        info = _rewrite(work, bag, segment[0].parent.name if segment else "segment", storage, records, info, report,
-                        f"{PARTIAL_DIR}/{segment[0].parent.name}" if segment else PARTIAL_DIR)
+        info = _rewrite(
+            work,
+            bag,
+            segment[0].parent.name if segment else "segment",
+            storage,
+            records,
+            info,
+            report,
+            f"{PARTIAL_DIR}/{segment[0].parent.name}" if segment else PARTIAL_DIR,
+        )
     write_metadata(bag, info)
     partial = bag / PARTIAL_DIR
     if partial.is_dir() and not partial.is_symlink():
@@ -349,7 +421,9 @@ def _open_segments(bag: Path, report: RepairReport) -> list[list[Path]]:
             for inner in sorted(os.scandir(entry.path), key=lambda e: e.name):
                 if inner.is_symlink():
                     report.skipped_links.append(f"{PARTIAL_DIR}/{entry.name}/{inner.name}")
-                elif inner.is_file(follow_symlinks=False) and Path(inner.name).suffix in _STORAGE_OF:
+                elif (
+                    inner.is_file(follow_symlinks=False) and Path(inner.name).suffix in _STORAGE_OF
+                ):
                     files.append(Path(inner.path))
             segments.append(files)
     return segments
@@ -395,8 +469,13 @@ def _read_sqlite(path: Path) -> tuple[list[Salvaged], bool]:
     except sqlite3.Error:
         return records, False
     try:
-        names = {row[0]: (row[1], row[2]) for row in connection.execute("SELECT id, name, type FROM topics")}
-        for topic_id, stamp, data in connection.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id"):
+        names = {
+            row[0]: (row[1], row[2])
+            for row in connection.execute("SELECT id, name, type FROM topics")
+        }
+        for topic_id, stamp, data in connection.execute(
+            "SELECT topic_id, timestamp, data FROM messages ORDER BY id"
+        ):
             if topic_id in names:
                 records.append((*names[topic_id], int(stamp), bytes(data)))
     except sqlite3.Error:
@@ -406,22 +485,41 @@ def _read_sqlite(path: Path) -> tuple[list[Salvaged], bool]:
     return records, True
 
 
-def _file_info(name: str, records: list[Salvaged], topic_meta: Mapping[str, Any]) -> dict[str, Any]:
+def _file_info(
+    name: str, records: list[Salvaged], topic_meta: Mapping[str, Any]
+) -> dict[str, Any]:
     """Metadata of one kept storage file, from its messages (a bag-level info of one file)."""
     counts: dict[str, int] = {}
     for topic, *_ in records:
         counts[topic] = counts.get(topic, 0) + 1
     stamps = [r[2] for r in records] or [0]
-    entry = {"path": name, "starting_time": {"nanoseconds_since_epoch": min(stamps)},
-             "duration": {"nanoseconds": max(stamps) - min(stamps)}, "message_count": len(records)}
+    entry = {
+        "path": name,
+        "starting_time": {"nanoseconds_since_epoch": min(stamps)},
+        "duration": {"nanoseconds": max(stamps) - min(stamps)},
+        "message_count": len(records),
+    }
     info = empty_info("")
-    info.update(files=[entry], message_count=len(records),
-                topics_with_message_count=[{"topic_metadata": topic_meta[t], "message_count": c} for t, c in counts.items()])
+    info.update(
+        files=[entry],
+        message_count=len(records),
+        topics_with_message_count=[
+            {"topic_metadata": topic_meta[t], "message_count": c} for t, c in counts.items()
+        ],
+    )
     return info
 
 
-def _rewrite(work: Path, bag: Path, stem: str, storage: str, records: list[Salvaged], info: dict[str, Any],
-             report: RepairReport, source: str) -> dict[str, Any]:
+def _rewrite(
+    work: Path,
+    bag: Path,
+    stem: str,
+    storage: str,
+    records: list[Salvaged],
+    info: dict[str, Any],
+    report: RepairReport,
+    source: str,
+) -> dict[str, Any]:
     """Write ``records`` as a new closed file of the bag; returns the metadata with it added."""
     known = [r for r in records if r[1] in TYPESTORE.types]
     report.unknown_type_messages += len(records) - len(known)
@@ -429,12 +527,17 @@ def _rewrite(work: Path, bag: Path, stem: str, storage: str, records: list[Salva
         report.lost.append(source)
         return info
     name = f"{stem}_salvaged"
-    while any((bag / f"{name}{suffix}").exists() or (bag / f"{name}{suffix}").is_symlink() for suffix in _STORAGE_OF):
+    while any(
+        (bag / f"{name}{suffix}").exists() or (bag / f"{name}{suffix}").is_symlink()
+        for suffix in _STORAGE_OF
+    ):
         name += "_"
     segment = work / name
     types = {topic: msgtype for topic, msgtype, _, _ in known}
     with Writer(segment, version=9, storage_plugin=STORAGES[storage]) as writer:
-        connections = {t: writer.add_connection(t, m, typestore=TYPESTORE) for t, m in types.items()}
+        connections = {
+            t: writer.add_connection(t, m, typestore=TYPESTORE) for t, m in types.items()
+        }
         for topic, _, log_ns, data in sorted(known, key=lambda r: r[2]):
             writer.write(connections[topic], log_ns, data)
     segment_info = _info(segment)

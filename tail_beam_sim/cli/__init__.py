@@ -15,19 +15,30 @@ pipe, ``| head``: as a tool killed by SIGPIPE reports it in a shell). Never a tr
 from __future__ import annotations
 
 import argparse
-from importlib.metadata import entry_points
 import os
 import signal
 import sys
 import threading
 from collections.abc import Sequence
+from importlib.metadata import entry_points
 from typing import Any
 
 from tail_beam_sim.errors import InputError
 
 VERB_GROUP = "tail_beam.verbs"
 # Order of ``tail-beam --help`` for the verbs it knows; any other installed verb follows, by name.
-__all__ = ["EXIT_BAD_INPUT", "EXIT_SOLVER_FAILED", "EXIT_TIMEOUT", "EXIT_REFUSED", "EXIT_INTERRUPTED", "EXIT_PIPE_CLOSED", "OneLineParser", "VERB_GROUP", "build_parser", "main"]
+__all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_SOLVER_FAILED",
+    "EXIT_TIMEOUT",
+    "EXIT_REFUSED",
+    "EXIT_INTERRUPTED",
+    "EXIT_PIPE_CLOSED",
+    "OneLineParser",
+    "VERB_GROUP",
+    "build_parser",
+    "main",
+]
 EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 3
 EXIT_TIMEOUT = 4
@@ -35,7 +46,17 @@ EXIT_REFUSED = 5
 EXIT_INTERRUPTED = 130  # 128 + SIGINT
 EXIT_PIPE_CLOSED = 141  # 128 + SIGPIPE, what a shell reports for a tool its pipe's reader left
 
-PREFERRED_ORDER = ("simulate", "sweep", "send", "identify", "calibrate", "evaluate", "bag", "demo", "bench")
+PREFERRED_ORDER = (
+    "simulate",
+    "sweep",
+    "send",
+    "identify",
+    "calibrate",
+    "evaluate",
+    "bag",
+    "demo",
+    "bench",
+)
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -47,11 +68,19 @@ class OneLineParser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The full ``tail-beam`` parser with every installed subcommand."""
-    parser = OneLineParser(prog="tail-beam", description="tail_beam tools: simulate, sweep, identify, evaluate, bench offline; send impacts to a running sim_node")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser, metavar="COMMAND")
+    parser = OneLineParser(
+        prog="tail-beam",
+        description="tail_beam tools: simulate, sweep, identify, evaluate, bench offline; send impacts to a running sim_node",
+    )
+    sub = parser.add_subparsers(
+        dest="command", required=True, parser_class=OneLineParser, metavar="COMMAND"
+    )
     verbs = {ep.name: ep for ep in entry_points(group=VERB_GROUP)}
     if not verbs:
-        parser.exit(2, f"tail-beam: error: no verbs installed in entry-point group {VERB_GROUP!r}: reinstall the package (pip install -e .)\n")
+        parser.exit(
+            2,
+            f"tail-beam: error: no verbs installed in entry-point group {VERB_GROUP!r}: reinstall the package (pip install -e .)\n",
+        )
     rank = {name: i for i, name in enumerate(PREFERRED_ORDER)}
     for name in sorted(verbs, key=lambda n: (rank.get(n, len(rank)), n)):
         verbs[name].load()(sub)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-
 from pathlib import Path
 
 import yaml
@@ -19,11 +18,15 @@ from tail_beam_sim.physics.sensors import IndexSpan
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("bag", help="inspect or repair a rosbag2 bag")
-    actions = parser.add_subparsers(dest="action", required=True, parser_class=type(parser), metavar="ACTION")
+    actions = parser.add_subparsers(
+        dest="action", required=True, parser_class=type(parser), metavar="ACTION"
+    )
     info = actions.add_parser("info", help="topics, types, counts and stamp span of a bag")
     info.add_argument("bag", help="bag directory")
     info.set_defaults(func=run_info)
-    fix = actions.add_parser("repair", help="salvage the segments a killed recorder left open; rewrite metadata.yaml")
+    fix = actions.add_parser(
+        "repair", help="salvage the segments a killed recorder left open; rewrite metadata.yaml"
+    )
     fix.add_argument("bag", help="bag directory")
     fix.set_defaults(func=run_repair)
 
@@ -42,22 +45,31 @@ def run_info(args: argparse.Namespace) -> int:
         first = raw.log_time_ns if first is None else min(first, raw.log_time_ns)
         last = raw.log_time_ns if last is None else max(last, raw.log_time_ns)
         if raw.topic == topics.VIBRATION and raw.msgtype == topics.MSG_TYPES[topics.VIBRATION]:
-            index, _, samples, period_s, _ = vibration_fields(TYPESTORE.deserialize_cdr(raw.data, raw.msgtype))
+            index, _, samples, period_s, _ = vibration_fields(
+                TYPESTORE.deserialize_cdr(raw.data, raw.msgtype)
+            )
             spans.setdefault(name, IndexSpan()).add(index, samples.size)
             periods[name] = period_s
-    print(f"bag {args.bag}: {sum(c[1] for c in counts.values())} messages, log time {first * 1e-9:.3f} .. {last * 1e-9:.3f} s")
+    print(
+        f"bag {args.bag}: {sum(c[1] for c in counts.values())} messages, log time {first * 1e-9:.3f} .. {last * 1e-9:.3f} s"
+    )
     width = max(18, *(len(t) for t in counts))
     for topic, (msgtype, count) in sorted(counts.items()):
         line = f"  {topic:<{width}} {msgtype:<32} {count:>8}"
         if topic in spans:
             span = spans[topic]
             rate = 1.0 / periods[topic] if periods[topic] > 0 else float("nan")
-            line += f"  ({span.samples} samples at {rate:.0f} Hz, {span.lost_samples} samples lost)"
+            line += (
+                f"  ({span.samples} samples at {rate:.0f} Hz, {span.lost_samples} samples lost)"
+            )
         print(line)
     custom = _custom_data(Path(args.bag))
     lost = {k: v for k, v in custom.items() if k.startswith("tail_beam.")}
     if lost:
-        print("  recorder: " + ", ".join(f"{k.removeprefix('tail_beam.')} {v}" for k, v in sorted(lost.items())))
+        print(
+            "  recorder: "
+            + ", ".join(f"{k.removeprefix('tail_beam.')} {v}" for k, v in sorted(lost.items()))
+        )
     note = open_segments_note(args.bag)
     if note:
         print(f"tail-beam bag info: {note}", file=sys.stderr)
@@ -67,7 +79,9 @@ def run_info(args: argparse.Namespace) -> int:
 def _custom_data(bag: Path) -> dict[str, str]:
     """The ``custom_data`` of a bag's metadata.yaml (the recorder's loss counts), or none."""
     try:
-        info = yaml.safe_load((bag / METADATA).read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+        info = yaml.safe_load((bag / METADATA).read_text(encoding="utf-8"))[
+            "rosbag2_bagfile_information"
+        ]
     except (OSError, yaml.YAMLError, KeyError, TypeError):
         return {}
     return {str(k): str(v) for k, v in (info.get("custom_data") or {}).items()}
@@ -79,7 +93,12 @@ def run_repair(args: argparse.Namespace) -> int:
     try:
         count = sum(1 for _ in raw_messages(args.bag, any_type=True))
     except InputError as exc:
-        print(f"tail-beam bag: error: could not repair {args.bag} ({report.summary()}): {exc.allowed}", file=sys.stderr)
+        print(
+            f"tail-beam bag: error: could not repair {args.bag} ({report.summary()}): {exc.allowed}",
+            file=sys.stderr,
+        )
         return 2
-    print(f"bag {args.bag}: {report.summary()}; metadata.yaml rewritten; the bag reads: {count} messages")
+    print(
+        f"bag {args.bag}: {report.summary()}; metadata.yaml rewritten; the bag reads: {count} messages"
+    )
     return 0

@@ -15,9 +15,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tail_beam_sim.physics import benchmark as bench
 from tail_beam_sim.cli.common import add_impact_options, fidelity_from_args, scene_from_args
 from tail_beam_sim.errors import InputError
+from tail_beam_sim.physics import benchmark as bench
 from tail_beam_sim.physics.fidelity import TIERS, structure_for
 from tail_beam_sim.physics.simulate import build_problem
 
@@ -26,18 +26,62 @@ TARGET_ERROR = 0.01
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    parser = sub.add_parser("bench", help="time and error of every solver and tier against a converged reference, charted")
+    parser = sub.add_parser(
+        "bench",
+        help="time and error of every solver and tier against a converged reference, charted",
+    )
     add_impact_options(parser)
-    parser.add_argument("--full", action="store_true", help="more settings (finer steps, looser and tighter tolerances) and 5 repeats")
-    parser.add_argument("--repeats", type=int, help="at least this many timed runs per setting after a warm-up, more for fast ones (default 3, 5 with --full)")
-    parser.add_argument("--min-time-s", type=float, default=bench.MIN_TIMED_S, help="keep timing a fast setting until this much time is spent, s (default 0.3)")
-    parser.add_argument("--structure", choices=("rigid", "modal"), default="rigid", help="structure of the solver comparison (default rigid)")
-    parser.add_argument("--solvers", nargs="+", metavar="NAME", help="only these solvers (Radau at rtol 1e-8 is always kept as the baseline)")
-    parser.add_argument("--batch-impacts", type=int, default=100_000, help="impacts in the batch summaries run (streams: a tenth); 0 skips the batch")
-    parser.add_argument("--no-tiers", action="store_true", help="skip the tier comparison (it needs a modal Radau reference, ~10 s)")
-    parser.add_argument("--out", default="out/bench", metavar="DIR", help="directory of the PNG charts (default out/bench)")
+    parser.add_argument(
+        "--full",
+        action="store_true",
+        help="more settings (finer steps, looser and tighter tolerances) and 5 repeats",
+    )
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        help="at least this many timed runs per setting after a warm-up, more for fast ones (default 3, 5 with --full)",
+    )
+    parser.add_argument(
+        "--min-time-s",
+        type=float,
+        default=bench.MIN_TIMED_S,
+        help="keep timing a fast setting until this much time is spent, s (default 0.3)",
+    )
+    parser.add_argument(
+        "--structure",
+        choices=("rigid", "modal"),
+        default="rigid",
+        help="structure of the solver comparison (default rigid)",
+    )
+    parser.add_argument(
+        "--solvers",
+        nargs="+",
+        metavar="NAME",
+        help="only these solvers (Radau at rtol 1e-8 is always kept as the baseline)",
+    )
+    parser.add_argument(
+        "--batch-impacts",
+        type=int,
+        default=100_000,
+        help="impacts in the batch summaries run (streams: a tenth); 0 skips the batch",
+    )
+    parser.add_argument(
+        "--no-tiers",
+        action="store_true",
+        help="skip the tier comparison (it needs a modal Radau reference, ~10 s)",
+    )
+    parser.add_argument(
+        "--out",
+        default="out/bench",
+        metavar="DIR",
+        help="directory of the PNG charts (default out/bench)",
+    )
     parser.add_argument("--no-plot", action="store_true", help="do not write charts")
-    parser.add_argument("--json", action="store_true", help="print one JSON object with every figure instead of tables")
+    parser.add_argument(
+        "--json",
+        action="store_true",
+        help="print one JSON object with every figure instead of tables",
+    )
     parser.set_defaults(func=run)
 
 
@@ -48,15 +92,23 @@ def run(args: argparse.Namespace) -> int:
     if args.batch_impacts < 0:
         raise InputError("--batch-impacts", args.batch_impacts, "must be >= 0")
     scene = scene_from_args(args)
-    _, _, settings = fidelity_from_args(argparse.Namespace(config=args.config, outputs=None, tolerance=None, tier=None))
+    _, _, settings = fidelity_from_args(
+        argparse.Namespace(config=args.config, outputs=None, tolerance=None, tier=None)
+    )
     settings_list = bench.QUICK_SETTINGS + (bench.FULL_EXTRA if args.full else [])
     if args.solvers:
         from tail_beam_sim.physics.solvers import SOLVERS
 
         unknown = sorted(set(args.solvers) - set(SOLVERS))
         if unknown:
-            raise InputError("--solvers", unknown[0], f"must be among {', '.join(sorted(SOLVERS))}")
-        settings_list = [s for s in settings_list if s[0] in args.solvers or s == (bench.BASELINE[0], bench.BASELINE[1])]
+            raise InputError(
+                "--solvers", unknown[0], f"must be among {', '.join(sorted(SOLVERS))}"
+            )
+        settings_list = [
+            s
+            for s in settings_list
+            if s[0] in args.solvers or s == (bench.BASELINE[0], bench.BASELINE[1])
+        ]
     quiet = args.json
 
     def progress(message: str) -> None:
@@ -64,26 +116,47 @@ def run(args: argparse.Namespace) -> int:
             print(f"  ... {message}", file=sys.stderr, flush=True)
 
     structure = structure_for(TIERS[args.structure], scene.support, settings.modes)
-    problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure)
+    problem = build_problem(
+        scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure
+    )
     imu_rate = scene.sensors.imu_rate_hz
     progress(f"reference: Radau rtol {bench.REFERENCE_RTOL:g} on the {args.structure} structure")
     reference, reference_error = bench.reference_solution(problem, imu_rate)
-    rows = bench.solver_rows(problem, reference, imu_rate, settings_list, repeats, progress, args.min_time_s)
-    baseline_s = next(r.median_s for r in rows if (r.name, r.setting) == (bench.BASELINE[0], bench.describe(bench.BASELINE[1])))
+    rows = bench.solver_rows(
+        problem, reference, imu_rate, settings_list, repeats, progress, args.min_time_s
+    )
+    baseline_s = next(
+        r.median_s
+        for r in rows
+        if (r.name, r.setting) == (bench.BASELINE[0], bench.describe(bench.BASELINE[1]))
+    )
     report: dict[str, Any] = {
-        "scene": {k: scene.impact.__dict__[k] for k in ("radius_m", "impact_speed_mps", "position_m", "restitution")} | {"material": scene.impact.material.name},
-        "structure": args.structure, "repeats": repeats, "min_time_s": args.min_time_s, "reference_rtol": bench.REFERENCE_RTOL, "reference_error_bound": reference_error,
-        "radau_1e-8_median_s": baseline_s, "solvers": [r.as_dict() for r in rows],
+        "scene": {
+            k: scene.impact.__dict__[k]
+            for k in ("radius_m", "impact_speed_mps", "position_m", "restitution")
+        }
+        | {"material": scene.impact.material.name},
+        "structure": args.structure,
+        "repeats": repeats,
+        "min_time_s": args.min_time_s,
+        "reference_rtol": bench.REFERENCE_RTOL,
+        "reference_error_bound": reference_error,
+        "radau_1e-8_median_s": baseline_s,
+        "solvers": [r.as_dict() for r in rows],
     }
     tier_rows: list[bench.Row] = []
     if not args.no_tiers:
         progress("tiers against a modal Radau reference")
-        tier_rows, tier_reference_error = bench.tier_rows(scene, settings, repeats, baseline_s, args.min_time_s)
+        tier_rows, tier_reference_error = bench.tier_rows(
+            scene, settings, repeats, baseline_s, args.min_time_s
+        )
         report["tiers"] = [r.as_dict() for r in tier_rows]
         report["tier_reference_error_bound"] = tier_reference_error
     if args.batch_impacts:
         progress(f"batch path, {args.batch_impacts} impacts")
-        report["batch"] = bench.batch_throughput(scene, settings, args.batch_impacts, repeats, min_time_s=args.min_time_s)
+        report["batch"] = bench.batch_throughput(
+            scene, settings, args.batch_impacts, repeats, min_time_s=args.min_time_s
+        )
     progress("real-time factor")
     report["real_time"] = bench.real_time_factor(scene, settings, repeats, args.min_time_s)
     if not args.no_plot:
@@ -95,7 +168,9 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def print_report(report: dict[str, Any], rows: list[bench.Row], tier_rows: list[bench.Row]) -> None:
+def print_report(
+    report: dict[str, Any], rows: list[bench.Row], tier_rows: list[bench.Row]
+) -> None:
     scene = report["scene"]
     print(
         f"{scene['material']} R = {scene['radius_m'] * 1e3:g} mm at {scene['impact_speed_mps']:.3f} m/s, {scene['position_m']:g} m from the hinge; "
@@ -113,7 +188,9 @@ def print_report(report: dict[str, Any], rows: list[bench.Row], tier_rows: list[
             f"{'met' if ok else 'NOT met'}"
         )
     if tier_rows:
-        print(f"\ntiers (default solver each) against the modal structure by Radau rtol 1e-10 (bound {report['tier_reference_error_bound']:.1e}):")
+        print(
+            f"\ntiers (default solver each) against the modal structure by Radau rtol 1e-10 (bound {report['tier_reference_error_bound']:.1e}):"
+        )
         print(_table(tier_rows))
     if "batch" in report:
         b = report["batch"]
@@ -122,13 +199,18 @@ def print_report(report: dict[str, Any], rows: list[bench.Row], tier_rows: list[
             f"full 0.05 s noisy streams {b['rigid_streams_per_s']:,.0f} impacts/s rigid, {b['modal_streams_per_s']:,.0f} modal"
         )
     rt = report["real_time"]
-    print(f"real-time factor, one impact's 0.05 s of sensor streams at the default rates: rigid {rt['rigid_real_time_factor']:.0f} x, modal {rt['modal_real_time_factor']:.0f} x")
+    print(
+        f"real-time factor, one impact's 0.05 s of sensor streams at the default rates: rigid {rt['rigid_real_time_factor']:.0f} x, modal {rt['modal_real_time_factor']:.0f} x"
+    )
     for chart in report.get("charts", []):
         print(f"wrote {chart}")
 
 
 def _table(rows: list[bench.Row]) -> str:
-    header = f"{'':1} {'solver':8} {'setting':28} {'median ms':>10} {'spread':>7} {'x Radau':>9} " + " ".join(f"{m:>13}" for m in bench.METRICS)
+    header = (
+        f"{'':1} {'solver':8} {'setting':28} {'median ms':>10} {'spread':>7} {'x Radau':>9} "
+        + " ".join(f"{m:>13}" for m in bench.METRICS)
+    )
     lines = [header]
     for r in sorted(rows, key=lambda r: r.median_s):
         lines.append(
@@ -145,7 +227,10 @@ def write_charts(directory: Path, rows: list[bench.Row], tier_rows: list[bench.R
     plt = pyplot()
     directory.mkdir(parents=True, exist_ok=True)
     written = []
-    for label, group, filename in (("solvers", rows, "bench_solvers.png"), ("tiers", tier_rows, "bench_tiers.png")):
+    for label, group, filename in (
+        ("solvers", rows, "bench_solvers.png"),
+        ("tiers", tier_rows, "bench_tiers.png"),
+    ):
         if not group:
             continue
         figure, axes = plt.subplots(2, 2, figsize=(12, 9))
@@ -153,10 +238,22 @@ def write_charts(directory: Path, rows: list[bench.Row], tier_rows: list[bench.R
             floor = 1e-16
             for row in group:
                 error = max(row.errors[metric], floor)
-                axis.scatter(row.ratio, error, s=30, color="tab:red" if row.name == "hybrid" else "tab:blue")
-                axis.annotate(f"{row.name} {row.setting}" if row.setting != "default" else row.name, (row.ratio, error), fontsize=6)
+                axis.scatter(
+                    row.ratio, error, s=30, color="tab:red" if row.name == "hybrid" else "tab:blue"
+                )
+                axis.annotate(
+                    f"{row.name} {row.setting}" if row.setting != "default" else row.name,
+                    (row.ratio, error),
+                    fontsize=6,
+                )
             front = bench.mark_pareto(group, lambda r, m=metric: max(r.errors[m], floor))
-            axis.plot([r.ratio for r in front], [max(r.errors[metric], floor) for r in front], "k--", lw=1, label="Pareto front")
+            axis.plot(
+                [r.ratio for r in front],
+                [max(r.errors[metric], floor) for r in front],
+                "k--",
+                lw=1,
+                label="Pareto front",
+            )
             axis.set_xscale("log")
             axis.set_yscale("log")
             axis.set_xlabel("time per impact / Radau rtol 1e-8 (same run)")

@@ -8,8 +8,13 @@ import math
 import sys
 
 from tail_beam_sim.bags import records as bagio
+from tail_beam_sim.cli.common import (
+    add_fidelity_options,
+    add_impact_options,
+    fidelity_from_args,
+    scene_from_args,
+)
 from tail_beam_sim.errors import require_new_path, require_output_file
-from tail_beam_sim.cli.common import add_fidelity_options, add_impact_options, fidelity_from_args, scene_from_args
 from tail_beam_sim.physics.simulate import simulate
 
 
@@ -17,11 +22,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser("simulate", help="simulate one impact and report what the sensors see")
     add_impact_options(parser)
     add_fidelity_options(parser)
-    parser.add_argument("--json", action="store_true", help="print one JSON object of noise-free results")
-    parser.add_argument("--bag", metavar="PATH", help="write the sensor streams, rebound and truth as a rosbag2 bag")
-    parser.add_argument("--storage", choices=sorted(bagio.STORAGES), default="mcap", help="bag storage (default mcap)")
-    parser.add_argument("--compression", choices=bagio.COMPRESSIONS, default="zstd",
-                        help="mcap chunk compression (default zstd; sqlite3 files are not compressed)")
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object of noise-free results"
+    )
+    parser.add_argument(
+        "--bag",
+        metavar="PATH",
+        help="write the sensor streams, rebound and truth as a rosbag2 bag",
+    )
+    parser.add_argument(
+        "--storage",
+        choices=sorted(bagio.STORAGES),
+        default="mcap",
+        help="bag storage (default mcap)",
+    )
+    parser.add_argument(
+        "--compression",
+        choices=bagio.COMPRESSIONS,
+        default="zstd",
+        help="mcap chunk compression (default zstd; sqlite3 files are not compressed)",
+    )
     parser.add_argument("--plot", metavar="PNG", help="write a figure of the response")
     parser.set_defaults(func=run)
 
@@ -34,7 +54,9 @@ def run(args: argparse.Namespace) -> int:
         require_output_file("--plot", args.plot)
     scene = scene_from_args(args)
     tier, needs, settings = fidelity_from_args(args)
-    result = simulate(scene, args.solver, tier=tier, needs=needs, settings=settings, check=args.check)
+    result = simulate(
+        scene, args.solver, tier=tier, needs=needs, settings=settings, check=args.check
+    )
     summary = result.summary
     if args.bag:
         command = {
@@ -50,14 +72,23 @@ def run(args: argparse.Namespace) -> int:
         if not scene.impact.impact_id:
             scene = scene.with_impact(impact_id="simulate-0")
             result.scene = scene
-        count = bagio.write_bag(args.bag, bagio.result_records(result, command), args.storage, args.compression)
+        count = bagio.write_bag(
+            args.bag, bagio.result_records(result, command), args.storage, args.compression
+        )
         print(f"wrote {count} messages to {args.bag} ({args.storage})", file=sys.stderr)
     if args.plot:
         from tail_beam_sim.plotting import plot_response
 
         print(f"wrote {plot_response(result, args.plot)}", file=sys.stderr)
     if args.json:
-        print(json.dumps({k: None if isinstance(v, float) and math.isnan(v) else v for k, v in summary.items()}))
+        print(
+            json.dumps(
+                {
+                    k: None if isinstance(v, float) and math.isnan(v) else v
+                    for k, v in summary.items()
+                }
+            )
+        )
     else:
         print(format_summary(summary))
     return 0
@@ -78,5 +109,8 @@ def format_summary(s: dict) -> str:
     ]
     if "check" in s:
         check = s["check"]
-        lines.append(f"  check vs {check['against']:<11} " + ", ".join(f"{k} {v:.2g}" for k, v in check.items() if k != "against"))
+        lines.append(
+            f"  check vs {check['against']:<11} "
+            + ", ".join(f"{k} {v:.2g}" for k, v in check.items() if k != "against")
+        )
     return "\n".join(lines)

@@ -5,20 +5,40 @@ The model is chosen as ``tail-beam simulate`` chooses it (``--tier``, default fr
 config/fidelity.yaml), so a row equals the single simulation of the same settings; the table
 says which tier each row used.
 """
+
 from __future__ import annotations
 
 import argparse
 import json
 
-from tail_beam_sim.cli.common import add_fidelity_options, add_impact_options, fidelity_from_args, scene_from_args
+from tail_beam_sim.cli.common import (
+    add_fidelity_options,
+    add_impact_options,
+    fidelity_from_args,
+    scene_from_args,
+)
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.scene import Impact
 from tail_beam_sim.physics.simulate import simulate
 
-SWEEPABLE = ("drop_height_m", "impact_speed_mps", "position_m", "radius_m", "material", "restitution")
+SWEEPABLE = (
+    "drop_height_m",
+    "impact_speed_mps",
+    "position_m",
+    "radius_m",
+    "material",
+    "restitution",
+)
 COLUMNS = (
-    "impact_speed_mps", "rebound_speed_mps", "restitution", "contact_duration_s", "peak_contact_force_n",
-    "peak_jack_pressure_change_pa", "peak_beam_angular_velocity_radps", "peak_imu_dynamic_accel_mps2", "n_contacts",
+    "impact_speed_mps",
+    "rebound_speed_mps",
+    "restitution",
+    "contact_duration_s",
+    "peak_contact_force_n",
+    "peak_jack_pressure_change_pa",
+    "peak_beam_angular_velocity_radps",
+    "peak_imu_dynamic_accel_mps2",
+    "n_contacts",
 )
 
 
@@ -28,7 +48,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("values", nargs="+", help="its values (numbers, or material names)")
     add_impact_options(parser)
     add_fidelity_options(parser, check=False)
-    parser.add_argument("--json", action="store_true", help="print one JSON object per value instead of a table")
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object per value instead of a table"
+    )
     parser.set_defaults(func=run)
 
 
@@ -37,7 +59,11 @@ def run(args: argparse.Namespace) -> int:
     tier, needs, settings = fidelity_from_args(args)
     rows = []
     for value in args.values:
-        fields = {"material": base.impact.material.name, "radius_m": base.impact.radius_m, "position_m": base.impact.position_m}
+        fields = {
+            "material": base.impact.material.name,
+            "radius_m": base.impact.radius_m,
+            "position_m": base.impact.position_m,
+        }
         if base.impact.drop_height_m is not None:
             fields["drop_height_m"] = base.impact.drop_height_m
         else:
@@ -52,9 +78,19 @@ def run(args: argparse.Namespace) -> int:
             impact = Impact.from_mapping(fields, base.materials, base.support, text_numbers=True)
         except InputError as exc:
             raise InputError(f"values ({args.parameter})", value, exc.allowed) from None
-        summary = simulate(base.with_impact(**impact.__dict__), args.solver, tier=tier, needs=needs, settings=settings).summary
-        swept = value if args.parameter == "material" else float(value)  # a number in --json, as the field is in impact_cmd
-        rows.append({args.parameter: swept, "tier": summary["tier"], **{c: summary[c] for c in COLUMNS}})
+        summary = simulate(
+            base.with_impact(**impact.__dict__),
+            args.solver,
+            tier=tier,
+            needs=needs,
+            settings=settings,
+        ).summary
+        swept = (
+            value if args.parameter == "material" else float(value)
+        )  # a number in --json, as the field is in impact_cmd
+        rows.append(
+            {args.parameter: swept, "tier": summary["tier"], **{c: summary[c] for c in COLUMNS}}
+        )
     if args.json:
         for row in rows:
             print(json.dumps(row))

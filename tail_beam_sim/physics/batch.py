@@ -23,8 +23,8 @@ from functools import cached_property
 
 import numpy as np
 
-from tail_beam_sim.physics.contact import damping_factor, effective_modulus_pa, hertz_constant
 from tail_beam_sim.errors import InputError
+from tail_beam_sim.physics.contact import damping_factor, effective_modulus_pa, hertz_constant
 from tail_beam_sim.physics.materials import Material, sphere_mass_kg
 from tail_beam_sim.physics.scene import Impact, SensorSpec
 from tail_beam_sim.physics.sensors import SensorNoise
@@ -32,8 +32,12 @@ from tail_beam_sim.physics.solvers.pulse import SERIES_RADIUS, pulse_table
 from tail_beam_sim.physics.structure import LinearStructure, reduced_mass_kg
 from tail_beam_sim.physics.support import Support
 
-POSITION_STATIONS = 257  # positions tabulated along the impact zone (linear interpolation, 1e-5 of smooth shapes)
-PEAK_TIME_SAMPLES = 4000  # samples of the unit pressure response over the window (12.5 us at 0.05 s)
+POSITION_STATIONS = (
+    257  # positions tabulated along the impact zone (linear interpolation, 1e-5 of smooth shapes)
+)
+PEAK_TIME_SAMPLES = (
+    4000  # samples of the unit pressure response over the window (12.5 us at 0.05 s)
+)
 
 
 @dataclass(frozen=True)
@@ -70,18 +74,38 @@ class ImpactBatch:
         position = np.asarray(position_m, dtype=float)
         unknown = sorted(set(names.tolist()) - set(materials))
         if unknown:
-            raise InputError("material", unknown[0], f"must be one of {', '.join(sorted(materials))}")
-        density = np.array([materials[m].density_kgpm3 for m in names.tolist()]) if names.size else np.empty(0)
-        modulus = np.array([effective_modulus_pa(materials[m], support.plate) for m in names.tolist()]) if names.size else np.empty(0)
-        nominal = np.array([materials[m].restitution for m in names.tolist()]) if names.size else np.empty(0)
+            raise InputError(
+                "material", unknown[0], f"must be one of {', '.join(sorted(materials))}"
+            )
+        density = (
+            np.array([materials[m].density_kgpm3 for m in names.tolist()])
+            if names.size
+            else np.empty(0)
+        )
+        modulus = (
+            np.array([effective_modulus_pa(materials[m], support.plate) for m in names.tolist()])
+            if names.size
+            else np.empty(0)
+        )
+        nominal = (
+            np.array([materials[m].restitution for m in names.tolist()])
+            if names.size
+            else np.empty(0)
+        )
         e = nominal if restitution is None else np.asarray(restitution, dtype=float)
         for field, values, low, high in (
-            ("radius_m", radius, 0.0, 0.5), ("impact_speed_mps", speed, 0.0, 30.0),
-            ("position_m", position, -1e-12, support.beam_length_m), ("restitution", e, 0.0, 1.0),
+            ("radius_m", radius, 0.0, 0.5),
+            ("impact_speed_mps", speed, 0.0, 30.0),
+            ("position_m", position, -1e-12, support.beam_length_m),
+            ("restitution", e, 0.0, 1.0),
         ):
             bad = np.nonzero(~((values > low) & (values <= high)))[0]
             if bad.size:
-                raise InputError(f"{field}[{bad[0]}]", float(values[bad[0]]), f"must be in ({max(low, 0):g}, {high:g}]")
+                raise InputError(
+                    f"{field}[{bad[0]}]",
+                    float(values[bad[0]]),
+                    f"must be in ({max(low, 0):g}, {high:g}]",
+                )
         return cls(
             mass_kg=sphere_mass_kg(density, radius),
             hertz_stiffness=hertz_constant(modulus, radius),
@@ -92,11 +116,17 @@ class ImpactBatch:
         )
 
     @classmethod
-    def from_impacts(cls, support: Support, materials: Mapping[str, Material], impacts: Sequence[Impact]) -> ImpactBatch:
+    def from_impacts(
+        cls, support: Support, materials: Mapping[str, Material], impacts: Sequence[Impact]
+    ) -> ImpactBatch:
         """A batch of already validated impacts."""
         return cls.from_arrays(
-            support, materials, [i.material.name for i in impacts], np.array([i.radius_m for i in impacts]),
-            np.array([i.impact_speed_mps for i in impacts]), np.array([i.position_m for i in impacts]),
+            support,
+            materials,
+            [i.material.name for i in impacts],
+            np.array([i.radius_m for i in impacts]),
+            np.array([i.impact_speed_mps for i in impacts]),
+            np.array([i.position_m for i in impacts]),
             np.array([i.restitution for i in impacts]),
         )
 
@@ -117,7 +147,10 @@ class Contacts:
 
 
 def contacts(
-    structure: LinearStructure, batch: ImpactBatch, contact_model: str = "calibrated", positions: PositionTable | None = None,
+    structure: LinearStructure,
+    batch: ImpactBatch,
+    contact_model: str = "calibrated",
+    positions: PositionTable | None = None,
     damping_scale: float = 1.0,
 ) -> Contacts:
     """Every impact's contact from the pulse table's per-chi figures, vectorised (``damping_scale``:
@@ -126,7 +159,11 @@ def contacts(
     # chi of every impact by one impact's own formulas (contact.damping_factor), times the support's scale.
     chi = damping_factor(contact_model, np.asarray(batch.restitution, dtype=float), damping_scale)
     if np.any(chi > table.chi[-1]):
-        raise InputError("restitution", float(batch.restitution[np.argmax(chi)]), f"too low for {contact_model}: chi beyond {table.chi[-1]:g}")
+        raise InputError(
+            "restitution",
+            float(batch.restitution[np.argmax(chi)]),
+            f"too low for {contact_model}: chi beyond {table.chi[-1]:g}",
+        )
     i = np.clip(np.searchsorted(table.chi, chi, side="right") - 1, 0, table.chi.size - 2)
     w = (chi - table.chi[i]) / (table.chi[i + 1] - table.chi[i])
 
@@ -141,9 +178,15 @@ def contacts(
     relative = blend(table.restitution)
     impulse = reduced * (1 + relative) * speed
     return Contacts(
-        chi=chi, reduced_mass_kg=reduced, duration_s=duration,
-        peak_force_n=blend(table.peak_force) * batch.hertz_stiffness * length**1.5, relative_restitution=relative,
-        impulse_ns=impulse, rebound_mps=impulse / batch.mass_kg - speed, table_row=i, table_weight=w,
+        chi=chi,
+        reduced_mass_kg=reduced,
+        duration_s=duration,
+        peak_force_n=blend(table.peak_force) * batch.hertz_stiffness * length**1.5,
+        relative_restitution=relative,
+        impulse_ns=impulse,
+        rebound_mps=impulse / batch.mass_kg - speed,
+        table_row=i,
+        table_weight=w,
     )
 
 
@@ -153,11 +196,21 @@ class PositionTable:
     peak jack pressure change (Pa) and a bound on the plate's later speed (m/s), both per unit
     impulse (N s), the peak read off a fine time grid over the window."""
 
-    def __init__(self, structure: LinearStructure, position_m: np.ndarray, window_s: float = 0.05) -> None:
-        low, high = (float(position_m.min()), float(position_m.max())) if position_m.size else (0.0, 0.0)
-        self.stations_m = np.linspace(low, high, POSITION_STATIONS) if high > low else np.array([low, low + 1e-9])
+    def __init__(
+        self, structure: LinearStructure, position_m: np.ndarray, window_s: float = 0.05
+    ) -> None:
+        low, high = (
+            (float(position_m.min()), float(position_m.max())) if position_m.size else (0.0, 0.0)
+        )
+        self.stations_m = (
+            np.linspace(low, high, POSITION_STATIONS)
+            if high > low
+            else np.array([low, low + 1e-9])
+        )
         self.shapes = np.array([structure.contact_shape(float(x)) for x in self.stations_m])
-        self.compliance_per_kg = np.einsum("si,ij,sj->s", self.shapes, structure.inv_mass, self.shapes)  # 1/effective mass
+        self.compliance_per_kg = np.einsum(
+            "si,ij,sj->s", self.shapes, structure.inv_mass, self.shapes
+        )  # 1/effective mass
         self.structure, self.window_s = structure, window_s
 
     @cached_property
@@ -171,14 +224,20 @@ class PositionTable:
         eigenvalues, vectors, _ = structure._eigen
         n = structure.size
         times = np.linspace(0.0, self.window_s, PEAK_TIME_SAMPLES)
-        jack = structure.jack_stiffness_npm * (structure.jack_shape @ vectors[:n]) + structure.jack_damping_nspm * (structure.jack_shape @ vectors[n:])
-        pressure = ((self._unit_modal * jack) @ np.exp(np.outer(eigenvalues, times))).real / structure.piston_area_m2
+        jack = structure.jack_stiffness_npm * (
+            structure.jack_shape @ vectors[:n]
+        ) + structure.jack_damping_nspm * (structure.jack_shape @ vectors[n:])
+        pressure = (
+            (self._unit_modal * jack) @ np.exp(np.outer(eigenvalues, times))
+        ).real / structure.piston_area_m2
         return pressure.max(axis=1)
 
     @cached_property
     def plate_speed_per_impulse(self) -> np.ndarray:
         vectors = self.structure._eigen[1]
-        return np.abs(self._unit_modal * (self.shapes @ vectors[self.structure.size :])).sum(axis=1)
+        return np.abs(self._unit_modal * (self.shapes @ vectors[self.structure.size :])).sum(
+            axis=1
+        )
 
     def _at(self, values: np.ndarray, position_m: np.ndarray) -> np.ndarray:
         return np.interp(position_m, self.stations_m, values)
@@ -188,7 +247,9 @@ class PositionTable:
         return self._at(self.compliance_per_kg, position_m)
 
     def shape(self, position_m: np.ndarray) -> np.ndarray:
-        return np.stack([self._at(self.shapes[:, j], position_m) for j in range(self.shapes.shape[1])], axis=1)
+        return np.stack(
+            [self._at(self.shapes[:, j], position_m) for j in range(self.shapes.shape[1])], axis=1
+        )
 
 
 def pulse_spectrum(c: Contacts, eigenvalues: np.ndarray, chunk: int = 4096) -> np.ndarray:
@@ -214,12 +275,20 @@ def pulse_spectrum(c: Contacts, eigenvalues: np.ndarray, chunk: int = 4096) -> n
     return out
 
 
-def _modal_start(structure: LinearStructure, shapes: np.ndarray, impulse: np.ndarray) -> np.ndarray:
+def _modal_start(
+    structure: LinearStructure, shapes: np.ndarray, impulse: np.ndarray
+) -> np.ndarray:
     """Modal amplitudes (N, 2n) of the state [0, M^-1 b J] just after each impulse."""
     return shapes @ structure.modal_input.T * impulse[:, None]
 
 
-def summaries(support: Support, structure: LinearStructure, batch: ImpactBatch, contact_model: str = "calibrated", window_s: float = 0.05) -> dict[str, np.ndarray]:
+def summaries(
+    support: Support,
+    structure: LinearStructure,
+    batch: ImpactBatch,
+    contact_model: str = "calibrated",
+    window_s: float = 0.05,
+) -> dict[str, np.ndarray]:
     """Rebound, restitution, contact duration and peak force, peak jack pressure change (Pa)
     and whether a re-contact may follow, for every impact (arrays over impacts)."""
     positions = PositionTable(structure, batch.position_m, window_s)
@@ -232,7 +301,8 @@ def summaries(support: Support, structure: LinearStructure, batch: ImpactBatch, 
         "restitution": rebound / batch.impact_speed_mps,
         "contact_duration_s": c.duration_s,
         "peak_contact_force_n": c.peak_force_n,
-        "peak_jack_pressure_change_pa": c.impulse_ns * positions._at(positions.peak_pressure_per_impulse, x),
+        "peak_jack_pressure_change_pa": c.impulse_ns
+        * positions._at(positions.peak_pressure_per_impulse, x),
         "recontact_possible": c.rebound_mps - plate_speed <= 0.5 * support.gravity_mps2 * window_s,
     }
 
@@ -263,7 +333,9 @@ def streams(
     slowest_period = 1.0 / min(sensors.pressure_rate_hz, sensors.imu_rate_hz)
     offset = rng.uniform(0.0, slowest_period, batch.size)
     contact_end = offset + c.duration_s
-    shifted = modal * pulse_spectrum(c, eigenvalues) * np.exp(np.outer(-offset, eigenvalues))  # (N, 2n): each impact's own clock
+    shifted = (
+        modal * pulse_spectrum(c, eigenvalues) * np.exp(np.outer(-offset, eigenvalues))
+    )  # (N, 2n): each impact's own clock
 
     def rows(weights: np.ndarray, times: np.ndarray) -> np.ndarray:
         """sum_k weights_k x_k(t) of every impact at ``times``, (N, T): exact after its contact,
@@ -273,14 +345,20 @@ def streams(
 
     out: dict[str, np.ndarray] = {"contact_offset_s": offset}
     times = np.arange(int(round(window_s * sensors.pressure_rate_hz))) / sensors.pressure_rate_hz
-    jack = structure.jack_stiffness_npm * (structure.jack_shape @ vectors[:n]) + structure.jack_damping_nspm * (structure.jack_shape @ vectors[n:])
+    jack = structure.jack_stiffness_npm * (
+        structure.jack_shape @ vectors[:n]
+    ) + structure.jack_damping_nspm * (structure.jack_shape @ vectors[n:])
     pressure = structure.setting_pressure_pa + rows(jack, times) / structure.piston_area_m2
     # noise drawn in float32 (ample for sensor noise, about twice as fast to draw)
     noise = SensorNoise.of(sensors)
-    out["pressure_pa"] = noise.pressure(pressure, rng.standard_normal(pressure.shape, dtype=np.float32))
+    out["pressure_pa"] = noise.pressure(
+        pressure, rng.standard_normal(pressure.shape, dtype=np.float32)
+    )
     out["pressure_time_s"] = times
     rate = sensors.imu_rate_hz
-    times = np.arange(-1, int(round(window_s * rate))) / rate  # one extra sample: each reading averages the period before it
+    times = (
+        np.arange(-1, int(round(window_s * rate))) / rate
+    )  # one extra sample: each reading averages the period before it
     angle = rows(structure.imu_slope_shape @ vectors[:n], times)
     velocity = rows(structure.imu_shape @ vectors[n:], times)
     angular_rate = rows(structure.imu_slope_shape @ vectors[n:], times[1:])

@@ -52,7 +52,11 @@ FULL_EXTRA: list[tuple[str, dict[str, Any]]] = [
     ("verlet", {"dt_s": 1e-6}),
     ("rk4", {"dt_s": 1e-6}),
     ("hybrid", {"contact": "rk4", "steps_per_contact": 768}),
-    *[(m, {"rtol": r}) for m in ("RK45", "DOP853", "LSODA", "BDF", "Radau") for r in (1e-3, 1e-10)],
+    *[
+        (m, {"rtol": r})
+        for m in ("RK45", "DOP853", "LSODA", "BDF", "Radau")
+        for r in (1e-3, 1e-10)
+    ],
 ]
 
 
@@ -75,21 +79,37 @@ class Row:
     @property
     def spread(self) -> float:
         """Spread of the repeated timings over their median: 10-90 % range (max - min under 10 runs)."""
-        low, high = np.percentile(self.times_s, [10, 90]) if len(self.times_s) >= 10 else (min(self.times_s), max(self.times_s))
+        low, high = (
+            np.percentile(self.times_s, [10, 90])
+            if len(self.times_s) >= 10
+            else (min(self.times_s), max(self.times_s))
+        )
         return float(high - low) / self.median_s if self.median_s > 0 else 0.0
 
     def as_dict(self) -> dict[str, Any]:
         return {
-            "name": self.name, "setting": self.setting, "median_s": self.median_s, "spread": self.spread, "runs": len(self.times_s),
-            "ratio_to_radau_1e-8": self.ratio, "pareto": self.pareto, **{f"err_{k}": v for k, v in self.errors.items()}, **self.extra,
+            "name": self.name,
+            "setting": self.setting,
+            "median_s": self.median_s,
+            "spread": self.spread,
+            "runs": len(self.times_s),
+            "ratio_to_radau_1e-8": self.ratio,
+            "pareto": self.pareto,
+            **{f"err_{k}": v for k, v in self.errors.items()},
+            **self.extra,
         }
 
 
 def describe(options: dict[str, Any]) -> str:
-    return " ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in options.items()) or "default"
+    return (
+        " ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in options.items())
+        or "default"
+    )
 
 
-def timed(function: Callable[[], Any], repeats: int, min_time_s: float = MIN_TIMED_S) -> tuple[list[float], Any]:
+def timed(
+    function: Callable[[], Any], repeats: int, min_time_s: float = MIN_TIMED_S
+) -> tuple[list[float], Any]:
     """Wall times of at least ``repeats`` calls after one warm-up call, more for fast functions
     (until ``min_time_s`` of timing or MAX_RUNS), so that one preempted run cannot move the
     median; and the last result."""
@@ -124,7 +144,12 @@ def measure(trajectory: Trajectory, imu_rate_hz: float) -> Measures:
     pressure = structure.pressure_pa(state.q, state.qd) - structure.setting_pressure_pa
     stamps = sample_grid(1.0 / imu_rate_hz, window, imu_rate_hz)
     _, accel = imu_samples(trajectory, stamps, 1.0 / imu_rate_hz)
-    return Measures(trajectory.rebound_velocity_mps, max(c.peak_force_n for c in trajectory.contacts), float(pressure.max()), accel[:, 2])
+    return Measures(
+        trajectory.rebound_velocity_mps,
+        max(c.peak_force_n for c in trajectory.contacts),
+        float(pressure.max()),
+        accel[:, 2],
+    )
 
 
 def errors(measured: Measures, reference: Measures) -> dict[str, float]:
@@ -166,16 +191,27 @@ def reference_solution(problem: ImpactProblem, imu_rate_hz: float) -> tuple[Meas
 
 
 def solver_rows(
-    problem: ImpactProblem, reference: Measures, imu_rate_hz: float, settings: Sequence[tuple[str, dict[str, Any]]], repeats: int,
-    progress: Callable[[str], None] = lambda _: None, min_time_s: float = MIN_TIMED_S,
+    problem: ImpactProblem,
+    reference: Measures,
+    imu_rate_hz: float,
+    settings: Sequence[tuple[str, dict[str, Any]]],
+    repeats: int,
+    progress: Callable[[str], None] = lambda _: None,
+    min_time_s: float = MIN_TIMED_S,
 ) -> list[Row]:
     """Every solver setting timed ``repeats`` times and measured against ``reference``."""
     rows = []
     for name, options in settings:
         progress(f"{name} {describe(options)}")
         times, trajectory = timed(lambda: solve(problem, name, **options), repeats, min_time_s)
-        rows.append(Row(name, describe(options), times, errors(measure(trajectory, imu_rate_hz), reference)))
-    baseline = next((r for r in rows if (r.name, r.setting) == (BASELINE[0], describe(BASELINE[1]))), None)
+        rows.append(
+            Row(
+                name, describe(options), times, errors(measure(trajectory, imu_rate_hz), reference)
+            )
+        )
+    baseline = next(
+        (r for r in rows if (r.name, r.setting) == (BASELINE[0], describe(BASELINE[1]))), None
+    )
     for row in rows:
         row.ratio = row.median_s / baseline.median_s if baseline else float("nan")
     for row in mark_pareto(rows, worst_target_error):
@@ -183,18 +219,38 @@ def solver_rows(
     return rows
 
 
-def tier_rows(scene: Scene, settings: FidelitySettings, repeats: int, baseline_s: float, min_time_s: float = MIN_TIMED_S) -> tuple[list[Row], float]:
+def tier_rows(
+    scene: Scene,
+    settings: FidelitySettings,
+    repeats: int,
+    baseline_s: float,
+    min_time_s: float = MIN_TIMED_S,
+) -> tuple[list[Row], float]:
     """Each tier with its default solver against the richest model (modal) solved by Radau."""
     imu_rate = scene.sensors.imu_rate_hz
-    modal = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure_for(TIERS["modal"], scene.support, settings.modes))
+    modal = build_problem(
+        scene.support,
+        scene.impact,
+        scene.contact_model,
+        scene.window_s,
+        structure=structure_for(TIERS["modal"], scene.support, settings.modes),
+    )
     reference = measure(solve(modal, "Radau", rtol=1e-10), imu_rate)
     check = measure(solve(modal, "Radau", rtol=1e-9), imu_rate)
     rows = []
     for name in ("impulse", "rigid", "modal"):
         tier = TIERS[name]
-        problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure_for(tier, scene.support, settings.modes))
+        problem = build_problem(
+            scene.support,
+            scene.impact,
+            scene.contact_model,
+            scene.window_s,
+            structure=structure_for(tier, scene.support, settings.modes),
+        )
         times, trajectory = timed(lambda: solve(problem, tier.default_solver), repeats, min_time_s)
-        row = Row(name, tier.default_solver, times, errors(measure(trajectory, imu_rate), reference))
+        row = Row(
+            name, tier.default_solver, times, errors(measure(trajectory, imu_rate), reference)
+        )
         row.ratio = row.median_s / baseline_s
         rows.append(row)
     for row in mark_pareto(rows, lambda r: max(r.errors.values())):
@@ -202,7 +258,14 @@ def tier_rows(scene: Scene, settings: FidelitySettings, repeats: int, baseline_s
     return rows, max(errors(check, reference).values())
 
 
-def batch_throughput(scene: Scene, settings: FidelitySettings, impacts: int, repeats: int, seed: int = 0, min_time_s: float = MIN_TIMED_S) -> dict[str, float]:
+def batch_throughput(
+    scene: Scene,
+    settings: FidelitySettings,
+    impacts: int,
+    repeats: int,
+    seed: int = 0,
+    min_time_s: float = MIN_TIMED_S,
+) -> dict[str, float]:
     """Impacts per second of the batch path: summaries and full noisy streams, rigid and modal."""
     rng = np.random.default_rng(seed)
     names = [n for n, m in scene.materials.items() if m.material_class != "structure"]
@@ -210,22 +273,45 @@ def batch_throughput(scene: Scene, settings: FidelitySettings, impacts: int, rep
 
     def draw(n: int) -> batch_path.ImpactBatch:
         return batch_path.ImpactBatch.from_arrays(
-            support, scene.materials, rng.choice(names, n), rng.uniform(0.02, 0.1, n),
-            np.sqrt(2 * support.gravity_mps2 * rng.uniform(1.5, 4.0, n)), rng.uniform(support.impact_zone_min_m, support.impact_zone_max_m, n),
+            support,
+            scene.materials,
+            rng.choice(names, n),
+            rng.uniform(0.02, 0.1, n),
+            np.sqrt(2 * support.gravity_mps2 * rng.uniform(1.5, 4.0, n)),
+            rng.uniform(support.impact_zone_min_m, support.impact_zone_max_m, n),
         )
 
     out = {}
     summaries_batch, streams_batch = draw(impacts), draw(max(impacts // 10, 1))
     for name in ("rigid", "modal"):
         structure = structure_for(TIERS[name], support, settings.modes)
-        times, _ = timed(lambda: batch_path.summaries(support, structure, summaries_batch, scene.contact_model, scene.window_s), repeats, min_time_s)
+        times, _ = timed(
+            lambda: batch_path.summaries(
+                support, structure, summaries_batch, scene.contact_model, scene.window_s
+            ),
+            repeats,
+            min_time_s,
+        )
         out[f"{name}_summaries_per_s"] = summaries_batch.size / statistics.median(times)
-        times, _ = timed(lambda: batch_path.streams(support, structure, streams_batch, scene.sensors, scene.contact_model, scene.window_s), repeats, min_time_s)
+        times, _ = timed(
+            lambda: batch_path.streams(
+                support,
+                structure,
+                streams_batch,
+                scene.sensors,
+                scene.contact_model,
+                scene.window_s,
+            ),
+            repeats,
+            min_time_s,
+        )
         out[f"{name}_streams_per_s"] = streams_batch.size / statistics.median(times)
     return out
 
 
-def real_time_factor(scene: Scene, settings: FidelitySettings, repeats: int, min_time_s: float = MIN_TIMED_S) -> dict[str, float]:
+def real_time_factor(
+    scene: Scene, settings: FidelitySettings, repeats: int, min_time_s: float = MIN_TIMED_S
+) -> dict[str, float]:
     """Simulated seconds per wall second for one impact's window of sensor streams at the
     default rates (solve, then sample pressure, IMU and camera), per tier's default solver."""
     spec = scene.sensors
@@ -235,10 +321,18 @@ def real_time_factor(scene: Scene, settings: FidelitySettings, repeats: int, min
         structure = structure_for(tier, scene.support, settings.modes)
 
         def one_impact() -> None:
-            problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure)
+            problem = build_problem(
+                scene.support,
+                scene.impact,
+                scene.contact_model,
+                scene.window_s,
+                structure=structure,
+            )
             trajectory = solve(problem, tier.default_solver)
             suite = SensorSuite(spec)
-            suite.pressure(trajectory, sample_grid(0.0, scene.window_s, spec.pressure_rate_hz), 0.0)
+            suite.pressure(
+                trajectory, sample_grid(0.0, scene.window_s, spec.pressure_rate_hz), 0.0
+            )
             suite.imu(trajectory, sample_grid(0.0, scene.window_s, spec.imu_rate_hz), 0.0)
             suite.rebound(trajectory, 0.0)
 

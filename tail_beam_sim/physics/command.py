@@ -50,12 +50,23 @@ def nesting_depth(text: str) -> int:
 def parse_command(text: str) -> Any:
     """The JSON value of one ``impact_cmd`` text (its fields are checked by ``Impact.from_mapping``)."""
     if len(text) > MAX_COMMAND_CHARS:
-        raise InputError("impact_cmd", text, f"must be at most {MAX_COMMAND_CHARS} characters of JSON")
+        raise InputError(
+            "impact_cmd", text, f"must be at most {MAX_COMMAND_CHARS} characters of JSON"
+        )
     if nesting_depth(text) > MAX_NESTING:
-        raise InputError("impact_cmd", text, f"must be one flat JSON object (nested {nesting_depth(text)} deep)")
+        raise InputError(
+            "impact_cmd", text, f"must be one flat JSON object (nested {nesting_depth(text)} deep)"
+        )
     try:
         return json.loads(text, parse_int=_parse_int)
     except json.JSONDecodeError as exc:
-        raise InputError("impact_cmd", text, f"not valid JSON ({exc.msg} at char {exc.pos})") from None
-    except (RecursionError, ValueError) as exc:  # belt and braces: the checks above should prevent these
-        raise InputError("impact_cmd", text, f"not a JSON object this node can read ({type(exc).__name__})") from None
+        raise InputError(
+            "impact_cmd", text, f"not valid JSON ({exc.msg} at char {exc.pos})"
+        ) from None
+    except (
+        RecursionError,
+        ValueError,
+    ) as exc:  # belt and braces: the checks above should prevent these
+        raise InputError(
+            "impact_cmd", text, f"not a JSON object this node can read ({type(exc).__name__})"
+        ) from None

@@ -18,7 +18,9 @@ def sensor_view(result: SimulationResult) -> dict[str, np.ndarray]:
     trajectory, start = result.trajectory, result.contact_stamp_s
     structure = trajectory.problem.structure
     state = trajectory.sample(result.pressure.stamp_s - start)
-    gyro, accel = imu_samples(trajectory, result.imu.stamp_s - start, 1.0 / result.scene.sensors.imu_rate_hz)
+    gyro, accel = imu_samples(
+        trajectory, result.imu.stamp_s - start, 1.0 / result.scene.sensors.imu_rate_hz
+    )
     return {
         "pressure": structure.pressure_pa(state.q, state.qd) - structure.setting_pressure_pa,
         "imu": np.concatenate([accel[:, 0], accel[:, 2] - structure.gravity_mps2, gyro[:, 1]]),
@@ -29,7 +31,9 @@ def _relative(x: float, y: float) -> float:
     return abs(x - y) / abs(y) if y else abs(x - y)
 
 
-def compare(lower: SimulationResult, upper: SimulationResult, outputs: Iterable[str]) -> dict[str, float]:
+def compare(
+    lower: SimulationResult, upper: SimulationResult, outputs: Iterable[str]
+) -> dict[str, float]:
     """Measured relative differences of ``lower`` from ``upper``, per requested output.
 
     rebound: rebound speed; contact: peak contact force and duration; pressure: peak jack
@@ -47,10 +51,14 @@ def compare(lower: SimulationResult, upper: SimulationResult, outputs: Iterable[
     if chosen & set(WAVEFORM_OUTPUTS):
         view_a, view_b = sensor_view(lower), sensor_view(upper)
         if "pressure" in chosen:
-            out["peak_pressure_change"] = _relative(a["peak_jack_pressure_change_pa"], b["peak_jack_pressure_change_pa"])
+            out["peak_pressure_change"] = _relative(
+                a["peak_jack_pressure_change_pa"], b["peak_jack_pressure_change_pa"]
+            )
         for key in chosen & set(WAVEFORM_OUTPUTS):
             norm = float(np.linalg.norm(view_b[key]))
-            out[f"{key}_stream"] = float(np.linalg.norm(view_a[key] - view_b[key])) / norm if norm else 0.0
+            out[f"{key}_stream"] = (
+                float(np.linalg.norm(view_a[key] - view_b[key])) / norm if norm else 0.0
+            )
     return out
 
 

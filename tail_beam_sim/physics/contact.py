@@ -24,7 +24,10 @@ from tail_beam_sim.physics.materials import Material, Number
 
 def effective_modulus_pa(a: Material, b: Material) -> float:
     """Contact modulus E* of two bodies, Pa: 1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2."""
-    return 1.0 / ((1 - a.poisson_ratio**2) / a.youngs_modulus_pa + (1 - b.poisson_ratio**2) / b.youngs_modulus_pa)
+    return 1.0 / (
+        (1 - a.poisson_ratio**2) / a.youngs_modulus_pa
+        + (1 - b.poisson_ratio**2) / b.youngs_modulus_pa
+    )
 
 
 def hertz_constant(effective_modulus_pa: Number, radius_m: Number) -> Number:
@@ -54,7 +57,6 @@ def hertz_elastic_impact(stiffness: Any, mass_kg: Any, speed_mps: Any) -> dict[s
     }
 
 
-
 # Published hysteresis laws: chi as a function of the requested restitution e (a float, or an
 # array of them: one impact and a batch go through the same formulas).
 _PUBLISHED_LAWS: dict[str, Callable[[Any], Any]] = {
@@ -78,7 +80,9 @@ def damping_factor(law: str, restitution: Number, scale: float = 1.0) -> Number:
     try:
         return _PUBLISHED_LAWS[law](restitution) * scale
     except KeyError:
-        raise InputError("contact_model", law, f"must be one of {', '.join(CONTACT_LAWS)}") from None
+        raise InputError(
+            "contact_model", law, f"must be one of {', '.join(CONTACT_LAWS)}"
+        ) from None
 
 
 def _dimensionless_rebound(chi: np.ndarray, steps: int = 3000, span: float = 30.0) -> np.ndarray:
@@ -158,26 +162,34 @@ class CrushingContact:
     the particle leaves when delta falls back to delta_p. Forces in N, lengths in m.
     """
 
-    def __init__(self, effective_modulus_pa: float, radius_m: float, crushing_pressure_pa: float) -> None:
+    def __init__(
+        self, effective_modulus_pa: float, radius_m: float, crushing_pressure_pa: float
+    ) -> None:
         self.modulus = effective_modulus_pa
         self.radius = radius_m
         self.pressure = crushing_pressure_pa
         self.stiffness = hertz_constant(effective_modulus_pa, radius_m)
-        self.yield_penetration_m = radius_m * (math.pi * crushing_pressure_pa / (2.0 * effective_modulus_pa)) ** 2
+        self.yield_penetration_m = (
+            radius_m * (math.pi * crushing_pressure_pa / (2.0 * effective_modulus_pa)) ** 2
+        )
         self.yield_force_n = self.stiffness * self.yield_penetration_m**1.5
 
     def loading(self, delta_m: float) -> float:
         """Force while the penetration grows past its previous maximum, N."""
         if delta_m <= self.yield_penetration_m:
             return self.stiffness * delta_m**1.5 if delta_m > 0.0 else 0.0
-        return self.yield_force_n + math.pi * self.pressure * self.radius * (delta_m - self.yield_penetration_m)
+        return self.yield_force_n + math.pi * self.pressure * self.radius * (
+            delta_m - self.yield_penetration_m
+        )
 
     def unloading_curve(self, max_penetration_m: float) -> tuple[float, float]:
         """(4/3 E* sqrt(R_p), delta_p) of the unloading branch from ``max_penetration_m``."""
         if max_penetration_m <= self.yield_penetration_m:
             return self.stiffness, 0.0
         peak = self.loading(max_penetration_m)
-        contact_radius = math.sqrt((2.0 * peak + self.yield_force_n) / (2.0 * math.pi * self.pressure))
+        contact_radius = math.sqrt(
+            (2.0 * peak + self.yield_force_n) / (2.0 * math.pi * self.pressure)
+        )
         radius_p = 4.0 * self.modulus * contact_radius**3 / (3.0 * peak)
         stiffness_p = hertz_constant(self.modulus, radius_p)
         return stiffness_p, max_penetration_m - (peak / stiffness_p) ** (2.0 / 3.0)

@@ -37,12 +37,19 @@ from typing import Any
 import numpy as np
 
 from tail_beam_sim.config import load_parameters
-from tail_beam_sim.physics.contact import damping_factor, hertz_stiffness
 from tail_beam_sim.errors import InputError, require_range, require_section
+from tail_beam_sim.physics.contact import damping_factor, hertz_stiffness
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
 from tail_beam_sim.physics.solvers.pulse import contact_pulse
-from tail_beam_sim.physics.structure import BendingMode, LinearStructure, beam_with_modes, load_bending_modes, reduced_mass_kg, rigid_beam
+from tail_beam_sim.physics.structure import (
+    BendingMode,
+    LinearStructure,
+    beam_with_modes,
+    load_bending_modes,
+    reduced_mass_kg,
+    rigid_beam,
+)
 from tail_beam_sim.physics.support import Support
 
 OUTPUTS = ("rebound", "contact", "pressure", "imu")
@@ -78,12 +85,21 @@ class Tier:
         return options
 
 
-_PULSE_TOLERANCE = {"tolerance_option": "pulse_tolerance", "tolerance_cap": DEFAULT_PULSE_TOLERANCE}
+_PULSE_TOLERANCE = {
+    "tolerance_option": "pulse_tolerance",
+    "tolerance_cap": DEFAULT_PULSE_TOLERANCE,
+}
 TIERS: dict[str, Tier] = {
     "impulse": Tier("impulse", False, "impulse", False),
     "rigid": Tier("rigid", False, "hybrid", False, **_PULSE_TOLERANCE),
     "modal": Tier("modal", True, "hybrid", False, **_PULSE_TOLERANCE),
-    "brittle": Tier("brittle", True, "hybrid", True, fixed_options=(("steps_per_contact", BRITTLE_STEPS_PER_CONTACT),)),
+    "brittle": Tier(
+        "brittle",
+        True,
+        "hybrid",
+        True,
+        fixed_options=(("steps_per_contact", BRITTLE_STEPS_PER_CONTACT),),
+    ),
 }
 ACCURACY_LADDER = ("impulse", "rigid", "modal")
 DEFAULT_TIER = "rigid"
@@ -111,7 +127,11 @@ class Needs:
         chosen = frozenset(outputs)
         unknown = sorted(chosen - set(OUTPUTS))
         if unknown or not chosen:
-            raise InputError("fidelity.outputs", sorted(chosen), f"must be a non-empty subset of {', '.join(OUTPUTS)}")
+            raise InputError(
+                "fidelity.outputs",
+                sorted(chosen),
+                f"must be a non-empty subset of {', '.join(OUTPUTS)}",
+            )
         return cls(chosen, require_range("fidelity.tolerance", tolerance, 0.0, 1.0, low_open=True))
 
 
@@ -136,7 +156,11 @@ class FidelitySettings:
             needs=Needs.of(section.get("outputs", OUTPUTS), section.get("tolerance", 0.01)),
             modes=load_bending_modes(params),
             crushing_confinement_factor=require_range(
-                "fidelity.crushing_confinement_factor", section.get("crushing_confinement_factor", 3.0), 0.0, 100.0, low_open=True
+                "fidelity.crushing_confinement_factor",
+                section.get("crushing_confinement_factor", 3.0),
+                0.0,
+                100.0,
+                low_open=True,
             ),
         )
 
@@ -184,7 +208,9 @@ def plan(scene: Scene, tier: str, needs: Needs, settings: FidelitySettings) -> P
     error estimates."""
     estimates = model_errors(scene, needs, settings.modes)
     if tier == "auto":
-        name = next((t for t in ACCURACY_LADDER if estimates[t] <= needs.tolerance), ACCURACY_LADDER[-1])
+        name = next(
+            (t for t in ACCURACY_LADDER if estimates[t] <= needs.tolerance), ACCURACY_LADDER[-1]
+        )
     else:
         name = get_tier(tier).name
     chosen = TIERS[name]
@@ -220,14 +246,27 @@ def model_errors(scene: Scene, needs: Needs, modes: Sequence[BendingMode]) -> di
     omega_rigid = 2 * math.pi * float(rigid.natural_frequencies_hz().max())
     impulse_step = max(gravity, (omega_rigid * width) ** 2 / 2 if waveform else 0.0)
     restitution = max(pulse.separation_mps / impact.impact_speed_mps, 1e-3)
-    rebound_step = (1 + restitution) / restitution * abs(reduced_mass_kg(1.0, mass * c_modal) - reduced_mass_kg(1.0, mass * c_rigid))
+    rebound_step = (
+        (1 + restitution)
+        / restitution
+        * abs(reduced_mass_kg(1.0, mass * c_modal) - reduced_mass_kg(1.0, mass * c_rigid))
+    )
     rigid_step = rebound_step if needs.outputs & {"rebound", "contact"} else 0.0
     if waveform and modes:
-        rigid_step = max(rigid_step, SAMPLED_MARGIN * _sampled_difference(scene, rigid, modal, waveform))
-    return {"impulse": impulse_step + rigid_step, "rigid": rigid_step, "modal": 0.0, "brittle": 0.0}
+        rigid_step = max(
+            rigid_step, SAMPLED_MARGIN * _sampled_difference(scene, rigid, modal, waveform)
+        )
+    return {
+        "impulse": impulse_step + rigid_step,
+        "rigid": rigid_step,
+        "modal": 0.0,
+        "brittle": 0.0,
+    }
 
 
-def _sampled_difference(scene: Scene, rigid: LinearStructure, modal: LinearStructure, outputs: set[str]) -> float:
+def _sampled_difference(
+    scene: Scene, rigid: LinearStructure, modal: LinearStructure, outputs: set[str]
+) -> float:
     """Relative L2 difference of the two structures' impulse responses as the sensors sample them,
     the worst over where the impulse falls within a sample period (PHASES, evaluated together)."""
     spec, x = scene.sensors, scene.impact.position_m
@@ -235,7 +274,9 @@ def _sampled_difference(scene: Scene, rigid: LinearStructure, modal: LinearStruc
     for output in outputs:
         rate = spec.pressure_rate_hz if output == "pressure" else spec.imu_rate_hz
         count = int(scene.window_s * rate)
-        times = ((np.arange(1, count + 1)[None, :] - np.array(PHASES)[:, None]) / rate).ravel()  # (phases x samples)
+        times = (
+            (np.arange(1, count + 1)[None, :] - np.array(PHASES)[:, None]) / rate
+        ).ravel()  # (phases x samples)
         signals = []
         for structure in (rigid, modal):
             qd0 = structure.inv_mass @ structure.contact_shape(x)
@@ -245,13 +286,32 @@ def _sampled_difference(scene: Scene, rigid: LinearStructure, modal: LinearStruc
                 signals.append(structure.pressure_pa(q, qd) - structure.setting_pressure_pa)
             else:
                 early = times < 1.0 / rate  # the beam is at rest before the impulse
-                before_q, before_qd = structure.propagate(zero, qd0, np.maximum(times - 1.0 / rate, 0.0))
+                before_q, before_qd = structure.propagate(
+                    zero, qd0, np.maximum(times - 1.0 / rate, 0.0)
+                )
                 before_q[:, early], before_qd[:, early] = 0.0, 0.0
-                signals.append(np.stack([structure.imu_shape @ (qd - before_qd), structure.imu_slope_shape @ (q - before_q)]) * rate)
+                signals.append(
+                    np.stack(
+                        [
+                            structure.imu_shape @ (qd - before_qd),
+                            structure.imu_slope_shape @ (q - before_q),
+                        ]
+                    )
+                    * rate
+                )
         lower, upper = (signal.reshape(-1, len(PHASES), count) for signal in signals)
         reference = np.sqrt((upper**2).sum(axis=(0, 2)))
         difference = np.sqrt(((upper - lower) ** 2).sum(axis=(0, 2)))
-        worst = max(worst, float(np.max(np.where(reference > 0, difference / np.where(reference > 0, reference, 1.0), 0.0))))
+        worst = max(
+            worst,
+            float(
+                np.max(
+                    np.where(
+                        reference > 0, difference / np.where(reference > 0, reference, 1.0), 0.0
+                    )
+                )
+            ),
+        )
     return worst
 
 

@@ -50,8 +50,12 @@ class Material:
             raise InputError(field, params, "must be a mapping of material properties")
         material_class = params.get("class")
         if material_class not in MATERIAL_CLASSES:
-            raise InputError(f"{field}.class", material_class, f"must be one of {MATERIAL_CLASSES}")
-        low_high = params.get("restitution_range", [params.get("restitution"), params.get("restitution")])
+            raise InputError(
+                f"{field}.class", material_class, f"must be one of {MATERIAL_CLASSES}"
+            )
+        low_high = params.get(
+            "restitution_range", [params.get("restitution"), params.get("restitution")]
+        )
         if not isinstance(low_high, (list, tuple)) or len(low_high) != 2:
             raise InputError(f"{field}.restitution_range", low_high, "must be [low, high]")
         low = require_range(f"{field}.restitution_range[0]", low_high[0], 0.0, 1.0, low_open=True)
@@ -59,12 +63,37 @@ class Material:
         return cls(
             name=name,
             material_class=str(material_class),
-            density_kgpm3=require_range(f"{field}.density_kgpm3", params.get("density_kgpm3"), 0.0, 30000.0, low_open=True, unit="kg/m^3"),
-            youngs_modulus_pa=require_range(f"{field}.youngs_modulus_pa", params.get("youngs_modulus_pa"), 0.0, 2e12, low_open=True, unit="Pa"),
-            poisson_ratio=require_range(f"{field}.poisson_ratio", params.get("poisson_ratio"), -1.0, 0.5, low_open=True),
-            restitution=require_range(f"{field}.restitution", params.get("restitution"), 0.0, 1.0, low_open=True),
+            density_kgpm3=require_range(
+                f"{field}.density_kgpm3",
+                params.get("density_kgpm3"),
+                0.0,
+                30000.0,
+                low_open=True,
+                unit="kg/m^3",
+            ),
+            youngs_modulus_pa=require_range(
+                f"{field}.youngs_modulus_pa",
+                params.get("youngs_modulus_pa"),
+                0.0,
+                2e12,
+                low_open=True,
+                unit="Pa",
+            ),
+            poisson_ratio=require_range(
+                f"{field}.poisson_ratio", params.get("poisson_ratio"), -1.0, 0.5, low_open=True
+            ),
+            restitution=require_range(
+                f"{field}.restitution", params.get("restitution"), 0.0, 1.0, low_open=True
+            ),
             restitution_range=(low, high),
-            crushing_strength_pa=require_range(f"{field}.crushing_strength_pa", params.get("crushing_strength_pa", 1e12), 0.0, None, low_open=True, unit="Pa"),
+            crushing_strength_pa=require_range(
+                f"{field}.crushing_strength_pa",
+                params.get("crushing_strength_pa", 1e12),
+                0.0,
+                None,
+                low_open=True,
+                unit="Pa",
+            ),
         )
 
 

@@ -17,7 +17,13 @@ from tail_beam_sim.physics.solvers import Trajectory
 _IMPACT_KEYS = ("material", "radius_m", "position_m", "impact_speed_mps")
 
 
-def impact_truth(scene: Scene, trajectory: Trajectory, contact_stamp_s: float, rebound_stamp_s: float, summary: dict[str, Any]) -> dict[str, Any]:
+def impact_truth(
+    scene: Scene,
+    trajectory: Trajectory,
+    contact_stamp_s: float,
+    rebound_stamp_s: float,
+    summary: dict[str, Any],
+) -> dict[str, Any]:
     """The ``impact_truth`` JSON object of the impact of ``scene``: what was dropped, when its
     contact started and ended and when the camera saw it leave (s, simulation time), and the
     noise-free ``summary`` figures."""
@@ -56,11 +62,15 @@ class SimulationResult:
     imu: ImuStream
     rebound: Rebound
     summary: dict[str, Any] = field(default_factory=dict)
-    vibration: VibrationBlocks = field(default_factory=lambda: VibrationBlocks.empty())  # the accelerometer's blocks
+    vibration: VibrationBlocks = field(
+        default_factory=lambda: VibrationBlocks.empty()
+    )  # the accelerometer's blocks
 
     def truth(self) -> dict[str, Any]:
         """The ``impact_truth`` JSON object of this impact (contract: docs/interface.md)."""
-        return impact_truth(self.scene, self.trajectory, self.contact_stamp_s, self.rebound.stamp_s, self.summary)
+        return impact_truth(
+            self.scene, self.trajectory, self.contact_stamp_s, self.rebound.stamp_s, self.summary
+        )
 
 
 __all__ = ["SimulationResult", "impact_truth"]

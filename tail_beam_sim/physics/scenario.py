@@ -34,7 +34,9 @@ class PlannedImpact:
     contact_stamp_s: float | None = None
 
 
-def load_scenario(params: Mapping[str, Any], materials: Mapping[str, Material], support: Support) -> list[PlannedImpact]:
+def load_scenario(
+    params: Mapping[str, Any], materials: Mapping[str, Material], support: Support
+) -> list[PlannedImpact]:
     """The scenario the ``scenario`` parameter section describes (validated)."""
     source = params.get("source", "none")
     if source not in SOURCES:
@@ -50,7 +52,10 @@ def load_scenario(params: Mapping[str, Any], materials: Mapping[str, Material], 
 
 
 def check_impacts(
-    commands: Sequence[Mapping[str, Any]], materials: Mapping[str, Material], support: Support, item: str = "scenario",
+    commands: Sequence[Mapping[str, Any]],
+    materials: Mapping[str, Material],
+    support: Support,
+    item: str = "scenario",
 ) -> list[Impact]:
     """Validate a list of impact_cmd objects as the simulator will (``Impact.from_mapping``),
     and refuse an impact_id used twice in it; errors name ``<item>[index].<field>``."""
@@ -59,7 +64,11 @@ def check_impacts(
     for index, command in enumerate(commands):
         impact = Impact.from_mapping(command, materials, support, prefix=f"{item}[{index}].")
         if impact.impact_id in seen:
-            raise InputError(f"{item}[{index}].impact_id", impact.impact_id, f"is used twice in the {item}; each impact_id names one impact")
+            raise InputError(
+                f"{item}[{index}].impact_id",
+                impact.impact_id,
+                f"is used twice in the {item}; each impact_id names one impact",
+            )
         seen.add(impact.impact_id or f"\0{index}")
         impacts.append(impact)
     return impacts
@@ -75,7 +84,9 @@ def resolve_scenario_file(path: str | os.PathLike[str]) -> Path:
     return shipped if shipped.exists() else given
 
 
-def read_scenario_file(path: str | os.PathLike[str], field: str = "scenario.file", item: str = "scenario") -> list[PlannedImpact]:
+def read_scenario_file(
+    path: str | os.PathLike[str], field: str = "scenario.file", item: str = "scenario"
+) -> list[PlannedImpact]:
     """Impacts from a YAML file: a list (or ``{impacts: [...]}``) of impact_cmd objects.
 
     An item may hold ``contact_stamp_s``, the contact time it asks for, s. A relative path is
@@ -89,7 +100,9 @@ def read_scenario_file(path: str | os.PathLike[str], field: str = "scenario.file
     except OSError as exc:
         raise InputError(field, str(path), f"must be a readable file ({exc.strerror})") from None
     except yaml.YAMLError as exc:
-        raise InputError(field, str(path), f"must be valid YAML ({str(exc).splitlines()[0]})") from None
+        raise InputError(
+            field, str(path), f"must be valid YAML ({str(exc).splitlines()[0]})"
+        ) from None
     if isinstance(data, Mapping):
         data = data.get("impacts")
     if not isinstance(data, list):
@@ -106,7 +119,9 @@ def read_scenario_file(path: str | os.PathLike[str], field: str = "scenario.file
     return planned
 
 
-def _range(params: Mapping[str, Any], name: str, low: float, high: float | None, unit: str) -> tuple[float, float]:
+def _range(
+    params: Mapping[str, Any], name: str, low: float, high: float | None, unit: str
+) -> tuple[float, float]:
     value = params.get(name)
     if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 2:
         raise InputError(f"scenario.{name}", value, f"must be [low, high] in {unit}")
@@ -115,7 +130,9 @@ def _range(params: Mapping[str, Any], name: str, low: float, high: float | None,
     return lo, hi
 
 
-def generate_caving_stream(params: Mapping[str, Any], materials: Mapping[str, Material], support: Support | None = None) -> list[PlannedImpact]:
+def generate_caving_stream(
+    params: Mapping[str, Any], materials: Mapping[str, Material], support: Support | None = None
+) -> list[PlannedImpact]:
     """A seeded stream of falling coal and gangue particles.
 
     Exactly ``round(count * gangue_fraction)`` particles are gangue, in shuffled order; each
@@ -129,15 +146,21 @@ def generate_caving_stream(params: Mapping[str, Any], materials: Mapping[str, Ma
     seed = params.get("seed", 0)
     require_int("scenario.seed", seed, 0)
     fraction = require_range("scenario.gangue_fraction", params.get("gangue_fraction"), 0.0, 1.0)
-    radius = _range(params, "radius_m", 0.0, support.particle_radius_max_m if support else None, "m")
-    height = _range(params, "drop_height_m", 0.0, support.drop_height_max_m if support else None, "m")
+    radius = _range(
+        params, "radius_m", 0.0, support.particle_radius_max_m if support else None, "m"
+    )
+    height = _range(
+        params, "drop_height_m", 0.0, support.drop_height_max_m if support else None, "m"
+    )
     position = _range(params, "position_m", 0.0, None, "m")
     interval = _range(params, "interval_s", 0.0, 3600.0, "s")
     start = require_range("scenario.start_s", params.get("start_s", 0.0), 0.0, None, unit="s")
     coal = sorted(name for name, m in materials.items() if m.material_class == "coal")
     gangue = sorted(name for name, m in materials.items() if m.material_class == "gangue")
     if (fraction < 1.0 and not coal) or (fraction > 0.0 and not gangue):
-        raise InputError("scenario.gangue_fraction", fraction, "needs coal and gangue materials in the config")
+        raise InputError(
+            "scenario.gangue_fraction", fraction, "needs coal and gangue materials in the config"
+        )
     rng = np.random.default_rng(seed)
     is_gangue = np.zeros(count, dtype=bool)
     is_gangue[: int(round(count * fraction))] = True

@@ -11,13 +11,28 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
-from tail_beam_sim.physics.contact import CONTACT_LAWS, DEFAULT_CONTACT_LAW
 from tail_beam_sim.errors import InputError, require_int, require_range
-from tail_beam_sim.physics.materials import Material, material_table, particle_material_names, sphere_mass_kg
+from tail_beam_sim.physics.contact import CONTACT_LAWS, DEFAULT_CONTACT_LAW
+from tail_beam_sim.physics.materials import (
+    Material,
+    material_table,
+    particle_material_names,
+    sphere_mass_kg,
+)
 from tail_beam_sim.physics.support import Support
 
-MAX_IMPACT_ID_CHARS = 128  # docs/interface.md: an impact_id is a printable string of 1..128 characters
-IMPACT_FIELDS = ("material", "radius_m", "drop_height_m", "impact_speed_mps", "position_m", "impact_id", "restitution")
+MAX_IMPACT_ID_CHARS = (
+    128  # docs/interface.md: an impact_id is a printable string of 1..128 characters
+)
+IMPACT_FIELDS = (
+    "material",
+    "radius_m",
+    "drop_height_m",
+    "impact_speed_mps",
+    "position_m",
+    "impact_id",
+    "restitution",
+)
 
 
 @dataclass(frozen=True)
@@ -59,7 +74,11 @@ class Impact:
             raise InputError(prefix.rstrip(".") or "impact", data, "must be a JSON object")
         unknown = sorted(set(data) - set(IMPACT_FIELDS))
         if unknown:
-            raise InputError(f"{prefix}{unknown[0]}", data[unknown[0]], f"unknown field; allowed: {', '.join(IMPACT_FIELDS)}")
+            raise InputError(
+                f"{prefix}{unknown[0]}",
+                data[unknown[0]],
+                f"unknown field; allowed: {', '.join(IMPACT_FIELDS)}",
+            )
         names = particle_material_names(materials)
         name = data.get("material")
         if name is None:
@@ -67,12 +86,27 @@ class Impact:
         if name not in names:
             raise InputError(f"{prefix}material", name, f"must be one of {', '.join(names)}")
         material = materials[name]
-        def number(field: str, low: float, high: float, unit: str, low_open: bool = False) -> float:
-            return require_range(f"{prefix}{field}", data[field], low, high, low_open=low_open, unit=unit, allow_text=text_numbers)
+
+        def number(
+            field: str, low: float, high: float, unit: str, low_open: bool = False
+        ) -> float:
+            return require_range(
+                f"{prefix}{field}",
+                data[field],
+                low,
+                high,
+                low_open=low_open,
+                unit=unit,
+                allow_text=text_numbers,
+            )
 
         s = support
         if data.get("radius_m") is None:
-            raise InputError(f"{prefix}radius_m", None, f"required; in [{s.particle_radius_min_m:g}, {s.particle_radius_max_m:g}] m")
+            raise InputError(
+                f"{prefix}radius_m",
+                None,
+                f"required; in [{s.particle_radius_min_m:g}, {s.particle_radius_max_m:g}] m",
+            )
         radius = number("radius_m", s.particle_radius_min_m, s.particle_radius_max_m, "m")
         height, speed = data.get("drop_height_m"), data.get("impact_speed_mps")
         if (height is None) == (speed is None):
@@ -85,13 +119,27 @@ class Impact:
             height = number("drop_height_m", s.drop_height_min_m, s.drop_height_max_m, "m")
             speed = math.sqrt(2.0 * support.gravity_mps2 * height)
             if speed <= 0.0:
-                raise InputError(f"{prefix}drop_height_m", height, "needs gravity_mps2 > 0 to give a speed")
+                raise InputError(
+                    f"{prefix}drop_height_m", height, "needs gravity_mps2 > 0 to give a speed"
+                )
         else:
-            speed = number("impact_speed_mps", s.impact_speed_min_mps, s.impact_speed_max_mps, "m/s")
+            speed = number(
+                "impact_speed_mps", s.impact_speed_min_mps, s.impact_speed_max_mps, "m/s"
+            )
         if data.get("position_m") is None:
-            raise InputError(f"{prefix}position_m", None, f"required; in [0, {support.beam_length_m:g}] m from the hinge")
-        position = support.check_position(data["position_m"], f"{prefix}position_m", allow_text=text_numbers)
-        restitution = material.restitution if data.get("restitution") is None else number("restitution", 0.0, 1.0, "", low_open=True)
+            raise InputError(
+                f"{prefix}position_m",
+                None,
+                f"required; in [0, {support.beam_length_m:g}] m from the hinge",
+            )
+        position = support.check_position(
+            data["position_m"], f"{prefix}position_m", allow_text=text_numbers
+        )
+        restitution = (
+            material.restitution
+            if data.get("restitution") is None
+            else number("restitution", 0.0, 1.0, "", low_open=True)
+        )
         impact_id = check_impact_id(data.get("impact_id"), f"{prefix}impact_id")
         return cls(material, radius, float(speed), position, restitution, height, impact_id)
 
@@ -103,7 +151,11 @@ def check_impact_id(value: object, field: str = "impact_id") -> str:
     if value is None:
         return ""
     allowed = f"must be a printable string of 1..{MAX_IMPACT_ID_CHARS} characters (or left out)"
-    if not isinstance(value, str) or not 1 <= len(value) <= MAX_IMPACT_ID_CHARS or not value.isprintable():
+    if (
+        not isinstance(value, str)
+        or not 1 <= len(value) <= MAX_IMPACT_ID_CHARS
+        or not value.isprintable()
+    ):
         raise InputError(field, value, allowed)
     return value
 
@@ -128,7 +180,9 @@ class SensorSpec:
     vibration_rate_hz: float = 25600.0
     vibration_block_samples: int = 128
     vibration_noise_density_mps2_rthz: float = 0.002  # white noise, m/s^2 per sqrt(Hz)
-    vibration_range_mps2: float = 2000.0  # measuring range +-, m/s^2: beyond it the sensor saturates
+    vibration_range_mps2: float = (
+        2000.0  # measuring range +-, m/s^2: beyond it the sensor saturates
+    )
     vibration_antialias_order: int = 4  # Butterworth low-pass before sampling
     vibration_antialias_cutoff_fraction: float = 0.4  # its cut-off over the sample rate
     vibration_oversample: int = 4  # the beam's response is computed this many times per sample
@@ -178,20 +232,34 @@ class SensorSpec:
 
         seed = params.get("seed", 0)
         require_int("sensors.seed", seed, 0)
-        low = require_range("sensors.pressure_range_min_pa", params.get("pressure_range_min_pa"), unit="Pa")
+        low = require_range(
+            "sensors.pressure_range_min_pa", params.get("pressure_range_min_pa"), unit="Pa"
+        )
         return cls(
             seed=seed,
             pressure_rate_hz=rate("pressure_rate_hz"),
             pressure_noise_pa=noise("pressure_noise_pa", "Pa"),
             pressure_range_min_pa=low,
-            pressure_range_max_pa=require_range("sensors.pressure_range_max_pa", params.get("pressure_range_max_pa"), low, None, low_open=True, unit="Pa"),
+            pressure_range_max_pa=require_range(
+                "sensors.pressure_range_max_pa",
+                params.get("pressure_range_max_pa"),
+                low,
+                None,
+                low_open=True,
+                unit="Pa",
+            ),
             imu_rate_hz=rate("imu_rate_hz"),
             imu_noise_nominal_rate_hz=rate("imu_noise_nominal_rate_hz"),
             imu_accel_noise_mps2=noise("imu_accel_noise_mps2", "m/s^2"),
             imu_gyro_noise_radps=noise("imu_gyro_noise_radps", "rad/s"),
             camera_frame_rate_hz=rate("camera_frame_rate_hz"),
             camera_velocity_noise_mps=noise("camera_velocity_noise_mps", "m/s"),
-            camera_velocity_noise_fraction=require_range("sensors.camera_velocity_noise_fraction", params.get("camera_velocity_noise_fraction"), 0.0, 1.0),
+            camera_velocity_noise_fraction=require_range(
+                "sensors.camera_velocity_noise_fraction",
+                params.get("camera_velocity_noise_fraction"),
+                0.0,
+                1.0,
+            ),
             **_vibration_params(params),
             **_imu_filter_params(params),
         )
@@ -199,7 +267,12 @@ class SensorSpec:
 
 def _integer(name: str, value: Any, low: int, high: int) -> int:
     """An integer parameter in [low, high], or InputError naming it."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value) or not low <= value <= high:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or value != int(value)
+        or not low <= value <= high
+    ):
         raise InputError(f"sensors.{name}", value, f"must be an integer in [{low}, {high}]")
     return int(value)
 
@@ -208,21 +281,46 @@ def _vibration_params(params: Mapping[str, Any]) -> dict[str, Any]:
     """The accelerometer's values of the ``sensors`` section (defaults where absent)."""
     out: dict[str, Any] = {}
     if "vibration_rate_hz" in params:
-        out["vibration_rate_hz"] = require_range("sensors.vibration_rate_hz", params["vibration_rate_hz"], 1000.0, 100000.0, unit="Hz")
+        out["vibration_rate_hz"] = require_range(
+            "sensors.vibration_rate_hz", params["vibration_rate_hz"], 1000.0, 100000.0, unit="Hz"
+        )
     if "vibration_block_samples" in params:
-        out["vibration_block_samples"] = _integer("vibration_block_samples", params["vibration_block_samples"], 1, 65536)
+        out["vibration_block_samples"] = _integer(
+            "vibration_block_samples", params["vibration_block_samples"], 1, 65536
+        )
     if "vibration_noise_density_mps2_rthz" in params:
         out["vibration_noise_density_mps2_rthz"] = require_range(
-            "sensors.vibration_noise_density_mps2_rthz", params["vibration_noise_density_mps2_rthz"], 0.0, None, unit="m/s^2/sqrt(Hz)")
+            "sensors.vibration_noise_density_mps2_rthz",
+            params["vibration_noise_density_mps2_rthz"],
+            0.0,
+            None,
+            unit="m/s^2/sqrt(Hz)",
+        )
     if "vibration_range_mps2" in params:
-        out["vibration_range_mps2"] = require_range("sensors.vibration_range_mps2", params["vibration_range_mps2"], 0.0, 1e6, low_open=True, unit="m/s^2")
+        out["vibration_range_mps2"] = require_range(
+            "sensors.vibration_range_mps2",
+            params["vibration_range_mps2"],
+            0.0,
+            1e6,
+            low_open=True,
+            unit="m/s^2",
+        )
     if "vibration_antialias_order" in params:
-        out["vibration_antialias_order"] = _integer("vibration_antialias_order", params["vibration_antialias_order"], 1, 10)
+        out["vibration_antialias_order"] = _integer(
+            "vibration_antialias_order", params["vibration_antialias_order"], 1, 10
+        )
     if "vibration_antialias_cutoff_fraction" in params:
         out["vibration_antialias_cutoff_fraction"] = require_range(
-            "sensors.vibration_antialias_cutoff_fraction", params["vibration_antialias_cutoff_fraction"], 0.0, 0.5, low_open=True)
+            "sensors.vibration_antialias_cutoff_fraction",
+            params["vibration_antialias_cutoff_fraction"],
+            0.0,
+            0.5,
+            low_open=True,
+        )
     if "vibration_oversample" in params:
-        out["vibration_oversample"] = _integer("vibration_oversample", params["vibration_oversample"], 2, 32)
+        out["vibration_oversample"] = _integer(
+            "vibration_oversample", params["vibration_oversample"], 2, 32
+        )
     return out
 
 
@@ -230,10 +328,17 @@ def _imu_filter_params(params: Mapping[str, Any]) -> dict[str, Any]:
     """The IMU's sampling filter in the ``sensors`` section (defaults where absent)."""
     out: dict[str, Any] = {}
     if "imu_antialias_order" in params:
-        out["imu_antialias_order"] = _integer("imu_antialias_order", params["imu_antialias_order"], 0, 10)
+        out["imu_antialias_order"] = _integer(
+            "imu_antialias_order", params["imu_antialias_order"], 0, 10
+        )
     if "imu_antialias_cutoff_fraction" in params:
         out["imu_antialias_cutoff_fraction"] = require_range(
-            "sensors.imu_antialias_cutoff_fraction", params["imu_antialias_cutoff_fraction"], 0.0, 0.5, low_open=True)
+            "sensors.imu_antialias_cutoff_fraction",
+            params["imu_antialias_cutoff_fraction"],
+            0.0,
+            0.5,
+            low_open=True,
+        )
     if "imu_oversample" in params:
         out["imu_oversample"] = _integer("imu_oversample", params["imu_oversample"], 2, 32)
     return out
@@ -256,7 +361,9 @@ class Scene:
         return replace(self, impact=replace(self.impact, **changes))
 
     @classmethod
-    def from_params(cls, params: Mapping[str, Any], overrides: Mapping[str, Any] | None = None) -> Scene:
+    def from_params(
+        cls, params: Mapping[str, Any], overrides: Mapping[str, Any] | None = None
+    ) -> Scene:
         """Build a scene from merged parameters, with ``overrides`` of ``scene.*`` values.
 
         ``overrides`` takes impact fields (``material``, ``radius_m``, ``drop_height_m`` or
@@ -274,16 +381,27 @@ class Scene:
         sensor_params = dict(params.get("sensors") or {})
         if "seed" in scene_params:
             sensor_params["seed"] = scene_params.pop("seed")
-        impact = Impact.from_mapping({k: scene_params.get(k) for k in IMPACT_FIELDS if k in scene_params}, materials, support, text_numbers=True)
+        impact = Impact.from_mapping(
+            {k: scene_params.get(k) for k in IMPACT_FIELDS if k in scene_params},
+            materials,
+            support,
+            text_numbers=True,
+        )
         contact_model = scene_params.get("contact_model", DEFAULT_CONTACT_LAW)
         if contact_model not in CONTACT_LAWS:
-            raise InputError("contact_model", contact_model, f"must be one of {', '.join(CONTACT_LAWS)}")
+            raise InputError(
+                "contact_model", contact_model, f"must be one of {', '.join(CONTACT_LAWS)}"
+            )
         return cls(
             support=support,
             impact=impact,
             sensors=SensorSpec.from_params(sensor_params),
             materials=materials,
             contact_model=contact_model,
-            window_s=require_range("window_s", scene_params.get("window_s", 0.05), 0.0, 10.0, low_open=True, unit="s"),
-            pre_contact_s=require_range("pre_contact_s", scene_params.get("pre_contact_s", 0.005), 0.0, 10.0, unit="s"),
+            window_s=require_range(
+                "window_s", scene_params.get("window_s", 0.05), 0.0, 10.0, low_open=True, unit="s"
+            ),
+            pre_contact_s=require_range(
+                "pre_contact_s", scene_params.get("pre_contact_s", 0.005), 0.0, 10.0, unit="s"
+            ),
         )

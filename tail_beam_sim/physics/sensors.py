@@ -32,7 +32,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-
 from scipy import signal
 
 from tail_beam_sim.physics.scene import SensorSpec
@@ -108,7 +107,9 @@ def specific_force_z(trajectory: Trajectory, samples: Samples) -> np.ndarray:
     return structure.gravity_mps2 * np.cos(angle) - structure.imu_shape @ samples.qdd
 
 
-def imu_samples(trajectory: Trajectory, t_s: np.ndarray, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+def imu_samples(
+    trajectory: Trajectory, t_s: np.ndarray, period_s: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Noise-free IMU readings averaged over (t - period, t]: gyro (T x 3), accel (T x 3)."""
     structure = trajectory.problem.structure
     now = trajectory.sample(t_s)
@@ -135,11 +136,22 @@ class ImuLowPass:
     def __init__(self, spec: SensorSpec) -> None:
         self.rate_hz = spec.imu_rate_hz
         self.oversample = spec.imu_oversample
-        self._filters = [AntiAliasFilter(spec.imu_rate_hz, spec.imu_antialias_order, spec.imu_antialias_cutoff_fraction, spec.imu_oversample)
-                         for _ in range(2)]
+        self._filters = [
+            AntiAliasFilter(
+                spec.imu_rate_hz,
+                spec.imu_antialias_order,
+                spec.imu_antialias_cutoff_fraction,
+                spec.imu_oversample,
+            )
+            for _ in range(2)
+        ]
         self._next_dense: int | None = None
 
-    def __call__(self, sample_index: np.ndarray, response: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(
+        self,
+        sample_index: np.ndarray,
+        response: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Filtered (specific force z m/s^2, pitch rate rad/s) at samples ``sample_index``
         (stamps index / rate); ``response(stamps_s)`` gives the beam's noise-free (specific
         force z averaged over the dense period, pitch rate) at absolute stamps."""
@@ -154,7 +166,9 @@ class ImuLowPass:
         return self._filters[0](accel)[pick], self._filters[1](rate)[pick]
 
 
-def dense_imu_response(trajectory: Trajectory, t_s: np.ndarray, dense_period_s: float) -> tuple[np.ndarray, np.ndarray]:
+def dense_imu_response(
+    trajectory: Trajectory, t_s: np.ndarray, dense_period_s: float
+) -> tuple[np.ndarray, np.ndarray]:
     """What :class:`ImuLowPass` filters: specific force along z at the IMU averaged over the
     dense period centred on each instant (so the mean does not lag it; m/s^2) and the pitch rate
     (rad/s), at ``t_s`` in the trajectory's time."""
@@ -175,14 +189,18 @@ class SensorSuite:
     def __init__(self, spec: SensorSpec, seed: int | None = None) -> None:
         self.spec = spec
         self.noise = SensorNoise.of(spec)
-        children = np.random.SeedSequence(spec.seed if seed is None else seed).spawn(5)  # [3] is simulate()'s contact phase
+        children = np.random.SeedSequence(spec.seed if seed is None else seed).spawn(
+            5
+        )  # [3] is simulate()'s contact phase
         pressure, imu, camera, vibration = children[0], children[1], children[2], children[4]
         self._vibration_rng = np.random.default_rng(vibration)
         self._pressure_rng = np.random.default_rng(pressure)
         self._imu_rng = np.random.default_rng(imu)
         self._camera_rng = np.random.default_rng(camera)
 
-    def pressure(self, trajectory: Trajectory, stamp_s: np.ndarray, contact_stamp_s: float) -> PressureStream:
+    def pressure(
+        self, trajectory: Trajectory, stamp_s: np.ndarray, contact_stamp_s: float
+    ) -> PressureStream:
         """Pressure samples at absolute stamps; the trajectory's t = 0 is ``contact_stamp_s``."""
         noise = self.noise
         state = trajectory.sample(stamp_s - contact_stamp_s)
@@ -190,7 +208,9 @@ class SensorSuite:
         noisy = noise.pressure(clean, self._pressure_rng.standard_normal(stamp_s.size))
         return PressureStream(stamp_s, noisy, noise.pressure_pa**2)
 
-    def imu(self, trajectory: Trajectory, stamp_s: np.ndarray, contact_stamp_s: float) -> ImuStream:
+    def imu(
+        self, trajectory: Trajectory, stamp_s: np.ndarray, contact_stamp_s: float
+    ) -> ImuStream:
         """IMU samples at absolute stamps (on the rate's grid), each averaged over its sample
         period, or behind the IMU's low-pass filter (``imu_antialias_order`` >= 1)."""
         noise = self.noise
@@ -199,23 +219,33 @@ class SensorSuite:
         if spec.imu_antialias_order > 0:
             dense_period = 1.0 / (spec.imu_oversample * spec.imu_rate_hz)
             index = np.rint(stamp_s * spec.imu_rate_hz).astype(np.int64)
-            accel[:, 2], gyro[:, 1] = ImuLowPass(spec)(index, lambda t: dense_imu_response(trajectory, t - contact_stamp_s, dense_period))
+            accel[:, 2], gyro[:, 1] = ImuLowPass(spec)(
+                index, lambda t: dense_imu_response(trajectory, t - contact_stamp_s, dense_period)
+            )
         gyro = noise.gyro(gyro, self._imu_rng.standard_normal(gyro.shape))
         accel = noise.accel(accel, self._imu_rng.standard_normal(accel.shape))
         return ImuStream(stamp_s, gyro, accel, noise.gyro_radps**2, noise.accel_mps2**2)
 
-    def vibration(self, trajectory: Trajectory, end_s: float, contact_stamp_s: float) -> VibrationBlocks:
+    def vibration(
+        self, trajectory: Trajectory, end_s: float, contact_stamp_s: float
+    ) -> VibrationBlocks:
         """The accelerometer's complete blocks from stamp 0 to ``end_s`` (the trajectory's t = 0
         is ``contact_stamp_s``): dense response, anti-alias filter, noise, clipping."""
         spec = self.spec
         dense_rate = spec.vibration_oversample * spec.vibration_rate_hz
         stamps = np.arange(math.floor(end_s * dense_rate + 1e-9) + 1) / dense_rate
         dense = mean_specific_force_z(trajectory, stamps - contact_stamp_s, 1.0 / dense_rate)
-        aa = AntiAliasFilter(spec.vibration_rate_hz, spec.vibration_antialias_order, spec.vibration_antialias_cutoff_fraction,
-                             spec.vibration_oversample)
+        aa = AntiAliasFilter(
+            spec.vibration_rate_hz,
+            spec.vibration_antialias_order,
+            spec.vibration_antialias_cutoff_fraction,
+            spec.vibration_oversample,
+        )
         clean = aa(dense)[:: spec.vibration_oversample]
         noisy = clean + self._vibration_rng.normal(0.0, spec.vibration_noise_mps2, clean.size)
-        blocks, _ = cut_blocks(np.clip(noisy, -spec.vibration_range_mps2, spec.vibration_range_mps2), 0, spec)
+        blocks, _ = cut_blocks(
+            np.clip(noisy, -spec.vibration_range_mps2, spec.vibration_range_mps2), 0, spec
+        )
         return blocks
 
     def rebound(self, trajectory: Trajectory, contact_stamp_s: float) -> Rebound:
@@ -225,7 +255,9 @@ class SensorSuite:
         sigma = spec.camera_velocity_noise_mps + spec.camera_velocity_noise_fraction * abs(true[2])
         measured = true + self._camera_rng.normal(0.0, sigma, 3) * np.array([1.0, 0.0, 1.0])
         separation = contact_stamp_s + trajectory.final_separation_s
-        stamp = math.ceil(separation * spec.camera_frame_rate_hz - 1e-9) / spec.camera_frame_rate_hz
+        stamp = (
+            math.ceil(separation * spec.camera_frame_rate_hz - 1e-9) / spec.camera_frame_rate_hz
+        )
         return Rebound(stamp, measured, true)
 
 
@@ -236,7 +268,10 @@ def mean_specific_force_z(trajectory: Trajectory, t_s: np.ndarray, period_s: flo
     now = trajectory.sample(t_s)
     before = trajectory.sample(t_s - period_s)
     angle = structure.imu_slope_shape @ now.q
-    return structure.gravity_mps2 * np.cos(angle) - structure.imu_shape @ (now.qd - before.qd) / period_s
+    return (
+        structure.gravity_mps2 * np.cos(angle)
+        - structure.imu_shape @ (now.qd - before.qd) / period_s
+    )
 
 
 class AntiAliasFilter:
@@ -245,9 +280,13 @@ class AntiAliasFilter:
     ``rate_hz``), then every ``oversample``-th value kept. The state is carried between calls,
     so the output is the same however the dense signal is split."""
 
-    def __init__(self, rate_hz: float, order: int, cutoff_fraction: float, oversample: int) -> None:
+    def __init__(
+        self, rate_hz: float, order: int, cutoff_fraction: float, oversample: int
+    ) -> None:
         self.oversample = oversample
-        self._sos = signal.butter(order, cutoff_fraction * rate_hz, btype="low", fs=oversample * rate_hz, output="sos")
+        self._sos = signal.butter(
+            order, cutoff_fraction * rate_hz, btype="low", fs=oversample * rate_hz, output="sos"
+        )
         self._zi: np.ndarray | None = None
 
     def __call__(self, dense: np.ndarray) -> np.ndarray:
@@ -282,7 +321,9 @@ class VibrationBlocks:
     @classmethod
     def empty(cls, period_s: float = 0.0, range_mps2: float = math.inf) -> VibrationBlocks:
         none = np.empty(0, dtype=np.int64)
-        return cls(none, none.copy(), np.empty(0), np.empty(0, dtype=np.float32), period_s, range_mps2)
+        return cls(
+            none, none.copy(), np.empty(0), np.empty(0, dtype=np.float32), period_s, range_mps2
+        )
 
     @property
     def count(self) -> int:
@@ -300,7 +341,11 @@ class VibrationBlocks:
     def block(self, b: int) -> tuple[int, float, np.ndarray]:
         """(first index, stamp s, samples) of block ``b``."""
         edges = self.offsets()
-        return int(self.first_index[b]), float(self.stamp_s[b]), self.accel_mps2[edges[b] : edges[b + 1]]
+        return (
+            int(self.first_index[b]),
+            float(self.stamp_s[b]),
+            self.accel_mps2[edges[b] : edges[b + 1]],
+        )
 
     def sample_stamps_s(self) -> np.ndarray:
         """The stamp of every sample, s: each block's stamp plus j sample periods."""
@@ -315,8 +360,15 @@ class VibrationBlocks:
         """The blocks where ``keep`` (B,) is true, in their order."""
         keep = np.asarray(keep, dtype=bool)
         sample_keep = np.repeat(keep, self.lengths)
-        return VibrationBlocks(self.first_index[keep], self.lengths[keep], self.stamp_s[keep], self.accel_mps2[sample_keep],
-                               self.period_s, self.range_mps2, self.noise_variance)
+        return VibrationBlocks(
+            self.first_index[keep],
+            self.lengths[keep],
+            self.stamp_s[keep],
+            self.accel_mps2[sample_keep],
+            self.period_s,
+            self.range_mps2,
+            self.noise_variance,
+        )
 
     def sorted(self) -> VibrationBlocks:
         """The same blocks in running-index order, each index once (a repeated block dropped)."""
@@ -337,7 +389,10 @@ class VibrationBlocks:
         order = np.lexsort((self.stamp_s, self.first_index))
         first, length, stamp = self.first_index[order], self.lengths[order], self.stamp_s[order]
         overlap = first[1:] < first[:-1] + length[:-1]
-        off = np.abs(np.diff(stamp) - np.diff(first) * self.period_s) > 0.5 * length[:-1] * self.period_s
+        off = (
+            np.abs(np.diff(stamp) - np.diff(first) * self.period_s)
+            > 0.5 * length[:-1] * self.period_s
+        )
         bad = np.flatnonzero(overlap & off)
         return None if not bad.size else (int(order[bad[0]]), int(order[bad[0] + 1]))
 
@@ -346,8 +401,15 @@ class VibrationBlocks:
         edges = self.offsets()
         pieces = [self.accel_mps2[edges[b] : edges[b + 1]] for b in order]
         samples = np.concatenate(pieces) if pieces else np.empty(0, dtype=np.float32)
-        return VibrationBlocks(self.first_index[order], self.lengths[order], self.stamp_s[order], samples,
-                               self.period_s, self.range_mps2, self.noise_variance)
+        return VibrationBlocks(
+            self.first_index[order],
+            self.lengths[order],
+            self.stamp_s[order],
+            samples,
+            self.period_s,
+            self.range_mps2,
+            self.noise_variance,
+        )
 
     @staticmethod
     def concatenate(parts: list[VibrationBlocks]) -> VibrationBlocks:
@@ -357,13 +419,19 @@ class VibrationBlocks:
             return VibrationBlocks.empty()
         head = parts[0]
         return VibrationBlocks(
-            np.concatenate([p.first_index for p in parts]), np.concatenate([p.lengths for p in parts]),
-            np.concatenate([p.stamp_s for p in parts]), np.concatenate([p.accel_mps2 for p in parts]),
-            head.period_s, head.range_mps2, head.noise_variance,
+            np.concatenate([p.first_index for p in parts]),
+            np.concatenate([p.lengths for p in parts]),
+            np.concatenate([p.stamp_s for p in parts]),
+            np.concatenate([p.accel_mps2 for p in parts]),
+            head.period_s,
+            head.range_mps2,
+            head.noise_variance,
         )
 
 
-def cut_blocks(samples: np.ndarray, first_index: int, spec: SensorSpec) -> tuple[VibrationBlocks, np.ndarray]:
+def cut_blocks(
+    samples: np.ndarray, first_index: int, spec: SensorSpec
+) -> tuple[VibrationBlocks, np.ndarray]:
     """Samples ``first_index ..`` (clipped, m/s^2) cut into the sensor's blocks: block b holds
     indices b*N .. b*N+N-1 (N = ``vibration_block_samples``). Returns the complete blocks and
     the samples left over (the start of the next block). ``first_index`` is a block's start."""
@@ -371,8 +439,12 @@ def cut_blocks(samples: np.ndarray, first_index: int, spec: SensorSpec) -> tuple
     whole = samples.size // n * n
     starts = first_index + n * np.arange(whole // n, dtype=np.int64)
     blocks = VibrationBlocks(
-        starts, np.full(starts.size, n, dtype=np.int64), starts / spec.vibration_rate_hz,
-        np.asarray(samples[:whole], dtype=np.float32), 1.0 / spec.vibration_rate_hz, spec.vibration_range_mps2,
+        starts,
+        np.full(starts.size, n, dtype=np.int64),
+        starts / spec.vibration_rate_hz,
+        np.asarray(samples[:whole], dtype=np.float32),
+        1.0 / spec.vibration_rate_hz,
+        spec.vibration_range_mps2,
         spec.vibration_noise_mps2**2,
     )
     return blocks, np.asarray(samples[whole:], dtype=np.float32)
@@ -415,18 +487,30 @@ class BlockSequencer:
         self.next_stamp_s = None
 
     def push(self, blocks: VibrationBlocks) -> SequenceReport:
-        order = np.lexsort((blocks.stamp_s, blocks.first_index))  # repeats kept: refused below like late blocks
+        order = np.lexsort(
+            (blocks.stamp_s, blocks.first_index)
+        )  # repeats kept: refused below like late blocks
         keep = np.zeros(blocks.count, dtype=bool)
         gaps: list[tuple[int, int]] = []
         expected, expected_stamp = self.next_index, self.next_stamp_s
         misindexed = 0
         for k, b in enumerate(order):
-            first, length, stamp = int(blocks.first_index[b]), int(blocks.lengths[b]), float(blocks.stamp_s[b])
+            first, length, stamp = (
+                int(blocks.first_index[b]),
+                int(blocks.lengths[b]),
+                float(blocks.stamp_s[b]),
+            )
             if expected is not None and first < expected:
                 # Behind the stream: late or repeated when its stamp is where its index puts it,
                 # else its index does not count the samples (a publisher breaking the contract).
-                implied = None if expected_stamp is None else expected_stamp - (expected - first) * blocks.period_s
-                misindexed += int(implied is not None and abs(stamp - implied) > 0.5 * length * blocks.period_s)
+                implied = (
+                    None
+                    if expected_stamp is None
+                    else expected_stamp - (expected - first) * blocks.period_s
+                )
+                misindexed += int(
+                    implied is not None and abs(stamp - implied) > 0.5 * length * blocks.period_s
+                )
                 continue
             if expected is not None and first > expected:
                 gaps.append((expected, first - expected))
@@ -456,10 +540,16 @@ class IndexSpan:
 
     def add(self, first_index: int, length: int) -> None:
         self.first = first_index if self.first is None else min(self.first, first_index)
-        self.end = first_index + length if self.end is None else max(self.end, first_index + length)
+        self.end = (
+            first_index + length if self.end is None else max(self.end, first_index + length)
+        )
         self.samples += length
         self.blocks += 1
 
     @property
     def lost_samples(self) -> int:
-        return 0 if self.first is None or self.end is None else max(self.end - self.first - self.samples, 0)
+        return (
+            0
+            if self.first is None or self.end is None
+            else max(self.end - self.first - self.samples, 0)
+        )

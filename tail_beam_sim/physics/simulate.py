@@ -18,16 +18,41 @@ from typing import Any
 import numpy as np
 
 from tail_beam_sim.physics.compare import compare
-from tail_beam_sim.physics.contact import CrushingContact, damping_factor, effective_modulus_pa, hertz_stiffness
-from tail_beam_sim.physics.fidelity import DEFAULT_TIER, FidelitySettings, Needs, plan, shipped_settings
+from tail_beam_sim.physics.contact import (
+    CrushingContact,
+    damping_factor,
+    effective_modulus_pa,
+    hertz_stiffness,
+)
+from tail_beam_sim.physics.fidelity import (
+    DEFAULT_TIER,
+    FidelitySettings,
+    Needs,
+    plan,
+    shipped_settings,
+)
 from tail_beam_sim.physics.result import SimulationResult
 from tail_beam_sim.physics.scene import Impact, Scene
-from tail_beam_sim.physics.sensors import SensorSuite, VibrationBlocks, sample_grid, specific_force_z
+from tail_beam_sim.physics.sensors import (
+    SensorSuite,
+    VibrationBlocks,
+    sample_grid,
+    specific_force_z,
+)
 from tail_beam_sim.physics.solvers import ImpactProblem, Trajectory, solve
 from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
 from tail_beam_sim.physics.support import Support
 
-__all__ = ["HISTORY_RATE_HZ", "SimulationResult", "build_problem", "crushing_contact", "histories", "sense", "simulate", "summarise"]
+__all__ = [
+    "HISTORY_RATE_HZ",
+    "SimulationResult",
+    "build_problem",
+    "crushing_contact",
+    "histories",
+    "sense",
+    "simulate",
+    "summarise",
+]
 
 HISTORY_RATE_HZ = 20000.0
 
@@ -51,7 +76,9 @@ def build_problem(
         contact_shape=structure.contact_shape(impact.position_m),
         mass_kg=impact.mass_kg,
         hertz_stiffness=hertz_stiffness(impact.material, support.plate, impact.radius_m),
-        damping_factor=damping_factor(contact_model, impact.restitution, support.contact_damping_scale),
+        damping_factor=damping_factor(
+            contact_model, impact.restitution, support.contact_damping_scale
+        ),
         impact_speed_mps=impact.impact_speed_mps,
         gravity_mps2=support.gravity_mps2,
         window_s=window_s,
@@ -61,7 +88,9 @@ def build_problem(
     )
 
 
-def summarise(scene: Scene, trajectory: Trajectory, history: dict[str, np.ndarray]) -> dict[str, Any]:
+def summarise(
+    scene: Scene, trajectory: Trajectory, history: dict[str, np.ndarray]
+) -> dict[str, Any]:
     """The noise-free figures of an impact (the keys of ``tail-beam simulate --json``)."""
     impact = scene.impact
     after = history["time_s"] >= 0.0
@@ -77,9 +106,15 @@ def summarise(scene: Scene, trajectory: Trajectory, history: dict[str, np.ndarra
         "restitution": max(rebound, 0.0) / impact.impact_speed_mps,
         "contact_duration_s": trajectory.contacts[0].duration_s,
         "peak_contact_force_n": max(c.peak_force_n for c in trajectory.contacts),
-        "peak_jack_pressure_change_pa": float(np.max(history["jack_pressure_pa"][after]) - scene.support.setting_pressure_pa),
-        "peak_beam_angular_velocity_radps": float(np.max(np.abs(history["beam_angular_velocity_radps"][after]))),
-        "peak_imu_dynamic_accel_mps2": float(np.max(np.abs(history["imu_dynamic_accel_mps2"][after]))),
+        "peak_jack_pressure_change_pa": float(
+            np.max(history["jack_pressure_pa"][after]) - scene.support.setting_pressure_pa
+        ),
+        "peak_beam_angular_velocity_radps": float(
+            np.max(np.abs(history["beam_angular_velocity_radps"][after]))
+        ),
+        "peak_imu_dynamic_accel_mps2": float(
+            np.max(np.abs(history["imu_dynamic_accel_mps2"][after]))
+        ),
         "n_contacts": len(trajectory.contacts),
         "particle_at_rest": trajectory.particle_at_rest,
         "contact_model": scene.contact_model,
@@ -90,8 +125,12 @@ def summarise(scene: Scene, trajectory: Trajectory, history: dict[str, np.ndarra
 
 def histories(scene: Scene, trajectory: Trajectory) -> dict[str, np.ndarray]:
     """Noise-free response histories from -pre_contact_s to window_s, time from first contact."""
-    uniform = np.arange(-scene.pre_contact_s, scene.window_s + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ)
-    contact_times = np.concatenate([np.empty(0)] + [seg.t_s for seg in trajectory.segments if hasattr(seg, "force_n")])
+    uniform = np.arange(
+        -scene.pre_contact_s, scene.window_s + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ
+    )
+    contact_times = np.concatenate(
+        [np.empty(0)] + [seg.t_s for seg in trajectory.segments if hasattr(seg, "force_n")]
+    )
     times = np.unique(np.concatenate([uniform, contact_times[contact_times <= scene.window_s]]))
     state = trajectory.sample(times)
     structure = trajectory.problem.structure
@@ -134,18 +173,38 @@ def simulate(
     settings = settings or shipped_settings()
     needs = needs or settings.needs
     chosen = plan(scene, tier, needs, settings)
-    crushing = crushing_contact(scene.support, scene.impact, settings.crushing_confinement_factor) if chosen.tier.brittle else None
-    problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=chosen.structure, crushing=crushing)
-    options = {**chosen.solver_options, **solver_options} if solver in (None, chosen.solver) else solver_options
+    crushing = (
+        crushing_contact(scene.support, scene.impact, settings.crushing_confinement_factor)
+        if chosen.tier.brittle
+        else None
+    )
+    problem = build_problem(
+        scene.support,
+        scene.impact,
+        scene.contact_model,
+        scene.window_s,
+        structure=chosen.structure,
+        crushing=crushing,
+    )
+    options = (
+        {**chosen.solver_options, **solver_options}
+        if solver in (None, chosen.solver)
+        else solver_options
+    )
     trajectory = solve(problem, solver or chosen.solver, **options)
     result = sense(scene, trajectory, vibration)
     # The solver's own estimate is a field of every trajectory (contract: tail_beam_sim.physics.solvers).
     own = trajectory.error_estimate
     result.summary["tier"] = chosen.tier.name
-    result.summary["error_estimate"] = max(chosen.model_error, own) if math.isfinite(own) else math.nan
+    result.summary["error_estimate"] = (
+        max(chosen.model_error, own) if math.isfinite(own) else math.nan
+    )
     if check and chosen.check_against is not None:
         reference = simulate(scene, tier=chosen.check_against, needs=needs, settings=settings)
-        result.summary["check"] = {"against": chosen.check_against, **compare(result, reference, needs.outputs)}
+        result.summary["check"] = {
+            "against": chosen.check_against,
+            **compare(result, reference, needs.outputs),
+        }
     return result
 
 
@@ -169,20 +228,26 @@ def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> Simul
         trajectory=trajectory,
         contact_stamp_s=contact_stamp,
         history=history,
-        pressure=suite.pressure(trajectory, sample_grid(0.0, end, spec.pressure_rate_hz), contact_stamp),
+        pressure=suite.pressure(
+            trajectory, sample_grid(0.0, end, spec.pressure_rate_hz), contact_stamp
+        ),
         imu=suite.imu(trajectory, sample_grid(0.0, end, spec.imu_rate_hz), contact_stamp),
         rebound=suite.rebound(trajectory, contact_stamp),
         summary=summarise(scene, trajectory, history),
-        vibration=suite.vibration(trajectory, end, contact_stamp) if vibration else VibrationBlocks.empty(),
+        vibration=suite.vibration(trajectory, end, contact_stamp)
+        if vibration
+        else VibrationBlocks.empty(),
     )
 
 
-def crushing_contact(support: Support, impact: Impact, confinement_factor: float) -> CrushingContact | None:
+def crushing_contact(
+    support: Support, impact: Impact, confinement_factor: float
+) -> CrushingContact | None:
     """The crushing contact of a coal particle (None for gangue, which stays elastic)."""
     if not impact.material.is_coal:
         return None
     return CrushingContact(
-        effective_modulus_pa(impact.material, support.plate), impact.radius_m,
+        effective_modulus_pa(impact.material, support.plate),
+        impact.radius_m,
         impact.material.crushing_strength_pa * confinement_factor,
     )
-

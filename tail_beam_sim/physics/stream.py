@@ -34,16 +34,25 @@ from typing import Any
 import numpy as np
 
 from tail_beam_sim.config import section
-from tail_beam_sim.physics.contact import CONTACT_LAWS
 from tail_beam_sim.errors import InputError, require_int, require_range
+from tail_beam_sim.physics.contact import CONTACT_LAWS
 from tail_beam_sim.physics.fidelity import DEFAULT_TIER, get_tier, structure_for
 from tail_beam_sim.physics.materials import Material, material_table
+from tail_beam_sim.physics.result import impact_truth
 from tail_beam_sim.physics.scene import Impact, Scene, SensorSpec
 from tail_beam_sim.physics.sensors import (
-    AntiAliasFilter, ImuLowPass, ImuStream, PressureStream, Rebound, SensorSuite, VibrationBlocks, cut_blocks, dense_imu_response,
-    imu_samples, mean_specific_force_z,
+    AntiAliasFilter,
+    ImuLowPass,
+    ImuStream,
+    PressureStream,
+    Rebound,
+    SensorSuite,
+    VibrationBlocks,
+    cut_blocks,
+    dense_imu_response,
+    imu_samples,
+    mean_specific_force_z,
 )
-from tail_beam_sim.physics.result import impact_truth
 from tail_beam_sim.physics.simulate import build_problem, histories, summarise
 from tail_beam_sim.physics.solvers import DEFAULT_SOLVER, ImpactProblem, Samples, Trajectory, solve
 from tail_beam_sim.physics.solvers.problem import FreeSegment
@@ -51,7 +60,11 @@ from tail_beam_sim.physics.structure import LinearStructure, load_bending_modes,
 from tail_beam_sim.physics.support import Support
 
 NOISE_BLOCK_SAMPLES = 4096  # noise is drawn per block of this many sample indices (any size works)
-_PRESSURE_NOISE_STREAM, _IMU_NOISE_STREAM, _VIBRATION_NOISE_STREAM = 0, 1, 2  # keys of the noise streams under one seed
+_PRESSURE_NOISE_STREAM, _IMU_NOISE_STREAM, _VIBRATION_NOISE_STREAM = (
+    0,
+    1,
+    2,
+)  # keys of the noise streams under one seed
 
 
 class QueueFull(InputError):
@@ -70,9 +83,20 @@ class StreamParams:
     def from_params(cls, params: Mapping[str, Any]) -> StreamParams:
         """Validate the ``stream`` parameter section."""
         return cls(
-            min_impact_gap_s=require_range("stream.min_impact_gap_s", params.get("min_impact_gap_s"), 0.0, 60.0, unit="s"),
-            command_lead_s=require_range("stream.command_lead_s", params.get("command_lead_s"), 0.0, 60.0, low_open=True, unit="s"),
-            max_queued_impacts=require_int("stream.max_queued_impacts", params.get("max_queued_impacts"), 1),
+            min_impact_gap_s=require_range(
+                "stream.min_impact_gap_s", params.get("min_impact_gap_s"), 0.0, 60.0, unit="s"
+            ),
+            command_lead_s=require_range(
+                "stream.command_lead_s",
+                params.get("command_lead_s"),
+                0.0,
+                60.0,
+                low_open=True,
+                unit="s",
+            ),
+            max_queued_impacts=require_int(
+                "stream.max_queued_impacts", params.get("max_queued_impacts"), 1
+            ),
         )
 
 
@@ -98,7 +122,9 @@ class CarriedTrajectory(Trajectory):
         q, qd = structure.propagate(self.carried_q, np.zeros_like(self.carried_q), out.t_s)
         out.q = out.q + q
         out.qd = out.qd + qd
-        out.qdd = out.qdd + structure.acceleration(q, qd, np.zeros(out.t_s.size), self.problem.contact_shape)
+        out.qdd = out.qdd + structure.acceleration(
+            q, qd, np.zeros(out.t_s.size), self.problem.contact_shape
+        )
         return out
 
 
@@ -106,10 +132,20 @@ def rest_trajectory(structure: LinearStructure, gravity_mps2: float) -> Trajecto
     """The beam at rest with no particle: the motion before the first impact."""
     zeros = np.zeros(structure.size)
     problem = ImpactProblem(
-        structure=structure, contact_shape=zeros, mass_kg=0.0, hertz_stiffness=0.0, damping_factor=0.0,
-        impact_speed_mps=0.0, gravity_mps2=gravity_mps2, window_s=0.0, q0=zeros, qd0=zeros,
+        structure=structure,
+        contact_shape=zeros,
+        mass_kg=0.0,
+        hertz_stiffness=0.0,
+        damping_factor=0.0,
+        impact_speed_mps=0.0,
+        gravity_mps2=gravity_mps2,
+        window_s=0.0,
+        q0=zeros,
+        qd0=zeros,
     )
-    return Trajectory(problem, [FreeSegment(-math.inf, math.inf, 0.0, zeros, zeros, 0.0, 0.0)], [], "rest", 0.0)
+    return Trajectory(
+        problem, [FreeSegment(-math.inf, math.inf, 0.0, zeros, zeros, 0.0, 0.0)], [], "rest", 0.0
+    )
 
 
 def _relative(stamp_s: np.ndarray, epoch_start_s: float) -> np.ndarray:
@@ -125,7 +161,9 @@ class BlockNoise:
     pieces.
     """
 
-    def __init__(self, seed: int, stream: int, width: int, block_samples: int = NOISE_BLOCK_SAMPLES) -> None:
+    def __init__(
+        self, seed: int, stream: int, width: int, block_samples: int = NOISE_BLOCK_SAMPLES
+    ) -> None:
         self._key = (seed, stream)
         self._width = width
         self._block = block_samples
@@ -186,7 +224,9 @@ class Chunk:
     imu: ImuStream
     vibration: VibrationBlocks  # the accelerometer's blocks completed in the span, in index order
     rebounds: list[tuple[str, Rebound]]  # (impact_id, rebound), in stamp order
-    truths: list[tuple[float, dict[str, Any]]]  # (stamp s, impact_truth JSON object), in stamp order
+    truths: list[
+        tuple[float, dict[str, Any]]
+    ]  # (stamp s, impact_truth JSON object), in stamp order
     started: list[ScheduledImpact]  # impacts whose contact stamp fell in the span
 
 
@@ -219,10 +259,14 @@ class StreamSimulator:
         self._imu_noise = BlockNoise(sensors.seed, _IMU_NOISE_STREAM, 6)
         self._vibration_noise = BlockNoise(sensors.seed, _VIBRATION_NOISE_STREAM, 1)
         self._antialias = AntiAliasFilter(
-            sensors.vibration_rate_hz, sensors.vibration_antialias_order, sensors.vibration_antialias_cutoff_fraction,
+            sensors.vibration_rate_hz,
+            sensors.vibration_antialias_order,
+            sensors.vibration_antialias_cutoff_fraction,
             sensors.vibration_oversample,
         )
-        self._imu_lowpass = ImuLowPass(sensors) if sensors.imu_antialias_order > 0 else None  # None: period means
+        self._imu_lowpass = (
+            ImuLowPass(sensors) if sensors.imu_antialias_order > 0 else None
+        )  # None: period means
         self._next_dense_index = 0  # the accelerometer's next dense (oversampled) value
         self._vibration_tail = np.empty(0, dtype=np.float32)  # samples of the incomplete block
         self._vibration_tail_first = 0  # running index of the first of them
@@ -234,7 +278,9 @@ class StreamSimulator:
         self._next_imu_index = 0
         self._time_s = 0.0
         self._count = 0
-        self._last_free_after_s = -math.inf  # when the latest scheduled particle leaves the plate, s
+        self._last_free_after_s = (
+            -math.inf
+        )  # when the latest scheduled particle leaves the plate, s
         self._ids: set[str] = set()  # every impact_id of this run: each names one impact
 
     @classmethod
@@ -250,14 +296,18 @@ class StreamSimulator:
         scene = section(params, "scene")
         contact_model = scene.get("contact_model")
         if contact_model not in CONTACT_LAWS:
-            raise InputError("scene.contact_model", contact_model, f"must be one of {', '.join(CONTACT_LAWS)}")
+            raise InputError(
+                "scene.contact_model", contact_model, f"must be one of {', '.join(CONTACT_LAWS)}"
+            )
         return cls(
             support=support,
             materials=materials,
             sensors=SensorSpec.from_params(section(params, "sensors")),
             stream=StreamParams.from_params(section(params, "stream")),
             contact_model=contact_model,
-            window_s=require_range("scene.window_s", scene.get("window_s"), 0.0, 10.0, low_open=True, unit="s"),
+            window_s=require_range(
+                "scene.window_s", scene.get("window_s"), 0.0, 10.0, low_open=True, unit="s"
+            ),
             structure=structure_for(tier, support, load_bending_modes(params)),
             solver=tier.default_solver,
             **options,
@@ -279,7 +329,9 @@ class StreamSimulator:
         after_last = self._last_free_after_s + self.params.min_impact_gap_s
         return max(self._time_s + self.params.command_lead_s, after_last)
 
-    def submit(self, command: Mapping[str, Any], contact_stamp_s: float | None = None) -> ScheduledImpact:
+    def submit(
+        self, command: Mapping[str, Any], contact_stamp_s: float | None = None
+    ) -> ScheduledImpact:
         """Validate, schedule and solve one impact (``impact_cmd`` JSON object).
 
         Raises InputError naming the field for a bad command or an impact_id used before in this
@@ -289,10 +341,15 @@ class StreamSimulator:
         """
         impact = Impact.from_mapping(command, self.materials, self.support)
         if impact.impact_id in self._ids:
-            raise InputError("impact_id", impact.impact_id, "already names an earlier impact of this run; give each impact its own id")
+            raise InputError(
+                "impact_id",
+                impact.impact_id,
+                "already names an earlier impact of this run; give each impact its own id",
+            )
         if len(self._queue) >= self.params.max_queued_impacts:
             raise QueueFull(
-                "impact_cmd", impact.impact_id or dict(command),
+                "impact_cmd",
+                impact.impact_id or dict(command),
                 f"refused: queue full, {len(self._queue)} impacts already queued (stream.max_queued_impacts); "
                 "send impacts more slowly or raise the limit",
             )
@@ -303,7 +360,9 @@ class StreamSimulator:
                 made_up += "+"
             impact = replace(impact, impact_id=made_up)
         self._ids.add(impact.impact_id)
-        stamp = max(contact_stamp_s if contact_stamp_s is not None else -math.inf, self.earliest_contact_s)
+        stamp = max(
+            contact_stamp_s if contact_stamp_s is not None else -math.inf, self.earliest_contact_s
+        )
         scheduled = self._solve(impact, stamp)
         self._queue.append(scheduled)
         self._last_free_after_s = scheduled.free_after_s
@@ -313,14 +372,30 @@ class StreamSimulator:
         """Solve ``impact`` at ``stamp_s`` on the beam as the previous impacts leave it."""
         before = self._epochs[-1].sample(_relative(np.array([stamp_s]), self._epoch_starts[-1]))
         q0, qd0 = before.q[:, 0], before.qd[:, 0]
-        problem = build_problem(self.support, impact, self.contact_model, self.window_s, self.structure, qd0=qd0)
+        problem = build_problem(
+            self.support, impact, self.contact_model, self.window_s, self.structure, qd0=qd0
+        )
         trajectory = CarriedTrajectory.carry(solve(problem, self.solver), q0)
         self._epoch_starts.append(stamp_s)
         self._epochs.append(trajectory)
         rebound = self._suite.rebound(trajectory, stamp_s)
-        scene = Scene(self.support, impact, self.sensors, self.materials, self.contact_model, self.window_s, 0.0)
+        scene = Scene(
+            self.support,
+            impact,
+            self.sensors,
+            self.materials,
+            self.contact_model,
+            self.window_s,
+            0.0,
+        )
         summary = summarise(scene, trajectory, histories(scene, trajectory))
-        return ScheduledImpact(impact, stamp_s, trajectory, rebound, impact_truth(scene, trajectory, stamp_s, rebound.stamp_s, summary))
+        return ScheduledImpact(
+            impact,
+            stamp_s,
+            trajectory,
+            rebound,
+            impact_truth(scene, trajectory, stamp_s, rebound.stamp_s, summary),
+        )
 
     def advance(self, until_s: float) -> Chunk:
         """Produce every sample, rebound and truth in (time_s, until_s]; the clock moves on."""
@@ -338,11 +413,21 @@ class StreamSimulator:
         while self._queue and self._queue[0].contact_stamp_s <= until:
             started.append(self._queue.popleft())
         self._pending_events.extend(started)
-        rebounds = [(s.impact_id, s.rebound) for s in self._pending_events if start < s.rebound.stamp_s <= until]
-        truths = [(s.truth_stamp_s, s.truth) for s in self._pending_events if start < s.truth_stamp_s <= until]
+        rebounds = [
+            (s.impact_id, s.rebound)
+            for s in self._pending_events
+            if start < s.rebound.stamp_s <= until
+        ]
+        truths = [
+            (s.truth_stamp_s, s.truth)
+            for s in self._pending_events
+            if start < s.truth_stamp_s <= until
+        ]
         rebounds.sort(key=lambda r: r[1].stamp_s)
         truths.sort(key=lambda t: t[0])
-        self._pending_events = [s for s in self._pending_events if max(s.rebound.stamp_s, s.truth_stamp_s) > until]
+        self._pending_events = [
+            s for s in self._pending_events if max(s.rebound.stamp_s, s.truth_stamp_s) > until
+        ]
         self._time_s = until
         self._prune()
         return Chunk(start, until, pressure, imu, vibration, rebounds, truths, started)
@@ -364,7 +449,11 @@ class StreamSimulator:
         for trajectory, start, mask in self._by_epoch(stamps):
             state = trajectory.sample(_relative(stamps[mask], start))
             clean[mask] = self.structure.pressure_pa(state.q, state.qd)
-        unit = self._pressure_noise.take(int(index[0]), index.size)[:, 0] if index.size else np.empty(0)
+        unit = (
+            self._pressure_noise.take(int(index[0]), index.size)[:, 0]
+            if index.size
+            else np.empty(0)
+        )
         noise = self._suite.noise
         return PressureStream(stamps, noise.pressure(clean, unit), noise.pressure_pa**2)
 
@@ -373,7 +462,9 @@ class StreamSimulator:
         stamps = index / spec.imu_rate_hz
         gyro, accel = np.empty((stamps.size, 3)), np.empty((stamps.size, 3))
         for trajectory, start, mask in self._by_epoch(stamps):
-            gyro[mask], accel[mask] = imu_samples(trajectory, _relative(stamps[mask], start), 1.0 / spec.imu_rate_hz)
+            gyro[mask], accel[mask] = imu_samples(
+                trajectory, _relative(stamps[mask], start), 1.0 / spec.imu_rate_hz
+            )
         if self._imu_lowpass is not None:
             accel[:, 2], gyro[:, 1] = self._imu_lowpass(index, self._dense_imu_response)
         noise = self._suite.noise
@@ -387,7 +478,9 @@ class StreamSimulator:
         dense_period = 1.0 / (self.sensors.imu_oversample * self.sensors.imu_rate_hz)
         accel, rate = np.empty(stamps_s.size), np.empty(stamps_s.size)
         for trajectory, start, mask in self._by_epoch(stamps_s):
-            accel[mask], rate[mask] = dense_imu_response(trajectory, _relative(stamps_s[mask], start), dense_period)
+            accel[mask], rate[mask] = dense_imu_response(
+                trajectory, _relative(stamps_s[mask], start), dense_period
+            )
         return accel, rate
 
     def _vibration(self, until_s: float) -> VibrationBlocks:
@@ -401,7 +494,9 @@ class StreamSimulator:
         stamps = dense_index / dense_rate
         dense = np.empty(stamps.size)
         for trajectory, start, mask in self._by_epoch(stamps):
-            dense[mask] = mean_specific_force_z(trajectory, _relative(stamps[mask], start), 1.0 / dense_rate)
+            dense[mask] = mean_specific_force_z(
+                trajectory, _relative(stamps[mask], start), 1.0 / dense_rate
+            )
         # Every dense value goes through the filter once, in order; sample i is the filter's
         # output at dense index m * i (stamp i / rate).
         at_sample = dense_index % m == 0
@@ -411,7 +506,9 @@ class StreamSimulator:
         if filtered.size:
             filtered = filtered + sigma * self._vibration_noise.take(first, filtered.size)[:, 0]
         clipped = np.clip(filtered, -spec.vibration_range_mps2, spec.vibration_range_mps2)
-        blocks, self._vibration_tail = cut_blocks(np.concatenate([self._vibration_tail, clipped]), self._vibration_tail_first, spec)
+        blocks, self._vibration_tail = cut_blocks(
+            np.concatenate([self._vibration_tail, clipped]), self._vibration_tail_first, spec
+        )
         self._vibration_tail_first += blocks.sample_count
         return blocks
 

@@ -49,7 +49,9 @@ class LinearStructure:
     setting_pressure_pa: float
     imu_from_hinge_m: float
     gravity_mps2: float
-    _eigen: tuple[np.ndarray, np.ndarray, np.ndarray] = field(init=False, repr=False, compare=False)
+    _eigen: tuple[np.ndarray, np.ndarray, np.ndarray] = field(
+        init=False, repr=False, compare=False
+    )
 
     def __post_init__(self) -> None:
         n = self.size
@@ -65,7 +67,11 @@ class LinearStructure:
         # Per-structure products the solvers need for every impact (modal coordinates xi, x = V xi):
         # xi gained per unit generalised force, and q'' from the structure's own forces per unit xi.
         object.__setattr__(self, "modal_input", inverse[:, n:] @ inv_mass)
-        object.__setattr__(self, "modal_internal", inv_mass @ (self.stiffness @ vectors[:n] + self.damping @ vectors[n:]))
+        object.__setattr__(
+            self,
+            "modal_internal",
+            inv_mass @ (self.stiffness @ vectors[:n] + self.damping @ vectors[n:]),
+        )
 
     @property
     def size(self) -> int:
@@ -89,12 +95,16 @@ class LinearStructure:
         eigenvalues = self._eigen[0]
         return np.sort(np.abs(eigenvalues.imag[eigenvalues.imag > 0])) / (2 * np.pi)
 
-    def acceleration(self, q: np.ndarray, qd: np.ndarray, force_n: np.ndarray | float, shape: np.ndarray) -> np.ndarray:
+    def acceleration(
+        self, q: np.ndarray, qd: np.ndarray, force_n: np.ndarray | float, shape: np.ndarray
+    ) -> np.ndarray:
         """q'' for states ``q``, ``qd`` (n, ...) under contact force ``force_n`` on ``shape``."""
         generalised = np.multiply.outer(shape, force_n) if np.ndim(force_n) else shape * force_n
         return self.inv_mass @ (generalised - self.damping @ qd - self.stiffness @ q)
 
-    def propagate(self, q0: np.ndarray, qd0: np.ndarray, dt_s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    def propagate(
+        self, q0: np.ndarray, qd0: np.ndarray, dt_s: np.ndarray | float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Free response after ``dt_s`` (scalar or array of times >= 0) from (q0, qd0).
 
         Returns q and qd with shape (n,) for a scalar time, (n, len(dt_s)) for an array.
@@ -111,7 +121,9 @@ class LinearStructure:
         # einsum, not a BLAS product: each time's state then does not depend on how many times
         # are asked for at once (BLAS kernels round the tail of a block differently), so a stream
         # sampled in chunks is bit-identical to one sampled whole.
-        state = np.einsum("ik,k...->i...", vectors, phase * modal.reshape((-1,) + (1,) * times.ndim)).real
+        state = np.einsum(
+            "ik,k...->i...", vectors, phase * modal.reshape((-1,) + (1,) * times.ndim)
+        ).real
         n = self.size
         return state[:n], state[n:]
 
@@ -119,10 +131,16 @@ class LinearStructure:
         """Absolute jack pressure: setting pressure + (K_Q s + c_Q s') / S, Pa."""
         shortening = self.jack_shape @ q
         rate = self.jack_shape @ qd
-        return self.setting_pressure_pa + (self.jack_stiffness_npm * shortening + self.jack_damping_nspm * rate) / self.piston_area_m2
+        return (
+            self.setting_pressure_pa
+            + (self.jack_stiffness_npm * shortening + self.jack_damping_nspm * rate)
+            / self.piston_area_m2
+        )
 
 
-def reduced_mass_kg(particle_mass_kg: float | np.ndarray, compliance_per_kg: float | np.ndarray) -> float | np.ndarray:
+def reduced_mass_kg(
+    particle_mass_kg: float | np.ndarray, compliance_per_kg: float | np.ndarray
+) -> float | np.ndarray:
     """m M / (m + M) written with the structure's compliance 1/M, kg: finite on a rigid wall
     (compliance 0, where it is the particle's own mass)."""
     return particle_mass_kg / (1.0 + particle_mass_kg * compliance_per_kg)
@@ -171,7 +189,11 @@ class BendingMode:
     def _locate(self, x_m: float) -> tuple[int, float, float]:
         stations = self.stations_m
         if not stations[0] - 1e-9 <= x_m <= stations[-1] + 1e-9:
-            raise InputError(f"modes.{self.name}", x_m, f"position must be in [{stations[0]:g}, {stations[-1]:g}] m")
+            raise InputError(
+                f"modes.{self.name}",
+                x_m,
+                f"position must be in [{stations[0]:g}, {stations[-1]:g}] m",
+            )
         k = int(np.clip(np.searchsorted(stations, x_m, side="right") - 1, 0, stations.size - 2))
         h = float(stations[k + 1] - stations[k])
         return k, h, (x_m - float(stations[k])) / h
@@ -181,8 +203,10 @@ class BendingMode:
         k, h, s = self._locate(x_m)
         w, t = self.shape, self.slope_radpm
         return float(
-            (2 * s**3 - 3 * s**2 + 1) * w[k] + (s**3 - 2 * s**2 + s) * h * t[k]
-            + (-2 * s**3 + 3 * s**2) * w[k + 1] + (s**3 - s**2) * h * t[k + 1]
+            (2 * s**3 - 3 * s**2 + 1) * w[k]
+            + (s**3 - 2 * s**2 + s) * h * t[k]
+            + (-2 * s**3 + 3 * s**2) * w[k + 1]
+            + (s**3 - s**2) * h * t[k + 1]
         )
 
     def slope_at(self, x_m: float) -> float:
@@ -190,8 +214,10 @@ class BendingMode:
         k, h, s = self._locate(x_m)
         w, t = self.shape, self.slope_radpm
         return float(
-            (6 * s**2 - 6 * s) / h * w[k] + (3 * s**2 - 4 * s + 1) * t[k]
-            + (-6 * s**2 + 6 * s) / h * w[k + 1] + (3 * s**2 - 2 * s) * t[k + 1]
+            (6 * s**2 - 6 * s) / h * w[k]
+            + (3 * s**2 - 4 * s + 1) * t[k]
+            + (-6 * s**2 + 6 * s) / h * w[k + 1]
+            + (3 * s**2 - 2 * s) * t[k + 1]
         )
 
 
@@ -200,12 +226,16 @@ def load_bending_modes(params: Mapping[str, Any]) -> tuple[BendingMode, ...]:
     section = params.get("modes")
     if not isinstance(section, Mapping):
         raise InputError("modes", section, "missing parameter section (config/modes.yaml)")
-    names = sorted((k for k in section if k.startswith("bending_")), key=lambda k: int(k.split("_")[1]))
+    names = sorted(
+        (k for k in section if k.startswith("bending_")), key=lambda k: int(k.split("_")[1])
+    )
     count = section.get("count", len(names))
     require_int("modes.count", count, 0, len(names))
     stations = np.asarray(section.get("stations_m", []), dtype=float)
     if stations.ndim != 1 or stations.size < 2 or np.any(np.diff(stations) <= 0):
-        raise InputError("modes.stations_m", section.get("stations_m"), "must be >= 2 increasing positions, m")
+        raise InputError(
+            "modes.stations_m", section.get("stations_m"), "must be >= 2 increasing positions, m"
+        )
     modes = []
     for name in names[:count]:
         body = section[name]
@@ -213,14 +243,36 @@ def load_bending_modes(params: Mapping[str, Any]) -> tuple[BendingMode, ...]:
         shape = np.asarray(body.get("shape", []), dtype=float)
         slope = np.asarray(body.get("slope_radpm", []), dtype=float)
         if shape.shape != stations.shape or slope.shape != stations.shape:
-            raise InputError(f"{field_}.shape", shape.size, f"shape and slope_radpm need {stations.size} values (one per station)")
+            raise InputError(
+                f"{field_}.shape",
+                shape.size,
+                f"shape and slope_radpm need {stations.size} values (one per station)",
+            )
         modes.append(
             BendingMode(
                 name=name,
-                frequency_hz=require_range(f"{field_}.frequency_hz", body.get("frequency_hz"), 0.0, None, low_open=True, unit="Hz"),
-                damping_ratio=require_range(f"{field_}.damping_ratio", body.get("damping_ratio"), 0.0, 1.0),
-                modal_mass_kg=require_range(f"{field_}.modal_mass_kg", body.get("modal_mass_kg"), 0.0, None, low_open=True, unit="kg"),
-                rigid_coupling_kgm=require_range(f"{field_}.rigid_coupling_kgm", body.get("rigid_coupling_kgm"), unit="kg m"),
+                frequency_hz=require_range(
+                    f"{field_}.frequency_hz",
+                    body.get("frequency_hz"),
+                    0.0,
+                    None,
+                    low_open=True,
+                    unit="Hz",
+                ),
+                damping_ratio=require_range(
+                    f"{field_}.damping_ratio", body.get("damping_ratio"), 0.0, 1.0
+                ),
+                modal_mass_kg=require_range(
+                    f"{field_}.modal_mass_kg",
+                    body.get("modal_mass_kg"),
+                    0.0,
+                    None,
+                    low_open=True,
+                    unit="kg",
+                ),
+                rigid_coupling_kgm=require_range(
+                    f"{field_}.rigid_coupling_kgm", body.get("rigid_coupling_kgm"), unit="kg m"
+                ),
                 stations_m=stations,
                 shape=shape,
                 slope_radpm=slope,
@@ -240,7 +292,10 @@ def beam_with_modes(support: Support, modes: Sequence[BendingMode]) -> LinearStr
         return rigid_beam(support)
     n = 1 + len(modes)
     sin_jack = math.sin(math.radians(support.jack_angle_to_beam_deg))
-    jack = np.array([support.jack_lever_arm_m] + [m.shape_at(support.jack_pin_from_hinge_m) * sin_jack for m in modes])
+    jack = np.array(
+        [support.jack_lever_arm_m]
+        + [m.shape_at(support.jack_pin_from_hinge_m) * sin_jack for m in modes]
+    )
     mass = np.zeros((n, n))
     mass[0, 0] = support.beam_inertia_about_hinge_kgm2
     own_stiffness = np.zeros(n)
@@ -252,7 +307,11 @@ def beam_with_modes(support: Support, modes: Sequence[BendingMode]) -> LinearStr
         own_stiffness[k] = mode.modal_mass_kg * omega**2
         own_damping[k] = 2 * mode.damping_ratio * omega * mode.modal_mass_kg
     if np.linalg.eigvalsh(mass).min() <= 0.0:
-        raise InputError("modes", [m.name for m in modes], "rigid_coupling_kgm too large for the beam's inertia: mass matrix not positive")
+        raise InputError(
+            "modes",
+            [m.name for m in modes],
+            "rigid_coupling_kgm too large for the beam's inertia: mass matrix not positive",
+        )
     x_imu = support.imu_from_hinge_m
     return LinearStructure(
         mass=mass,
@@ -289,11 +348,30 @@ def euler_bernoulli_modes(
     h = length_m / elements
     stations = np.linspace(0.0, length_m, elements + 1)
     ndof = 2 * (elements + 1)
-    k_el = bending_stiffness_nm2 / h**3 * np.array(
-        [[12, 6 * h, -12, 6 * h], [6 * h, 4 * h * h, -6 * h, 2 * h * h], [-12, -6 * h, 12, -6 * h], [6 * h, 2 * h * h, -6 * h, 4 * h * h]]
+    k_el = (
+        bending_stiffness_nm2
+        / h**3
+        * np.array(
+            [
+                [12, 6 * h, -12, 6 * h],
+                [6 * h, 4 * h * h, -6 * h, 2 * h * h],
+                [-12, -6 * h, 12, -6 * h],
+                [6 * h, 2 * h * h, -6 * h, 4 * h * h],
+            ]
+        )
     )
-    m_el = mass_per_length_kgpm * h / 420.0 * np.array(
-        [[156, 22 * h, 54, -13 * h], [22 * h, 4 * h * h, 13 * h, -3 * h * h], [54, 13 * h, 156, -22 * h], [-13 * h, -3 * h * h, -22 * h, 4 * h * h]]
+    m_el = (
+        mass_per_length_kgpm
+        * h
+        / 420.0
+        * np.array(
+            [
+                [156, 22 * h, 54, -13 * h],
+                [22 * h, 4 * h * h, 13 * h, -3 * h * h],
+                [54, 13 * h, 156, -22 * h],
+                [-13 * h, -3 * h * h, -22 * h, 4 * h * h],
+            ]
+        )
     )
     stiffness = np.zeros((ndof, ndof))
     mass = np.zeros((ndof, ndof))

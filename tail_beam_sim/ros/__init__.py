@@ -2,4 +2,13 @@
 
 The only package of tail_beam_sim that imports rclpy."""
 
-__all__ = ["messages", "params", "spin", "sim_node", "recorder_node", "replay_node", "usage", "client"]
+__all__ = [
+    "messages",
+    "params",
+    "spin",
+    "sim_node",
+    "recorder_node",
+    "replay_node",
+    "usage",
+    "client",
+]

@@ -44,7 +44,9 @@ from tail_beam_sim.ros.spin import ACK_TIMEOUT_S, PublishBacklog, SubscriberGate
 
 SPIN_SLICE_S = 0.05  # longest wait between two looks at the graph and the clock, s
 KEEP_ALL = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
-ROSOUT_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)  # volatile: no other run's old lines
+ROSOUT_QOS = QoSProfile(
+    depth=1000, reliability=ReliabilityPolicy.RELIABLE
+)  # volatile: no other run's old lines
 
 
 class NoSimulator(Exception):
@@ -74,7 +76,9 @@ def check_namespace(namespace: str) -> str:
         validate_namespace(name)
     except Exception as exc:  # rclpy's InvalidNamespaceException
         reason = str(exc).splitlines()[0] if str(exc) else "not a valid ROS namespace"
-        raise InputError("--namespace", namespace, f"must be a ROS namespace such as /support_07 ({reason})") from None
+        raise InputError(
+            "--namespace", namespace, f"must be a ROS namespace such as /support_07 ({reason})"
+        ) from None
     return name
 
 
@@ -89,7 +93,9 @@ class SendClient(Node):
 
     def __init__(self, context: rclpy.Context, namespace: str, want_truths: bool) -> None:
         super().__init__(f"tail_beam_send_{os.getpid()}", namespace=namespace, context=context)
-        self.command_pub = self.create_publisher(String, topics.IMPACT_CMD, ros_messages.COMMAND_QOS)
+        self.command_pub = self.create_publisher(
+            String, topics.IMPACT_CMD, ros_messages.COMMAND_QOS
+        )
         self.command_topic = self.resolve_topic_name(topics.IMPACT_CMD)
         self.truth_topic = self.resolve_topic_name(topics.IMPACT_TRUTH)
         self.want_truths = want_truths
@@ -97,7 +103,9 @@ class SendClient(Node):
         self.log_lines: list[Log] = []
         self.truth_sub = None
         if want_truths:
-            self.truth_sub = self.create_subscription(String, topics.IMPACT_TRUTH, self._on_truth, KEEP_ALL)
+            self.truth_sub = self.create_subscription(
+                String, topics.IMPACT_TRUTH, self._on_truth, KEEP_ALL
+            )
             self.create_subscription(Log, "/rosout", self.log_lines.append, ROSOUT_QOS)
 
     def _on_truth(self, msg: String) -> None:
@@ -111,15 +119,23 @@ class SendClient(Node):
     def simulators(self) -> list[str]:
         """Fully qualified names of the nodes that subscribe to impact_cmd and publish
         impact_truth here: the simulators (sim_node, under any node name)."""
+
         def nodes(infos: Sequence[Any]) -> set[str]:
             return {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos}
 
-        return sorted(nodes(self.get_subscriptions_info_by_topic(self.command_topic))
-                      & nodes(self.get_publishers_info_by_topic(self.truth_topic)))
+        return sorted(
+            nodes(self.get_subscriptions_info_by_topic(self.command_topic))
+            & nodes(self.get_publishers_info_by_topic(self.truth_topic))
+        )
 
     def listeners(self) -> list[str]:
         """Every node subscribing to impact_cmd (for the message when none is a simulator)."""
-        return sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in self.get_subscriptions_info_by_topic(self.command_topic)})
+        return sorted(
+            {
+                f"{i.node_namespace.rstrip('/')}/{i.node_name}"
+                for i in self.get_subscriptions_info_by_topic(self.command_topic)
+            }
+        )
 
     def ready(self) -> bool:
         """A simulator is on the graph and, when truths are wanted, its truth writer has matched our reader."""
@@ -128,7 +144,12 @@ class SendClient(Node):
         return self.truth_sub is None or self.truth_sub.get_publisher_count() >= 1
 
 
-def _spin_until(executor: EventsExecutor, context: rclpy.Context, condition: Callable[[], bool], deadline: float) -> bool:
+def _spin_until(
+    executor: EventsExecutor,
+    context: rclpy.Context,
+    condition: Callable[[], bool],
+    deadline: float,
+) -> bool:
     """Spin until ``condition()`` or the monotonic ``deadline``; Ctrl-C (the context shut down) raises KeyboardInterrupt."""
     while not condition():
         if not context.ok():
@@ -173,13 +194,19 @@ def send_commands(
         start = time.monotonic()
         if not _spin_until(executor, context, gate.open, start + timeout_s) and not gate.seen:
             listeners = client.listeners()
-            verbs = "subscribes to it but publishes" if len(listeners) == 1 else "subscribe to it but publish"
+            verbs = (
+                "subscribes to it but publishes"
+                if len(listeners) == 1
+                else "subscribe to it but publish"
+            )
             seen = f"; {', '.join(listeners)} {verbs} no impact_truth" if listeners else ""
             raise NoSimulator(
                 f"no simulator subscribed to {client.command_topic} within {timeout_s:g} s{seen}: start sim_node in namespace "
                 f"{namespace} and ROS_DOMAIN_ID {os.environ.get('ROS_DOMAIN_ID', '0')}, or raise --timeout-s"
             )
-        _spin_until(executor, context, gate.open, time.monotonic() + settle_s + 1.0)  # the settle time, once seen
+        _spin_until(
+            executor, context, gate.open, time.monotonic() + settle_s + 1.0
+        )  # the settle time, once seen
         outcome = SendOutcome(client.simulators())
         backlog = PublishBacklog(client)
         for command in commands:

@@ -29,12 +29,16 @@ from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, Vi
 NO_ORIENTATION = [-1.0] + [0.0] * 8  # REP 145: element 0 = -1, the estimate is not provided
 
 
-EVENT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)  # one message per impact or command
+EVENT_QOS = QoSProfile(
+    depth=100, reliability=ReliabilityPolicy.RELIABLE
+)  # one message per impact or command
 # What the nodes publish events (rebound_velocity, impact_truth, label) with: as EVENT_QOS, and
 # transient-local, so that a subscriber asking for it (bag_recorder) also gets the last
 # ``depth`` events published before it matched: a label published before the recorder had
 # matched id_node was lost from the bag. Volatile subscribers (the contract's) match it too.
-EVENT_PUBLISHER_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+EVENT_PUBLISHER_QOS = QoSProfile(
+    depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
 EVENT_TOPICS = (topics.REBOUND_VELOCITY, topics.IMPACT_TRUTH, topics.LABEL)
 # impact_cmd as sim_node reads it: keep-all, so that a burst waits in the reader's history (reliable
 # flow control slows the client) instead of keep-last overwriting what the node has not taken yet.
@@ -84,7 +88,11 @@ def imu_messages(stream: ImuStream) -> list[Imu]:
     gyro_cov = np.diag([stream.gyro_variance] * 3).ravel().tolist()
     accel_cov = np.diag([stream.accel_variance] * 3).ravel().tolist()
     messages = []
-    for t, w, a in zip(stream.stamp_s.tolist(), stream.angular_velocity_radps.tolist(), stream.linear_acceleration_mps2.tolist()):
+    for t, w, a in zip(
+        stream.stamp_s.tolist(),
+        stream.angular_velocity_radps.tolist(),
+        stream.linear_acceleration_mps2.tolist(),
+    ):
         msg = Imu(header=header(t, topics.FRAME_IMU))
         msg.orientation.w = 1.0
         msg.orientation_covariance = NO_ORIENTATION
@@ -114,16 +122,25 @@ def vibration_messages(blocks: VibrationBlocks) -> list[LaserScan]:
     for b in range(blocks.count):
         high, low = topics.index_words(int(blocks.first_index[b]))
         length = int(blocks.lengths[b])
-        out.append(LaserScan(
-            header=header(float(blocks.stamp_s[b]), topics.FRAME_ACCELEROMETER), angle_min=high, angle_max=low,
-            angle_increment=0.0, time_increment=period, scan_time=period * length,
-            range_min=-float(blocks.range_mps2), range_max=float(blocks.range_mps2),
-            ranges=_float32_array(blocks.accel_mps2[edges[b] : edges[b + 1]]),
-        ))
+        out.append(
+            LaserScan(
+                header=header(float(blocks.stamp_s[b]), topics.FRAME_ACCELEROMETER),
+                angle_min=high,
+                angle_max=low,
+                angle_increment=0.0,
+                time_increment=period,
+                scan_time=period * length,
+                range_min=-float(blocks.range_mps2),
+                range_max=float(blocks.range_mps2),
+                ranges=_float32_array(blocks.accel_mps2[edges[b] : edges[b + 1]]),
+            )
+        )
     return out
 
 
-def vibration_blocks(messages: Sequence[LaserScan], refused: list[str] | None = None) -> VibrationBlocks:
+def vibration_blocks(
+    messages: Sequence[LaserScan], refused: list[str] | None = None
+) -> VibrationBlocks:
     """``vibration`` messages back to blocks, in arrival order (samples read through their
     buffers). The period and range are the first message's. A message that carries no block
     (its index words, period or range out of range: tail_beam_sim.topics), or whose period
@@ -132,9 +149,15 @@ def vibration_blocks(messages: Sequence[LaserScan], refused: list[str] | None = 
     kept: list[tuple[LaserScan, int]] = []
     for m in messages:
         try:
-            index, period, _ = topics.block_header(m.angle_min, m.angle_max, m.time_increment, m.range_max, len(m.ranges))
+            index, period, _ = topics.block_header(
+                m.angle_min, m.angle_max, m.time_increment, m.range_max, len(m.ranges)
+            )
             if kept and period != kept[0][0].time_increment:
-                raise InputError("vibration.time_increment", period, f"must be the stream's sample period, {kept[0][0].time_increment:g} s")
+                raise InputError(
+                    "vibration.time_increment",
+                    period,
+                    f"must be the stream's sample period, {kept[0][0].time_increment:g} s",
+                )
         except InputError as exc:
             if refused is None:
                 raise
@@ -182,8 +205,15 @@ def pressure_arrays(messages: Sequence[FluidPressure]) -> tuple[np.ndarray, np.n
 def imu_arrays(messages: Sequence[Imu]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """imu messages back to (stamp_s (T,), angular_velocity_radps (T,3), linear_acceleration_mps2 (T,3))."""
     stamps = np.array([stamp_s(m.header.stamp) for m in messages])
-    gyro = np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z) for m in messages]).reshape(-1, 3)
-    accel = np.array([(m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z) for m in messages]).reshape(-1, 3)
+    gyro = np.array(
+        [(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z) for m in messages]
+    ).reshape(-1, 3)
+    accel = np.array(
+        [
+            (m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z)
+            for m in messages
+        ]
+    ).reshape(-1, 3)
     return stamps, gyro, accel
 
 

@@ -17,8 +17,15 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from tail_beam_sim.config import (
+    deep_merge,
+    default_config_dir,
+    flatten,
+    load_parameters,
+    read_parameter_file,
+    unflatten,
+)
 from tail_beam_sim.errors import InputError, shorten
-from tail_beam_sim.config import deep_merge, default_config_dir, flatten, load_parameters, read_parameter_file, unflatten
 
 
 def config_defaults(files: Iterable[str], with_physics: bool) -> dict[str, Any]:
@@ -32,15 +39,23 @@ def config_defaults(files: Iterable[str], with_physics: bool) -> dict[str, Any]:
     return merged
 
 
-def declare_and_read(node: Node, defaults: dict[str, Any], open_sections: Iterable[str] = ()) -> dict[str, Any]:
+def declare_and_read(
+    node: Node, defaults: dict[str, Any], open_sections: Iterable[str] = ()
+) -> dict[str, Any]:
     """Declare every default as a parameter of ``node``, and every override (``-p``,
     ``--params-file``) under one of ``open_sections`` (sections with no defaults, whose keys a
     file brings: a support profile's ``calibration``); return the values in effect, nested."""
     dynamic = ParameterDescriptor(dynamic_typing=True)
     names = flatten(defaults)
     node.declare_parameters("", [(name, value, dynamic) for name, value in names.items()])
-    overrides = getattr(node, "_parameter_overrides", None) or {}  # rclpy keeps them there, no public accessor
-    opened = sorted(name for name in overrides if name not in names and any(name.startswith(f"{s}.") for s in open_sections))
+    overrides = (
+        getattr(node, "_parameter_overrides", None) or {}
+    )  # rclpy keeps them there, no public accessor
+    opened = sorted(
+        name
+        for name in overrides
+        if name not in names and any(name.startswith(f"{s}.") for s in open_sections)
+    )
     node.declare_parameters("", [(name, overrides[name].value, dynamic) for name in opened])
     guard_parameter_services(node)
     say_unused_overrides(node)
@@ -50,7 +65,9 @@ def declare_and_read(node: Node, defaults: dict[str, Any], open_sections: Iterab
     return unflatten(values)
 
 
-PARAMETER_TYPES = frozenset(int(t) for t in Parameter.Type)  # the value types rcl_interfaces defines (0-9)
+PARAMETER_TYPES = frozenset(
+    int(t) for t in Parameter.Type
+)  # the value types rcl_interfaces defines (0-9)
 
 
 def guard_parameter_services(node: Node) -> None:
@@ -65,11 +82,15 @@ def guard_parameter_services(node: Node) -> None:
         if name not in ("set_parameters", "set_parameters_atomically"):
             continue
 
-        def guarded(request, response, _inner=service.callback, _atomic=name == "set_parameters_atomically"):
+        def guarded(
+            request, response, _inner=service.callback, _atomic=name == "set_parameters_atomically"
+        ):
             def refusal(p) -> str | None:
                 if p.value.type not in PARAMETER_TYPES:
-                    return (f"{shorten(p.name, 60)}: value type {p.value.type} is no parameter type (must be one of "
-                            f"{min(PARAMETER_TYPES)}-{max(PARAMETER_TYPES)}, rcl_interfaces/ParameterType)")
+                    return (
+                        f"{shorten(p.name, 60)}: value type {p.value.type} is no parameter type (must be one of "
+                        f"{min(PARAMETER_TYPES)}-{max(PARAMETER_TYPES)}, rcl_interfaces/ParameterType)"
+                    )
                 if not node.has_parameter(p.name):
                     return f"{shorten(p.name, 60)}: {node.get_name()} has no such parameter"
                 return None
@@ -84,8 +105,13 @@ def guard_parameter_services(node: Node) -> None:
                 return response
             # One result per parameter: the others go to rclpy's service as they would have.
             valid = [p for p, r in zip(request.parameters, reasons) if r is None]
-            answered = iter(_inner(type(request)(parameters=valid), type(response)()).results if valid else [])
-            response.results = [next(answered) if r is None else SetParametersResult(successful=False, reason=r) for r in reasons]
+            answered = iter(
+                _inner(type(request)(parameters=valid), type(response)()).results if valid else []
+            )
+            response.results = [
+                next(answered) if r is None else SetParametersResult(successful=False, reason=r)
+                for r in reasons
+            ]
             return response
 
         service.callback = guarded
@@ -118,10 +144,18 @@ def require_kind(name: str, value: Any, default: Any) -> None:
         ok, kind = _finite_number(value) or _numeric_text(value), "must be a finite number"
     elif isinstance(default, str):
         ok, kind = isinstance(value, str), "must be text"
-    elif isinstance(default, (list, tuple)) and default and all(isinstance(x, str) for x in default):
-        ok, kind = isinstance(value, (list, tuple)) and all(isinstance(x, str) for x in value), "must be a list of text"
+    elif (
+        isinstance(default, (list, tuple)) and default and all(isinstance(x, str) for x in default)
+    ):
+        ok, kind = (
+            isinstance(value, (list, tuple)) and all(isinstance(x, str) for x in value),
+            "must be a list of text",
+        )
     elif isinstance(default, (list, tuple)):
-        ok, kind = isinstance(value, (list, tuple)) and all(_finite_number(x) for x in value), "must be a list of finite numbers"
+        ok, kind = (
+            isinstance(value, (list, tuple)) and all(_finite_number(x) for x in value),
+            "must be a list of finite numbers",
+        )
     else:
         return
     if not ok:
@@ -136,7 +170,9 @@ def say_unused_overrides(node: Node) -> None:
     """Name the overrides (``-p``, ``--params-file``) ``node`` has no parameter for: rclpy drops
     them without a word, and a typo would pass for a setting. A warning for names no node of the
     suite has; an information line for another node's (a ``/**`` file shared by the suite)."""
-    overrides = getattr(node, "_parameter_overrides", None) or {}  # rclpy keeps them there, no public accessor
+    overrides = (
+        getattr(node, "_parameter_overrides", None) or {}
+    )  # rclpy keeps them there, no public accessor
     unused = sorted(name for name in overrides if not node.has_parameter(name))
     if not unused:
         return
@@ -145,10 +181,14 @@ def say_unused_overrides(node: Node) -> None:
     unknown = [n for n in unused if n not in suite]
 
     def listed(names: list[str]) -> str:
-        return ", ".join(names[:MAX_NAMED]) + (f" and {len(names) - MAX_NAMED} more" if len(names) > MAX_NAMED else "")
+        return ", ".join(names[:MAX_NAMED]) + (
+            f" and {len(names) - MAX_NAMED} more" if len(names) > MAX_NAMED else ""
+        )
 
     if unknown:
-        node.get_logger().warning(f"ignored, not a parameter of {node.get_name()} nor of any tail_beam node (a typo?): {listed(unknown)}")
+        node.get_logger().warning(
+            f"ignored, not a parameter of {node.get_name()} nor of any tail_beam node (a typo?): {listed(unknown)}"
+        )
     if others:
         node.get_logger().info(f"ignored, parameters of other tail_beam nodes: {listed(others)}")
 

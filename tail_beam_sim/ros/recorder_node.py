@@ -42,17 +42,27 @@ from sensor_msgs.msg import LaserScan
 from tail_beam_sim import topics
 from tail_beam_sim.bags.read import TIME_JUMP_S
 from tail_beam_sim.bags.records import COMPRESSIONS
-from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.bags.write import SegmentedBagWriter
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.sensors import BlockSequencer, IndexSpan, VibrationBlocks
-from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_and_read, refuse_runtime_changes
+from tail_beam_sim.ros import messages as ros_messages
+from tail_beam_sim.ros.params import (
+    ALL_PARAMETERS,
+    config_defaults,
+    declare_and_read,
+    refuse_runtime_changes,
+)
 from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
 
-LOST_KEYS = ("tail_beam.vibration_lost_samples", "tail_beam.messages_lost_events")  # bag metadata custom_data
+LOST_KEYS = (
+    "tail_beam.vibration_lost_samples",
+    "tail_beam.messages_lost_events",
+)  # bag metadata custom_data
 DISCOVERY_PERIOD_S = 0.1  # how often the event topics' publishers are looked at, s
 RECENT_EVENTS = 1000  # events per topic remembered, so that one delivered twice is written once
-REDELIVERY_S = 2.0  # after re-subscribing, how long an event already written is taken for a repeat, s (wall)
+REDELIVERY_S = (
+    2.0  # after re-subscribing, how long an event already written is taken for a repeat, s (wall)
+)
 
 
 OUTPUT_DIR = Path("out")  # where commands put what they write by default (ignored by git)
@@ -68,50 +78,101 @@ class RecorderNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__("tail_beam_recorder", **kwargs)
-        params = declare_and_read(self, config_defaults(["recorder.yaml"], with_physics=False))["recorder"]
-        segment_s = require_range("recorder.segment_s", params.get("segment_s"), 0.0, 3600.0, low_open=True, unit="s")
-        flush_s = require_range("recorder.flush_s", params.get("flush_s"), 0.0, 3600.0, low_open=True, unit="s")
+        params = declare_and_read(self, config_defaults(["recorder.yaml"], with_physics=False))[
+            "recorder"
+        ]
+        segment_s = require_range(
+            "recorder.segment_s", params.get("segment_s"), 0.0, 3600.0, low_open=True, unit="s"
+        )
+        flush_s = require_range(
+            "recorder.flush_s", params.get("flush_s"), 0.0, 3600.0, low_open=True, unit="s"
+        )
         depth = int(require_range("recorder.qos_depth", params.get("qos_depth"), 0, 1e6))
-        max_duration_s = require_range("recorder.max_bag_duration_s", params.get("max_bag_duration_s", 0.0), 0.0, 1e7, unit="s")
-        max_size = int(require_range("recorder.max_bag_size_bytes", params.get("max_bag_size_bytes", 0), 0, 2**62, unit="bytes"))
+        max_duration_s = require_range(
+            "recorder.max_bag_duration_s",
+            params.get("max_bag_duration_s", 0.0),
+            0.0,
+            1e7,
+            unit="s",
+        )
+        max_size = int(
+            require_range(
+                "recorder.max_bag_size_bytes",
+                params.get("max_bag_size_bytes", 0),
+                0,
+                2**62,
+                unit="bytes",
+            )
+        )
         compression = params.get("compression", "zstd")
         if compression not in COMPRESSIONS:
-            raise InputError("recorder.compression", compression, f"must be one of {', '.join(COMPRESSIONS)}")
+            raise InputError(
+                "recorder.compression", compression, f"must be one of {', '.join(COMPRESSIONS)}"
+            )
         path = params.get("bag_path") or default_bag_path()
-        self.names = {topic: self.resolve_topic_name(topic) for topic in topics.MSG_TYPES}  # contract -> fully qualified
+        self.names = {
+            topic: self.resolve_topic_name(topic) for topic in topics.MSG_TYPES
+        }  # contract -> fully qualified
         try:
             self.writer = SegmentedBagWriter(
-                path, params.get("storage", "mcap"), {self.names[t]: m for t, m in topics.MSG_TYPES.items()},
-                compression=compression, max_duration_s=max_duration_s, max_size_bytes=max_size,
+                path,
+                params.get("storage", "mcap"),
+                {self.names[t]: m for t, m in topics.MSG_TYPES.items()},
+                compression=compression,
+                max_duration_s=max_duration_s,
+                max_size_bytes=max_size,
             )
         except InputError as exc:
-            raise InputError("recorder.bag_path" if exc.field == "bag" else f"recorder.{exc.field}", exc.value, exc.allowed) from None
+            raise InputError(
+                "recorder.bag_path" if exc.field == "bag" else f"recorder.{exc.field}",
+                exc.value,
+                exc.allowed,
+            ) from None
         self.bag_path = self.writer.path
         self.vibration = IndexSpan()
-        self._sequence = BlockSequencer()  # the blocks in index order, for an index that does not count samples
+        self._sequence = (
+            BlockSequencer()
+        )  # the blocks in index order, for an index that does not count samples
         self.lost_events = 0
-        self.refused_blocks = 0  # vibration messages without a readable block index (recorded, not counted)
+        self.refused_blocks = (
+            0  # vibration messages without a readable block index (recorded, not counted)
+        )
         self.qos = ros_messages.stream_qos(depth)
         self._events: dict[str, tuple[object, tuple[DurabilityPolicy, ReliabilityPolicy]]] = {}
-        self._recent: dict[str, OrderedDict[bytes, None]] = {topic: OrderedDict() for topic in ros_messages.EVENT_TOPICS}
-        self._resubscribed: dict[str, float] = {}  # event topic -> when it was last re-subscribed (monotonic s)
+        self._recent: dict[str, OrderedDict[bytes, None]] = {
+            topic: OrderedDict() for topic in ros_messages.EVENT_TOPICS
+        }
+        self._resubscribed: dict[
+            str, float
+        ] = {}  # event topic -> when it was last re-subscribed (monotonic s)
         for topic in topics.MSG_TYPES:
             subscription = self._subscribe(topic, self.qos)
             if topic in ros_messages.EVENT_TOPICS:
-                self._events[topic] = (subscription, (DurabilityPolicy.VOLATILE, ReliabilityPolicy.RELIABLE))
+                self._events[topic] = (
+                    subscription,
+                    (DurabilityPolicy.VOLATILE, ReliabilityPolicy.RELIABLE),
+                )
         self.create_timer(DISCOVERY_PERIOD_S, self._follow_event_publishers)
         self._foreign = ForeignTypeWatch(self, topics.MSG_TYPES)
         self.create_timer(segment_s, self.writer.close_segment)
         if flush_s < segment_s:
             self.create_timer(flush_s, self.writer.flush)
-        refuse_runtime_changes(self, ALL_PARAMETERS, "the recorder reads its parameters at start-up only (restart it to change them)")
+        refuse_runtime_changes(
+            self,
+            ALL_PARAMETERS,
+            "the recorder reads its parameters at start-up only (restart it to change them)",
+        )
         self.get_logger().info(
             f"recording {', '.join(self.names.values())} to {self.bag_path} ({self.writer.storage}, compression {compression})"
         )
 
     def _subscribe(self, topic: str, qos: QoSProfile) -> object:
         return self.create_subscription(
-            ros_messages.message_class(topics.MSG_TYPES[topic]), topic, lambda data, t=topic: self._write(t, data), qos, raw=True,
+            ros_messages.message_class(topics.MSG_TYPES[topic]),
+            topic,
+            lambda data, t=topic: self._write(t, data),
+            qos,
+            raw=True,
             event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_lost),
         )
 
@@ -119,29 +180,48 @@ class RecorderNode(Node):
         """Subscribe to each event topic with the durability and reliability all its publishers
         offer (module docstring), re-subscribing when they change."""
         for topic in ros_messages.EVENT_TOPICS:
-            offered = [info.qos_profile for info in self.get_publishers_info_by_topic(self.names[topic])]
+            offered = [
+                info.qos_profile for info in self.get_publishers_info_by_topic(self.names[topic])
+            ]
             if not offered:
                 continue
             durable = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
             reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
-            wanted = (DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
-                      ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT)
+            wanted = (
+                DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
+                ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            )
             subscription, current = self._events[topic]
             if wanted == current:
                 continue
             self.destroy_subscription(subscription)
-            qos = QoSProfile(history=self.qos.history, depth=self.qos.depth, durability=wanted[0], reliability=wanted[1])
+            qos = QoSProfile(
+                history=self.qos.history,
+                depth=self.qos.depth,
+                durability=wanted[0],
+                reliability=wanted[1],
+            )
             self._events[topic] = (self._subscribe(topic, qos), wanted)
             self._resubscribed[topic] = time.monotonic()
-            if wanted[0] == DurabilityPolicy.VOLATILE and current[0] == DurabilityPolicy.TRANSIENT_LOCAL:
-                self.get_logger().info(f"{self.names[topic]}: a publisher offers volatile durability; recording it volatile "
-                                       "(events published before a subscriber matched are not kept)")
+            if (
+                wanted[0] == DurabilityPolicy.VOLATILE
+                and current[0] == DurabilityPolicy.TRANSIENT_LOCAL
+            ):
+                self.get_logger().info(
+                    f"{self.names[topic]}: a publisher offers volatile durability; recording it volatile "
+                    "(events published before a subscriber matched are not kept)"
+                )
 
     def _write(self, topic: str, data: bytes) -> None:
         recent = self._recent.get(topic)
-        if recent is not None:  # an event topic: one delivered again just after re-subscribing is written once
+        if (
+            recent is not None
+        ):  # an event topic: one delivered again just after re-subscribing is written once
             key = hashlib.blake2b(data, digest_size=16).digest()
-            if key in recent and time.monotonic() - self._resubscribed.get(topic, -math.inf) < REDELIVERY_S:
+            if (
+                key in recent
+                and time.monotonic() - self._resubscribed.get(topic, -math.inf) < REDELIVERY_S
+            ):
                 return
             recent[key] = None
             if len(recent) > RECENT_EVENTS:
@@ -155,8 +235,10 @@ class RecorderNode(Node):
             except InputError as exc:  # recorded as it came; `tail-beam identify` will name it too
                 self.refused_blocks += 1
                 if self.refused_blocks == 1 or self.refused_blocks % 1000 == 0:
-                    self.get_logger().warning(f"vibration: a message that carries no block, recorded but not counted: {exc} "
-                                              f"({self.refused_blocks} so far)")
+                    self.get_logger().warning(
+                        f"vibration: a message that carries no block, recorded but not counted: {exc} "
+                        f"({self.refused_blocks} so far)"
+                    )
                 return
             self.vibration.add(index, length)
             self._check_index(msg, index)
@@ -174,13 +256,22 @@ class RecorderNode(Node):
         if sequence.next_stamp_s is not None and stamp < sequence.next_stamp_s - TIME_JUMP_S:
             sequence.restart()
         samples = np.frombuffer(msg.ranges, dtype=np.float32)
-        block = VibrationBlocks(np.array([index], dtype=np.int64), np.array([samples.size], dtype=np.int64), np.array([stamp]),
-                                samples, float(period), math.inf)
-        if sequence.push(block).misindexed and (sequence.misindexed_blocks == 1 or sequence.misindexed_blocks % 1000 == 0):
+        block = VibrationBlocks(
+            np.array([index], dtype=np.int64),
+            np.array([samples.size], dtype=np.int64),
+            np.array([stamp]),
+            samples,
+            float(period),
+            math.inf,
+        )
+        if sequence.push(block).misindexed and (
+            sequence.misindexed_blocks == 1 or sequence.misindexed_blocks % 1000 == 0
+        ):
             self.get_logger().warning(
                 f"vibration: the block stamped {stamp:.6f} s has running index {index}, behind the samples already "
                 "recorded while its stamp is not: the publisher's index (angle_min, angle_max) must count the samples "
-                f"(docs/interface.md); reading this bag will refuse it ({sequence.misindexed_blocks} such blocks so far)")
+                f"(docs/interface.md); reading this bag will refuse it ({sequence.misindexed_blocks} such blocks so far)"
+            )
 
     @property
     def misindexed_blocks(self) -> int:
@@ -193,15 +284,20 @@ class RecorderNode(Node):
     def loss_report(self) -> str:
         """One line: vibration samples and blocks recorded, samples missing, message-lost events."""
         v = self.vibration
-        return (f"vibration {v.samples} samples in {v.blocks} blocks, {v.lost_samples} samples lost (index gaps); "
-                f"{self.lost_events} messages lost (middleware events)")
+        return (
+            f"vibration {v.samples} samples in {v.blocks} blocks, {v.lost_samples} samples lost (index gaps); "
+            f"{self.lost_events} messages lost (middleware events)"
+        )
 
     def close(self) -> None:
         """Close the bag (every message received so far is in it), with the loss counts."""
         self.writer.set_custom_data(LOST_KEYS[0], str(self.vibration.lost_samples))
         self.writer.set_custom_data(LOST_KEYS[1], str(self.lost_events))
         self.writer.close()
-        print(f"bag_recorder: closed {self.bag_path}: {self.writer.message_count} messages; {self.loss_report()}", file=sys.stderr)
+        print(
+            f"bag_recorder: closed {self.bag_path}: {self.writer.message_count} messages; {self.loss_report()}",
+            file=sys.stderr,
+        )
 
 
 def main(args: list[str] | None = None) -> int:

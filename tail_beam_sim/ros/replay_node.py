@@ -27,10 +27,15 @@ from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
 from tail_beam_sim import topics
-from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.bags.read import RawMessage, open_segments_note, raw_messages
 from tail_beam_sim.errors import InputError, require_range
-from tail_beam_sim.ros.params import ALL_PARAMETERS, config_defaults, declare_and_read, refuse_runtime_changes
+from tail_beam_sim.ros import messages as ros_messages
+from tail_beam_sim.ros.params import (
+    ALL_PARAMETERS,
+    config_defaults,
+    declare_and_read,
+    refuse_runtime_changes,
+)
 from tail_beam_sim.ros.spin import PublishBacklog, SubscriberGate, drain, run_node
 
 WAITED_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION, topics.REBOUND_VELOCITY)
@@ -41,49 +46,89 @@ class ReplayNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__("tail_beam_replay", **kwargs)
-        params = declare_and_read(self, config_defaults(["replay.yaml"], with_physics=False))["replay"]
+        params = declare_and_read(self, config_defaults(["replay.yaml"], with_physics=False))[
+            "replay"
+        ]
         if not params.get("bag_path"):
-            raise InputError("replay.bag_path", params.get("bag_path"), "required: the bag directory to publish")
+            raise InputError(
+                "replay.bag_path", params.get("bag_path"), "required: the bag directory to publish"
+            )
         self.rate = require_range("replay.rate", params.get("rate"), 0.0, 1e6, low_open=True)
-        period = require_range("replay.publish_period_s", params.get("publish_period_s"), 0.0, 10.0, low_open=True, unit="s")
-        wait_for = int(require_range("replay.wait_for_subscribers", params.get("wait_for_subscribers"), 0, 1000))
-        settle = require_range("replay.subscriber_settle_s", params.get("subscriber_settle_s"), 0.0, 60.0, unit="s")
+        period = require_range(
+            "replay.publish_period_s",
+            params.get("publish_period_s"),
+            0.0,
+            10.0,
+            low_open=True,
+            unit="s",
+        )
+        wait_for = int(
+            require_range(
+                "replay.wait_for_subscribers", params.get("wait_for_subscribers"), 0, 1000
+            )
+        )
+        settle = require_range(
+            "replay.subscriber_settle_s", params.get("subscriber_settle_s"), 0.0, 60.0, unit="s"
+        )
         depth = int(require_range("replay.qos_depth", params.get("qos_depth"), 0, 1e6))
         chosen = list(params.get("topics") or [])
         unknown = sorted(set(chosen) - set(topics.MSG_TYPES))
         if unknown or not chosen:
-            raise InputError("replay.topics", chosen, f"must name some of {', '.join(topics.MSG_TYPES)}")
-        self.start_offset_s = require_range("replay.start_offset_s", params.get("start_offset_s", 0.0), 0.0, 1e9, unit="s")
+            raise InputError(
+                "replay.topics", chosen, f"must name some of {', '.join(topics.MSG_TYPES)}"
+            )
+        self.start_offset_s = require_range(
+            "replay.start_offset_s", params.get("start_offset_s", 0.0), 0.0, 1e9, unit="s"
+        )
         self.loop = bool(params.get("loop", False))
         self.namespace = params.get("namespace") or None
         self._chosen = chosen
         self._bag_path = params["bag_path"]
         self._open()  # opens the bag: errors surface here
         if self._next is None:
-            raise InputError("replay.bag_path", params["bag_path"], f"holds no messages on replay.topics ({', '.join(chosen)})")
+            raise InputError(
+                "replay.bag_path",
+                params["bag_path"],
+                f"holds no messages on replay.topics ({', '.join(chosen)})",
+            )
         qos = ros_messages.stream_qos(depth)
         self._pubs = {
-            topic: self.create_publisher(ros_messages.message_class(topics.MSG_TYPES[topic]), topic, qos) for topic in chosen
+            topic: self.create_publisher(
+                ros_messages.message_class(topics.MSG_TYPES[topic]), topic, qos
+            )
+            for topic in chosen
         }
-        self._clock_pub = self.create_publisher(Clock, "/clock", 10) if params.get("publish_clock") else None
+        self._clock_pub = (
+            self.create_publisher(Clock, "/clock", 10) if params.get("publish_clock") else None
+        )
         waited = [self._pubs[t] for t in WAITED_TOPICS if t in self._pubs]
         self._gate = SubscriberGate(waited, wait_for, settle)
         self._origin: tuple[float, int] | None = None  # (wall s, log ns) of the first message
         self.loops = 0
         self.published = 0
-        self.exit_status = 0  # 1 once the bag turned out damaged part-way (the process's exit status)
+        self.exit_status = (
+            0  # 1 once the bag turned out damaged part-way (the process's exit status)
+        )
         self._backlog = PublishBacklog(self)
         self.finished = Future()
         self.create_timer(period, self._tick)
-        refuse_runtime_changes(self, ALL_PARAMETERS, "bag_replay reads its parameters at start-up only (restart it to change them)")
-        self.get_logger().info(f"replaying {', '.join(chosen)} of {params['bag_path']} at rate {self.rate:g}")
+        refuse_runtime_changes(
+            self,
+            ALL_PARAMETERS,
+            "bag_replay reads its parameters at start-up only (restart it to change them)",
+        )
+        self.get_logger().info(
+            f"replaying {', '.join(chosen)} of {params['bag_path']} at rate {self.rate:g}"
+        )
         note = open_segments_note(self._bag_path)
         if note:
             self.get_logger().warning(note)
 
     def _open(self) -> None:
         """(Re)start at the first message at or after the start offset."""
-        self._messages: Iterator[RawMessage] = raw_messages(self._bag_path, self._chosen, namespace=self.namespace)
+        self._messages: Iterator[RawMessage] = raw_messages(
+            self._bag_path, self._chosen, namespace=self.namespace
+        )
         self._next: RawMessage | None = next(self._messages, None)
         if self._next is not None and self.start_offset_s > 0.0:
             start_ns = self._next.log_time_ns + int(round(self.start_offset_s * 1e9))
@@ -98,7 +143,9 @@ class ReplayNode(Node):
             self.loops += 1
             try:
                 self._open()
-            except InputError as exc:  # the bag went away or was damaged since the last pass: as part-way
+            except (
+                InputError
+            ) as exc:  # the bag went away or was damaged since the last pass: as part-way
                 self.get_logger().error(f"replay stopped: pass {self.loops + 1}: {exc}")
                 self.exit_status = 1
                 self._next = None
@@ -120,7 +167,9 @@ class ReplayNode(Node):
             self._backlog.publish(self._pubs[message.topic], message.data)
             self.published += 1
             if self._clock_pub is not None:
-                self._backlog.publish(self._clock_pub, Clock(clock=ros_messages.time_msg(message.log_time_ns * 1e-9)))
+                self._backlog.publish(
+                    self._clock_pub, Clock(clock=ros_messages.time_msg(message.log_time_ns * 1e-9))
+                )
             try:
                 self._next = next(self._messages, None)
             except InputError as exc:  # damaged past its start: say so, stop, exit non-zero

@@ -23,25 +23,32 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
+from geometry_msgs.msg import TwistStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
-from geometry_msgs.msg import TwistStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
 
 from tail_beam_sim import topics
-from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.errors import InputError, require_range, shorten
-from tail_beam_sim.ros.params import config_defaults, declare_and_read
-from tail_beam_sim.ros.spin import ACK_TIMEOUT_S, ForeignTypeWatch, PublishBacklog, SubscriberGate, drain, run_node
 from tail_beam_sim.physics.command import parse_command
 from tail_beam_sim.physics.scenario import PlannedImpact, load_scenario
 from tail_beam_sim.physics.solvers import SolverError
-from tail_beam_sim.ros.usage import NodeUsage
 from tail_beam_sim.physics.stream import Chunk, QueueFull, StreamSimulator
+from tail_beam_sim.ros import messages as ros_messages
+from tail_beam_sim.ros.params import config_defaults, declare_and_read
+from tail_beam_sim.ros.spin import (
+    ACK_TIMEOUT_S,
+    ForeignTypeWatch,
+    PublishBacklog,
+    SubscriberGate,
+    drain,
+    run_node,
+)
+from tail_beam_sim.ros.usage import NodeUsage
 
 SCENARIO_IDLE_S = 1.0  # exit_after_idle_s -1 (auto): idle time before exiting after a file or generated scenario, s
 
@@ -90,20 +97,49 @@ class SimNode(Node):
         super().__init__("tail_beam_sim", **kwargs)
         params = declare_and_read(self, config_defaults(["sim_node.yaml"], with_physics=True))
         node = params["sim_node"]
-        self.realtime_factor = require_range("sim_node.realtime_factor", node.get("realtime_factor"), 0.0, 1e6)
-        period = require_range("sim_node.publish_period_s", node.get("publish_period_s"), 0.0, 10.0, low_open=True, unit="s")
-        self.max_chunk_s = require_range("sim_node.max_chunk_s", node.get("max_chunk_s"), 0.0, 10.0, low_open=True, unit="s")
-        self.max_lag_s = require_range("sim_node.max_lag_s", node.get("max_lag_s"), 0.0, 3600.0, unit="s")
+        self.realtime_factor = require_range(
+            "sim_node.realtime_factor", node.get("realtime_factor"), 0.0, 1e6
+        )
+        period = require_range(
+            "sim_node.publish_period_s",
+            node.get("publish_period_s"),
+            0.0,
+            10.0,
+            low_open=True,
+            unit="s",
+        )
+        self.max_chunk_s = require_range(
+            "sim_node.max_chunk_s", node.get("max_chunk_s"), 0.0, 10.0, low_open=True, unit="s"
+        )
+        self.max_lag_s = require_range(
+            "sim_node.max_lag_s", node.get("max_lag_s"), 0.0, 3600.0, unit="s"
+        )
         idle = node.get("exit_after_idle_s")
-        idle = -1.0 if idle == -1 else require_range("sim_node.exit_after_idle_s", idle, 0.0, None, unit="s (or -1: auto)")
+        idle = (
+            -1.0
+            if idle == -1
+            else require_range(
+                "sim_node.exit_after_idle_s", idle, 0.0, None, unit="s (or -1: auto)"
+            )
+        )
         depth = int(require_range("sim_node.qos_depth", node.get("qos_depth"), 0, 1e6))
-        wait_for = int(require_range("sim_node.wait_for_subscribers", node.get("wait_for_subscribers"), 0, 1000))
-        settle = require_range("sim_node.subscriber_settle_s", node.get("subscriber_settle_s"), 0.0, 60.0, unit="s")
+        wait_for = int(
+            require_range(
+                "sim_node.wait_for_subscribers", node.get("wait_for_subscribers"), 0, 1000
+            )
+        )
+        settle = require_range(
+            "sim_node.subscriber_settle_s", node.get("subscriber_settle_s"), 0.0, 60.0, unit="s"
+        )
         self.stream = StreamSimulator.from_params(params)
         # The scenario is validated whole now, and fed to the stream as its impacts fall due.
-        self._planned: deque[PlannedImpact] = deque(load_scenario(params["scenario"], self.stream.materials, self.stream.support))
+        self._planned: deque[PlannedImpact] = deque(
+            load_scenario(params["scenario"], self.stream.materials, self.stream.support)
+        )
         scenario_source = params["scenario"].get("source", "none")
-        self.exit_after_idle_s = (SCENARIO_IDLE_S if scenario_source != "none" else 0.0) if idle == -1.0 else idle
+        self.exit_after_idle_s = (
+            (SCENARIO_IDLE_S if scenario_source != "none" else 0.0) if idle == -1.0 else idle
+        )
         # A planned impact goes to the stream while its stamp is still ahead of what the next tick
         # can reach plus the command lead, so it strikes when planned however the node is paced.
         self._feed_horizon_s = self.stream.params.command_lead_s + 2.0 * self.max_chunk_s
@@ -115,23 +151,39 @@ class SimNode(Node):
         self._imu_pub = self.create_publisher(Imu, topics.IMU, sensor_qos)
         self._vibration_pub = self.create_publisher(LaserScan, topics.VIBRATION, sensor_qos)
         self._rebound_pub = self.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, event_qos)
-        self._gate = SubscriberGate((self._pressure_pub, self._imu_pub, self._vibration_pub, self._rebound_pub), wait_for, settle)
+        self._gate = SubscriberGate(
+            (self._pressure_pub, self._imu_pub, self._vibration_pub, self._rebound_pub),
+            wait_for,
+            settle,
+        )
         self._truth_pub = self.create_publisher(String, topics.IMPACT_TRUTH, event_qos)
-        self._clock_pub = self.create_publisher(Clock, "/clock", 10) if node.get("publish_clock") else None
+        self._clock_pub = (
+            self.create_publisher(Clock, "/clock", 10) if node.get("publish_clock") else None
+        )
         # Keep-all: a burst of commands waits in the reader's history instead of overwriting itself.
-        self.create_subscription(String, topics.IMPACT_CMD, self._on_command, ros_messages.COMMAND_QOS)
-        self._foreign = ForeignTypeWatch(self, {topics.IMPACT_CMD: topics.MSG_TYPES[topics.IMPACT_CMD]})
+        self.create_subscription(
+            String, topics.IMPACT_CMD, self._on_command, ros_messages.COMMAND_QOS
+        )
+        self._foreign = ForeignTypeWatch(
+            self, {topics.IMPACT_CMD: topics.MSG_TYPES[topics.IMPACT_CMD]}
+        )
         self._anchor: tuple[float, float] | None = None  # (wall s, simulation s) pacing origin
         self._last_activity_s = 0.0
         self._started = False  # simulation time held at 0 until the subscribers are there
         self._backlog = PublishBacklog(self)  # messages a full writer has not taken yet, in order
         self.create_timer(0.0 if self.realtime_factor == 0.0 else period, self._tick)
-        self.add_on_set_parameters_callback(self._on_set_parameters)  # after declaring: start-up values pass
+        self.add_on_set_parameters_callback(
+            self._on_set_parameters
+        )  # after declaring: start-up values pass
         self.get_logger().info(
             f"simulating at realtime_factor {self.realtime_factor:g}: pressure {self.stream.sensors.pressure_rate_hz:g} Hz, "
             f"IMU {self.stream.sensors.imu_rate_hz:g} Hz, vibration {self.stream.sensors.vibration_rate_hz:g} Hz in blocks of "
             f"{self.stream.sensors.vibration_block_samples}, scenario of {len(self._planned)} impact(s)"
-            + (f", exiting after {self.exit_after_idle_s:g} s idle" if self.exit_after_idle_s > 0.0 else "")
+            + (
+                f", exiting after {self.exit_after_idle_s:g} s idle"
+                if self.exit_after_idle_s > 0.0
+                else ""
+            )
         )
 
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
@@ -141,8 +193,11 @@ class SimNode(Node):
         names = ", ".join(p.name for p in changes)
         reason = (
             f"{names}: sim_node reads its parameters at start-up only; restart it with --ros-args -p NAME:=VALUE"
-            + ("; use_sim_time: the simulator makes simulation time (sim_node.publish_clock), it never follows /clock"
-               if any(p.name == "use_sim_time" for p in changes) else "")
+            + (
+                "; use_sim_time: the simulator makes simulation time (sim_node.publish_clock), it never follows /clock"
+                if any(p.name == "use_sim_time" for p in changes)
+                else ""
+            )
         )
         self.get_logger().warning(f"parameter change refused: {reason}")
         return SetParametersResult(successful=False, reason=reason)
@@ -158,11 +213,15 @@ class SimNode(Node):
             scheduled = self.stream.submit(command)
         except QueueFull as exc:
             self.commands.refused += 1
-            self.get_logger().warning(f"impact_cmd refused: {exc} [{refusal_tag(command)}{self.commands.refused} refused so far]")
+            self.get_logger().warning(
+                f"impact_cmd refused: {exc} [{refusal_tag(command)}{self.commands.refused} refused so far]"
+            )
             return
         except InputError as exc:
             self.commands.refused += 1
-            self.get_logger().error(f"impact_cmd rejected: {exc} [{refusal_tag(command)}{self.commands.refused} refused so far]")
+            self.get_logger().error(
+                f"impact_cmd rejected: {exc} [{refusal_tag(command)}{self.commands.refused} refused so far]"
+            )
             return
         except SolverError as exc:
             self.commands.refused += 1
@@ -181,7 +240,10 @@ class SimNode(Node):
         limit = self.stream.params.max_queued_impacts
         while self._planned and self.stream.queued < limit:
             planned = self._planned[0]
-            if planned.contact_stamp_s is not None and planned.contact_stamp_s > until_s + self._feed_horizon_s:
+            if (
+                planned.contact_stamp_s is not None
+                and planned.contact_stamp_s > until_s + self._feed_horizon_s
+            ):
                 return
             self._planned.popleft()
             try:
@@ -200,9 +262,13 @@ class SimNode(Node):
             self._anchor = (now_s, current)
         wall0, sim0 = self._anchor
         target = sim0 + (now_s - wall0) * self.realtime_factor
-        if target > current + self.max_lag_s:  # too far behind to catch up: slower than real time from here
+        if (
+            target > current + self.max_lag_s
+        ):  # too far behind to catch up: slower than real time from here
             self._anchor = (now_s, current)
-        return min(target, current + self.max_chunk_s)  # a short stall is caught up, a chunk at a time
+        return min(
+            target, current + self.max_chunk_s
+        )  # a short stall is caught up, a chunk at a time
 
     def _tick(self) -> None:
         if not self._started:
@@ -215,18 +281,36 @@ class SimNode(Node):
         self._feed_scenario(target)
         chunk = self.stream.advance(target)
         self.publish(chunk)
-        if self.exit_after_idle_s > 0.0 and self.stream.queued == 0 and not self._planned and not self.finished.done():
+        if (
+            self.exit_after_idle_s > 0.0
+            and self.stream.queued == 0
+            and not self._planned
+            and not self.finished.done()
+        ):
             if self.stream.time_s >= self._last_activity_s + self.exit_after_idle_s:
-                self.get_logger().info(f"idle for {self.exit_after_idle_s:g} s of simulation time: done")
+                self.get_logger().info(
+                    f"idle for {self.exit_after_idle_s:g} s of simulation time: done"
+                )
                 self.finished.set_result(True)
 
     def close(self) -> None:
         """Before exiting: say what became of the commands; let the subscribers have every message published."""
-        self.get_logger().info(f"impact_cmd: {self.commands}; {len(self._planned)} scenario impact(s) not started")
+        self.get_logger().info(
+            f"impact_cmd: {self.commands}; {len(self._planned)} scenario impact(s) not started"
+        )
         deadline = time.monotonic() + ACK_TIMEOUT_S
         while self.context.ok() and not self._backlog.flush() and time.monotonic() < deadline:
             time.sleep(0.01)
-        drain(self, (self._pressure_pub, self._imu_pub, self._vibration_pub, self._rebound_pub, self._truth_pub))
+        drain(
+            self,
+            (
+                self._pressure_pub,
+                self._imu_pub,
+                self._vibration_pub,
+                self._rebound_pub,
+                self._truth_pub,
+            ),
+        )
 
     def publish(self, chunk: Chunk) -> None:
         """Publish one chunk: streams in stamp order, then its rebounds and truths."""
@@ -238,10 +322,16 @@ class SimNode(Node):
             )
         # The streams in one stamp order (a vibration block at its first sample's stamp), so that
         # a consumer never sees one run ahead of the others.
-        outgoing = [(self._pressure_pub, m) for m in ros_messages.pressure_messages(chunk.pressure)]
+        outgoing = [
+            (self._pressure_pub, m) for m in ros_messages.pressure_messages(chunk.pressure)
+        ]
         outgoing += [(self._imu_pub, m) for m in ros_messages.imu_messages(chunk.imu)]
-        outgoing += [(self._vibration_pub, m) for m in ros_messages.vibration_messages(chunk.vibration)]
-        stamps = np.concatenate([chunk.pressure.stamp_s, chunk.imu.stamp_s, chunk.vibration.stamp_s])
+        outgoing += [
+            (self._vibration_pub, m) for m in ros_messages.vibration_messages(chunk.vibration)
+        ]
+        stamps = np.concatenate(
+            [chunk.pressure.stamp_s, chunk.imu.stamp_s, chunk.vibration.stamp_s]
+        )
         backlog = self._backlog
         for index in np.argsort(stamps, kind="stable"):
             backlog.publish(*outgoing[index])

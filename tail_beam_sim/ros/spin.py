@@ -19,19 +19,19 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, Protocol, runtime_checkable
 
 import rclpy
+from rclpy.duration import Duration
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental import EventsExecutor
-from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
-from rclpy.parameter import Parameter
 
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.ros.usage import NodeUsage, asks_for_help
 from tail_beam_sim.ros.start import STOP_SIGNALS
+from tail_beam_sim.ros.usage import NodeUsage, asks_for_help
 
 
 @runtime_checkable
@@ -55,7 +55,9 @@ def overrides(values: Mapping[str, Any]) -> list[Parameter]:
 
 
 SLICE_S = 0.1  # longest wait between two checks of the context, s
-ACK_TIMEOUT_S = 10.0  # how long a closing publisher waits for its subscribers to have everything, s
+ACK_TIMEOUT_S = (
+    10.0  # how long a closing publisher waits for its subscribers to have everything, s
+)
 
 
 def spin_once(executor: Executor, timeout_s: float) -> None:
@@ -104,8 +106,11 @@ def spin(node: Node, done: Future | None = None, stop: StopRequest | None = None
     executor: Executor = EventsExecutor(context=node.context)
     executor.add_node(node)
     try:
-        while (rclpy.ok(context=node.context) and not (stop is not None and stop.requested)
-               and not (done is not None and done.done())):
+        while (
+            rclpy.ok(context=node.context)
+            and not (stop is not None and stop.requested)
+            and not (done is not None and done.done())
+        ):
             spin_once(executor, SLICE_S)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -141,7 +146,9 @@ class PublishBacklog:
             publisher, msg = self._queue[0]
             try:
                 publisher.publish(msg)
-            except RuntimeError:  # rclpy raises its RCLError, a RuntimeError, when the writer refuses
+            except (
+                RuntimeError
+            ):  # rclpy raises its RCLError, a RuntimeError, when the writer refuses
                 if not self._node.context.ok():
                     return False  # shutting down: the writer is gone, nobody is behind
                 if not self._held:
@@ -155,7 +162,9 @@ class PublishBacklog:
         return True
 
 
-FOREIGN_TYPE_PERIOD_S = 1.0  # how often a node looks for publishers of another type on its topics, s
+FOREIGN_TYPE_PERIOD_S = (
+    1.0  # how often a node looks for publishers of another type on its topics, s
+)
 
 
 class ForeignTypeWatch:
@@ -166,7 +175,9 @@ class ForeignTypeWatch:
 
     def __init__(self, node: Node, expected: Mapping[str, str]) -> None:
         self._node = node
-        self._expected = {node.resolve_topic_name(topic): msgtype for topic, msgtype in expected.items()}
+        self._expected = {
+            node.resolve_topic_name(topic): msgtype for topic, msgtype in expected.items()
+        }
         self._said: set[tuple[str, str, str, str]] = set()
         node.create_timer(FOREIGN_TYPE_PERIOD_S, self.check)
 
@@ -193,7 +204,11 @@ class SubscriberGate:
     loses what is sent in between."""
 
     def __init__(
-        self, publishers: Sequence[Publisher], count: int, settle_s: float, ready: Callable[[], bool] | None = None,
+        self,
+        publishers: Sequence[Publisher],
+        count: int,
+        settle_s: float,
+        ready: Callable[[], bool] | None = None,
     ) -> None:
         self._publishers = publishers
         self._count = count
@@ -246,7 +261,13 @@ class NodeGroup:
         self.executor.add_node(node)
         return node
 
-    def listener(self, name: str, namespace: str, topics: Mapping[str, Callable[[str], None]], depth: int = 1000) -> Node:
+    def listener(
+        self,
+        name: str,
+        namespace: str,
+        topics: Mapping[str, Callable[[str], None]],
+        depth: int = 1000,
+    ) -> Node:
         """A plain node that hands the ``data`` of each ``std_msgs/String`` on ``topics`` to its callback."""
         from std_msgs.msg import String
 
@@ -287,7 +308,9 @@ def parameters_given(args: Sequence[str]) -> list[str]:
     return given
 
 
-def run_node(make: Callable[[], Node], usage: NodeUsage | str, args: Sequence[str] | None = None) -> int:
+def run_node(
+    make: Callable[[], Node], usage: NodeUsage | str, args: Sequence[str] | None = None
+) -> int:
     """The ``main`` of every executable: build the node, spin it, close and shut down.
 
     ``-h``/``--help`` prints ``usage`` and exits 0 before ROS starts (no node, no file). A
@@ -311,7 +334,9 @@ def run_node(make: Callable[[], Node], usage: NodeUsage | str, args: Sequence[st
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         stop.install()
-    except RuntimeError as exc:  # rcl's RCLError: a --params-file that is no YAML or missing, a trailing -p, ...
+    except (
+        RuntimeError
+    ) as exc:  # rcl's RCLError: a --params-file that is no YAML or missing, a trailing -p, ...
         print(f"{executable}: error: --ros-args: {rcl_error_line(exc)}", file=sys.stderr)
         return 2
     try:
@@ -322,8 +347,11 @@ def run_node(make: Callable[[], Node], usage: NodeUsage | str, args: Sequence[st
         return 2
     except Exception as exc:  # a value of the right kind that a model cannot take (1e308 Hz: its matrices overflow)
         given = ", ".join(parameters_given(list(sys.argv[1:] if args is None else args))) or "none"
-        print(f"{executable}: error: the parameters do not make a working node ({type(exc).__name__}: "
-              f"{' '.join(str(exc).split())[:200]}); set on the command line: {given}", file=sys.stderr)
+        print(
+            f"{executable}: error: the parameters do not make a working node ({type(exc).__name__}: "
+            f"{' '.join(str(exc).split())[:200]}); set on the command line: {given}",
+            file=sys.stderr,
+        )
         rclpy.try_shutdown()
         return 2
     try:

@@ -48,4 +48,3 @@ def bag_recorder() -> int:
 
 def bag_replay() -> int:
     return run("tail_beam_sim.ros.replay_node")
-

@@ -75,7 +75,9 @@ def parameter_comments(path: Path) -> list[tuple[str, str, list[str]]]:
         value = value.strip()
         if value:
             path_keys = [k for _, k in stack if k not in ("/**", "ros__parameters")]
-            found.append((".".join([*path_keys, key.strip()]), value, comment if path_keys else []))
+            found.append(
+                (".".join([*path_keys, key.strip()]), value, comment if path_keys else [])
+            )
         else:
             stack.append((indent, key.strip()))
         comment = []

@@ -27,14 +27,19 @@ IMPACTS_PER_SUPPORT = 20
 LOG_SCALE_PRIOR = 0.5  # prior standard deviation of log a
 
 
-def fit_refinement(logits: np.ndarray, is_coal: np.ndarray, prior_b: float, with_scale: bool) -> tuple[float, float]:
+def fit_refinement(
+    logits: np.ndarray, is_coal: np.ndarray, prior_b: float, with_scale: bool
+) -> tuple[float, float]:
     """(a, b) maximising the labelled impacts' likelihood of sigmoid(a * logit + b) times the priors."""
+
     def loss(theta: np.ndarray) -> float:
         log_a = theta[1] if with_scale else 0.0
         z = math.exp(log_a) * logits + theta[0]
         log_p = -np.logaddexp(0.0, -z)  # log sigmoid(z)
         log_q = -np.logaddexp(0.0, z)  # log (1 - sigmoid(z))
-        prior = 0.5 * (theta[0] / prior_b) ** 2 + (0.5 * (log_a / LOG_SCALE_PRIOR) ** 2 if with_scale else 0.0)
+        prior = 0.5 * (theta[0] / prior_b) ** 2 + (
+            0.5 * (log_a / LOG_SCALE_PRIOR) ** 2 if with_scale else 0.0
+        )
         return float(-np.sum(np.where(is_coal, log_p, log_q)) + prior)
 
     theta = minimize(loss, np.zeros(2 if with_scale else 1)).x
@@ -48,19 +53,43 @@ def main() -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--supports", type=int, default=30)
-    parser.add_argument("--seed", type=int, default=None, help="foreign seed (default: the evaluation's)")
-    parser.add_argument("--labelled", type=int, nargs="+", default=[4, 6, 10], help="commissioning impacts per support")
+    parser.add_argument(
+        "--seed", type=int, default=None, help="foreign seed (default: the evaluation's)"
+    )
+    parser.add_argument(
+        "--labelled",
+        type=int,
+        nargs="+",
+        default=[4, 6, 10],
+        help="commissioning impacts per support",
+    )
     args = parser.parse_args()
     params = load_parameters()
-    seed = args.seed if args.seed is not None else int(evaluation_params(params)["seeds"]["foreign"])
-    records = list(run_foreign(params, args.supports, IMPACTS_PER_SUPPORT, seed, ["statistical"], None, ["self-calibrated"],
-                               settings(params, [1.0], ["shipped"])))
+    seed = (
+        args.seed if args.seed is not None else int(evaluation_params(params)["seeds"]["foreign"])
+    )
+    records = list(
+        run_foreign(
+            params,
+            args.supports,
+            IMPACTS_PER_SUPPORT,
+            seed,
+            ["statistical"],
+            None,
+            ["self-calibrated"],
+            settings(params, [1.0], ["shipped"]),
+        )
+    )
     by_support: dict[int, list] = {}
     for record in records:
         by_support.setdefault(record.index // IMPACTS_PER_SUPPORT, []).append(record)
-    print(f"{args.supports} foreign supports x {IMPACTS_PER_SUPPORT} impacts, seed {seed}, shipped sensors, self-calibrated; "
-          f"all impacts: {100 * np.mean([r.correct for r in records]):.1f} % right")
-    print("| labelled per support | refinement | scored impacts | as identified | refined | wrong at >= 0.9: as identified / refined |")
+    print(
+        f"{args.supports} foreign supports x {IMPACTS_PER_SUPPORT} impacts, seed {seed}, shipped sensors, self-calibrated; "
+        f"all impacts: {100 * np.mean([r.correct for r in records]):.1f} % right"
+    )
+    print(
+        "| labelled per support | refinement | scored impacts | as identified | refined | wrong at >= 0.9: as identified / refined |"
+    )
     print("| --- | --- | --- | --- | --- | --- |")
     for k in args.labelled:
         for prior_b, with_scale in ((1.0, False), (2.0, False), (1.0, True)):
@@ -68,13 +97,24 @@ def main() -> int:
             for rows in by_support.values():
                 rows = sorted(rows, key=lambda r: r.index)
                 known = [r for r in rows[:k] if r.label is not None]
-                a, b = (fit_refinement(np.array([r.label.features["logit"] for r in known]), np.array([r.is_coal for r in known]),
-                                       prior_b, with_scale) if known else (1.0, 0.0))
+                a, b = (
+                    fit_refinement(
+                        np.array([r.label.features["logit"] for r in known]),
+                        np.array([r.is_coal for r in known]),
+                        prior_b,
+                        with_scale,
+                    )
+                    if known
+                    else (1.0, 0.0)
+                )
                 for r in rows[k:]:
                     n += 1
                     if r.label is None:
                         continue
-                    for logit, counts in ((r.label.features["logit"], 0), (a * r.label.features["logit"] + b, 1)):
+                    for logit, counts in (
+                        (r.label.features["logit"], 0),
+                        (a * r.label.features["logit"] + b, 1),
+                    ):
                         p_coal = 1.0 / (1.0 + math.exp(-logit))
                         ok = (p_coal >= 0.5) == r.is_coal
                         sure = max(p_coal, 1.0 - p_coal) >= 0.9
@@ -85,8 +125,10 @@ def main() -> int:
                             refined_right += ok
                             refined_confident += (not ok) and sure
             what = f"offset (prior sd {prior_b:g})" + (" and scale" if with_scale else "")
-            print(f"| {k} | {what} | {n} | {100 * right / n:.1f} % | {100 * refined_right / n:.1f} % | {confident} / {refined_confident} |",
-                  flush=True)
+            print(
+                f"| {k} | {what} | {n} | {100 * right / n:.1f} % | {100 * refined_right / n:.1f} % | {confident} / {refined_confident} |",
+                flush=True,
+            )
     return 0
 
 

@@ -24,48 +24,80 @@ import time
 
 import numpy as np
 
-ROWS = ("without contact_duration_s", "contact_duration_s read from the pulse", "true contact duration instead")
+ROWS = (
+    "without contact_duration_s",
+    "contact_duration_s read from the pulse",
+    "true contact duration instead",
+)
 
 
 def main() -> int:
     import tail_beam_id.study.runs as runs
+    from tail_beam_id.methods.statistical import base_vector, feature_list, network_logit
     from tail_beam_id.study.dataset import evaluation_params, settings
     from tail_beam_id.study.evaluation import wilson
-    from tail_beam_id.methods.statistical import base_vector, feature_list, network_logit
     from tail_beam_id.study.training import fit_network
     from tail_beam_sim.cli.common import add_config_option
     from tail_beam_sim.config import load_parameters
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--varied", type=int, default=1500, help="training impacts on drawn supports")
-    parser.add_argument("--stream", type=int, default=600, help="training impacts of the nominal support")
-    parser.add_argument("--supports", type=int, default=10, help="foreign supports (20 impacts each)")
+    parser.add_argument(
+        "--varied", type=int, default=1500, help="training impacts on drawn supports"
+    )
+    parser.add_argument(
+        "--stream", type=int, default=600, help="training impacts of the nominal support"
+    )
+    parser.add_argument(
+        "--supports", type=int, default=10, help="foreign supports (20 impacts each)"
+    )
     add_config_option(parser)
     args = parser.parse_args()
     params = load_parameters(args.config)
     seeds = evaluation_params(params)["seeds"]
     shipped = settings(params, [1.0], ["shipped"])
     started = time.perf_counter()
-    train = list(runs.run_set(params, "varied", args.varied, 9, shipped, ["statistical"], true_profile=True))
+    train = list(
+        runs.run_set(params, "varied", args.varied, 9, shipped, ["statistical"], true_profile=True)
+    )
     train += list(runs.run_set(params, "stream", args.stream, 7, shipped, ["statistical"]))
     tests = {
-        "paper, nominal support": list(runs.run_set(params, "paper", 200, int(seeds["paper"]), shipped, ["statistical"])),
-        "stream, nominal support": list(runs.run_set(params, "stream", 300, int(seeds["stream"]), shipped, ["statistical"])),
+        "paper, nominal support": list(
+            runs.run_set(params, "paper", 200, int(seeds["paper"]), shipped, ["statistical"])
+        ),
+        "stream, nominal support": list(
+            runs.run_set(params, "stream", 300, int(seeds["stream"]), shipped, ["statistical"])
+        ),
         "stream, foreign supports, true profile": [],
         "paper, foreign supports, true profile": [],
     }
-    for scene, column in (("stream", "stream, foreign supports, true profile"), ("paper", "paper, foreign supports, true profile")):
-        streams = runs.support_streams(params, args.supports, 20, int(seeds["foreign"]), setting=shipped[0], scene=scene)
+    for scene, column in (
+        ("stream", "stream, foreign supports, true profile"),
+        ("paper", "paper, foreign supports, true profile"),
+    ):
+        streams = runs.support_streams(
+            params, args.supports, 20, int(seeds["foreign"]), setting=shipped[0], scene=scene
+        )
         for number, recorded in enumerate(streams):
-            tests[column] += list(runs.foreign_records(params, recorded, number, 20, ["statistical"], ["true"], "shipped"))
-    print(f"{len(train)} training impacts (simulated and identified in {time.perf_counter() - started:.0f} s)", file=sys.stderr)
+            tests[column] += list(
+                runs.foreign_records(
+                    params, recorded, number, 20, ["statistical"], ["true"], "shipped"
+                )
+            )
+    print(
+        f"{len(train)} training impacts (simulated and identified in {time.perf_counter() - started:.0f} s)",
+        file=sys.stderr,
+    )
     every = feature_list(("jack_pressure", "imu", "rebound_velocity"))
     without = [(n, f) for n, f in every if n != "contact_duration_s"]
     column = [n for n, _ in every].index("contact_duration_s")
 
     def inputs(records, row):
         """(inputs, is coal, impacts without a three-signal label, which count as wrong)."""
-        kept = [r for r in records if r.label is not None and all(n in r.label.features for n, _ in every)]
+        kept = [
+            r
+            for r in records
+            if r.label is not None and all(n in r.label.features for n, _ in every)
+        ]
         rows = []
         for r in kept:
             x = list(base_vector(r.label.features, without if row == 0 else every))
@@ -80,14 +112,22 @@ def main() -> int:
         x, y, _ = inputs(train, row)
         low, high = np.percentile(x, [0.1, 99.9], axis=0)
         mean, scale = np.clip(x, low, high).mean(axis=0), np.clip(x, low, high).std(axis=0) + 1e-9
-        networks = [fit_network((np.clip(x, low, high) - mean) / scale, y.astype(float), seed=seed) for seed in (3, 4)]
+        networks = [
+            fit_network((np.clip(x, low, high) - mean) / scale, y.astype(float), seed=seed)
+            for seed in (3, 4)
+        ]
         cells = []
         for records in tests.values():
             xt, yt, lost = inputs(records, row)
-            right = [int(np.sum((network_logit(n, (np.clip(xt, low, high) - mean) / scale) > 0) == yt)) for n in networks]
+            right = [
+                int(np.sum((network_logit(n, (np.clip(xt, low, high) - mean) / scale) > 0) == yt))
+                for n in networks
+            ]
             n = len(yt) + lost
             lo, hi = wilson(min(right), n)
-            cells.append(f"{100 * right[0] / n:.1f} / {100 * right[1] / n:.1f} % ({100 * lo:.0f}-{100 * hi:.0f}, n {n})")
+            cells.append(
+                f"{100 * right[0] / n:.1f} / {100 * right[1] / n:.1f} % ({100 * lo:.0f}-{100 * hi:.0f}, n {n})"
+            )
         print(f"| {label} | " + " | ".join(cells) + " |", flush=True)
     return 0
 

@@ -33,16 +33,22 @@ ORACLES = {
 
 def main() -> int:
     import tail_beam_id.study.runs as runs
+    from tail_beam_id.methods.statistical import base_vector, feature_list, network_logit
     from tail_beam_id.study.dataset import evaluation_params, settings, simulate_set
     from tail_beam_id.study.evaluation import wilson
-    from tail_beam_id.methods.statistical import base_vector, feature_list, network_logit
     from tail_beam_id.study.training import fit_network
     from tail_beam_sim.config import load_parameters
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--varied", type=int, default=2500, help="training impacts on drawn supports")
-    parser.add_argument("--stream", type=int, default=600, help="training impacts of the nominal support")
-    parser.add_argument("--supports", type=int, default=20, help="foreign supports (20 impacts each)")
+    parser.add_argument(
+        "--varied", type=int, default=2500, help="training impacts on drawn supports"
+    )
+    parser.add_argument(
+        "--stream", type=int, default=600, help="training impacts of the nominal support"
+    )
+    parser.add_argument(
+        "--supports", type=int, default=20, help="foreign supports (20 impacts each)"
+    )
     args = parser.parse_args()
     params = load_parameters()
     seeds = evaluation_params(params)["seeds"]
@@ -53,30 +59,59 @@ def main() -> int:
         """simulate_set, keeping each impact's position and its support's IMU position."""
         for impact in simulate_set(*args_, **kwargs):
             support = impact.support.values if impact.support is not None else params["support"]
-            oracle[(args_[1], impact.index)] = {"position_m": float(impact.command["position_m"]),
-                                                "imu_from_hinge_m": float(support["imu_from_hinge_m"])}
+            oracle[(args_[1], impact.index)] = {
+                "position_m": float(impact.command["position_m"]),
+                "imu_from_hinge_m": float(support["imu_from_hinge_m"]),
+            }
             yield impact
 
     runs.simulate_set = remembering  # run_set looks it up in its module
     started = time.perf_counter()
-    train = list(runs.run_set(params, "varied", args.varied, 9, shipped, ["statistical"], true_profile=True))
+    train = list(
+        runs.run_set(params, "varied", args.varied, 9, shipped, ["statistical"], true_profile=True)
+    )
     train += list(runs.run_set(params, "stream", args.stream, 7, shipped, ["statistical"]))
-    stream = list(runs.run_set(params, "stream", 300, int(seeds["stream"]), shipped, ["statistical"]))
+    stream = list(
+        runs.run_set(params, "stream", 300, int(seeds["stream"]), shipped, ["statistical"])
+    )
     foreign = []
-    for number, recorded in enumerate(runs.support_streams(params, args.supports, 20, int(seeds["foreign"]), setting=shipped[0])):
-        for record, truth in zip(runs.foreign_records(params, recorded, number, 20, ["statistical"], ["true"], "shipped"), recorded.truths):
-            oracle[("foreign", record.index)] = {"position_m": float(truth["position_m"]),
-                                                 "imu_from_hinge_m": float(recorded.support.values["imu_from_hinge_m"])}
+    for number, recorded in enumerate(
+        runs.support_streams(params, args.supports, 20, int(seeds["foreign"]), setting=shipped[0])
+    ):
+        for record, truth in zip(
+            runs.foreign_records(
+                params, recorded, number, 20, ["statistical"], ["true"], "shipped"
+            ),
+            recorded.truths,
+        ):
+            oracle[("foreign", record.index)] = {
+                "position_m": float(truth["position_m"]),
+                "imu_from_hinge_m": float(recorded.support.values["imu_from_hinge_m"]),
+            }
             foreign.append(record)
-    print(f"{len(train)} training impacts, {len(stream)} stream and {len(foreign)} foreign test impacts "
-          f"(simulated in {time.perf_counter() - started:.0f} s)", file=sys.stderr)
+    print(
+        f"{len(train)} training impacts, {len(stream)} stream and {len(foreign)} foreign test impacts "
+        f"(simulated in {time.perf_counter() - started:.0f} s)",
+        file=sys.stderr,
+    )
     names = feature_list(("jack_pressure", "imu", "rebound_velocity"))
 
     def inputs(records, extra):
         """(inputs, is coal, impacts without a three-signal label, which count as wrong)."""
-        kept = [r for r in records if r.label is not None and all(n in r.label.features for n, _ in names)]
-        x = np.array([[*base_vector(r.label.features, names), *(math.log(oracle[(r.scene_set, r.index)][e]) for e in extra)]
-                      for r in kept])
+        kept = [
+            r
+            for r in records
+            if r.label is not None and all(n in r.label.features for n, _ in names)
+        ]
+        x = np.array(
+            [
+                [
+                    *base_vector(r.label.features, names),
+                    *(math.log(oracle[(r.scene_set, r.index)][e]) for e in extra),
+                ]
+                for r in kept
+            ]
+        )
         return x, np.array([r.is_coal for r in kept]), len(records) - len(kept)
 
     print("| oracle input | stream scene, nominal support | foreign supports, true profile |")
@@ -85,14 +120,26 @@ def main() -> int:
         x, y, _ = inputs(train, extra)
         low, high = np.percentile(x, [0.1, 99.9], axis=0)
         mean, scale = np.clip(x, low, high).mean(axis=0), np.clip(x, low, high).std(axis=0) + 1e-9
-        networks = [fit_network((np.clip(x, low, high) - mean) / scale, y.astype(float), seed=seed) for seed in (3, 4)]
+        networks = [
+            fit_network((np.clip(x, low, high) - mean) / scale, y.astype(float), seed=seed)
+            for seed in (3, 4)
+        ]
         cells = []
         for records in (stream, foreign):
             xt, yt, lost = inputs(records, extra)
-            right = [int(np.sum((network_logit(network, (np.clip(xt, low, high) - mean) / scale) > 0) == yt)) for network in networks]
+            right = [
+                int(
+                    np.sum(
+                        (network_logit(network, (np.clip(xt, low, high) - mean) / scale) > 0) == yt
+                    )
+                )
+                for network in networks
+            ]
             n = len(yt) + lost
             lo, hi = wilson(min(right), n)
-            cells.append(f"{100 * right[0] / n:.1f} / {100 * right[1] / n:.1f} % ({100 * lo:.0f}-{100 * hi:.0f}, n {n})")
+            cells.append(
+                f"{100 * right[0] / n:.1f} / {100 * right[1] / n:.1f} % ({100 * lo:.0f}-{100 * hi:.0f}, n {n})"
+            )
         print(f"| {label} | {cells[0]} | {cells[1]} |", flush=True)
     return 0
 

@@ -56,17 +56,32 @@ class SoakResult:
 
     @property
     def counts_match(self) -> bool:
-        return self.asked == self.truths == self.matched == self.rebounds and self.extra == 0 and self.live_matches_offline
+        return (
+            self.asked == self.truths == self.matched == self.rebounds
+            and self.extra == 0
+            and self.live_matches_offline
+        )
 
 
 def start(exe: str, params: list[str], log_dir: Path, namespace: str = "") -> subprocess.Popen:
-    args = [str(BIN / exe), "--ros-args"] + [a for p in params for a in ("-p", p)] + (["-r", f"__ns:={namespace}"] if namespace else [])
+    args = (
+        [str(BIN / exe), "--ros-args"]
+        + [a for p in params for a in ("-p", p)]
+        + (["-r", f"__ns:={namespace}"] if namespace else [])
+    )
     log = (log_dir / f"{exe}.log").open("w")
     return subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
 
 
-def soak(impacts: int, work: Path, sample_s: float = 5.0, timeout_s: float = 3600.0, echo=print,
-         recorder_params: tuple[str, ...] = (), namespace: str = "") -> SoakResult:
+def soak(
+    impacts: int,
+    work: Path,
+    sample_s: float = 5.0,
+    timeout_s: float = 3600.0,
+    echo=print,
+    recorder_params: tuple[str, ...] = (),
+    namespace: str = "",
+) -> SoakResult:
     """Run the three nodes on ``impacts`` generated impacts; return what the bag holds.
     ``recorder_params`` are extra ``name:=value`` overrides of the recorder (experiments);
     ``namespace`` puts the whole support under one."""
@@ -77,14 +92,24 @@ def soak(impacts: int, work: Path, sample_s: float = 5.0, timeout_s: float = 360
 
     bag = work / "soak_bag"
     procs = {
-        "bag_recorder": start("bag_recorder", [f"recorder.bag_path:={bag}", *recorder_params], work, namespace),
+        "bag_recorder": start(
+            "bag_recorder", [f"recorder.bag_path:={bag}", *recorder_params], work, namespace
+        ),
         "id_node": start("id_node", ["id_node.flush_after_idle_s:=2.0"], work, namespace),
     }
     time.sleep(2.0)  # both are up before the simulator waits for its subscribers
-    procs["sim_node"] = start("sim_node", [
-        "scenario.source:=generated", f"scenario.count:={impacts}", "sim_node.realtime_factor:=0.0",
-        "sim_node.wait_for_subscribers:=2", "sim_node.exit_after_idle_s:=1.0",
-    ], work, namespace)
+    procs["sim_node"] = start(
+        "sim_node",
+        [
+            "scenario.source:=generated",
+            f"scenario.count:={impacts}",
+            "sim_node.realtime_factor:=0.0",
+            "sim_node.wait_for_subscribers:=2",
+            "sim_node.exit_after_idle_s:=1.0",
+        ],
+        work,
+        namespace,
+    )
     result = SoakResult(impacts, rss={name: [] for name in NODES})
     began = time.monotonic()
     next_sample = began
@@ -116,7 +141,9 @@ def soak(impacts: int, work: Path, sample_s: float = 5.0, timeout_s: float = 360
         result.wall_s = time.monotonic() - began
         result.logs = {name: (work / f"{name}.log").read_text()[-3000:] for name in NODES}
     if procs["sim_node"].returncode != 0:
-        raise RuntimeError(f"sim_node exited {procs['sim_node'].returncode}: {result.logs['sim_node'][-500:]}")
+        raise RuntimeError(
+            f"sim_node exited {procs['sim_node'].returncode}: {result.logs['sim_node'][-500:]}"
+        )
     data = read_sensors(bag)
     result.truths = len(data.json_topics[topics.IMPACT_TRUTH])
     result.labels = len(data.json_topics[topics.LABEL])
@@ -127,32 +154,58 @@ def soak(impacts: int, work: Path, sample_s: float = 5.0, timeout_s: float = 360
     offline = identify_bag(str(bag), calibrate=False)  # id_node as run here does not calibrate
     result.offline_labels = len(offline)
     result.live_matches_offline = [l.decision() for l in live] == [l.decision() for l in offline]
-    matching = match(data.json_topics[topics.IMPACT_TRUTH], live, match_tolerance_s(load_parameters()["identification"]))
+    matching = match(
+        data.json_topics[topics.IMPACT_TRUTH],
+        live,
+        match_tolerance_s(load_parameters()["identification"]),
+    )
     result.matched, result.extra = len(matching.pairs), len(matching.extra)
-    result.messages = data.pressure_stamp_s.size + data.imu_stamp_s.size + result.rebounds + result.truths + result.labels
+    result.messages = (
+        data.pressure_stamp_s.size
+        + data.imu_stamp_s.size
+        + result.rebounds
+        + result.truths
+        + result.labels
+    )
     return result
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description="soak sim_node, id_node and bag_recorder; print RSS; check the bag's counts")
+    parser = argparse.ArgumentParser(
+        description="soak sim_node, id_node and bag_recorder; print RSS; check the bag's counts"
+    )
     parser.add_argument("--impacts", type=int, default=1000)
     parser.add_argument("--sample-s", type=float, default=5.0, help="RSS sampling period, s")
-    parser.add_argument("--keep", action="store_true", help="keep the bag and logs (their directory is printed)")
-    parser.add_argument("--recorder-param", action="append", default=[], metavar="NAME:=VALUE", help="extra recorder parameter (repeatable)")
+    parser.add_argument(
+        "--keep", action="store_true", help="keep the bag and logs (their directory is printed)"
+    )
+    parser.add_argument(
+        "--recorder-param",
+        action="append",
+        default=[],
+        metavar="NAME:=VALUE",
+        help="extra recorder parameter (repeatable)",
+    )
     args = parser.parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix="tail_beam_soak_"))
     result = soak(args.impacts, work, args.sample_s, recorder_params=tuple(args.recorder_param))
-    print(f"\n{args.impacts} impacts in {result.wall_s:.0f} s wall; bag: {result.messages} messages")
+    print(
+        f"\n{args.impacts} impacts in {result.wall_s:.0f} s wall; bag: {result.messages} messages"
+    )
     for name, samples in result.rss.items():
         values = [mb for _, mb in samples if mb == mb]
         if values:
             third = max(1, len(values) // 3)
-            print(f"  {name:<13} RSS first {values[0]:6.1f} MB, max {max(values):6.1f} MB, last {values[-1]:6.1f} MB; "
-                  f"mean of first third {sum(values[:third]) / third:6.1f}, of last third {sum(values[-third:]) / third:6.1f}")
-    print(f"  truths {result.truths}, labels {result.labels} ({result.matched} matched, {result.extra} extra; offline "
-          f"{result.offline_labels}, {'the same' if result.live_matches_offline else 'NOT the same'}), rebounds {result.rebounds} "
-          f"(asked {result.asked}): "
-          f"{'match' if result.counts_match else 'MISMATCH'}")
+            print(
+                f"  {name:<13} RSS first {values[0]:6.1f} MB, max {max(values):6.1f} MB, last {values[-1]:6.1f} MB; "
+                f"mean of first third {sum(values[:third]) / third:6.1f}, of last third {sum(values[-third:]) / third:6.1f}"
+            )
+    print(
+        f"  truths {result.truths}, labels {result.labels} ({result.matched} matched, {result.extra} extra; offline "
+        f"{result.offline_labels}, {'the same' if result.live_matches_offline else 'NOT the same'}), rebounds {result.rebounds} "
+        f"(asked {result.asked}): "
+        f"{'match' if result.counts_match else 'MISMATCH'}"
+    )
     if args.keep:
         print(f"  kept in {work}")
     else:

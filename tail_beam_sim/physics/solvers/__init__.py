@@ -38,14 +38,22 @@ from typing import Any
 
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.solvers import fixed_step, hybrid, impulse, scipy_ivp
-from tail_beam_sim.physics.solvers.problem import ContactRecord, ImpactProblem, Samples, SolverError, Trajectory
+from tail_beam_sim.physics.solvers.problem import (
+    ContactRecord,
+    ImpactProblem,
+    Samples,
+    SolverError,
+    Trajectory,
+)
 
 
 def _scipy(method: str) -> Callable[..., Trajectory]:
     def solve_with(problem: ImpactProblem, rtol: float = 1e-8) -> Trajectory:
         return scipy_ivp.solve(problem, method, rtol)
 
-    solve_with.__doc__ = f"scipy.integrate.solve_ivp(method={method!r}) with contact events; option rtol."
+    solve_with.__doc__ = (
+        f"scipy.integrate.solve_ivp(method={method!r}) with contact events; option rtol."
+    )
     return solve_with
 
 
@@ -75,8 +83,19 @@ def solve(problem: ImpactProblem, method: str = DEFAULT_SOLVER, **options: Any) 
     try:
         inspect.signature(solver).bind(problem, **options)
     except TypeError as exc:
-        raise InputError("solver options", sorted(options), f"not all accepted by {method}: {exc}") from None
+        raise InputError(
+            "solver options", sorted(options), f"not all accepted by {method}: {exc}"
+        ) from None
     return solver(problem, **options)
 
 
-__all__ = ["ContactRecord", "ImpactProblem", "Samples", "SolverError", "Trajectory", "SOLVERS", "DEFAULT_SOLVER", "solve"]
+__all__ = [
+    "ContactRecord",
+    "ImpactProblem",
+    "Samples",
+    "SolverError",
+    "Trajectory",
+    "SOLVERS",
+    "DEFAULT_SOLVER",
+    "solve",
+]

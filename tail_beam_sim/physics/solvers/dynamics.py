@@ -37,7 +37,9 @@ class FloatDynamics:
             -sum(bi * vi for bi, vi in zip(b, y[n : 2 * n])) - y[2 * n + 1],
         )
 
-    def force(self, delta_m: float, rate_mps: float, approach_mps: float, peak_penetration_m: float) -> float:
+    def force(
+        self, delta_m: float, rate_mps: float, approach_mps: float, peak_penetration_m: float
+    ) -> float:
         """Contact force, N: Hertz with hysteresis, or the crushing law when the problem has one."""
         if delta_m <= 0.0:
             return 0.0
@@ -46,7 +48,9 @@ class FloatDynamics:
         value = self.hertz * delta_m**1.5 * (1.0 + self.chi * rate_mps / approach_mps)
         return value if value > 0.0 else 0.0
 
-    def derivative(self, y: list[float], approach_mps: float, peak_penetration_m: float) -> tuple[list[float], float]:
+    def derivative(
+        self, y: list[float], approach_mps: float, peak_penetration_m: float
+    ) -> tuple[list[float], float]:
         """(dy/dt, contact force N) at state ``y``."""
         n = self.n
         q, qd = y[:n], y[n : 2 * n]
@@ -63,11 +67,20 @@ class FloatDynamics:
         return [*map(float, q), *map(float, qd), float(z_m), float(zd_mps)]
 
 
-def rk4_step(dynamics: FloatDynamics, y: list[float], h: float, k1: list[float], approach: float, peak: float) -> list[float]:
+def rk4_step(
+    dynamics: FloatDynamics,
+    y: list[float],
+    h: float,
+    k1: list[float],
+    approach: float,
+    peak: float,
+) -> list[float]:
     """One classical RK4 step of length ``h`` from ``y``, whose derivative ``k1`` is known."""
     half = 0.5 * h
     k2, _ = dynamics.derivative([a + half * d for a, d in zip(y, k1)], approach, peak)
     k3, _ = dynamics.derivative([a + half * d for a, d in zip(y, k2)], approach, peak)
     k4, _ = dynamics.derivative([a + h * d for a, d in zip(y, k3)], approach, peak)
     sixth = h / 6.0
-    return [a + sixth * (d1 + 2.0 * d2 + 2.0 * d3 + d4) for a, d1, d2, d3, d4 in zip(y, k1, k2, k3, k4)]
+    return [
+        a + sixth * (d1 + 2.0 * d2 + 2.0 * d3 + d4) for a, d1, d2, d3, d4 in zip(y, k1, k2, k3, k4)
+    ]

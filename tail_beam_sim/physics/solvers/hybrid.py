@@ -32,14 +32,31 @@ from scipy.optimize import brentq
 from tail_beam_sim.errors import InputError, require_int
 from tail_beam_sim.physics.contact import hertz_elastic_impact
 from tail_beam_sim.physics.solvers.dynamics import FloatDynamics, rk4_step
-from tail_beam_sim.physics.solvers.problem import ContactRecord, ContactSegment, FreeSegment, ImpactProblem, SolverError, Trajectory
-from tail_beam_sim.physics.solvers.pulse import Pulse, contact_pulse, max_chi, parabolic_peak, structure_response
+from tail_beam_sim.physics.solvers.problem import (
+    ContactRecord,
+    ContactSegment,
+    FreeSegment,
+    ImpactProblem,
+    SolverError,
+    Trajectory,
+)
+from tail_beam_sim.physics.solvers.pulse import (
+    Pulse,
+    contact_pulse,
+    max_chi,
+    parabolic_peak,
+    structure_response,
+)
 
 DEFAULT_STEPS_PER_CONTACT = 48
-REST_SPEED_MPS = 1e-4  # relative approach speed below which a particle is taken to lie on the plate
+REST_SPEED_MPS = (
+    1e-4  # relative approach speed below which a particle is taken to lie on the plate
+)
 MAX_CONTACTS = 500
 MAX_REFINEMENTS = 3
-ENERGY_GAIN_TOLERANCE = 0.01  # relative: separation faster than approach by more than this is a failure
+ENERGY_GAIN_TOLERANCE = (
+    0.01  # relative: separation faster than approach by more than this is a failure
+)
 DEFAULT_PULSE_TOLERANCE = 5e-3  # relative error estimate (conservative) the pulse may cost before a contact is integrated
 CONTACT_METHODS = ("auto", "pulse", "rk4")
 # Relative error bound of a contact integrated by RK4: measured in test_solvers.py (Hertz with
@@ -64,14 +81,19 @@ def solve(
         raise InputError("contact", contact, f"must be one of {', '.join(CONTACT_METHODS)}")
     pulse_ok = problem.crushing is None and problem.damping_factor <= max_chi()
     if contact == "pulse" and not pulse_ok:
-        raise SolverError("hybrid", "contact='pulse' covers Hertz contacts with hysteresis factor <= 40 only; use contact='rk4'")
+        raise SolverError(
+            "hybrid",
+            "contact='pulse' covers Hertz contacts with hysteresis factor <= 40 only; use contact='rk4'",
+        )
     structure = problem.structure
     dynamics: FloatDynamics | None = None  # built on the first integrated contact
     b = problem.contact_shape
     g = problem.gravity_mps2
     q, qd = problem.q0.astype(float), problem.qd0.astype(float)
     z, zd = 0.0, -problem.impact_speed_mps
-    segments: list[ContactSegment | PulseSegment | FreeSegment] = [FreeSegment(-math.inf, 0.0, 0.0, q, qd, z, zd)]
+    segments: list[ContactSegment | PulseSegment | FreeSegment] = [
+        FreeSegment(-math.inf, 0.0, 0.0, q, qd, z, zd)
+    ]
     contacts: list[ContactRecord] = []
     t = 0.0
     at_rest = False
@@ -85,7 +107,9 @@ def solve(
             stats["pulse_error_estimate"] = max(stats["pulse_error_estimate"], estimate)
         else:
             dynamics = dynamics or FloatDynamics(problem)
-            segment, record = contact_phase(problem, dynamics, t, dynamics.state(q, qd, z, zd), steps_per_contact)
+            segment, record = contact_phase(
+                problem, dynamics, t, dynamics.state(q, qd, z, zd), steps_per_contact
+            )
             stats["rk4_contacts"] += 1
             stats["rk4_steps"] += segment.t_s.size - 1
         segments.append(segment)
@@ -99,7 +123,9 @@ def solve(
             q, qd = segment.q[:, -1].copy(), segment.qd[:, -1].copy()
             z, zd = float(segment.z_m[-1]), float(segment.zd_mps[-1])
         if problem.crushing is not None:
-            z = -float(b @ q)  # the crushed cap breaks away: the particle's new lowest point is on the surface
+            z = -float(
+                b @ q
+            )  # the crushed cap breaks away: the particle's new lowest point is on the surface
         separating = zd + float(b @ qd)
         if separating < REST_SPEED_MPS or len(contacts) >= MAX_CONTACTS:
             at_rest = True
@@ -115,8 +141,12 @@ def solve(
         z, zd = z + zd * dt - 0.5 * g * dt * dt, zd - g * dt
         z = -float(b @ q)  # on the surface exactly at the root
         t = next_contact
-    estimate = max(stats["pulse_error_estimate"], RK4_CONTACT_ERROR if stats["rk4_contacts"] else 0.0)
-    return Trajectory(problem, segments, contacts, "hybrid", estimate, particle_at_rest=at_rest, stats=stats)
+    estimate = max(
+        stats["pulse_error_estimate"], RK4_CONTACT_ERROR if stats["rk4_contacts"] else 0.0
+    )
+    return Trajectory(
+        problem, segments, contacts, "hybrid", estimate, particle_at_rest=at_rest, stats=stats
+    )
 
 
 def pulse_contact(
@@ -147,8 +177,12 @@ def pulse_contact(
     q, qd = x_end[:n], x_end[n:]
     internal_rows = b @ structure.modal_internal
     impulse = reduced_mass * (approach + pulse.separation_mps)
-    neglected = abs(problem.gravity_mps2) + float(np.abs(internal_rows) @ (np.abs(modal0) + np.abs(beta) * impulse))
-    estimate = neglected * max(duration / approach, duration * duration / (2.0 * pulse.max_penetration_m))
+    neglected = abs(problem.gravity_mps2) + float(
+        np.abs(internal_rows) @ (np.abs(modal0) + np.abs(beta) * impulse)
+    )
+    estimate = neglected * max(
+        duration / approach, duration * duration / (2.0 * pulse.max_penetration_m)
+    )
     t_end = t0 + duration
     segment = PulseSegment(problem, t0, x0, pulse)
     zd_end = -float(b @ qd) + pulse.separation_mps
@@ -163,7 +197,9 @@ class PulseSegment:
     attributes as :class:`ContactSegment` (``t_s``, ``q``, ``qd``, ``qdd``, ``z_m``, ``zd_mps``,
     ``force_n``), from the exact response of the structure to the piecewise-linear pulse."""
 
-    end_state: tuple[np.ndarray, np.ndarray, float, float]  # q, qd, z (m), zd (m/s) as the contact ends
+    end_state: tuple[
+        np.ndarray, np.ndarray, float, float
+    ]  # q, qd, z (m), zd (m/s) as the contact ends
     end_modal: np.ndarray  # the same state in the structure's modal coordinates
 
     def __init__(self, problem: ImpactProblem, t0: float, x0: np.ndarray, pulse: Pulse) -> None:
@@ -186,7 +222,9 @@ class PulseSegment:
         load = self.problem.contact_load
         x = structure_response(structure._eigen, load, self.x0, self.t_s, self.pulse.force_n)
         q, qd = x[:n], x[n:]
-        qdd = load[:, None] * self.pulse.force_n - structure.inv_mass @ (structure.damping @ qd + structure.stiffness @ q)
+        qdd = load[:, None] * self.pulse.force_n - structure.inv_mass @ (
+            structure.damping @ qd + structure.stiffness @ q
+        )
         return q, qd, qdd, -(b @ q) - self.pulse.penetration_m, -(b @ qd) - self.pulse.rate_mps
 
     q = property(lambda self: self._states[0])
@@ -206,7 +244,15 @@ def contact_phase(
         if not math.isfinite(record.separation_speed_mps):
             gained = math.inf
         else:
-            final = [float(v) for v in (*segment.q[:, -1], *segment.qd[:, -1], segment.z_m[-1], segment.zd_mps[-1])]
+            final = [
+                float(v)
+                for v in (
+                    *segment.q[:, -1],
+                    *segment.qd[:, -1],
+                    segment.z_m[-1],
+                    segment.zd_mps[-1],
+                )
+            ]
             gained = -dynamics.penetration(final)[1] / approach - 1.0
         if gained <= ENERGY_GAIN_TOLERANCE:
             return segment, record
@@ -219,12 +265,19 @@ def contact_phase(
 
 
 def _integrate_contact(
-    problem: ImpactProblem, dynamics: FloatDynamics, t0: float, y0: list[float], steps: int, approach: float
+    problem: ImpactProblem,
+    dynamics: FloatDynamics,
+    t0: float,
+    y0: list[float],
+    steps: int,
+    approach: float,
 ) -> tuple[ContactSegment, ContactRecord]:
     """Fixed-step RK4 through one contact (``steps`` per elastic Hertz duration)."""
     n = dynamics.n
     crushing = dynamics.crushing
-    duration = hertz_elastic_impact(problem.hertz_stiffness, problem.mass_kg, approach)["duration_s"]
+    duration = hertz_elastic_impact(problem.hertz_stiffness, problem.mass_kg, approach)[
+        "duration_s"
+    ]
     dt = duration / steps
     t_end = problem.window_s
     peak = 0.0
@@ -238,7 +291,9 @@ def _integrate_contact(
         left = delta_new <= offset and t > t0
         if left:
             delta_old, rate_old = dynamics.penetration(y)
-            theta = _crossing_fraction((delta_old - offset, rate_old), (delta_new - offset, rate_new), dt)
+            theta = _crossing_fraction(
+                (delta_old - offset, rate_old), (delta_new - offset, rate_new), dt
+            )
             y_new = rk4_step(dynamics, y, theta * dt, k1, approach, peak)
             t_new = t + theta * dt
         else:
@@ -258,12 +313,20 @@ def _integrate_contact(
     ys = np.array(states).T
     ds = np.array(derivs).T
     segment = ContactSegment(
-        t_s=np.array(times), q=ys[:n], qd=ys[n : 2 * n], qdd=ds[n : 2 * n],
-        z_m=ys[2 * n], zd_mps=ys[2 * n + 1], force_n=np.array(forces),
+        t_s=np.array(times),
+        q=ys[:n],
+        qd=ys[n : 2 * n],
+        qdd=ds[n : 2 * n],
+        z_m=ys[2 * n],
+        zd_mps=ys[2 * n + 1],
+        force_n=np.array(forces),
     )
     record = ContactRecord(
-        start_s=t0, end_s=float(times[-1]), approach_speed_mps=approach,
-        separation_speed_mps=float(ys[2 * n + 1, -1]), peak_force_n=parabolic_peak(np.array(forces[:-1])),
+        start_s=t0,
+        end_s=float(times[-1]),
+        approach_speed_mps=approach,
+        separation_speed_mps=float(ys[2 * n + 1, -1]),
+        peak_force_n=parabolic_peak(np.array(forces[:-1])),
     )
     return segment, record
 
@@ -275,14 +338,21 @@ def _crossing_fraction(before: tuple[float, float], after: tuple[float, float], 
         return 1e-9
 
     def cubic(s: float) -> float:
-        return (2 * s**3 - 3 * s**2 + 1) * d0 + (s**3 - 2 * s**2 + s) * h * r0 + (-2 * s**3 + 3 * s**2) * d1 + (s**3 - s**2) * h * r1
+        return (
+            (2 * s**3 - 3 * s**2 + 1) * d0
+            + (s**3 - 2 * s**2 + s) * h * r0
+            + (-2 * s**3 + 3 * s**2) * d1
+            + (s**3 - s**2) * h * r1
+        )
 
     if cubic(1.0) > 0.0:
         return 1.0
     return float(brentq(cubic, 0.0, 1.0, xtol=1e-13))
 
 
-def plate_speed_bound_mps(problem: ImpactProblem, q0: np.ndarray, qd0: np.ndarray, modal: np.ndarray | None = None) -> float:
+def plate_speed_bound_mps(
+    problem: ImpactProblem, q0: np.ndarray, qd0: np.ndarray, modal: np.ndarray | None = None
+) -> float:
     """An upper bound on the plate's speed at the contact point for all later free motion, m/s.
 
     The free response is a sum of decaying modes, b . qd(t) = Re sum_k r_k exp(lambda_k t) xi_k,
@@ -297,7 +367,13 @@ def plate_speed_bound_mps(problem: ImpactProblem, q0: np.ndarray, qd0: np.ndarra
 
 
 def next_contact_time(
-    problem: ImpactProblem, t0: float, q0: np.ndarray, qd0: np.ndarray, z0: float, zd0: float, modal: np.ndarray | None = None
+    problem: ImpactProblem,
+    t0: float,
+    q0: np.ndarray,
+    qd0: np.ndarray,
+    z0: float,
+    zd0: float,
+    modal: np.ndarray | None = None,
 ) -> float | None:
     """First time in (t0, window] at which the free particle meets the moving plate, or None."""
     t_end = problem.window_s
@@ -329,7 +405,14 @@ def next_contact_time(
     low = float(grid[i - 1])
     if i == 1:
         # the gap starts at zero (to rounding): step off the surface until it is open
-        low = next((t0 + d for d in np.geomspace(1e-10, grid[1] - t0, 24) if gap(np.array([t0 + d]))[0] > 0.0), None)
+        low = next(
+            (
+                t0 + d
+                for d in np.geomspace(1e-10, grid[1] - t0, 24)
+                if gap(np.array([t0 + d]))[0] > 0.0
+            ),
+            None,
+        )
         if low is None:
             return float(grid[1])
     return float(brentq(lambda s: float(gap(np.array([s]))[0]), low, float(grid[i]), xtol=1e-14))

@@ -15,7 +15,13 @@ from __future__ import annotations
 import math
 
 from tail_beam_sim.physics.solvers.hybrid import next_contact_time
-from tail_beam_sim.physics.solvers.problem import ContactRecord, FreeSegment, ImpactProblem, SolverError, Trajectory
+from tail_beam_sim.physics.solvers.problem import (
+    ContactRecord,
+    FreeSegment,
+    ImpactProblem,
+    SolverError,
+    Trajectory,
+)
 from tail_beam_sim.physics.solvers.pulse import contact_pulse, max_chi
 
 REST_SPEED_MPS = 1e-4
@@ -30,7 +36,9 @@ def solve(problem: ImpactProblem) -> Trajectory:
     mode of frequency omega sees it ((omega sigma)^2 / 2, in the response), the worst contact's.
     """
     if problem.crushing is not None or problem.damping_factor > max_chi():
-        raise SolverError("impulse", "covers Hertz contacts with hysteresis factor <= 40 only; use hybrid")
+        raise SolverError(
+            "impulse", "covers Hertz contacts with hysteresis factor <= 40 only; use hybrid"
+        )
     structure = problem.structure
     b = problem.contact_shape
     g = problem.gravity_mps2
@@ -48,10 +56,14 @@ def solve(problem: ImpactProblem) -> Trajectory:
         if approach < REST_SPEED_MPS or len(contacts) >= MAX_CONTACTS:
             at_rest = True
             break
-        pulse = contact_pulse(problem.damping_factor, problem.hertz_stiffness, reduced_mass, approach)
+        pulse = contact_pulse(
+            problem.damping_factor, problem.hertz_stiffness, reduced_mass, approach
+        )
         centroid = pulse.centroid_s
         width = max(width, pulse.width_s)
-        estimate = max(estimate, abs(g) * pulse.duration_s / approach, 0.5 * (fastest * pulse.width_s) ** 2)
+        estimate = max(
+            estimate, abs(g) * pulse.duration_s / approach, 0.5 * (fastest * pulse.width_s) ** 2
+        )
         impulse = reduced_mass * (approach + pulse.separation_mps)
         segments.append(FreeSegment(previous, t + centroid, t, q, qd, z, zd))
         q, qd = structure.propagate(q, qd, centroid)
@@ -72,4 +84,12 @@ def solve(problem: ImpactProblem) -> Trajectory:
         z, zd = -float(b @ q), zd - g * dt
         previous = t = following
     segments.append(FreeSegment(previous, math.inf, t, q, qd, z, zd))
-    return Trajectory(problem, segments, contacts, "impulse", estimate, particle_at_rest=at_rest, stats={"pulse_width_s": width})
+    return Trajectory(
+        problem,
+        segments,
+        contacts,
+        "impulse",
+        estimate,
+        particle_at_rest=at_rest,
+        stats={"pulse_width_s": width},
+    )

@@ -189,7 +189,9 @@ class Trajectory:
             zd_mps=np.zeros(times.size),
         )
         starts = np.array([seg.start_s for seg in self.segments])
-        which = np.clip(np.searchsorted(starts, times, side="right") - 1, 0, len(self.segments) - 1)
+        which = np.clip(
+            np.searchsorted(starts, times, side="right") - 1, 0, len(self.segments) - 1
+        )
         for index in np.unique(which):
             mask = which == index
             segment = self.segments[index]
@@ -201,26 +203,36 @@ class Trajectory:
                 self._sample_contact(segment, times[mask], out, mask)
         return out
 
-    def _sample_free(self, seg: FreeSegment, times: np.ndarray, out: Samples, mask: np.ndarray) -> None:
+    def _sample_free(
+        self, seg: FreeSegment, times: np.ndarray, out: Samples, mask: np.ndarray
+    ) -> None:
         structure = self.problem.structure
         dt = times - seg.anchor_s
         q, qd = structure.propagate(seg.q, seg.qd, dt)
         out.q[:, mask], out.qd[:, mask] = q, qd
-        out.qdd[:, mask] = structure.acceleration(q, qd, np.zeros(times.size), self.problem.contact_shape)
+        out.qdd[:, mask] = structure.acceleration(
+            q, qd, np.zeros(times.size), self.problem.contact_shape
+        )
         g = self.problem.gravity_mps2
         out.z_m[mask] = seg.z_m + seg.zd_mps * dt - 0.5 * g * dt * dt
         out.zd_mps[mask] = seg.zd_mps - g * dt
 
-    def _sample_ode(self, seg: OdeSegment, times: np.ndarray, out: Samples, mask: np.ndarray) -> None:
+    def _sample_ode(
+        self, seg: OdeSegment, times: np.ndarray, out: Samples, mask: np.ndarray
+    ) -> None:
         n = self.problem.structure.size
         states = seg.dense(np.clip(times, seg.t_s[0], seg.t_s[-1]))
         q, qd = states[:n], states[n : 2 * n]
         out.q[:, mask], out.qd[:, mask] = q, qd
-        out.qdd[:, mask] = self.problem.structure.acceleration(q, qd, np.zeros(times.size), self.problem.contact_shape)
+        out.qdd[:, mask] = self.problem.structure.acceleration(
+            q, qd, np.zeros(times.size), self.problem.contact_shape
+        )
         out.z_m[mask], out.zd_mps[mask] = states[2 * n], states[2 * n + 1]
 
     @staticmethod
-    def _sample_contact(seg: ContactSegment, times: np.ndarray, out: Samples, mask: np.ndarray) -> None:
+    def _sample_contact(
+        seg: ContactSegment, times: np.ndarray, out: Samples, mask: np.ndarray
+    ) -> None:
         k = np.clip(np.searchsorted(seg.t_s, times, side="right") - 1, 0, seg.t_s.size - 2)
         h = seg.t_s[k + 1] - seg.t_s[k]
         s = np.where(h > 0, (times - seg.t_s[k]) / np.where(h > 0, h, 1.0), 0.0)
@@ -228,7 +240,12 @@ class Trajectory:
         h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
 
         def hermite(y: np.ndarray, dy: np.ndarray) -> np.ndarray:
-            return h00 * y[..., k] + h10 * h * dy[..., k] + h01 * y[..., k + 1] + h11 * h * dy[..., k + 1]
+            return (
+                h00 * y[..., k]
+                + h10 * h * dy[..., k]
+                + h01 * y[..., k + 1]
+                + h11 * h * dy[..., k + 1]
+            )
 
         out.q[:, mask] = hermite(seg.q, seg.qd)
         out.qd[:, mask] = hermite(seg.qd, seg.qdd)

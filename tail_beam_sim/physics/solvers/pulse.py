@@ -26,7 +26,9 @@ from scipy.special import factorial
 
 PULSE_NODES = 64  # samples per contact: enough for cubic Hermite sampling to 1e-6 of the peak
 SUBSTEPS = 8  # RK4 steps between samples in the second pass
-FIRST_PASS_STEP = 0.02  # dimensionless RK4 step of the first pass (duration ~3.2 units elastic; 2e-6 relative)
+FIRST_PASS_STEP = (
+    0.02  # dimensionless RK4 step of the first pass (duration ~3.2 units elastic; 2e-6 relative)
+)
 MAX_SPAN = 40.0  # dimensionless time limit of the first pass (chi = 40 lasts about 25 units)
 MOMENTS = 64  # moments of each pulse kept for its spectrum's power series
 SERIES_RADIUS = 12.0  # |lambda T| up to which the series is used (largest term ~2e4, last ~1e-20: about 1e-11 relative)
@@ -49,7 +51,9 @@ class PulseTable:
     moments: np.ndarray
 
 
-def _rk4_rows(chi: np.ndarray, u: np.ndarray, v: np.ndarray, dt: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+def _rk4_rows(
+    chi: np.ndarray, u: np.ndarray, v: np.ndarray, dt: np.ndarray | float
+) -> tuple[np.ndarray, np.ndarray]:
     """One RK4 step of u'' = -max(0, u^1.5 (1 + chi u')) for every row."""
 
     def acc(uu: np.ndarray, vv: np.ndarray) -> np.ndarray:
@@ -59,7 +63,9 @@ def _rk4_rows(chi: np.ndarray, u: np.ndarray, v: np.ndarray, dt: np.ndarray | fl
     k2u, k2v = v + 0.5 * dt * k1v, acc(u + 0.5 * dt * k1u, v + 0.5 * dt * k1v)
     k3u, k3v = v + 0.5 * dt * k2v, acc(u + 0.5 * dt * k2u, v + 0.5 * dt * k2v)
     k4u, k4v = v + dt * k3v, acc(u + dt * k3u, v + dt * k3v)
-    return u + dt / 6.0 * (k1u + 2 * k2u + 2 * k3u + k4u), v + dt / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v)
+    return u + dt / 6.0 * (k1u + 2 * k2u + 2 * k3u + k4u), v + dt / 6.0 * (
+        k1v + 2 * k2v + 2 * k3v + k4v
+    )
 
 
 @lru_cache(maxsize=1)
@@ -95,7 +101,13 @@ def pulse_table() -> PulseTable:
     fractions = np.linspace(0.0, 1.0, PULSE_NODES + 1)
     peaks = np.array([parabolic_peak(row) for row in force])
     return PulseTable(
-        chi, duration, -v_nodes[:, -1], rows, fractions, peaks, u_nodes.max(axis=1),
+        chi,
+        duration,
+        -v_nodes[:, -1],
+        rows,
+        fractions,
+        peaks,
+        u_nodes.max(axis=1),
         _moments(force, fractions) / factorial(np.arange(MOMENTS)),
     )
 
@@ -107,7 +119,9 @@ def _moments(force: np.ndarray, fractions: np.ndarray) -> np.ndarray:
     m = np.arange(MOMENTS)[:, None]
     first = (b ** (m + 1) - a ** (m + 1)) / (m + 1)
     second = (b ** (m + 2) - a ** (m + 2)) / (m + 2)
-    return force[:, :-1] @ ((b * first - second) / h).T + force[:, 1:] @ ((second - a * first) / h).T
+    return (
+        force[:, :-1] @ ((b * first - second) / h).T + force[:, 1:] @ ((second - a * first) / h).T
+    )
 
 
 def _hermite_zero(u0: float, v0: float, u1: float, v1: float, h: float) -> float:
@@ -115,7 +129,12 @@ def _hermite_zero(u0: float, v0: float, u1: float, v1: float, h: float) -> float
     low, high = 0.0, 1.0
     for _ in range(50):
         s = 0.5 * (low + high)
-        value = (2 * s**3 - 3 * s**2 + 1) * u0 + (s**3 - 2 * s**2 + s) * h * v0 + (-2 * s**3 + 3 * s**2) * u1 + (s**3 - s**2) * h * v1
+        value = (
+            (2 * s**3 - 3 * s**2 + 1) * u0
+            + (s**3 - 2 * s**2 + s) * h * v0
+            + (-2 * s**3 + 3 * s**2) * u1
+            + (s**3 - s**2) * h * v1
+        )
         low, high = (s, high) if value > 0.0 else (low, s)
     return 0.5 * (low + high)
 
@@ -135,7 +154,9 @@ class Pulse:
     force N, refined between samples by a parabola, largest penetration m) and its samples on demand (times
     from contact start s, relative penetration m and its rate m/s, force N)."""
 
-    def __init__(self, row: int, weight: float, length_m: float, approach_mps: float, hertz_stiffness: float) -> None:
+    def __init__(
+        self, row: int, weight: float, length_m: float, approach_mps: float, hertz_stiffness: float
+    ) -> None:
         table = pulse_table()
         self.row, self.weight = row, weight
         self.length_m, self.approach_mps = length_m, approach_mps
@@ -146,7 +167,9 @@ class Pulse:
         self.max_penetration_m = length_m * self._blend(table.peak_penetration)
 
     def _blend(self, values: np.ndarray) -> float:
-        return (1 - self.weight) * float(values[self.row]) + self.weight * float(values[self.row + 1])
+        return (1 - self.weight) * float(values[self.row]) + self.weight * float(
+            values[self.row + 1]
+        )
 
     def _rows(self, k: int) -> np.ndarray:
         rows = pulse_table().rows
@@ -159,7 +182,9 @@ class Pulse:
         mu = eigenvalues * self.duration_s
         if np.abs(mu).max() > SERIES_RADIUS:
             return pulse_integral(eigenvalues, self.t_s, self.force_n)
-        moments = (1 - self.weight) * pulse_table().moments[self.row] + self.weight * pulse_table().moments[self.row + 1]
+        moments = (1 - self.weight) * pulse_table().moments[
+            self.row
+        ] + self.weight * pulse_table().moments[self.row + 1]
         return (np.power.outer(-mu, _POWERS) @ moments) * (self.force_scale_n * self.duration_s)
 
     @cached_property
@@ -174,7 +199,9 @@ class Pulse:
     @cached_property
     def width_s(self) -> float:
         """Force-weighted RMS spread of the pulse about its centroid, s."""
-        return math.sqrt(float(self.force_n @ (self.t_s - self.centroid_s) ** 2) / float(self.force_n.sum()))
+        return math.sqrt(
+            float(self.force_n @ (self.t_s - self.centroid_s) ** 2) / float(self.force_n.sum())
+        )
 
     @cached_property
     def force_n(self) -> np.ndarray:
@@ -189,7 +216,9 @@ class Pulse:
         return self._rows(1) * self.approach_mps
 
 
-def contact_pulse(chi: float, hertz_stiffness: float, reduced_mass_kg: float, approach_mps: float) -> Pulse:
+def contact_pulse(
+    chi: float, hertz_stiffness: float, reduced_mass_kg: float, approach_mps: float
+) -> Pulse:
     """The pulse of a contact with hysteresis ``chi`` (blend of the two nearest table rows)."""
     table = pulse_table()
     i = min(max(bisect_right(_chi_list(), chi) - 1, 0), table.chi.size - 2)
@@ -236,7 +265,11 @@ def pulse_integral(eigenvalues: np.ndarray, t_s: np.ndarray, force_n: np.ndarray
 
 
 def structure_response(
-    eigen: tuple[np.ndarray, np.ndarray, np.ndarray], load: np.ndarray, x0: np.ndarray, t_s: np.ndarray, force_n: np.ndarray
+    eigen: tuple[np.ndarray, np.ndarray, np.ndarray],
+    load: np.ndarray,
+    x0: np.ndarray,
+    t_s: np.ndarray,
+    force_n: np.ndarray,
 ) -> np.ndarray:
     """States x = [q, qd] (2n, T) of x' = A x + [0; load] F at uniformly spaced ``t_s`` from x0,
     with F piecewise linear between the samples: exact, in the eigen-basis of A."""
@@ -245,7 +278,9 @@ def structure_response(
     h = float(t_s[1] - t_s[0])
     weights = np.array([_segment_weights(complex(lam) * h, h) for lam in eigenvalues]).T
     beta = inverse[:, n:] @ load
-    increments = (beta * weights[0])[:, None] * force_n[:-1] + (beta * weights[1])[:, None] * force_n[1:]
+    increments = (beta * weights[0])[:, None] * force_n[:-1] + (beta * weights[1])[
+        :, None
+    ] * force_n[1:]
     growth = np.exp(eigenvalues[:, None] * (t_s - t_s[0]))
     modal = growth * (inverse @ x0)[:, None]
     modal[:, 1:] += growth[:, 1:] * np.cumsum(increments / growth[:, 1:], axis=1)

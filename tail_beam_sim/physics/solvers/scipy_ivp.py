@@ -19,7 +19,15 @@ from scipy.integrate import solve_ivp
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.contact import hertz_elastic_impact
 from tail_beam_sim.physics.solvers.dynamics import FloatDynamics
-from tail_beam_sim.physics.solvers.problem import ContactRecord, ContactSegment, FreeSegment, ImpactProblem, OdeSegment, SolverError, Trajectory
+from tail_beam_sim.physics.solvers.problem import (
+    ContactRecord,
+    ContactSegment,
+    FreeSegment,
+    ImpactProblem,
+    OdeSegment,
+    SolverError,
+    Trajectory,
+)
 from tail_beam_sim.physics.solvers.pulse import parabolic_peak
 
 METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
@@ -34,14 +42,19 @@ def solve(problem: ImpactProblem, method: str = "Radau", rtol: float = 1e-8) -> 
         raise InputError("method", method, f"must be one of {', '.join(METHODS)}")
     rtol = require_range("rtol", rtol, 1e-14, 1e-1)
     if problem.crushing is not None:
-        raise SolverError(method, "the crushing contact depends on its history: use hybrid or a fixed-step solver")
+        raise SolverError(
+            method,
+            "the crushing contact depends on its history: use hybrid or a fixed-step solver",
+        )
     dynamics = FloatDynamics(problem)
     n = dynamics.n
     approach0 = problem.impact_speed_mps - float(problem.contact_shape @ problem.qd0)
     atol = rtol * _state_scale(problem, approach0)
     window = problem.window_s
     y = np.concatenate([problem.q0, problem.qd0, [0.0, -problem.impact_speed_mps]]).astype(float)
-    segments: list[ContactSegment | FreeSegment | OdeSegment] = [FreeSegment(-math.inf, 0.0, 0.0, y[:n].copy(), y[n : 2 * n].copy(), 0.0, y[-1])]
+    segments: list[ContactSegment | FreeSegment | OdeSegment] = [
+        FreeSegment(-math.inf, 0.0, 0.0, y[:n].copy(), y[n : 2 * n].copy(), 0.0, y[-1])
+    ]
     contacts: list[ContactRecord] = []
     t, in_contact = 0.0, True
     evaluations = 0
@@ -62,10 +75,23 @@ def solve(problem: ImpactProblem, method: str = "Radau", rtol: float = 1e-8) -> 
         boundary.terminal = True  # type: ignore[attr-defined]
         boundary.direction = -1.0 if in_contact else 1.0  # type: ignore[attr-defined]
         options = {"jac": jacobian} if method in IMPLICIT else {}
-        first = hertz_elastic_impact(problem.hertz_stiffness, problem.mass_kg, max(approach0, 1e-3))["duration_s"] / 100
+        first = (
+            hertz_elastic_impact(problem.hertz_stiffness, problem.mass_kg, max(approach0, 1e-3))[
+                "duration_s"
+            ]
+            / 100
+        )
         sol = solve_ivp(
-            rhs, (t, window), y, method=method, rtol=rtol, atol=atol, events=boundary,
-            dense_output=True, first_step=first if in_contact else None, **options,
+            rhs,
+            (t, window),
+            y,
+            method=method,
+            rtol=rtol,
+            atol=atol,
+            events=boundary,
+            dense_output=True,
+            first_step=first if in_contact else None,
+            **options,
         )
         if sol.status < 0:
             raise SolverError(method, f"solve_ivp failed at t = {sol.t[-1]:.6g} s: {sol.message}")
@@ -77,8 +103,20 @@ def solve(problem: ImpactProblem, method: str = "Radau", rtol: float = 1e-8) -> 
         if in_contact:
             segment = _segment(dynamics, times, states, approach)
             dense = sol.sol(np.linspace(times[0], times[-1], PEAK_SAMPLES))
-            peak = parabolic_peak(np.array([dynamics.derivative(list(column), approach, 0.0)[1] for column in dense.T]))
-            contacts.append(ContactRecord(t, float(times[-1]), approach, float(states[-1, -1]), max(peak, float(segment.force_n.max()))))
+            peak = parabolic_peak(
+                np.array(
+                    [dynamics.derivative(list(column), approach, 0.0)[1] for column in dense.T]
+                )
+            )
+            contacts.append(
+                ContactRecord(
+                    t,
+                    float(times[-1]),
+                    approach,
+                    float(states[-1, -1]),
+                    max(peak, float(segment.force_n.max())),
+                )
+            )
             segments.append(segment)
         else:
             segments.append(OdeSegment(times, sol.sol))
@@ -87,25 +125,41 @@ def solve(problem: ImpactProblem, method: str = "Radau", rtol: float = 1e-8) -> 
             break
         in_contact = not in_contact
     else:
-        raise SolverError(method, f"more than {MAX_PHASES} contact phases: the particle chatters on the plate")
+        raise SolverError(
+            method, f"more than {MAX_PHASES} contact phases: the particle chatters on the plate"
+        )
     q, qd = y[:n], y[n : 2 * n]
     # Beyond the window the beam rings freely and the particle flies (or rests, if still in contact).
     segments.append(FreeSegment(t, math.inf, t, q, qd, float(y[-2]), float(y[-1])))
     # The integrator holds each step's local error within rtol (atol scaled to each state's size).
     return Trajectory(
-        problem, segments, contacts, method, rtol,
-        particle_at_rest=in_contact and t >= window, stats={"rhs_evaluations": evaluations, "rtol": rtol},
+        problem,
+        segments,
+        contacts,
+        method,
+        rtol,
+        particle_at_rest=in_contact and t >= window,
+        stats={"rhs_evaluations": evaluations, "rtol": rtol},
     )
 
 
-def _segment(dynamics: FloatDynamics, times: np.ndarray, states: np.ndarray, approach: float) -> ContactSegment:
+def _segment(
+    dynamics: FloatDynamics, times: np.ndarray, states: np.ndarray, approach: float
+) -> ContactSegment:
     """A dense segment from integrator steps, with the accelerations and forces at each."""
     n = dynamics.n
-    derivatives, forces = zip(*(dynamics.derivative(list(column), approach, 0.0) for column in states.T))
+    derivatives, forces = zip(
+        *(dynamics.derivative(list(column), approach, 0.0) for column in states.T)
+    )
     accel = np.array(derivatives).T
     return ContactSegment(
-        t_s=times, q=states[:n], qd=states[n : 2 * n], qdd=accel[n : 2 * n],
-        z_m=states[2 * n], zd_mps=states[2 * n + 1], force_n=np.array(forces),
+        t_s=times,
+        q=states[:n],
+        qd=states[n : 2 * n],
+        qdd=accel[n : 2 * n],
+        z_m=states[2 * n],
+        zd_mps=states[2 * n + 1],
+        force_n=np.array(forces),
     )
 
 
@@ -115,11 +169,17 @@ def _state_scale(problem: ImpactProblem, approach: float) -> np.ndarray:
     impulse = 2.0 * problem.mass_kg * approach
     velocity = np.abs(structure.inv_mass @ problem.contact_shape) * impulse
     slowest = max(float(structure.natural_frequencies_hz().min(initial=1.0)), 1e-3) * 2 * math.pi
-    penetration = hertz_elastic_impact(problem.hertz_stiffness, problem.mass_kg, max(approach, 1e-3))["max_penetration_m"]
-    return np.concatenate([velocity / slowest + 1e-300, velocity + 1e-300, [penetration, approach]])
+    penetration = hertz_elastic_impact(
+        problem.hertz_stiffness, problem.mass_kg, max(approach, 1e-3)
+    )["max_penetration_m"]
+    return np.concatenate(
+        [velocity / slowest + 1e-300, velocity + 1e-300, [penetration, approach]]
+    )
 
 
-def _jacobian(problem: ImpactProblem, dynamics: FloatDynamics, state: np.ndarray, approach: float) -> np.ndarray:
+def _jacobian(
+    problem: ImpactProblem, dynamics: FloatDynamics, state: np.ndarray, approach: float
+) -> np.ndarray:
     """d(dy/dt)/dy of the contact equations (Hertz with hysteresis)."""
     n = dynamics.n
     structure = problem.structure

@@ -14,11 +14,17 @@ import numpy as np
 import pytest
 import yaml
 
-from tail_beam_id.calibration.offline import calibrate, imu_gain, mount_sign, sway_frequency, with_profile
-from tail_beam_id.study.dataset import support_streams
+from tail_beam_id.calibration.offline import (
+    calibrate,
+    imu_gain,
+    mount_sign,
+    sway_frequency,
+    with_profile,
+)
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label
 from tail_beam_id.stream.replay import replay
+from tail_beam_id.study.dataset import support_streams
 from tail_beam_sim.bags.records import imu_msgs, pressure_msgs, rebound_msg, write_bag
 from tail_beam_sim.physics.fidelity import TIERS, FidelitySettings, structure_for
 from tail_beam_sim.physics.materials import material_table
@@ -34,8 +40,12 @@ def recordings(params):
 
 
 def _identify(params, recorded):
-    return lambda model_params: replay(StreamIdentifier("statistical", params["identification"], model_params),
-                                       recorded.pressure, recorded.imu, recorded.rebounds)
+    return lambda model_params: replay(
+        StreamIdentifier("statistical", params["identification"], model_params),
+        recorded.pressure,
+        recorded.imu,
+        recorded.rebounds,
+    )
 
 
 def test_sway_frequency_is_the_supports_rigid_mode(params, recordings):
@@ -45,7 +55,9 @@ def test_sway_frequency_is_the_supports_rigid_mode(params, recordings):
     force the sway off its free frequency a little)."""
     for recorded in recordings:
         support = Support.from_params(recorded.params["support"], material_table(recorded.params))
-        structure = structure_for(TIERS["modal"], support, FidelitySettings.from_params(recorded.params).modes)
+        structure = structure_for(
+            TIERS["modal"], support, FidelitySettings.from_params(recorded.params).modes
+        )
         truth = structure.natural_frequencies_hz()[0]
         found = sway_frequency(recorded.pressure.stamp_s, recorded.pressure.pressure_pa)
         assert found == pytest.approx(truth, rel=0.02), recorded.support.describe()
@@ -56,17 +68,36 @@ def test_profile_restores_the_supports_sway_and_jack_gain(params, recordings):
     its pressure per unit moment impulse, omega / (d S) on the rigid beam, is the recorded one's,
     within 2 % (as the frequency); and the nominal support's is not (the test would pass on no profile otherwise)."""
     for recorded in recordings:
-        profile = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
-                            (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]), _identify(params, recorded))
+        profile = calibrate(
+            params,
+            (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
+            (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
+            _identify(params, recorded),
+        )
         assert profile.calibrated
-        calibrated = {**params, "support": {**params["support"], **profile.parameters()["/**"]["ros__parameters"]["support"]}}
+        calibrated = {
+            **params,
+            "support": {
+                **params["support"],
+                **profile.parameters()["/**"]["ros__parameters"]["support"],
+            },
+        }
         materials = material_table(params)
         support = Support.from_params(recorded.params["support"], materials)
-        structure = structure_for(TIERS["modal"], support, FidelitySettings.from_params(recorded.params).modes)
-        truth = 2 * np.pi * structure.natural_frequencies_hz()[0] / (support.jack_lever_arm_m * support.piston_area_m2)
+        structure = structure_for(
+            TIERS["modal"], support, FidelitySettings.from_params(recorded.params).modes
+        )
+        truth = (
+            2
+            * np.pi
+            * structure.natural_frequencies_hz()[0]
+            / (support.jack_lever_arm_m * support.piston_area_m2)
+        )
         found = Support.from_params(calibrated["support"], materials)
         nominal = Support.from_params(params["support"], materials)
-        gain = lambda s: 2 * np.pi * s.rigid_mode_frequency_hz / (s.jack_lever_arm_m * s.piston_area_m2)  # noqa: E731
+        gain = lambda s: (
+            2 * np.pi * s.rigid_mode_frequency_hz / (s.jack_lever_arm_m * s.piston_area_m2)
+        )  # noqa: E731
         assert gain(found) == pytest.approx(truth, rel=0.02)
         assert gain(nominal) != pytest.approx(truth, rel=0.02)
         assert profile.impacts_used >= 3
@@ -85,8 +116,12 @@ def test_no_impacts_no_profile(params):
     """A recording of noise only has no sway to measure: the profile says it is not calibrated."""
     rng = np.random.default_rng(1)
     stamps = np.arange(0.0, 5.0, 1 / 2000.0)
-    profile = calibrate(params, (stamps, 20e6 + rng.normal(0, 1e4, stamps.size)),
-                        (stamps, 9.81 + rng.normal(0, 0.05, stamps.size)), lambda p: [])
+    profile = calibrate(
+        params,
+        (stamps, 20e6 + rng.normal(0, 1e4, stamps.size)),
+        (stamps, 9.81 + rng.normal(0, 0.05, stamps.size)),
+        lambda p: [],
+    )
     assert not profile.calibrated
     assert profile.imu_mount_sign == 1.0
     assert profile.pressure_noise_pa == pytest.approx(1e4, rel=0.1)
@@ -99,38 +134,71 @@ def test_calibrate_then_identify_from_the_command_line(params, recordings, tmp_p
     `--no-calibrate` does not. An --out that is a symbolic link is refused in one line, exit 2."""
     recorded = recordings[0]
     imu = recorded.imu
-    records = [*pressure_msgs(recorded.pressure.stamp_s, recorded.pressure.pressure_pa, 1e8),
-               *imu_msgs(imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 0.0, 0.0),
-               *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds)]
+    records = [
+        *pressure_msgs(recorded.pressure.stamp_s, recorded.pressure.pressure_pa, 1e8),
+        *imu_msgs(imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 0.0, 0.0),
+        *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds),
+    ]
     bag = tmp_path / "support"
     write_bag(bag, records)
     link = tmp_path / "link.yaml"
     link.symlink_to(tmp_path / "elsewhere.yaml")
-    done = subprocess.run([TAIL_BEAM, "calibrate", str(bag), "--out", str(link)], capture_output=True, text=True, check=False)
-    assert done.returncode == 2 and "symbolic link" in done.stderr and len(done.stderr.strip().splitlines()) == 1
+    done = subprocess.run(
+        [TAIL_BEAM, "calibrate", str(bag), "--out", str(link)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert (
+        done.returncode == 2
+        and "symbolic link" in done.stderr
+        and len(done.stderr.strip().splitlines()) == 1
+    )
     assert not (tmp_path / "elsewhere.yaml").exists()
     profile = tmp_path / "profiles" / "profile.yaml"
-    done = subprocess.run([TAIL_BEAM, "calibrate", str(bag), "--out", str(profile)],
-                          capture_output=True, text=True, check=False)
+    done = subprocess.run(
+        [TAIL_BEAM, "calibrate", str(bag), "--out", str(profile)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr
     content = yaml.safe_load(profile.read_text())["/**"]["ros__parameters"]
-    assert content["calibration"]["rigid_mode_frequency_hz"] > 0 and "oil_bulk_modulus_pa" in content["support"]
-    done = subprocess.run([TAIL_BEAM, "identify", str(bag), "--config", str(profile), "--no-calibrate"],
-                          capture_output=True, text=True, check=False)
+    assert (
+        content["calibration"]["rigid_mode_frequency_hz"] > 0
+        and "oil_bulk_modulus_pa" in content["support"]
+    )
+    done = subprocess.run(
+        [TAIL_BEAM, "identify", str(bag), "--config", str(profile), "--no-calibrate"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr
     labels = [Label.from_json(line) for line in done.stdout.splitlines()]
     assert len(labels) >= len(recorded.truths) - 1
     assert all(label.calibrated for label in labels)
     # Plain identify calibrates by itself (identification.self_calibrate) to the same profile,
     # says so on stderr, and gives the same labels; --no-calibrate gives the uncalibrated ones.
-    plain = subprocess.run([TAIL_BEAM, "identify", str(bag)], capture_output=True, text=True, check=False)
+    plain = subprocess.run(
+        [TAIL_BEAM, "identify", str(bag)], capture_output=True, text=True, check=False
+    )
     assert plain.returncode == 0, plain.stderr
-    assert f"self-calibration: sway {content['calibration']['rigid_mode_frequency_hz']:.2f} Hz" in plain.stderr
+    assert (
+        f"self-calibration: sway {content['calibration']['rigid_mode_frequency_hz']:.2f} Hz"
+        in plain.stderr
+    )
+
     def decided(found):  # all but latency_ms, a wall-clock figure
         return [replace(label, latency_ms=0.0) for label in found]
 
     assert decided(Label.from_json(line) for line in plain.stdout.splitlines()) == decided(labels)
-    raw = subprocess.run([TAIL_BEAM, "identify", str(bag), "--no-calibrate"], capture_output=True, text=True, check=False)
+    raw = subprocess.run(
+        [TAIL_BEAM, "identify", str(bag), "--no-calibrate"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert raw.returncode == 0 and "self-calibration" not in raw.stderr
     assert not any(json.loads(line)["calibrated"] for line in raw.stdout.splitlines())
 
@@ -147,14 +215,22 @@ def test_foreign_supports_at_a_named_setting_keep_their_mechanics_and_impacts(pa
     at_nominal = list(support_streams(params, 2, 2, seed=778, setting=nominal))
     for own, s, n in zip(drawn, at_shipped, at_nominal):
         assert s.support.contact_model == n.support.contact_model == own.support.contact_model
-        mechanics = {k: v for k, v in own.support.values.items() if not k.endswith("_rate_hz") and k != "noise_factor"}
+        mechanics = {
+            k: v
+            for k, v in own.support.values.items()
+            if not k.endswith("_rate_hz") and k != "noise_factor"
+        }
         for other in (s, n):
             assert {k: other.support.values[k] for k in mechanics} == mechanics
             assert [t["radius_m"] for t in other.truths] == [t["radius_m"] for t in own.truths]
             assert [t["material"] for t in other.truths] == [t["material"] for t in own.truths]
             assert other.support.values["noise_factor"] == 1.0
-        assert np.median(np.diff(s.imu.stamp_s)) == pytest.approx(1.0 / shipped.rates_hz["imu_rate_hz"])
-        assert s.vibration is not None and s.vibration.period_s == pytest.approx(1.0 / shipped.vibration_rate_hz)
+        assert np.median(np.diff(s.imu.stamp_s)) == pytest.approx(
+            1.0 / shipped.rates_hz["imu_rate_hz"]
+        )
+        assert s.vibration is not None and s.vibration.period_s == pytest.approx(
+            1.0 / shipped.vibration_rate_hz
+        )
         assert n.vibration is None
 
 
@@ -183,7 +259,9 @@ def test_foreign_stream_impacts_come_in_order_a_gap_apart(params):
     assert np.all(steps >= gap_s - 1e-9) and np.all(steps <= 1.5 * gap_s + 1e-9)
 
 
-def test_identify_still_labels_when_self_calibration_fails(params, recordings, tmp_path, monkeypatch, capsys):
+def test_identify_still_labels_when_self_calibration_fails(
+    params, recordings, tmp_path, monkeypatch, capsys
+):
     """Self-calibration is a refinement: if it cannot read a recording (here made to raise), the
     bag is still identified on the configured support, and stderr says why."""
     import tail_beam_id.cli.identify_cmd as identify_cmd
@@ -191,17 +269,29 @@ def test_identify_still_labels_when_self_calibration_fails(params, recordings, t
     recorded = recordings[1]
     imu = recorded.imu
     bag = tmp_path / "support"
-    write_bag(bag, [*pressure_msgs(recorded.pressure.stamp_s, recorded.pressure.pressure_pa, 1e8),
-                    *imu_msgs(imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 0.0, 0.0),
-                    *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds)])
+    write_bag(
+        bag,
+        [
+            *pressure_msgs(recorded.pressure.stamp_s, recorded.pressure.pressure_pa, 1e8),
+            *imu_msgs(
+                imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 0.0, 0.0
+            ),
+            *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds),
+        ],
+    )
 
     def broken(*args, **kwargs):
         raise FloatingPointError("overflow in the sway fit")
 
     monkeypatch.setattr(identify_cmd, "calibrate_support", broken)
     labels = identify_cmd.identify_bag(str(bag))
-    assert len(labels) >= len(recorded.truths) - 1 and not any(label.calibrated for label in labels)
-    assert "self-calibration failed (FloatingPointError: overflow in the sway fit)" in capsys.readouterr().err
+    assert len(labels) >= len(recorded.truths) - 1 and not any(
+        label.calibrated for label in labels
+    )
+    assert (
+        "self-calibration failed (FloatingPointError: overflow in the sway fit)"
+        in capsys.readouterr().err
+    )
 
 
 def test_a_long_identification_shows_its_progress_on_a_terminal_only(params, recordings):
@@ -214,12 +304,19 @@ def test_a_long_identification_shows_its_progress_on_a_terminal_only(params, rec
 
     recorded = recordings[0]
     seen = []
-    replay(StreamIdentifier("statistical", params["identification"], params), recorded.pressure, recorded.imu,
-           recorded.rebounds, progress=lambda done, total: seen.append((done, total)))
+    replay(
+        StreamIdentifier("statistical", params["identification"], params),
+        recorded.pressure,
+        recorded.imu,
+        recorded.rebounds,
+        progress=lambda done, total: seen.append((done, total)),
+    )
     stamps = np.concatenate([recorded.pressure.stamp_s, recorded.imu.stamp_s])
     total = stamps.max() - stamps.min()
     assert len(seen) >= 10 and all(t == pytest.approx(total) for _, t in seen)
-    assert [d for d, _ in seen] == sorted(d for d, _ in seen) and seen[-1][0] == pytest.approx(total)
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen) and seen[-1][0] == pytest.approx(
+        total
+    )
 
     class Terminal(io.StringIO):
         def isatty(self) -> bool:
@@ -231,8 +328,10 @@ def test_a_long_identification_shows_its_progress_on_a_terminal_only(params, rec
         line.update(30.0, 120.0)
         line.update(120.0, 120.0)
         line.close()
-    assert terminal.getvalue() == ("\ridentify: / identifying: 30 of 120 s of data (25 %)"
-                                   "\ridentify: / identifying: 120 of 120 s of data (100 %)\n")
+    assert terminal.getvalue() == (
+        "\ridentify: / identifying: 30 of 120 s of data (25 %)"
+        "\ridentify: / identifying: 120 of 120 s of data (100 %)\n"
+    )
     assert pipe.getvalue() == ""
     short = Terminal()
     ProgressLine(short, "x").update(1.0, 5.0)
@@ -248,12 +347,24 @@ def test_identify_says_once_what_it_left_out_even_when_it_calibrates(params, rec
     pressure = recorded.pressure.pressure_pa.copy()
     pressure[len(pressure) // 2] = np.nan
     bag = tmp_path / "support"
-    write_bag(bag, [*pressure_msgs(recorded.pressure.stamp_s, pressure, 1e8),
-                    *imu_msgs(imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 0.0, 0.0),
-                    *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds)])
-    done = subprocess.run([TAIL_BEAM, "identify", str(bag)], capture_output=True, text=True, check=False)
+    write_bag(
+        bag,
+        [
+            *pressure_msgs(recorded.pressure.stamp_s, pressure, 1e8),
+            *imu_msgs(
+                imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 0.0, 0.0
+            ),
+            *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds),
+        ],
+    )
+    done = subprocess.run(
+        [TAIL_BEAM, "identify", str(bag)], capture_output=True, text=True, check=False
+    )
     assert done.returncode == 0, done.stderr
-    assert done.stderr.count("jack_pressure: 1 sample(s) with a non-finite stamp or value left out") == 1
+    assert (
+        done.stderr.count("jack_pressure: 1 sample(s) with a non-finite stamp or value left out")
+        == 1
+    )
     assert "self-calibration: sway" in done.stderr
     for line in done.stdout.splitlines():
         json.loads(line, parse_constant=lambda name: pytest.fail(f"label carries {name}"))
@@ -267,24 +378,57 @@ def test_self_calibration_reads_the_cameras_frame_from_every_rebound(params, rec
     keeps config/'s."""
     recorded = recordings[0]
     separations = np.array([truth["final_separation_stamp"] for truth in recorded.truths])
-    rebounds = [replace(r, stamp_s=float(np.ceil(separations[np.argmin(np.abs(separations - r.stamp_s))] * 1000.0) / 1000.0))
-                for r in recorded.rebounds]
+    rebounds = [
+        replace(
+            r,
+            stamp_s=float(
+                np.ceil(separations[np.argmin(np.abs(separations - r.stamp_s))] * 1000.0) / 1000.0
+            ),
+        )
+        for r in recorded.rebounds
+    ]
     slow = replace(recorded, rebounds=rebounds)
-    profile = calibrate(params, (slow.pressure.stamp_s, slow.pressure.pressure_pa),
-                        (slow.imu.stamp_s, slow.imu.linear_acceleration_mps2[:, 2]), _identify(params, slow),
-                        rebound_stamps_s=[r.stamp_s for r in rebounds])
+    profile = calibrate(
+        params,
+        (slow.pressure.stamp_s, slow.pressure.pressure_pa),
+        (slow.imu.stamp_s, slow.imu.linear_acceleration_mps2[:, 2]),
+        _identify(params, slow),
+        rebound_stamps_s=[r.stamp_s for r in rebounds],
+    )
     assert profile.camera_frame_rate_hz == pytest.approx(1000.0, rel=1e-6)
-    assert profile.parameters()["/**"]["ros__parameters"]["sensors"]["camera_frame_rate_hz"] == profile.camera_frame_rate_hz
+    assert (
+        profile.parameters()["/**"]["ros__parameters"]["sensors"]["camera_frame_rate_hz"]
+        == profile.camera_frame_rate_hz
+    )
     merged = with_profile(params, profile)
-    labels = replay(StreamIdentifier("statistical", merged["identification"], merged), slow.pressure, slow.imu, slow.rebounds)
+    labels = replay(
+        StreamIdentifier("statistical", merged["identification"], merged),
+        slow.pressure,
+        slow.imu,
+        slow.rebounds,
+    )
     first = min(labels, key=lambda label: label.impact_stamp_s)
     assert first.features["camera_frame_period_s"] == pytest.approx(0.001, rel=1e-6)
-    uncalibrated = replay(StreamIdentifier("statistical", params["identification"], params), slow.pressure, slow.imu, slow.rebounds)
-    assert min(uncalibrated, key=lambda label: label.impact_stamp_s).features["camera_frame_period_s"] == pytest.approx(1 / 5000.0)
+    uncalibrated = replay(
+        StreamIdentifier("statistical", params["identification"], params),
+        slow.pressure,
+        slow.imu,
+        slow.rebounds,
+    )
+    assert min(uncalibrated, key=lambda label: label.impact_stamp_s).features[
+        "camera_frame_period_s"
+    ] == pytest.approx(1 / 5000.0)
     jittered = [r.stamp_s + 1e-5 * k for k, r in enumerate(rebounds)]
-    assert calibrate(params, (slow.pressure.stamp_s, slow.pressure.pressure_pa),
-                     (slow.imu.stamp_s, slow.imu.linear_acceleration_mps2[:, 2]), _identify(params, slow),
-                     rebound_stamps_s=jittered).camera_frame_rate_hz is None
+    assert (
+        calibrate(
+            params,
+            (slow.pressure.stamp_s, slow.pressure.pressure_pa),
+            (slow.imu.stamp_s, slow.imu.linear_acceleration_mps2[:, 2]),
+            _identify(params, slow),
+            rebound_stamps_s=jittered,
+        ).camera_frame_rate_hz
+        is None
+    )
 
 
 def test_the_paper_scene_strikes_the_foreign_supports_the_stream_scene_does(params):
@@ -299,15 +443,25 @@ def test_the_paper_scene_strikes_the_foreign_supports_the_stream_scene_does(para
     for stream, struck in zip(streams, papers):
         assert struck.support == stream.support
         radii = {t["radius_m"] for t in struck.truths}
-        assert len(struck.truths) == 4 and all(min(paper["radius_m"]) <= r <= max(paper["radius_m"]) for r in radii)
+        assert len(struck.truths) == 4 and all(
+            min(paper["radius_m"]) <= r <= max(paper["radius_m"]) for r in radii
+        )
         assert {t["radius_m"] for t in stream.truths} != radii
 
 
-def _gain_features(rng: np.random.Generator, gain: float, impulses_mps: np.ndarray, sigma_nms: float) -> list[dict[str, float]]:
+def _gain_features(
+    rng: np.random.Generator, gain: float, impulses_mps: np.ndarray, sigma_nms: float
+) -> list[dict[str, float]]:
     """Impacts' features whose pressure moment is ``gain`` x the IMU impulse plus noise of sigma_nms."""
     moments = gain * impulses_mps + rng.normal(0.0, sigma_nms, impulses_mps.size)
-    return [{"moment_impulse_pressure_nms": float(m), "moment_impulse_sigma_nms": sigma_nms, "imu_impulse_mps": float(i)}
-            for m, i in zip(moments, impulses_mps)]
+    return [
+        {
+            "moment_impulse_pressure_nms": float(m),
+            "moment_impulse_sigma_nms": sigma_nms,
+            "imu_impulse_mps": float(i),
+        }
+        for m, i in zip(moments, impulses_mps)
+    ]
 
 
 def test_imu_gain_is_unbiased_when_few_impacts_stand_clear_of_the_noise():
@@ -324,7 +478,11 @@ def test_imu_gain_is_unbiased_when_few_impacts_stand_clear_of_the_noise():
         found = imu_gain(features)
         assert found is not None and found[1] == 20
         fitted.append(found[0])
-        clear = [f["moment_impulse_pressure_nms"] / f["imu_impulse_mps"] for f in features if f["moment_impulse_pressure_nms"] > 5 * sigma]
+        clear = [
+            f["moment_impulse_pressure_nms"] / f["imu_impulse_mps"]
+            for f in features
+            if f["moment_impulse_pressure_nms"] > 5 * sigma
+        ]
         if len(clear) >= 3:
             selected.append(np.median(clear))
     assert np.mean(fitted) == pytest.approx(gain, rel=0.02)
@@ -338,8 +496,14 @@ def test_imu_gain_needs_impacts_and_a_fit_clear_of_zero():
     assert imu_gain(_gain_features(rng, 800.0, np.array([1e-3, 2e-3]), 0.05)) is None
     features = _gain_features(rng, 800.0, np.array([1e-3, 2e-3, 3e-3]), 0.05)
     assert imu_gain(features) is not None
-    broken = features[:2] + [{"moment_impulse_pressure_nms": math.nan, "moment_impulse_sigma_nms": 0.05, "imu_impulse_mps": 3e-3},
-                             {"moment_impulse_pressure_nms": 1.0}]
+    broken = features[:2] + [
+        {
+            "moment_impulse_pressure_nms": math.nan,
+            "moment_impulse_sigma_nms": 0.05,
+            "imu_impulse_mps": 3e-3,
+        },
+        {"moment_impulse_pressure_nms": 1.0},
+    ]
     assert imu_gain(broken) is None
     assert imu_gain(_gain_features(rng, 0.0, np.full(20, 1e-4), 0.5)) is None
 
@@ -347,7 +511,14 @@ def test_imu_gain_needs_impacts_and_a_fit_clear_of_zero():
 def test_imu_gain_from_noise_free_readings():
     """A recording whose pressure moments carry no noise (sigma 0, e.g. a noise-free simulation)
     gives the exact gain, alone or among noisy impacts, instead of none."""
-    exact = [{"moment_impulse_pressure_nms": 800.0 * i, "moment_impulse_sigma_nms": 0.0, "imu_impulse_mps": i} for i in (1e-3, 2e-3, 3e-3)]
+    exact = [
+        {
+            "moment_impulse_pressure_nms": 800.0 * i,
+            "moment_impulse_sigma_nms": 0.0,
+            "imu_impulse_mps": i,
+        }
+        for i in (1e-3, 2e-3, 3e-3)
+    ]
     assert imu_gain(exact)[0] == pytest.approx(800.0, rel=1e-12)
     noisy = _gain_features(np.random.default_rng(5), 800.0, np.full(5, 2e-3), 0.05)
     assert imu_gain(exact + noisy)[0] == pytest.approx(800.0, rel=0.02)
@@ -364,10 +535,30 @@ def test_an_implausible_imu_gain_keeps_the_configured_beam_and_its_oil(params, r
     plain = _identify(params, recorded)
 
     def scaled(model_params):
-        return [replace(label, features={**label.features, "imu_impulse_mps": label.features["imu_impulse_mps"] / 7.0})
-                if "imu_impulse_mps" in label.features else label for label in plain(model_params)]
+        return [
+            replace(
+                label,
+                features={
+                    **label.features,
+                    "imu_impulse_mps": label.features["imu_impulse_mps"] / 7.0,
+                },
+            )
+            if "imu_impulse_mps" in label.features
+            else label
+            for label in plain(model_params)
+        ]
 
-    profile = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
-                        (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]), scaled)
-    assert profile.calibrated and profile.beam_inertia_about_hinge_kgm2 is None and profile.imu_gain_spread is None
-    assert profile.oil_bulk_modulus_pa == pytest.approx(bulk_modulus_for(params, profile.rigid_mode_frequency_hz), rel=1e-12)
+    profile = calibrate(
+        params,
+        (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
+        (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
+        scaled,
+    )
+    assert (
+        profile.calibrated
+        and profile.beam_inertia_about_hinge_kgm2 is None
+        and profile.imu_gain_spread is None
+    )
+    assert profile.oil_bulk_modulus_pa == pytest.approx(
+        bulk_modulus_for(params, profile.rigid_mode_frequency_hz), rel=1e-12
+    )

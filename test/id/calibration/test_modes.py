@@ -10,11 +10,11 @@ import math
 import numpy as np
 import pytest
 
-from tail_beam_id.calibration.offline import SupportProfile, calibrate, with_profile
-from tail_beam_id.study.dataset import settings, support_streams
-from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.calibration.modes import RingingMode, ring_decay_s, ringing_modes
+from tail_beam_id.calibration.offline import SupportProfile, calibrate, with_profile
+from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import replay
+from tail_beam_id.study.dataset import settings, support_streams
 from tail_beam_sim.physics.fidelity import TIERS, FidelitySettings, structure_for
 from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.support import Support
@@ -22,7 +22,9 @@ from tail_beam_sim.physics.support import Support
 RATE_HZ = 25600.0
 
 
-def _synthetic(modes: list[tuple[float, float]], onsets_s: np.ndarray, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def _synthetic(
+    modes: list[tuple[float, float]], onsets_s: np.ndarray, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
     """An accelerometer's samples (+g at rest, a 40 Hz sway, 0.05 m/s^2 noise) in which each
     impact at ``onsets_s`` sets the modes (Hz, damping ratio) ringing with random amplitudes
     and phases: the free ring-down a modal beam gives, in closed form."""
@@ -35,7 +37,11 @@ def _synthetic(modes: list[tuple[float, float]], onsets_s: np.ndarray, seed: int
         for frequency, zeta in modes:
             omega = 2 * np.pi * frequency
             amplitude = rng.uniform(2.0, 20.0)
-            accel[after] += amplitude * np.exp(-zeta * omega * tau) * np.sin(omega * math.sqrt(1 - zeta**2) * tau + rng.uniform(0, 2 * np.pi))
+            accel[after] += (
+                amplitude
+                * np.exp(-zeta * omega * tau)
+                * np.sin(omega * math.sqrt(1 - zeta**2) * tau + rng.uniform(0, 2 * np.pi))
+            )
     return t, accel
 
 
@@ -82,7 +88,9 @@ def _coupled_modes(recorded) -> list[tuple[float, float]]:
     """The recorded support's bending modes (Hz, damping ratio) from the eigenvalues of its
     structure: the coupled modes the accelerometer sees, jack damping included."""
     support = Support.from_params(recorded.params["support"], material_table(recorded.params))
-    structure = structure_for(TIERS["modal"], support, FidelitySettings.from_params(recorded.params).modes)
+    structure = structure_for(
+        TIERS["modal"], support, FidelitySettings.from_params(recorded.params).modes
+    )
     eigen = structure._eigen[0]
     eigen = eigen[eigen.imag > 0]
     modes = sorted((float(abs(e.imag)) / (2 * np.pi), float(-e.real / abs(e))) for e in eigen)
@@ -100,11 +108,25 @@ def test_the_modes_read_from_a_simulated_support_are_its_structures(params, stre
         coupled = _coupled_modes(recorded)
         for mode in found:
             frequency, zeta = min(coupled, key=lambda m: abs(m[0] - mode.frequency_hz))
-            assert mode.frequency_hz == pytest.approx(frequency, rel=0.01), (recorded.support.describe(), found, coupled)
-            assert mode.damping_ratio == pytest.approx(zeta, rel=0.15), (recorded.support.describe(), found, coupled)
-        lasting = [f for f, z in coupled if f < 0.4 / v.period_s and 1.0 / (z * 2 * np.pi * f) >= 0.005]
+            assert mode.frequency_hz == pytest.approx(frequency, rel=0.01), (
+                recorded.support.describe(),
+                found,
+                coupled,
+            )
+            assert mode.damping_ratio == pytest.approx(zeta, rel=0.15), (
+                recorded.support.describe(),
+                found,
+                coupled,
+            )
+        lasting = [
+            f for f, z in coupled if f < 0.4 / v.period_s and 1.0 / (z * 2 * np.pi * f) >= 0.005
+        ]
         for frequency in lasting:
-            assert any(abs(m.frequency_hz - frequency) < 0.01 * frequency for m in found), (recorded.support.describe(), found, coupled)
+            assert any(abs(m.frequency_hz - frequency) < 0.01 * frequency for m in found), (
+                recorded.support.describe(),
+                found,
+                coupled,
+            )
 
 
 def test_self_calibration_hands_the_ringing_to_the_detector(params, streams):
@@ -116,20 +138,38 @@ def test_self_calibration_hands_the_ringing_to_the_detector(params, streams):
     v = recorded.vibration
 
     def identify(model_params):
-        return replay(StreamIdentifier("statistical", model_params["identification"], model_params),
-                      recorded.pressure, recorded.imu, recorded.rebounds, vibration=v)
+        return replay(
+            StreamIdentifier("statistical", model_params["identification"], model_params),
+            recorded.pressure,
+            recorded.imu,
+            recorded.rebounds,
+            vibration=v,
+        )
 
-    profile = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
-                        (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]), identify,
-                        (v.sample_stamps_s(), v.accel_mps2))
+    profile = calibrate(
+        params,
+        (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
+        (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
+        identify,
+        (v.sample_stamps_s(), v.accel_mps2),
+    )
     assert profile.ringing_modes_hz and profile.ring_decay_s is not None
-    expected = ring_decay_s([RingingMode(f, z, 0) for f, z in zip(profile.ringing_modes_hz, profile.ringing_damping_ratios)])
+    expected = ring_decay_s(
+        [
+            RingingMode(f, z, 0)
+            for f, z in zip(profile.ringing_modes_hz, profile.ringing_damping_ratios)
+        ]
+    )
     assert profile.ring_decay_s == expected
     assert profile.ring_decay_s != params["identification"]["detection"]["ring_decay_s"]
     merged = with_profile(params, profile)
     assert merged["identification"]["detection"]["ring_decay_s"] == profile.ring_decay_s
     offline = StreamIdentifier("statistical", merged["identification"], merged)
-    assert offline.detector.config.ring_decay_s == offline.vibration_detector.config.ring_decay_s == profile.ring_decay_s
+    assert (
+        offline.detector.config.ring_decay_s
+        == offline.vibration_detector.config.ring_decay_s
+        == profile.ring_decay_s
+    )
     online = StreamIdentifier("statistical", params["identification"], params)
     online.recalibrate(merged)
     assert online.vibration_detector.config.ring_decay_s == profile.ring_decay_s
@@ -138,8 +178,16 @@ def test_self_calibration_hands_the_ringing_to_the_detector(params, streams):
 
 def test_a_profile_without_modes_leaves_the_detector_as_configured(params):
     """No mode measured: the profile says nothing of the detector (config/'s ring_decay_s holds)."""
-    profile = SupportProfile(duration_s=5.0, impacts_used=0, imu_mount_sign=1.0, rigid_mode_frequency_hz=39.0,
-                             oil_bulk_modulus_pa=1.9e9, beam_inertia_about_hinge_kgm2=None, imu_gain_spread=None,
-                             pressure_noise_pa=1e4, imu_accel_noise_mps2=0.05)
+    profile = SupportProfile(
+        duration_s=5.0,
+        impacts_used=0,
+        imu_mount_sign=1.0,
+        rigid_mode_frequency_hz=39.0,
+        oil_bulk_modulus_pa=1.9e9,
+        beam_inertia_about_hinge_kgm2=None,
+        imu_gain_spread=None,
+        pressure_noise_pa=1e4,
+        imu_accel_noise_mps2=0.05,
+    )
     assert "identification" not in profile.parameters()["/**"]["ros__parameters"]
     assert profile.describe_modes() == "no bending mode measured in the ringing"

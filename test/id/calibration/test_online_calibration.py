@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tail_beam_id.ros.arrival import GateConfig, GatedIdentifier
-from tail_beam_id.study.dataset import support_streams
-from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.calibration.online import OnlineCalibration
+from tail_beam_id.ros.arrival import GateConfig, GatedIdentifier
+from tail_beam_id.stream.identifier import StreamIdentifier
+from tail_beam_id.study.dataset import support_streams
 from tail_beam_sim.physics.fidelity import TIERS, FidelitySettings, structure_for
 from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.sensors import VibrationBlocks
@@ -29,16 +29,26 @@ def recorded(params):
 
 def run(params, recorded, calibration) -> tuple[list[dict], GatedIdentifier]:
     """Feed the stream in 20 ms ticks of stamp time, in real time, as id_node's timer does."""
-    gated = GatedIdentifier(lambda trained: StreamIdentifier("statistical", params["identification"], params, prebuilt=trained),
-                            CONFIG, calibration)
+    gated = GatedIdentifier(
+        lambda trained: StreamIdentifier(
+            "statistical", params["identification"], params, prebuilt=trained
+        ),
+        CONFIG,
+        calibration,
+    )
     p, i = recorded.pressure, recorded.imu
     labels: list[dict] = []
     edges = np.arange(0.0, p.stamp_s[-1] + 0.04, 0.02)
     for lo, hi in zip(edges[:-1], edges[1:]):
         take_p = (p.stamp_s >= lo) & (p.stamp_s < hi)
         take_i = (i.stamp_s >= lo) & (i.stamp_s < hi)
-        arrivals = {"jack_pressure": (p.stamp_s[take_p], p.pressure_pa[take_p].reshape(-1, 1)),
-                    "imu": (i.stamp_s[take_i], np.hstack([i.angular_velocity_radps, i.linear_acceleration_mps2])[take_i])}
+        arrivals = {
+            "jack_pressure": (p.stamp_s[take_p], p.pressure_pa[take_p].reshape(-1, 1)),
+            "imu": (
+                i.stamp_s[take_i],
+                np.hstack([i.angular_velocity_radps, i.linear_acceleration_mps2])[take_i],
+            ),
+        }
         rebounds = [(r.stamp_s, r.velocity_mps) for r in recorded.rebounds if lo <= r.stamp_s < hi]
         labels += gated.tick(hi, arrivals, VibrationBlocks.empty(), rebounds)
     labels += gated.tick(edges[-1] + 2.0, {}, VibrationBlocks.empty(), [], end_of_data=True)
@@ -48,10 +58,14 @@ def run(params, recorded, calibration) -> tuple[list[dict], GatedIdentifier]:
 @pytest.fixture(scope="module")
 def calibrated_run(params, recorded):
     """The stream through a gated identifier calibrating on its first LEARN_S (synchronously)."""
-    return run(params, recorded, OnlineCalibration(params, LEARN_S, "statistical", background=False))
+    return run(
+        params, recorded, OnlineCalibration(params, LEARN_S, "statistical", background=False)
+    )
 
 
-def test_labels_say_calibrated_once_the_learned_support_is_in_use(params, recorded, calibrated_run):
+def test_labels_say_calibrated_once_the_learned_support_is_in_use(
+    params, recorded, calibrated_run
+):
     """Labels before the end of the learned window say calibrated: false, after it true; the
     log line names the sway frequency it measured, which is the recording support's lowest
     natural frequency within 2 % (not the nominal support's)."""
@@ -60,9 +74,14 @@ def test_labels_say_calibrated_once_the_learned_support_is_in_use(params, record
     assert flags[0] is False and flags[-1] is True and flags == sorted(flags)
     assert all(not l.calibrated for l in labels if l.impact_stamp_s < LEARN_S)
     support = Support.from_params(recorded.params["support"], material_table(recorded.params))
-    truth = structure_for(TIERS["modal"], support, FidelitySettings.from_params(recorded.params).modes).natural_frequencies_hz()[0]
-    nominal = structure_for(TIERS["modal"], Support.from_params(params["support"], material_table(params)),
-                            FidelitySettings.from_params(params).modes).natural_frequencies_hz()[0]
+    truth = structure_for(
+        TIERS["modal"], support, FidelitySettings.from_params(recorded.params).modes
+    ).natural_frequencies_hz()[0]
+    nominal = structure_for(
+        TIERS["modal"],
+        Support.from_params(params["support"], material_table(params)),
+        FidelitySettings.from_params(params).modes,
+    ).natural_frequencies_hz()[0]
     found = gated.calibration.result.profile.rigid_mode_frequency_hz
     assert found == pytest.approx(truth, rel=0.02) and abs(found - nominal) > 0.05 * nominal
     assert any(f"sway {found:.2f} Hz" in note for note in gated.notes)
@@ -72,7 +91,9 @@ def test_without_online_calibration_nothing_changes(params, recorded):
     """No calibration asked: every label says calibrated: false, and the labels are those of the
     same run whose calibration is still learning (the window longer than the stream)."""
     plain, _ = run(params, recorded, None)
-    learning, gated = run(params, recorded, OnlineCalibration(params, 60.0, "statistical", background=False))
+    learning, gated = run(
+        params, recorded, OnlineCalibration(params, 60.0, "statistical", background=False)
+    )
     assert not any(l.calibrated for l in plain)
     assert [l.decision() for l in plain] == [l.decision() for l in learning]
     assert gated.calibration.state == "learning"
@@ -91,7 +112,9 @@ def test_the_worker_thread_gives_the_same_profile(params, recorded, calibrated_r
     assert gated.calibration.result.profile == calibrated_run[1].calibration.result.profile
 
 
-def test_online_calibration_hands_the_supports_hysteresis_to_the_method(params, recorded, calibrated_run):
+def test_online_calibration_hands_the_supports_hysteresis_to_the_method(
+    params, recorded, calibrated_run
+):
     """The hysteresis a learned window reads reaches the identifier's statistical method with the
     rest of the profile, the log says it, and the three-signal labels after the window say how
     far it moved them, none before it; a window with fewer impacts than it needs (3 s: 7 of
@@ -99,11 +122,17 @@ def test_online_calibration_hands_the_supports_hysteresis_to_the_method(params, 
     _, short = calibrated_run
     assert short.calibration.result.profile.hysteresis_weights is None
     assert any("hysteresis not read (7 impacts" in note for note in short.notes)
-    labels, gated = run(params, recorded, OnlineCalibration(params, 5.0, "statistical", background=False))
+    labels, gated = run(
+        params, recorded, OnlineCalibration(params, 5.0, "statistical", background=False)
+    )
     profile = gated.calibration.result.profile
     assert profile.hysteresis_weights is not None and profile.hysteresis_impacts >= 8
     assert gated.identifier.method.hysteresis_weights == profile.hysteresis_weights
     assert any("hysteresis u in" in note for note in gated.notes)
-    after = [l for l in labels if l.calibrated and set(l.signals) == {"jack_pressure", "imu", "rebound_velocity"}]
+    after = [
+        l
+        for l in labels
+        if l.calibrated and set(l.signals) == {"jack_pressure", "imu", "rebound_velocity"}
+    ]
     assert after and all("hysteresis_shift" in l.features for l in after)
     assert not any("hysteresis_shift" in l.features for l in labels if not l.calibrated)

@@ -9,8 +9,14 @@ import math
 import numpy as np
 import pytest
 
-from tail_beam_id.methods.hysteresis import applied_shift, hysteresis_latent, hysteresis_shift, latent_bin, support_weights
 from tail_beam_id.methods import load_model
+from tail_beam_id.methods.hysteresis import (
+    applied_shift,
+    hysteresis_latent,
+    hysteresis_shift,
+    latent_bin,
+    support_weights,
+)
 from tail_beam_id.methods.statistical import StatisticalMethod
 from tail_beam_sim.errors import InputError
 
@@ -22,13 +28,24 @@ def test_the_latent_is_zero_for_the_calibrated_law_and_follows_the_scale():
 
     assert hysteresis_latent("calibrated", 1.0, 0.35) == pytest.approx(0.0, abs=1e-12)
     assert hysteresis_latent("calibrated", 2.0, 0.35) == pytest.approx(math.log(2.0), rel=1e-12)
-    assert hysteresis_latent("hunt_crossley", 1.0, 0.35) == pytest.approx(math.log(0.975 / float(calibrated_chi(0.35))), rel=1e-9)
+    assert hysteresis_latent("hunt_crossley", 1.0, 0.35) == pytest.approx(
+        math.log(0.975 / float(calibrated_chi(0.35))), rel=1e-9
+    )
     # Hunt-Crossley under-damps a low restitution (its formula holds near e = 1): u < 0.
     assert hysteresis_latent("hunt_crossley", 1.0, 0.35) < -0.6
-    assert [latent_bin(u, [-1.0, 0.0, 1.0]) for u in (-2.0, -1.0, -0.5, 0.0, 0.5, 2.0)] == [0, 1, 1, 2, 2, 3]
+    assert [latent_bin(u, [-1.0, 0.0, 1.0]) for u in (-2.0, -1.0, -0.5, 0.0, 0.5, 2.0)] == [
+        0,
+        1,
+        1,
+        2,
+        2,
+        3,
+    ]
 
 
-def _gaussian_joint(x: np.ndarray, means: dict[tuple[int, int], float], sigma: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+def _gaussian_joint(
+    x: np.ndarray, means: dict[tuple[int, int], float], sigma: float = 0.5
+) -> tuple[np.ndarray, np.ndarray]:
     """Joint posteriors (N, 4) of a two-bin model with 1-D Gaussian classes of equal training
     shares (gangue b0, gangue b1, coal b0, coal b1) and that prior."""
     order = [(0, 0), (0, 1), (1, 0), (1, 1)]  # (is coal, bin)
@@ -37,7 +54,12 @@ def _gaussian_joint(x: np.ndarray, means: dict[tuple[int, int], float], sigma: f
     return joint, np.full(4, 0.25)
 
 
-MEANS = {(0, 0): -2.0, (1, 0): 0.0, (0, 1): 0.0, (1, 1): 2.0}  # bin 1's classes sit 2 higher: bin 0's coal is bin 1's gangue
+MEANS = {
+    (0, 0): -2.0,
+    (1, 0): 0.0,
+    (0, 1): 0.0,
+    (1, 1): 2.0,
+}  # bin 1's classes sit 2 higher: bin 0's coal is bin 1's gangue
 
 
 def test_a_face_dropping_mostly_coal_is_not_read_as_another_hysteresis():
@@ -99,13 +121,24 @@ def test_the_shift_is_nothing_when_the_support_says_what_the_impact_says(model):
     assert max(shifts) - min(shifts) > 0.1
 
 
-@pytest.mark.parametrize("weights", [[0.5, 0.5], [1.2, -0.2, 0.0, 0.0, 0.0, 0.0], [0.2] * 5 + [0.3], ["a"] * 6, [math.nan] + [0.2] * 5])
+@pytest.mark.parametrize(
+    "weights",
+    [
+        [0.5, 0.5],
+        [1.2, -0.2, 0.0, 0.0, 0.0, 0.0],
+        [0.2] * 5 + [0.3],
+        ["a"] * 6,
+        [math.nan] + [0.2] * 5,
+    ],
+)
 def test_a_profiles_weights_are_checked_by_name(params, model, weights):
     """A profile whose hysteresis weights are not one non-negative weight per bin of the models,
     summing to 1, is refused naming calibration.hysteresis_weights (a profile made with other
     models would weigh the wrong bins)."""
     with pytest.raises(InputError, match=r"calibration\.hysteresis_weights"):
-        StatisticalMethod.from_model(model, {**params, "calibration": {"hysteresis_weights": weights}})
+        StatisticalMethod.from_model(
+            model, {**params, "calibration": {"hysteresis_weights": weights}}
+        )
 
 
 def test_a_profiles_weights_reach_the_method(params, model):
@@ -113,7 +146,9 @@ def test_a_profiles_weights_reach_the_method(params, model):
     k = len(model["hysteresis"]["bin_edges"]) + 1
     weights = [0.0] * k
     weights[1] = 1.0
-    method = StatisticalMethod.from_model(model, {**params, "calibration": {"hysteresis_weights": weights}})
+    method = StatisticalMethod.from_model(
+        model, {**params, "calibration": {"hysteresis_weights": weights}}
+    )
     assert method.hysteresis_weights == weights
     assert StatisticalMethod.from_model(model, params).hysteresis_weights is None
 
@@ -131,17 +166,26 @@ def test_training_records_carry_their_supports_law_and_scale(params):
     assert hysteresis_latent(nominal.contact_model, nominal.contact_damping_scale, 0.35) == 0.0
     drawn = list(run_set(params, "varied", 1, 5, shipped, ["statistical"]))
     (impact,) = list(simulate_set(params, "varied", 1, 5, shipped))
-    assert drawn and all((r.contact_model, r.contact_damping_scale)
-                         == (impact.support.contact_model, impact.support.values["contact_damping_scale"]) for r in drawn)
-    (_, _, law), = list(draw_commands(params, "mismatch", 1, 5))
+    assert drawn and all(
+        (r.contact_model, r.contact_damping_scale)
+        == (impact.support.contact_model, impact.support.values["contact_damping_scale"])
+        for r in drawn
+    )
+    ((_, _, law),) = list(draw_commands(params, "mismatch", 1, 5))
     (mismatch,) = list(run_set(params, "mismatch", 1, 5, shipped, ["statistical"]))
     assert (mismatch.contact_model, mismatch.contact_damping_scale) == (law, 1.0)
 
 
-@pytest.mark.parametrize("change, field", [
-    ({"bin_edges": [0.0, -0.5]}, "bin_edges"), ({"bin_edges": []}, "bin_edges"), ({"bin_edges": [0.0, "x"]}, "bin_edges"),
-    ({"reference_restitution": 1.0}, "reference_restitution"), ({"reference_restitution": 0.0}, "reference_restitution"),
-])
+@pytest.mark.parametrize(
+    "change, field",
+    [
+        ({"bin_edges": [0.0, -0.5]}, "bin_edges"),
+        ({"bin_edges": []}, "bin_edges"),
+        ({"bin_edges": [0.0, "x"]}, "bin_edges"),
+        ({"reference_restitution": 1.0}, "reference_restitution"),
+        ({"reference_restitution": 0.0}, "reference_restitution"),
+    ],
+)
 def test_training_refuses_a_bad_hysteresis_section_by_name(params, change, field):
     """Unsorted or empty bins would put supports in the wrong bin silently, and a reference
     restitution of 1 (no hysteresis) or 0 has no latent: refused naming the field."""
@@ -160,19 +204,31 @@ def test_a_profile_made_with_other_bins_is_refused_by_name(params, model):
     weights = [1.0] + [0.0] * len(edges)
     other = [e + 0.25 for e in edges]
     with pytest.raises(InputError, match=r"calibration\.hysteresis_bin_edges"):
-        StatisticalMethod.from_model(model, {**params, "calibration": {"hysteresis_weights": weights, "hysteresis_bin_edges": other}})
-    method = StatisticalMethod.from_model(model, {**params, "calibration": {"hysteresis_weights": weights, "hysteresis_bin_edges": edges}})
+        StatisticalMethod.from_model(
+            model,
+            {
+                **params,
+                "calibration": {"hysteresis_weights": weights, "hysteresis_bin_edges": other},
+            },
+        )
+    method = StatisticalMethod.from_model(
+        model,
+        {**params, "calibration": {"hysteresis_weights": weights, "hysteresis_bin_edges": edges}},
+    )
     assert method.hysteresis_weights == weights
 
 
-@pytest.mark.parametrize(("logit", "shift", "applied"), [
-    (2.0, -1.5, -1.5),   # less sure: taken whole
-    (2.0, -3.0, -3.0),   # turned over (to -1.0): taken whole
-    (2.0, 1.0, 0.0),     # surer coal: refused, the impact's own 2.0 stands
-    (-2.0, -1.0, 0.0),   # surer gangue: refused
-    (-2.0, 5.0, 5.0),    # turned to coal at 3.0: taken whole, even though surer than 2.0
-    (0.5, 0.0, 0.0),
-])
+@pytest.mark.parametrize(
+    ("logit", "shift", "applied"),
+    [
+        (2.0, -1.5, -1.5),  # less sure: taken whole
+        (2.0, -3.0, -3.0),  # turned over (to -1.0): taken whole
+        (2.0, 1.0, 0.0),  # surer coal: refused, the impact's own 2.0 stands
+        (-2.0, -1.0, 0.0),  # surer gangue: refused
+        (-2.0, 5.0, 5.0),  # turned to coal at 3.0: taken whole, even though surer than 2.0
+        (0.5, 0.0, 0.0),
+    ],
+)
 def test_the_hysteresis_moves_the_boundary_but_never_makes_a_label_surer(logit, shift, applied):
     """The shift a label takes (applied_shift): all of it when it makes the label less sure or
     turns it over, none when it would make the label surer in the direction it already had."""

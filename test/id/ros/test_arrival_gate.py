@@ -8,8 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-
 from id_helpers import stream_chunk
+
 from tail_beam_id.ros.arrival import ArrivalGate, GateConfig, GatedIdentifier
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label
@@ -24,14 +24,18 @@ UNTIL_S = 2.1
 @pytest.fixture(scope="module")
 def gate_config() -> GateConfig:
     """The shipped id_node arrival parameters."""
-    return GateConfig.from_params(load_parameters([default_config_dir() / "id_node.yaml"])["id_node"])
+    return GateConfig.from_params(
+        load_parameters([default_config_dir() / "id_node.yaml"])["id_node"]
+    )
 
 
 @pytest.fixture(scope="module")
 def chunk(params):
     """Three impacts (coal, sandstone, coal) with every sensor of the shipped layout."""
-    commands = [(stamp, {"material": m, "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 1.0})
-                for stamp, m in zip(STAMPS, ("coal", "sandstone", "coal"))]
+    commands = [
+        (stamp, {"material": m, "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 1.0})
+        for stamp, m in zip(STAMPS, ("coal", "sandstone", "coal"))
+    ]
     return stream_chunk(params, commands, UNTIL_S)
 
 
@@ -45,25 +49,53 @@ class Plan:
     rebounds: tuple[np.ndarray, list[tuple[float, np.ndarray]]]
 
 
-def plan(chunk, delays_s: dict[str, float], speed: float = 1.0, start_wall_s: float = 0.0, stamp_shift_s: float = 0.0) -> Plan:
+def plan(
+    chunk,
+    delays_s: dict[str, float],
+    speed: float = 1.0,
+    start_wall_s: float = 0.0,
+    stamp_shift_s: float = 0.0,
+) -> Plan:
     """Each topic delivered in order ``delays_s[topic]`` after its stamp is reached, the stamps
     run ``speed`` times faster than the wall clock and shifted by ``stamp_shift_s``."""
+
     def wall(stamps, topic):
         return start_wall_s + np.asarray(stamps) / speed + delays_s.get(topic, 0.0)
 
     p, i, v = chunk.pressure, chunk.imu, chunk.vibration
     block_end = v.stamp_s + v.lengths * v.period_s
-    shifted = VibrationBlocks(v.first_index, v.lengths, v.stamp_s + stamp_shift_s, v.accel_mps2, v.period_s, v.range_mps2, v.noise_variance)
+    shifted = VibrationBlocks(
+        v.first_index,
+        v.lengths,
+        v.stamp_s + stamp_shift_s,
+        v.accel_mps2,
+        v.period_s,
+        v.range_mps2,
+        v.noise_variance,
+    )
     rebounds = [(r.stamp_s + stamp_shift_s, r.velocity_mps) for _, r in chunk.rebounds]
     return Plan(
-        (wall(p.stamp_s, "jack_pressure"), p.stamp_s + stamp_shift_s, p.pressure_pa.reshape(-1, 1)),
-        (wall(i.stamp_s, "imu"), i.stamp_s + stamp_shift_s, np.hstack([i.angular_velocity_radps, i.linear_acceleration_mps2])),
+        (
+            wall(p.stamp_s, "jack_pressure"),
+            p.stamp_s + stamp_shift_s,
+            p.pressure_pa.reshape(-1, 1),
+        ),
+        (
+            wall(i.stamp_s, "imu"),
+            i.stamp_s + stamp_shift_s,
+            np.hstack([i.angular_velocity_radps, i.linear_acceleration_mps2]),
+        ),
         (wall(block_end, "vibration"), shifted),
         (wall([r.stamp_s for _, r in chunk.rebounds], "rebound_velocity"), rebounds),
     )
 
 
-def drive(gated: GatedIdentifier, plans: list[Plan], tick_s: float = 0.01, flush_after_idle_s: float = 1.0) -> list[dict]:
+def drive(
+    gated: GatedIdentifier,
+    plans: list[Plan],
+    tick_s: float = 0.01,
+    flush_after_idle_s: float = 1.0,
+) -> list[dict]:
     """Tick the gated identifier as id_node's timer does; every label it publishes."""
     last = max(max(pl.pressure[0].max(), pl.imu[0].max(), pl.blocks[0].max()) for pl in plans)
     labels: list[dict] = []
@@ -71,11 +103,15 @@ def drive(gated: GatedIdentifier, plans: list[Plan], tick_s: float = 0.01, flush
     previous = -np.inf
     for t in np.arange(0.0, last + flush_after_idle_s + 3 * tick_s, tick_s):
         for pl in plans:
+
             def due(arrival):
                 return (arrival > previous) & (arrival <= t)
 
             arrivals = {}
-            for name, (arrival, stamps, values) in (("jack_pressure", pl.pressure), ("imu", pl.imu)):
+            for name, (arrival, stamps, values) in (
+                ("jack_pressure", pl.pressure),
+                ("imu", pl.imu),
+            ):
                 take = due(arrival)
                 if take.any():
                     arrivals[name] = (stamps[take], values[take])
@@ -91,14 +127,24 @@ def drive(gated: GatedIdentifier, plans: list[Plan], tick_s: float = 0.01, flush
 
 
 def gated(params, config: GateConfig) -> GatedIdentifier:
-    return GatedIdentifier(lambda trained: StreamIdentifier(params=params["identification"], model_params=params, prebuilt=trained), config)
+    return GatedIdentifier(
+        lambda trained: StreamIdentifier(
+            params=params["identification"], model_params=params, prebuilt=trained
+        ),
+        config,
+    )
 
 
 def offline(params, chunk) -> list[dict]:
     """What `tail-beam identify` gives on these streams (the bag's view)."""
     rebounds = [r for _, r in chunk.rebounds]
-    return replay(StreamIdentifier(params=params["identification"], model_params=params), chunk.pressure, chunk.imu, rebounds,
-                  vibration=chunk.vibration)
+    return replay(
+        StreamIdentifier(params=params["identification"], model_params=params),
+        chunk.pressure,
+        chunk.imu,
+        rebounds,
+        vibration=chunk.vibration,
+    )
 
 
 def keys(labels: list[Label]) -> list[tuple]:
@@ -106,13 +152,21 @@ def keys(labels: list[Label]) -> list[tuple]:
 
 
 @pytest.mark.parametrize("speed", [1.0, 25.0, 1000.0])
-@pytest.mark.parametrize("delays", [
-    {},
-    {"imu": 0.15, "vibration": 0.3},  # the vibration 0.3 s behind: ungated, it looked stopped
-    {"jack_pressure": 0.4, "rebound_velocity": 0.0},  # the camera far ahead of the pressure
-    {"vibration": 0.002, "rebound_velocity": 0.008},  # a rebound a little late (within reorder_s)
-])
-def test_live_labels_are_the_offline_labels_whatever_the_arrival(params, chunk, gate_config, delays, speed):
+@pytest.mark.parametrize(
+    "delays",
+    [
+        {},
+        {"imu": 0.15, "vibration": 0.3},  # the vibration 0.3 s behind: ungated, it looked stopped
+        {"jack_pressure": 0.4, "rebound_velocity": 0.0},  # the camera far ahead of the pressure
+        {
+            "vibration": 0.002,
+            "rebound_velocity": 0.008,
+        },  # a rebound a little late (within reorder_s)
+    ],
+)
+def test_live_labels_are_the_offline_labels_whatever_the_arrival(
+    params, chunk, gate_config, delays, speed
+):
     """Same impact stamps, labels and confidences as the offline replay, with topics lagging
     each other by up to 0.4 s of wall time, in real time, 25 times faster and all at once."""
     expected = offline(params, chunk)
@@ -136,21 +190,34 @@ def test_simulation_time_jumping_ahead_is_a_new_epoch(params, chunk, gate_config
     """Every stream 100 s ahead at once (a clock reset forward): both runs labelled, the second
     at its shifted stamps, nothing dropped."""
     runner = gated(params, gate_config)
-    labels = drive(runner, [plan(chunk, {}), plan(chunk, {}, start_wall_s=UNTIL_S + 0.05, stamp_shift_s=100.0)])
+    labels = drive(
+        runner,
+        [plan(chunk, {}), plan(chunk, {}, start_wall_s=UNTIL_S + 0.05, stamp_shift_s=100.0)],
+    )
     once = keys(offline(params, chunk))
     assert [rest for _, *rest in keys(labels)] == [rest for _, *rest in once] * 2
-    np.testing.assert_allclose([s for s, *_ in keys(labels)], [s for s, *_ in once] + [s + 100.0 for s, *_ in once], atol=1e-9)
+    np.testing.assert_allclose(
+        [s for s, *_ in keys(labels)],
+        [s for s, *_ in once] + [s + 100.0 for s, *_ in once],
+        atol=1e-9,
+    )
     assert runner.time_jumps == 1 and runner.count_totals()[2] == 0
 
 
-def test_one_message_from_the_future_is_set_aside_and_nothing_goes_deaf(params, chunk, gate_config):
+def test_one_message_from_the_future_is_set_aside_and_nothing_goes_deaf(
+    params, chunk, gate_config
+):
     """One IMU sample stamped 1000 s ahead, mid-stream: counted and dropped, every impact still
     labelled as offline (before, the identifier took the IMU for stopped and went deaf)."""
     runner = gated(params, gate_config)
     run = plan(chunk, {})
     arrival, stamps, values = run.imu
     k = int(np.searchsorted(stamps, 0.7))
-    run.imu = (np.insert(arrival, k, arrival[k]), np.insert(stamps, k, 1000.0), np.insert(values, k, values[k], axis=0))
+    run.imu = (
+        np.insert(arrival, k, arrival[k]),
+        np.insert(stamps, k, 1000.0),
+        np.insert(values, k, values[k], axis=0),
+    )
     assert keys(drive(runner, [run])) == keys(offline(params, chunk))
     assert runner.count_totals()[1:3] == (1, 1) and runner.time_jumps == 0
 
@@ -164,7 +231,9 @@ def test_a_sensor_that_stops_no_longer_holds_the_others(params, chunk, gate_conf
     run.blocks = (arrival[keep], blocks.select(keep))
     labels = drive(gated(params, gate_config), [run])
     assert [round(l.impact_stamp_s, 2) for l in labels] == STAMPS
-    assert "vibration" in labels[0].signals and all("vibration" not in l.signals for l in labels[1:])
+    assert "vibration" in labels[0].signals and all(
+        "vibration" not in l.signals for l in labels[1:]
+    )
 
 
 def test_the_gate_holds_samples_until_every_live_stream_has_passed_them(gate_config):
@@ -177,9 +246,15 @@ def test_the_gate_holds_samples_until_every_live_stream_has_passed_them(gate_con
     gate.add("vibration", np.arange(8) * 0.01, np.zeros((8, 1)), now_s=0.0)
     assert gate.release(now_s=0.0).empty  # not yet held reorder_s
     out = gate.release(now_s=gate_config.reorder_s)
-    assert {name: t.max() for name, (t, _) in out.streams.items()} == pytest.approx({"jack_pressure": 0.04, "imu": 0.04, "vibration": 0.04})
-    later = gate.release(now_s=gate_config.reorder_s + gate_config.stream_idle_s + 0.01)  # all idle: everything goes
-    assert {name: t.max() for name, (t, _) in later.streams.items()} == pytest.approx({"jack_pressure": 0.09, "vibration": 0.07})
+    assert {name: t.max() for name, (t, _) in out.streams.items()} == pytest.approx(
+        {"jack_pressure": 0.04, "imu": 0.04, "vibration": 0.04}
+    )
+    later = gate.release(
+        now_s=gate_config.reorder_s + gate_config.stream_idle_s + 0.01
+    )  # all idle: everything goes
+    assert {name: t.max() for name, (t, _) in later.streams.items()} == pytest.approx(
+        {"jack_pressure": 0.09, "vibration": 0.07}
+    )
 
 
 def test_a_rebound_that_is_no_number_is_refused_live_and_offline_alike(params, chunk, gate_config):
@@ -193,7 +268,10 @@ def test_a_rebound_that_is_no_number_is_refused_live_and_offline_alike(params, c
     run.rebounds = (arrival, [(stamp, np.array([np.nan, np.inf, 1e300])) for stamp, _ in rebounds])
     runner = gated(params, gate_config)
     live = drive(runner, [run])
-    broken = [type(r)(r.stamp_s, np.array([np.nan, np.inf, 1e300]), r.true_velocity_mps) for _, r in chunk.rebounds]
+    broken = [
+        type(r)(r.stamp_s, np.array([np.nan, np.inf, 1e300]), r.true_velocity_mps)
+        for _, r in chunk.rebounds
+    ]
     identifier = StreamIdentifier(params=params["identification"], model_params=params)
     offline = replay(identifier, chunk.pressure, chunk.imu, broken, vibration=chunk.vibration)
     assert keys(live) == keys(offline) and len(live) == len(STAMPS)
@@ -204,7 +282,9 @@ def test_a_rebound_that_is_no_number_is_refused_live_and_offline_alike(params, c
     assert any("rebounds refused (not finite" in note for note in runner.notes)
 
 
-def test_samples_that_are_no_number_are_left_out_live_and_offline_alike(params, chunk, gate_config):
+def test_samples_that_are_no_number_are_left_out_live_and_offline_alike(
+    params, chunk, gate_config
+):
     """A NaN jack pressure sample right after an impact, an inf IMU sample and a NaN
     accelerometer sample in the middle of another (a sensor dropout, a corrupt message) are
     counted and left out, live (noted for the log) and offline alike; every label stays strict
@@ -229,14 +309,21 @@ def test_samples_that_are_no_number_are_left_out_live_and_offline_alike(params, 
     runner = gated(params, gate_config)
     live = drive(runner, [run])
     identifier = StreamIdentifier(params=params["identification"], model_params=params)
-    broken = replay(identifier, replace(chunk.pressure, pressure_pa=p_values[:, 0]), replace(chunk.imu, linear_acceleration_mps2=i_values[:, 3:]),
-                    [r for _, r in chunk.rebounds], vibration=vibration)
+    broken = replay(
+        identifier,
+        replace(chunk.pressure, pressure_pa=p_values[:, 0]),
+        replace(chunk.imu, linear_acceleration_mps2=i_values[:, 3:]),
+        [r for _, r in chunk.rebounds],
+        vibration=vibration,
+    )
     assert keys(live) == keys(broken) and len(live) == len(STAMPS)
     assert [label.material for label in broken] == [label.material for label in clean]
     for label in live + broken:
         json.loads(label.to_json())
     assert identifier.refused_samples == {"jack_pressure": 1, "imu": 1, "vibration": 1}
-    assert any("3 sample(s) with a non-finite stamp or value left out" in note for note in runner.notes)
+    assert any(
+        "3 sample(s) with a non-finite stamp or value left out" in note for note in runner.notes
+    )
     # A restarted simulator sends the same broken run again: the log's totals keep counting
     # across the time jump (they started again from 0 with the new identifier).
     again = plan(chunk, {}, start_wall_s=UNTIL_S + 0.3)
@@ -247,7 +334,9 @@ def test_samples_that_are_no_number_are_left_out_live_and_offline_alike(params, 
     restarted = gated(params, gate_config)
     drive(restarted, [run, again])
     assert restarted.time_jumps == 1
-    assert any("6 sample(s) with a non-finite stamp or value left out" in note for note in restarted.notes)
+    assert any(
+        "6 sample(s) with a non-finite stamp or value left out" in note for note in restarted.notes
+    )
 
 
 def arrivals_between(chunk, lo_s: float, hi_s: float):
@@ -256,14 +345,21 @@ def arrivals_between(chunk, lo_s: float, hi_s: float):
     p, i, v = chunk.pressure, chunk.imu, chunk.vibration
     take_p = (p.stamp_s > lo_s) & (p.stamp_s <= hi_s)
     take_i = (i.stamp_s > lo_s) & (i.stamp_s <= hi_s)
-    arrivals = {"jack_pressure": (p.stamp_s[take_p], p.pressure_pa[take_p].reshape(-1, 1)),
-                "imu": (i.stamp_s[take_i], np.hstack([i.angular_velocity_radps, i.linear_acceleration_mps2])[take_i])}
+    arrivals = {
+        "jack_pressure": (p.stamp_s[take_p], p.pressure_pa[take_p].reshape(-1, 1)),
+        "imu": (
+            i.stamp_s[take_i],
+            np.hstack([i.angular_velocity_radps, i.linear_acceleration_mps2])[take_i],
+        ),
+    }
     blocks = v.select((v.stamp_s > lo_s) & (v.stamp_s <= hi_s))
     rebounds = [(r.stamp_s, r.velocity_mps) for _, r in chunk.rebounds if lo_s < r.stamp_s <= hi_s]
     return arrivals, blocks, rebounds
 
 
-def test_each_batch_is_held_from_its_own_arrival_and_the_next_horizon_is_known(params, chunk, gate_config):
+def test_each_batch_is_held_from_its_own_arrival_and_the_next_horizon_is_known(
+    params, chunk, gate_config
+):
     """What id_node does with arrival times: a batch admitted at wall clock t is released at t +
     reorder_s, not before and not held for a later batch's sake; while the first impact waits
     for its data window, next_horizon_s is its onset plus vibration_window_s (what id_node's
@@ -271,7 +367,9 @@ def test_each_batch_is_held_from_its_own_arrival_and_the_next_horizon_is_known(p
     hold = gate_config.reorder_s
     window_s = params["identification"]["vibration_window_s"]
     runner = gated(params, gate_config)
-    early = STAMPS[0] + window_s - 0.0015  # the first pulse and its ringing are in, its data window not
+    early = (
+        STAMPS[0] + window_s - 0.0015
+    )  # the first pulse and its ringing are in, its data window not
     assert runner.admit(10.0, *arrivals_between(chunk, -np.inf, early)) == []
     assert runner.admit(10.0 + hold / 2, *arrivals_between(chunk, early, STAMPS[0] + 0.1)) == []
     assert runner.decide(10.0 + 0.9 * hold) == [] and runner.gate.released_s == -np.inf
@@ -284,7 +382,9 @@ def test_each_batch_is_held_from_its_own_arrival_and_the_next_horizon_is_known(p
     assert runner.next_horizon_s() == np.inf
 
 
-def drive_by_arrival(gated: GatedIdentifier, pl: Plan, hold_s: float, tick_s: float = 0.005) -> list[Label]:
+def drive_by_arrival(
+    gated: GatedIdentifier, pl: Plan, hold_s: float, tick_s: float = 0.005
+) -> list[Label]:
     """Tick as id_node does now: what arrived since the last tick in two batches, held long
     enough and not yet, each admitted with its newest arrival time; then decide."""
     last = max(pl.pressure[0].max(), pl.imu[0].max(), pl.blocks[0].max())
@@ -294,7 +394,10 @@ def drive_by_arrival(gated: GatedIdentifier, pl: Plan, hold_s: float, tick_s: fl
         cut = t - hold_s
         for lo, hi in ((previous, min(cut, t)), (max(cut, previous), t)):
             arrivals, newest = {}, -np.inf
-            for name, (arrival, stamps, values) in (("jack_pressure", pl.pressure), ("imu", pl.imu)):
+            for name, (arrival, stamps, values) in (
+                ("jack_pressure", pl.pressure),
+                ("imu", pl.imu),
+            ):
                 take = (arrival > lo) & (arrival <= hi)
                 if take.any():
                     arrivals[name] = (stamps[take], values[take])
@@ -305,21 +408,30 @@ def drive_by_arrival(gated: GatedIdentifier, pl: Plan, hold_s: float, tick_s: fl
             rebounds = [(r, a) for r, a in zip(pl.rebounds[1], pl.rebounds[0]) if lo < a <= hi]
             newest = max([newest, *(a for _, a in rebounds)])
             if newest > -np.inf:
-                labels += gated.admit(newest, arrivals, pl.blocks[1].select(take), [r for r, _ in rebounds])
+                labels += gated.admit(
+                    newest, arrivals, pl.blocks[1].select(take), [r for r, _ in rebounds]
+                )
         previous = t
         labels += gated.decide(t, end_of_data=t > last + 1.0)
     return labels
 
 
-@pytest.mark.parametrize("delays", [
-    {},
-    {"rebound_velocity": 0.001},  # the camera's message a little behind the samples around it
-    {"rebound_velocity": 0.003},  # more than the hold behind them
-    {"imu": 0.15, "vibration": 0.3},
-])
-def test_live_labels_are_the_offline_labels_when_each_batch_is_held_from_its_arrival(params, chunk, gate_config, delays):
+@pytest.mark.parametrize(
+    "delays",
+    [
+        {},
+        {"rebound_velocity": 0.001},  # the camera's message a little behind the samples around it
+        {"rebound_velocity": 0.003},  # more than the hold behind them
+        {"imu": 0.15, "vibration": 0.3},
+    ],
+)
+def test_live_labels_are_the_offline_labels_when_each_batch_is_held_from_its_arrival(
+    params, chunk, gate_config, delays
+):
     """The node's way of ticking (each batch held reorder_s from its own arrival, not from the
     tick) gives the offline labels too, with a rebound arriving up to 3 ms after the samples
     stamped with it and topics 0.3 s apart."""
     expected = offline(params, chunk)
-    assert keys(drive_by_arrival(gated(params, gate_config), plan(chunk, delays), gate_config.reorder_s)) == keys(expected)
+    assert keys(
+        drive_by_arrival(gated(params, gate_config), plan(chunk, delays), gate_config.reorder_s)
+    ) == keys(expected)

@@ -7,8 +7,8 @@ import copy
 
 import numpy as np
 import pytest
-
 from id_helpers import stream_chunk
+
 from tail_beam_id.signals.camera import MIN_REBOUNDS, FramePeriod, frame_period_s
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import replay
@@ -23,7 +23,9 @@ def _grid_stamps(rate_hz: float, count: int, seed: int = 1, phase_s: float = 0.0
     return np.round(stamps * 1e9) / 1e9
 
 
-@pytest.mark.parametrize("rate_hz", [500.0, 1000.0, 2000.0, 3000.0, 5000.0, 7777.0, 25600.0, 50000.0])
+@pytest.mark.parametrize(
+    "rate_hz", [500.0, 1000.0, 2000.0, 3000.0, 5000.0, 7777.0, 25600.0, 50000.0]
+)
 def test_the_frame_period_is_read_from_the_stamps_grid(rate_hz):
     """Every difference of grid stamps is a whole number of frames; the longest period that fits
     them all is the camera's, whatever the grid's phase and even when 1/rate is no whole ns."""
@@ -76,7 +78,9 @@ def test_a_configured_camera_slower_than_the_stamps_can_tell_is_believed_while_t
     assert slow.period_at(float(stamps[-1])) == pytest.approx(0.004)
     slow.add(float(stamps[-1] + 0.006))  # a stamp off the 4 ms grid, on the 2 ms one
     assert slow.period_at(float(stamps[-1] + 0.006)) == pytest.approx(0.002)
-    assert slow.period_at(float(stamps[-1])) == pytest.approx(0.004)  # earlier decisions keep theirs
+    assert slow.period_at(float(stamps[-1])) == pytest.approx(
+        0.004
+    )  # earlier decisions keep theirs
     shipped = FramePeriod(1 / 5000.0)
     for t in stamps:
         shipped.add(float(t))
@@ -109,9 +113,21 @@ def slow_camera_stream(params):
     varied = copy.deepcopy(params)
     varied["sensors"]["camera_frame_rate_hz"] = 1000.0
     radii = np.geomspace(0.025, 0.09, 10)
-    starts = 0.3 + np.cumsum(0.3 + 0.15 * np.random.default_rng(7).uniform(size=10))  # as a face: 0.3-0.45 s apart
-    commands = [(float(starts[k]), {"material": "coal" if k % 2 else "mudstone", "radius_m": float(r), "drop_height_m": 3.0,
-                                  "position_m": 1.0}) for k, r in enumerate(radii)]
+    starts = 0.3 + np.cumsum(
+        0.3 + 0.15 * np.random.default_rng(7).uniform(size=10)
+    )  # as a face: 0.3-0.45 s apart
+    commands = [
+        (
+            float(starts[k]),
+            {
+                "material": "coal" if k % 2 else "mudstone",
+                "radius_m": float(r),
+                "drop_height_m": 3.0,
+                "position_m": 1.0,
+            },
+        )
+        for k, r in enumerate(radii)
+    ]
     return stream_chunk(varied, commands, float(starts[-1]) + 0.1)
 
 
@@ -123,20 +139,35 @@ def test_a_slow_camera_is_recognised_and_its_lag_averaged_over(params, slow_came
     shorter contact is a stiffer particle, so P(coal) falls on average against the decision that
     takes the whole delay for contact, and no decision leaves the range of the lags' own."""
     chunk = slow_camera_stream
-    labels = replay(StreamIdentifier("statistical", params["identification"], params), chunk.pressure, chunk.imu,
-                    [r for _, r in chunk.rebounds], vibration=chunk.vibration)
+    labels = replay(
+        StreamIdentifier("statistical", params["identification"], params),
+        chunk.pressure,
+        chunk.imu,
+        [r for _, r in chunk.rebounds],
+        vibration=chunk.vibration,
+    )
     assert len(labels) == 10
     periods = [label.features["camera_frame_period_s"] for label in labels]
-    assert periods[:MIN_REBOUNDS - 1] == pytest.approx([2e-4] * (MIN_REBOUNDS - 1))
-    assert all(period >= 1e-3 * (1 - 1e-6) for period in periods[MIN_REBOUNDS - 1:]), periods  # erring long at first
+    assert periods[: MIN_REBOUNDS - 1] == pytest.approx([2e-4] * (MIN_REBOUNDS - 1))
+    assert all(period >= 1e-3 * (1 - 1e-6) for period in periods[MIN_REBOUNDS - 1 :]), (
+        periods
+    )  # erring long at first
     assert periods[-1] == pytest.approx(1e-3, rel=1e-6)
     method = StreamIdentifier("statistical", params["identification"], params).method
     shifts = []
     for label in labels:
         unaware = method.decide({**label.features, "camera_frame_period_s": 2e-4}).p_coal
         averaged = method.decide({**label.features, "camera_frame_period_s": 4e-4}).p_coal
-        lags = [method.decide({**label.features, "camera_frame_period_s": 2e-4,
-                               "rebound_delay_s": label.features["rebound_delay_s"] + shift}).p_coal for shift in np.linspace(1e-4, -3e-4, 33)]
+        lags = [
+            method.decide(
+                {
+                    **label.features,
+                    "camera_frame_period_s": 2e-4,
+                    "rebound_delay_s": label.features["rebound_delay_s"] + shift,
+                }
+            ).p_coal
+            for shift in np.linspace(1e-4, -3e-4, 33)
+        ]
         assert min(lags) - 1e-6 <= averaged <= max(lags) + 1e-6
         shifts.append(averaged - unaware)
     assert np.mean(shifts) < 0.0, shifts
@@ -149,8 +180,13 @@ def test_a_camera_slower_than_any_trained_is_decided_without_the_delay(params, s
     cannot show a clock offset. (Averaged over the lag instead, a 1 kHz camera's foreign supports
     scored 76 and 74 % on the stream and the paper scene, against 83 and 94 % this way.)"""
     chunk = slow_camera_stream
-    labels = replay(StreamIdentifier("statistical", params["identification"], params), chunk.pressure, chunk.imu,
-                    [r for _, r in chunk.rebounds], vibration=chunk.vibration)
+    labels = replay(
+        StreamIdentifier("statistical", params["identification"], params),
+        chunk.pressure,
+        chunk.imu,
+        [r for _, r in chunk.rebounds],
+        vibration=chunk.vibration,
+    )
     method = StreamIdentifier("statistical", params["identification"], params).method
     decided = [label for label in labels if label.features["camera_frame_period_s"] > 5e-4]
     assert len(decided) >= 10 - MIN_REBOUNDS + 1
@@ -158,29 +194,51 @@ def test_a_camera_slower_than_any_trained_is_decided_without_the_delay(params, s
         assert "delay_residual" not in label.features
         base = method.decide(label.features).p_coal
         for shift in (-4e-4, -1e-4, 3e-4, 9e-4):
-            moved = {**label.features, "rebound_delay_s": label.features["rebound_delay_s"] + shift}
+            moved = {
+                **label.features,
+                "rebound_delay_s": label.features["rebound_delay_s"] + shift,
+            }
             assert method.decide(moved).p_coal == base
         # The same features with a camera the training knew: the delay counts again.
-        assert method.decide({**label.features, "camera_frame_period_s": 2e-4, "rebound_delay_s": 4e-4}).p_coal != \
-            method.decide({**label.features, "camera_frame_period_s": 2e-4, "rebound_delay_s": 9e-4}).p_coal
+        assert (
+            method.decide(
+                {**label.features, "camera_frame_period_s": 2e-4, "rebound_delay_s": 4e-4}
+            ).p_coal
+            != method.decide(
+                {**label.features, "camera_frame_period_s": 2e-4, "rebound_delay_s": 9e-4}
+            ).p_coal
+        )
     first = len(labels) - len(decided)  # the impacts before the camera's period was read
-    assert [label.material for label in decided] == ["gangue" if k % 2 == 0 else "coal" for k in range(first, 10)]
+    assert [label.material for label in decided] == [
+        "gangue" if k % 2 == 0 else "coal" for k in range(first, 10)
+    ]
 
 
 def test_a_camera_as_fast_as_the_training_changes_nothing(params, slow_camera_stream):
     """At or below the reference frame (5 kHz) the delay is taken as it is: the decision equals
     the one without the camera's period."""
-    features = replay(StreamIdentifier("statistical", params["identification"], params), slow_camera_stream.pressure,
-                      slow_camera_stream.imu, [r for _, r in slow_camera_stream.rebounds],
-                      vibration=slow_camera_stream.vibration)[0].features
+    features = replay(
+        StreamIdentifier("statistical", params["identification"], params),
+        slow_camera_stream.pressure,
+        slow_camera_stream.imu,
+        [r for _, r in slow_camera_stream.rebounds],
+        vibration=slow_camera_stream.vibration,
+    )[0].features
     method = StreamIdentifier("statistical", params["identification"], params).method
     bare = {k: v for k, v in features.items() if k != "camera_frame_period_s"}
     for period_s in (5e-5, 2e-4):
-        assert method.decide({**bare, "camera_frame_period_s": period_s}).p_coal == method.decide(bare).p_coal
-    assert method.decide({**bare, "camera_frame_period_s": 1e-3}).p_coal != method.decide(bare).p_coal
+        assert (
+            method.decide({**bare, "camera_frame_period_s": period_s}).p_coal
+            == method.decide(bare).p_coal
+        )
+    assert (
+        method.decide({**bare, "camera_frame_period_s": 1e-3}).p_coal != method.decide(bare).p_coal
+    )
 
 
-def test_with_an_imu_too_slow_to_read_the_contact_a_slow_cameras_delay_is_averaged_over_its_lag(params, slow_camera_stream):
+def test_with_an_imu_too_slow_to_read_the_contact_a_slow_cameras_delay_is_averaged_over_its_lag(
+    params, slow_camera_stream
+):
     """The same 1 kHz camera beside a 2 kHz IMU alone: the contact's duration is not read from
     the pulse (it says the sample period), so the delay is all the impact says of it, and the
     decision is averaged over the lags the camera may have added rather than made without the
@@ -189,23 +247,39 @@ def test_with_an_imu_too_slow_to_read_the_contact_a_slow_cameras_delay_is_averag
     lags it averages, which never exceed the delay itself (a longer lag would leave a contact
     of no duration); and no timing check is made of a delay that cannot show a clock offset."""
     chunk = slow_camera_stream
-    labels = replay(StreamIdentifier("statistical", params["identification"], params), chunk.pressure, chunk.imu,
-                    [r for _, r in chunk.rebounds], vibration=None)
+    labels = replay(
+        StreamIdentifier("statistical", params["identification"], params),
+        chunk.pressure,
+        chunk.imu,
+        [r for _, r in chunk.rebounds],
+        vibration=None,
+    )
     method = StreamIdentifier("statistical", params["identification"], params).method
     decided = [label for label in labels if label.features["camera_frame_period_s"] > 5e-4]
     assert len(decided) >= 10 - MIN_REBOUNDS + 1
     for label in decided:
         features = label.features
-        assert features["contact_duration_s"] == features["imu_period_s"]  # not read from the pulse
+        assert (
+            features["contact_duration_s"] == features["imu_period_s"]
+        )  # not read from the pulse
         assert "delay_residual" not in features
         delay = features["rebound_delay_s"]
         averaged = method.decide(features).p_coal
         # The training's 5 kHz camera lagged 0.1 ms on average: a lag u reads as delay - u + 0.1 ms.
-        at_lags = [method.decide({**features, "camera_frame_period_s": 2e-4, "rebound_delay_s": delay - u + 1e-4}).p_coal
-                   for u in np.linspace(0.0, min(delay, 1e-3), 33)]
+        at_lags = [
+            method.decide(
+                {**features, "camera_frame_period_s": 2e-4, "rebound_delay_s": delay - u + 1e-4}
+            ).p_coal
+            for u in np.linspace(0.0, min(delay, 1e-3), 33)
+        ]
         assert min(at_lags) - 1e-6 <= averaged <= max(at_lags) + 1e-6
-    moved = [method.decide({**label.features, "rebound_delay_s": label.features["rebound_delay_s"] + 4e-4}).p_coal
-             != method.decide(label.features).p_coal for label in decided]
+    moved = [
+        method.decide(
+            {**label.features, "rebound_delay_s": label.features["rebound_delay_s"] + 4e-4}
+        ).p_coal
+        != method.decide(label.features).p_coal
+        for label in decided
+    ]
     assert all(moved)
 
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from id_helpers import impact
-from tail_beam_id.signals.imu_detection import DetectionConfig, PulseDetector
+
 from tail_beam_id.signals.features import BeamModel, imu_impulse
+from tail_beam_id.signals.imu_detection import DetectionConfig, PulseDetector
 
 
 @pytest.fixture()
@@ -28,10 +28,16 @@ def test_noise_and_sway_alone_give_no_pulse(detector):
 def test_one_impact_gives_one_pulse_at_its_contact(params, detector):
     """One simulated impact gives exactly one pulse, whose first deviating sample's period holds the true contact start."""
     result = impact(params, material="coal")
-    pulses = detector.scan(result.imu.stamp_s, result.imu.linear_acceleration_mps2[:, 2], 0, final=True)
+    pulses = detector.scan(
+        result.imu.stamp_s, result.imu.linear_acceleration_mps2[:, 2], 0, final=True
+    )
     assert len(pulses) == 1
     # The contact began within the first deviating sample's averaging period.
-    assert pulses[0].first_stamp_s - pulses[0].period_s <= result.contact_stamp_s <= pulses[0].first_stamp_s
+    assert (
+        pulses[0].first_stamp_s - pulses[0].period_s
+        <= result.contact_stamp_s
+        <= pulses[0].first_stamp_s
+    )
 
 
 def test_chunking_does_not_change_what_is_found(params):
@@ -53,7 +59,9 @@ def test_the_scan_reaches_the_newest_sample_unless_a_pulse_is_still_coming_in(pa
     not max_contact_s behind it); a sample over the threshold whose pulse is not all in holds the
     cursor there, and the pulse found once it is, in 25.6 kHz accelerometer chunks of 64 samples,
     is the one found on the whole record."""
-    result = impact(params, material="marble", radius_m=0.06, position_m=0.3, sensors={"imu_rate_hz": 25600.0})
+    result = impact(
+        params, material="marble", radius_m=0.06, position_m=0.3, sensors={"imu_rate_hz": 25600.0}
+    )
     t, a = result.imu.stamp_s, result.imu.linear_acceleration_mps2[:, 2]
     config = DetectionConfig.from_params(params["identification"]["detection"])
     whole = PulseDetector(config).scan(t, a, 0, final=True)
@@ -67,23 +75,38 @@ def test_the_scan_reaches_the_newest_sample_unless_a_pulse_is_still_coming_in(pa
         cursors.append((end, live.cursor))
     assert [p.onset_s for p in found] == [p.onset_s for p in whole]
     baseline, block, span = live.geometry(1.0 / 25600.0)
-    quiet = [(end, cursor) for end, cursor in cursors if baseline + block <= end < first]  # after the first noise block
+    quiet = [
+        (end, cursor) for end, cursor in cursors if baseline + block <= end < first
+    ]  # after the first noise block
     assert quiet and all(cursor == end for end, cursor in quiet)
     waiting = [(end, cursor) for end, cursor in cursors if first < end <= first + span]
-    assert waiting and all(cursor <= first for _, cursor in waiting)  # held at the pulse until it is all in
+    assert waiting and all(
+        cursor <= first for _, cursor in waiting
+    )  # held at the pulse until it is all in
 
 
 def test_small_impact_is_lost_in_tenfold_noise(params, detector):
     # The smallest, slowest particle near the hinge: about 10 sigma at nominal noise, about
     # 1 sigma at ten times the noise, where no detector can see it in the IMU.
     """The weakest impact is found at nominal noise and, honestly, not found at ten times the noise."""
-    fields = {"material": "coal", "radius_m": 0.025, "drop_height_m": 1.5, "position_m": 0.2, "restitution": 0.3}
+    fields = {
+        "material": "coal",
+        "radius_m": 0.025,
+        "drop_height_m": 1.5,
+        "position_m": 0.2,
+        "restitution": 0.3,
+    }
     nominal = impact(params, **fields)
     noisy = impact(params, noise=10.0, **fields)
-    found = detector.scan(nominal.imu.stamp_s, nominal.imu.linear_acceleration_mps2[:, 2], 0, final=True)
+    found = detector.scan(
+        nominal.imu.stamp_s, nominal.imu.linear_acceleration_mps2[:, 2], 0, final=True
+    )
     assert len(found) == 1
     fresh = PulseDetector(detector.config)
-    assert fresh.scan(noisy.imu.stamp_s, noisy.imu.linear_acceleration_mps2[:, 2], 0, final=True) == []
+    assert (
+        fresh.scan(noisy.imu.stamp_s, noisy.imu.linear_acceleration_mps2[:, 2], 0, final=True)
+        == []
+    )
 
 
 def test_imu_impulse_is_the_contact_impulse_moment(params, detector):
@@ -91,19 +114,32 @@ def test_imu_impulse_is_the_contact_impulse_moment(params, detector):
     """On the rigid beam the IMU's velocity jump gives the contact's impulse moment m (v0 + v1) x within 5 %."""
     result = impact(params, tier="rigid", material="sandstone", radius_m=0.04, position_m=1.2)
     model = BeamModel.from_params(params)
-    pulse = detector.scan(result.imu.stamp_s, result.imu.linear_acceleration_mps2[:, 2], 0, final=True)[0]
-    fit = imu_impulse(model, result.imu.stamp_s, result.imu.linear_acceleration_mps2[:, 2], pulse, 0.01, 0.0015, 0.008)
+    pulse = detector.scan(
+        result.imu.stamp_s, result.imu.linear_acceleration_mps2[:, 2], 0, final=True
+    )[0]
+    fit = imu_impulse(
+        model,
+        result.imu.stamp_s,
+        result.imu.linear_acceleration_mps2[:, 2],
+        pulse,
+        0.01,
+        0.0015,
+        0.008,
+    )
     s = result.summary
     moment = s["mass_kg"] * (s["impact_speed_mps"] + s["rebound_speed_mps"]) * s["position_m"]
     assert fit.velocity_mps * model.imu_moment_per_velocity == pytest.approx(moment, rel=0.05)
 
 
-@pytest.mark.parametrize(("rates", "tolerance_s"), [
-    # The IMU alone: within one 0.5 ms sample (a straight-line background put it 0.7 ms early).
-    ({"imu_rate_hz": 2000.0, "vibration_rate_hz": 0.0}, 0.0005),
-    # The 25.6 kHz accelerometer: within two 39 us samples (0.64-0.7 ms early before).
-    ({"imu_rate_hz": 2000.0, "vibration_rate_hz": 25600.0}, 2.0 / 25600.0),
-])
+@pytest.mark.parametrize(
+    ("rates", "tolerance_s"),
+    [
+        # The IMU alone: within one 0.5 ms sample (a straight-line background put it 0.7 ms early).
+        ({"imu_rate_hz": 2000.0, "vibration_rate_hz": 0.0}, 0.0005),
+        # The 25.6 kHz accelerometer: within two 39 us samples (0.64-0.7 ms early before).
+        ({"imu_rate_hz": 2000.0, "vibration_rate_hz": 25600.0}, 2.0 / 25600.0),
+    ],
+)
 def test_onset_of_a_small_particle_on_a_beam_swaying_from_a_large_one(params, rates, tolerance_s):
     """After an 11 kg marble the beam sways for seconds; a small coal lump 0.23 s later must be
     found where it struck, not a sample or more early where a straight-line background leaves
@@ -118,15 +154,44 @@ def test_onset_of_a_small_particle_on_a_beam_swaying_from_a_large_one(params, ra
     varied["sensors"] = {**varied["sensors"], "imu_rate_hz": rates["imu_rate_hz"], "seed": 5}
     if rates["vibration_rate_hz"]:
         varied["sensors"]["vibration_rate_hz"] = rates["vibration_rate_hz"]
-    varied["stream"] = {**varied.get("stream", {}), "tier": "modal", "min_impact_gap_s": 0.0, "command_lead_s": 0.001, "max_queued_impacts": 5}
+    varied["stream"] = {
+        **varied.get("stream", {}),
+        "tier": "modal",
+        "min_impact_gap_s": 0.0,
+        "command_lead_s": 0.001,
+        "max_queued_impacts": 5,
+    }
     varied.setdefault("scene", {}).update(contact_model="calibrated", window_s=0.05)
     simulator = StreamSimulator.from_params(varied)
-    simulator.submit({"material": "marble", "radius_m": 0.1, "drop_height_m": 4.0, "position_m": 1.2, "restitution": 0.4}, 0.5)
-    small = simulator.submit({"material": "coal", "radius_m": 0.03, "drop_height_m": 2.5, "position_m": 0.9, "restitution": 0.5}, 0.7305)
+    simulator.submit(
+        {
+            "material": "marble",
+            "radius_m": 0.1,
+            "drop_height_m": 4.0,
+            "position_m": 1.2,
+            "restitution": 0.4,
+        },
+        0.5,
+    )
+    small = simulator.submit(
+        {
+            "material": "coal",
+            "radius_m": 0.03,
+            "drop_height_m": 2.5,
+            "position_m": 0.9,
+            "restitution": 0.5,
+        },
+        0.7305,
+    )
     chunk = simulator.advance(1.0)
     vibration = chunk.vibration if rates["vibration_rate_hz"] else None
-    labels = replay(StreamIdentifier("statistical", params["identification"], params), chunk.pressure, chunk.imu,
-                    [r for _, r in chunk.rebounds], vibration=vibration)
+    labels = replay(
+        StreamIdentifier("statistical", params["identification"], params),
+        chunk.pressure,
+        chunk.imu,
+        [r for _, r in chunk.rebounds],
+        vibration=vibration,
+    )
     near = [label for label in labels if abs(label.impact_stamp_s - small.contact_stamp_s) < 0.005]
     assert len(near) == 1
     assert abs(near[0].impact_stamp_s - small.contact_stamp_s) <= tolerance_s
@@ -146,14 +211,18 @@ def test_background_values_are_the_per_sample_fits_at_once():
     excluded[250:253] = True
     ends = np.arange(baseline, 400)
     expected = np.array([background_fit(values, e - baseline, e, excluded)[0] for e in ends])
-    kept = np.array([(~excluded[e - baseline:e]).sum() for e in ends])
+    kept = np.array([(~excluded[e - baseline : e]).sum() for e in ends])
     assert set(kept) >= {0, 5, 10, 15, 20}
-    np.testing.assert_allclose(background_values(values, ends, baseline, excluded), expected, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(
+        background_values(values, ends, baseline, excluded), expected, rtol=1e-9, atol=1e-9
+    )
 
 
 @pytest.mark.parametrize("second_mps2, expected", [(0.0, 1), (1.5, 1), (40.0, 2)])
 @pytest.mark.parametrize("chunk", [64, 128, 1000, None])
-def test_a_ringing_beam_is_followed_and_only_an_impact_that_stands_out_of_it_is_new(params, second_mps2, expected, chunk):
+def test_a_ringing_beam_is_followed_and_only_an_impact_that_stands_out_of_it_is_new(
+    params, second_mps2, expected, chunk
+):
     """25.6 kHz accelerometer, noise 0.05 m/s^2: a 10 m/s^2 contact pulse, then a 700 Hz mode
     ringing at 3 m/s^2 decaying over 10 ms (60 noise RMS: far over the plain threshold). The
     ringing alone is one pulse; a second contact 12 ms later is new only when it stands out of
@@ -173,7 +242,9 @@ def test_a_ringing_beam_is_followed_and_only_an_impact_that_stands_out_of_it_is_
         return np.where(inside, -peak_mps2 * np.sin(np.pi * (t - at_s) / duration_s), 0.0)
 
     after = np.clip(t - 0.2003, 0.0, None)
-    accel += contact(0.2, 10.0) + np.where(t > 0.2003, 3.0 * np.exp(-after / 0.01) * np.sin(2 * np.pi * 700.0 * after), 0.0)
+    accel += contact(0.2, 10.0) + np.where(
+        t > 0.2003, 3.0 * np.exp(-after / 0.01) * np.sin(2 * np.pi * 700.0 * after), 0.0
+    )
     accel += contact(0.212, second_mps2)
     detector = PulseDetector(config)
     if chunk is None:
@@ -200,6 +271,7 @@ def test_a_slow_imu_stream_is_walked_forward_and_each_impact_found_once(params, 
     import copy
 
     from id_helpers import stream_chunk
+
     from tail_beam_id.stream.identifier import StreamIdentifier
     from tail_beam_id.stream.label import match
     from tail_beam_id.stream.replay import replay
@@ -207,13 +279,19 @@ def test_a_slow_imu_stream_is_walked_forward_and_each_impact_found_once(params, 
     varied = copy.deepcopy(params)
     varied["sensors"]["imu_rate_hz"] = imu_rate_hz
     starts = [0.3, 0.65, 1.05, 1.4]
-    commands = [(t, {"material": m, "radius_m": r, "drop_height_m": 3.0, "position_m": 1.2})
-                for t, m, r in zip(starts, ["coal", "marble", "coal", "sandstone"], [0.09, 0.08, 0.06, 0.07])]
+    commands = [
+        (t, {"material": m, "radius_m": r, "drop_height_m": 3.0, "position_m": 1.2})
+        for t, m, r in zip(
+            starts, ["coal", "marble", "coal", "sandstone"], [0.09, 0.08, 0.06, 0.07]
+        )
+    ]
     chunk = stream_chunk(varied, commands, 1.6)
     truths = [t for _, t in chunk.truths]
     for chunk_s in (0.01, 0.003):
         identifier = StreamIdentifier("statistical", params["identification"], params)
-        labels = replay(identifier, chunk.pressure, chunk.imu, [r for _, r in chunk.rebounds], chunk_s=chunk_s)
+        labels = replay(
+            identifier, chunk.pressure, chunk.imu, [r for _, r in chunk.rebounds], chunk_s=chunk_s
+        )
         matching = match(truths, labels, 0.005)
         assert not matching.missed, (imu_rate_hz, chunk_s, [l.impact_stamp_s for l in labels])
         if imu_rate_hz >= 1000.0:
@@ -226,15 +304,26 @@ def test_a_500_hz_imu_beside_the_accelerometer_on_a_ringing_support_does_not_cra
     lost the whole recording. Now every impact is labelled."""
     from dataclasses import replace
 
-    from tail_beam_id.study.dataset import settings, support_streams
     from tail_beam_id.stream.identifier import StreamIdentifier
     from tail_beam_id.stream.label import match
     from tail_beam_id.stream.replay import replay
+    from tail_beam_id.study.dataset import settings, support_streams
 
-    (recorded,) = support_streams(params, 1, 20, 41004, setting=settings(params, [1.0], ["shipped"])[0])
+    (recorded,) = support_streams(
+        params, 1, 20, 41004, setting=settings(params, [1.0], ["shipped"])[0]
+    )
     imu = recorded.imu
-    slow = replace(imu, stamp_s=imu.stamp_s[::4], angular_velocity_radps=imu.angular_velocity_radps[::4],
-                   linear_acceleration_mps2=imu.linear_acceleration_mps2[::4])
-    labels = replay(StreamIdentifier("statistical", params["identification"], params), recorded.pressure, slow,
-                    recorded.rebounds, vibration=recorded.vibration)
+    slow = replace(
+        imu,
+        stamp_s=imu.stamp_s[::4],
+        angular_velocity_radps=imu.angular_velocity_radps[::4],
+        linear_acceleration_mps2=imu.linear_acceleration_mps2[::4],
+    )
+    labels = replay(
+        StreamIdentifier("statistical", params["identification"], params),
+        recorded.pressure,
+        slow,
+        recorded.rebounds,
+        vibration=recorded.vibration,
+    )
     assert not match(recorded.truths, labels, 0.005).missed

@@ -7,10 +7,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from id_helpers import stream_chunk
-from tail_beam_id.stream.identifier import StreamIdentifier
+
 from tail_beam_id.signals.mounting import sign_from_gravity, sign_from_imu
+from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import replay
 
 G = 9.81
@@ -28,7 +28,9 @@ def test_gravity_gives_the_sign_of_a_dc_coupled_sensor_and_nothing_of_an_ac_coup
 def _sway(t, start_s):
     """A beam set swaying at 39 Hz (0.8 % damping) at start_s, m/s^2."""
     dt = np.clip(t - start_s, 0.0, None)
-    return np.where(t >= start_s, 3.0 * np.exp(-2 * np.pi * 39 * 0.008 * dt) * np.sin(2 * np.pi * 39 * dt), 0.0)
+    return np.where(
+        t >= start_s, 3.0 * np.exp(-2 * np.pi * 39 * 0.008 * dt) * np.sin(2 * np.pi * 39 * dt), 0.0
+    )
 
 
 @pytest.mark.parametrize("mounted", [1.0, -1.0])
@@ -48,16 +50,28 @@ def test_the_imu_gives_the_sign_once_the_beam_moves(mounted):
 def face(params):
     """Five impacts 0.3-0.45 s apart on the nominal support, the accelerometer fed."""
     starts = 0.3 + np.cumsum(0.3 + 0.15 * np.random.default_rng(3).uniform(size=5))
-    commands = [(float(t), {"material": m, "radius_m": r, "drop_height_m": 3.0, "position_m": 1.0})
-                for t, m, r in zip(starts, ["coal", "marble", "coal", "sandstone", "mudstone"], [0.06, 0.05, 0.08, 0.04, 0.07])]
+    commands = [
+        (float(t), {"material": m, "radius_m": r, "drop_height_m": 3.0, "position_m": 1.0})
+        for t, m, r in zip(
+            starts,
+            ["coal", "marble", "coal", "sandstone", "mudstone"],
+            [0.06, 0.05, 0.08, 0.04, 0.07],
+        )
+    ]
     return stream_chunk(params, commands, float(starts[-1]) + 0.1)
 
 
 def _labels(params, chunk, accel, chunk_s=0.01, imu=True):
     identifier = StreamIdentifier("statistical", params["identification"], params)
     vibration = replace(chunk.vibration, accel_mps2=accel.astype(np.float32))
-    return replay(identifier, chunk.pressure, chunk.imu if imu else None, [r for _, r in chunk.rebounds], chunk_s=chunk_s,
-                  vibration=vibration)
+    return replay(
+        identifier,
+        chunk.pressure,
+        chunk.imu if imu else None,
+        [r for _, r in chunk.rebounds],
+        chunk_s=chunk_s,
+        vibration=vibration,
+    )
 
 
 def test_an_ac_coupled_accelerometer_upside_down_labels_as_the_right_way_up(params, face):
@@ -71,7 +85,9 @@ def test_an_ac_coupled_accelerometer_upside_down_labels_as_the_right_way_up(para
         labels = _labels(params, face, ac_inverted, chunk_s)
         assert [l.decision()[:2] for l in labels] == [l.decision()[:2] for l in upright]
         assert all(l.vibration_mount == "inverted" for l in labels)
-        assert [l.confidence for l in labels] == pytest.approx([l.confidence for l in upright], abs=0.02)
+        assert [l.confidence for l in labels] == pytest.approx(
+            [l.confidence for l in upright], abs=0.02
+        )
 
 
 def test_without_an_imu_an_ac_coupled_accelerometer_is_taken_as_configured(params, face):

@@ -9,11 +9,18 @@ from dataclasses import replace
 
 import pytest
 
-from tail_beam_id.study.dataset import settings, support_streams
+from tail_beam_id.signals.timing import (
+    DELAY_UNTRUSTED,
+    OUTSIDE_NAME,
+    UNUSUAL,
+    SensorTiming,
+    TimingConfig,
+    judge,
+)
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import replay
+from tail_beam_id.study.dataset import settings, support_streams
 from tail_beam_id.study.runs import foreign_records
-from tail_beam_id.signals.timing import DELAY_UNTRUSTED, OUTSIDE_NAME, UNUSUAL, SensorTiming, TimingConfig, judge
 from tail_beam_sim.errors import InputError
 
 CONFIG = TimingConfig(min_impacts=10, agreeing_rate=0.03, false_alarm=1e-3, confidence_cap=0.6)
@@ -58,14 +65,18 @@ def test_a_bad_timing_section_is_refused_by_name():
 
 
 @pytest.mark.parametrize("command", ["identify", "calibrate"])
-def test_identify_and_calibrate_refuse_a_bad_timing_section_before_they_read_the_bag(tmp_path, capsys, command):
+def test_identify_and_calibrate_refuse_a_bad_timing_section_before_they_read_the_bag(
+    tmp_path, capsys, command
+):
     """tail-beam identify and calibrate name a bad identification.sensor_timing value before
     they read and self-calibrate the bag (they said so only after that pass): the bag here does
     not exist, so an error naming the field can only come from a check made first."""
     from tail_beam_sim.cli import main
 
     config = tmp_path / "bad.yaml"
-    config.write_text("/**:\n  ros__parameters:\n    identification:\n      sensor_timing:\n        agreeing_rate: 0.7\n")
+    config.write_text(
+        "/**:\n  ros__parameters:\n    identification:\n      sensor_timing:\n        agreeing_rate: 0.7\n"
+    )
     assert main([command, str(tmp_path / "no_such_bag"), "--config", str(config)]) == 2
     error = capsys.readouterr().err
     assert "identification.sensor_timing.agreeing_rate" in error and "no_such_bag" not in error
@@ -74,17 +85,27 @@ def test_identify_and_calibrate_refuse_a_bad_timing_section_before_they_read_the
 @pytest.fixture(scope="module")
 def face(params):
     """The foreign set's first support (seed 41004, shipped sensors), 20 impacts as one stream."""
-    (recorded,) = support_streams(params, 1, 20, 41004, setting=settings(params, [1.0], ["shipped"])[0])
+    (recorded,) = support_streams(
+        params, 1, 20, 41004, setting=settings(params, [1.0], ["shipped"])[0]
+    )
     return recorded
 
 
 def _late_camera(recorded, late_s):
-    return replace(recorded, rebounds=[replace(r, stamp_s=r.stamp_s + late_s) for r in recorded.rebounds])
+    return replace(
+        recorded, rebounds=[replace(r, stamp_s=r.stamp_s + late_s) for r in recorded.rebounds]
+    )
 
 
 def _labels(params, recorded):
     identifier = StreamIdentifier("statistical", params["identification"], params)
-    return identifier, replay(identifier, recorded.pressure, recorded.imu, recorded.rebounds, vibration=recorded.vibration)
+    return identifier, replay(
+        identifier,
+        recorded.pressure,
+        recorded.imu,
+        recorded.rebounds,
+        vibration=recorded.vibration,
+    )
 
 
 def test_agreeing_clocks_are_not_suspect(params, face):
@@ -96,7 +117,9 @@ def test_agreeing_clocks_are_not_suspect(params, face):
     assert not any(DELAY_UNTRUSTED in label.features for label in labels)
 
 
-def test_a_camera_half_a_millisecond_late_makes_the_recording_suspect_and_caps_its_labels(params, face):
+def test_a_camera_half_a_millisecond_late_makes_the_recording_suspect_and_caps_its_labels(
+    params, face
+):
     """The camera's stamps 0.5 ms late: from the impact at which enough unusual delays have
     come, every label that uses the delay is capped and says sensor_timing; those before are
     not (a live node cannot know the future), and no label is otherwise changed in its material."""
@@ -114,9 +137,28 @@ def test_self_calibration_finds_it_first_and_caps_every_label(params, face):
     """Identified as `tail-beam identify` does (a self-calibration pass first), the pass's count
     goes into the profile and the identifier caps from the first impact on; on the recording as
     simulated nothing is capped."""
-    late = list(foreign_records(params, copy.deepcopy(_late_camera(face, 5e-4)), 0, 20, ["statistical"], ["self-calibrated"], "late"))
-    assert all(r.label is not None and OUTSIDE_NAME in r.label.outside_training and r.label.confidence <= 0.6 for r in late)
-    plain = list(foreign_records(params, copy.deepcopy(face), 0, 20, ["statistical"], ["self-calibrated"], "plain"))
+    late = list(
+        foreign_records(
+            params,
+            copy.deepcopy(_late_camera(face, 5e-4)),
+            0,
+            20,
+            ["statistical"],
+            ["self-calibrated"],
+            "late",
+        )
+    )
+    assert all(
+        r.label is not None
+        and OUTSIDE_NAME in r.label.outside_training
+        and r.label.confidence <= 0.6
+        for r in late
+    )
+    plain = list(
+        foreign_records(
+            params, copy.deepcopy(face), 0, 20, ["statistical"], ["self-calibrated"], "plain"
+        )
+    )
     assert not any(OUTSIDE_NAME in r.label.outside_training for r in plain if r.label is not None)
 
 
@@ -131,8 +173,22 @@ def test_a_suspect_recording_is_decided_without_the_delay_and_keeps_its_accuracy
     moved by another 0.5 ms (the twin without the delay decided it), and it is right about as
     often as on the recording as simulated (within 2 of 20; capped but still read from the
     delay, 10 of 20 were right against 15)."""
-    late = list(foreign_records(params, copy.deepcopy(_late_camera(face, 5e-4)), 0, 20, ["statistical"], ["self-calibrated"], "late"))
-    plain = list(foreign_records(params, copy.deepcopy(face), 0, 20, ["statistical"], ["self-calibrated"], "plain"))
+    late = list(
+        foreign_records(
+            params,
+            copy.deepcopy(_late_camera(face, 5e-4)),
+            0,
+            20,
+            ["statistical"],
+            ["self-calibrated"],
+            "late",
+        )
+    )
+    plain = list(
+        foreign_records(
+            params, copy.deepcopy(face), 0, 20, ["statistical"], ["self-calibrated"], "plain"
+        )
+    )
     assert all(r.label is not None and r.label.features.get(DELAY_UNTRUSTED) == 1.0 for r in late)
     assert all(UNUSUAL in r.label.features for r in late)  # the check itself still counted
     assert _right(late) >= _right(plain) - 2
@@ -140,4 +196,6 @@ def test_a_suspect_recording_is_decided_without_the_delay_and_keeps_its_accuracy
     for record in late:
         features = dict(record.label.features)
         moved = {**features, "rebound_delay_s": features["rebound_delay_s"] + 5e-4}
-        assert identifier.method.decide(moved).confidence == pytest.approx(identifier.method.decide(features).confidence, abs=1e-12)
+        assert identifier.method.decide(moved).confidence == pytest.approx(
+            identifier.method.decide(features).confidence, abs=1e-12
+        )

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from tail_beam_id.stream.association import ImpactAssociation, PendingImpact
 from tail_beam_id.signals.imu_detection import Pulse
+from tail_beam_id.stream.association import ImpactAssociation, PendingImpact
 from tail_beam_id.stream.config import IdentifierConfig
 
 
@@ -19,8 +19,17 @@ def book(params) -> ImpactAssociation:
 
 
 def pulse_impact(onset_s: float, channel: str = "vibration") -> PendingImpact:
-    pulse = Pulse(onset_s=onset_s, first_stamp_s=onset_s, polarity=1, width_s=1e-4, peak_sigma=30.0, noise_mps2=0.05,
-                  period_s=1.0 / 25600.0, first_index=0, last_index=3)
+    pulse = Pulse(
+        onset_s=onset_s,
+        first_stamp_s=onset_s,
+        polarity=1,
+        width_s=1e-4,
+        peak_sigma=30.0,
+        noise_mps2=0.05,
+        period_s=1.0 / 25600.0,
+        first_index=0,
+        last_index=3,
+    )
     return PendingImpact(onset_s=onset_s, pulse=pulse, channel=channel)
 
 
@@ -32,7 +41,9 @@ def test_a_pulse_takes_the_rebound_within_its_contact_and_no_other(book):
     just outside is not, and a rebound once taken is nobody else's."""
     c = book.config.detection
     impact = pulse_impact(1.0)
-    assert book.rebound_window(impact) == pytest.approx((1.0 - c.rebound_early_tolerance_s, 1.0 + c.max_contact_s))
+    assert book.rebound_window(impact) == pytest.approx(
+        (1.0 - c.rebound_early_tolerance_s, 1.0 + c.max_contact_s)
+    )
     book.add_rebound(1.0 + c.max_contact_s + 1e-4, UP)
     assert book.matching_rebound(impact) is None
     book.add_rebound(1.0 + c.max_contact_s + 2e-4, UP)  # later still: not the impact's either
@@ -48,12 +59,21 @@ def test_a_slow_cameras_rebound_window_is_wider_by_its_extra_frame(params):
     rebound window by the difference (a 4 ms frame: 3.5 ms later), one no longer does not."""
     config = IdentifierConfig.from_params(params["identification"])
     c = config.detection
-    for period, extra in ((None, 0.0), (2e-4, 0.0), (c.rebound_frame_allowance_s, 0.0), (0.004, 0.004 - c.rebound_frame_allowance_s)):
+    for period, extra in (
+        (None, 0.0),
+        (2e-4, 0.0),
+        (c.rebound_frame_allowance_s, 0.0),
+        (0.004, 0.004 - c.rebound_frame_allowance_s),
+    ):
         book = ImpactAssociation(config, lambda stamp_s, period=period: period)
         impact = pulse_impact(1.0)
         assert book.slow_camera_s(1.0) == pytest.approx(extra)
-        assert book.rebound_window(impact) == pytest.approx((1.0 - c.rebound_early_tolerance_s, 1.0 + c.max_contact_s + extra))
-    book.add_rebound(1.0 + c.max_contact_s + 0.003, UP)  # a 4 ms camera's: within the widened window
+        assert book.rebound_window(impact) == pytest.approx(
+            (1.0 - c.rebound_early_tolerance_s, 1.0 + c.max_contact_s + extra)
+        )
+    book.add_rebound(
+        1.0 + c.max_contact_s + 0.003, UP
+    )  # a 4 ms camera's: within the widened window
     assert book.matching_rebound(impact) is not None
 
 
@@ -70,7 +90,9 @@ def test_overlap_needs_a_confirmed_neighbour_or_a_decided_one(book):
     """An IMU-only neighbour within the window does not make an overlap; one the pressure found,
     or an impact already decided within the window, does; beyond the window nothing does."""
     window_s = book.windows(pulse_impact(1.0))[2]
-    assert window_s == pytest.approx(min(book.config.overlap_window_s, book.config.vibration_window_s))
+    assert window_s == pytest.approx(
+        min(book.config.overlap_window_s, book.config.vibration_window_s)
+    )
     impact = pulse_impact(1.0)
     book.pending = [impact, PendingImpact(onset_s=1.0 + window_s / 2, pulse=None, source="imu")]
     assert not book.overlapping(impact)
@@ -98,9 +120,13 @@ def test_the_camera_settles_on_a_lone_rebound_or_after_its_timeout(book):
     book.pending = [lone]
     book.add_rebound(2.001, UP)
     assert book.camera_settled(lone, 2.001)
-    assert book.data_horizon_s(lone) == pytest.approx(2.0 + c.detection.max_contact_s + c.camera_timeout_s)  # the rebound not yet taken
+    assert book.data_horizon_s(lone) == pytest.approx(
+        2.0 + c.detection.max_contact_s + c.camera_timeout_s
+    )  # the rebound not yet taken
     book.take_rebound(lone)
-    assert book.data_horizon_s(lone) == pytest.approx(2.0 + c.vibration_window_s)  # the data window, later than the rebound
+    assert book.data_horizon_s(lone) == pytest.approx(
+        2.0 + c.vibration_window_s
+    )  # the data window, later than the rebound
 
 
 def test_a_late_rebound_goes_to_the_latest_waiting_pulse_and_never_past_another_impact(book):

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from id_helpers import impact, stream
-from tail_beam_id.stream.identifier import StreamIdentifier
+
 from tail_beam_id.methods import available_methods, build_method
+from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import replay
 from tail_beam_sim.errors import InputError
 
@@ -16,7 +16,13 @@ METHODS = ("threshold", "statistical", "physics")
 
 
 def identify(params, method, pressure, imu, rebounds, chunk_s=0.01):
-    return replay(StreamIdentifier(method, params["identification"], params), pressure, imu, rebounds, chunk_s)
+    return replay(
+        StreamIdentifier(method, params["identification"], params),
+        pressure,
+        imu,
+        rebounds,
+        chunk_s,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +47,10 @@ def test_paper_scene_is_labelled_right(params, paper, method):
         assert labels[0].signals == ("jack_pressure", "imu", "rebound_velocity")
         assert abs(labels[0].impact_stamp_s - result.contact_stamp_s) < 0.0005
         # Decided within 50 ms of simulated time after the contact.
-        assert labels[0].impact_stamp_s + labels[0].data_latency_ms / 1e3 - result.contact_stamp_s <= 0.05
+        assert (
+            labels[0].impact_stamp_s + labels[0].data_latency_ms / 1e3 - result.contact_stamp_s
+            <= 0.05
+        )
 
 
 def test_labels_depend_on_stamps_not_on_chunking_or_arrival(params):
@@ -49,7 +58,10 @@ def test_labels_depend_on_stamps_not_on_chunking_or_arrival(params):
     commands = [
         (0.30, {"material": "coal", "radius_m": 0.06, "drop_height_m": 3.0, "position_m": 1.1}),
         (0.55, {"material": "marble", "radius_m": 0.04, "drop_height_m": 2.0, "position_m": 0.4}),
-        (0.80, {"material": "sandstone", "radius_m": 0.08, "drop_height_m": 2.5, "position_m": 0.9}),
+        (
+            0.80,
+            {"material": "sandstone", "radius_m": 0.08, "drop_height_m": 2.5, "position_m": 0.9},
+        ),
     ]
     pressure, imu, rebounds, _ = stream(params, commands, 1.0)
     fine = identify(params, "statistical", pressure, imu, rebounds, chunk_s=0.003)
@@ -62,7 +74,9 @@ def test_labels_depend_on_stamps_not_on_chunking_or_arrival(params):
         take = (pressure.stamp_s >= low) & (pressure.stamp_s < edge)
         late.add_pressure(pressure.stamp_s[take], pressure.pressure_pa[take])
         take = (imu.stamp_s >= low) & (imu.stamp_s < edge)
-        late.add_imu(imu.stamp_s[take], imu.angular_velocity_radps[take], imu.linear_acceleration_mps2[take])
+        late.add_imu(
+            imu.stamp_s[take], imu.angular_velocity_radps[take], imu.linear_acceleration_mps2[take]
+        )
         while queue and queue[0].stamp_s < edge - 0.02:
             rebound = queue.pop(0)
             late.add_rebound(rebound.stamp_s, rebound.velocity_mps)
@@ -83,7 +97,9 @@ def test_camera_gone_still_labels_from_pressure_and_imu(params, paper):
     assert labels[0].signals == ("jack_pressure", "imu")
     assert "rebound_speed_mps" not in labels[0].features
     # It waited for the camera (timeout) but still labels within 50 ms of the contact.
-    assert labels[0].impact_stamp_s + labels[0].data_latency_ms / 1e3 - result.contact_stamp_s <= 0.05
+    assert (
+        labels[0].impact_stamp_s + labels[0].data_latency_ms / 1e3 - result.contact_stamp_s <= 0.05
+    )
 
 
 def test_imu_gone_still_labels_from_pressure_and_camera(params, paper):
@@ -117,13 +133,18 @@ def test_imu_stopping_midstream_moves_to_the_camera(params):
     """When the IMU stops mid-stream, the later impacts are labelled from pressure and the camera, at their true contact times."""
     commands = [
         (0.30, {"material": "coal", "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 1.0}),
-        (0.60, {"material": "sandstone", "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 1.0}),
+        (
+            0.60,
+            {"material": "sandstone", "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 1.0},
+        ),
         (0.90, {"material": "coal", "radius_m": 0.07, "drop_height_m": 2.0, "position_m": 0.6}),
     ]
     pressure, imu, rebounds, truths = stream(params, commands, 1.1)
     keep = imu.stamp_s < 0.40
     imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2 = (
-        imu.stamp_s[keep], imu.angular_velocity_radps[keep], imu.linear_acceleration_mps2[keep]
+        imu.stamp_s[keep],
+        imu.angular_velocity_radps[keep],
+        imu.linear_acceleration_mps2[keep],
     )
     labels = identify(params, "statistical", pressure, imu, rebounds)
     assert len(labels) == 3
@@ -164,7 +185,14 @@ def test_physics_caps_confidence_when_no_particle_explains_the_impact(params):
     """Observations no prior particle can give are called an outlier and capped at the configured confidence."""
     method = build_method("physics", params)
     # A 20 m/s rebound from a tiny impulse: no particle of any material does that.
-    decision = method.decide({"moment_impulse_nms": 0.05, "moment_impulse_sigma_nms": 0.005, "rebound_speed_mps": 20.0, "rebound_cross_mps": 0.0})
+    decision = method.decide(
+        {
+            "moment_impulse_nms": 0.05,
+            "moment_impulse_sigma_nms": 0.005,
+            "rebound_speed_mps": 20.0,
+            "rebound_cross_mps": 0.0,
+        }
+    )
     assert decision.estimates["outlier"] == 1.0
     assert decision.confidence <= params["identification"]["physics"]["outlier_confidence_cap"]
 
@@ -176,9 +204,19 @@ def test_physics_estimates_the_particle(params, paper):
     for material, result in paper.items():
         label = identify(params, "physics", result.pressure, result.imu, [result.rebound])[0]
         estimates[material] = label.features
-    assert estimates["coal"]["estimated_density_kgpm3"] < 1800 < estimates["sandstone"]["estimated_density_kgpm3"]
-    assert estimates["coal"]["estimated_contact_modulus_pa"] < estimates["sandstone"]["estimated_contact_modulus_pa"]
-    assert estimates["coal"]["estimated_restitution"] > estimates["sandstone"]["estimated_restitution"]
+    assert (
+        estimates["coal"]["estimated_density_kgpm3"]
+        < 1800
+        < estimates["sandstone"]["estimated_density_kgpm3"]
+    )
+    assert (
+        estimates["coal"]["estimated_contact_modulus_pa"]
+        < estimates["sandstone"]["estimated_contact_modulus_pa"]
+    )
+    assert (
+        estimates["coal"]["estimated_restitution"]
+        > estimates["sandstone"]["estimated_restitution"]
+    )
 
 
 @pytest.mark.parametrize(
@@ -202,7 +240,15 @@ def test_impact_lost_in_imu_noise_is_still_labelled_from_the_camera(params):
     # Ten times the noise hides the smallest, slowest impact near the hinge from the IMU
     # (test_detection); its rebound still tells the identifier that an impact happened.
     """An impact the IMU cannot see in tenfold noise is still labelled from the camera, near its contact time."""
-    result = impact(params, noise=10.0, material="coal", radius_m=0.025, drop_height_m=1.5, position_m=0.2, restitution=0.3)
+    result = impact(
+        params,
+        noise=10.0,
+        material="coal",
+        radius_m=0.025,
+        drop_height_m=1.5,
+        position_m=0.2,
+        restitution=0.3,
+    )
     labels = identify(params, "statistical", result.pressure, result.imu, [result.rebound])
     assert len(labels) == 1
     assert "imu" not in labels[0].signals and "rebound_velocity" in labels[0].signals
@@ -218,7 +264,9 @@ def test_long_noise_only_stream_gives_no_label_and_bounded_buffers(params):
     for k in range(2000):
         t = (np.arange(20) + 20 * k + 1) / 2000.0
         identifier.add_pressure(t, 20e6 + rng.normal(0.0, 1e4, 20))
-        accel = np.column_stack([rng.normal(0, 0.05, 20), rng.normal(0, 0.05, 20), 9.81 + rng.normal(0, 0.05, 20)])
+        accel = np.column_stack(
+            [rng.normal(0, 0.05, 20), rng.normal(0, 0.05, 20), 9.81 + rng.normal(0, 0.05, 20)]
+        )
         identifier.add_imu(t, rng.normal(0.0, 0.005, (20, 3)), accel)
         assert identifier.poll() == []
     assert identifier.flush() == []
@@ -243,15 +291,25 @@ def test_a_stale_or_broken_statistical_model_is_refused_with_how_to_fix_it(param
         build_method("statistical", params, str(stale))
     assert first in str(error.value)
     model = load_model("statistical")
-    model["calibrated_subsets"]["jack_pressure+imu+rebound_velocity"]["temperature_size"]["feature"] = "radius_m"
+    model["calibrated_subsets"]["jack_pressure+imu+rebound_velocity"]["temperature_size"][
+        "feature"
+    ] = "radius_m"
     odd = tmp_path / "odd.json"
     odd.write_text(json.dumps(model))
-    with pytest.raises(InputError, match=r"jack_pressure\+imu\+rebound_velocity\.temperature_size = .*radius_m.*must name one of"):
+    with pytest.raises(
+        InputError,
+        match=r"jack_pressure\+imu\+rebound_velocity\.temperature_size = .*radius_m.*must name one of",
+    ):
         build_method("statistical", params, str(odd))
     model["calibrated_subsets"]["jack_pressure+imu+rebound_velocity"]["temperature_size"] = {
-        "feature": "moment_impulse_pressure_nms", "reference": 1.7, "slope": "steep"}
+        "feature": "moment_impulse_pressure_nms",
+        "reference": 1.7,
+        "slope": "steep",
+    }
     odd.write_text(json.dumps(model))
-    with pytest.raises(InputError, match=r"temperature_size\.slope = 'steep': must be a finite number"):
+    with pytest.raises(
+        InputError, match=r"temperature_size\.slope = 'steep': must be a finite number"
+    ):
         build_method("statistical", params, str(odd))
     broken = tmp_path / "broken.json"
     broken.write_text("{not json")
@@ -270,14 +328,23 @@ def test_the_shipped_models_can_decide_a_slow_cameras_impacts_without_the_delay(
 
     model = load_model("statistical")
     for family in ("subsets", "calibrated_subsets"):
-        with_delay = [key for key, subset in model[family].items() if any(name == "rebound_delay_s" for name, _ in subset["features"])]
+        with_delay = [
+            key
+            for key, subset in model[family].items()
+            if any(name == "rebound_delay_s" for name, _ in subset["features"])
+        ]
         assert with_delay, family
         for key in with_delay:
             twin = model[family][key + WITHOUT_DELAY]
-            assert [name for name, _ in twin["features"]] == [name for name, _ in model[family][key]["features"] if name != "rebound_delay_s"]
+            assert [name for name, _ in twin["features"]] == [
+                name for name, _ in model[family][key]["features"] if name != "rebound_delay_s"
+            ]
     bad = copy.deepcopy(params)
     bad["identification"]["statistical"]["slowest_delay_camera_frame_rate_hz"] = 0.0
-    with pytest.raises(InputError, match=r"identification\.statistical\.slowest_delay_camera_frame_rate_hz = 0\.0: must be in \(0"):
+    with pytest.raises(
+        InputError,
+        match=r"identification\.statistical\.slowest_delay_camera_frame_rate_hz = 0\.0: must be in \(0",
+    ):
         build_method("statistical", bad)
 
 
@@ -288,8 +355,8 @@ def test_pressure_alone_does_not_take_the_sway_of_earlier_impacts_for_new_ones(p
     ring window (about 50 extra labels here). With each onset confirmed under a drifting free
     sway, at most 2 labels are extra; most impacts are still found (the rest are missed, never
     invented)."""
-    from tail_beam_id.study.dataset import draw_commands
     from tail_beam_id.stream.label import match, match_tolerance_s
+    from tail_beam_id.study.dataset import draw_commands
 
     rng = np.random.default_rng(3)
     stamp, timed = 0.2, []
@@ -309,12 +376,20 @@ def test_a_section_given_as_one_value_is_refused_by_name(params, section):
     """A parameter file that sets a section of the identification settings to a single value
     (``contact_fit: 5``) is refused naming it; it ended in an AttributeError traceback."""
     broken = {**params["identification"], section: 5}
-    with pytest.raises(InputError, match=f"identification.{section} = 5: must be a parameter section"):
-        StreamIdentifier("statistical", params=broken, model_params={**params, "identification": broken})
+    with pytest.raises(
+        InputError, match=f"identification.{section} = 5: must be a parameter section"
+    ):
+        StreamIdentifier(
+            "statistical", params=broken, model_params={**params, "identification": broken}
+        )
 
 
 def test_a_profile_section_given_as_one_value_is_refused_by_name(params):
     """``calibration: 5`` in a parameter file (where tail-beam calibrate writes the profile's
     section) is refused naming it; it ended in an AttributeError inside the statistical method."""
     with pytest.raises(InputError, match="calibration = 5: must be a parameter section"):
-        StreamIdentifier("statistical", params=params["identification"], model_params={**params, "calibration": 5})
+        StreamIdentifier(
+            "statistical",
+            params=params["identification"],
+            model_params={**params, "calibration": 5},
+        )

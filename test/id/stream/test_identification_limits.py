@@ -5,7 +5,6 @@ small particles can reach), and the single-feature threshold on the stream scene
 from __future__ import annotations
 
 import pytest
-
 from id_helpers import impact
 
 
@@ -18,8 +17,12 @@ def test_coal_and_mudstone_twins_differ_only_in_contact_duration(params):
     # apart; at 20 kHz the duration is resolved (evaluation: the `fast` setting).
     """A coal and a mudstone sphere can share moment impulse, rebound speed and peak pressure within noise, differing only by a contact 60-200 us longer."""
     fields = {"drop_height_m": 3.0, "position_m": 1.0, "restitution": 0.35}
-    mud = impact(params, tier="rigid", noise=0.0, material="mudstone", radius_m=0.025, **fields).summary
-    coal = impact(params, tier="rigid", noise=0.0, material="coal", radius_m=0.0303, **fields).summary
+    mud = impact(
+        params, tier="rigid", noise=0.0, material="mudstone", radius_m=0.025, **fields
+    ).summary
+    coal = impact(
+        params, tier="rigid", noise=0.0, material="coal", radius_m=0.0303, **fields
+    ).summary
 
     def moment(s):
         return s["mass_kg"] * (s["impact_speed_mps"] + s["rebound_speed_mps"]) * s["position_m"]
@@ -27,7 +30,9 @@ def test_coal_and_mudstone_twins_differ_only_in_contact_duration(params):
     assert moment(coal) == pytest.approx(moment(mud), rel=0.03)
     camera_noise = 0.05 + 0.02 * mud["rebound_speed_mps"]
     assert abs(coal["rebound_speed_mps"] - mud["rebound_speed_mps"]) < camera_noise
-    assert coal["peak_jack_pressure_change_pa"] == pytest.approx(mud["peak_jack_pressure_change_pa"], rel=0.05)
+    assert coal["peak_jack_pressure_change_pa"] == pytest.approx(
+        mud["peak_jack_pressure_change_pa"], rel=0.05
+    )
     difference = coal["contact_duration_s"] - mud["contact_duration_s"]
     assert 60e-6 < difference < 0.2e-3
 

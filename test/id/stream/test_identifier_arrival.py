@@ -6,8 +6,8 @@ from __future__ import annotations
 import copy
 
 import numpy as np
-
 from id_helpers import stream
+
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import replay
 
@@ -36,7 +36,9 @@ def test_imu_declared_stopped_then_resuming_does_not_break_the_identifier(params
     identifier.poll()
     for low in np.arange(0.0, 2.2, 0.01):
         take = (imu.stamp_s >= low) & (imu.stamp_s < low + 0.01)
-        identifier.add_imu(imu.stamp_s[take], imu.angular_velocity_radps[take], imu.linear_acceleration_mps2[take])
+        identifier.add_imu(
+            imu.stamp_s[take], imu.angular_velocity_radps[take], imu.linear_acceleration_mps2[take]
+        )
         identifier.poll()
     for rebound in rebounds:
         identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
@@ -51,7 +53,12 @@ def test_in_order_delivery_gives_the_same_labels_for_any_chunking(params):
     """In-order delivery in 3, 10 or 25 ms chunks gives the same three labels and confidences."""
     fast, (pressure, imu, rebounds, _) = _caving_stream(params)
     runs = [
-        [(l.impact_stamp_s, l.material, l.confidence) for l in replay(StreamIdentifier(params=fast["identification"]), pressure, imu, rebounds, chunk_s=c)]
+        [
+            (l.impact_stamp_s, l.material, l.confidence)
+            for l in replay(
+                StreamIdentifier(params=fast["identification"]), pressure, imu, rebounds, chunk_s=c
+            )
+        ]
         for c in (0.003, 0.01, 0.025)
     ]
     assert len(runs[0]) == 3

@@ -9,8 +9,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-
 from id_helpers import impact
+
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import replay
 
@@ -20,7 +20,13 @@ VIBRATION_RATE_HZ = 25600.0
 @pytest.fixture(scope="module")
 def sandstone(params):
     """One 40 mm sandstone impact, with the 25.6 kHz accelerometer."""
-    return impact(params, material="sandstone", radius_m=0.04, seed=23, sensors={"vibration_rate_hz": VIBRATION_RATE_HZ})
+    return impact(
+        params,
+        material="sandstone",
+        radius_m=0.04,
+        seed=23,
+        sensors={"vibration_rate_hz": VIBRATION_RATE_HZ},
+    )
 
 
 def _key(labels):
@@ -30,7 +36,10 @@ def _key(labels):
 def _twice(stream):
     """The stream with every sample repeated, at the same stamp, next to itself."""
     fields = {f.name: getattr(stream, f.name) for f in dataclasses.fields(stream)}
-    return dataclasses.replace(stream, **{k: np.repeat(v, 2, axis=0) for k, v in fields.items() if isinstance(v, np.ndarray)})
+    return dataclasses.replace(
+        stream,
+        **{k: np.repeat(v, 2, axis=0) for k, v in fields.items() if isinstance(v, np.ndarray)},
+    )
 
 
 def test_every_sample_repeated_gives_the_labels_of_the_plain_streams(params, sandstone):
@@ -40,8 +49,18 @@ def test_every_sample_repeated_gives_the_labels_of_the_plain_streams(params, san
     sample period read from the stamps came out 0 and the detector divided by it:
     ZeroDivisionError out of `tail-beam identify` and `tail-beam calibrate`.)"""
     section = params["identification"]
-    plain = replay(StreamIdentifier("statistical", section, params), sandstone.pressure, sandstone.imu, [sandstone.rebound])
-    doubled = replay(StreamIdentifier("statistical", section, params), _twice(sandstone.pressure), _twice(sandstone.imu), [sandstone.rebound])
+    plain = replay(
+        StreamIdentifier("statistical", section, params),
+        sandstone.pressure,
+        sandstone.imu,
+        [sandstone.rebound],
+    )
+    doubled = replay(
+        StreamIdentifier("statistical", section, params),
+        _twice(sandstone.pressure),
+        _twice(sandstone.imu),
+        [sandstone.rebound],
+    )
     assert len(plain) == 1
     assert _key(doubled) == _key(plain)
 
@@ -52,7 +71,13 @@ def test_an_accelerometer_alone_is_identified(params, sandstone):
     identifier does. (Until replay took its span from the accelerometer too, it fed only the
     rebounds when pressure and IMU were missing: a label from the camera alone.)"""
     section = params["identification"]
-    labels = replay(StreamIdentifier("statistical", section, params), None, None, [sandstone.rebound], vibration=sandstone.vibration)
+    labels = replay(
+        StreamIdentifier("statistical", section, params),
+        None,
+        None,
+        [sandstone.rebound],
+        vibration=sandstone.vibration,
+    )
     assert len(labels) == 1
     assert labels[0].signals == ("vibration", "rebound_velocity")
 
@@ -65,10 +90,24 @@ def test_accelerometer_samples_outside_the_pressure_and_imu_span_are_fed(params,
     section = params["identification"]
     contact = sandstone.contact_stamp_s
     cut = sandstone.pressure.stamp_s < contact - 0.05
-    pressure = dataclasses.replace(sandstone.pressure, stamp_s=sandstone.pressure.stamp_s[cut], pressure_pa=sandstone.pressure.pressure_pa[cut])
+    pressure = dataclasses.replace(
+        sandstone.pressure,
+        stamp_s=sandstone.pressure.stamp_s[cut],
+        pressure_pa=sandstone.pressure.pressure_pa[cut],
+    )
     keep = sandstone.imu.stamp_s < contact - 0.05
-    imu = dataclasses.replace(sandstone.imu, stamp_s=sandstone.imu.stamp_s[keep], angular_velocity_radps=sandstone.imu.angular_velocity_radps[keep],
-                              linear_acceleration_mps2=sandstone.imu.linear_acceleration_mps2[keep])
-    labels = replay(StreamIdentifier("statistical", section, params), pressure, imu, [sandstone.rebound], vibration=sandstone.vibration)
+    imu = dataclasses.replace(
+        sandstone.imu,
+        stamp_s=sandstone.imu.stamp_s[keep],
+        angular_velocity_radps=sandstone.imu.angular_velocity_radps[keep],
+        linear_acceleration_mps2=sandstone.imu.linear_acceleration_mps2[keep],
+    )
+    labels = replay(
+        StreamIdentifier("statistical", section, params),
+        pressure,
+        imu,
+        [sandstone.rebound],
+        vibration=sandstone.vibration,
+    )
     assert [l.signals for l in labels] == [("vibration", "rebound_velocity")]
     assert abs(labels[0].impact_stamp_s - contact) < float(section["match_tolerance_s"])

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from id_helpers import impact
+
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import replay
 
@@ -17,14 +17,20 @@ DECIMATION = 10  # the IMU at 2 kHz: the mean of every 10 vibration samples
 @pytest.fixture(scope="module")
 def fast_impact(params):
     """One 40 mm sandstone impact with the accelerometer sampled at 20 kHz."""
-    return impact(params, material="sandstone", radius_m=0.04, seed=21, sensors={"imu_rate_hz": VIBRATION_RATE_HZ})
+    return impact(
+        params,
+        material="sandstone",
+        radius_m=0.04,
+        seed=21,
+        sensors={"imu_rate_hz": VIBRATION_RATE_HZ},
+    )
 
 
 def _slow_imu(imu):
     """The 20 kHz IMU averaged over blocks of DECIMATION samples, stamped at each block's end:
     what a 2 kHz IMU reporting the mean specific force over its period gives."""
     n = imu.stamp_s.size // DECIMATION * DECIMATION
-    stamps = imu.stamp_s[DECIMATION - 1:n:DECIMATION]
+    stamps = imu.stamp_s[DECIMATION - 1 : n : DECIMATION]
     gyro = imu.angular_velocity_radps[:n].reshape(-1, DECIMATION, 3).mean(axis=1)
     accel = imu.linear_acceleration_mps2[:n].reshape(-1, DECIMATION, 3).mean(axis=1)
     return stamps, gyro, accel
@@ -57,7 +63,11 @@ def _feed(identifier, result, slow, vibration_until_s=np.inf, chunk_s=0.01):
 def test_vibration_stream_is_the_acceleration_channel(params, fast_impact):
     """With the 20 kHz vibration stream fed beside a 2 kHz IMU, the one impact is detected and
     its impulse measured in the vibration stream: signals name it, the pulse period is its."""
-    labels = _feed(StreamIdentifier("statistical", params["identification"], params), fast_impact, _slow_imu(fast_impact.imu))
+    labels = _feed(
+        StreamIdentifier("statistical", params["identification"], params),
+        fast_impact,
+        _slow_imu(fast_impact.imu),
+    )
     assert len(labels) == 1
     label = labels[0]
     assert label.signals == ("jack_pressure", "vibration", "rebound_velocity")
@@ -71,22 +81,41 @@ def test_without_vibration_the_imu_is_the_channel(params, fast_impact):
     """The same streams without the vibration: the IMU's 2 kHz accel z detects the impact and
     the label is the one the plain replay of pressure, IMU and camera gives."""
     slow = _slow_imu(fast_impact.imu)
-    labels = _feed(StreamIdentifier("statistical", params["identification"], params), fast_impact, slow, vibration_until_s=-1.0)
+    labels = _feed(
+        StreamIdentifier("statistical", params["identification"], params),
+        fast_impact,
+        slow,
+        vibration_until_s=-1.0,
+    )
     assert len(labels) == 1
     assert labels[0].signals == ("jack_pressure", "imu", "rebound_velocity")
-    assert labels[0].features["imu_period_s"] == pytest.approx(1.0 / (VIBRATION_RATE_HZ / DECIMATION), rel=1e-6)
+    assert labels[0].features["imu_period_s"] == pytest.approx(
+        1.0 / (VIBRATION_RATE_HZ / DECIMATION), rel=1e-6
+    )
     from tail_beam_sim.physics.sensors import ImuStream
 
     imu = ImuStream(slow[0], slow[1], slow[2], 0.0, 0.0)
-    plain = replay(StreamIdentifier("statistical", params["identification"], params), fast_impact.pressure, imu, [fast_impact.rebound])
-    assert [(l.impact_stamp_s, l.material, l.confidence) for l in labels] == [(l.impact_stamp_s, l.material, l.confidence) for l in plain]
+    plain = replay(
+        StreamIdentifier("statistical", params["identification"], params),
+        fast_impact.pressure,
+        imu,
+        [fast_impact.rebound],
+    )
+    assert [(l.impact_stamp_s, l.material, l.confidence) for l in labels] == [
+        (l.impact_stamp_s, l.material, l.confidence) for l in plain
+    ]
 
 
 def test_vibration_stopping_hands_back_to_the_imu(params, fast_impact):
     """The vibration stream ending well before the impact is declared stopped (it lags the
     others by more than stream_timeout_s); the impact is then detected in the IMU."""
     until = fast_impact.contact_stamp_s - 0.1
-    labels = _feed(StreamIdentifier("statistical", params["identification"], params), fast_impact, _slow_imu(fast_impact.imu), vibration_until_s=until)
+    labels = _feed(
+        StreamIdentifier("statistical", params["identification"], params),
+        fast_impact,
+        _slow_imu(fast_impact.imu),
+        vibration_until_s=until,
+    )
     assert len(labels) == 1
     assert "imu" in labels[0].signals and "vibration" not in labels[0].signals
     assert abs(labels[0].impact_stamp_s - fast_impact.contact_stamp_s) < 1e-3
@@ -112,14 +141,21 @@ def test_evaluation_feeds_the_accelerometer_where_the_setting_has_one(params):
     assert ev["default_rates"][0] == "shipped"
     chosen = settings(params, [1.0], ["shipped", "nominal"])
     shipped, nominal = chosen
-    assert shipped.has_vibration and shipped.vibration_rate_hz == params["sensors"]["vibration_rate_hz"]
+    assert (
+        shipped.has_vibration
+        and shipped.vibration_rate_hz == params["sensors"]["vibration_rate_hz"]
+    )
     assert not nominal.has_vibration and dict(shipped.rates_hz) == dict(nominal.rates_hz)
     records = list(run_set(params, "stream", 3, 9003, chosen, ["statistical"]))
     assert len(records) == 6 and all(r.label is not None for r in records)
     for r in records:
         channel = "vibration" if r.setting == "shipped/x1" else "imu"
         assert channel in r.label.signals, (r.setting, r.label.signals)
-        expected_period_s = 1.0 / (params["sensors"]["vibration_rate_hz"] if channel == "vibration" else nominal.rates_hz["imu_rate_hz"])
+        expected_period_s = 1.0 / (
+            params["sensors"]["vibration_rate_hz"]
+            if channel == "vibration"
+            else nominal.rates_hz["imu_rate_hz"]
+        )
         assert r.label.features["imu_period_s"] == pytest.approx(expected_period_s, rel=1e-6)
         assert bool(r.label.features.get("vibration_channel")) == (channel == "vibration")
 
@@ -147,9 +183,14 @@ def test_shipped_models_are_trained_with_the_accelerometer():
 
     statistical = json.loads((MODELS_DIR / "statistical.json").read_text(encoding="utf-8"))
     provenance = statistical["provenance"][0]
-    assert provenance["vibration_records"] >= 1000 and provenance["records"] - provenance["vibration_records"] >= 5000
+    assert (
+        provenance["vibration_records"] >= 1000
+        and provenance["records"] - provenance["vibration_records"] >= 5000
+    )
     physics = json.loads((MODELS_DIR / "physics.json").read_text(encoding="utf-8"))
-    assert physics["timing_vibration"] and all(band["count"] >= 10 for band in physics["timing_vibration"])
+    assert physics["timing_vibration"] and all(
+        band["count"] >= 10 for band in physics["timing_vibration"]
+    )
 
 
 def test_an_impact_the_accelerometer_found_is_decided_on_its_shorter_window(params, fast_impact):
@@ -159,15 +200,26 @@ def test_an_impact_the_accelerometer_found_is_decided_on_its_shorter_window(para
     from tail_beam_sim.errors import InputError
 
     section = params["identification"]
-    with_vibration = _feed(StreamIdentifier("statistical", section, params), fast_impact, _slow_imu(fast_impact.imu))
-    imu_only = _feed(StreamIdentifier("statistical", section, params), fast_impact, _slow_imu(fast_impact.imu), vibration_until_s=-1.0)
+    with_vibration = _feed(
+        StreamIdentifier("statistical", section, params), fast_impact, _slow_imu(fast_impact.imu)
+    )
+    imu_only = _feed(
+        StreamIdentifier("statistical", section, params),
+        fast_impact,
+        _slow_imu(fast_impact.imu),
+        vibration_until_s=-1.0,
+    )
     assert "vibration" in with_vibration[0].signals and "vibration" not in imu_only[0].signals
     # data_latency_ms runs to the later of the window's end and the camera's stamp (about 0.5 ms).
-    assert with_vibration[0].data_latency_ms == pytest.approx(1e3 * section["vibration_window_s"], abs=0.1)
+    assert with_vibration[0].data_latency_ms == pytest.approx(
+        1e3 * section["vibration_window_s"], abs=0.1
+    )
     assert imu_only[0].data_latency_ms == pytest.approx(1e3 * section["window_s"], abs=0.1)
     assert with_vibration[0].material == imu_only[0].material
     with pytest.raises(InputError, match="vibration_window_s"):
-        StreamIdentifier("statistical", {**section, "vibration_window_s": 2 * section["window_s"]}, params)
+        StreamIdentifier(
+            "statistical", {**section, "vibration_window_s": 2 * section["window_s"]}, params
+        )
 
 
 @pytest.mark.parametrize("channel", ["vibration", "imu", "imu beside the accelerometer"])
@@ -182,10 +234,12 @@ def test_an_acceleration_channel_that_comes_back_after_a_gap_is_taken_up_again(p
     there. Every impact after the channel is back is decided from it. ``imu beside the
     accelerometer``: the IMU's gap is covered by the accelerometer, so the pressure never
     stands in (its detector scanned the whole recording for that gap's impacts before)."""
-    from tail_beam_id.study.dataset import settings, support_streams
     from tail_beam_id.stream.label import match
+    from tail_beam_id.study.dataset import settings, support_streams
 
-    (recorded,) = support_streams(params, 1, 20, 41004, setting=settings(params, [1.0], ["shipped"])[0])
+    (recorded,) = support_streams(
+        params, 1, 20, 41004, setting=settings(params, [1.0], ["shipped"])[0]
+    )
     gap = (1.0, 1.3)
     identifier = StreamIdentifier("statistical", params["identification"], params)
     pressure, imu = recorded.pressure, recorded.imu
@@ -201,7 +255,9 @@ def test_an_acceleration_channel_that_comes_back_after_a_gap_is_taken_up_again(p
     rebounds = sorted(recorded.rebounds, key=lambda r: r.stamp_s)
     first = min(pressure.stamp_s[0], imu.stamp_s[0])
     last = max(pressure.stamp_s[-1], imu.stamp_s[-1])
-    edges = first + 0.005 * np.arange(int((last - first) / 0.005) + 3)  # shared edges: no sample twice or lost
+    edges = first + 0.005 * np.arange(
+        int((last - first) / 0.005) + 3
+    )  # shared edges: no sample twice or lost
     labels, taken = [], 0
     for low, high in zip(edges[:-1], edges[1:]):
         inside = (pressure.stamp_s >= low) & (pressure.stamp_s < high)
@@ -209,7 +265,11 @@ def test_an_acceleration_channel_that_comes_back_after_a_gap_is_taken_up_again(p
             identifier.add_pressure(pressure.stamp_s[inside], pressure.pressure_pa[inside])
         inside = (imu.stamp_s >= low) & (imu.stamp_s < high) & imu_kept
         if inside.any():
-            identifier.add_imu(imu.stamp_s[inside], imu.angular_velocity_radps[inside], imu.linear_acceleration_mps2[inside])
+            identifier.add_imu(
+                imu.stamp_s[inside],
+                imu.angular_velocity_radps[inside],
+                imu.linear_acceleration_mps2[inside],
+            )
         inside = (stamps >= low) & (stamps < high)
         if inside.any():
             identifier.add_vibration(stamps[inside], accel[inside])
@@ -229,4 +289,6 @@ def test_an_acceleration_channel_that_comes_back_after_a_gap_is_taken_up_again(p
         assert all("vibration" in label.signals for label in labels)
         return
     assert all(channel in label.signals for label in labels if label.impact_stamp_s > back_s)
-    assert all(channel not in label.signals for label in labels if gap[0] < label.impact_stamp_s < back_s)
+    assert all(
+        channel not in label.signals for label in labels if gap[0] < label.impact_stamp_s < back_s
+    )

@@ -74,12 +74,21 @@ def test_a_label_never_carries_a_value_that_is_no_number():
     import json
     import math
 
-    from tail_beam_id.stream.label import make_label
     from tail_beam_id.methods import Decision
+    from tail_beam_id.stream.label import make_label
 
-    label = make_label(impact_stamp_s=1.0, decision=Decision(math.nan, {"logit": math.nan, "p": 0.3}), confidence=math.nan,
-                       method="statistical", compute_ms=0.5, data_latency_ms=12.0, signals=["imu"], overlap=False,
-                       calibrated=False, features={"moment_impulse_nms": math.inf, "rebound_speed_mps": 2.0})
+    label = make_label(
+        impact_stamp_s=1.0,
+        decision=Decision(math.nan, {"logit": math.nan, "p": 0.3}),
+        confidence=math.nan,
+        method="statistical",
+        compute_ms=0.5,
+        data_latency_ms=12.0,
+        signals=["imu"],
+        overlap=False,
+        calibrated=False,
+        features={"moment_impulse_nms": math.inf, "rebound_speed_mps": 2.0},
+    )
     json.loads(label.to_json())  # to_json refuses NaN and Infinity (allow_nan=False)
     assert label.confidence == 0.5
     assert label.features == {"rebound_speed_mps": 2.0, "p": 0.3}
@@ -90,9 +99,21 @@ def test_a_label_reads_back_from_its_json_as_it_was():
     """Label -> JSON -> Label is the identity, and the JSON keeps the contract's field names and order."""
     import json
 
-    label = Label(12.345678, "gangue", 0.97, "physics", latency_ms=0.8, data_latency_ms=6.0, signals=("jack_pressure", "vibration"),
-                  overlap=True, calibrated=True, features={"imu_impulse_mps": 0.02}, saturated=("jack_pressure",),
-                  imu_mount="inverted", outside_training=("pressure_noise_pa",))
+    label = Label(
+        12.345678,
+        "gangue",
+        0.97,
+        "physics",
+        latency_ms=0.8,
+        data_latency_ms=6.0,
+        signals=("jack_pressure", "vibration"),
+        overlap=True,
+        calibrated=True,
+        features={"imu_impulse_mps": 0.02},
+        saturated=("jack_pressure",),
+        imu_mount="inverted",
+        outside_training=("pressure_noise_pa",),
+    )
     text = label.to_json()
     assert list(json.loads(text))[:4] == ["impact_stamp", "label", "confidence", "method"]
     assert json.loads(text)["label"] == "gangue" and json.loads(text)["imu_mount"] == "inverted"
@@ -102,31 +123,78 @@ def test_a_label_reads_back_from_its_json_as_it_was():
 def test_another_identifiers_label_with_the_contract_fields_only_is_read_and_its_own_keys_kept():
     """docs/interface.md requires impact_stamp, label, confidence and method; the suite's fields
     default, and a key the suite does not know survives a round trip untouched."""
-    label = Label.from_json('{"impact_stamp": 1.5, "label": "coal", "confidence": 0.8, "method": "cnn", "model_version": "v3", '
-                            '"material": "sandstone", "extra": 1}')
-    assert (label.impact_stamp_s, label.material, label.signals, label.latency_ms) == (1.5, "coal", (), None)
+    label = Label.from_json(
+        '{"impact_stamp": 1.5, "label": "coal", "confidence": 0.8, "method": "cnn", "model_version": "v3", '
+        '"material": "sandstone", "extra": 1}'
+    )
+    assert (label.impact_stamp_s, label.material, label.signals, label.latency_ms) == (
+        1.5,
+        "coal",
+        (),
+        None,
+    )
     # Keys named like the dataclass's own fields (material, extra) are the other identifier's too.
-    assert label.as_dict() == {"impact_stamp": 1.5, "label": "coal", "confidence": 0.8, "method": "cnn", "signals": [],
-                               "overlap": False, "calibrated": False, "features": {}, "model_version": "v3",
-                               "material": "sandstone", "extra": 1}
+    assert label.as_dict() == {
+        "impact_stamp": 1.5,
+        "label": "coal",
+        "confidence": 0.8,
+        "method": "cnn",
+        "signals": [],
+        "overlap": False,
+        "calibrated": False,
+        "features": {},
+        "model_version": "v3",
+        "material": "sandstone",
+        "extra": 1,
+    }
 
 
-@pytest.mark.parametrize(("text", "field"), [
-    ('[1, 2]', "label"),
-    ('{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9}', "label.method"),
-    ('{"impact_stamp": "1.0", "label": "coal", "confidence": 0.9, "method": "m"}', "label.impact_stamp"),
-    ('{"impact_stamp": true, "label": "coal", "confidence": 0.9, "method": "m"}', "label.impact_stamp"),
-    ('{"impact_stamp": 1.0, "label": "sandstone", "confidence": 0.9, "method": "m"}', "label.label"),
-    ('{"impact_stamp": 1.0, "label": "coal", "confidence": 1.5, "method": "m"}', "label.confidence"),
-    ('{"impact_stamp": 1.0, "label": "coal", "confidence": true, "method": "m"}', "label.confidence"),
-    ('{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "signals": "imu"}', "label.signals"),
-    ('{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "features": {"x": "big"}}', "label.features.x"),
-    ('{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "overlap": 1}', "label.overlap"),
-    ('{"impact_stamp": NaN, "label": "coal", "confidence": 0.9, "method": "m"}', "label"),
-    ('{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "score": Infinity}', "label"),
-    ('{"impact_stamp": 1.0, ', "label"),
-    ('[' * 100000, "label"),
-])
+@pytest.mark.parametrize(
+    ("text", "field"),
+    [
+        ("[1, 2]", "label"),
+        ('{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9}', "label.method"),
+        (
+            '{"impact_stamp": "1.0", "label": "coal", "confidence": 0.9, "method": "m"}',
+            "label.impact_stamp",
+        ),
+        (
+            '{"impact_stamp": true, "label": "coal", "confidence": 0.9, "method": "m"}',
+            "label.impact_stamp",
+        ),
+        (
+            '{"impact_stamp": 1.0, "label": "sandstone", "confidence": 0.9, "method": "m"}',
+            "label.label",
+        ),
+        (
+            '{"impact_stamp": 1.0, "label": "coal", "confidence": 1.5, "method": "m"}',
+            "label.confidence",
+        ),
+        (
+            '{"impact_stamp": 1.0, "label": "coal", "confidence": true, "method": "m"}',
+            "label.confidence",
+        ),
+        (
+            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "signals": "imu"}',
+            "label.signals",
+        ),
+        (
+            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "features": {"x": "big"}}',
+            "label.features.x",
+        ),
+        (
+            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "overlap": 1}',
+            "label.overlap",
+        ),
+        ('{"impact_stamp": NaN, "label": "coal", "confidence": 0.9, "method": "m"}', "label"),
+        (
+            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "score": Infinity}',
+            "label",
+        ),
+        ('{"impact_stamp": 1.0, ', "label"),
+        ("[" * 100000, "label"),
+    ],
+)
 def test_a_label_that_is_not_one_is_refused_naming_the_field(text, field):
     """Whatever a client publishes on label, reading it gives one InputError naming the field
     and what it allows, never another exception."""

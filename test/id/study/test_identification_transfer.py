@@ -9,12 +9,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from id_helpers import impact
+
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import replay
-from tail_beam_id.study.supports import SupportDraw, draw_support, support_ranges
 from tail_beam_id.study.dataset import evaluation_params
+from tail_beam_id.study.supports import SupportDraw, draw_support, support_ranges
 from tail_beam_sim.physics.scene import Scene
 
 RATES_HZ = (1000.0, 2000.0, 4000.0, 5000.0, 8000.0, 10000.0, 16000.0, 20000.0, 25600.0, 50000.0)
@@ -23,7 +23,9 @@ VIBRATION_RATES_HZ = (12800.0, 25600.0, 51200.0)
 
 def identify(params, result, method="statistical", imu=None):
     identifier = StreamIdentifier(method, params["identification"], params)
-    return replay(identifier, result.pressure, imu if imu is not None else result.imu, [result.rebound])
+    return replay(
+        identifier, result.pressure, imu if imu is not None else result.imu, [result.rebound]
+    )
 
 
 @pytest.mark.parametrize("rate_hz", RATES_HZ)
@@ -34,10 +36,16 @@ def test_any_imu_rate_labels_the_paper_scene(params, rate_hz):
         result = impact(params, material=material, seed=21, sensors={"imu_rate_hz": rate_hz})
         labels = identify(params, result)
         assert len(labels) == 1, labels
-        assert labels[0].material == ("coal" if material == "coal" else "gangue"), (rate_hz, labels[0])
+        assert labels[0].material == ("coal" if material == "coal" else "gangue"), (
+            rate_hz,
+            labels[0],
+        )
         # A rate the suite supports is inside what the models learnt: the label is not capped
         # as outside training for it (1 and 50 kHz were, at the ends of a 1-50 kHz training draw).
-        assert "imu_period_s" not in labels[0].outside_training, (rate_hz, labels[0].outside_training)
+        assert "imu_period_s" not in labels[0].outside_training, (
+            rate_hz,
+            labels[0].outside_training,
+        )
 
 
 @pytest.mark.parametrize("rate_hz", VIBRATION_RATES_HZ)
@@ -48,17 +56,27 @@ def test_any_accelerometer_rate_labels_the_paper_scene(params, rate_hz):
     for material in ("coal", "sandstone"):
         result = impact(params, material=material, seed=21, sensors={"vibration_rate_hz": rate_hz})
         identifier = StreamIdentifier("statistical", params["identification"], params)
-        labels = replay(identifier, result.pressure, result.imu, [result.rebound], vibration=result.vibration)
+        labels = replay(
+            identifier, result.pressure, result.imu, [result.rebound], vibration=result.vibration
+        )
         assert len(labels) == 1, labels
         assert "vibration" in labels[0].signals
         assert labels[0].features["imu_period_s"] == pytest.approx(1.0 / rate_hz, rel=1e-6)
-        assert labels[0].material == ("coal" if material == "coal" else "gangue"), (rate_hz, labels[0])
-        assert "imu_period_s" not in labels[0].outside_training, (rate_hz, labels[0].outside_training)
+        assert labels[0].material == ("coal" if material == "coal" else "gangue"), (
+            rate_hz,
+            labels[0],
+        )
+        assert "imu_period_s" not in labels[0].outside_training, (
+            rate_hz,
+            labels[0].outside_training,
+        )
 
 
 def test_odd_rate_is_never_confidently_wrong(params):
     """The reported failure: a 50 mm coal sphere with a 5 kHz IMU was gangue with confidence 1.0."""
-    result = impact(params, material="coal", radius_m=0.05, seed=3, sensors={"imu_rate_hz": 5000.0})
+    result = impact(
+        params, material="coal", radius_m=0.05, seed=3, sensors={"imu_rate_hz": 5000.0}
+    )
     (label,) = identify(params, result)
     assert label.material == "coal" or label.confidence < 0.9, label
 
@@ -67,9 +85,14 @@ def test_odd_rate_is_never_confidently_wrong(params):
 def test_imu_bolted_upside_down_gives_the_same_label(params, method):
     """An IMU mounted upside down reads -g and mirrored pulses: the identifier reads the mounting
     from gravity and labels as with the IMU the right way up, and says it found it inverted."""
-    result = impact(params, material="sandstone", radius_m=0.04, seed=5, sensors={"imu_rate_hz": 10000.0})
-    flipped = replace(result.imu, linear_acceleration_mps2=result.imu.linear_acceleration_mps2 * np.array([1.0, -1.0, -1.0]),
-                      angular_velocity_radps=result.imu.angular_velocity_radps * np.array([1.0, -1.0, -1.0]))
+    result = impact(
+        params, material="sandstone", radius_m=0.04, seed=5, sensors={"imu_rate_hz": 10000.0}
+    )
+    flipped = replace(
+        result.imu,
+        linear_acceleration_mps2=result.imu.linear_acceleration_mps2 * np.array([1.0, -1.0, -1.0]),
+        angular_velocity_radps=result.imu.angular_velocity_radps * np.array([1.0, -1.0, -1.0]),
+    )
     (upright,) = identify(params, result, method)
     (inverted,) = identify(params, result, method, imu=flipped)
     assert inverted.material == upright.material == "gangue"
@@ -89,8 +112,13 @@ def test_accelerometer_bolted_upside_down_gives_the_same_label(params):
 
     def labels(accel):
         identifier = StreamIdentifier("statistical", params["identification"], params)
-        return replay(identifier, result.pressure, result.imu, [result.rebound],
-                      vibration=replace(vibration, accel_mps2=accel.astype(np.float32)))
+        return replay(
+            identifier,
+            result.pressure,
+            result.imu,
+            [result.rebound],
+            vibration=replace(vibration, accel_mps2=accel.astype(np.float32)),
+        )
 
     accel = np.asarray(vibration.accel_mps2, dtype=float)
     (upright,) = labels(accel)
@@ -99,7 +127,9 @@ def test_accelerometer_bolted_upside_down_gives_the_same_label(params):
     (ac_coupled,) = labels(ac)
     (ac_inverted,) = labels(-ac)
     assert "vibration" in upright.signals
-    assert {inverted.material, upright.material, ac_coupled.material, ac_inverted.material} == {"gangue"}
+    assert {inverted.material, upright.material, ac_coupled.material, ac_inverted.material} == {
+        "gangue"
+    }
     assert inverted.vibration_mount == ac_inverted.vibration_mount == "inverted"
     assert upright.vibration_mount is None and ac_coupled.vibration_mount is None
     assert inverted.impact_stamp_s == upright.impact_stamp_s == ac_inverted.impact_stamp_s
@@ -111,19 +141,40 @@ def test_lightly_damped_low_mode_ringing_is_not_taken_for_impacts(params):
     """A support whose first bending mode is at 120 Hz with 0.5 % damping rings for about a
     second after a large impact; the detector follows the ringing on the samples themselves and
     labels one impact, not the ringing."""
-    draw = SupportDraw({
-        "inertia_scale": 1.0, "jack_stiffness_scale": 1.0, "jack_damping_scale": 1.0, "bending_1_frequency_hz": 120.0,
-        "damping_ratio": 0.005, "imu_from_hinge_m": 1.2, "imu_rate_hz": 10000.0, "pressure_rate_hz": 2000.0,
-        "camera_frame_rate_hz": 5000.0, "noise_factor": 1.0,
-    }, "calibrated")
+    draw = SupportDraw(
+        {
+            "inertia_scale": 1.0,
+            "jack_stiffness_scale": 1.0,
+            "jack_damping_scale": 1.0,
+            "bending_1_frequency_hz": 120.0,
+            "damping_ratio": 0.005,
+            "imu_from_hinge_m": 1.2,
+            "imu_rate_hz": 10000.0,
+            "pressure_rate_hz": 2000.0,
+            "camera_frame_rate_hz": 5000.0,
+            "noise_factor": 1.0,
+        },
+        "calibrated",
+    )
     varied = draw.apply(params)
     from id_helpers import PRE_CONTACT_S
+
     from tail_beam_sim.physics.fidelity import FidelitySettings
     from tail_beam_sim.physics.scene import Scene
     from tail_beam_sim.physics.simulate import simulate
 
-    scene = Scene.from_params(varied, {"material": "marble", "radius_m": 0.09, "drop_height_m": 4.0, "position_m": 1.4,
-                                       "pre_contact_s": PRE_CONTACT_S, "window_s": 0.3, "seed": 2})
+    scene = Scene.from_params(
+        varied,
+        {
+            "material": "marble",
+            "radius_m": 0.09,
+            "drop_height_m": 4.0,
+            "position_m": 1.4,
+            "pre_contact_s": PRE_CONTACT_S,
+            "window_s": 0.3,
+            "seed": 2,
+        },
+    )
     result = simulate(scene, tier="modal", settings=FidelitySettings.from_params(varied))
     labels = identify(varied, result)
     assert len(labels) == 1, [(l.impact_stamp_s, l.signals) for l in labels]
@@ -133,7 +184,9 @@ def test_lightly_damped_low_mode_ringing_is_not_taken_for_impacts(params):
 def test_features_far_outside_training_cap_confidence_and_say_why(params):
     """An impact whose features no training impact came near (a pressure noise 100 x anything
     trained on) gets at most the configured confidence, and the label names the features."""
-    result = impact(params, material="marble", radius_m=0.05, seed=8, sensors={"pressure_noise_pa": 2.0e6})
+    result = impact(
+        params, material="marble", radius_m=0.05, seed=8, sensors={"pressure_noise_pa": 2.0e6}
+    )
     (label,) = identify(params, result)
     cap = params["identification"]["statistical"]["outside_confidence_cap"]
     assert label.confidence <= cap + 1e-9
@@ -150,11 +203,16 @@ def test_drawn_supports_stay_inside_their_ranges(params):
             low, high = ranges[name]
             assert low <= value <= high or (name == "vibration_rate_hz" and value == 0.0), name
         varied = draw.apply(params)
-        assert varied["modes"]["bending_1"]["frequency_hz"] == pytest.approx(draw.values["bending_1_frequency_hz"])
+        assert varied["modes"]["bending_1"]["frequency_hz"] == pytest.approx(
+            draw.values["bending_1_frequency_hz"]
+        )
         assert varied["sensors"]["imu_rate_hz"] == draw.values["imu_rate_hz"]
-        assert varied["sensors"]["vibration_rate_hz"] == (draw.vibration_rate_hz or params["sensors"]["vibration_rate_hz"])
+        assert varied["sensors"]["vibration_rate_hz"] == (
+            draw.vibration_rate_hz or params["sensors"]["vibration_rate_hz"]
+        )
         assert varied["support"]["beam_inertia_about_hinge_kgm2"] == pytest.approx(
-            params["support"]["beam_inertia_about_hinge_kgm2"] * draw.values["inertia_scale"])
+            params["support"]["beam_inertia_about_hinge_kgm2"] * draw.values["inertia_scale"]
+        )
     assert copy.deepcopy(params) == params  # the nominal parameters are not touched
 
 
@@ -169,15 +227,26 @@ def test_the_drawn_paper_set_strikes_drawn_supports_with_the_paper_scenes_impact
     impacts = list(simulate_set(params, "varied_paper", 3, 11, [], tier="modal"))
     assert len(impacts) == 3
     for item in impacts:
-        assert item.command["radius_m"] == paper["radius_m"][0] and item.command["drop_height_m"] == paper["drop_height_m"][0]
-        assert item.command["position_m"] == paper["position_m"][0] and "restitution" not in item.command
+        assert (
+            item.command["radius_m"] == paper["radius_m"][0]
+            and item.command["drop_height_m"] == paper["drop_height_m"][0]
+        )
+        assert (
+            item.command["position_m"] == paper["position_m"][0]
+            and "restitution" not in item.command
+        )
         low, high = ranges["bending_1_frequency_hz"]
         assert low <= item.support.values["bending_1_frequency_hz"] <= high
         simulated = item.results[DRAWN_SETTING].scene
         assert simulated.impact.radius_m == paper["radius_m"][0]
-        assert simulated.impact.restitution == params["materials"][item.command["material"]]["restitution"]
+        assert (
+            simulated.impact.restitution
+            == params["materials"][item.command["material"]]["restitution"]
+        )
         assert simulated.contact_model == item.support.contact_model
-    assert len({item.support.values["bending_1_frequency_hz"] for item in impacts}) == 3  # a support each
+    assert (
+        len({item.support.values["bending_1_frequency_hz"] for item in impacts}) == 3
+    )  # a support each
 
 
 def test_training_supports_draw_a_hysteresis_scale_without_moving_any_other_draw(params):
@@ -191,8 +260,13 @@ def test_training_supports_draw_a_hysteresis_scale_without_moving_any_other_draw
     for k in range(40):
         draw = draw_support(ranges, np.random.default_rng(k), np.random.default_rng(100 + k))
         other = draw_support(without, np.random.default_rng(k), np.random.default_rng(100 + k))
-        assert {n: v for n, v in draw.values.items() if n != "contact_damping_scale"} == other.values
-        assert draw.contact_model == other.contact_model and "contact_damping_scale" not in other.values
+        assert {
+            n: v for n, v in draw.values.items() if n != "contact_damping_scale"
+        } == other.values
+        assert (
+            draw.contact_model == other.contact_model
+            and "contact_damping_scale" not in other.values
+        )
         scales.append(draw.values["contact_damping_scale"])
         assert low <= scales[-1] <= high
         assert Scene.from_params(draw.apply(params)).support.contact_damping_scale == scales[-1]
@@ -204,23 +278,30 @@ def test_drawn_supports_have_the_accelerometer_at_the_configured_share(params):
     """About vibration_share of drawn supports have the accelerometer (rate in range, noise scaled as
     the others'), the rest none; drawn from its own generator, it leaves every other draw as it was."""
     ranges = support_ranges(evaluation_params(params), "training")
-    draws = [draw_support(ranges, np.random.default_rng(5 + k), np.random.default_rng(100 + k)) for k in range(200)]
+    draws = [
+        draw_support(ranges, np.random.default_rng(5 + k), np.random.default_rng(100 + k))
+        for k in range(200)
+    ]
     with_it = [d for d in draws if d.vibration_rate_hz > 0.0]
     assert abs(len(with_it) / len(draws) - float(ranges["vibration_share"])) < 0.1
     low, high = ranges["vibration_rate_hz"]
     assert all(low <= d.vibration_rate_hz <= high for d in with_it)
     varied = with_it[0].apply(params)
     assert varied["sensors"]["vibration_noise_density_mps2_rthz"] == pytest.approx(
-        params["sensors"]["vibration_noise_density_mps2_rthz"] * with_it[0].values["noise_factor"])
+        params["sensors"]["vibration_noise_density_mps2_rthz"] * with_it[0].values["noise_factor"]
+    )
     none = {**ranges, "vibration_share": 0.0}
     for k, draw in enumerate(draws):
         other = draw_support(none, np.random.default_rng(5 + k), np.random.default_rng(100 + k))
         assert other.vibration_rate_hz == 0.0
         assert {n: v for n, v in other.values.items() if n != "vibration_rate_hz"} == {
-            n: v for n, v in draw.values.items() if n != "vibration_rate_hz"} and other.contact_model == draw.contact_model
+            n: v for n, v in draw.values.items() if n != "vibration_rate_hz"
+        } and other.contact_model == draw.contact_model
 
 
-def test_the_shipped_models_are_less_sure_of_a_small_impact_than_of_a_large_one_with_the_same_logit(params):
+def test_the_shipped_models_are_less_sure_of_a_small_impact_than_of_a_large_one_with_the_same_logit(
+    params,
+):
     """The shipped statistical models' temperature grows as the moment impulse shrinks (fitted on
     unseen drawn supports: small particles are where they err): the same network logit gives a
     smaller confidence for a 1 N m s impact than for a 20 N m s one, in the three-signal model of
@@ -239,7 +320,9 @@ def test_the_shipped_models_are_less_sure_of_a_small_impact_than_of_a_large_one_
         x = np.array(subset["mean"], dtype=float)
         small, large = x.copy(), x.copy()
         small[column], large[column] = math.log(1.0), math.log(20.0)
-        assert temperature_of(subset, small) > subset["temperature"] > temperature_of(subset, large)
+        assert (
+            temperature_of(subset, small) > subset["temperature"] > temperature_of(subset, large)
+        )
 
 
 def test_a_slow_cameras_rebounds_stay_with_their_impacts(params):
@@ -251,31 +334,51 @@ def test_a_slow_cameras_rebounds_stay_with_their_impacts(params):
     import copy
     from dataclasses import replace
 
-    from tail_beam_id.calibration.offline import with_profile
-    from tail_beam_id.calibration.offline import calibrate
-    from tail_beam_id.study.dataset import settings, support_streams
+    from tail_beam_id.calibration.offline import calibrate, with_profile
     from tail_beam_id.stream.identifier import StreamIdentifier
     from tail_beam_id.stream.label import match, match_tolerance_s
     from tail_beam_id.stream.replay import replay
+    from tail_beam_id.study.dataset import settings, support_streams
 
-    recorded = next(support_streams(params, 1, 12, seed=41004, setting=settings(params, [1.0], ["shipped"])[0]))
+    recorded = next(
+        support_streams(params, 1, 12, seed=41004, setting=settings(params, [1.0], ["shipped"])[0])
+    )
     separations = np.array([truth["final_separation_stamp"] for truth in recorded.truths])
-    rebounds = [replace(r, stamp_s=float(np.ceil(separations[np.argmin(np.abs(separations - r.stamp_s))] * 250.0) / 250.0))
-                for r in recorded.rebounds]
-    assert max(r.stamp_s - t for r, t in zip(rebounds, separations)) > 0.0025  # lags past the window a 2 kHz camera needs
+    rebounds = [
+        replace(
+            r,
+            stamp_s=float(
+                np.ceil(separations[np.argmin(np.abs(separations - r.stamp_s))] * 250.0) / 250.0
+            ),
+        )
+        for r in recorded.rebounds
+    ]
+    assert (
+        max(r.stamp_s - t for r, t in zip(rebounds, separations)) > 0.0025
+    )  # lags past the window a 2 kHz camera needs
 
     def extras(model_params):
-        labels = replay(StreamIdentifier("statistical", model_params["identification"], model_params), recorded.pressure,
-                        recorded.imu, rebounds, vibration=recorded.vibration)
+        labels = replay(
+            StreamIdentifier("statistical", model_params["identification"], model_params),
+            recorded.pressure,
+            recorded.imu,
+            rebounds,
+            vibration=recorded.vibration,
+        )
         matching = match(recorded.truths, labels, match_tolerance_s(params["identification"]))
         assert not matching.missed
         return [labels[k].impact_stamp_s for k in matching.extra]
 
     assert all(stamp < rebounds[3].stamp_s for stamp in extras(params))
     v = recorded.vibration
-    profile = calibrate(params, (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
-                        (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
-                        lambda model_params: [], (v.sample_stamps_s(), v.accel_mps2), [r.stamp_s for r in rebounds])
+    profile = calibrate(
+        params,
+        (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
+        (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
+        lambda model_params: [],
+        (v.sample_stamps_s(), v.accel_mps2),
+        [r.stamp_s for r in rebounds],
+    )
     assert profile.camera_frame_rate_hz == pytest.approx(500.0)
     assert extras(with_profile(copy.deepcopy(params), profile)) == []
 
@@ -291,19 +394,34 @@ def test_a_camera_slower_than_its_frame_can_be_read_gives_no_extra_labels(params
     as a contact)."""
     from dataclasses import replace
 
-    from tail_beam_id.study.dataset import settings, support_streams
     from tail_beam_id.stream.identifier import StreamIdentifier
     from tail_beam_id.stream.label import match, match_tolerance_s
     from tail_beam_id.stream.replay import replay
+    from tail_beam_id.study.dataset import settings, support_streams
 
-    recorded = next(support_streams(params, 1, 12, seed=41004, setting=settings(params, [1.0], ["shipped"])[0]))
+    recorded = next(
+        support_streams(params, 1, 12, seed=41004, setting=settings(params, [1.0], ["shipped"])[0])
+    )
     separations = np.array([truth["final_separation_stamp"] for truth in recorded.truths])
-    rebounds = [replace(r, stamp_s=float(np.ceil(separations[np.argmin(np.abs(separations - r.stamp_s))] * camera_hz) / camera_hz))
-                for r in recorded.rebounds]
+    rebounds = [
+        replace(
+            r,
+            stamp_s=float(
+                np.ceil(separations[np.argmin(np.abs(separations - r.stamp_s))] * camera_hz)
+                / camera_hz
+            ),
+        )
+        for r in recorded.rebounds
+    ]
     lags = [r.stamp_s - t for r, t in zip(rebounds, separations)]
     assert max(lags) > 0.5 / camera_hz  # some lag far past the 3.5 ms window
-    labels = replay(StreamIdentifier("statistical", params["identification"], params), recorded.pressure,
-                    recorded.imu, rebounds, vibration=recorded.vibration)
+    labels = replay(
+        StreamIdentifier("statistical", params["identification"], params),
+        recorded.pressure,
+        recorded.imu,
+        rebounds,
+        vibration=recorded.vibration,
+    )
     matching = match(recorded.truths, labels, match_tolerance_s(params["identification"]))
     assert not matching.missed and not matching.extra
     late = [label for label in labels if label.features.get("rebound_late")]
@@ -323,18 +441,31 @@ def test_a_camera_known_to_be_fast_gives_no_late_rebounds(params):
     these two supports' impacts are all found (extra labels remain: README, Known limitations)."""
     from dataclasses import replace
 
-    from tail_beam_id.study.dataset import settings, support_streams
     from tail_beam_id.stream.identifier import StreamIdentifier
     from tail_beam_id.stream.label import match
     from tail_beam_id.stream.replay import replay
+    from tail_beam_id.study.dataset import settings, support_streams
 
-    streams = list(support_streams(params, 4, 20, 41004, setting=settings(params, [1.0], ["shipped"])[0]))
+    streams = list(
+        support_streams(params, 4, 20, 41004, setting=settings(params, [1.0], ["shipped"])[0])
+    )
     for recorded in (streams[0], streams[3]):
         imu = recorded.imu
-        slow = replace(imu, stamp_s=imu.stamp_s[::4], angular_velocity_radps=imu.angular_velocity_radps[::4],
-                       linear_acceleration_mps2=imu.linear_acceleration_mps2[::4])
-        labels = replay(StreamIdentifier("statistical", params["identification"], params), recorded.pressure, slow,
-                        recorded.rebounds, vibration=None)
+        slow = replace(
+            imu,
+            stamp_s=imu.stamp_s[::4],
+            angular_velocity_radps=imu.angular_velocity_radps[::4],
+            linear_acceleration_mps2=imu.linear_acceleration_mps2[::4],
+        )
+        labels = replay(
+            StreamIdentifier("statistical", params["identification"], params),
+            recorded.pressure,
+            slow,
+            recorded.rebounds,
+            vibration=None,
+        )
         assert not match(recorded.truths, labels, 0.005).missed
         fourth = sorted(r.stamp_s for r in recorded.rebounds)[3]
-        assert all(label.impact_stamp_s < fourth for label in labels if label.features.get("rebound_late"))
+        assert all(
+            label.impact_stamp_s < fourth for label in labels if label.features.get("rebound_late")
+        )

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bag_helpers import RATE_HZ, records, write_segments
 from rosbags.highlevel import AnyReader
 
-from bag_helpers import RATE_HZ, records, write_segments
 from tail_beam_sim import topics
 from tail_beam_sim.bags import records as bagio
 from tail_beam_sim.bags.read import read_sensors
@@ -48,7 +48,9 @@ def test_an_independent_mcap_reader_decodes_every_segment(tmp_path):
     values = []
     for path in sorted((tmp_path / "bag").glob("*.mcap")):
         with path.open("rb") as stream:
-            for _, channel, _, msg in make_reader(stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            for _, channel, _, msg in make_reader(
+                stream, decoder_factories=[DecoderFactory()]
+            ).iter_decoded_messages():
                 if channel.topic == topics.JACK_PRESSURE:
                     values.append(msg.fluid_pressure)
     assert values == list(20e6 + np.arange(100))
@@ -119,14 +121,20 @@ def test_a_bad_bag_is_one_clear_error(tmp_path, make, message):
     )
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and message.split("'")[0] in lines[0] and "Traceback" not in result.stderr
+    assert (
+        len(lines) == 1 and message.split("'")[0] in lines[0] and "Traceback" not in result.stderr
+    )
 
 
 def test_bag_info_lists_topics_and_counts(tmp_path):
     """`tail-beam bag info` prints the total and one row per topic with its message count."""
     write_segments(tmp_path / "bag", [records(40)])
-    result = subprocess.run([TAIL_BEAM, "bag", "info", str(tmp_path / "bag")],
-                            capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [TAIL_BEAM, "bag", "info", str(tmp_path / "bag")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode == 0
     assert "80 messages" in result.stdout
     rows = {line.split()[0]: int(line.split()[-1]) for line in result.stdout.splitlines()[1:]}
@@ -141,6 +149,10 @@ def test_a_pressure_only_bag_lacks_a_topic_for_read_sensors_but_is_identified(tm
     pressure_only_bag(tmp_path / "bag")
     with pytest.raises(InputError, match="lacks messages on topic 'imu'"):
         read_sensors(tmp_path / "bag")
-    result = subprocess.run([TAIL_BEAM, "identify", str(tmp_path / "bag")], capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [TAIL_BEAM, "identify", str(tmp_path / "bag")], capture_output=True, text=True, timeout=60
+    )
     assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr
-    assert all(json.loads(line)["signals"] == ["jack_pressure"] for line in result.stdout.splitlines())
+    assert all(
+        json.loads(line)["signals"] == ["jack_pressure"] for line in result.stdout.splitlines()
+    )

@@ -12,8 +12,8 @@ import sys
 from pathlib import Path
 
 import pytest
-
 from id_helpers import impact
+
 from tail_beam_sim import topics
 from tail_beam_sim.bags import records as bagio
 from tail_beam_sim.bags.write import SegmentedBagWriter
@@ -23,11 +23,16 @@ BIN = Path(sys.executable).parent
 
 def run(*args: str, timeout_s: float = 120) -> subprocess.CompletedProcess:
     """`tail-beam` as a user runs it."""
-    return subprocess.run([str(BIN / "tail-beam"), *args], capture_output=True, text=True, timeout=timeout_s)
+    return subprocess.run(
+        [str(BIN / "tail-beam"), *args], capture_output=True, text=True, timeout=timeout_s
+    )
 
 
 def labels_of(result: subprocess.CompletedProcess) -> list[dict]:
-    assert result.returncode == 0 and "Traceback" not in result.stderr, (result.returncode, result.stderr[-3000:])
+    assert result.returncode == 0 and "Traceback" not in result.stderr, (
+        result.returncode,
+        result.stderr[-3000:],
+    )
     return [json.loads(line) for line in result.stdout.splitlines() if line.strip()]
 
 
@@ -36,7 +41,10 @@ def sandstone_records(params):
     """One 40 mm sandstone impact's serialized records (topic, log ns, CDR): pressure, IMU,
     accelerometer, rebound and truth."""
     result = impact(params, material="sandstone", radius_m=0.04, seed=31)
-    return [(topic, ns, bytes(bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic]))) for topic, ns, msg in bagio.result_records(result)]
+    return [
+        (topic, ns, bytes(bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic])))
+        for topic, ns, msg in bagio.result_records(result)
+    ]
 
 
 def write(path: Path, records, namespace: str = "/") -> Path:
@@ -49,32 +57,46 @@ def write(path: Path, records, namespace: str = "/") -> Path:
     return path
 
 
-def test_a_bag_holding_every_sample_twice_is_identified_and_calibrated(tmp_path, sandstone_records):
+def test_a_bag_holding_every_sample_twice_is_identified_and_calibrated(
+    tmp_path, sandstone_records
+):
     """Every pressure and IMU message recorded twice (two recorders on one topic): identify and
     calibrate go on, exit 0, say on stderr how many repeated samples they left out, and the
     labels are those of the plain bag. (Was: ZeroDivisionError from the IMU's sample period
     read as 0, a traceback out of both.)"""
     plain = write(tmp_path / "plain", sandstone_records)
-    twice = sandstone_records + [r for r in sandstone_records if r[0] in (topics.JACK_PRESSURE, topics.IMU)]
+    twice = sandstone_records + [
+        r for r in sandstone_records if r[0] in (topics.JACK_PRESSURE, topics.IMU)
+    ]
     doubled = write(tmp_path / "doubled", twice)
     expected = labels_of(run("identify", "--no-calibrate", str(plain)))
     result = run("identify", "--no-calibrate", str(doubled))
     got = labels_of(result)
-    assert [(l["impact_stamp"], l["label"], l["confidence"]) for l in got] == [(l["impact_stamp"], l["label"], l["confidence"]) for l in expected]
+    assert [(l["impact_stamp"], l["label"], l["confidence"]) for l in got] == [
+        (l["impact_stamp"], l["label"], l["confidence"]) for l in expected
+    ]
     assert "imu: " in result.stderr and "at a stamp already read left out" in result.stderr
     calibrated = run("calibrate", str(doubled))
-    assert calibrated.returncode == 0 and "Traceback" not in calibrated.stderr, calibrated.stderr[-3000:]
+    assert calibrated.returncode == 0 and "Traceback" not in calibrated.stderr, calibrated.stderr[
+        -3000:
+    ]
 
 
-@pytest.mark.parametrize("kept, signals", [
-    ((topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION), ["jack_pressure", "vibration"]),
-    ((topics.VIBRATION, topics.REBOUND_VELOCITY), ["vibration", "rebound_velocity"]),
-], ids=["no-camera", "accelerometer-and-camera"])
+@pytest.mark.parametrize(
+    "kept, signals",
+    [
+        ((topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION), ["jack_pressure", "vibration"]),
+        ((topics.VIBRATION, topics.REBOUND_VELOCITY), ["vibration", "rebound_velocity"]),
+    ],
+    ids=["no-camera", "accelerometer-and-camera"],
+)
 def test_a_support_without_some_sensors_is_identified(tmp_path, sandstone_records, kept, signals):
     """A bag without the camera, or with only the accelerometer and the camera, is labelled
     from what it has, as id_node labels that support live (the label's signals say which).
     (Was: refused, 'lacks messages on topic rebound_velocity' / 'jack_pressure'.)"""
-    bag = write(tmp_path / "bag", [r for r in sandstone_records if r[0] in kept + (topics.IMPACT_TRUTH,)])
+    bag = write(
+        tmp_path / "bag", [r for r in sandstone_records if r[0] in kept + (topics.IMPACT_TRUTH,)]
+    )
     labels = labels_of(run("identify", str(bag)))
     assert [l["signals"] for l in labels] == [signals]
     assert labels[0]["label"] == "gangue"
@@ -83,7 +105,9 @@ def test_a_support_without_some_sensors_is_identified(tmp_path, sandstone_record
 def test_calibrate_needs_no_camera(tmp_path, sandstone_records):
     """calibrate reads the jack pressure and the IMU only: a bag without rebound_velocity is
     calibrated. (Was: refused for lacking rebound_velocity, which calibration never reads.)"""
-    bag = write(tmp_path / "bag", [r for r in sandstone_records if r[0] != topics.REBOUND_VELOCITY])
+    bag = write(
+        tmp_path / "bag", [r for r in sandstone_records if r[0] != topics.REBOUND_VELOCITY]
+    )
     result = run("calibrate", str(bag))
     assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr[-3000:]
     assert "imu_mount_sign" in result.stdout
@@ -99,21 +123,33 @@ def test_a_bag_without_any_sensor_names_what_it_has(tmp_path, sandstone_records)
         result = run(verb, str(bag))
         assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
         lines = [line for line in result.stderr.splitlines() if line.strip()]
-        assert len(lines) == 1 and "holds no messages on any of" in lines[0] and lines[0].endswith("it has: impact_truth"), lines
+        assert (
+            len(lines) == 1
+            and "holds no messages on any of" in lines[0]
+            and lines[0].endswith("it has: impact_truth")
+        ), lines
 
 
 def test_calibrate_chooses_one_support_of_several(tmp_path, sandstone_records):
     """A bag of two supports: calibrate, like identify, asks for --namespace and takes it.
     (Was: its error said 'choose one with --namespace', an option calibrate did not have.)"""
     bag = tmp_path / "bag"
-    names = {f"{ns}/{t}": m for ns in ("/support_01", "/support_02") for t, m in topics.MSG_TYPES.items()}
+    names = {
+        f"{ns}/{t}": m
+        for ns in ("/support_01", "/support_02")
+        for t, m in topics.MSG_TYPES.items()
+    }
     writer = SegmentedBagWriter(bag, msg_types=names)
     for topic, ns, data in sorted(sandstone_records, key=lambda r: r[1]):
         for support in ("/support_01", "/support_02"):
             writer.write(f"{support}/{topic}", ns, data)
     writer.close()
     refused = run("calibrate", str(bag))
-    assert refused.returncode == 2 and "--namespace" in refused.stderr and "Traceback" not in refused.stderr
+    assert (
+        refused.returncode == 2
+        and "--namespace" in refused.stderr
+        and "Traceback" not in refused.stderr
+    )
     chosen = run("calibrate", str(bag), "--namespace", "/support_02")
     assert chosen.returncode == 0 and "imu_mount_sign" in chosen.stdout, chosen.stderr[-3000:]
 
@@ -125,28 +161,43 @@ def test_a_new_time_base_in_the_bag_is_said_and_each_run_taken_alone(tmp_path, s
     word), and take each run alone, as id_node starts afresh at a time jump: the sandstone
     impact of each run is labelled once, gangue, at its own stamp (merged, the two runs'
     samples interleaved into one stream); calibrate says which run it used."""
+
     def later(records, shift_s):
         """The records with every header stamp and log time ``shift_s`` later."""
         out = []
         for topic, ns, data in records:
             msg = bagio.TYPESTORE.deserialize_cdr(data, topics.MSG_TYPES[topic])
             if hasattr(msg, "header"):
-                stamp = topics.stamp_ns(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 + shift_s)
+                stamp = topics.stamp_ns(
+                    msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 + shift_s
+                )
                 msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
-            out.append((topic, ns + int(shift_s * 1e9), bytes(bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic]))))
+            out.append(
+                (
+                    topic,
+                    ns + int(shift_s * 1e9),
+                    bytes(bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic])),
+                )
+            )
         return out
 
     first = later(sandstone_records, 3.0)  # the first run ran 3 s before the impact's window
-    second = [(topic, ns + 4_000_000_000, data) for topic, ns, data in sandstone_records]  # restarted: stamps from 0 again
+    second = [
+        (topic, ns + 4_000_000_000, data) for topic, ns, data in sandstone_records
+    ]  # restarted: stamps from 0 again
     bag = write(tmp_path / "bag", first + second)
     for verb in ("identify", "calibrate"):
         result = run(verb, str(bag))
         assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr[-3000:]
-        assert "imu: stamps go back" in result.stderr and "2 runs, each taken alone" in result.stderr, result.stderr
+        assert (
+            "imu: stamps go back" in result.stderr and "2 runs, each taken alone" in result.stderr
+        ), result.stderr
         if verb == "identify":
             labels = [json.loads(line) for line in result.stdout.splitlines()]
             assert [label["label"] for label in labels] == ["gangue", "gangue"], labels
-            assert labels[0]["impact_stamp"] - labels[1]["impact_stamp"] == pytest.approx(3.0, abs=1e-3)
+            assert labels[0]["impact_stamp"] - labels[1]["impact_stamp"] == pytest.approx(
+                3.0, abs=1e-3
+            )
         else:
             assert "calibrated on run" in result.stderr
 
@@ -165,8 +216,13 @@ def _reindexed(records, index_of_block):
     return out
 
 
-@pytest.mark.parametrize(("name", "index_of_block"), [("every block index 0", lambda k: 0), ("a block count", lambda k: k)])
-def test_a_bag_whose_block_index_does_not_count_samples_is_refused_by_name(tmp_path, sandstone_records, name, index_of_block):
+@pytest.mark.parametrize(
+    ("name", "index_of_block"),
+    [("every block index 0", lambda k: 0), ("a block count", lambda k: k)],
+)
+def test_a_bag_whose_block_index_does_not_count_samples_is_refused_by_name(
+    tmp_path, sandstone_records, name, index_of_block
+):
     """A recorder or simulator that does not count samples in the blocks' index words (every
     block index 0, or the block's number): identify and calibrate refuse the bag in one line
     naming the index fields (was: all blocks but one dropped as repeats and the labels decided
@@ -176,7 +232,12 @@ def test_a_bag_whose_block_index_does_not_count_samples_is_refused_by_name(tmp_p
     for command in ("identify", "calibrate"):
         result = run(command, str(bad))
         assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr[-2000:]
-        assert "vibration.angle_min/angle_max" in result.stderr and "running sample index" in result.stderr
-    twice = [r for r in sandstone_records] + [r for r in sandstone_records if r[0] == topics.VIBRATION]
+        assert (
+            "vibration.angle_min/angle_max" in result.stderr
+            and "running sample index" in result.stderr
+        )
+    twice = [r for r in sandstone_records] + [
+        r for r in sandstone_records if r[0] == topics.VIBRATION
+    ]
     labels = labels_of(run("identify", "--no-calibrate", str(write(tmp_path / "twice", twice))))
     assert len(labels) == 1 and "vibration" in labels[0]["signals"]

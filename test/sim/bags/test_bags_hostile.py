@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bag_helpers import records, write_segments
 from rosbags.rosbag2 import Writer
 
-from bag_helpers import records, write_segments
 from tail_beam_sim import topics
-from tail_beam_sim.bags.records import STORAGES, TYPESTORE
 from tail_beam_sim.bags.read import raw_messages
+from tail_beam_sim.bags.records import STORAGES, TYPESTORE
 from tail_beam_sim.bags.write import PARTIAL_DIR, SegmentedBagWriter
 from tail_beam_sim.errors import InputError
 
@@ -28,7 +28,9 @@ SUFFIX = {"mcap": ".mcap", "sqlite3": ".db3"}
 
 def run(*args: str, timeout_s: float = 90) -> subprocess.CompletedProcess:
     """One installed executable, as a user runs it."""
-    return subprocess.run([str(BIN / args[0]), *args[1:]], capture_output=True, text=True, timeout=timeout_s)
+    return subprocess.run(
+        [str(BIN / args[0]), *args[1:]], capture_output=True, text=True, timeout=timeout_s
+    )
 
 
 def assert_one_line_error(result: subprocess.CompletedProcess, *needles: str) -> str:
@@ -78,7 +80,9 @@ def test_a_bag_cut_anywhere_reads_whole_or_is_one_clear_error(tmp_path, storage)
     outcomes = {"whole": 0, "refused": 0}
     for offset in sampled_offsets(len(data)):
         bag = tmp_path / f"cut_{offset}"
-        write_segments(bag, [records(1)], storage)  # a bag of the same storage, its file replaced below
+        write_segments(
+            bag, [records(1)], storage
+        )  # a bag of the same storage, its file replaced below
         os.remove(storage_file(bag))
         (bag / storage_file(source).name).write_bytes(data[:offset])
         (bag / "metadata.yaml").write_text((source / "metadata.yaml").read_text())
@@ -88,7 +92,9 @@ def test_a_bag_cut_anywhere_reads_whole_or_is_one_clear_error(tmp_path, storage)
             assert exc.field == "bag" and "\n" not in str(exc)
             outcomes["refused"] += 1
             continue
-        assert count == total, f"cut at {offset} of {len(data)} bytes read {count} of {total} messages"
+        assert count == total, (
+            f"cut at {offset} of {len(data)} bytes read {count} of {total} messages"
+        )
         outcomes["whole"] += 1
     assert outcomes["refused"] >= 40  # nearly every cut is noticed, the rest read whole
 
@@ -108,15 +114,28 @@ def foreign_bag(path: Path) -> None:
     with Writer(path, version=9, storage_plugin=STORAGES["mcap"]) as writer:
         connection = writer.add_connection("/chatter", "std_msgs/msg/String", typestore=TYPESTORE)
         for i in range(5):
-            writer.write(connection, i, TYPESTORE.serialize_cdr(TYPESTORE.types["std_msgs/msg/String"](data=f"{i}"), "std_msgs/msg/String"))
+            writer.write(
+                connection,
+                i,
+                TYPESTORE.serialize_cdr(
+                    TYPESTORE.types["std_msgs/msg/String"](data=f"{i}"), "std_msgs/msg/String"
+                ),
+            )
 
 
 @pytest.mark.ros
-@pytest.mark.parametrize("make, needle", [
-    (lambda bag: (flushed_bag(bag, "mcap"), cut(bag, 8)), "bag repair"),
-    (foreign_bag, "holds no messages on imu, jack_pressure, rebound_velocity, vibration; it has: chatter"),
-    (lambda bag: bag.symlink_to(bag.parent / "nowhere"), "dangling symbolic link"),
-], ids=["cut-to-magic", "no-contract-topic", "dangling-link"])
+@pytest.mark.parametrize(
+    "make, needle",
+    [
+        (lambda bag: (flushed_bag(bag, "mcap"), cut(bag, 8)), "bag repair"),
+        (
+            foreign_bag,
+            "holds no messages on imu, jack_pressure, rebound_velocity, vibration; it has: chatter",
+        ),
+        (lambda bag: bag.symlink_to(bag.parent / "nowhere"), "dangling symbolic link"),
+    ],
+    ids=["cut-to-magic", "no-contract-topic", "dangling-link"],
+)
 def test_bag_replay_on_a_bad_bag_exits_with_one_line(tmp_path, make, needle):
     """bag_replay on a bag cut to its magic, without a contract topic (was: KeyError), or a dangling link: one line, exit 2."""
     bag = tmp_path / "bag"
@@ -143,15 +162,21 @@ def test_repair_of_a_cut_bag_gives_a_bag_that_reads_or_says_it_could_not(tmp_pat
         bag = tmp_path / f"cut_{fraction}"
         write_segments(bag, [records(1)], storage)
         os.remove(storage_file(bag))
-        (bag / storage_file(source).name).write_bytes(storage_file(source).read_bytes()[: int(size * fraction)])
+        (bag / storage_file(source).name).write_bytes(
+            storage_file(source).read_bytes()[: int(size * fraction)]
+        )
         (bag / "metadata.yaml").write_text((source / "metadata.yaml").read_text())
         result = run("tail-beam", "bag", "repair", str(bag))
         assert "Traceback" not in result.stderr
         if result.returncode == 0:
             got = [(m.topic, m.log_time_ns) for m in raw_messages(bag)]
             assert 0 < len(got) < total and f"the bag reads: {len(got)} messages" in result.stdout
-            assert got == whole[: len(got)], "salvaged messages are not the file's first ones, in order"
-            assert (bag / (storage_file(source).name + ".damaged")).is_file()  # the original is kept aside
+            assert got == whole[: len(got)], (
+                "salvaged messages are not the file's first ones, in order"
+            )
+            assert (
+                bag / (storage_file(source).name + ".damaged")
+            ).is_file()  # the original is kept aside
             repaired += 1
         else:
             assert_one_line_error(result, "could not repair")
@@ -170,7 +195,9 @@ def outside_tree(root: Path) -> dict[str, bytes]:
 
 
 def snapshot(root: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()
+    }
 
 
 @pytest.mark.parametrize("plant", [".partial", ".partial/segment", "file", "metadata.yaml.tmp"])
@@ -184,7 +211,9 @@ def test_bag_repair_never_follows_or_deletes_through_a_link(tmp_path, plant):
         (bag / PARTIAL_DIR).symlink_to(outside, target_is_directory=True)
     elif plant == ".partial/segment":
         (bag / PARTIAL_DIR).mkdir()
-        (bag / PARTIAL_DIR / "bag_00009").symlink_to(outside / "segment_00000", target_is_directory=True)
+        (bag / PARTIAL_DIR / "bag_00009").symlink_to(
+            outside / "segment_00000", target_is_directory=True
+        )
     elif plant == "file":
         (bag / "bag_00009.mcap").symlink_to(outside / "segment_00000" / "segment_00000.mcap")
     else:
@@ -195,7 +224,10 @@ def test_bag_repair_never_follows_or_deletes_through_a_link(tmp_path, plant):
     assert sum(1 for _ in raw_messages(bag)) == 100
     if plant != "metadata.yaml.tmp":
         assert "left alone symbolic link" in result.stdout
-    if plant in (".partial", "file"):  # the link itself is still there (a link inside .partial goes with it, unfollowed)
+    if plant in (
+        ".partial",
+        "file",
+    ):  # the link itself is still there (a link inside .partial goes with it, unfollowed)
         assert os.path.islink(bag / {".partial": PARTIAL_DIR, "file": "bag_00009.mcap"}[plant])
 
 
@@ -204,7 +236,9 @@ def test_bag_repair_refuses_a_bag_that_is_a_link(tmp_path):
     outside = tmp_path / "outside"
     before = outside_tree(outside)
     (tmp_path / "bag").symlink_to(outside, target_is_directory=True)
-    assert_one_line_error(run("tail-beam", "bag", "repair", str(tmp_path / "bag")), "symbolic link")
+    assert_one_line_error(
+        run("tail-beam", "bag", "repair", str(tmp_path / "bag")), "symbolic link"
+    )
     assert snapshot(outside) == before
 
 
@@ -216,10 +250,16 @@ def test_simulate_refuses_to_write_through_links(tmp_path):
     (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
     (tmp_path / "dirlink").symlink_to(tmp_path / "outside", target_is_directory=True)
     (tmp_path / "outside").mkdir()
-    assert_one_line_error(run("tail-beam", "simulate", "--plot", str(tmp_path / "figure.png")), "--plot", "symbolic link")
+    assert_one_line_error(
+        run("tail-beam", "simulate", "--plot", str(tmp_path / "figure.png")),
+        "--plot",
+        "symbolic link",
+    )
     assert target.read_bytes() == b"keep me"
     for link in ("dangling", "dirlink"):
-        assert_one_line_error(run("tail-beam", "simulate", "--bag", str(tmp_path / link)), "--bag", "symbolic link")
+        assert_one_line_error(
+            run("tail-beam", "simulate", "--bag", str(tmp_path / link)), "--bag", "symbolic link"
+        )
     assert not (tmp_path / "nowhere").exists() and not any((tmp_path / "outside").iterdir())
 
 
@@ -249,7 +289,11 @@ def test_evaluate_refuses_a_linked_summary_before_the_work(tmp_path):
     target.write_text("keep me")
     (tmp_path / "out").mkdir()
     (tmp_path / "out" / "summary.json").symlink_to(target)
-    assert_one_line_error(run("tail-beam", "evaluate", "--out", str(tmp_path / "out"), "--count", "1"), "--out", "symbolic link")
+    assert_one_line_error(
+        run("tail-beam", "evaluate", "--out", str(tmp_path / "out"), "--count", "1"),
+        "--out",
+        "symbolic link",
+    )
     assert target.read_text() == "keep me"
 
 
@@ -283,9 +327,17 @@ def test_a_tampered_training_cache_runs_no_code(tmp_path):
     marker = tmp_path / "marker"
     cache = tmp_path / "cache.json"
     cache.write_bytes(pickle.dumps(_Planted(marker)))
-    result = subprocess.run([sys.executable, "-m", "tail_beam_id.study.training", "--cache", str(cache)],
-                            capture_output=True, text=True, timeout=120)
-    assert result.returncode != 0 and "cannot be read" in result.stderr and "Traceback" not in result.stderr
+    result = subprocess.run(
+        [sys.executable, "-m", "tail_beam_id.study.training", "--cache", str(cache)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert (
+        result.returncode != 0
+        and "cannot be read" in result.stderr
+        and "Traceback" not in result.stderr
+    )
     assert not marker.exists()
 
 
@@ -295,9 +347,32 @@ def test_the_training_cache_round_trips_as_json(tmp_path):
     from tail_beam_id.study.runs import Record
     from tail_beam_id.study.training import load_cache, save_cache
 
-    label = Label(1.2501, "coal", 0.93, "threshold", latency_ms=0.7, data_latency_ms=12.0, signals=("imu",),
-                  features={"rebound_speed_mps": 5.6}, outside_training=("pressure_noise_pa",))
-    record = Record("stream", "nominal/x1", "threshold", 0.012, 3, "coal", True, 0.031, 1.25, 2.1e-4, label, 0, 0.002)
+    label = Label(
+        1.2501,
+        "coal",
+        0.93,
+        "threshold",
+        latency_ms=0.7,
+        data_latency_ms=12.0,
+        signals=("imu",),
+        features={"rebound_speed_mps": 5.6},
+        outside_training=("pressure_noise_pa",),
+    )
+    record = Record(
+        "stream",
+        "nominal/x1",
+        "threshold",
+        0.012,
+        3,
+        "coal",
+        True,
+        0.031,
+        1.25,
+        2.1e-4,
+        label,
+        0,
+        0.002,
+    )
     save_cache(tmp_path / "cache.json", [record], [])
     assert load_cache(tmp_path / "cache.json") == ([record], [])
     assert (tmp_path / "cache.json").read_text().startswith("{")
@@ -311,8 +386,15 @@ def test_json_topics_holding_anything_read_as_unparsed_and_identify_goes_on(tmp_
     from tail_beam_sim.bags.read import read_sensors
 
     texts = ["not json", "[1, 2]", "42", "[" * 100_000, '{"label": "coal"}']
-    strings = [(topic, 1_000_000 * (k + 1), bytes(TYPESTORE.serialize_cdr(bagio.string_msg(text), "std_msgs/msg/String")))
-               for k, text in enumerate(texts) for topic in (topics.IMPACT_CMD, topics.LABEL, topics.IMPACT_TRUTH)]
+    strings = [
+        (
+            topic,
+            1_000_000 * (k + 1),
+            bytes(TYPESTORE.serialize_cdr(bagio.string_msg(text), "std_msgs/msg/String")),
+        )
+        for k, text in enumerate(texts)
+        for topic in (topics.IMPACT_CMD, topics.LABEL, topics.IMPACT_TRUTH)
+    ]
     topic, ns, msg = bagio.rebound_msg(0.2, np.array([0.0, 0.0, 1.0]))
     rebound = [(topic, ns, bytes(TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic])))]
     write_segments(tmp_path / "bag", [records(2000) + strings + rebound])
@@ -337,7 +419,9 @@ def test_bag_repair_of_metadata_whose_storage_is_no_name_repairs_from_the_files(
     meta.write_text(text.replace("storage_identifier: mcap", "storage_identifier: [1, 2]"))
     result = run("tail-beam", "bag", "repair", str(bag))
     assert "Traceback" not in result.stderr, result.stderr
-    assert result.returncode == 0 and "the bag reads: 100 messages" in result.stdout + result.stderr, result.stdout + result.stderr
+    assert (
+        result.returncode == 0 and "the bag reads: 100 messages" in result.stdout + result.stderr
+    ), result.stdout + result.stderr
 
 
 @pytest.mark.ros
@@ -348,19 +432,41 @@ def test_a_killed_recorders_open_segment_is_said_by_every_reader(tmp_path):
     nothing is said."""
     data = records(600)
     bag = tmp_path / "bag"
-    write_segments(bag, [data[:400], data[400:800], data[800:]], close=False)  # killed with the third segment open
-    commands = {"bag info": ["tail-beam", "bag", "info", str(bag)], "identify": ["tail-beam", "identify", str(bag), "--no-calibrate"],
-                "bag_replay": ["bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}", "-p", "replay.rate:=100.0"]}
+    write_segments(
+        bag, [data[:400], data[400:800], data[800:]], close=False
+    )  # killed with the third segment open
+    commands = {
+        "bag info": ["tail-beam", "bag", "info", str(bag)],
+        "identify": ["tail-beam", "identify", str(bag), "--no-calibrate"],
+        "bag_replay": [
+            "bag_replay",
+            "--ros-args",
+            "-p",
+            f"replay.bag_path:={bag}",
+            "-p",
+            "replay.rate:=100.0",
+        ],
+    }
     for name, command in commands.items():
         result = run(*command)
-        assert result.returncode == 0 and "Traceback" not in result.stderr, (name, result.stderr[-2000:])
+        assert result.returncode == 0 and "Traceback" not in result.stderr, (
+            name,
+            result.stderr[-2000:],
+        )
         said = [line for line in result.stderr.splitlines() if PARTIAL_DIR in line]
-        assert len(said) == 1 and "not read" in said[0] and f"tail-beam bag repair {bag}" in said[0], (name, result.stderr)
-    assert "800 messages" in run("tail-beam", "bag", "info", str(bag)).stdout  # the closed segments, read as they are
+        assert (
+            len(said) == 1 and "not read" in said[0] and f"tail-beam bag repair {bag}" in said[0]
+        ), (name, result.stderr)
+    assert (
+        "800 messages" in run("tail-beam", "bag", "info", str(bag)).stdout
+    )  # the closed segments, read as they are
     assert run("tail-beam", "bag", "repair", str(bag)).returncode == 0
     for name, command in commands.items():
         result = run(*command)
-        assert result.returncode == 0 and PARTIAL_DIR not in result.stderr, (name, result.stderr[-2000:])
+        assert result.returncode == 0 and PARTIAL_DIR not in result.stderr, (
+            name,
+            result.stderr[-2000:],
+        )
 
 
 @pytest.mark.ros
@@ -372,9 +478,14 @@ def test_a_recorder_killed_before_its_first_segment_closed_is_not_called_empty(t
     bag = tmp_path / "bag"
     writer = write_segments(bag, [records(300)], close=False)
     writer.flush()
-    for command in (["tail-beam", "bag", "info", str(bag)], ["tail-beam", "identify", str(bag)],
-                    ["bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}"]):
-        assert_one_line_error(run(*command), "holds no messages", PARTIAL_DIR, "tail-beam bag repair")
+    for command in (
+        ["tail-beam", "bag", "info", str(bag)],
+        ["tail-beam", "identify", str(bag)],
+        ["bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}"],
+    ):
+        assert_one_line_error(
+            run(*command), "holds no messages", PARTIAL_DIR, "tail-beam bag repair"
+        )
     assert "the bag reads: 600 messages" in run("tail-beam", "bag", "repair", str(bag)).stdout
 
 
@@ -385,24 +496,44 @@ def contract_bag_with_a_foreign_type(path: Path, topic: str, msgtype: str, msg) 
         connections = {}
         for name, ns, raw in records(200):
             if name not in connections:
-                connections[name] = writer.add_connection(f"/{name}", topics.MSG_TYPES[name], typestore=TYPESTORE)
+                connections[name] = writer.add_connection(
+                    f"/{name}", topics.MSG_TYPES[name], typestore=TYPESTORE
+                )
             writer.write(connections[name], ns, raw)
         connection = writer.add_connection(f"/{topic}", msgtype, typestore=TYPESTORE)
         writer.write(connection, 10**8, TYPESTORE.serialize_cdr(msg, msgtype))
 
 
 @pytest.mark.ros
-@pytest.mark.parametrize("topic, msgtype", [(topics.REBOUND_VELOCITY, "std_msgs/msg/String"), (topics.LABEL, "sensor_msgs/msg/Imu")])
+@pytest.mark.parametrize(
+    "topic, msgtype",
+    [(topics.REBOUND_VELOCITY, "std_msgs/msg/String"), (topics.LABEL, "sensor_msgs/msg/Imu")],
+)
 def test_a_contract_topic_recorded_with_another_type_is_refused_by_name(tmp_path, topic, msgtype):
     """identify, calibrate and bag_replay on a bag holding /rebound_velocity as a String or
     /label as an Imu: one line naming the topic and both types, exit 2 (was: AttributeError
     traceback, exit 1); bag info still lists it."""
     bag = tmp_path / "bag"
-    msg = (TYPESTORE.types[msgtype](data="hi") if msgtype.endswith("String") else
-           TYPESTORE.deserialize_cdr(dict((t, raw) for t, _, raw in records(1))[topics.IMU], msgtype))
+    msg = (
+        TYPESTORE.types[msgtype](data="hi")
+        if msgtype.endswith("String")
+        else TYPESTORE.deserialize_cdr(
+            dict((t, raw) for t, _, raw in records(1))[topics.IMU], msgtype
+        )
+    )
     contract_bag_with_a_foreign_type(bag, topic, msgtype, msg)
-    for command in (["tail-beam", "identify", str(bag)], ["tail-beam", "calibrate", str(bag)],
-                    ["bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}", "-p", "replay.topics:=[imu, rebound_velocity, label]"]):
+    for command in (
+        ["tail-beam", "identify", str(bag)],
+        ["tail-beam", "calibrate", str(bag)],
+        [
+            "bag_replay",
+            "--ros-args",
+            "-p",
+            f"replay.bag_path:={bag}",
+            "-p",
+            "replay.topics:=[imu, rebound_velocity, label]",
+        ],
+    ):
         assert_one_line_error(run(*command), f"'/{topic}'", msgtype, topics.MSG_TYPES[topic])
     info = run("tail-beam", "bag", "info", str(bag))
     assert info.returncode == 0 and msgtype in info.stdout, info.stderr

@@ -18,7 +18,9 @@ TAIL_BEAM = str(Path(sys.executable).parent / "tail-beam")
 def test_a_ctrl_c_while_tail_beam_loads_is_130_and_one_line(verb):
     """0.3 s in, the verbs' modules are still importing (about a second here): the interrupt used
     to end in a KeyboardInterrupt traceback and status -2, outside main()'s guard."""
-    proc = subprocess.Popen([TAIL_BEAM, *verb], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [TAIL_BEAM, *verb], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     time.sleep(0.3)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
@@ -44,9 +46,13 @@ def test_a_ctrl_c_that_an_extension_turns_into_an_import_error_is_still_130(tmp_
         "cli.build_parser = broken\n"
         "sys.exit(cli.main(['simulate']))\n"
     )
-    result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=60
+    )
     assert result.returncode == 130, result.stderr[-1500:]
-    assert "Traceback" not in result.stderr and result.stderr.strip() == "tail-beam: interrupted", result.stderr[-1500:]
+    assert (
+        "Traceback" not in result.stderr and result.stderr.strip() == "tail-beam: interrupted"
+    ), result.stderr[-1500:]
 
 
 def test_an_import_error_without_a_ctrl_c_is_not_called_an_interruption(tmp_path):
@@ -60,8 +66,12 @@ def test_an_import_error_without_a_ctrl_c_is_not_called_an_interruption(tmp_path
         "cli.build_parser = broken\n"
         "sys.exit(cli.main(['simulate']))\n"
     )
-    result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
-    assert result.returncode == 1 and "ImportError: initialization failed" in result.stderr, result.stderr[-1500:]
+    result = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 1 and "ImportError: initialization failed" in result.stderr, (
+        result.stderr[-1500:]
+    )
 
 
 def test_main_gives_the_callers_ctrl_c_handler_back(capsys):

@@ -18,7 +18,11 @@ def test_bag_info_into_a_closed_pipe_ends_without_a_traceback(tmp_path):
     traceback on stderr and no exit status of a crash. (Was: BrokenPipeError, a traceback and
     exit 1.)"""
     write_segments(tmp_path / "bag", [records(40)])
-    process = subprocess.Popen([TAIL_BEAM, "bag", "info", str(tmp_path / "bag")], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    process = subprocess.Popen(
+        [TAIL_BEAM, "bag", "info", str(tmp_path / "bag")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     process.stdout.close()  # the reader leaves before the tool has written anything
     _, err = process.communicate(timeout=60)
     assert "Traceback" not in err.decode(), err.decode()[-2000:]

@@ -15,9 +15,18 @@ from rosbags.typesys import Stores, get_typestore
 from tail_beam_sim.cli import main
 
 REQUIRED_KEYS = {
-    "material", "radius_m", "position_m", "impact_speed_mps", "rebound_speed_mps", "restitution",
-    "contact_duration_s", "peak_contact_force_n", "peak_jack_pressure_change_pa",
-    "peak_beam_angular_velocity_radps", "peak_imu_dynamic_accel_mps2", "n_contacts",
+    "material",
+    "radius_m",
+    "position_m",
+    "impact_speed_mps",
+    "rebound_speed_mps",
+    "restitution",
+    "contact_duration_s",
+    "peak_contact_force_n",
+    "peak_jack_pressure_change_pa",
+    "peak_beam_angular_velocity_radps",
+    "peak_imu_dynamic_accel_mps2",
+    "n_contacts",
 }
 CONTRACT_TYPES = {
     "impact_cmd": "std_msgs/msg/String",
@@ -40,12 +49,26 @@ def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
 
 def test_json_summary_has_the_documented_keys(capsys):
     """`simulate --json` prints one object with every documented key, and its restitution is rebound over impact speed."""
-    code, out, _ = run_cli(capsys, "simulate", "--material", "coal", "--radius-m", "0.025", "--drop-height-m", "3.5", "--position-m", "1.0", "--json")
+    code, out, _ = run_cli(
+        capsys,
+        "simulate",
+        "--material",
+        "coal",
+        "--radius-m",
+        "0.025",
+        "--drop-height-m",
+        "3.5",
+        "--position-m",
+        "1.0",
+        "--json",
+    )
     assert code == 0
     summary = json.loads(out)
     assert REQUIRED_KEYS <= set(summary)
     assert summary["material"] == "coal" and summary["n_contacts"] >= 1
-    assert summary["restitution"] == pytest.approx(summary["rebound_speed_mps"] / summary["impact_speed_mps"])
+    assert summary["restitution"] == pytest.approx(
+        summary["rebound_speed_mps"] / summary["impact_speed_mps"]
+    )
 
 
 def test_impact_speed_option_reproduces_the_study_speed(capsys):
@@ -60,10 +83,14 @@ def _read_bag(path: Path) -> dict[str, list]:
     store = get_typestore(Stores.ROS2_KILTED)
     messages: dict[str, list] = {}
     with AnyReader([path], default_typestore=store) as reader:
-        assert all(c.topic.startswith("/") for c in reader.connections)  # fully qualified, as rosbag2 stores them
+        assert all(
+            c.topic.startswith("/") for c in reader.connections
+        )  # fully qualified, as rosbag2 stores them
         types = {c.topic[1:]: c.msgtype for c in reader.connections}
         for connection, log_ns, raw in reader.messages():
-            messages.setdefault(connection.topic[1:], []).append((log_ns, reader.deserialize(raw, connection.msgtype)))
+            messages.setdefault(connection.topic[1:], []).append(
+                (log_ns, reader.deserialize(raw, connection.msgtype))
+            )
     messages["_types"] = types  # type: ignore[assignment]
     return messages
 
@@ -72,7 +99,17 @@ def _read_bag(path: Path) -> dict[str, list]:
 def test_bag_reads_back_with_contract_topics_types_units_and_stamps(tmp_path, capsys, storage):
     """A simulated bag reads back with the contract's topics and types, pressure in Pa at 2 kHz stamps, IMU per REP 145, one rebound and a truth agreeing with the summary."""
     bag = tmp_path / "impact"
-    code, out, _ = run_cli(capsys, "simulate", "--material", "sandstone", "--bag", str(bag), "--storage", storage, "--json")
+    code, out, _ = run_cli(
+        capsys,
+        "simulate",
+        "--material",
+        "sandstone",
+        "--bag",
+        str(bag),
+        "--storage",
+        storage,
+        "--json",
+    )
     assert code == 0
     summary = json.loads(out)
     messages = _read_bag(bag)
@@ -86,16 +123,21 @@ def test_bag_reads_back_with_contract_topics_types_units_and_stamps(tmp_path, ca
     # Units: absolute pressure in Pa around the 20 MPa setting; stamps at the configured 2 kHz.
     assert np.all(np.abs(values - 20e6) < 1e6)
     assert np.allclose(np.diff(stamps), 1 / 2000.0, atol=2e-9)
-    assert all(m.header.frame_id == "tail_beam_jack" and m.variance == pytest.approx(1e8) for _, m in pressure)
+    assert all(
+        m.header.frame_id == "tail_beam_jack" and m.variance == pytest.approx(1e8)
+        for _, m in pressure
+    )
     assert [t for t, _ in pressure] == [int(round(s * 1e9)) for s in stamps]
 
     imu = [m for _, m in messages["imu"]]
     accel_z = np.array([m.linear_acceleration.z for m in imu])
     # REP 145: a plate at rest reads +g along its upward axis; no orientation estimate.
     assert np.median(accel_z) == pytest.approx(9.81, abs=0.1)
-    assert all(m.orientation_covariance[0] == -1 and m.header.frame_id == "tail_beam_imu" for m in imu)
+    assert all(
+        m.orientation_covariance[0] == -1 and m.header.frame_id == "tail_beam_imu" for m in imu
+    )
 
-    (_, rebound), = messages["rebound_velocity"]
+    ((_, rebound),) = messages["rebound_velocity"]
     truth = json.loads(messages["impact_truth"][0][1].data)
     rebound_stamp = rebound.header.stamp.sec + rebound.header.stamp.nanosec * 1e-9
     # The camera stamps the end of contact to within its frame period (5 kHz).
@@ -122,7 +164,11 @@ def test_bag_decodes_with_an_independent_mcap_reader(tmp_path, capsys):
             counts[channel.topic] = counts.get(channel.topic, 0) + 1
             if channel.topic == "/jack_pressure":
                 assert 19e6 < msg.fluid_pressure < 21e6
-    assert counts["/jack_pressure"] > 100 and counts["/rebound_velocity"] == 1 and counts["/vibration"] > 5
+    assert (
+        counts["/jack_pressure"] > 100
+        and counts["/rebound_velocity"] == 1
+        and counts["/vibration"] > 5
+    )
 
 
 def test_plot_writes_a_png(tmp_path, capsys):
@@ -173,6 +219,11 @@ def test_unreadable_yaml_config_is_reported(tmp_path, capsys):
 def test_installed_console_script_reports_bad_input_without_traceback():
     """The real `tail-beam` executable, as a user runs it."""
     exe = Path(sys.executable).parent / "tail-beam"
-    proc = subprocess.run([str(exe), "simulate", "--radius-m", "-1"], capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [str(exe), "simulate", "--radius-m", "-1"], capture_output=True, text=True, timeout=60
+    )
     assert proc.returncode == 2
-    assert proc.stderr.strip() == "tail-beam simulate: error: radius_m = '-1': must be in [0.001, 0.5] m"
+    assert (
+        proc.stderr.strip()
+        == "tail-beam simulate: error: radius_m = '-1': must be in [0.001, 0.5] m"
+    )

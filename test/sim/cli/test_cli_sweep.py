@@ -6,8 +6,8 @@ from __future__ import annotations
 import json
 
 import pytest
-
 from test_cli_simulate import run_cli
+
 from tail_beam_sim.cli.sweep_cmd import COLUMNS
 
 
@@ -32,12 +32,37 @@ def test_json_swept_values_are_numbers(capsys):
 def test_row_equals_simulate_with_the_same_settings(capsys, tier):
     """A sweep row (--tier modal, rigid, or the default) is the very result `tail-beam simulate` gives for the same impact and tier: the README's worked example and its 3.5 m row agree."""
     option = ["--tier", tier] if tier else []
-    (row,) = sweep_rows(capsys, "drop_height_m", "3.5", "--material", "coal", "--radius-m", "0.025", "--position-m", "1.0", *option)
-    code, out, err = run_cli(capsys, "simulate", "--material", "coal", "--radius-m", "0.025", "--drop-height-m", "3.5",
-                             "--position-m", "1.0", "--json", *option)
+    (row,) = sweep_rows(
+        capsys,
+        "drop_height_m",
+        "3.5",
+        "--material",
+        "coal",
+        "--radius-m",
+        "0.025",
+        "--position-m",
+        "1.0",
+        *option,
+    )
+    code, out, err = run_cli(
+        capsys,
+        "simulate",
+        "--material",
+        "coal",
+        "--radius-m",
+        "0.025",
+        "--drop-height-m",
+        "3.5",
+        "--position-m",
+        "1.0",
+        "--json",
+        *option,
+    )
     assert code == 0, err
     single = json.loads(out)
-    assert row["tier"] == single["tier"] == (tier or "modal")  # auto picks modal for the worked example
+    assert (
+        row["tier"] == single["tier"] == (tier or "modal")
+    )  # auto picks modal for the worked example
     for column in COLUMNS:
         assert row[column] == pytest.approx(single[column], rel=1e-12), column
 
@@ -53,11 +78,14 @@ def test_tier_changes_the_model_and_the_table_says_which(capsys):
     assert out.splitlines()[0].startswith("# tier rigid (--tier rigid)")
 
 
-@pytest.mark.parametrize("argv, field", [
-    (["drop_height_m", "3.5", "--tier", "stiff"], "--tier"),
-    (["drop_height_m", "abc"], "values (drop_height_m)"),
-    (["position_m", "9.0"], "values (position_m)"),
-])
+@pytest.mark.parametrize(
+    "argv, field",
+    [
+        (["drop_height_m", "3.5", "--tier", "stiff"], "--tier"),
+        (["drop_height_m", "abc"], "values (drop_height_m)"),
+        (["position_m", "9.0"], "values (position_m)"),
+    ],
+)
 def test_bad_input_exits_2_with_one_line_naming_it(capsys, argv, field):
     """A tier that does not exist, or a swept value that is not a number in range, exits 2 with one line naming it; nothing is printed on stdout."""
     code, out, err = run_cli(capsys, "sweep", *argv)

@@ -14,8 +14,8 @@ from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.fidelity import BRITTLE_STEPS_PER_CONTACT, Needs, plan, shipped_settings
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.simulate import build_problem, crushing_contact, simulate
-from tail_beam_sim.physics.solvers.hybrid import RK4_CONTACT_ERROR
 from tail_beam_sim.physics.solvers import solve
+from tail_beam_sim.physics.solvers.hybrid import RK4_CONTACT_ERROR
 
 
 def _choice(scene, outputs, tolerance):
@@ -38,13 +38,17 @@ def test_the_rigid_tiers_estimate_follows_the_imu_bandwidth():
     (both resolve the 695 Hz mode) they dominate alike; at 200 Hz they weigh less than half."""
     estimate = {}
     for rate in (5000.0, 2000.0, 200.0):
-        scene = Scene.from_params(deep_merge(load_parameters(), {"sensors": {"imu_rate_hz": rate}}))
+        scene = Scene.from_params(
+            deep_merge(load_parameters(), {"sensors": {"imu_rate_hz": rate}})
+        )
         estimate[rate] = _choice(scene, ["imu"], 0.05).estimates["rigid"]
     assert estimate[5000.0] == pytest.approx(estimate[2000.0], rel=0.1)
     assert estimate[200.0] < 0.5 * estimate[2000.0]
 
 
-@pytest.mark.parametrize("overrides", [{}, {"material": "marble"}, {"drop_height_m": 0.003}, {"position_m": 0.3}])
+@pytest.mark.parametrize(
+    "overrides", [{}, {"material": "marble"}, {"drop_height_m": 0.003}, {"position_m": 0.3}]
+)
 def test_rigid_tiers_estimate_is_not_optimistic(params, overrides):
     """The estimated error of the rigid tier bounds the measured difference to the modal tier
     on the sampled pressure stream and the sampled IMU stream."""
@@ -57,8 +61,19 @@ def test_rigid_tiers_estimate_is_not_optimistic(params, overrides):
 
 
 def _rigid_wall_scene(material: str, speed: float) -> Scene:
-    params = deep_merge(load_parameters(), {"support": {"beam_inertia_about_hinge_kgm2": 1e12, "gravity_mps2": 0.0, "oil_bulk_modulus_pa": 1e14}})
-    return Scene.from_params(params, {"material": material, "impact_speed_mps": speed, "window_s": 0.003})
+    params = deep_merge(
+        load_parameters(),
+        {
+            "support": {
+                "beam_inertia_about_hinge_kgm2": 1e12,
+                "gravity_mps2": 0.0,
+                "oil_bulk_modulus_pa": 1e14,
+            }
+        },
+    )
+    return Scene.from_params(
+        params, {"material": material, "impact_speed_mps": speed, "window_s": 0.003}
+    )
 
 
 @pytest.mark.parametrize("speed", [0.5, 3.0, 8.0])
@@ -67,9 +82,13 @@ def test_crushing_contact_rebound_matches_its_energy_balance(speed):
     in closed form from the loading and unloading curves; RK4 in the hybrid at the brittle tier's
     steps reproduces it within the 1e-4 that simulate reports, velocity Verlet within 5e-3."""
     scene = _rigid_wall_scene("coal", speed)
-    crushing = crushing_contact(scene.support, scene.impact, shipped_settings().crushing_confinement_factor)
+    crushing = crushing_contact(
+        scene.support, scene.impact, shipped_settings().crushing_confinement_factor
+    )
     expected = math.sqrt(crushing.rebound_energy_ratio(0.5 * scene.impact.mass_kg * speed**2))
-    problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, crushing=crushing)
+    problem = build_problem(
+        scene.support, scene.impact, scene.contact_model, scene.window_s, crushing=crushing
+    )
     rk4 = solve(problem, steps_per_contact=BRITTLE_STEPS_PER_CONTACT).rebound_velocity_mps / speed
     assert rk4 == pytest.approx(expected, rel=RK4_CONTACT_ERROR)
     verlet = solve(problem, "verlet", dt_s=2e-7).rebound_velocity_mps / speed
@@ -110,7 +129,9 @@ def test_simulate_json_reports_tier_solver_and_error_estimate(capsys):
     assert summary["check"]["against"] == "modal"
     assert summary["check"]["rebound"] < 0.01
     summary = _run_json(capsys, "--tier", "rigid", "--solver", "verlet", "--window-s", "0.005")
-    assert summary["solver"] == "verlet" and summary["error_estimate"] is None  # no estimate for fixed steps: null, not a guess
+    assert (
+        summary["solver"] == "verlet" and summary["error_estimate"] is None
+    )  # no estimate for fixed steps: null, not a guess
 
 
 def test_bad_needs_are_reported_with_field_and_range(capsys):
@@ -119,5 +140,10 @@ def test_bad_needs_are_reported_with_field_and_range(capsys):
         Needs.of(["sound"], 0.01)
     code = main(["simulate", "--tolerance", "0"])
     err = capsys.readouterr().err
-    assert code == 2 and "fidelity.tolerance" in err and "(0, 1]" in err and len(err.strip().splitlines()) == 1
+    assert (
+        code == 2
+        and "fidelity.tolerance" in err
+        and "(0, 1]" in err
+        and len(err.strip().splitlines()) == 1
+    )
     assert np.isfinite(shipped_settings().crushing_confinement_factor)

@@ -20,9 +20,12 @@ def test_impact_speed_is_free_fall_speed(default_scene):
     for height in (0.005, 1.5, 2.0, 3.5, 4.0):
         impact = Impact.from_mapping(
             {"material": "coal", "radius_m": 0.025, "drop_height_m": height, "position_m": 1.0},
-            default_scene.materials, support,
+            default_scene.materials,
+            support,
         )
-        assert impact.impact_speed_mps == pytest.approx(math.sqrt(2 * support.gravity_mps2 * height), rel=1e-12)
+        assert impact.impact_speed_mps == pytest.approx(
+            math.sqrt(2 * support.gravity_mps2 * height), rel=1e-12
+        )
 
 
 def test_jack_stiffness_matches_hand_calculation(default_scene):
@@ -49,7 +52,11 @@ def test_beam_jack_mode_frequency_from_free_vibration(params):
     free vibration after an impact; damping under 1 % shifts it by under 0.01 %."""
     scene = Scene.from_params(params, {"window_s": 0.3})
     support = scene.support
-    expected_hz = math.sqrt(support.jack_stiffness_npm * support.jack_lever_arm_m**2 / support.beam_inertia_about_hinge_kgm2) / (2 * math.pi)
+    expected_hz = math.sqrt(
+        support.jack_stiffness_npm
+        * support.jack_lever_arm_m**2
+        / support.beam_inertia_about_hinge_kgm2
+    ) / (2 * math.pi)
     assert 38.0 < expected_hz < 40.5
     result = simulate(scene)
     h = result.history
@@ -63,7 +70,16 @@ def test_beam_jack_mode_frequency_from_free_vibration(params):
 def _heavy_stiff_support_params(gravity_mps2: float = 0.0) -> dict:
     """A support so heavy and stiff that the plate is a rigid wall for a 25 mm sphere."""
     params = load_parameters()
-    deep_merge(params, {"support": {"beam_inertia_about_hinge_kgm2": 1e12, "gravity_mps2": gravity_mps2, "oil_bulk_modulus_pa": 1e14}})
+    deep_merge(
+        params,
+        {
+            "support": {
+                "beam_inertia_about_hinge_kgm2": 1e12,
+                "gravity_mps2": gravity_mps2,
+                "oil_bulk_modulus_pa": 1e14,
+            }
+        },
+    )
     return params
 
 
@@ -72,10 +88,16 @@ def test_elastic_hertz_impact_matches_closed_form(material):
     """Elastic Hertz impact on a rigid wall (Johnson, Contact Mechanics, 11.2): delta* =
     (15 m v^2 / 16 E* R^0.5)^(2/5), F* = 4/3 E* R^0.5 delta*^1.5, t_c = 2 delta*/v
     int_0^1 du / sqrt(1 - u^2.5); the rebound equals the impact speed (no loss, no gravity)."""
-    scene = Scene.from_params(_heavy_stiff_support_params(), {"material": material, "contact_model": "hertz", "impact_speed_mps": 8.0})
+    scene = Scene.from_params(
+        _heavy_stiff_support_params(),
+        {"material": material, "contact_model": "hertz", "impact_speed_mps": 8.0},
+    )
     steel = scene.support.plate
     particle = scene.impact.material
-    e_star = 1.0 / ((1 - particle.poisson_ratio**2) / particle.youngs_modulus_pa + (1 - steel.poisson_ratio**2) / steel.youngs_modulus_pa)
+    e_star = 1.0 / (
+        (1 - particle.poisson_ratio**2) / particle.youngs_modulus_pa
+        + (1 - steel.poisson_ratio**2) / steel.youngs_modulus_pa
+    )
     radius, v = 0.025, 8.0
     mass = particle.density_kgpm3 * 4 / 3 * math.pi * radius**3
     delta_star = (15 * mass * v**2 / (16 * e_star * math.sqrt(radius))) ** 0.4
@@ -94,7 +116,10 @@ REQUESTED_E = [0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
 
 
 def _delivered_restitution(law: str, e: float) -> float:
-    scene = Scene.from_params(_heavy_stiff_support_params(), {"contact_model": law, "restitution": e, "impact_speed_mps": 5.0})
+    scene = Scene.from_params(
+        _heavy_stiff_support_params(),
+        {"contact_model": law, "restitution": e, "impact_speed_mps": 5.0},
+    )
     return simulate(scene).summary["restitution"]
 
 
@@ -148,10 +173,16 @@ def test_the_supports_contact_damping_scale_multiplies_the_laws_hysteresis(scale
     hysteresis, a slower rebound."""
     from tail_beam_sim.physics.contact import damping_factor, delivered_restitution
 
-    params = deep_merge(_heavy_stiff_support_params(), {"support": {"contact_damping_scale": scale}})
-    scene = Scene.from_params(params, {"contact_model": "hunt_crossley", "restitution": 0.35, "impact_speed_mps": 5.0})
+    params = deep_merge(
+        _heavy_stiff_support_params(), {"support": {"contact_damping_scale": scale}}
+    )
+    scene = Scene.from_params(
+        params, {"contact_model": "hunt_crossley", "restitution": 0.35, "impact_speed_mps": 5.0}
+    )
     delivered = simulate(scene).summary["restitution"]
-    assert delivered == pytest.approx(delivered_restitution(scale * damping_factor("hunt_crossley", 0.35)), rel=0.02)
+    assert delivered == pytest.approx(
+        delivered_restitution(scale * damping_factor("hunt_crossley", 0.35)), rel=0.02
+    )
     as_published = _delivered_restitution("hunt_crossley", 0.35)
     assert (delivered < as_published) if scale > 1.0 else (delivered > as_published)
 

@@ -21,7 +21,10 @@ def test_study_contact_speeds_from_heights_and_commanded_speed():
         if height == 3.5:
             assert scene.impact.impact_speed_mps == pytest.approx(8.283, abs=1e-3)
             commanded = Scene.from_params(params, {"impact_speed_mps": speed})
-            assert commanded.impact.impact_speed_mps == speed and commanded.impact.drop_height_m is None
+            assert (
+                commanded.impact.impact_speed_mps == speed
+                and commanded.impact.drop_height_m is None
+            )
         else:
             assert scene.impact.impact_speed_mps == pytest.approx(speed, abs=1e-3)
 
@@ -31,7 +34,9 @@ def test_coal_restitution_independent_of_height(params):
     contact speed of the study (spread under 0.005)."""
     ratios = []
     for speed in STUDY_SPEEDS_MPS.values():
-        summary = simulate(Scene.from_params(params, {"impact_speed_mps": speed, "position_m": 1.0})).summary
+        summary = simulate(
+            Scene.from_params(params, {"impact_speed_mps": speed, "position_m": 1.0})
+        ).summary
         ratios.append(summary["rebound_speed_mps"] / summary["impact_speed_mps"])
     assert max(ratios) - min(ratios) < 0.005
     assert np.mean(ratios) == pytest.approx(0.676, abs=0.01)
@@ -53,15 +58,26 @@ def test_gangue_strikes_harder_and_rebounds_slower_than_coal(params, gangue):
     force and beam angular velocity than coal, and rebound much slower."""
     coal = simulate(Scene.from_params(params, {"material": "coal"})).summary
     rock = simulate(Scene.from_params(params, {"material": gangue})).summary
-    for key in ("peak_jack_pressure_change_pa", "peak_contact_force_n", "peak_beam_angular_velocity_radps"):
+    for key in (
+        "peak_jack_pressure_change_pa",
+        "peak_contact_force_n",
+        "peak_beam_angular_velocity_radps",
+    ):
         assert rock[key] > coal[key], key
     assert rock["rebound_speed_mps"] < 0.7 * coal["rebound_speed_mps"]
 
 
 def test_every_response_grows_with_drop_height(params):
     """Study: every response grew with drop height."""
-    keys = ("peak_contact_force_n", "peak_jack_pressure_change_pa", "peak_beam_angular_velocity_radps", "rebound_speed_mps")
-    rows = [simulate(Scene.from_params(params, {"drop_height_m": h})).summary for h in (2.0, 3.0, 4.0)]
+    keys = (
+        "peak_contact_force_n",
+        "peak_jack_pressure_change_pa",
+        "peak_beam_angular_velocity_radps",
+        "rebound_speed_mps",
+    )
+    rows = [
+        simulate(Scene.from_params(params, {"drop_height_m": h})).summary for h in (2.0, 3.0, 4.0)
+    ]
     for key in keys:
         values = [row[key] for row in rows]
         assert values == sorted(values) and values[0] < values[-1], key

@@ -36,11 +36,19 @@ def test_noise_rms_matches_configuration(params):
     stamps = result.pressure.stamp_s
     state = trajectory.sample(stamps - result.contact_stamp_s)
     clean = trajectory.problem.structure.pressure_pa(state.q, state.qd)
-    assert np.std(result.pressure.pressure_pa - clean) == pytest.approx(scene.sensors.pressure_noise_pa, rel=0.1)
+    assert np.std(result.pressure.pressure_pa - clean) == pytest.approx(
+        scene.sensors.pressure_noise_pa, rel=0.1
+    )
 
-    gyro, accel = imu_samples(trajectory, result.imu.stamp_s - result.contact_stamp_s, 1.0 / scene.sensors.imu_rate_hz)
-    assert np.std(result.imu.linear_acceleration_mps2[:, 2] - accel[:, 2]) == pytest.approx(scene.sensors.imu_accel_noise_mps2, rel=0.1)
-    assert np.std(result.imu.angular_velocity_radps[:, 1] - gyro[:, 1]) == pytest.approx(scene.sensors.imu_gyro_noise_radps, rel=0.1)
+    gyro, accel = imu_samples(
+        trajectory, result.imu.stamp_s - result.contact_stamp_s, 1.0 / scene.sensors.imu_rate_hz
+    )
+    assert np.std(result.imu.linear_acceleration_mps2[:, 2] - accel[:, 2]) == pytest.approx(
+        scene.sensors.imu_accel_noise_mps2, rel=0.1
+    )
+    assert np.std(result.imu.angular_velocity_radps[:, 1] - gyro[:, 1]) == pytest.approx(
+        scene.sensors.imu_gyro_noise_radps, rel=0.1
+    )
     assert np.all(result.imu.angular_velocity_radps[:, [0, 2]] != 0.0)  # every axis carries noise
 
 
@@ -85,16 +93,26 @@ def test_a_site_without_the_accelerometer_has_the_same_other_streams(params):
     training and evaluation settings simulate) gives no blocks and, sample for sample, the same
     pressure, IMU and rebound as with it: the accelerometer draws its noise last and alone."""
     scene = Scene.from_params(params, {"material": "marble", "radius_m": 0.04, "window_s": 0.05})
-    with_it, without = simulate(scene, tier="modal"), simulate(scene, tier="modal", vibration=False)
+    with_it, without = (
+        simulate(scene, tier="modal"),
+        simulate(scene, tier="modal", vibration=False),
+    )
     assert with_it.vibration.count > 0 and without.vibration.count == 0
     np.testing.assert_array_equal(with_it.pressure.pressure_pa, without.pressure.pressure_pa)
-    np.testing.assert_array_equal(with_it.imu.linear_acceleration_mps2, without.imu.linear_acceleration_mps2)
+    np.testing.assert_array_equal(
+        with_it.imu.linear_acceleration_mps2, without.imu.linear_acceleration_mps2
+    )
     np.testing.assert_array_equal(with_it.rebound.velocity_mps, without.rebound.velocity_mps)
     assert with_it.rebound.stamp_s == without.rebound.stamp_s
 
 
 def _low_pass_params(params, order: int = 4, rate_hz: float = 5000.0) -> dict:
-    quiet = {"imu_accel_noise_mps2": 0.0, "imu_gyro_noise_radps": 0.0, "imu_rate_hz": rate_hz, "imu_antialias_order": order}
+    quiet = {
+        "imu_accel_noise_mps2": 0.0,
+        "imu_gyro_noise_radps": 0.0,
+        "imu_rate_hz": rate_hz,
+        "imu_antialias_order": order,
+    }
     return deep_merge(copy.deepcopy(params), {"sensors": quiet})
 
 
@@ -112,17 +130,25 @@ def test_an_imu_behind_a_low_pass_reads_the_analog_filter_of_the_beams_response(
     fine = np.arange(stamps[0], stamps[-1] + 1e-9, 2e-6)
     state = result.trajectory.sample(fine)
     structure = result.trajectory.problem.structure
-    force = structure.gravity_mps2 * np.cos(structure.imu_slope_shape @ state.q) - structure.imu_shape @ state.qdd
+    force = (
+        structure.gravity_mps2 * np.cos(structure.imu_slope_shape @ state.q)
+        - structure.imu_shape @ state.qdd
+    )
     pitch_rate = structure.imu_slope_shape @ state.qd
     b, a = signal.butter(4, 2 * np.pi * 0.25 * rate, analog=True)
     picked = np.searchsorted(fine, stamps - 1e-9)
-    for reading, signal_in in ((result.imu.linear_acceleration_mps2[:, 2], force), (result.imu.angular_velocity_radps[:, 1], pitch_rate)):
+    for reading, signal_in in (
+        (result.imu.linear_acceleration_mps2[:, 2], force),
+        (result.imu.angular_velocity_radps[:, 1], pitch_rate),
+    ):
         start = signal_in[0]
         _, reference, _ = signal.lsim((b, a), signal_in - start, fine - fine[0])
         expected = reference[picked] + start
         swing = np.max(np.abs(expected - start))
         assert swing > 0.0 and np.max(np.abs(reading - expected)) < 0.03 * swing
-    assert result.imu.linear_acceleration_mps2[0, 2] == pytest.approx(scene.support.gravity_mps2, rel=1e-9)
+    assert result.imu.linear_acceleration_mps2[0, 2] == pytest.approx(
+        scene.support.gravity_mps2, rel=1e-9
+    )
 
 
 def test_the_low_pass_delays_the_contacts_pulse_by_its_group_delay(params):
@@ -137,7 +163,10 @@ def test_the_low_pass_delays_the_contacts_pulse_by_its_group_delay(params):
         result = simulate(Scene.from_params(_low_pass_params(params, order, rate)), tier="rigid")
         t = result.imu.stamp_s - result.contact_stamp_s
         window = (t > -1e-3) & (t < 3e-3)
-        deviation = np.abs(result.imu.linear_acceleration_mps2[window, 2] - result.imu.linear_acceleration_mps2[0, 2])
+        deviation = np.abs(
+            result.imu.linear_acceleration_mps2[window, 2]
+            - result.imu.linear_acceleration_mps2[0, 2]
+        )
         centres.append(np.sum(t[window] * deviation) / np.sum(deviation))
     b, a = signal.butter(4, 0.25 * rate, fs=4 * rate)
     _, delay = signal.group_delay((b, a), w=[10.0], fs=4 * rate)
@@ -145,8 +174,15 @@ def test_the_low_pass_delays_the_contacts_pulse_by_its_group_delay(params):
     assert centres[1] - centres[0] == pytest.approx(expected_s, abs=0.2 / rate)
 
 
-@pytest.mark.parametrize(("field", "value"), [("imu_antialias_order", 11), ("imu_antialias_order", 1.5),
-                                              ("imu_antialias_cutoff_fraction", 0.6), ("imu_oversample", 1)])
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("imu_antialias_order", 11),
+        ("imu_antialias_order", 1.5),
+        ("imu_antialias_cutoff_fraction", 0.6),
+        ("imu_oversample", 1),
+    ],
+)
 def test_a_bad_imu_filter_setting_is_refused_by_name(params, field, value):
     """Out of range (order 0-10, cut-off in (0, 0.5] of the rate, oversample 2-32): refused naming the field."""
     bad = deep_merge(copy.deepcopy(params), {"sensors": {field: value}})

@@ -27,7 +27,9 @@ OUT_OF_RANGE = {"contact_model": "flores", "restitution": 0.03}
 def _problem(params, **overrides):
     scene = Scene.from_params(params, {"window_s": 0.01, **overrides})
     structure = structure_for(TIERS["rigid"], scene.support, shipped_settings().modes)
-    return build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure)
+    return build_problem(
+        scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure
+    )
 
 
 @pytest.mark.parametrize("name", sorted(SOLVERS))
@@ -41,7 +43,10 @@ def test_every_solver_fills_the_contract_fields(params, name):
     assert trajectory.solver == name
     starts = [segment.start_s for segment in trajectory.segments]
     assert starts[0] == -math.inf and starts == sorted(starts)
-    assert isinstance(trajectory.segments[-1], FreeSegment) and trajectory.segments[-1].end_s == math.inf
+    assert (
+        isinstance(trajectory.segments[-1], FreeSegment)
+        and trajectory.segments[-1].end_s == math.inf
+    )
     contacts = trajectory.contacts
     assert contacts and contacts[0].start_s == 0.0
     assert all(c.start_s < c.end_s for c in contacts)
@@ -82,7 +87,9 @@ def test_a_failed_solve_is_a_solver_error_not_bad_input(params):
 def test_cli_exits_3_with_one_line_when_the_solve_fails(capsys):
     """`tail-beam simulate` on a solve that fails: exit status 3 (not bad input's 2), one line
     on stderr naming the solver, nothing on stdout, no traceback."""
-    code = main(["simulate", "--solver", "impulse", "--contact-model", "flores", "--restitution", "0.03"])
+    code = main(
+        ["simulate", "--solver", "impulse", "--contact-model", "flores", "--restitution", "0.03"]
+    )
     captured = capsys.readouterr()
     assert code == EXIT_SOLVER_FAILED == 3
     assert captured.out == ""
@@ -95,14 +102,21 @@ def test_sim_node_logs_a_failed_solve_in_one_line_and_keeps_running():
     """An impact its solver cannot simulate is one error line in sim_node's log; the impacts
     before and after it are published."""
     from rclpy.parameter import Parameter
-
     from rosprobe import Probe, ros_context, spin_for, spin_until
+
     from tail_beam_sim.ros.sim_node import SimNode
 
-    overrides = {"sim_node.realtime_factor": 0.0, "stream.tier": "impulse", "scene.contact_model": "flores"}
+    overrides = {
+        "sim_node.realtime_factor": 0.0,
+        "stream.tier": "impulse",
+        "scene.contact_model": "flores",
+    }
     command = {"material": "coal", "radius_m": 0.03, "drop_height_m": 3.0, "position_m": 1.0}
     with ros_context() as (context, executor):
-        sim = SimNode(context=context, parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        sim = SimNode(
+            context=context,
+            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
+        )
         probe = Probe(context, {topics.IMPACT_TRUTH: String, "/rosout": Log})
         executor.add_node(sim)
         executor.add_node(probe)
@@ -112,7 +126,14 @@ def test_sim_node_logs_a_failed_solve_in_one_line_and_keeps_running():
         probe.send({**command, "impact_id": "ok-after"})
         assert spin_until(executor, lambda: len(probe.messages[topics.IMPACT_TRUTH]) == 2)
         spin_for(executor, 0.3)
-        assert [t["impact_id"] for t in probe.json(topics.IMPACT_TRUTH)] == ["ok-before", "ok-after"]
-        errors = [m.msg for m in probe.messages["/rosout"] if m.name == "tail_beam_sim" and m.level >= Log.ERROR]
+        assert [t["impact_id"] for t in probe.json(topics.IMPACT_TRUTH)] == [
+            "ok-before",
+            "ok-after",
+        ]
+        errors = [
+            m.msg
+            for m in probe.messages["/rosout"]
+            if m.name == "tail_beam_sim" and m.level >= Log.ERROR
+        ]
         assert len(errors) == 1 and "\n" not in errors[0]
         assert errors[0].startswith("impact_cmd not simulated: solver failed: impulse: ")

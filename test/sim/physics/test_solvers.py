@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 from scipy.integrate import quad, solve_ivp
 
-from tail_beam_sim.physics.benchmark import errors, measure
 from tail_beam_sim.config import deep_merge, load_parameters
-from tail_beam_sim.physics.contact import delivered_restitution
 from tail_beam_sim.errors import InputError
+from tail_beam_sim.physics.benchmark import errors, measure
+from tail_beam_sim.physics.contact import delivered_restitution
 from tail_beam_sim.physics.fidelity import TIERS, shipped_settings, structure_for
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.simulate import build_problem
-from tail_beam_sim.physics.solvers.hybrid import RK4_CONTACT_ERROR
 from tail_beam_sim.physics.solvers import SOLVERS, SolverError, solve
+from tail_beam_sim.physics.solvers.hybrid import RK4_CONTACT_ERROR
 from tail_beam_sim.physics.solvers.pulse import pulse_table, structure_response
 
 IMU_RATE_HZ = 2000.0
@@ -27,7 +27,9 @@ IMU_RATE_HZ = 2000.0
 def _problem(params, tier: str = "rigid", **overrides):
     scene = Scene.from_params(params, overrides)
     structure = structure_for(TIERS[tier], scene.support, shipped_settings().modes)
-    return build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure)
+    return build_problem(
+        scene.support, scene.impact, scene.contact_model, scene.window_s, structure=structure
+    )
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +56,11 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("name, options, bound", CASES, ids=[f"{c[0]}-{'-'.join(map(str, c[1].values()))}" for c in CASES])
+@pytest.mark.parametrize(
+    "name, options, bound",
+    CASES,
+    ids=[f"{c[0]}-{'-'.join(map(str, c[1].values()))}" for c in CASES],
+)
 def test_solver_agrees_with_converged_reference(rigid_reference, name, options, bound):
     """Each solver's rebound, peak force, peak pressure and IMU waveform are within its stated bound of converged Radau, with one contact."""
     problem, reference = rigid_reference
@@ -94,7 +100,13 @@ def test_hybrid_rk4_contact_converges_and_says_how_fast(params):
     and ends, which lowers the observed order (measured about 1.9) below the method's four."""
     problem = _problem(params)
     fine = solve(problem, "hybrid", contact="rk4", steps_per_contact=800).rebound_velocity_mps
-    coarse, finer = (abs(solve(problem, "hybrid", contact="rk4", steps_per_contact=s).rebound_velocity_mps - fine) for s in (16, 32))
+    coarse, finer = (
+        abs(
+            solve(problem, "hybrid", contact="rk4", steps_per_contact=s).rebound_velocity_mps
+            - fine
+        )
+        for s in (16, 32)
+    )
     assert coarse / finer > 2**1.5
 
 
@@ -108,7 +120,9 @@ def test_pulse_table_elastic_row_is_the_closed_form_hertz_impact():
     assert table.restitution[0] == pytest.approx(1.0, abs=1e-6)
     assert table.duration[0] == pytest.approx(2 * delta_star * integral, rel=1e-5)
     assert table.peak_force[0] == pytest.approx(delta_star**1.5, rel=1e-5)
-    assert table.rows[0, 0].max() == pytest.approx(delta_star, rel=1e-3)  # sampled at 1/64 of the duration
+    assert table.rows[0, 0].max() == pytest.approx(
+        delta_star, rel=1e-3
+    )  # sampled at 1/64 of the duration
 
 
 @pytest.mark.parametrize("chi", [0.1, 0.7, 3.0, 15.0])
@@ -116,7 +130,9 @@ def test_pulse_table_restitution_matches_the_contact_modules_integration(chi):
     """Two separate integrations of the same dimensionless contact (contact.py's and the table's)."""
     table = pulse_table()
     i = int(np.argmin(np.abs(table.chi - chi)))
-    assert table.restitution[i] == pytest.approx(delivered_restitution(float(table.chi[i])), abs=2e-4)
+    assert table.restitution[i] == pytest.approx(
+        delivered_restitution(float(table.chi[i])), abs=2e-4
+    )
 
 
 def test_structure_response_is_exact_for_a_piecewise_linear_force(params):
@@ -132,16 +148,40 @@ def test_structure_response_is_exact_for_a_piecewise_linear_force(params):
 
     def rhs(t, x):
         f = np.interp(t, times, force)
-        return np.concatenate([x[n:], structure.inv_mass @ (structure.contact_shape(1.0) * f - structure.damping @ x[n:] - structure.stiffness @ x[:n])])
+        return np.concatenate(
+            [
+                x[n:],
+                structure.inv_mass
+                @ (
+                    structure.contact_shape(1.0) * f
+                    - structure.damping @ x[n:]
+                    - structure.stiffness @ x[:n]
+                ),
+            ]
+        )
 
-    reference = solve_ivp(rhs, (0, times[-1]), x0, t_eval=times, method="DOP853", rtol=1e-12, atol=1e-18, max_step=times[1]).y
+    reference = solve_ivp(
+        rhs,
+        (0, times[-1]),
+        x0,
+        t_eval=times,
+        method="DOP853",
+        rtol=1e-12,
+        atol=1e-18,
+        max_step=times[1],
+    ).y
     assert np.max(np.abs(exact - reference)) < 1e-7 * np.max(np.abs(reference))
 
 
 def test_trajectory_is_continuous_and_defined_everywhere(params):
     """Sampling before, through, after the contact and beyond the window, for each solver family."""
     problem = _problem(params)
-    for name, options in (("hybrid", {}), ("impulse", {}), ("LSODA", {"rtol": 1e-8}), ("rk4", {"dt_s": 1e-5})):
+    for name, options in (
+        ("hybrid", {}),
+        ("impulse", {}),
+        ("LSODA", {"rtol": 1e-8}),
+        ("rk4", {"dt_s": 1e-5}),
+    ):
         trajectory = solve(problem, name, **options)
         times = np.linspace(-0.01, 0.2, 4001)
         state = trajectory.sample(times)
@@ -163,7 +203,18 @@ def test_unknown_solver_and_bad_options_name_the_field(params):
         solve(problem, "RK45", dt_s=1e-6)
     with pytest.raises(InputError, match="steps_per_contact"):
         solve(problem, "hybrid", steps_per_contact=2)
-    assert {"hybrid", "impulse", "euler", "verlet", "rk4", "RK45", "DOP853", "Radau", "BDF", "LSODA"} <= set(SOLVERS)
+    assert {
+        "hybrid",
+        "impulse",
+        "euler",
+        "verlet",
+        "rk4",
+        "RK45",
+        "DOP853",
+        "Radau",
+        "BDF",
+        "LSODA",
+    } <= set(SOLVERS)
 
 
 def test_scipy_methods_refuse_the_history_dependent_crushing_contact(params):
@@ -172,6 +223,8 @@ def test_scipy_methods_refuse_the_history_dependent_crushing_contact(params):
 
     scene = Scene.from_params(deep_merge(load_parameters(), {}))
     crushing = crushing_contact(scene.support, scene.impact, 3.0)
-    problem = build_problem(scene.support, scene.impact, scene.contact_model, scene.window_s, crushing=crushing)
+    problem = build_problem(
+        scene.support, scene.impact, scene.contact_model, scene.window_s, crushing=crushing
+    )
     with pytest.raises(SolverError, match="crushing"):
         solve(problem, "Radau")

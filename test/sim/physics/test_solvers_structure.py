@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -13,7 +14,12 @@ from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.fidelity import shipped_settings
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.simulate import simulate
-from tail_beam_sim.physics.structure import beam_with_modes, euler_bernoulli_modes, load_bending_modes, rigid_beam
+from tail_beam_sim.physics.structure import (
+    beam_with_modes,
+    euler_bernoulli_modes,
+    load_bending_modes,
+    rigid_beam,
+)
 
 
 def test_generator_matches_simply_supported_beam_closed_form():
@@ -32,10 +38,14 @@ def test_shipped_modes_are_what_the_documented_beam_gives(params):
     section = params["modes"]
     source = section["derived_from"]
     generated = euler_bernoulli_modes(
-        source["beam_length_m"], source["held_at_m"], source["bending_stiffness_nm2"],
-        source["mass_per_length_kgpm"], 3, source["elements"],
+        source["beam_length_m"],
+        source["held_at_m"],
+        source["bending_stiffness_nm2"],
+        source["mass_per_length_kgpm"],
+        3,
+        source["elements"],
     )
-    shipped = load_bending_modes(deep_merge(dict(params), {"modes": {"count": 3}}))
+    shipped = load_bending_modes(deep_merge(copy.deepcopy(params), {"modes": {"count": 3}}))
     for mode, reference in zip(shipped, generated):
         assert mode.frequency_hz == pytest.approx(reference["frequency_hz"], rel=1e-5)
         assert mode.modal_mass_kg == pytest.approx(reference["modal_mass_kg"], rel=1e-5)
@@ -43,7 +53,9 @@ def test_shipped_modes_are_what_the_documented_beam_gives(params):
         np.testing.assert_allclose(mode.shape, reference["shape"], atol=1e-5)
     # the distributed mass reproduces the beam's inertia about the hinge: 3 I_C / L^3
     support = Scene.from_params(params).support
-    assert source["mass_per_length_kgpm"] == pytest.approx(3 * support.beam_inertia_about_hinge_kgm2 / support.beam_length_m**3, rel=1e-5)
+    assert source["mass_per_length_kgpm"] == pytest.approx(
+        3 * support.beam_inertia_about_hinge_kgm2 / support.beam_length_m**3, rel=1e-5
+    )
 
 
 def _full_beam_on_jack_spring_hz(params, count: int) -> np.ndarray:
@@ -54,15 +66,40 @@ def _full_beam_on_jack_spring_hz(params, count: int) -> np.ndarray:
     elements, length = 64, support.beam_length_m
     h = length / elements
     ei, rho_a = source["bending_stiffness_nm2"], source["mass_per_length_kgpm"]
-    k_el = ei / h**3 * np.array([[12, 6 * h, -12, 6 * h], [6 * h, 4 * h * h, -6 * h, 2 * h * h], [-12, -6 * h, 12, -6 * h], [6 * h, 2 * h * h, -6 * h, 4 * h * h]])
-    m_el = rho_a * h / 420 * np.array([[156, 22 * h, 54, -13 * h], [22 * h, 4 * h * h, 13 * h, -3 * h * h], [54, 13 * h, 156, -22 * h], [-13 * h, -3 * h * h, -22 * h, 4 * h * h]])
+    k_el = (
+        ei
+        / h**3
+        * np.array(
+            [
+                [12, 6 * h, -12, 6 * h],
+                [6 * h, 4 * h * h, -6 * h, 2 * h * h],
+                [-12, -6 * h, 12, -6 * h],
+                [6 * h, 2 * h * h, -6 * h, 4 * h * h],
+            ]
+        )
+    )
+    m_el = (
+        rho_a
+        * h
+        / 420
+        * np.array(
+            [
+                [156, 22 * h, 54, -13 * h],
+                [22 * h, 4 * h * h, 13 * h, -3 * h * h],
+                [54, 13 * h, 156, -22 * h],
+                [-13 * h, -3 * h * h, -22 * h, 4 * h * h],
+            ]
+        )
+    )
     n = 2 * (elements + 1)
     stiffness, mass = np.zeros((n, n)), np.zeros((n, n))
     for e in range(elements):
         stiffness[2 * e : 2 * e + 4, 2 * e : 2 * e + 4] += k_el
         mass[2 * e : 2 * e + 4, 2 * e : 2 * e + 4] += m_el
     pin = 2 * round(support.jack_pin_from_hinge_m / h)
-    stiffness[pin, pin] += support.jack_stiffness_npm * math.sin(math.radians(support.jack_angle_to_beam_deg)) ** 2
+    stiffness[pin, pin] += (
+        support.jack_stiffness_npm * math.sin(math.radians(support.jack_angle_to_beam_deg)) ** 2
+    )
     free = np.arange(1, n)
     eigenvalues = eigh(stiffness[np.ix_(free, free)], mass[np.ix_(free, free)], eigvals_only=True)
     return np.sqrt(eigenvalues[: count + 1]) / (2 * math.pi)
@@ -76,7 +113,9 @@ def test_coupled_model_matches_full_finite_element_beam(params):
     reference = _full_beam_on_jack_spring_hz(params, 2)
     np.testing.assert_allclose(structure.natural_frequencies_hz(), reference, rtol=0.01)
     # the jack mode is the study's 39 Hz rigid mode
-    assert structure.natural_frequencies_hz()[0] == pytest.approx(rigid_beam(support).natural_frequencies_hz()[0], rel=0.005)
+    assert structure.natural_frequencies_hz()[0] == pytest.approx(
+        rigid_beam(support).natural_frequencies_hz()[0], rel=0.005
+    )
 
 
 def test_bending_modes_leave_rebound_and_add_imu_vibration(params):

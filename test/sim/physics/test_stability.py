@@ -44,7 +44,9 @@ def test_explicit_step_beyond_the_stability_limit_fails_and_is_refused(params, m
         solve(problem, method, dt_s=1.5 * limit)
 
 
-def test_result_that_gained_energy_is_refused_even_when_the_step_looked_stable(params, monkeypatch):
+def test_result_that_gained_energy_is_refused_even_when_the_step_looked_stable(
+    params, monkeypatch
+):
     """With the a-priori check fooled, the a-posteriori check still refuses the diverged result."""
     problem = _problem(params)
     limit = fixed_step.stability_limit_s(problem, "verlet")
@@ -60,7 +62,15 @@ def test_lankarani_nikravesh_error_grows_as_restitution_falls_while_the_default_
     scene = Scene.from_params(params)
     requested = np.linspace(0.3, 0.9, 13)
     n = requested.size
-    batch = ImpactBatch.from_arrays(scene.support, scene.materials, ["coal"] * n, np.full(n, 0.025), np.full(n, 8.0), np.full(n, 1.0), requested)
+    batch = ImpactBatch.from_arrays(
+        scene.support,
+        scene.materials,
+        ["coal"] * n,
+        np.full(n, 0.025),
+        np.full(n, 8.0),
+        np.full(n, 1.0),
+        requested,
+    )
     structure = structure_for(TIERS["rigid"], scene.support, ())
     errors = {}
     for law in ("lankarani_nikravesh", "calibrated"):
@@ -69,12 +79,22 @@ def test_lankarani_nikravesh_error_grows_as_restitution_falls_while_the_default_
     ln = errors["lankarani_nikravesh"]
     assert np.all(np.diff(ln) < 0) and ln[0] > 0.4 and ln[-1] < 0.03
     assert np.max(np.abs(errors["calibrated"])) < 1e-3
-    assert np.all(damping_factor("calibrated", requested) > damping_factor("lankarani_nikravesh", requested))
+    assert np.all(
+        damping_factor("calibrated", requested) > damping_factor("lankarani_nikravesh", requested)
+    )
 
 
 EXTREMES = {
-    "tiny stiff particle, contact of a few microseconds": {"material": "marble", "radius_m": 0.001, "impact_speed_mps": 8.0},
-    "large soft particle, 150 kg of coal": {"material": "coal", "radius_m": 0.3, "impact_speed_mps": 3.0},
+    "tiny stiff particle, contact of a few microseconds": {
+        "material": "marble",
+        "radius_m": 0.001,
+        "impact_speed_mps": 8.0,
+    },
+    "large soft particle, 150 kg of coal": {
+        "material": "coal",
+        "radius_m": 0.3,
+        "impact_speed_mps": 3.0,
+    },
     "at the hinge, where the beam barely moves": {"position_m": 0.02},
     "at the tip": {"position_m": 1.6},
     "a drop of 3 mm": {"drop_height_m": 0.003},
@@ -89,7 +109,9 @@ def test_default_solver_at_the_extremes_agrees_with_radau(params, overrides):
     reference = solve(problem, "Radau", rtol=1e-9)
     assert len(hybrid.contacts) == len(reference.contacts)
     for mine, theirs in zip(hybrid.contacts, reference.contacts):
-        assert mine.separation_speed_mps == pytest.approx(theirs.separation_speed_mps, rel=1e-3, abs=1e-4)
+        assert mine.separation_speed_mps == pytest.approx(
+            theirs.separation_speed_mps, rel=1e-3, abs=1e-4
+        )
         assert mine.peak_force_n == pytest.approx(theirs.peak_force_n, rel=2e-3)
         assert mine.duration_s == pytest.approx(theirs.duration_s, rel=2e-3)
     if overrides.get("radius_m") == 0.001:
@@ -101,7 +123,10 @@ def test_default_solver_at_the_extremes_agrees_with_radau(params, overrides):
 def test_chain_of_re_contacts_until_the_particle_settles(params):
     """Half a millimetre near the tip (the floor for commands, 1 mm, lowered here): the particle bounces seven times and comes to rest on the
     plate; every contact's start and speeds agree with Radau."""
-    tiny = {**params, "support": {**params["support"], "drop_height_min_m": 1e-4}}  # below the commands' 1 mm floor
+    tiny = {
+        **params,
+        "support": {**params["support"], "drop_height_min_m": 1e-4},
+    }  # below the commands' 1 mm floor
     problem = _problem(tiny, drop_height_m=0.0005, position_m=1.5)
     hybrid = solve(problem)
     reference = solve(problem, "Radau", rtol=1e-9)
@@ -109,15 +134,30 @@ def test_chain_of_re_contacts_until_the_particle_settles(params):
     assert hybrid.particle_at_rest and reference.particle_at_rest
     for mine, theirs in zip(hybrid.contacts, reference.contacts):
         assert mine.start_s == pytest.approx(theirs.start_s, abs=2e-6)
-        assert mine.approach_speed_mps == pytest.approx(theirs.approach_speed_mps, rel=2e-3, abs=2e-4)
+        assert mine.approach_speed_mps == pytest.approx(
+            theirs.approach_speed_mps, rel=2e-3, abs=2e-4
+        )
 
 
-SCENES = [{}, {"material": "marble"}, {"drop_height_m": 0.003}, {"radius_m": 0.05, "position_m": 0.5}, {"radius_m": 0.05, "position_m": 1.2, "impact_speed_mps": 8.368}]
-NEEDS = [Needs.of(["rebound"], 0.01), Needs.of(["rebound", "contact"], 0.005), Needs.of(["pressure"], 0.05), Needs.of(["pressure", "rebound"], 0.05)]
+SCENES = [
+    {},
+    {"material": "marble"},
+    {"drop_height_m": 0.003},
+    {"radius_m": 0.05, "position_m": 0.5},
+    {"radius_m": 0.05, "position_m": 1.2, "impact_speed_mps": 8.368},
+]
+NEEDS = [
+    Needs.of(["rebound"], 0.01),
+    Needs.of(["rebound", "contact"], 0.005),
+    Needs.of(["pressure"], 0.05),
+    Needs.of(["pressure", "rebound"], 0.05),
+]
 
 
 @pytest.mark.parametrize("overrides", SCENES, ids=[str(s) for s in SCENES])
-def test_every_tier_agrees_with_the_next_one_up_where_the_scene_says_it_suffices(params, overrides):
+def test_every_tier_agrees_with_the_next_one_up_where_the_scene_says_it_suffices(
+    params, overrides
+):
     """For each scene and each statement of needs, the automatic tier's results differ from the
     next tier up by no more than the tolerance, on every output the scene asked for."""
     scene = Scene.from_params(params, overrides)

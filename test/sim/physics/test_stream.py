@@ -14,8 +14,11 @@ from tail_beam_sim.physics.stream import BlockNoise, StreamSimulator
 COAL = {"material": "coal", "radius_m": 0.025, "drop_height_m": 3.5, "position_m": 1.0}
 MARBLE = {"material": "marble", "radius_m": 0.06, "drop_height_m": 2.0, "position_m": 0.4}
 NO_NOISE = {
-    "pressure_noise_pa": 0.0, "imu_accel_noise_mps2": 0.0, "imu_gyro_noise_radps": 0.0,
-    "camera_velocity_noise_mps": 0.0, "camera_velocity_noise_fraction": 0.0,
+    "pressure_noise_pa": 0.0,
+    "imu_accel_noise_mps2": 0.0,
+    "imu_gyro_noise_radps": 0.0,
+    "camera_velocity_noise_mps": 0.0,
+    "camera_velocity_noise_fraction": 0.0,
 }
 
 
@@ -42,12 +45,18 @@ def test_beam_at_rest_reads_setting_pressure_and_gravity_with_configured_noise()
     n = chunk.pressure.stamp_s.size
     pressure = chunk.pressure.pressure_pa
     # A plate at rest: static setting pressure; the accelerometer reads +g along z (docs/physics.md).
-    assert abs(pressure.mean() - stream.support.setting_pressure_pa) < 4 * spec.pressure_noise_pa / math.sqrt(n)
+    assert abs(
+        pressure.mean() - stream.support.setting_pressure_pa
+    ) < 4 * spec.pressure_noise_pa / math.sqrt(n)
     assert pressure.std() == pytest.approx(spec.pressure_noise_pa, rel=0.05)
     accel = chunk.imu.linear_acceleration_mps2
-    assert accel[:, 2].mean() == pytest.approx(stream.support.gravity_mps2, abs=4 * spec.imu_accel_noise_mps2 / math.sqrt(n))
+    assert accel[:, 2].mean() == pytest.approx(
+        stream.support.gravity_mps2, abs=4 * spec.imu_accel_noise_mps2 / math.sqrt(n)
+    )
     assert accel.std(axis=0) == pytest.approx([spec.imu_accel_noise_mps2] * 3, rel=0.05)
-    assert chunk.imu.angular_velocity_radps.std(axis=0) == pytest.approx([spec.imu_gyro_noise_radps] * 3, rel=0.05)
+    assert chunk.imu.angular_velocity_radps.std(axis=0) == pytest.approx(
+        [spec.imu_gyro_noise_radps] * 3, rel=0.05
+    )
     assert chunk.rebounds == [] and chunk.truths == []
 
 
@@ -61,11 +70,26 @@ def test_output_does_not_depend_on_how_time_is_chunked():
     rng = np.random.default_rng(3)
     ends = np.sort(rng.uniform(0.0, 1.0, 40)).tolist() + [1.0]
     chunks = [pieces.advance(end) for end in ends]
-    np.testing.assert_array_equal(np.concatenate([c.pressure.stamp_s for c in chunks]), one.pressure.stamp_s)
+    np.testing.assert_array_equal(
+        np.concatenate([c.pressure.stamp_s for c in chunks]), one.pressure.stamp_s
+    )
     # The same noise sample for sample; the signal to rounding (vectorised sums over other sizes).
-    np.testing.assert_allclose(np.concatenate([c.pressure.pressure_pa for c in chunks]), one.pressure.pressure_pa, rtol=1e-13)
-    np.testing.assert_allclose(np.concatenate([c.imu.linear_acceleration_mps2 for c in chunks]), one.imu.linear_acceleration_mps2, rtol=0, atol=1e-12)
-    assert [r[0] for c in chunks for r in c.rebounds] == [r[0] for r in one.rebounds] == ["sim-0001", "sim-0002"]
+    np.testing.assert_allclose(
+        np.concatenate([c.pressure.pressure_pa for c in chunks]),
+        one.pressure.pressure_pa,
+        rtol=1e-13,
+    )
+    np.testing.assert_allclose(
+        np.concatenate([c.imu.linear_acceleration_mps2 for c in chunks]),
+        one.imu.linear_acceleration_mps2,
+        rtol=0,
+        atol=1e-12,
+    )
+    assert (
+        [r[0] for c in chunks for r in c.rebounds]
+        == [r[0] for r in one.rebounds]
+        == ["sim-0001", "sim-0002"]
+    )
     assert [t[1]["impact_id"] for c in chunks for t in c.truths] == ["sim-0001", "sim-0002"]
 
 
@@ -81,7 +105,12 @@ def test_an_imu_behind_a_low_pass_is_the_same_however_time_is_chunked():
     ends = np.sort(np.random.default_rng(5).uniform(0.0, 1.0, 40)).tolist() + [1.0]
     chunks = [pieces.advance(end) for end in ends]
     for field in ("linear_acceleration_mps2", "angular_velocity_radps"):
-        np.testing.assert_allclose(np.concatenate([getattr(c.imu, field) for c in chunks]), getattr(one.imu, field), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            np.concatenate([getattr(c.imu, field) for c in chunks]),
+            getattr(one.imu, field),
+            rtol=0,
+            atol=1e-12,
+        )
     accel = one.imu.linear_acceleration_mps2[:, 2]
     rest = accel[one.imu.stamp_s < 0.09]
     assert np.max(np.abs(accel - np.median(rest))) > 20 * np.std(rest)
@@ -96,7 +125,9 @@ def test_block_noise_is_the_same_whole_or_in_pieces():
     assert not np.array_equal(whole, BlockNoise(6, 1, 2, 7).take(3, 30))
 
 
-def oscillator_pressure(stream: StreamSimulator, truths: list[dict], t_s: np.ndarray) -> np.ndarray:
+def oscillator_pressure(
+    stream: StreamSimulator, truths: list[dict], t_s: np.ndarray
+) -> np.ndarray:
     """Jack pressure of the rigid beam struck by short impulses: closed-form impulse response.
 
     An independent model of the carried state: each impact gives the beam the angular
@@ -104,20 +135,32 @@ def oscillator_pressure(stream: StreamSimulator, truths: list[dict], t_s: np.nda
     oscillator (I_C, c_Q d^2, K_Q d^2) simply add.
     """
     s = stream.support
-    inertia, k, c = s.beam_inertia_about_hinge_kgm2, s.rotational_stiffness_nmprad, s.rotational_damping_nmsprad
+    inertia, k, c = (
+        s.beam_inertia_about_hinge_kgm2,
+        s.rotational_stiffness_nmprad,
+        s.rotational_damping_nmsprad,
+    )
     wn = math.sqrt(k / inertia)
     zeta = c / (2 * math.sqrt(k * inertia))
     wd = wn * math.sqrt(1 - zeta**2)
     phi, rate = np.zeros_like(t_s), np.zeros_like(t_s)
     for truth in truths:
-        impulse = truth["mass_kg"] * (truth["impact_speed_mps"] + truth["rebound_speed_mps"]) * truth["position_m"]
+        impulse = (
+            truth["mass_kg"]
+            * (truth["impact_speed_mps"] + truth["rebound_speed_mps"])
+            * truth["position_m"]
+        )
         t0 = 0.5 * (truth["contact_start_stamp"] + truth["contact_end_stamp"])
         tau = np.clip(t_s - t0, 0.0, None)
         decay = impulse / (inertia * wd) * np.exp(-zeta * wn * tau)
         phi += decay * np.sin(wd * tau)
         rate += decay * (wd * np.cos(wd * tau) - zeta * wn * np.sin(wd * tau)) * (t_s > t0)
     lever = s.jack_lever_arm_m
-    return s.setting_pressure_pa + (s.jack_stiffness_npm * lever * phi + s.jack_damping_nspm * lever * rate) / s.piston_area_m2
+    return (
+        s.setting_pressure_pa
+        + (s.jack_stiffness_npm * lever * phi + s.jack_damping_nspm * lever * rate)
+        / s.piston_area_m2
+    )
 
 
 def test_ringing_carries_across_impacts_like_superposed_impulse_responses():
@@ -125,7 +168,9 @@ def test_ringing_carries_across_impacts_like_superposed_impulse_responses():
     """An impact on a still-ringing beam adds to the ringing like superposed impulse responses of the rigid oscillator, within 3 % of the swing, and unlike the second impact alone."""
     stream = make_stream(sensors=NO_NOISE, stream={"min_impact_gap_s": 0.01, "tier": "rigid"})
     first = stream.submit(MARBLE, 0.1)
-    second = stream.submit({**MARBLE, "position_m": 1.2}, 0.1 + 0.3 / 39.0)  # mid-ring, beam moving
+    second = stream.submit(
+        {**MARBLE, "position_m": 1.2}, 0.1 + 0.3 / 39.0
+    )  # mid-ring, beam moving
     chunk = stream.advance(0.4)
     truths = [t for _, t in chunk.truths]
     assert [t["impact_id"] for t in truths] == [first.impact_id, second.impact_id]
@@ -152,7 +197,11 @@ def test_contact_stamps_respect_the_gap_and_the_lead():
     assert second.contact_stamp_s == pytest.approx(first.free_after_s + gap)
     third = stream.submit(COAL, contact_stamp_s=5.0)  # asks for the future: granted
     assert third.contact_stamp_s == 5.0
-    assert [first.impact_id, second.impact_id, third.impact_id] == ["sim-0001", "sim-0002", "sim-0003"]
+    assert [first.impact_id, second.impact_id, third.impact_id] == [
+        "sim-0001",
+        "sim-0002",
+        "sim-0003",
+    ]
 
 
 def test_queue_is_bounded_and_a_refusal_names_the_limit():
@@ -197,7 +246,11 @@ def test_each_rebound_and_truth_comes_once_with_contract_fields():
     assert [r[0] for r in rebounds] == ids and [t[1]["impact_id"] for t in truths] == ids
     for (_, rebound), (stamp, truth) in zip(rebounds, truths):
         # The camera stamps the first frame at or after separation; the truth says when contact was.
-        assert truth["final_separation_stamp"] <= rebound.stamp_s < truth["final_separation_stamp"] + 1 / stream.sensors.camera_frame_rate_hz + 1e-9
+        assert (
+            truth["final_separation_stamp"]
+            <= rebound.stamp_s
+            < truth["final_separation_stamp"] + 1 / stream.sensors.camera_frame_rate_hz + 1e-9
+        )
         assert truth["contact_start_stamp"] < truth["contact_end_stamp"] < stamp
         assert truth["label"] == "coal" and rebound.velocity_mps[2] > 0
 
@@ -208,4 +261,6 @@ def test_the_gap_holds_after_the_previous_impact_is_long_reported():
     first = stream.submit(COAL)
     stream.advance(first.truth_stamp_s + 0.01)  # rebound and truth are out; the beam still rings
     second = stream.submit(COAL)
-    assert second.contact_stamp_s == pytest.approx(first.free_after_s + stream.params.min_impact_gap_s)
+    assert second.contact_stamp_s == pytest.approx(
+        first.free_after_s + stream.params.min_impact_gap_s
+    )

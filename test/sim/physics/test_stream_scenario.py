@@ -20,7 +20,9 @@ def scenario(node_params, **changes):
     params = deep_merge({}, node_params)
     deep_merge(params, {"scenario": changes})
     materials = material_table(params)
-    return load_scenario(params["scenario"], materials, Support.from_params(params["support"], materials))
+    return load_scenario(
+        params["scenario"], materials, Support.from_params(params["support"], materials)
+    )
 
 
 def test_generated_stream_has_the_exact_gangue_share_and_stays_in_its_ranges(node_params):
@@ -32,7 +34,11 @@ def test_generated_stream_has_the_exact_gangue_share_and_stays_in_its_ranges(nod
     for p in planned:
         c = p.command
         material = materials[c["material"]]
-        assert 0.025 <= c["radius_m"] <= 0.10 and 1.5 <= c["drop_height_m"] <= 4.0 and 0.2 <= c["position_m"] <= 1.4
+        assert (
+            0.025 <= c["radius_m"] <= 0.10
+            and 1.5 <= c["drop_height_m"] <= 4.0
+            and 0.2 <= c["position_m"] <= 1.4
+        )
         assert material.restitution_range[0] <= c["restitution"] <= material.restitution_range[1]
     gaps = [b.contact_stamp_s - a.contact_stamp_s for a, b in zip(planned, planned[1:])]
     assert planned[0].contact_stamp_s == 0.5 and all(0.4 <= g <= 0.7 for g in gaps)
@@ -68,7 +74,10 @@ def test_scenario_file_keeps_order_and_requested_stamps(tmp_path, node_params):
         ({"source": "generated", "count": -1}, "scenario.count"),
         ({"source": "generated", "gangue_fraction": 1.5}, "scenario.gangue_fraction"),
         ({"source": "generated", "radius_m": [0.1, 0.05]}, "scenario.radius_m[1]"),
-        ({"source": "generated", "position_m": [1.5, 3.0]}, "scenario[0].position_m"),  # every one off the plate
+        (
+            {"source": "generated", "position_m": [1.5, 3.0]},
+            "scenario[0].position_m",
+        ),  # every one off the plate
     ],
 )
 def test_bad_scenario_fails_at_start_up_naming_the_field(node_params, changes, field):
@@ -81,7 +90,9 @@ def test_bad_scenario_fails_at_start_up_naming_the_field(node_params, changes, f
 def test_bad_item_in_a_scenario_file_is_named_by_index(tmp_path, node_params):
     """A bad impact in a scenario file is named by its index and field."""
     path = tmp_path / "impacts.yaml"
-    path.write_text("impacts:\n- {material: coal, radius_m: 0.03, drop_height_m: 2.0, position_m: 0.5}\n- {material: chalk}\n")
+    path.write_text(
+        "impacts:\n- {material: coal, radius_m: 0.03, drop_height_m: 2.0, position_m: 0.5}\n- {material: chalk}\n"
+    )
     with pytest.raises(InputError) as info:
         scenario(node_params, source="file", file=str(path))
     assert info.value.field == "scenario[1].material"
@@ -89,6 +100,8 @@ def test_bad_item_in_a_scenario_file_is_named_by_index(tmp_path, node_params):
 
 def test_generator_needs_both_classes_when_mixing(node_params):
     """Asking for a gangue share with no gangue material in the table is refused, naming gangue."""
-    materials = {k: v for k, v in material_table(node_params).items() if v.material_class != "gangue"}
+    materials = {
+        k: v for k, v in material_table(node_params).items() if v.material_class != "gangue"
+    }
     with pytest.raises(InputError, match="gangue"):
         generate_caving_stream({**node_params["scenario"], "gangue_fraction": 0.5}, materials)

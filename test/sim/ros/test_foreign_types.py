@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import pytest
 import rclpy
-from std_msgs.msg import String
-from sensor_msgs.msg import Imu
-
 from rosprobe import ros_context, spin_until
+from sensor_msgs.msg import Imu
+from std_msgs.msg import String
 
 pytestmark = [pytest.mark.ros]
 
@@ -34,17 +33,24 @@ def test_a_publisher_of_the_wrong_type_on_a_contract_topic_is_named(tmp_path, ca
         with ros_context() as (context, executor):
             sim = SimNode(context=context, namespace="/typed")
             ident = IdNode(context=context, namespace="/typed")
-            recorder = RecorderNode(context=context, namespace="/typed",
-                                    parameter_overrides=[Parameter("recorder.bag_path", value=str(tmp_path / "bag"))])
+            recorder = RecorderNode(
+                context=context,
+                namespace="/typed",
+                parameter_overrides=[Parameter("recorder.bag_path", value=str(tmp_path / "bag"))],
+            )
             for node in (sim, ident, recorder):
                 executor.add_node(node)
             said: list[str] = []
 
             def warned() -> bool:
-                said.extend(line for line in capfd.readouterr().err.splitlines() if "offers" in line)
-                return (sum("tail_beam_id" in s and "/typed/imu" in s for s in said) == 1
-                        and sum("tail_beam_recorder" in s for s in said) == 2
-                        and sum("tail_beam_sim" in s and "/typed/impact_cmd" in s for s in said) == 1)
+                said.extend(
+                    line for line in capfd.readouterr().err.splitlines() if "offers" in line
+                )
+                return (
+                    sum("tail_beam_id" in s and "/typed/imu" in s for s in said) == 1
+                    and sum("tail_beam_recorder" in s for s in said) == 2
+                    and sum("tail_beam_sim" in s and "/typed/impact_cmd" in s for s in said) == 1
+                )
 
             assert spin_until(executor, warned, timeout_s=20), said
             spin_until(executor, lambda: False, timeout_s=1.5)  # once, not on every look
@@ -54,4 +60,6 @@ def test_a_publisher_of_the_wrong_type_on_a_contract_topic_is_named(tmp_path, ca
         rclpy.try_shutdown(context=foreign)
     assert len(said) == 4, said
     line = next(s for s in said if "tail_beam_id" in s)
-    assert "std_msgs/msg/String" in line and "sensor_msgs/msg/Imu" in line and "wrong_types" in line, line
+    assert (
+        "std_msgs/msg/String" in line and "sensor_msgs/msg/Imu" in line and "wrong_types" in line
+    ), line

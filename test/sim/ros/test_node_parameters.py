@@ -10,8 +10,8 @@ import sys
 
 import pytest
 from rclpy.parameter import Parameter
-
 from rosprobe import ros_context
+
 from tail_beam_sim.errors import InputError
 
 pytestmark = [pytest.mark.ros]
@@ -27,7 +27,12 @@ MAINS = {
 def run_main(executable: str, *ros_args: str) -> subprocess.CompletedProcess:
     """The executable's main (of this checkout, not the installed scripts) with ``--ros-args``."""
     code = f"import sys; from {MAINS[executable]} import main; sys.exit(main())"
-    return subprocess.run([sys.executable, "-c", code, "--ros-args", *ros_args], capture_output=True, text=True, timeout=60)
+    return subprocess.run(
+        [sys.executable, "-c", code, "--ros-args", *ros_args],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
 
 
 @pytest.mark.slow
@@ -45,7 +50,9 @@ def test_a_params_file_that_is_no_yaml_or_missing_is_one_line_and_exit_2(tmp_pat
         result = run_main(executable, *args)
         assert result.returncode == 2, (args, result.stderr)
         assert "Traceback" not in result.stderr, result.stderr
-        lines = [line for line in result.stderr.splitlines() if line.startswith(f"{executable}: error:")]
+        lines = [
+            line for line in result.stderr.splitlines() if line.startswith(f"{executable}: error:")
+        ]
         assert len(lines) == 1 and needle in lines[0], result.stderr
 
 
@@ -61,8 +68,13 @@ def test_a_storage_of_the_wrong_type_is_named(tmp_path):
 
     with ros_context() as (context, _):
         for value in ([1, 2], 3):
-            overrides = [Parameter("recorder.bag_path", value=str(tmp_path / "bag")), Parameter("recorder.storage", value=value)]
-            with pytest.raises(InputError, match=r"recorder\.storage = .*must be (text|one of mcap, sqlite3)"):
+            overrides = [
+                Parameter("recorder.bag_path", value=str(tmp_path / "bag")),
+                Parameter("recorder.storage", value=value),
+            ]
+            with pytest.raises(
+                InputError, match=r"recorder\.storage = .*must be (text|one of mcap, sqlite3)"
+            ):
                 RecorderNode(context=context, parameter_overrides=overrides)
 
 
@@ -73,27 +85,40 @@ def test_a_parameter_no_node_has_is_warned_not_ignored(capfd):
     information line instead, and the node starts either way."""
     from tail_beam_id.ros.id_node import IdNode
 
-    overrides = [Parameter("id_node.pol_period_s", value=0.05), Parameter("sensors.imu_rate", value=5),
-                 Parameter("sim_node.realtime_factor", value=0.0), Parameter("id_node.poll_period_s", value=0.05)]
+    overrides = [
+        Parameter("id_node.pol_period_s", value=0.05),
+        Parameter("sensors.imu_rate", value=5),
+        Parameter("sim_node.realtime_factor", value=0.0),
+        Parameter("id_node.poll_period_s", value=0.05),
+    ]
     with ros_context() as (context, _):
         IdNode(context=context, parameter_overrides=overrides).destroy_node()
     err = capfd.readouterr().err
     warned = [line for line in err.splitlines() if "WARN" in line and "not a parameter of" in line]
     assert len(warned) == 1, err
-    assert "id_node.pol_period_s" in warned[0] and "sensors.imu_rate" in warned[0] and "realtime_factor" not in warned[0], warned
+    assert (
+        "id_node.pol_period_s" in warned[0]
+        and "sensors.imu_rate" in warned[0]
+        and "realtime_factor" not in warned[0]
+    ), warned
     assert "id_node.poll_period_s" not in warned[0]
-    assert any("INFO" in line and "sim_node.realtime_factor" in line for line in err.splitlines()), err
+    assert any(
+        "INFO" in line and "sim_node.realtime_factor" in line for line in err.splitlines()
+    ), err
 
 
-@pytest.mark.parametrize("name, value, allowed", [
-    ("support.plate_material", [1, 2], "must be text"),
-    ("stream.tier", [1, 2], "must be text"),
-    ("sensors.vibration_block_samples", float("nan"), "must be a finite number"),
-    ("sensors.vibration_oversample", float("nan"), "must be a finite number"),
-    ("modes.stations_m", "abc", "must be a list of finite numbers"),
-    ("modes.bending_1.shape", "abc", "must be a list of finite numbers"),
-    ("sim_node.publish_clock", "yes", "must be true or false"),
-])
+@pytest.mark.parametrize(
+    "name, value, allowed",
+    [
+        ("support.plate_material", [1, 2], "must be text"),
+        ("stream.tier", [1, 2], "must be text"),
+        ("sensors.vibration_block_samples", float("nan"), "must be a finite number"),
+        ("sensors.vibration_oversample", float("nan"), "must be a finite number"),
+        ("modes.stations_m", "abc", "must be a list of finite numbers"),
+        ("modes.bending_1.shape", "abc", "must be a list of finite numbers"),
+        ("sim_node.publish_clock", "yes", "must be true or false"),
+    ],
+)
 def test_a_parameter_of_the_wrong_type_is_named_at_start_up(name, value, allowed):
     """Values of the wrong type for parameters the node hands its models unchecked: a list where
     a name goes (TypeError: unhashable type), NaN where a count goes (ValueError: cannot convert
@@ -113,7 +138,13 @@ def test_a_value_the_models_cannot_take_ends_start_up_with_one_line():
     model's matrices overflow (LinAlgError out of sim_node's start-up, a traceback). Whatever a
     model raises from the parameters given, the executable now ends with one line and exit 2,
     naming the parameters set on its command line."""
-    result = run_main("sim_node", "-p", "modes.bending_1.frequency_hz:=1e308", "-p", "sim_node.realtime_factor:=0")
+    result = run_main(
+        "sim_node",
+        "-p",
+        "modes.bending_1.frequency_hz:=1e308",
+        "-p",
+        "sim_node.realtime_factor:=0",
+    )
     assert result.returncode == 2, result.stderr
     assert "Traceback" not in result.stderr, result.stderr
     lines = [line for line in result.stderr.splitlines() if line.startswith("sim_node: error:")]
@@ -125,12 +156,18 @@ def test_a_start_offset_past_any_bag_is_named(tmp_path):
     turning into nanoseconds (OverflowError out of bag_replay's start-up); now refused naming
     replay.start_offset_s and its range (a bag's log time is int64 ns: under 9.2e9 s)."""
     from bag_helpers import records, write_segments
+
     from tail_beam_sim.ros.replay_node import ReplayNode
 
     write_segments(tmp_path / "bag", [records(20)])
     with ros_context() as (context, _):
-        overrides = [Parameter("replay.bag_path", value=str(tmp_path / "bag")), Parameter("replay.start_offset_s", value=1e308)]
-        with pytest.raises(InputError, match=r"replay\.start_offset_s = 1e\+308: must be in \[0, 1e\+09\] s"):
+        overrides = [
+            Parameter("replay.bag_path", value=str(tmp_path / "bag")),
+            Parameter("replay.start_offset_s", value=1e308),
+        ]
+        with pytest.raises(
+            InputError, match=r"replay\.start_offset_s = 1e\+308: must be in \[0, 1e\+09\] s"
+        ):
             ReplayNode(context=context, parameter_overrides=overrides)
 
 
@@ -142,13 +179,18 @@ def test_a_looping_replay_whose_bag_went_away_stops_with_one_line(tmp_path):
 
     from bag_helpers import records, write_segments
     from rosprobe import spin_until
+
     from tail_beam_sim.ros.replay_node import ReplayNode
 
     bag = tmp_path / "bag"
     write_segments(bag, [records(20)])
     with ros_context() as (context, executor):
-        overrides = [Parameter("replay.bag_path", value=str(bag)), Parameter("replay.loop", value=True),
-                     Parameter("replay.rate", value=100.0), Parameter("replay.wait_for_subscribers", value=0)]
+        overrides = [
+            Parameter("replay.bag_path", value=str(bag)),
+            Parameter("replay.loop", value=True),
+            Parameter("replay.rate", value=100.0),
+            Parameter("replay.wait_for_subscribers", value=0),
+        ]
         node = ReplayNode(context=context, parameter_overrides=overrides)
         executor.add_node(node)
         assert spin_until(executor, lambda: node.loops >= 1, timeout_s=20)
@@ -166,10 +208,13 @@ def test_id_node_takes_a_support_profiles_calibration_section():
     from tail_beam_id.ros.id_node import IdNode
 
     weights = [0.0, 0.9, 0.1, 0.0, 0.0, 0.0]  # one per hysteresis bin of the shipped model
-    overrides = [Parameter("calibration.rigid_mode_frequency_hz", value=38.1), Parameter("calibration.impacts_used", value=16),
-                 Parameter("calibration.ringing_modes_hz", value=[399.6, 1268.4]),
-                 Parameter("calibration.hysteresis_weights", value=weights),
-                 Parameter("support.oil_bulk_modulus_pa", value=2.01e9)]
+    overrides = [
+        Parameter("calibration.rigid_mode_frequency_hz", value=38.1),
+        Parameter("calibration.impacts_used", value=16),
+        Parameter("calibration.ringing_modes_hz", value=[399.6, 1268.4]),
+        Parameter("calibration.hysteresis_weights", value=weights),
+        Parameter("support.oil_bulk_modulus_pa", value=2.01e9),
+    ]
     with ros_context() as (context, _):
         node = IdNode(context=context, parameter_overrides=overrides)
         try:
@@ -194,16 +239,27 @@ def test_numbers_config_reads_as_text_take_numbers_and_the_shipped_files_load():
     from tail_beam_sim.config import default_config_dir
     from tail_beam_sim.ros.sim_node import SimNode
 
-    overrides = [Parameter("support.oil_bulk_modulus_pa", value=2.01e9), Parameter("support.setting_pressure_pa", value=2.1e7)]
+    overrides = [
+        Parameter("support.oil_bulk_modulus_pa", value=2.01e9),
+        Parameter("support.setting_pressure_pa", value=2.1e7),
+    ]
     with ros_context() as (context, _):
         IdNode(context=context, parameter_overrides=overrides).destroy_node()
         with pytest.raises(InputError, match="support.oil_bulk_modulus_pa"):
-            IdNode(context=context, parameter_overrides=[Parameter("support.oil_bulk_modulus_pa", value="stiff")])
+            IdNode(
+                context=context,
+                parameter_overrides=[Parameter("support.oil_bulk_modulus_pa", value="stiff")],
+            )
     import rclpy
 
-    files = sorted(f for f in default_config_dir().glob("*.yaml") if f.name != "impacts.yaml")  # impacts: a scene list, not parameters
+    files = sorted(
+        f for f in default_config_dir().glob("*.yaml") if f.name != "impacts.yaml"
+    )  # impacts: a scene list, not parameters
     context = rclpy.Context()
-    rclpy.init(args=["--ros-args", *(a for f in files for a in ("--params-file", str(f)))], context=context)
+    rclpy.init(
+        args=["--ros-args", *(a for f in files for a in ("--params-file", str(f)))],
+        context=context,
+    )
     try:
         SimNode(context=context).destroy_node()
         IdNode(context=context).destroy_node()

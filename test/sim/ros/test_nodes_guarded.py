@@ -10,15 +10,15 @@ import time
 from pathlib import Path
 
 import pytest
+from bag_helpers import records, write_segments
+from geometry_msgs.msg import TwistStamped
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from geometry_msgs.msg import TwistStamped
+from rosprobe import RELIABLE, Probe, call_until_answered, ros_context, spin_for, spin_until
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
-
-from rosprobe import RELIABLE, Probe, call_until_answered, ros_context, spin_for, spin_until
-from bag_helpers import records, write_segments
 from test_nodes_processes import BIN, Processes
+
 from tail_beam_sim import topics
 from tail_beam_sim.bags import records as bagio
 from tail_beam_sim.bags.read import raw_messages, read_sensors
@@ -34,14 +34,24 @@ def procs(tmp_path):
 
 
 def string_record(topic: str, ns: int, payload: dict) -> tuple[str, int, bytes]:
-    return topic, ns, bytes(bagio.TYPESTORE.serialize_cdr(bagio.string_msg(payload), topics.MSG_TYPES[topic]))
+    return (
+        topic,
+        ns,
+        bytes(bagio.TYPESTORE.serialize_cdr(bagio.string_msg(payload), topics.MSG_TYPES[topic])),
+    )
 
 
 def set_parameter(executor, node, target: str, name: str, value) -> tuple[bool, str]:
     """Set one parameter of the node ``target`` as any participant can; (successful, reason)."""
     client = AsyncParameterClient(node, target)
-    assert spin_until(executor, lambda: client.services_are_ready(), timeout_s=30), f"{target}'s parameter services never came"
-    answer = call_until_answered(executor, lambda: client.set_parameters([Parameter(name, value=value)]), f"{target}'s set_parameters")
+    assert spin_until(executor, lambda: client.services_are_ready(), timeout_s=30), (
+        f"{target}'s parameter services never came"
+    )
+    answer = call_until_answered(
+        executor,
+        lambda: client.set_parameters([Parameter(name, value=value)]),
+        f"{target}'s set_parameters",
+    )
     result = answer.results[0]
     return result.successful, result.reason
 
@@ -54,15 +64,20 @@ def test_running_nodes_refuse_parameter_changes_and_keep_their_clock(tmp_path, p
     ns = "/guarded"  # its own namespace: these processes are killed at the end, and linger in discovery a while
     recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}", ns=ns)
     procs.start("id_node", ns=ns)
-    procs.start("bag_replay", f"replay.bag_path:={replayed}", "replay.wait_for_subscribers:=50", ns=ns)  # waits: stays up
+    procs.start(
+        "bag_replay", f"replay.bag_path:={replayed}", "replay.wait_for_subscribers:=50", ns=ns
+    )  # waits: stays up
     with ros_context() as (context, executor):
         probe = Probe(context, {}, namespace=ns, name="intruder")
         executor.add_node(probe)
         truth_pub = probe.create_publisher(String, topics.IMPACT_TRUTH, RELIABLE)
         for target, name, value in [
-            ("tail_beam_recorder", "use_sim_time", True), ("tail_beam_recorder", "recorder.segment_s", 0.01),
-            ("tail_beam_id", "use_sim_time", True), ("tail_beam_id", "identification.method", "threshold"),
-            ("tail_beam_replay", "use_sim_time", True), ("tail_beam_replay", "replay.rate", 100.0),
+            ("tail_beam_recorder", "use_sim_time", True),
+            ("tail_beam_recorder", "recorder.segment_s", 0.01),
+            ("tail_beam_id", "use_sim_time", True),
+            ("tail_beam_id", "identification.method", "threshold"),
+            ("tail_beam_replay", "use_sim_time", True),
+            ("tail_beam_replay", "replay.rate", 100.0),
         ]:
             ok, reason = set_parameter(executor, probe, target, name, value)
             assert not ok and name in reason and "start-up" in reason, (target, name, reason)
@@ -75,7 +90,9 @@ def test_running_nodes_refuse_parameter_changes_and_keep_their_clock(tmp_path, p
     assert procs.stop(recorder) == 0
     logged = list(raw_messages(bag, [topics.IMPACT_TRUTH]))
     assert len(logged) == 1
-    assert abs(logged[0].log_time_ns - sent_ns) < 5e9, "the recorder's log time is not wall time any more"
+    assert abs(logged[0].log_time_ns - sent_ns) < 5e9, (
+        "the recorder's log time is not wall time any more"
+    )
     assert "parameter change refused: use_sim_time" in procs.log(recorder)
 
 
@@ -83,41 +100,105 @@ def test_bag_replay_publishes_the_sensors_only_unless_asked(tmp_path, procs):
     """Default replay.topics: sensor data goes out, the recorded label and truth do not; listed, they do."""
     bag = tmp_path / "bag"
     data = records(40)
-    data.append(string_record(topics.LABEL, data[10][1], {"impact_stamp": 0.01, "label": "coal", "confidence": 0.9, "method": "statistical"}))
+    data.append(
+        string_record(
+            topics.LABEL,
+            data[10][1],
+            {"impact_stamp": 0.01, "label": "coal", "confidence": 0.9, "method": "statistical"},
+        )
+    )
     data.append(string_record(topics.IMPACT_TRUTH, data[12][1], {"impact_id": "t1"}))
     data.sort(key=lambda r: r[1])
     write_segments(bag, [data])
     heard = {}
-    for name, extra in (("default", []), ("asked", ["replay.topics:=[jack_pressure, imu, label, impact_truth]"])):
+    for name, extra in (
+        ("default", []),
+        ("asked", ["replay.topics:=[jack_pressure, imu, label, impact_truth]"]),
+    ):
         # A namespace of its own, so that the replay waits for this probe and not for an endpoint
         # another test's killed process left in discovery.
         ns = f"/replay_{name}"
         with ros_context() as (context, executor):
-            probe = Probe(context, {topics.IMU: Imu, topics.JACK_PRESSURE: FluidPressure, topics.VIBRATION: LaserScan, topics.REBOUND_VELOCITY: TwistStamped,
-                                    topics.LABEL: String, topics.IMPACT_TRUTH: String}, namespace=ns)  # replay waits for its sensor subscribers
+            probe = Probe(
+                context,
+                {
+                    topics.IMU: Imu,
+                    topics.JACK_PRESSURE: FluidPressure,
+                    topics.VIBRATION: LaserScan,
+                    topics.REBOUND_VELOCITY: TwistStamped,
+                    topics.LABEL: String,
+                    topics.IMPACT_TRUTH: String,
+                },
+                namespace=ns,
+            )  # replay waits for its sensor subscribers
             executor.add_node(probe)
-            replay = procs.start("bag_replay", f"replay.bag_path:={bag}", "replay.wait_for_subscribers:=1", "replay.subscriber_settle_s:=1.0", *extra, ns=ns)
-            assert spin_until(executor, lambda: replay.poll() is not None, timeout_s=60) and replay.returncode == 0, procs.log(replay)
+            replay = procs.start(
+                "bag_replay",
+                f"replay.bag_path:={bag}",
+                "replay.wait_for_subscribers:=1",
+                "replay.subscriber_settle_s:=1.0",
+                *extra,
+                ns=ns,
+            )
+            assert (
+                spin_until(executor, lambda: replay.poll() is not None, timeout_s=60)
+                and replay.returncode == 0
+            ), procs.log(replay)
             spin_until(executor, lambda: len(probe.messages[topics.IMU]) >= 40, timeout_s=15)
             spin_for(executor, 0.5)
-            heard[name] = {t: len(probe.messages[t]) for t in (topics.IMU, topics.JACK_PRESSURE, topics.LABEL, topics.IMPACT_TRUTH)}
-    assert heard["default"] == {topics.IMU: 40, topics.JACK_PRESSURE: 40, topics.LABEL: 0, topics.IMPACT_TRUTH: 0}
-    assert heard["asked"] == {topics.IMU: 40, topics.JACK_PRESSURE: 40, topics.LABEL: 1, topics.IMPACT_TRUTH: 1}
+            heard[name] = {
+                t: len(probe.messages[t])
+                for t in (topics.IMU, topics.JACK_PRESSURE, topics.LABEL, topics.IMPACT_TRUTH)
+            }
+    assert heard["default"] == {
+        topics.IMU: 40,
+        topics.JACK_PRESSURE: 40,
+        topics.LABEL: 0,
+        topics.IMPACT_TRUTH: 0,
+    }
+    assert heard["asked"] == {
+        topics.IMU: 40,
+        topics.JACK_PRESSURE: 40,
+        topics.LABEL: 1,
+        topics.IMPACT_TRUTH: 1,
+    }
 
 
 def test_demo_skips_foreign_messages_on_its_topics(tmp_path):
     """Non-JSON and wrong-shaped messages on label and impact_truth during `tail-beam demo`: skipped, counted, one warning per topic; the demo scores its own impacts (was: JSONDecodeError)."""
     namespace = "/demo_hostile"
     demo = subprocess.Popen(
-        [str(BIN / "tail-beam"), "demo", "--count", "3", "--realtime-factor", "0", "--namespace", namespace, "--bag", str(tmp_path / "bag")],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        [
+            str(BIN / "tail-beam"),
+            "demo",
+            "--count",
+            "3",
+            "--realtime-factor",
+            "0",
+            "--namespace",
+            namespace,
+            "--bag",
+            str(tmp_path / "bag"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
-    junk = ["not json", "[1, 2]", '{"label": "rock"}', '{"impact_stamp": "soon", "label": "coal", "confidence": 1, "method": "x"}', "{" * 5000]
+    junk = [
+        "not json",
+        "[1, 2]",
+        '{"label": "rock"}',
+        '{"impact_stamp": "soon", "label": "coal", "confidence": 1, "method": "x"}',
+        "{" * 5000,
+    ]
     sent = 0
     with ros_context() as (context, executor):
         probe = Probe(context, {}, namespace=namespace, name="intruder")
         executor.add_node(probe)
-        pubs = [probe.create_publisher(String, t, RELIABLE) for t in (topics.LABEL, topics.IMPACT_TRUTH)]
+        pubs = [
+            probe.create_publisher(String, t, RELIABLE)
+            for t in (topics.LABEL, topics.IMPACT_TRUTH)
+        ]
         while demo.poll() is None:
             if all(p.get_subscription_count() >= 1 for p in pubs):
                 for pub in pubs:
@@ -127,8 +208,15 @@ def test_demo_skips_foreign_messages_on_its_topics(tmp_path):
     out, err = demo.communicate(timeout=60)
     assert demo.returncode == 0, err[-3000:]
     assert "Traceback" not in err and sent > 0
-    assert out.count("warning: skipping messages on label") == 1 and out.count("warning: skipping messages on impact_truth") == 1
-    counts = {line.split()[4]: int(line.split()[1]) for line in out.splitlines() if line.startswith("skipped ")}
+    assert (
+        out.count("warning: skipping messages on label") == 1
+        and out.count("warning: skipping messages on impact_truth") == 1
+    )
+    counts = {
+        line.split()[4]: int(line.split()[1])
+        for line in out.splitlines()
+        if line.startswith("skipped ")
+    }
     assert set(counts) == {topics.LABEL, topics.IMPACT_TRUTH}, out
     assert counts and all(1 <= n <= sent for n in counts.values()), out
     assert "accuracy: " in out and "/3 = " in out

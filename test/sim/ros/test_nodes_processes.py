@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rosprobe import Probe, ros_context, spin_for, spin_until
 from std_msgs.msg import String
 
-from rosprobe import Probe, ros_context, spin_for, spin_until
 from tail_beam_id.cli.identify_cmd import identify_bag
-from tail_beam_id.stream.label import Label, match, match_tolerance_s
 from tail_beam_id.methods import available_methods
+from tail_beam_id.stream.label import Label, match, match_tolerance_s
 from tail_beam_sim import topics
 from tail_beam_sim.bags.read import raw_messages, read_sensors
 from tail_beam_sim.bags.write import PARTIAL_DIR
@@ -55,7 +55,9 @@ class Processes:
     def log(self, proc: subprocess.Popen) -> str:
         return self.logs[proc.pid].read_text()
 
-    def stop(self, proc: subprocess.Popen, sig: int = signal.SIGINT, timeout_s: float = 20.0) -> int:
+    def stop(
+        self, proc: subprocess.Popen, sig: int = signal.SIGINT, timeout_s: float = 20.0
+    ) -> int:
         proc.send_signal(sig)
         return proc.wait(timeout=timeout_s)
 
@@ -74,7 +76,12 @@ def procs(tmp_path):
 
 
 def short_scenario(count: int, *extra: str) -> list[str]:
-    return ["scenario.source:=generated", f"scenario.count:={count}", "sim_node.exit_after_idle_s:=0.5", *extra]
+    return [
+        "scenario.source:=generated",
+        f"scenario.count:={count}",
+        "sim_node.exit_after_idle_s:=0.5",
+        *extra,
+    ]
 
 
 def assert_same_labels(got: list[Label], expected: list[Label]) -> None:
@@ -93,10 +100,19 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
         recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}")
         ident = procs.start("id_node", f"method:={method()}", "id_node.flush_after_idle_s:=0.5")
         label_topic = watcher.resolve_topic_name(topics.LABEL)
-        assert spin_until(executor, lambda: watcher.count_publishers(label_topic) >= 1 and watcher.count_subscribers(label_topic) >= 2)
+        assert spin_until(
+            executor,
+            lambda: (
+                watcher.count_publishers(label_topic) >= 1
+                and watcher.count_subscribers(label_topic) >= 2
+            ),
+        )
         spin_for(executor, 1.0)  # the label topic, id_node -> recorder, is up
         sim = procs.start("sim_node", *short_scenario(4, "sim_node.wait_for_subscribers:=2"))
-        assert spin_until(executor, lambda: sim.poll() is not None, timeout_s=60) and sim.returncode == 0
+        assert (
+            spin_until(executor, lambda: sim.poll() is not None, timeout_s=60)
+            and sim.returncode == 0
+        )
         # id_node may still work through its backlog on a busy machine: wait until its labels stop.
         spin_until(executor, lambda: len(watcher.messages[topics.LABEL]) >= 4, timeout_s=30)
         settled = -1
@@ -107,7 +123,9 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
     assert procs.stop(recorder) == 0  # SIGINT: the bag is closed
     assert not (bag / PARTIAL_DIR).exists()
     recorded = read_sensors(bag)
-    offline = identify_bag(str(bag), method(), calibrate=False)  # id_node does not calibrate by default
+    offline = identify_bag(
+        str(bag), method(), calibrate=False
+    )  # id_node does not calibrate by default
     live = [Label.from_dict(obj) for obj in recorded.json_topics[topics.LABEL]]
     assert len(recorded.json_topics[topics.IMPACT_TRUTH]) == 4
     assert len(offline) >= 1
@@ -123,17 +141,31 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
         executor.add_node(probe)
         ident2 = procs.start("id_node", f"method:={method()}", "id_node.flush_after_idle_s:=0.5")
         # Start the replay once the probe has discovered the new id_node's label publisher.
-        assert spin_until(executor, lambda: probe.count_publishers(probe.resolve_topic_name(topics.LABEL)) >= 1, timeout_s=30)
+        assert spin_until(
+            executor,
+            lambda: probe.count_publishers(probe.resolve_topic_name(topics.LABEL)) >= 1,
+            timeout_s=30,
+        )
         spin_for(executor, 0.5)
         replay = procs.start(
-            "bag_replay", f"replay.bag_path:={bag}", "replay.rate:=1.0", "replay.wait_for_subscribers:=1",
+            "bag_replay",
+            f"replay.bag_path:={bag}",
+            "replay.rate:=1.0",
+            "replay.wait_for_subscribers:=1",
             "replay.topics:=[jack_pressure, imu, vibration, rebound_velocity]",
         )
-        assert spin_until(executor, lambda: replay.poll() is not None, timeout_s=60) and replay.returncode == 0
-        spin_until(executor, lambda: len(probe.messages[topics.LABEL]) >= len(offline), timeout_s=30)
+        assert (
+            spin_until(executor, lambda: replay.poll() is not None, timeout_s=60)
+            and replay.returncode == 0
+        )
+        spin_until(
+            executor, lambda: len(probe.messages[topics.LABEL]) >= len(offline), timeout_s=30
+        )
         replayed = probe.labels(topics.LABEL)
         procs.stop(ident2)
-    assert len(replayed) == len(offline), f"id_node on the replay said: {procs.log(ident2)[-2000:]}"
+    assert len(replayed) == len(offline), (
+        f"id_node on the replay said: {procs.log(ident2)[-2000:]}"
+    )
     assert_same_labels(replayed, offline)
 
 
@@ -155,8 +187,15 @@ def test_recorder_killed_with_sigkill_leaves_all_but_the_last_seconds_readable(t
     data = read_sensors(bag, required=(topics.JACK_PRESSURE, topics.IMU))
     rate = load_parameters()["sensors"]["pressure_rate_hz"]
     assert data.pressure_stamp_s.size > 1.0 * rate  # seconds of data, not a stub
-    np.testing.assert_allclose(np.diff(data.pressure_stamp_s), 1.0 / rate, atol=1e-9)  # no hole in what is there
-    result = subprocess.run([str(BIN / "tail-beam"), "bag", "repair", str(bag)], capture_output=True, text=True, timeout=60)
+    np.testing.assert_allclose(
+        np.diff(data.pressure_stamp_s), 1.0 / rate, atol=1e-9
+    )  # no hole in what is there
+    result = subprocess.run(
+        [str(BIN / "tail-beam"), "bag", "repair", str(bag)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode == 0, result.stderr
     repaired = read_sensors(bag, required=(topics.JACK_PRESSURE,))
     assert repaired.pressure_stamp_s.size >= data.pressure_stamp_s.size and not repaired.partial
@@ -165,12 +204,16 @@ def test_recorder_killed_with_sigkill_leaves_all_but_the_last_seconds_readable(t
 def test_sigterm_closes_a_valid_sqlite3_bag(tmp_path, procs):
     """SIGTERM closes the recorder's sqlite3 bag with its metadata, holding both impacts' truths and rebounds."""
     bag = tmp_path / "terminated"
-    recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}", "recorder.storage:=sqlite3")
+    recorder = procs.start(
+        "bag_recorder", f"recorder.bag_path:={bag}", "recorder.storage:=sqlite3"
+    )
     sim = procs.start("sim_node", *short_scenario(2, "sim_node.wait_for_subscribers:=1"))
     assert sim.wait(timeout=60) == 0
     time.sleep(0.5)
     assert procs.stop(recorder, signal.SIGTERM) == 0
-    assert sorted(p.suffix for p in bag.iterdir() if p.is_file()) == [".db3"] * (len(list(bag.glob("*.db3")))) + [".yaml"]
+    assert sorted(p.suffix for p in bag.iterdir() if p.is_file()) == [".db3"] * (
+        len(list(bag.glob("*.db3")))
+    ) + [".yaml"]
     data = read_sensors(bag)
     assert len(data.json_topics[topics.IMPACT_TRUTH]) == 2 and len(data.rebounds) == 2
 
@@ -180,16 +223,34 @@ def test_two_supports_in_one_domain_do_not_mix(procs):
     # on a loaded machine the probe may take a second or two to be discovered.
     """Two supports under their own namespaces in one domain each get only their own truths and labels."""
     supports = {"/support_01": ("2.5", 2), "/support_02": ("2.8", 3)}
-    watched = {f"{ns}/{topic}": String for ns in supports for topic in (topics.IMPACT_TRUTH, topics.LABEL)}
+    watched = {
+        f"{ns}/{topic}": String for ns in supports for topic in (topics.IMPACT_TRUTH, topics.LABEL)
+    }
     with ros_context() as (context, executor):
         probe = Probe(context, watched)
         executor.add_node(probe)
         for ns, (start, count) in supports.items():
             procs.start("id_node", f"method:={method()}", "id_node.flush_after_idle_s:=0.5", ns=ns)
-            procs.start("sim_node", *short_scenario(count, f"scenario.start_s:={start}", "sim_node.wait_for_subscribers:=1"), ns=ns)
+            procs.start(
+                "sim_node",
+                *short_scenario(
+                    count, f"scenario.start_s:={start}", "sim_node.wait_for_subscribers:=1"
+                ),
+                ns=ns,
+            )
         total = sum(count for _, count in supports.values())
-        assert spin_until(executor, lambda: sum(len(probe.messages[f"{ns}/{topics.IMPACT_TRUTH}"]) for ns in supports) == total, 60)
-        spin_until(executor, lambda: sum(len(probe.messages[f"{ns}/{topics.LABEL}"]) for ns in supports) >= total, 15)
+        assert spin_until(
+            executor,
+            lambda: (
+                sum(len(probe.messages[f"{ns}/{topics.IMPACT_TRUTH}"]) for ns in supports) == total
+            ),
+            60,
+        )
+        spin_until(
+            executor,
+            lambda: sum(len(probe.messages[f"{ns}/{topics.LABEL}"]) for ns in supports) >= total,
+            15,
+        )
         for ns, (start, count) in supports.items():
             truths = probe.json(f"{ns}/{topics.IMPACT_TRUTH}")
             assert len(truths) == count
@@ -197,5 +258,11 @@ def test_two_supports_in_one_domain_do_not_mix(procs):
             labels = probe.labels(f"{ns}/{topics.LABEL}")
             assert labels, f"no label in {ns}"
             # Every label is of this support's own impacts (the other's are >= 0.2 s away).
-            extra = match(truths, labels, match_tolerance_s(load_parameters()["identification"])).extra
-            assert not extra, (ns, [labels[j].impact_stamp_s for j in extra], [t["contact_start_stamp"] for t in truths])
+            extra = match(
+                truths, labels, match_tolerance_s(load_parameters()["identification"])
+            ).extra
+            assert not extra, (
+                ns,
+                [labels[j].impact_stamp_s for j in extra],
+                [t["contact_start_stamp"] for t in truths],
+            )

@@ -11,9 +11,9 @@ import pytest
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy
+from rosprobe import RELIABLE, ros_context, spin_until
 from std_msgs.msg import String
 
-from rosprobe import RELIABLE, ros_context, spin_until
 from tail_beam_sim import topics
 
 pytestmark = [pytest.mark.ros]
@@ -26,20 +26,27 @@ def test_an_event_of_a_replaced_subscription_does_not_end_the_recorder(tmp_path)
     the recorder re-subscribes volatile; spinning on must not raise, and a label published
     afterwards is in the bag."""
     from tail_beam_sim.bags.read import raw_messages
-    from tail_beam_sim.ros.recorder_node import RecorderNode
     from tail_beam_sim.ros import messages as ros_messages
+    from tail_beam_sim.ros.recorder_node import RecorderNode
     from tail_beam_sim.ros.spin import spin_once
 
     foreign = rclpy.Context()
     rclpy.init(context=foreign)
     try:
         with ros_context() as (context, executor):
-            recorder = RecorderNode(context=context, namespace="/resub",
-                                    parameter_overrides=[Parameter("recorder.bag_path", value=str(tmp_path / "bag"))])
+            recorder = RecorderNode(
+                context=context,
+                namespace="/resub",
+                parameter_overrides=[Parameter("recorder.bag_path", value=str(tmp_path / "bag"))],
+            )
             executor.add_node(recorder)
             suite = rclpy.create_node("labeller", namespace="/resub", context=foreign)
-            suite.create_publisher(String, topics.LABEL, ros_messages.EVENT_PUBLISHER_QOS)  # transient-local, as id_node's
-            durable = lambda: recorder._events[topics.LABEL][1][0] == DurabilityPolicy.TRANSIENT_LOCAL  # noqa: E731
+            suite.create_publisher(
+                String, topics.LABEL, ros_messages.EVENT_PUBLISHER_QOS
+            )  # transient-local, as id_node's
+            durable = lambda: (
+                recorder._events[topics.LABEL][1][0] == DurabilityPolicy.TRANSIENT_LOCAL
+            )  # noqa: E731
             deadline = time.monotonic() + 20
             while not durable() and time.monotonic() < deadline:
                 spin_once(executor, 0.02)

@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 import yaml
 from rclpy.parameter import Parameter
+from rosprobe import Probe, ros_context, spin_for, spin_until
 from std_msgs.msg import String
 
-from rosprobe import Probe, ros_context, spin_for, spin_until
 from tail_beam_sim import topics
 from tail_beam_sim.config import default_config_dir
 
@@ -30,13 +30,19 @@ def sim_node(context, namespace: str = ""):
     """A real sim_node at real time (its default pacing), in ``namespace``."""
     from tail_beam_sim.ros.sim_node import SimNode
 
-    return SimNode(context=context, namespace=namespace, parameter_overrides=[Parameter("sim_node.realtime_factor", value=1.0)])
+    return SimNode(
+        context=context,
+        namespace=namespace,
+        parameter_overrides=[Parameter("sim_node.realtime_factor", value=1.0)],
+    )
 
 
 def send(executor, *argv: str) -> tuple[int, str, str, float]:
     """Run `tail-beam send ARGV` while spinning this process's nodes; (exit status, stdout, stderr, wall time s)."""
     start = time.monotonic()
-    proc = subprocess.Popen([TAIL_BEAM, "send", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [TAIL_BEAM, "send", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     try:
         finished = spin_until(executor, lambda: proc.poll() is not None, timeout_s=RUN_LIMIT_S)
     finally:
@@ -53,9 +59,13 @@ def test_yaml_list_is_simulated_and_each_truth_printed():
     with ros_context() as (context, executor):
         sim = sim_node(context, "/support_07")
         executor.add_node(sim)
-        code, out, err, _ = send(executor, "--file", str(IMPACTS), "--namespace", "support_07", "--wait-truth")
+        code, out, err, _ = send(
+            executor, "--file", str(IMPACTS), "--namespace", "support_07", "--wait-truth"
+        )
         assert code == 0, err
-        assert sim.commands.received == 4 and sim.commands.queued == 4 and sim.commands.refused == 0
+        assert (
+            sim.commands.received == 4 and sim.commands.queued == 4 and sim.commands.refused == 0
+        )
     truths = [json.loads(line) for line in out.splitlines()]
     assert [t["impact_id"] for t in truths] == [item["impact_id"] for item in listed]
     for truth, item in zip(truths, listed):
@@ -72,13 +82,28 @@ def test_one_command_from_options_then_its_id_again_is_reported_refused():
         probe = Probe(context, {topics.IMPACT_TRUTH: String})
         executor.add_node(sim)
         executor.add_node(probe)
-        option = ["--material", "marble", "--radius-m", "0.04", "--impact-speed-mps", "6.5", "--position-m", "0.8", "--impact-id", "opt-1"]
+        option = [
+            "--material",
+            "marble",
+            "--radius-m",
+            "0.04",
+            "--impact-speed-mps",
+            "6.5",
+            "--position-m",
+            "0.8",
+            "--impact-id",
+            "opt-1",
+        ]
         code, out, err, _ = send(executor, *option)
         assert code == 0, err
         assert out == "" and "1 command(s) acknowledged by /tail_beam_sim" in err
         assert spin_until(executor, lambda: len(probe.messages[topics.IMPACT_TRUTH]) == 1)
         (truth,) = probe.json(topics.IMPACT_TRUTH)
-        assert truth["impact_id"] == "opt-1" and truth["material"] == "marble" and truth["impact_speed_mps"] == 6.5
+        assert (
+            truth["impact_id"] == "opt-1"
+            and truth["material"] == "marble"
+            and truth["impact_speed_mps"] == 6.5
+        )
         assert truth["drop_height_m"] is None  # a commanded speed, not a height
 
         code, out, err, _ = send(executor, *option, "--wait-truth", "--truth-timeout-s", "20")
@@ -86,19 +111,56 @@ def test_one_command_from_options_then_its_id_again_is_reported_refused():
         assert out == ""
         assert sim.commands.refused == 1 and sim.commands.queued == 1
         *refusals, summary = err.strip().splitlines()
-        assert len(refusals) == 1 and "impact_id 'opt-1' refused by the simulator: impact_cmd rejected: impact_id = 'opt-1'" in refusals[0]
+        assert (
+            len(refusals) == 1
+            and "impact_id 'opt-1' refused by the simulator: impact_cmd rejected: impact_id = 'opt-1'"
+            in refusals[0]
+        )
         assert summary == "tail-beam send: error: 1 of 1 refused: impact_id 'opt-1'"
 
 
-@pytest.mark.parametrize("argv, field", [
-    (["--material", "coal", "--radius-m", "-0.02", "--drop-height-m", "3", "--position-m", "1.0"], "radius_m = '-0.02': must be in [0.001, 0.5] m"),
-    (["--material", "granite", "--radius-m", "0.02", "--drop-height-m", "3", "--position-m", "1.0"], "material = 'granite': must be one of"),
-    (["--material", "coal", "--radius-m", "0.02", "--position-m", "1.0"], "drop_height_m/impact_speed_mps"),
-    (["--file", "BAD_LIST"], "impacts[1].position_m = 3.0: must be"),
-    (["--file", "BAD_LIST", "--material", "coal"], "--file"),
-    (["--file", str(IMPACTS), "--timeout-s", "-1"], "--timeout-s = '-1': must be in (0, 86400] s"),
-    (["--file", str(IMPACTS), "--namespace", "support 07"], "--namespace"),
-])
+@pytest.mark.parametrize(
+    "argv, field",
+    [
+        (
+            [
+                "--material",
+                "coal",
+                "--radius-m",
+                "-0.02",
+                "--drop-height-m",
+                "3",
+                "--position-m",
+                "1.0",
+            ],
+            "radius_m = '-0.02': must be in [0.001, 0.5] m",
+        ),
+        (
+            [
+                "--material",
+                "granite",
+                "--radius-m",
+                "0.02",
+                "--drop-height-m",
+                "3",
+                "--position-m",
+                "1.0",
+            ],
+            "material = 'granite': must be one of",
+        ),
+        (
+            ["--material", "coal", "--radius-m", "0.02", "--position-m", "1.0"],
+            "drop_height_m/impact_speed_mps",
+        ),
+        (["--file", "BAD_LIST"], "impacts[1].position_m = 3.0: must be"),
+        (["--file", "BAD_LIST", "--material", "coal"], "--file"),
+        (
+            ["--file", str(IMPACTS), "--timeout-s", "-1"],
+            "--timeout-s = '-1': must be in (0, 86400] s",
+        ),
+        (["--file", str(IMPACTS), "--namespace", "support 07"], "--namespace"),
+    ],
+)
 def test_bad_input_exits_2_naming_the_field_with_nothing_sent(tmp_path, argv, field):
     """A bad field (options or an item of the YAML list), a bad timeout or namespace: exit 2 with one line naming it, before any waiting, and sim_node receives nothing."""
     bad = tmp_path / "bad.yaml"
@@ -111,11 +173,17 @@ def test_bad_input_exits_2_naming_the_field_with_nothing_sent(tmp_path, argv, fi
         listener = Probe(context, {topics.IMPACT_CMD: String}, name="listener")
         executor.add_node(sim)
         executor.add_node(listener)
-        code, out, err, elapsed = send(executor, *argv, *([] if "--timeout-s" in argv else ["--timeout-s", "30"]))
+        code, out, err, elapsed = send(
+            executor, *argv, *([] if "--timeout-s" in argv else ["--timeout-s", "30"])
+        )
         spin_for(executor, 0.5)
         assert sim.commands.received == 0 and listener.messages[topics.IMPACT_CMD] == []
     assert code == 2
-    assert out == "" and len(err.strip().splitlines()) == 1 and err.startswith("tail-beam send: error: ")
+    assert (
+        out == ""
+        and len(err.strip().splitlines()) == 1
+        and err.startswith("tail-beam send: error: ")
+    )
     assert field in err
     assert elapsed < 30.0  # refused before waiting for the simulator, not after the timeout
 
@@ -129,7 +197,9 @@ def test_no_simulator_times_out_with_one_line():
         assert listener.messages[topics.IMPACT_CMD] == []
     assert code == 4
     assert out == "" and len(err.strip().splitlines()) == 1
-    assert err.startswith("tail-beam send: error: no simulator subscribed to /impact_cmd within 3 s")
+    assert err.startswith(
+        "tail-beam send: error: no simulator subscribed to /impact_cmd within 3 s"
+    )
     assert "/listener subscribes to it but publishes no impact_truth" in err
     # The wait is the timeout; the rest is starting Python and rclpy (about 1.5 s here, 3 s loaded).
     assert 3.0 <= elapsed < 3.0 + 8.0
@@ -153,8 +223,22 @@ def test_a_foreign_publisher_on_impact_truth_is_ignored_whatever_it_sends():
         other.create_timer(0.05, publish_junk)
         executor.add_node(sim)
         executor.add_node(other)
-        code, out, err, _ = send(executor, "--material", "coal", "--radius-m", "0.05", "--drop-height-m", "1.5",
-                                 "--position-m", "1.0", "--impact-id", "mine", "--namespace", "support_07", "--wait-truth")
+        code, out, err, _ = send(
+            executor,
+            "--material",
+            "coal",
+            "--radius-m",
+            "0.05",
+            "--drop-height-m",
+            "1.5",
+            "--position-m",
+            "1.0",
+            "--impact-id",
+            "mine",
+            "--namespace",
+            "support_07",
+            "--wait-truth",
+        )
     assert code == 0 and "Traceback" not in err, err
     assert len(sent) >= len(junk)
     assert [json.loads(line)["impact_id"] for line in out.splitlines()] == ["mine"]

@@ -5,7 +5,6 @@ its label, and its live labels are the offline ones."""
 from __future__ import annotations
 
 import pytest
-
 from soak_nodes import soak
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -16,8 +15,17 @@ def test_fifty_impacts_as_fast_as_possible_are_all_in_the_bag(tmp_path):
     """truths = rebounds = 50 in a bag that reads, every node's RSS sampled, each truth matched by
     a label and none extra, and the live labels are the offline ones: id_node keeps up at
     realtime_factor 0 and orders what arrives."""
-    result = soak(IMPACTS, tmp_path, sample_s=2.0, timeout_s=300, echo=lambda *a, **k: None, namespace="/soak_short")
+    result = soak(
+        IMPACTS,
+        tmp_path,
+        sample_s=2.0,
+        timeout_s=300,
+        echo=lambda *a, **k: None,
+        namespace="/soak_short",
+    )
     assert result.truths == IMPACTS and result.rebounds == IMPACTS, result.logs
-    assert all(sum(mb > 0 for _, mb in samples) >= 3 for samples in result.rss.values()), result.rss  # sampled while running
+    assert all(sum(mb > 0 for _, mb in samples) >= 3 for samples in result.rss.values()), (
+        result.rss
+    )  # sampled while running
     assert result.matched == IMPACTS and result.extra == 0, result.logs["id_node"]
     assert result.live_matches_offline

@@ -44,7 +44,14 @@ def test_a_stop_signal_while_the_simulator_is_busy_exits_0_without_a_traceback()
     """A generated scenario keeps sim_node's timer callback simulating and publishing most of the
     time; rclpy's own SIGINT handler raised KeyboardInterrupt inside it (or invalidated the
     context under its publish), which the executor logged as a FATAL exception with its traceback."""
-    args = [str(BIN / "sim_node"), "--ros-args", "-p", "scenario.source:=generated", "-p", "scenario.count:=50"]
+    args = [
+        str(BIN / "sim_node"),
+        "--ros-args",
+        "-p",
+        "scenario.source:=generated",
+        "-p",
+        "scenario.count:=50",
+    ]
     for k, sig in enumerate((signal.SIGINT, signal.SIGTERM, signal.SIGINT)):
         code, out = stopped(args, 4.0 + 0.7 * k, sig)
         assert code == 0, out[-1500:]
@@ -52,8 +59,12 @@ def test_a_stop_signal_while_the_simulator_is_busy_exits_0_without_a_traceback()
         assert not [word for word in NOISE if word in out], out[-1500:]
 
 
-@pytest.mark.parametrize(("signal_name", "turned_into"), [("SIGTERM", "ImportError"), ("SIGINT", "RuntimeError")])
-def test_a_stop_that_an_extension_turns_into_another_error_still_exits_0(tmp_path, signal_name, turned_into):
+@pytest.mark.parametrize(
+    ("signal_name", "turned_into"), [("SIGTERM", "ImportError"), ("SIGINT", "RuntimeError")]
+)
+def test_a_stop_that_an_extension_turns_into_another_error_still_exits_0(
+    tmp_path, signal_name, turned_into
+):
     """A stop signal landing while a C extension initialises comes back as another error whose
     cause is the stop (rclpy's ``ImportError: initialization failed``: once in the suite,
     sim_node then ended in a traceback and status 1). Reproduced by a module that takes the
@@ -71,7 +82,21 @@ def test_a_stop_that_an_extension_turns_into_another_error_still_exits_0(tmp_pat
     )
     (tmp_path / "broken_node.py").write_text(f"raise {turned_into}('initialization failed')\n")
     code = "import sys; sys.path.insert(0, sys.argv[1]); from tail_beam_sim.ros.start import run; sys.exit(run(sys.argv[2]))"
-    stopped_run = subprocess.run([sys.executable, "-c", code, str(tmp_path), "fake_node"], capture_output=True, text=True, timeout=60)
-    assert stopped_run.returncode == 0 and not stopped_run.stdout and not stopped_run.stderr, stopped_run.stderr[-1500:]
-    broken = subprocess.run([sys.executable, "-c", code, str(tmp_path), "broken_node"], capture_output=True, text=True, timeout=60)
-    assert broken.returncode == 1 and f"{turned_into}: initialization failed" in broken.stderr, broken.stderr[-1500:]
+    stopped_run = subprocess.run(
+        [sys.executable, "-c", code, str(tmp_path), "fake_node"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert stopped_run.returncode == 0 and not stopped_run.stdout and not stopped_run.stderr, (
+        stopped_run.stderr[-1500:]
+    )
+    broken = subprocess.run(
+        [sys.executable, "-c", code, str(tmp_path), "broken_node"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert broken.returncode == 1 and f"{turned_into}: initialization failed" in broken.stderr, (
+        broken.stderr[-1500:]
+    )

@@ -21,7 +21,12 @@ from tail_beam_sim.bags.read import read_sensors
 from tail_beam_sim.config import default_config_dir, load_parameters
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.scene import Scene
-from tail_beam_sim.physics.sensors import AntiAliasFilter, BlockSequencer, IndexSpan, VibrationBlocks
+from tail_beam_sim.physics.sensors import (
+    AntiAliasFilter,
+    BlockSequencer,
+    IndexSpan,
+    VibrationBlocks,
+)
 from tail_beam_sim.physics.simulate import simulate
 from tail_beam_sim.physics.stream import StreamSimulator
 
@@ -39,11 +44,23 @@ def stream(**sensors) -> StreamSimulator:
 def blocks_of(first_indices, n: int = 4, rate_hz: float = 1000.0) -> VibrationBlocks:
     """Blocks of n samples starting at ``first_indices``; sample values = their own index."""
     first = np.asarray(first_indices, dtype=np.int64)
-    samples = np.concatenate([np.arange(f, f + n) for f in first]).astype(np.float32) if first.size else np.empty(0, np.float32)
-    return VibrationBlocks(first, np.full(first.size, n, dtype=np.int64), first / rate_hz, samples, 1.0 / rate_hz, 100.0)
+    samples = (
+        np.concatenate([np.arange(f, f + n) for f in first]).astype(np.float32)
+        if first.size
+        else np.empty(0, np.float32)
+    )
+    return VibrationBlocks(
+        first,
+        np.full(first.size, n, dtype=np.int64),
+        first / rate_hz,
+        samples,
+        1.0 / rate_hz,
+        100.0,
+    )
 
 
 # --- sensor model ----------------------------------------------------------------------------
+
 
 def test_antialias_filter_passes_the_band_and_stops_what_would_alias():
     """Butterworth magnitude |H| = 1/sqrt(1 + (f/fc)^2n): a tone at 0.2 x rate passes (0.998), one at
@@ -72,6 +89,7 @@ def test_accelerometer_at_rest_reads_g_with_its_noise_density():
 def test_vibration_is_the_same_however_time_is_chunked():
     """Dense response, filter state and noise are carried by sample index: two chunkings give
     bit-identical blocks, numbered without a gap."""
+
     def run(step: float) -> VibrationBlocks:
         sim = stream()
         sim.submit(MARBLE, 0.1)
@@ -98,9 +116,15 @@ def test_an_accelerometer_that_saturates_is_clipped_at_its_range_and_flagged():
     assert np.abs(blocks.accel_mps2).max() == np.float32(200.0)
     assert not saturated[blocks.sample_stamps_s() < 0.05].any()
     b = int(np.searchsorted(blocks.offsets(), np.flatnonzero(saturated)[0], side="right") - 1)
-    (message,) = [m for _, _, m in bagio.vibration_msgs(blocks.select(np.arange(blocks.count) == b))]
+    (message,) = [
+        m for _, _, m in bagio.vibration_msgs(blocks.select(np.arange(blocks.count) == b))
+    ]
     index, _, samples, _, range_mps2 = bagio.vibration_fields(message)
-    assert range_mps2 == 200.0 and message.range_min == -200.0 and (np.abs(samples) >= range_mps2).any()
+    assert (
+        range_mps2 == 200.0
+        and message.range_min == -200.0
+        and (np.abs(samples) >= range_mps2).any()
+    )
 
 
 def test_offline_simulate_carries_the_accelerometer_response_of_the_impact():
@@ -118,6 +142,7 @@ def test_offline_simulate_carries_the_accelerometer_response_of_the_impact():
 
 # --- codecs ------------------------------------------------------------------------------------
 
+
 def test_rclpy_and_rosbags_codecs_carry_index_stamp_period_and_samples_exactly():
     """A block far into a run (index beyond 2**24 and 2**40) crosses rclpy serialization and the
     rosbags decoder with its exact index, stamp, float32 samples, period and range."""
@@ -127,8 +152,14 @@ def test_rclpy_and_rosbags_codecs_carry_index_stamp_period_and_samples_exactly()
     from tail_beam_sim.ros import messages as ros_messages
 
     first = [2**24 + 3 * 128, 2**40 + 5]
-    blocks = VibrationBlocks(np.array(first, dtype=np.int64), np.array([128, 128]), np.array(first) / 25600.0,
-                             np.random.default_rng(1).normal(9.81, 3, 256).astype(np.float32), 1 / 25600.0, 2000.0)
+    blocks = VibrationBlocks(
+        np.array(first, dtype=np.int64),
+        np.array([128, 128]),
+        np.array(first) / 25600.0,
+        np.random.default_rng(1).normal(9.81, 3, 256).astype(np.float32),
+        1 / 25600.0,
+        2000.0,
+    )
     wire = [serialize_message(m) for m in ros_messages.vibration_messages(blocks)]
     back = ros_messages.vibration_blocks([deserialize_message(w, LaserScan) for w in wire])
     np.testing.assert_array_equal(back.first_index, first)
@@ -136,12 +167,15 @@ def test_rclpy_and_rosbags_codecs_carry_index_stamp_period_and_samples_exactly()
     np.testing.assert_allclose(back.stamp_s, blocks.stamp_s, atol=1e-9)
     assert back.period_s == pytest.approx(1 / 25600.0, rel=1e-7) and back.range_mps2 == 2000.0
     for data, (b_first, b_stamp, b_samples) in zip(wire, (blocks.block(0), blocks.block(1))):
-        index, stamp, samples, period, _ = bagio.vibration_fields(bagio.TYPESTORE.deserialize_cdr(data, "sensor_msgs/msg/LaserScan"))
+        index, stamp, samples, period, _ = bagio.vibration_fields(
+            bagio.TYPESTORE.deserialize_cdr(data, "sensor_msgs/msg/LaserScan")
+        )
         assert index == b_first and stamp == pytest.approx(b_stamp, abs=1e-9)
         np.testing.assert_array_equal(samples, b_samples)
 
 
 # --- gaps and late blocks ------------------------------------------------------------------------
+
 
 def test_a_dropped_block_is_detected_from_the_index_and_counted():
     """Blocks 0, 4, 12 of 4 samples: block 8 is missing, 4 samples lost, one gap at index 8."""
@@ -171,7 +205,14 @@ def blocks_stamped(first_indices, n: int = 4, rate_hz: float = 1000.0) -> Vibrat
     index ``first_indices`` gives it."""
     first = np.asarray(first_indices, dtype=np.int64)
     stamps = np.arange(first.size) * n / rate_hz
-    return VibrationBlocks(first, np.full(first.size, n, dtype=np.int64), stamps, np.zeros(first.size * n, np.float32), 1.0 / rate_hz, 100.0)
+    return VibrationBlocks(
+        first,
+        np.full(first.size, n, dtype=np.int64),
+        stamps,
+        np.zeros(first.size * n, np.float32),
+        1.0 / rate_hz,
+        100.0,
+    )
 
 
 def test_an_index_that_does_not_count_samples_is_told_from_a_late_block():
@@ -182,7 +223,11 @@ def test_an_index_that_does_not_count_samples_is_told_from_a_late_block():
     one_by_one = BlockSequencer()
     for k in range(4):
         one_by_one.push(zeros.select(np.arange(4) == k))
-    assert one_by_one.misindexed_blocks == 3 and one_by_one.late_blocks == 0 and one_by_one.accepted_samples == 4
+    assert (
+        one_by_one.misindexed_blocks == 3
+        and one_by_one.late_blocks == 0
+        and one_by_one.accepted_samples == 4
+    )
     together = BlockSequencer()
     report = together.push(zeros)
     assert report.misindexed == 3 and report.late == 0 and report.accepted.count == 1
@@ -192,7 +237,10 @@ def test_an_index_that_does_not_count_samples_is_told_from_a_late_block():
     assert report.late == 1 and report.misindexed == 0
 
 
-@pytest.mark.parametrize(("first", "conflict"), [([0, 0, 0], (0, 1)), ([0, 1, 2], (0, 1)), ([0, 4, 8], None), ([0, 4, 12], None)])
+@pytest.mark.parametrize(
+    ("first", "conflict"),
+    [([0, 0, 0], (0, 1)), ([0, 1, 2], (0, 1)), ([0, 4, 8], None), ([0, 4, 12], None)],
+)
 def test_blocks_whose_indices_overlap_while_their_stamps_do_not_are_a_conflict(first, conflict):
     """index_conflict: overlapping index spans at stamps one block apart (index 0 throughout, or
     a block count) are the first conflicting pair; a stream counting samples, gap or not, has
@@ -213,6 +261,7 @@ def test_the_recorders_count_is_independent_of_arrival_order():
 
 # --- bags: gaps, missing topic, several supports ------------------------------------------------
 
+
 def impact_records(command: dict, seed: int = 0) -> list:
     params = load_parameters()
     result = simulate(Scene.from_params(params, {**command, "seed": seed}))
@@ -225,12 +274,21 @@ def test_a_bag_with_a_dropped_and_a_late_block_reads_back_in_order_with_the_gap(
     records = impact_records(COAL)
     vibration = [r for r in records if r[0] == topics.VIBRATION]
     dropped, late = vibration[3], vibration[5]
-    kept = [r for r in records if r is not dropped and r is not late] + [(late[0], late[1] + 10**7, late[2])]
+    kept = [r for r in records if r is not dropped and r is not late] + [
+        (late[0], late[1] + 10**7, late[2])
+    ]
     bagio.write_bag(tmp_path / "bag", kept)
     data = read_sensors(tmp_path / "bag")
     assert data.vibration_gaps == [(3 * 128, 128)] and data.vibration_lost_samples == 128
-    assert np.all(np.diff(data.vibration.first_index) > 0) and 5 * 128 in data.vibration.first_index
-    info = subprocess.run([TAIL_BEAM, "bag", "info", str(tmp_path / "bag")], capture_output=True, text=True, check=True).stdout
+    assert (
+        np.all(np.diff(data.vibration.first_index) > 0) and 5 * 128 in data.vibration.first_index
+    )
+    info = subprocess.run(
+        [TAIL_BEAM, "bag", "info", str(tmp_path / "bag")],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
     assert "/vibration" in info and "128 samples lost" in info and "at 25600 Hz" in info
 
 
@@ -243,17 +301,27 @@ def test_a_bag_whose_blocks_disagree_on_the_sample_period_is_refused_naming_it(t
     topic, log_ns, msg = records[index]
     records[index] = (topic, log_ns, dataclasses.replace(msg, time_increment=1.0 / 12800.0))
     bagio.write_bag(tmp_path / "bag", records)
-    with pytest.raises(InputError, match=r"vibration\.time_increment = .*one sample period for the whole bag"):
+    with pytest.raises(
+        InputError, match=r"vibration\.time_increment = .*one sample period for the whole bag"
+    ):
         read_sensors(tmp_path / "bag")
-    cli = subprocess.run([TAIL_BEAM, "identify", str(tmp_path / "bag")], capture_output=True, text=True)
-    assert cli.returncode == 2 and "vibration.time_increment" in cli.stderr and "Traceback" not in cli.stderr, cli.stderr
+    cli = subprocess.run(
+        [TAIL_BEAM, "identify", str(tmp_path / "bag")], capture_output=True, text=True
+    )
+    assert (
+        cli.returncode == 2
+        and "vibration.time_increment" in cli.stderr
+        and "Traceback" not in cli.stderr
+    ), cli.stderr
 
 
 def test_without_the_vibration_topic_labels_still_come_from_the_other_signals(tmp_path):
     """A bag with no vibration at all is identified from IMU, pressure and camera."""
     from tail_beam_id.cli.identify_cmd import identify_bag
 
-    bagio.write_bag(tmp_path / "bag", [r for r in impact_records(COAL) if r[0] != topics.VIBRATION])
+    bagio.write_bag(
+        tmp_path / "bag", [r for r in impact_records(COAL) if r[0] != topics.VIBRATION]
+    )
     assert read_sensors(tmp_path / "bag").vibration.count == 0
     (label,) = identify_bag(str(tmp_path / "bag"), "statistical")
     assert label.material == "coal" and "vibration" not in label.signals
@@ -265,11 +333,22 @@ def two_support_bag(path: Path) -> None:
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        for namespace, command in (("/support_01", COAL), ("/support_07", {**MARBLE, "radius_m": 0.05})):
-            connections = {t: writer.add_connection(topics.qualified(namespace, t), m, typestore=bagio.TYPESTORE)
-                           for t, m in topics.MSG_TYPES.items()}
+        for namespace, command in (
+            ("/support_01", COAL),
+            ("/support_07", {**MARBLE, "radius_m": 0.05}),
+        ):
+            connections = {
+                t: writer.add_connection(
+                    topics.qualified(namespace, t), m, typestore=bagio.TYPESTORE
+                )
+                for t, m in topics.MSG_TYPES.items()
+            }
             for topic, ns, msg in sorted(impact_records(command), key=lambda r: r[1]):
-                writer.write(connections[topic], ns, bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic]))
+                writer.write(
+                    connections[topic],
+                    ns,
+                    bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic]),
+                )
 
 
 def test_two_supports_in_one_bag_need_a_namespace_and_then_read_the_right_one(tmp_path):
@@ -294,36 +373,56 @@ def test_a_bag_with_relative_names_still_reads():
     """Bags recorded before the names were fully qualified (``imu``) read as the root namespace."""
     assert topics.namespace_of("imu") == topics.namespace_of("/imu") == "/"
     assert topics.namespace_of("/support_07/imu") == "/support_07"
-    assert topics.qualified("/support_07/", "imu") == "/support_07/imu" and topics.qualified("", "imu") == "/imu"
+    assert (
+        topics.qualified("/support_07/", "imu") == "/support_07/imu"
+        and topics.qualified("", "imu") == "/imu"
+    )
 
 
 # --- nodes over the middleware -----------------------------------------------------------------
+
 
 @pytest.mark.ros
 def test_sim_node_publishes_contiguous_numbered_blocks():
     """sim_node's blocks: consecutive indices from 0, stamp = index / rate, frame and range as documented."""
     from geometry_msgs.msg import TwistStamped
     from rclpy.parameter import Parameter
+    from rosprobe import Probe, ros_context, spin_until
     from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 
-    from rosprobe import Probe, ros_context, spin_until
     from tail_beam_sim.ros import messages as ros_messages
     from tail_beam_sim.ros.sim_node import SimNode
 
     with ros_context() as (context, executor):
-        sim = SimNode(context=context, parameter_overrides=[
-            Parameter("sim_node.realtime_factor", value=0.0), Parameter("sim_node.wait_for_subscribers", value=1),
-            Parameter("sim_node.subscriber_settle_s", value=0.3)])
-        probe = Probe(context, {topics.VIBRATION: LaserScan, topics.JACK_PRESSURE: FluidPressure, topics.IMU: Imu,
-                                topics.REBOUND_VELOCITY: TwistStamped})  # the gate waits for all four
+        sim = SimNode(
+            context=context,
+            parameter_overrides=[
+                Parameter("sim_node.realtime_factor", value=0.0),
+                Parameter("sim_node.wait_for_subscribers", value=1),
+                Parameter("sim_node.subscriber_settle_s", value=0.3),
+            ],
+        )
+        probe = Probe(
+            context,
+            {
+                topics.VIBRATION: LaserScan,
+                topics.JACK_PRESSURE: FluidPressure,
+                topics.IMU: Imu,
+                topics.REBOUND_VELOCITY: TwistStamped,
+            },
+        )  # the gate waits for all four
         executor.add_node(sim)
         executor.add_node(probe)
         assert spin_until(executor, lambda: len(probe.messages[topics.VIBRATION]) >= 100)
         blocks = ros_messages.vibration_blocks(probe.messages[topics.VIBRATION])
         np.testing.assert_array_equal(blocks.first_index, 128 * np.arange(blocks.count))
         np.testing.assert_allclose(blocks.stamp_s, blocks.first_index / 25600.0, atol=1e-9)
-        assert {m.header.frame_id for m in probe.messages[topics.VIBRATION]} == {"tail_beam_accelerometer"}
-        assert {(m.range_min, m.range_max) for m in probe.messages[topics.VIBRATION]} == {(-2000.0, 2000.0)}
+        assert {m.header.frame_id for m in probe.messages[topics.VIBRATION]} == {
+            "tail_beam_accelerometer"
+        }
+        assert {(m.range_min, m.range_max) for m in probe.messages[topics.VIBRATION]} == {
+            (-2000.0, 2000.0)
+        }
 
 
 @pytest.mark.ros
@@ -331,20 +430,26 @@ def test_id_node_reports_a_dropped_block_and_refuses_a_late_one():
     """id_node fed blocks 0, 1, 3 then 2 over the middleware: one gap of 128 samples, then block 2
     refused as late (it came after block 3 was handed on)."""
     from rclpy.parameter import Parameter
+    from rosprobe import RELIABLE, Probe, ros_context, spin_until
     from sensor_msgs.msg import LaserScan
 
-    from rosprobe import RELIABLE, Probe, ros_context, spin_until
     from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.ros import messages as ros_messages
 
     with ros_context() as (context, executor):
-        ident = IdNode(context=context, namespace="/feed", parameter_overrides=[Parameter("id_node.poll_period_s", value=0.05)])
+        ident = IdNode(
+            context=context,
+            namespace="/feed",
+            parameter_overrides=[Parameter("id_node.poll_period_s", value=0.05)],
+        )
         feeder = Probe(context, {}, namespace="/feed", name="feeder")
         pub = feeder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
         executor.add_node(ident)
         executor.add_node(feeder)
         assert spin_until(executor, lambda: pub.get_subscription_count() >= 1)
-        msgs = ros_messages.vibration_messages(blocks_of([0, 128, 256, 384], n=128, rate_hz=25600.0))
+        msgs = ros_messages.vibration_messages(
+            blocks_of([0, 128, 256, 384], n=128, rate_hz=25600.0)
+        )
         for msg in (msgs[0], msgs[1], msgs[3]):
             pub.publish(msg)
         assert spin_until(executor, lambda: ident.vibration_lost_samples == 128)
@@ -359,15 +464,23 @@ def feeding_id_node_and_recorder(bag: Path) -> Iterator[tuple]:
     /rosout subscribed): (executor, id_node, recorder, client, publisher), once both match."""
     from rcl_interfaces.msg import Log
     from rclpy.parameter import Parameter
+    from rosprobe import RELIABLE, Probe, ros_context, spin_until
     from sensor_msgs.msg import LaserScan
 
-    from rosprobe import RELIABLE, Probe, ros_context, spin_until
     from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.ros.recorder_node import RecorderNode
 
     with ros_context() as (context, executor):
-        ident = IdNode(context=context, namespace="/feed", parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)])
-        recorder = RecorderNode(context=context, namespace="/feed", parameter_overrides=[Parameter("recorder.bag_path", value=str(bag))])
+        ident = IdNode(
+            context=context,
+            namespace="/feed",
+            parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)],
+        )
+        recorder = RecorderNode(
+            context=context,
+            namespace="/feed",
+            parameter_overrides=[Parameter("recorder.bag_path", value=str(bag))],
+        )
         feeder = Probe(context, {"/rosout": Log}, namespace="/feed", name="feeder")
         pub = feeder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
         for node in (ident, recorder, feeder):
@@ -383,15 +496,35 @@ def test_id_node_and_the_recorder_say_when_a_publishers_index_does_not_count_sam
     recorder records them all and warns at once (not an hour later, when the bag is read);
     reading the bag is refused, naming the index words."""
     from rosprobe import spin_until
+
     from tail_beam_sim.ros import messages as ros_messages
 
-    with feeding_id_node_and_recorder(tmp_path / "bag") as (executor, ident, recorder, feeder, pub):
-        for msg in ros_messages.vibration_messages(blocks_stamped([0, 0, 0], n=128, rate_hz=25600.0)):
+    with feeding_id_node_and_recorder(tmp_path / "bag") as (
+        executor,
+        ident,
+        recorder,
+        feeder,
+        pub,
+    ):
+        for msg in ros_messages.vibration_messages(
+            blocks_stamped([0, 0, 0], n=128, rate_hz=25600.0)
+        ):
             pub.publish(msg)
-        assert spin_until(executor, lambda: ident.vibration_misindexed_blocks == 2 and recorder.misindexed_blocks == 2)
-        assert spin_until(executor, lambda: sum("index must count the samples" in x.msg
-                                                or "(angle_min, angle_max) must count the samples" in x.msg
-                                                for x in feeder.messages["/rosout"]) >= 2)
+        assert spin_until(
+            executor,
+            lambda: ident.vibration_misindexed_blocks == 2 and recorder.misindexed_blocks == 2,
+        )
+        assert spin_until(
+            executor,
+            lambda: (
+                sum(
+                    "index must count the samples" in x.msg
+                    or "(angle_min, angle_max) must count the samples" in x.msg
+                    for x in feeder.messages["/rosout"]
+                )
+                >= 2
+            ),
+        )
         assert ident.vibration_late_blocks == 0
         recorder.close()
     with pytest.raises(InputError, match=r"vibration\.angle_min/angle_max"):
@@ -406,30 +539,56 @@ def test_vibration_messages_that_carry_no_block_are_refused_by_name_and_nothing_
     are a gap); the recorder records them all and goes on; reading that bag is refused as a whole,
     naming the field, not half-read."""
     from rosprobe import spin_for, spin_until
+
     from tail_beam_sim.ros import messages as ros_messages
 
-    spoilers = [("angle_min", math.nan), ("angle_max", -1.0), ("angle_max", 3.5), ("time_increment", 0.0), ("range_max", 0.0)]
-    good = ros_messages.vibration_messages(blocks_of([k * 128 for k in range(len(spoilers) + 2)], n=128, rate_hz=25600.0))
+    spoilers = [
+        ("angle_min", math.nan),
+        ("angle_max", -1.0),
+        ("angle_max", 3.5),
+        ("time_increment", 0.0),
+        ("range_max", 0.0),
+    ]
+    good = ros_messages.vibration_messages(
+        blocks_of([k * 128 for k in range(len(spoilers) + 2)], n=128, rate_hz=25600.0)
+    )
     bad = []
     for (field, value), msg in zip(spoilers, good[1:-1]):
         setattr(msg, field, value)
         bad.append(msg)
-    with feeding_id_node_and_recorder(tmp_path / "bag") as (executor, ident, recorder, feeder, pub):
+    with feeding_id_node_and_recorder(tmp_path / "bag") as (
+        executor,
+        ident,
+        recorder,
+        feeder,
+        pub,
+    ):
         for msg in good:
             pub.publish(msg)
-        assert spin_until(executor, lambda: ident.refused_blocks == len(spoilers) and recorder.refused_blocks == 3)
+        assert spin_until(
+            executor,
+            lambda: ident.refused_blocks == len(spoilers) and recorder.refused_blocks == 3,
+        )
         spin_for(executor, 0.3)
         log = " | ".join(x.msg for x in feeder.messages["/rosout"])
         recorder.close()
     assert ident.received[topics.VIBRATION] == len(good)
-    assert ident.vibration_lost_samples == len(spoilers) * 128  # the refused blocks' samples are a gap
+    assert (
+        ident.vibration_lost_samples == len(spoilers) * 128
+    )  # the refused blocks' samples are a gap
     for field, _ in spoilers:
         assert f"vibration.{field} = " in log, log
     assert f"({len(spoilers)} refused in all)" in log and "recorded but not counted" in log
     with pytest.raises(InputError, match=r"vibration\.angle_min = nan"):
         read_sensors(tmp_path / "bag", required=(topics.VIBRATION,))
-    info = subprocess.run([TAIL_BEAM, "bag", "info", str(tmp_path / "bag")], capture_output=True, text=True)
-    assert info.returncode == 2 and "vibration.angle_min = nan" in info.stderr and "Traceback" not in info.stderr, info.stderr
+    info = subprocess.run(
+        [TAIL_BEAM, "bag", "info", str(tmp_path / "bag")], capture_output=True, text=True
+    )
+    assert (
+        info.returncode == 2
+        and "vibration.angle_min = nan" in info.stderr
+        and "Traceback" not in info.stderr
+    ), info.stderr
 
 
 @pytest.mark.ros
@@ -442,9 +601,9 @@ def test_an_empty_vibration_block_is_refused_by_name_and_hides_no_samples(tmp_pa
     index and dropped the real one as a repeat: 128 real samples silently lost)."""
     from rcl_interfaces.msg import Log
     from rclpy.parameter import Parameter
+    from rosprobe import RELIABLE, Probe, ros_context, spin_for, spin_until
     from sensor_msgs.msg import LaserScan
 
-    from rosprobe import RELIABLE, Probe, ros_context, spin_for, spin_until
     from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.ros import messages as ros_messages
     from tail_beam_sim.ros.recorder_node import RecorderNode
@@ -454,8 +613,16 @@ def test_an_empty_vibration_block_is_refused_by_name_and_hides_no_samples(tmp_pa
     empty.ranges = []
     empty.scan_time = 0.0
     with ros_context() as (context, executor):
-        ident = IdNode(context=context, namespace="/feed", parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)])
-        recorder = RecorderNode(context=context, namespace="/feed", parameter_overrides=[Parameter("recorder.bag_path", value=str(tmp_path / "bag"))])
+        ident = IdNode(
+            context=context,
+            namespace="/feed",
+            parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)],
+        )
+        recorder = RecorderNode(
+            context=context,
+            namespace="/feed",
+            parameter_overrides=[Parameter("recorder.bag_path", value=str(tmp_path / "bag"))],
+        )
         feeder = Probe(context, {"/rosout": Log}, namespace="/feed", name="feeder")
         pub = feeder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
         for node in (ident, recorder, feeder):
@@ -463,7 +630,9 @@ def test_an_empty_vibration_block_is_refused_by_name_and_hides_no_samples(tmp_pa
         assert spin_until(executor, lambda: pub.get_subscription_count() >= 2)
         for msg in (good[0], empty, good[1], good[2]):
             pub.publish(msg)
-        assert spin_until(executor, lambda: ident.refused_blocks == 1 and recorder.refused_blocks == 1)
+        assert spin_until(
+            executor, lambda: ident.refused_blocks == 1 and recorder.refused_blocks == 1
+        )
         assert ident.received[topics.VIBRATION] == 4
         spin_for(executor, 0.3)
         log = " | ".join(x.msg for x in feeder.messages["/rosout"])
