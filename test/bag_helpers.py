@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from tail_beam_sim import topics
@@ -43,3 +45,44 @@ def write_segments(
     if close:
         writer.close()
     return writer
+
+
+def serialized(records_: list) -> list:
+    """Bag records (topic, log ns, rosbags message) as (topic, log ns, CDR bytes)."""
+    return [
+        (topic, ns, bytes(bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic])))
+        for topic, ns, msg in records_
+    ]
+
+
+def shifted(records_: list, shift_s: float) -> list:
+    """Serialized records with every stamp (header, impact_truth) and log time ``shift_s``
+    later."""
+    out = []
+    for topic, ns, data in records_:
+        msg = bagio.TYPESTORE.deserialize_cdr(data, topics.MSG_TYPES[topic])
+        if hasattr(msg, "header"):
+            stamp = topics.stamp_ns(
+                msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 + shift_s
+            )
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+        elif topic == topics.IMPACT_TRUTH:
+            truth = json.loads(msg.data)
+            for key, value in truth.items():
+                if key.endswith("_stamp") and isinstance(value, float):
+                    truth[key] = value + shift_s
+            msg = bagio.string_msg(truth)
+        out.append(
+            (
+                topic,
+                ns + int(round(shift_s * 1e9)),
+                bytes(bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topic])),
+            )
+        )
+    return out
+
+
+def string_record(topic: str, log_ns: int, text: str) -> tuple:
+    """One serialized std_msgs/String record holding ``text``."""
+    msg = bagio.string_msg(text)
+    return topic, log_ns, bytes(bagio.TYPESTORE.serialize_cdr(msg, "std_msgs/msg/String"))

@@ -121,6 +121,11 @@ def report_reading(data: BagSensors, verb: str, runs: int = 1, bag: str | None =
             f"{verb}: {data.namespace} {name}: {n} sample(s) at a stamp already read left out (the first kept)",
             file=sys.stderr,
         )
+    for what, n in data.set_aside.items():
+        print(
+            f"{verb}: {data.namespace} {what}: {n} message(s) set aside, the rest read",
+            file=sys.stderr,
+        )
     for name, (log_s, back_s) in data.time_jumps.items():
         print(
             f"{verb}: {data.namespace} {name}: stamps go back {back_s:.3f} s at log time {log_s:.3f} s (a restarted simulator or "

@@ -132,6 +132,9 @@ class BagSensors:
     time_jumps: dict[str, tuple[float, float]] = field(
         default_factory=dict
     )  # per topic, the first: (log time s, stamps back by s)
+    # Messages set aside (not read) by "topic: why", with their count: one message that cannot be
+    # taken costs that message, not the recording.
+    set_aside: dict[str, int] = field(default_factory=dict)
 
     @property
     def vibration_lost_samples(self) -> int:
@@ -307,6 +310,17 @@ def _first_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
+class SetAside:
+    """Messages set aside while reading, counted by "topic: why" (what a warning names)."""
+
+    def __init__(self) -> None:
+        self.counts: dict[str, int] = {}
+
+    def add(self, topic: str, why: str, count: int = 1) -> None:
+        key = f"{topic}: {why}"
+        self.counts[key] = self.counts.get(key, 0) + count
+
+
 @dataclass
 class _Run:
     """One time base's decoded messages, as read (the arrays are assembled at the end)."""
@@ -342,11 +356,11 @@ def read_sensors(
     already read left out (counted in ``repeated_samples``: a topic recorded twice), as id_node
     leaves out a repeated stamp. A bag holding several time bases (``time_jumps``) comes back
     merged by stamp: :func:`read_runs` takes each alone."""
-    runs, chosen, jumps, partial = _read(path, required, namespace, any_of)
+    runs, chosen, jumps, partial, aside = _read(path, required, namespace, any_of)
     whole = runs[0]
     for run in runs[1:]:
         whole = whole.merged(run)
-    return _assemble(whole, partial, chosen, jumps)
+    return _assemble(whole, partial, chosen, jumps, aside)
 
 
 def read_runs(
@@ -359,8 +373,8 @@ def read_runs(
     sensor topic's stamps go back by more than TIME_JUMP_S (a restarted simulator, a looped
     replay) its next messages belong to the next run, as id_node starts afresh there. Each
     run's ``time_jumps`` are the whole bag's."""
-    runs, chosen, jumps, partial = _read(path, required, namespace, any_of)
-    return [_assemble(run, partial, chosen, jumps) for run in runs]
+    runs, chosen, jumps, partial, aside = _read(path, required, namespace, any_of)
+    return [_assemble(run, partial, chosen, jumps, aside) for run in runs]
 
 
 def _read(
@@ -368,9 +382,11 @@ def _read(
     required: Iterable[str],
     namespace: str | None,
     any_of: Iterable[str],
-) -> tuple[list[_Run], str, dict[str, tuple[float, float]], bool]:
+) -> tuple[list[_Run], str, dict[str, tuple[float, float]], bool, SetAside]:
     """The bag's messages decoded into runs (one per time base), the namespace read, the first
-    time jump of each topic (log time s, stamps back by s) and whether the bag is partial."""
+    time jump of each topic (log time s, stamps back by s), whether the bag is partial and the
+    messages set aside."""
+    aside = SetAside()
     runs = [_Run()]
     chosen = "/"
     latest: dict[str, float] = {}
@@ -408,15 +424,23 @@ def _read(
             v = msg.twist.linear
             run.rebounds.append((_stamp(msg), np.array([v.x, v.y, v.z])))
         else:
-            run.json_topics[raw.topic].append(_json(msg.data))
+            value = _json(msg.data)
+            if value is None:
+                aside.add(raw.topic, "holds a number past the 4300-digit limit")
+            else:
+                run.json_topics[raw.topic].append(value)
     for run in runs:
         _check_index(run.vibration)
     partial = (Path(path) / PARTIAL_DIR).is_dir() and any((Path(path) / PARTIAL_DIR).iterdir())
-    return runs, chosen, jumps, partial
+    return runs, chosen, jumps, partial, aside
 
 
 def _assemble(
-    run: _Run, partial: bool, chosen: str, jumps: dict[str, tuple[float, float]]
+    run: _Run,
+    partial: bool,
+    chosen: str,
+    jumps: dict[str, tuple[float, float]],
+    aside: SetAside,
 ) -> BagSensors:
     """One run's messages as arrays: samples in stamp order, each stamp once, vibration blocks
     in index order with their gaps."""
@@ -444,6 +468,7 @@ def _assemble(
         chosen,
         repeated,
         dict(jumps),
+        dict(aside.counts),
     )
 
 
@@ -503,12 +528,15 @@ def _stamp(msg: Any) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
-def _json(text: str) -> dict[str, Any]:
+def _json(text: str) -> dict[str, Any] | None:
     """A JSON topic's object; a text that is no JSON object (not JSON, nested too deep to read,
     or JSON but a list, number or string) is kept under ``_unparsed``: impact_cmd may hold a
-    rejected command, and a foreign publisher may have written anything on label."""
+    rejected command, and a foreign publisher may have written anything on label. None for JSON
+    that holds an integer past Python's digit limit (it cannot be taken as a value at all)."""
     try:
         value = json.loads(text)
     except (json.JSONDecodeError, RecursionError):
         return {"_unparsed": text}
+    except ValueError:
+        return None
     return value if isinstance(value, dict) else {"_unparsed": text}

@@ -1,0 +1,97 @@
+"""Stray and hostile messages inside an otherwise good recording, driven as a user would with
+`tail-beam identify`, `calibrate` and `bag info`: a message no reader can take is set aside,
+counted and named in a warning, and the rest of the recording is read and labelled as the
+clean recording is."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from bag_helpers import serialized, shifted, string_record
+from id_helpers import impact
+
+from tail_beam_sim import topics
+from tail_beam_sim.bags import records as bagio
+from tail_beam_sim.bags.read import read_runs, read_sensors
+from tail_beam_sim.bags.write import SegmentedBagWriter
+
+BIN = Path(sys.executable).parent
+HUGE_INT = "9" * 5000  # past Python's 4300-digit limit for int from text
+
+
+def run(*args: str, timeout_s: float = 120) -> subprocess.CompletedProcess:
+    """`tail-beam` as a user runs it."""
+    return subprocess.run(
+        [str(BIN / "tail-beam"), *args], capture_output=True, text=True, timeout=timeout_s
+    )
+
+
+def labels_of(result: subprocess.CompletedProcess) -> list[dict]:
+    """The labels a successful `tail-beam identify` printed."""
+    assert result.returncode == 0 and "Traceback" not in result.stderr, (
+        result.returncode,
+        result.stderr[-3000:],
+    )
+    return [json.loads(line) for line in result.stdout.splitlines() if line.strip()]
+
+
+def kept(labels: list[dict]) -> list[tuple]:
+    """What a label decides (stamp to 0.1 ms, label), without wall-clock figures."""
+    return [(round(label["impact_stamp"], 4), label["label"]) for label in labels]
+
+
+def write(path: Path, records) -> Path:
+    """Serialized records as a bag (every contract topic listed, as the recorder does), in the
+    order given (log times as given)."""
+    writer = SegmentedBagWriter(path)
+    for topic, ns, data in records:
+        writer.write(topic, ns, data)
+    writer.close()
+    return path
+
+
+@pytest.fixture(scope="module")
+def coal_records(params):
+    """One 25 mm coal impact's serialized records 100 s into the simulation (pressure, IMU,
+    accelerometer, rebound, truth), in log-time order."""
+    result = impact(params, material="coal", radius_m=0.025, seed=7)
+    records = shifted(serialized(bagio.result_records(result)), 100.0)
+    return sorted(records, key=lambda r: r[1])
+
+
+@pytest.fixture(scope="module")
+def clean_labels(coal_records, tmp_path_factory):
+    """What `identify --no-calibrate` says of the clean recording."""
+    bag = write(tmp_path_factory.mktemp("clean") / "bag", coal_records)
+    labels = kept(labels_of(run("identify", str(bag), "--no-calibrate")))
+    assert [label for _, label in labels] == ["coal"]
+    return labels
+
+
+def test_an_integer_past_the_digit_limit_on_a_json_topic_costs_that_message(
+    tmp_path, coal_records, clean_labels
+):
+    """A >4300-digit integer in an impact_cmd and an impact_truth: the two messages are set aside
+    and named in a warning; identify and calibrate read the rest, exit 0, same labels."""
+    stray = [
+        string_record(topics.IMPACT_CMD, coal_records[0][1], '{"radius_m": %s}' % HUGE_INT),
+        string_record(topics.IMPACT_TRUTH, coal_records[5][1], '{"id": %s}' % HUGE_INT),
+        string_record(topics.IMPACT_TRUTH, coal_records[6][1], '{"label": "coal"}'),
+    ]
+    bag = write(tmp_path / "bag", sorted(coal_records + stray, key=lambda r: r[1]))
+    data = read_sensors(bag)
+    assert {"label": "coal"} in data.json_topics[topics.IMPACT_TRUTH]
+    assert len(data.json_topics[topics.IMPACT_TRUTH]) == 2  # the clean one's, and the good one
+    assert sum(data.set_aside.values()) == 2
+    result = run("identify", str(bag), "--no-calibrate")
+    assert kept(labels_of(result)) == clean_labels
+    for name in (topics.IMPACT_CMD, topics.IMPACT_TRUTH):
+        assert any(name in line and "set aside" in line for line in result.stderr.splitlines())
+    calibrated = run("calibrate", str(bag))
+    assert calibrated.returncode == 0 and "Traceback" not in calibrated.stderr, calibrated.stderr
+    assert "set aside" in calibrated.stderr
