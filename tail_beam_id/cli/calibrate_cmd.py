@@ -66,8 +66,11 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(
                 "--out", str(out), f"its folder cannot be made ({exc.strerror or exc})"
             ) from None
-        with open_output_file("--out", out) as stream:
-            stream.write(text.encode("utf-8"))
+        try:
+            with open_output_file("--out", out) as stream:
+                stream.write(text.encode("utf-8"))
+        except OSError as exc:  # a full disk or device: tail-beam says it, naming the file
+            raise OSError(exc.errno, exc.strerror, str(out)) from None
         print(f"wrote {out}", file=sys.stderr)
     else:
         sys.stdout.write(text)

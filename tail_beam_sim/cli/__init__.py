@@ -8,13 +8,15 @@ Exit status: 0 done; 2 bad input (one line naming the field and what is allowed)
 failed (:class:`~tail_beam_sim.physics.solvers.SolverError`: one line naming the solver and
 what to change); 4 a peer did not answer in time (``send``: no simulator appeared, or it did
 not acknowledge the commands or send their truths); 5 a peer refused the request (``send``:
-the simulator refused a command); 130 interrupted; 141 the output's reader went away (a closed
+the simulator refused a command); 74 the output could not be written (a full disk or device:
+one line naming where and why); 130 interrupted; 141 the output's reader went away (a closed
 pipe, ``| head``: as a tool killed by SIGPIPE reports it in a shell). Never a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import signal
 import sys
@@ -32,6 +34,7 @@ __all__ = [
     "EXIT_SOLVER_FAILED",
     "EXIT_TIMEOUT",
     "EXIT_REFUSED",
+    "EXIT_OUTPUT_FAILED",
     "EXIT_INTERRUPTED",
     "EXIT_PIPE_CLOSED",
     "OneLineParser",
@@ -43,6 +46,9 @@ EXIT_BAD_INPUT = 2
 EXIT_SOLVER_FAILED = 3
 EXIT_TIMEOUT = 4
 EXIT_REFUSED = 5
+EXIT_OUTPUT_FAILED = 74  # sysexits' EX_IOERR
+# What writing the output may meet that is the device's state, not the tool's fault.
+OUTPUT_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO})
 EXIT_INTERRUPTED = 130  # 128 + SIGINT
 EXIT_PIPE_CLOSED = 141  # 128 + SIGPIPE, what a shell reports for a tool its pipe's reader left
 
@@ -108,7 +114,9 @@ def _run(argv: Sequence[str] | None) -> int:
         args = build_parser().parse_args(argv)
         command = args.command
         try:
-            return int(args.func(args) or 0)
+            status = int(args.func(args) or 0)
+            sys.stdout.flush()  # what is still buffered fails here, not at exit
+            return status
         except InputError as exc:
             print(f"tail-beam {command}: error: {exc}", file=sys.stderr)
             return EXIT_BAD_INPUT
@@ -121,6 +129,19 @@ def _run(argv: Sequence[str] | None) -> int:
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
             return EXIT_PIPE_CLOSED
+        except OSError as exc:
+            if exc.errno not in OUTPUT_ERRNOS:
+                raise
+            where = exc.filename or "standard output"
+            print(
+                f"tail-beam {command}: error: cannot write {where}: {os.strerror(exc.errno)}",
+                file=sys.stderr,
+            )
+            # What stdout still buffers cannot go anywhere either: Python's flush at exit must
+            # not fail on it again.
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            return EXIT_OUTPUT_FAILED
     except (KeyboardInterrupt, Exception) as exc:
         # Another error is an interruption too when a Ctrl-C came: it landed inside an extension
         # module's initialisation, which turned it into one (rclpy's ImportError: initialization failed).
