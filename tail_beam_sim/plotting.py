@@ -95,7 +95,8 @@ def plot_response(result: Any, path: str | Path) -> Path:
     axes[3].legend(loc="upper right", fontsize=8)
     s = result.summary
     fig.suptitle(
-        f"{impact.material.name}, R = {impact.radius_m * 1e3:g} mm, v0 = {impact.impact_speed_mps:.2f} m/s at x = {impact.position_m:g} m: "
+        f"{impact.material.name}, R = {impact.radius_m * 1e3:g} mm, v0 = "
+        f"{impact.impact_speed_mps:.2f} m/s at x = {impact.position_m:g} m: "
         f"e = {s['restitution']:.3f}, contact {s['contact_duration_s'] * 1e6:.0f} µs",
         fontsize=10,
     )

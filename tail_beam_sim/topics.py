@@ -75,7 +75,8 @@ MAX_BLOCK_PERIOD_S = 1.0  # the slowest accelerometer a vibration block may come
 
 
 def block_period_s(time_increment: float) -> float:
-    """A vibration block's sample period (LaserScan time_increment), s; InputError unless in (0, 1] s."""
+    """A vibration block's sample period (LaserScan time_increment), s; InputError unless in (0,
+    1] s."""
     value = float(time_increment)
     if not (math.isfinite(value) and 0.0 < value <= MAX_BLOCK_PERIOD_S):
         raise InputError(
@@ -87,7 +88,8 @@ def block_period_s(time_increment: float) -> float:
 
 
 def block_range_mps2(range_max: float) -> float:
-    """A vibration block's measuring range (LaserScan range_max), m/s^2; InputError unless finite and > 0."""
+    """A vibration block's measuring range (LaserScan range_max), m/s^2; InputError unless
+    finite and > 0."""
     value = float(range_max)
     if not (math.isfinite(value) and value > 0.0):
         raise InputError(

@@ -63,7 +63,8 @@ class Probe(Node):
         return [json.loads(m.data) for m in self.messages[topic]]
 
     def labels(self, topic: str) -> list[Label]:
-        """The messages on a label topic, each read as a Label (one that does not read fails the test)."""
+        """The messages on a label topic, each read as a Label (one that does not read fails the
+        test)."""
         return [Label.from_json(m.data) for m in self.messages[topic]]
 
 

@@ -156,13 +156,15 @@ def test_the_circle_finder_finds_circles():
 
 @pytest.mark.parametrize("module", sorted(SIM))
 def test_simulator_never_names_the_identifier(module):
-    """tail_beam_sim <- tail_beam_id: the simulator does not know of the identifier, not even in a string."""
+    """tail_beam_sim <- tail_beam_id: the simulator does not know of the identifier, not even in
+    a string."""
     assert "tail_beam_id" not in SIM[module].read_text()
 
 
 @pytest.mark.parametrize("module", sorted({**SIM, **ID}))
 def test_only_ros_rooms_import_ros(module):
-    """rclpy and ROS message packages are imported only by tail_beam_sim.ros and tail_beam_id.ros.id_node."""
+    """rclpy and ROS message packages are imported only by tail_beam_sim.ros and
+    tail_beam_id.ros.id_node."""
     path = SIM.get(module) or ID[module]
     ros = {name for name in imported(path) if name.split(".")[0] in ROS_PACKAGES}
     allowed = module.startswith("tail_beam_sim.ros") or module == "tail_beam_id.ros.id_node"
@@ -185,7 +187,8 @@ def test_physics_imports_no_ros_and_no_bags():
 
 
 def test_verbs_come_from_the_entry_point_group():
-    """tail-beam finds identify and evaluate through setup.py's entry points, not by name in the simulator."""
+    """tail-beam finds identify and evaluate through setup.py's entry points, not by name in the
+    simulator."""
     from importlib.metadata import entry_points
 
     verbs = {ep.name: ep.value for ep in entry_points(group="tail_beam.verbs")}
@@ -197,7 +200,8 @@ def test_verbs_come_from_the_entry_point_group():
     "package", sorted(m for m, p in {**SIM, **ID}.items() if p.name == "__init__.py")
 )
 def test_every_package_declares_its_public_names(package):
-    """Each package says what it exports (``__all__``), so a star import or a reader knows the API."""
+    """Each package says what it exports (``__all__``), so a star import or a reader knows the
+    API."""
     path = SIM.get(package) or ID[package]
     assert "__all__" in path.read_text(), f"{package} has no __all__"
 

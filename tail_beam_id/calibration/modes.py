@@ -31,7 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import butter, find_peaks, hilbert, sosfiltfilt
 
-SKIP_S = 0.0015  # ring-down starts this long after the onset (the longest contact, 1 ms, and the filter's delay), s
+# ring-down starts this long after the onset (the longest contact, 1 ms, and the filter's delay), s
+SKIP_S = 0.0015
 MAX_SEGMENT_S = (
     0.25  # ring-down taken at most this long (a lightly damped 120 Hz mode rings for 0.3 s), s
 )

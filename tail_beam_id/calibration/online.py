@@ -1,7 +1,8 @@
 """``id_node`` calibrating itself on its own first minutes of data (docs: README "Supports other
 than the shipped one").
 
-What ``tail-beam calibrate BAG`` does offline (tail_beam_id.calibration.offline: the beam's sway in the
+What ``tail-beam calibrate BAG`` does offline (tail_beam_id.calibration.offline: the beam's sway in
+the
 jack pressure gives the oil column, the IMU's answer to the impacts the beam inertia), done on
 the first ``learn_s`` of stamp time the node hands its identifier. Until then labels say
 ``calibrated: false``; once the profile is found the identifier decides with it (labels say
@@ -97,7 +98,10 @@ class OnlineCalibration:
             else:
                 self._future = Future()
                 self._future.set_result(self._calibrate(pressure, imu, rebounds))
-            return f"calibration: learning done ({self.learn_s:g} s of data, {len(rebounds)} rebounds); measuring the support"
+            return (
+                f"calibration: learning done ({self.learn_s:g} s of data, {len(rebounds)} "
+                "rebounds); measuring the support"
+            )
         if self.state == "calibrating" and self._future is not None and self._future.done():
             self.state = "done"
             if self._pool is not None:
@@ -105,11 +109,15 @@ class OnlineCalibration:
             try:
                 self.result = self._future.result()
             except Exception as exc:  # noqa: BLE001 - reported, the node goes on uncalibrated
-                return f"calibration: failed ({type(exc).__name__}: {exc}); staying on the configured support"
+                return (
+                    f"calibration: failed ({type(exc).__name__}: {exc}); "
+                    "staying on the configured support"
+                )
             p = self.result.profile
             if self.result.model_params is None:
                 return (
-                    "calibration: no clear sway of the beam in the jack pressure (too few impacts?); "
+                    "calibration: no clear sway of the beam in the jack pressure (too few "
+                    "impacts?); "
                     "staying on the configured support (labels say calibrated: false)"
                 )
             gain = (
@@ -118,7 +126,8 @@ class OnlineCalibration:
                 else "IMU gain not measured"
             )
             return (
-                f"calibration: sway {p.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus {p.oil_bulk_modulus_pa:.3g} Pa, "
+                f"calibration: sway {p.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus "
+                f"{p.oil_bulk_modulus_pa:.3g} Pa, "
                 f"{gain}, {p.describe_hysteresis()}; labels from here on say calibrated: true"
             )
         return None

@@ -1,4 +1,4 @@
-"""The support's contact hysteresis, read from its own recording (issue 9).
+"""The support's contact hysteresis, read from its own recording.
 
 How much a contact dissipates belongs to the support (its wear plate, the law its contact
 follows) as much as to the particle: the same mudstone rebounds at 2.5 m/s off one support and
@@ -69,7 +69,8 @@ def joint_inputs(model: Mapping[str, Any], features: Mapping[str, float]) -> np.
 
 
 def joint_probabilities(model: Mapping[str, Any], z: np.ndarray) -> np.ndarray:
-    """P(class, bin | impact) for standardised inputs ``z`` (N, d): (N, 2K), gangue bins then coal bins."""
+    """P(class, bin | impact) for standardised inputs ``z`` (N, d): (N, 2K), gangue bins then
+    coal bins."""
     hidden = np.tanh(z @ np.array(model["w1"]).T + np.array(model["b1"]))
     scores = hidden @ np.array(model["w2"]).T + np.array(model["b2"])
     scores -= scores.max(axis=1, keepdims=True)
@@ -125,7 +126,8 @@ def applied_shift(logit: float, shift: float) -> float:
     decisions transfer to unseen supports less well than the plain network's: taken whole, the
     shift made labels surer where they were wrong too (foreign supports, self-calibrated, seed
     41004: 36 wrong labels at confidence >= 0.9 in 3000 impacts of five settings, against 24
-    without it; bounded like this 20, with the same labels: README, Supports other than the shipped one)."""
+    without it; bounded like this 20, with the same labels: README, Supports other than the shipped
+    one)."""
     moved = logit + shift
     if (moved > 0.0) == (logit > 0.0) and abs(moved) > abs(logit):
         return 0.0
@@ -151,9 +153,13 @@ def recording_weights(
 
 
 def describe(weights: Sequence[float] | None, impacts: int, bin_edges: Sequence[float]) -> str:
-    """The support's hysteresis in a few words ('hysteresis u in [-1, -0.5) (0.97), 18 impacts')."""
+    """The support's hysteresis in a few words ('hysteresis u in [-1, -0.5) (0.97), 18
+    impacts')."""
     if weights is None:
         return f"hysteresis not read ({impacts} impacts with every signal, too few)"
     best = int(np.argmax(weights))
     edges = [-math.inf, *bin_edges, math.inf]
-    return f"hysteresis u in [{edges[best]:g}, {edges[best + 1]:g}) ({weights[best]:.2f}), {impacts} impacts"
+    return (
+        f"hysteresis u in [{edges[best]:g}, {edges[best + 1]:g}) ({weights[best]:.2f}), "
+        f"{impacts} impacts"
+    )

@@ -1,6 +1,7 @@
 """What one recording's signals say about each impact: pulses found in the IMU and the
 accelerometer, the jack pressure's steps, the contact read-out, the camera's rebounds, the
-sensors' mounting signs and whether their clocks agree. Pure numpy/scipy, no state across impacts."""
+sensors' mounting signs and whether their clocks agree. Pure numpy/scipy, no state across
+impacts."""
 
 __all__ = [
     "camera",

@@ -16,15 +16,16 @@ from collections.abc import Sequence
 
 import numpy as np
 
-GRID_TOLERANCE_S = 1e-6  # how far a stamp may lie off the frame grid (clock jitter, ns rounding, float epoch stamps), s
+# how far a stamp may lie off the frame grid (clock jitter, ns rounding, float epoch stamps), s
+GRID_TOLERANCE_S = 1e-6
 MIN_PERIOD_S = (
     20e-6  # the fastest camera recognised (50 kHz): below it any stamps fit some grid, s
 )
 MAX_PERIOD_S = 0.002  # the slowest (500 Hz), s
 # Rebounds needed. With 3 differences, twice the true period fits by chance 1 time in 8 (until a
 # later stamp falls on an odd frame); that only makes decisions less sure, while the configured
-# period, when the camera is slower, makes them surely wrong: on 10 foreign supports with a
-# 1 kHz camera, waiting for 8 rebounds left 23 of 200 labels wrong at >= 0.9, waiting for 4, 14.
+# period, when the camera is slower, makes them surely wrong, so waiting for more rebounds than
+# this costs more confident wrong labels than it saves (docs/identification.md).
 MIN_REBOUNDS = 4
 MAX_REBOUNDS = 64  # rebounds kept for the estimate (the grid does not change)
 

@@ -1,8 +1,8 @@
 """Which way up the tail-beam accelerometer is bolted, read from the recording itself.
 
 Upside down, it reads every pulse with the opposite sign, and the models read a pulse's
-polarity and ringing: on a foreign set such labels fell from 82 to 53 %, 68 of 200 wrong at
-confidence >= 0.9. Two ways to tell, tried in this order:
+polarity and ringing, so an accelerometer read the wrong way up gives confident wrong labels.
+Two ways to tell, tried in this order:
 
 * gravity: a DC-coupled sensor at rest reads +g the right way up, -g upside down;
 * the IMU beside it (already read the right way up from its own gravity): a piezoelectric
@@ -26,7 +26,8 @@ MIN_CORRELATION = 0.6  # |correlation| that settles the sign
 MOTION_NOISE_RATIO = (
     10.0  # the IMU's smoothed z must swing this many times its noise RMS (the beam moved)
 )
-GIVE_UP_S = 10.0  # of accelerometer data without an answer (no IMU, or a beam that never moved): as configured
+# of accelerometer data without an answer (no IMU, or a beam that never moved): as configured
+GIVE_UP_S = 10.0
 
 
 def sign_from_gravity(first_mps2: np.ndarray, gravity_mps2: float) -> float | None:

@@ -72,7 +72,8 @@ class Setting:
         return self.vibration_rate_hz > 0.0
 
     def sensors(self) -> dict[str, float]:
-        """The ``sensors`` parameters this setting sets (the accelerometer's rate only when it has one)."""
+        """The ``sensors`` parameters this setting sets (the accelerometer's rate only when it
+        has one)."""
         return {
             **self.rates_hz,
             **({VIBRATION_FIELD: self.vibration_rate_hz} if self.has_vibration else {}),
@@ -241,7 +242,8 @@ def simulate_set(
 def _simulate_drawn(
     params: Mapping[str, Any], scene_set: str, count: int, seed: int, tier: str
 ) -> Iterator[LabelledImpact]:
-    """Impacts of the set's scene (DRAWN_SCENES), each on its own support drawn from the set's ranges."""
+    """Impacts of the set's scene (DRAWN_SCENES), each on its own support drawn from the set's
+    ranges."""
     ev = evaluation_params(params)
     ranges = support_ranges(ev, DRAWN_SETS[scene_set])
     support_rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))

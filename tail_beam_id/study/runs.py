@@ -43,8 +43,10 @@ class Record:
     wall_s: float
     calibrated: bool = False  # identified with the support's own profile instead of config/
     support: int | None = None  # a foreign set's support number (None: single impacts)
-    # The struck support's contact law and the factor on its hysteresis (support.contact_damping_scale):
-    # what training's hysteresis network learns to read from a recording (tail_beam_id.methods.hysteresis).
+    # The struck support's contact law and the factor on its hysteresis
+    # (support.contact_damping_scale):
+    # what training's hysteresis network learns to read from a recording
+    # (tail_beam_id.methods.hysteresis).
     contact_model: str | None = None
     contact_damping_scale: float | None = None
 
@@ -69,7 +71,8 @@ def run_set(
     configured data window and at each of ``windows_s`` (s) as well; the accelerometer's blocks
     are fed wherever the setting (or drawn support) has one, as id_node feeds them. With
     ``true_profile`` an impact on a drawn support is identified knowing that support (a perfect
-    calibration: what the calibrated models are trained on). With ``without_vibration_too`` an impact whose
+    calibration: what the calibrated models are trained on). With ``without_vibration_too`` an
+    impact whose
     result has the accelerometer is also identified without it (setting ``<key>/no-vibration``:
     the same impact at a site with the IMU alone; training uses it)."""
     tolerance_s = match_tolerance_s(params["identification"])

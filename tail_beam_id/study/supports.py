@@ -4,7 +4,8 @@ Every real support differs from ``config/`` (beam section, wear plate, jack, oil
 the IMU is bolted, what the sensors sample at), so the identification methods are trained on
 supports drawn from wide ranges and judged on supports drawn from wider ones (the ``foreign``
 scene set), never on the nominal one alone. A draw scales or replaces the parameters of the
-merged parameter dict; ranges live in ``identification.evaluation.supports`` (config/identification.yaml):
+merged parameter dict; ranges live in ``identification.evaluation.supports``
+(config/identification.yaml):
 
 - ``inertia_scale``, ``jack_stiffness_scale``, ``jack_damping_scale``: factors on the nominal
   beam inertia about the hinge, the oil's bulk modulus (the jack's stiffness) and its damping;
@@ -136,11 +137,17 @@ class SupportDraw:
     def describe(self) -> str:
         v = self.values
         return (
-            f"inertia x{v['inertia_scale']:.2f}, jack x{v['jack_stiffness_scale']:.2f}, mode 1 {v['bending_1_frequency_hz']:.0f} Hz "
-            f"zeta {100 * v['damping_ratio']:.1f} %, IMU {v['imu_rate_hz'] / 1e3:.1f} kHz at {v['imu_from_hinge_m']:.2f} m, "
+            f"inertia x{v['inertia_scale']:.2f}, jack x{v['jack_stiffness_scale']:.2f}, mode 1 "
+            f"{v['bending_1_frequency_hz']:.0f} Hz "
+            f"zeta {100 * v['damping_ratio']:.1f} %, IMU {v['imu_rate_hz'] / 1e3:.1f} kHz at "
+            f"{v['imu_from_hinge_m']:.2f} m, "
             f"noise x{v['noise_factor']:.2f}, "
-            f"{f'accelerometer {self.vibration_rate_hz / 1e3:.1f} kHz' if self.vibration_rate_hz > 0 else 'no accelerometer'}, "
-            f"{self.contact_model}"
+            + (
+                f"accelerometer {self.vibration_rate_hz / 1e3:.1f} kHz, "
+                if self.vibration_rate_hz > 0
+                else "no accelerometer, "
+            )
+            + f"{self.contact_model}"
             + (f" x{v['contact_damping_scale']:.2f}" if "contact_damping_scale" in v else "")
         )
 

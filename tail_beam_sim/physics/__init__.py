@@ -1,4 +1,5 @@
-"""The physics core: materials, contact, support, solvers, sensors and streams (numpy/scipy, no ROS)."""
+"""The physics core: materials, contact, support, solvers, sensors and streams (numpy/scipy, no
+ROS)."""
 
 __all__ = [
     "materials",

@@ -153,10 +153,12 @@ def contacts(
     positions: PositionTable | None = None,
     damping_scale: float = 1.0,
 ) -> Contacts:
-    """Every impact's contact from the pulse table's per-chi figures, vectorised (``damping_scale``:
+    """Every impact's contact from the pulse table's per-chi figures, vectorised
+    (``damping_scale``:
     the support's contact_damping_scale)."""
     table = pulse_table()
-    # chi of every impact by one impact's own formulas (contact.damping_factor), times the support's scale.
+    # chi of every impact by one impact's own formulas (contact.damping_factor), times the
+    # support's scale.
     chi = damping_factor(contact_model, np.asarray(batch.restitution, dtype=float), damping_scale)
     if np.any(chi > table.chi[-1]):
         raise InputError(
@@ -192,7 +194,8 @@ def contacts(
 
 class PositionTable:
     """What depends on the impact position only, tabulated along the plate and interpolated:
-    contact shape (m per unit q) and compliance at the contact point (1/kg, the inverse of its effective mass); on demand, the
+    contact shape (m per unit q) and compliance at the contact point (1/kg, the inverse of its
+    effective mass); on demand, the
     peak jack pressure change (Pa) and a bound on the plate's later speed (m/s), both per unit
     impulse (N s), the peak read off a fine time grid over the window."""
 

@@ -78,7 +78,8 @@ class Row:
 
     @property
     def spread(self) -> float:
-        """Spread of the repeated timings over their median: 10-90 % range (max - min under 10 runs)."""
+        """Spread of the repeated timings over their median: 10-90 % range (max - min under 10
+        runs)."""
         low, high = (
             np.percentile(self.times_s, [10, 90])
             if len(self.times_s) >= 10

@@ -1,4 +1,5 @@
-"""The ``impact_cmd`` wire format: one JSON object, bounded before it is parsed (docs/interface.md).
+"""The ``impact_cmd`` wire format: one JSON object, bounded before it is parsed
+(docs/interface.md).
 
 A command comes from any participant of the ROS domain, so its text is checked before
 ``json.loads`` sees it: at most ``MAX_COMMAND_CHARS`` characters, nested at most
@@ -48,7 +49,8 @@ def nesting_depth(text: str) -> int:
 
 
 def parse_command(text: str) -> Any:
-    """The JSON value of one ``impact_cmd`` text (its fields are checked by ``Impact.from_mapping``)."""
+    """The JSON value of one ``impact_cmd`` text (its fields are checked by
+    ``Impact.from_mapping``)."""
     if len(text) > MAX_COMMAND_CHARS:
         raise InputError(
             "impact_cmd", text, f"must be at most {MAX_COMMAND_CHARS} characters of JSON"

@@ -151,7 +151,8 @@ def calibrated_chi(restitution: Number) -> Number:
 
 
 class CrushingContact:
-    """Brittle contact: Hertz until the contact pressure reaches ``crushing_pressure_pa``, then crushing.
+    """Brittle contact: Hertz until the contact pressure reaches ``crushing_pressure_pa``, then
+    crushing.
 
     Thornton (1997, J. Appl. Mech. 64:383) elastic-perfectly-plastic sphere: Hertz loading
     F = K delta^1.5 until the peak Hertz pressure 2 E* a / (pi R) reaches the limit p_y, i.e.
@@ -202,7 +203,8 @@ class CrushingContact:
         return stiffness_p * (delta_m - offset) ** 1.5 if delta_m > offset else 0.0
 
     def rebound_energy_ratio(self, impact_energy_j: float) -> float:
-        """Energy given back over energy brought, on a rigid wall (closed form, no gravity): e^2."""
+        """Energy given back over energy brought, on a rigid wall (closed form, no gravity):
+        e^2."""
         k, dy, fy = self.stiffness, self.yield_penetration_m, self.yield_force_n
         elastic_j = 0.4 * k * dy**2.5
         if impact_energy_j <= elastic_j:

@@ -263,7 +263,8 @@ class SensorSuite:
 
 def mean_specific_force_z(trajectory: Trajectory, t_s: np.ndarray, period_s: float) -> np.ndarray:
     """Noise-free specific force along the plate normal at the IMU's place, each value the exact
-    mean over (t - period, t] (from the velocity change), m/s^2; ``t_s`` in the trajectory's time."""
+    mean over (t - period, t] (from the velocity change), m/s^2; ``t_s`` in the trajectory's
+    time."""
     structure = trajectory.problem.structure
     now = trajectory.sample(t_s)
     before = trajectory.sample(t_s - period_s)
@@ -290,7 +291,8 @@ class AntiAliasFilter:
         self._zi: np.ndarray | None = None
 
     def __call__(self, dense: np.ndarray) -> np.ndarray:
-        """Filter dense values (in order, continuing the previous call); returns them all filtered."""
+        """Filter dense values (in order, continuing the previous call); returns them all
+        filtered."""
         if dense.size == 0:
             return dense.copy()
         if self._zi is None:  # start settled on the first value (the beam at rest reads +g)
@@ -413,7 +415,8 @@ class VibrationBlocks:
 
     @staticmethod
     def concatenate(parts: list[VibrationBlocks]) -> VibrationBlocks:
-        """The blocks of ``parts`` one after another (period and range of the first non-empty part)."""
+        """The blocks of ``parts`` one after another (period and range of the first non-empty
+        part)."""
         parts = [p for p in parts if p.count]
         if not parts:
             return VibrationBlocks.empty()
@@ -457,7 +460,9 @@ class SequenceReport:
     accepted: VibrationBlocks  # the blocks to use, in index order
     gaps: list[tuple[int, int]]  # (first missing index, missing sample count), in order
     late: int  # blocks refused: they came after a later block was accepted (or repeated one)
-    misindexed: int = 0  # blocks refused whose index is behind the stream's while their stamp is not: the index does not count samples
+    # blocks refused whose index is behind the stream's while their stamp is not: the index does
+    # not count samples
+    misindexed: int = 0
 
 
 class BlockSequencer:

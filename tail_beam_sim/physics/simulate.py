@@ -1,7 +1,8 @@
 """Offline simulation of one scene: plan, build, solve, sensors, compare.
 
 ``simulate(scene)`` is the one entry point the command line, the nodes' tests and the
-benchmarks share. It runs five plain steps, each typed: :func:`~tail_beam_sim.physics.fidelity.plan`
+benchmarks share. It runs five plain steps, each typed:
+:func:`~tail_beam_sim.physics.fidelity.plan`
 (tier, structure, solver), :func:`build_problem`, :func:`~tail_beam_sim.physics.solvers.solve`,
 :func:`sense` (histories, sensor streams, summary) and, on request,
 :func:`~tail_beam_sim.physics.compare.compare` against the next tier up. Its
@@ -161,7 +162,8 @@ def simulate(
 ) -> SimulationResult:
     """Simulate one impact of ``scene`` and sample its sensors (reproducible by seed).
 
-    ``tier`` picks the model (``tail_beam_sim.physics.fidelity``: impulse, rigid (default: the study's
+    ``tier`` picks the model (``tail_beam_sim.physics.fidelity``: impulse, rigid (default: the
+    study's
     model), modal, brittle, or auto: the cheapest that meets ``needs``); ``settings`` holds the
     bending modes and defaults (default: config/); ``solver`` the method (default: the tier's).
     The summary reports ``tier``, ``solver`` and ``error_estimate`` (relative, of the model and
@@ -193,7 +195,8 @@ def simulate(
     )
     trajectory = solve(problem, solver or chosen.solver, **options)
     result = sense(scene, trajectory, vibration)
-    # The solver's own estimate is a field of every trajectory (contract: tail_beam_sim.physics.solvers).
+    # The solver's own estimate is a field of every trajectory (contract:
+    # tail_beam_sim.physics.solvers).
     own = trajectory.error_estimate
     result.summary["tier"] = chosen.tier.name
     result.summary["error_estimate"] = (

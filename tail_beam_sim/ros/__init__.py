@@ -1,4 +1,5 @@
-"""Thin ROS 2 adapters over the core: messages, parameters, spinning, and the three simulator-side nodes.
+"""Thin ROS 2 adapters over the core: messages, parameters, spinning, and the three simulator-side
+nodes.
 
 The only package of tail_beam_sim that imports rclpy."""
 

@@ -3,7 +3,7 @@
 A command published right after discovery can be lost without a trace: DDS discovery is
 asymmetric, so the client's writer may count the simulator's reader before that reader has
 matched the writer, and the reader drops what comes in between; the writer would repair it
-later, but a client that publishes and exits is gone by then (3 of 10 lost, measured: README).
+later, but a client that publishes and exits is gone by then.
 :func:`send_commands` therefore
 
 1. waits, up to ``timeout_s``, until a *simulator* is on the graph: a node that subscribes to
@@ -14,7 +14,8 @@ later, but a client that publishes and exits is gone by then (3 of 10 lost, meas
 3. publishes on a reliable keep-all writer and waits until the simulator has acknowledged every
    command (:func:`~tail_beam_sim.ros.spin.drain`);
 4. on request, waits for each command's ``impact_truth`` (matched by ``impact_id``) and for
-   sim_node's refusals, which it logs, naming the impact_id (:func:`~tail_beam_sim.ros.sim_node.refusal_tag`),
+   sim_node's refusals, which it logs, naming the impact_id
+   (:func:`~tail_beam_sim.ros.sim_node.refusal_tag`),
    and which reach a client on ``/rosout``.
 """
 
@@ -83,7 +84,8 @@ def check_namespace(namespace: str) -> str:
 
 
 def logger_name(node_fqn: str) -> str:
-    """The logger name a node logs under on /rosout: ``/support_07/tail_beam_sim`` -> ``support_07.tail_beam_sim``."""
+    """The logger name a node logs under on /rosout: ``/support_07/tail_beam_sim`` ->
+    ``support_07.tail_beam_sim``."""
     return node_fqn.strip("/").replace("/", ".")
 
 
@@ -138,7 +140,8 @@ class SendClient(Node):
         )
 
     def ready(self) -> bool:
-        """A simulator is on the graph and, when truths are wanted, its truth writer has matched our reader."""
+        """A simulator is on the graph and, when truths are wanted, its truth writer has matched
+        our reader."""
         if not self.simulators():
             return False
         return self.truth_sub is None or self.truth_sub.get_publisher_count() >= 1
@@ -150,7 +153,8 @@ def _spin_until(
     condition: Callable[[], bool],
     deadline: float,
 ) -> bool:
-    """Spin until ``condition()`` or the monotonic ``deadline``; Ctrl-C (the context shut down) raises KeyboardInterrupt."""
+    """Spin until ``condition()`` or the monotonic ``deadline``; Ctrl-C (the context shut down)
+    raises KeyboardInterrupt."""
     while not condition():
         if not context.ok():
             raise KeyboardInterrupt
@@ -201,8 +205,10 @@ def send_commands(
             )
             seen = f"; {', '.join(listeners)} {verbs} no impact_truth" if listeners else ""
             raise NoSimulator(
-                f"no simulator subscribed to {client.command_topic} within {timeout_s:g} s{seen}: start sim_node in namespace "
-                f"{namespace} and ROS_DOMAIN_ID {os.environ.get('ROS_DOMAIN_ID', '0')}, or raise --timeout-s"
+                f"no simulator subscribed to {client.command_topic} within {timeout_s:g} s{seen}: "
+                "start sim_node in namespace "
+                f"{namespace} and ROS_DOMAIN_ID {os.environ.get('ROS_DOMAIN_ID', '0')}, or raise "
+                "--timeout-s"
             )
         _spin_until(
             executor, context, gate.open, time.monotonic() + settle_s + 1.0
@@ -216,8 +222,10 @@ def send_commands(
             if not context.ok():
                 raise KeyboardInterrupt
             raise NotAcknowledged(
-                f"{len(commands)} command(s) published on {client.command_topic} but not all acknowledged within "
-                f"{ACK_TIMEOUT_S:g} s by {', '.join(outcome.simulators)} (it left, or is overloaded)"
+                f"{len(commands)} command(s) published on {client.command_topic} but not all "
+                "acknowledged within "
+                f"{ACK_TIMEOUT_S:g} s by {', '.join(outcome.simulators)} (it left, or is "
+                "overloaded)"
             )
         if not want_truths:
             return outcome

@@ -40,7 +40,8 @@ EVENT_PUBLISHER_QOS = QoSProfile(
     depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
 EVENT_TOPICS = (topics.REBOUND_VELOCITY, topics.IMPACT_TRUTH, topics.LABEL)
-# impact_cmd as sim_node reads it: keep-all, so that a burst waits in the reader's history (reliable
+# impact_cmd as sim_node reads it: keep-all, so that a burst waits in the reader's history
+# (reliable
 # flow control slows the client) instead of keep-last overwriting what the node has not taken yet.
 COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -203,7 +204,8 @@ def pressure_arrays(messages: Sequence[FluidPressure]) -> tuple[np.ndarray, np.n
 
 
 def imu_arrays(messages: Sequence[Imu]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """imu messages back to (stamp_s (T,), angular_velocity_radps (T,3), linear_acceleration_mps2 (T,3))."""
+    """imu messages back to (stamp_s (T,), angular_velocity_radps (T,3),
+    linear_acceleration_mps2 (T,3))."""
     stamps = np.array([stamp_s(m.header.stamp) for m in messages])
     gyro = np.array(
         [(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z) for m in messages]

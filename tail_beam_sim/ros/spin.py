@@ -153,7 +153,8 @@ class PublishBacklog:
                     return False  # shutting down: the writer is gone, nobody is behind
                 if not self._held:
                     self._node.get_logger().warning(
-                        f"a subscriber of {publisher.topic_name} is behind: holding {len(self._queue)} messages until it catches up"
+                        f"a subscriber of {publisher.topic_name} is behind: holding "
+                        f"{len(self._queue)} messages until it catches up"
                     )
                 self._held = True
                 return False
@@ -192,7 +193,8 @@ class ForeignTypeWatch:
                     continue
                 self._said.add(key)
                 self._node.get_logger().warning(
-                    f"{topic}: a publisher (node {publisher}) offers {info.topic_type}, not {msgtype}: "
+                    f"{topic}: a publisher (node {publisher}) offers {info.topic_type}, not "
+                    f"{msgtype}: "
                     "none of its messages can reach this node"
                 )
 
@@ -268,7 +270,8 @@ class NodeGroup:
         topics: Mapping[str, Callable[[str], None]],
         depth: int = 1000,
     ) -> Node:
-        """A plain node that hands the ``data`` of each ``std_msgs/String`` on ``topics`` to its callback."""
+        """A plain node that hands the ``data`` of each ``std_msgs/String`` on ``topics`` to its
+        callback."""
         from std_msgs.msg import String
 
         node = rclpy.create_node(name, context=self.context, namespace=namespace)
@@ -291,7 +294,8 @@ class NodeGroup:
 
 
 def rcl_error_line(exc: BaseException) -> str:
-    """An RCLError's message as one line, without rcl's source locations (``, at /project/src/parse.c:835``)."""
+    """An RCLError's message as one line, without rcl's source locations (``, at
+    /project/src/parse.c:835``)."""
     text = " ".join(str(exc).split())
     return re.sub(r",? at /\S+:\d+", "", text).strip(" ,")
 
@@ -318,7 +322,8 @@ def run_node(
     :class:`ClosingNode` is closed on the way out. Bad parameters end it with one line and exit
     status 2, as do arguments rcl refuses (a --params-file that is no YAML or missing, a trailing
     ``-p``) and any other failure to build the node from its parameters (a model that cannot take
-    a value: the line names the parameters set); SIGINT and SIGTERM end it with status 0; a node that sets ``exit_status`` (a replay
+    a value: the line names the parameters set); SIGINT and SIGTERM end it with status 0; a node
+    that sets ``exit_status`` (a replay
     that met a damaged bag) exits with it.
     """
     if isinstance(usage, str):
@@ -345,10 +350,12 @@ def run_node(
         print(f"{executable}: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    except Exception as exc:  # a value of the right kind that a model cannot take (1e308 Hz: its matrices overflow)
+    # a value of the right kind that a model cannot take (1e308 Hz: its matrices overflow)
+    except Exception as exc:
         given = ", ".join(parameters_given(list(sys.argv[1:] if args is None else args))) or "none"
         print(
-            f"{executable}: error: the parameters do not make a working node ({type(exc).__name__}: "
+            f"{executable}: error: the parameters do not make a working node "
+            f"({type(exc).__name__}: "
             f"{' '.join(str(exc).split())[:200]}); set on the command line: {given}",
             file=sys.stderr,
         )
@@ -357,7 +364,9 @@ def run_node(
     try:
         spin(node, node.finished if isinstance(node, FinishingNode) else None, stop)
     finally:
-        if stop.requested:  # told to stop: close without waiting on subscribers (drain), as a shut-down context tells the node
+        # told to stop: close without waiting on subscribers (drain), as a shut-down context tells
+        # the node
+        if stop.requested:
             rclpy.try_shutdown()
         try:
             if isinstance(node, ClosingNode):
@@ -365,6 +374,7 @@ def run_node(
             node.destroy_node()
         except Exception:
             if rclpy.ok():
-                raise  # a real failure; one on a context SIGINT already invalidated is the shutdown
+                # a real failure; one on a context SIGINT already invalidated is the shutdown
+                raise
         rclpy.try_shutdown()
     return int(getattr(node, "exit_status", 0))

@@ -24,11 +24,13 @@ class NodeUsage:
 
     def text(self) -> str:
         lines = [
-            f"usage: {self.executable} [-h] [--ros-args [-p NAME:=VALUE]... [--params-file YAML] [-r __ns:=/NAMESPACE]]",
+            f"usage: {self.executable} [-h] [--ros-args [-p NAME:=VALUE]... [--params-file YAML] "
+            "[-r __ns:=/NAMESPACE]]",
             "",
             self.summary,
             "",
-            "Parameters (set with -p NAME:=VALUE or --params-file; every value of config/*.yaml is one):",
+            "Parameters (set with -p NAME:=VALUE or --params-file; every value of config/*.yaml "
+            "is one):",
         ]
         for name in self.config_files:
             for parameter, value, comment in parameter_comments(default_config_dir() / name):

@@ -4,9 +4,11 @@ the bag: impacts (truths) = rebounds = the count asked for, each impact has its 
 suite's one matching rule (tail_beam_id.stream.label.match) with no label left over, and the live
 labels are those `tail-beam identify` gives on the bag.
 
-    python test/bench/soak_nodes.py --impacts 1000          # about 8 minutes on a loaded 2-core machine
+    python test/bench/soak_nodes.py --impacts 1000          # about 8 minutes on a loaded 2-core
+    machine
 
-Not part of the pytest suite (too long); test/sim/ros/test_soak_short.py runs the same with 50 impacts.
+Not part of the pytest suite (too long); test/sim/ros/test_soak_short.py runs the same with 50
+impacts.
 Exit status 0 when the counts match and the bag reads, 1 otherwise.
 """
 
@@ -153,7 +155,9 @@ def soak(
     live = [Label.from_dict(obj) for obj in data.json_topics[topics.LABEL]]
     offline = identify_bag(str(bag), calibrate=False)  # id_node as run here does not calibrate
     result.offline_labels = len(offline)
-    result.live_matches_offline = [l.decision() for l in live] == [l.decision() for l in offline]
+    result.live_matches_offline = [lab.decision() for lab in live] == [
+        lab.decision() for lab in offline
+    ]
     matching = match(
         data.json_topics[topics.IMPACT_TRUTH],
         live,
@@ -197,12 +201,17 @@ def main(argv: list[str] | None = None) -> int:
         if values:
             third = max(1, len(values) // 3)
             print(
-                f"  {name:<13} RSS first {values[0]:6.1f} MB, max {max(values):6.1f} MB, last {values[-1]:6.1f} MB; "
-                f"mean of first third {sum(values[:third]) / third:6.1f}, of last third {sum(values[-third:]) / third:6.1f}"
+                f"  {name:<13} RSS first {values[0]:6.1f} MB, max {max(values):6.1f} MB, last "
+                f"{values[-1]:6.1f} MB; "
+                f"mean of first third {sum(values[:third]) / third:6.1f}, of last third "
+                f"{sum(values[-third:]) / third:6.1f}"
             )
     print(
-        f"  truths {result.truths}, labels {result.labels} ({result.matched} matched, {result.extra} extra; offline "
-        f"{result.offline_labels}, {'the same' if result.live_matches_offline else 'NOT the same'}), rebounds {result.rebounds} "
+        f"  truths {result.truths}, labels {result.labels} ({result.matched} matched, "
+        f"{result.extra} extra; offline "
+        f"{result.offline_labels}, "
+        f"{'the same' if result.live_matches_offline else 'NOT the same'}), rebounds "
+        f"{result.rebounds} "
         f"(asked {result.asked}): "
         f"{'match' if result.counts_match else 'MISMATCH'}"
     )

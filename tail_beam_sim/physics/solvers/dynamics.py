@@ -40,7 +40,8 @@ class FloatDynamics:
     def force(
         self, delta_m: float, rate_mps: float, approach_mps: float, peak_penetration_m: float
     ) -> float:
-        """Contact force, N: Hertz with hysteresis, or the crushing law when the problem has one."""
+        """Contact force, N: Hertz with hysteresis, or the crushing law when the problem has
+        one."""
         if delta_m <= 0.0:
             return 0.0
         if self.crushing is not None:

@@ -4,7 +4,8 @@ A contact lasts 0.1-1 ms while the beam's modes are tens to a few thousand Hz, s
 the window is linear and unforced: it is propagated in closed form (eigen-decomposition).
 Each contact is solved in one of two ways (option ``contact``):
 
-* ``pulse``: the pre-integrated universal contact pulse of :mod:`~tail_beam_sim.physics.solvers.pulse`,
+* ``pulse``: the pre-integrated universal contact pulse of
+:mod:`~tail_beam_sim.physics.solvers.pulse`,
   scaled to the impact, drives the structure exactly. It neglects the plate's spring and
   damping forces and gravity during the contact and estimates what that costs;
 * ``rk4``: the coupled equations integrated with a fixed number of RK4 steps scaled to the
@@ -13,7 +14,8 @@ Each contact is solved in one of two ways (option ``contact``):
   reached with one partial step. Always used for the crushing contact.
 
 ``auto`` (default) takes the pulse when its own error estimate is under ``pulse_tolerance``
-and integrates otherwise (large soft particles, particles settling on the plate). The next contact, if the beam can catch the particle again at all (a bound on the
+and integrates otherwise (large soft particles, particles settling on the plate). The next contact,
+if the beam can catch the particle again at all (a bound on the
 plate's speed decides), is found by scanning the gap on a grid finer than the fastest mode
 and refining the root.
 
@@ -57,7 +59,8 @@ MAX_REFINEMENTS = 3
 ENERGY_GAIN_TOLERANCE = (
     0.01  # relative: separation faster than approach by more than this is a failure
 )
-DEFAULT_PULSE_TOLERANCE = 5e-3  # relative error estimate (conservative) the pulse may cost before a contact is integrated
+# relative error estimate (conservative) the pulse may cost before a contact is integrated
+DEFAULT_PULSE_TOLERANCE = 5e-3
 CONTACT_METHODS = ("auto", "pulse", "rk4")
 # Relative error bound of a contact integrated by RK4: measured in test_solvers.py (Hertz with
 # hysteresis, 48 steps) and test_fidelity.py (crushing, the brittle tier's 192 steps).
@@ -83,7 +86,8 @@ def solve(
     if contact == "pulse" and not pulse_ok:
         raise SolverError(
             "hybrid",
-            "contact='pulse' covers Hertz contacts with hysteresis factor <= 40 only; use contact='rk4'",
+            "contact='pulse' covers Hertz contacts with hysteresis factor <= 40 only; use "
+            "contact='rk4'",
         )
     structure = problem.structure
     dynamics: FloatDynamics | None = None  # built on the first integrated contact
@@ -259,7 +263,8 @@ def contact_phase(
         steps *= 2
     raise SolverError(
         "hybrid",
-        f"contact at t = {t0:.6g} s gained energy (leaves {100 * gained:.1f} % faster than it came) even with "
+        f"contact at t = {t0:.6g} s gained energy (leaves {100 * gained:.1f} % faster than it "
+        "came) even with "
         f"{steps // 2} RK4 steps: the contact law or the problem is ill-posed",
     )
 

@@ -31,7 +31,8 @@ FIRST_PASS_STEP = (
 )
 MAX_SPAN = 40.0  # dimensionless time limit of the first pass (chi = 40 lasts about 25 units)
 MOMENTS = 64  # moments of each pulse kept for its spectrum's power series
-SERIES_RADIUS = 12.0  # |lambda T| up to which the series is used (largest term ~2e4, last ~1e-20: about 1e-11 relative)
+# |lambda T| up to which the series is used (largest term ~2e4, last ~1e-20: about 1e-11 relative)
+SERIES_RADIUS = 12.0
 
 
 @dataclass(frozen=True)
@@ -85,7 +86,8 @@ def pulse_table() -> PulseTable:
         u, v, t = u_new, v_new, t + h
     keep = ~np.isnan(duration)
     chi, duration = chi[keep], duration[keep]
-    # Pass 2: each row with its own step, so that sample j lands at j / PULSE_NODES of its duration.
+    # Pass 2: each row with its own step, so that sample j lands at j / PULSE_NODES of its
+    # duration.
     step = duration / (PULSE_NODES * SUBSTEPS)
     u, v = np.zeros_like(chi), np.ones_like(chi)
     us, vs = [u], [v]
@@ -113,7 +115,8 @@ def pulse_table() -> PulseTable:
 
 
 def _moments(force: np.ndarray, fractions: np.ndarray) -> np.ndarray:
-    """int_0^1 f(s) s^m ds, m < MOMENTS, of the piecewise-linear interpolant of each row (exact)."""
+    """int_0^1 f(s) s^m ds, m < MOMENTS, of the piecewise-linear interpolant of each row
+    (exact)."""
     a, b = fractions[:-1], fractions[1:]
     h = b - a
     m = np.arange(MOMENTS)[:, None]
@@ -151,7 +154,8 @@ _POWERS = np.arange(MOMENTS)
 class Pulse:
     """A contact pulse in physical units, blended from the table rows ``row`` and ``row + 1``
     with weight ``weight``: its scalars at once (duration s, relative separation speed m/s, peak
-    force N, refined between samples by a parabola, largest penetration m) and its samples on demand (times
+    force N, refined between samples by a parabola, largest penetration m) and its samples on
+    demand (times
     from contact start s, relative penetration m and its rate m/s, force N)."""
 
     def __init__(
@@ -233,7 +237,8 @@ def _chi_list() -> list[float]:
 
 
 def parabolic_peak(values: np.ndarray) -> float:
-    """Peak of a smooth sampled curve: the parabola through the largest sample and its neighbours."""
+    """Peak of a smooth sampled curve: the parabola through the largest sample and its
+    neighbours."""
     k = int(values.argmax())
     if k == 0 or k == values.size - 1:
         return float(values[k])
@@ -258,7 +263,8 @@ def pulse_integral(eigenvalues: np.ndarray, t_s: np.ndarray, force_n: np.ndarray
     """int_0^T F(s) e^{-lambda_k s} ds per eigenvalue, F piecewise linear on uniform ``t_s``
     from 0 (exact, the same quadrature as :func:`structure_response`)."""
     h = float(t_s[1] - t_s[0])
-    # on [t_j, t_j + h]: e^{-lam t_j} (F_j int e^{-lam u}(1 - u/h) du + F_{j+1} int e^{-lam u} u/h du)
+    # on [t_j, t_j + h]: e^{-lam t_j} (F_j int e^{-lam u}(1 - u/h) du + F_{j+1} int e^{-lam u} u/h
+    # du)
     weights = np.array([_segment_weights(-complex(lam) * h, h) for lam in eigenvalues])
     decay = np.exp(np.outer(-eigenvalues, t_s[:-1]))
     return decay @ force_n[1:] * weights[:, 0] + decay @ force_n[:-1] * weights[:, 1]

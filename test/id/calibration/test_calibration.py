@@ -1,4 +1,4 @@
-"""Self-calibration (issue 9): a support profile from the support's own recording, no labels;
+"""Self-calibration: a support profile from the support's own recording, no labels;
 `tail-beam calibrate` writes it and `tail-beam identify` uses it."""
 
 from __future__ import annotations
@@ -66,7 +66,8 @@ def test_sway_frequency_is_the_supports_rigid_mode(params, recordings):
 def test_profile_restores_the_supports_sway_and_jack_gain(params, recordings):
     """The profile's (rigid) support sways at the recorded support's lowest natural frequency, so
     its pressure per unit moment impulse, omega / (d S) on the rigid beam, is the recorded one's,
-    within 2 % (as the frequency); and the nominal support's is not (the test would pass on no profile otherwise)."""
+    within 2 % (as the frequency); and the nominal support's is not (the test would pass on no
+    profile otherwise)."""
     for recorded in recordings:
         profile = calibrate(
             params,
@@ -95,9 +96,10 @@ def test_profile_restores_the_supports_sway_and_jack_gain(params, recordings):
         )
         found = Support.from_params(calibrated["support"], materials)
         nominal = Support.from_params(params["support"], materials)
-        gain = lambda s: (
-            2 * np.pi * s.rigid_mode_frequency_hz / (s.jack_lever_arm_m * s.piston_area_m2)
-        )  # noqa: E731
+
+        def gain(s):
+            return 2 * np.pi * s.rigid_mode_frequency_hz / (s.jack_lever_arm_m * s.piston_area_m2)
+
         assert gain(found) == pytest.approx(truth, rel=0.02)
         assert gain(nominal) != pytest.approx(truth, rel=0.02)
         assert profile.impacts_used >= 3
@@ -206,7 +208,8 @@ def test_calibrate_then_identify_from_the_command_line(params, recordings, tmp_p
 def test_foreign_supports_at_a_named_setting_keep_their_mechanics_and_impacts(params):
     """The foreign set compares like with like: recorded at a named sensor setting, each drawn
     support keeps its mechanics, contact law and impacts (the truths are identical) while its
-    sensors become the setting's (the IMU at its rate, the accelerometer present or not, noise x1)."""
+    sensors become the setting's (the IMU at its rate, the accelerometer present or not, noise
+    x1)."""
     from tail_beam_id.study.dataset import settings
 
     shipped, nominal = settings(params, [1.0], ["shipped", "nominal"])
@@ -452,7 +455,8 @@ def test_the_paper_scene_strikes_the_foreign_supports_the_stream_scene_does(para
 def _gain_features(
     rng: np.random.Generator, gain: float, impulses_mps: np.ndarray, sigma_nms: float
 ) -> list[dict[str, float]]:
-    """Impacts' features whose pressure moment is ``gain`` x the IMU impulse plus noise of sigma_nms."""
+    """Impacts' features whose pressure moment is ``gain`` x the IMU impulse plus noise of
+    sigma_nms."""
     moments = gain * impulses_mps + rng.normal(0.0, sigma_nms, impulses_mps.size)
     return [
         {
@@ -527,7 +531,7 @@ def test_imu_gain_from_noise_free_readings():
 def test_an_implausible_imu_gain_keeps_the_configured_beam_and_its_oil(params, recordings):
     """An IMU whose impulses read 7 times low (a wrong scale factor) gives an inertia about 7 times
     the configured one: refused as implausible, and the oil's bulk modulus is then the one that
-    gives the sway frequency with the configured beam (it used to be solved for the refused
+    gives the sway frequency with the configured beam (not one solved for the refused
     inertia), as a profile without any IMU gain would have."""
     from tail_beam_id.calibration.offline import bulk_modulus_for
 

@@ -1,4 +1,4 @@
-"""Self-calibration reads the support's contact hysteresis from its recording (issue 9): a
+"""Self-calibration reads the support's contact hysteresis from its recording: a
 support whose law under-damps low restitutions (Hunt-Crossley) and one that does not (Flores),
 each recording the paper scene, are told apart without labels, and the labels use it."""
 

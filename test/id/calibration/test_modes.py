@@ -1,4 +1,4 @@
-"""The beam's bending modes read from its ringing after impacts (issue 9, self-calibration:
+"""The beam's bending modes read from its ringing after impacts (self-calibration:
 "the beam's modes and their damping from the ringing, so that ringing is never taken for an
 impact"): against ring-downs of known modes, and against the eigenvalues of the simulated
 structure that rang."""
@@ -79,7 +79,8 @@ def test_too_few_impacts_or_no_ringing_measure_no_mode():
 
 @pytest.fixture(scope="module")
 def streams(params):
-    """Three foreign supports with the shipped sensors (the 25.6 kHz accelerometer), 12 impacts each."""
+    """Three foreign supports with the shipped sensors (the 25.6 kHz accelerometer), 12 impacts
+    each."""
     shipped = settings(params, [1.0], ["shipped"])[0]
     return list(support_streams(params, 3, 12, seed=41004, setting=shipped))
 
@@ -177,7 +178,8 @@ def test_self_calibration_hands_the_ringing_to_the_detector(params, streams):
 
 
 def test_a_profile_without_modes_leaves_the_detector_as_configured(params):
-    """No mode measured: the profile says nothing of the detector (config/'s ring_decay_s holds)."""
+    """No mode measured: the profile says nothing of the detector (config/'s ring_decay_s
+    holds)."""
     profile = SupportProfile(
         duration_s=5.0,
         impacts_used=0,

@@ -72,7 +72,7 @@ def test_labels_say_calibrated_once_the_learned_support_is_in_use(
     labels, gated = calibrated_run
     flags = [label.calibrated for label in labels]
     assert flags[0] is False and flags[-1] is True and flags == sorted(flags)
-    assert all(not l.calibrated for l in labels if l.impact_stamp_s < LEARN_S)
+    assert all(not lab.calibrated for lab in labels if lab.impact_stamp_s < LEARN_S)
     support = Support.from_params(recorded.params["support"], material_table(recorded.params))
     truth = structure_for(
         TIERS["modal"], support, FidelitySettings.from_params(recorded.params).modes
@@ -94,8 +94,8 @@ def test_without_online_calibration_nothing_changes(params, recorded):
     learning, gated = run(
         params, recorded, OnlineCalibration(params, 60.0, "statistical", background=False)
     )
-    assert not any(l.calibrated for l in plain)
-    assert [l.decision() for l in plain] == [l.decision() for l in learning]
+    assert not any(lab.calibrated for lab in plain)
+    assert [lab.decision() for lab in plain] == [lab.decision() for lab in learning]
     assert gated.calibration.state == "learning"
 
 
@@ -130,9 +130,9 @@ def test_online_calibration_hands_the_supports_hysteresis_to_the_method(
     assert gated.identifier.method.hysteresis_weights == profile.hysteresis_weights
     assert any("hysteresis u in" in note for note in gated.notes)
     after = [
-        l
-        for l in labels
-        if l.calibrated and set(l.signals) == {"jack_pressure", "imu", "rebound_velocity"}
+        lab
+        for lab in labels
+        if lab.calibrated and set(lab.signals) == {"jack_pressure", "imu", "rebound_velocity"}
     ]
-    assert after and all("hysteresis_shift" in l.features for l in after)
-    assert not any("hysteresis_shift" in l.features for l in labels if not l.calibrated)
+    assert after and all("hysteresis_shift" in lab.features for lab in after)
+    assert not any("hysteresis_shift" in lab.features for lab in labels if not lab.calibrated)

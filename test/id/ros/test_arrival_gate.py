@@ -230,9 +230,9 @@ def test_a_sensor_that_stops_no_longer_holds_the_others(params, chunk, gate_conf
     keep = blocks.stamp_s < 0.7
     run.blocks = (arrival[keep], blocks.select(keep))
     labels = drive(gated(params, gate_config), [run])
-    assert [round(l.impact_stamp_s, 2) for l in labels] == STAMPS
+    assert [round(lab.impact_stamp_s, 2) for lab in labels] == STAMPS
     assert "vibration" in labels[0].signals and all(
-        "vibration" not in l.signals for l in labels[1:]
+        "vibration" not in lab.signals for lab in labels[1:]
     )
 
 

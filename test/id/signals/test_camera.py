@@ -1,4 +1,5 @@
-"""The camera's frame period read from its rebound stamps (tail_beam_id.signals.camera), and what the
+"""The camera's frame period read from its rebound stamps (tail_beam_id.signals.camera), and what
+the
 statistical method does with a camera slower than its training's."""
 
 from __future__ import annotations
@@ -108,7 +109,8 @@ def test_a_decision_uses_only_the_stamps_up_to_its_rebound():
 
 @pytest.fixture(scope="module")
 def slow_camera_stream(params):
-    """Ten impacts of 25-90 mm coal and mudstone 0.3-0.45 s apart on the nominal support, its camera
+    """Ten impacts of 25-90 mm coal and mudstone 0.3-0.45 s apart on the nominal support, its
+    camera
     at 1 kHz (lagging the contact's end by up to 1 ms, five times the shipped camera's frame)."""
     varied = copy.deepcopy(params)
     varied["sensors"]["camera_frame_rate_hz"] = 1000.0
@@ -242,7 +244,7 @@ def test_with_an_imu_too_slow_to_read_the_contact_a_slow_cameras_delay_is_averag
     """The same 1 kHz camera beside a 2 kHz IMU alone: the contact's duration is not read from
     the pulse (it says the sample period), so the delay is all the impact says of it, and the
     decision is averaged over the lags the camera may have added rather than made without the
-    delay (on 200 foreign impacts 59.0 -> 65.0 %; with a 5 kHz IMU 56.5 -> 68.0 %). Moving the
+    delay. Moving the
     stamp within the frame moves the decision; each average lies within the decisions at the
     lags it averages, which never exceed the delay itself (a longer lag would leave a contact
     of no duration); and no timing check is made of a delay that cannot show a clock offset."""
@@ -265,7 +267,8 @@ def test_with_an_imu_too_slow_to_read_the_contact_a_slow_cameras_delay_is_averag
         assert "delay_residual" not in features
         delay = features["rebound_delay_s"]
         averaged = method.decide(features).p_coal
-        # The training's 5 kHz camera lagged 0.1 ms on average: a lag u reads as delay - u + 0.1 ms.
+        # The training's 5 kHz camera lagged 0.1 ms on average: a lag u reads as delay - u + 0.1
+        # ms.
         at_lags = [
             method.decide(
                 {**features, "camera_frame_period_s": 2e-4, "rebound_delay_s": delay - u + 1e-4}
@@ -286,7 +289,8 @@ def test_with_an_imu_too_slow_to_read_the_contact_a_slow_cameras_delay_is_averag
 def test_only_a_frame_measured_well_under_the_readable_limit_proves_a_fast_camera():
     """may_be_slower: a camera slower than MAX_PERIOD_S (2 ms) has stamps that fit a frame between
     1 and 2 ms (240 Hz: 4.17 ms / 3 = 1.39 ms; 100 Hz: 10 ms / 5 = 2 ms), so only an estimate of
-    1 ms or less, or none being unknown, decides; and the estimates are what frame_period_s reads."""
+    1 ms or less, or none being unknown, decides; and the estimates are what frame_period_s
+    reads."""
     from tail_beam_id.signals.camera import may_be_slower
 
     assert may_be_slower(None) and may_be_slower(2e-3) and may_be_slower(1.39e-3)

@@ -1,4 +1,5 @@
-"""The contact's duration read from the acceleration pulse (tail_beam_id.signals.contact_fit): against a
+"""The contact's duration read from the acceleration pulse (tail_beam_id.signals.contact_fit):
+against a
 synthetic pulse of known duration through known modes, against the Hertz contact the simulator
 integrates, on two different supports, and on a channel too slow to show it."""
 

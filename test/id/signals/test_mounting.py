@@ -1,4 +1,5 @@
-"""Which way up the tail-beam accelerometer is bolted (tail_beam_id.signals.mounting): from gravity, or,
+"""Which way up the tail-beam accelerometer is bolted (tail_beam_id.signals.mounting): from
+gravity, or,
 for a piezoelectric (AC-coupled) sensor that sees none, from the IMU beside it."""
 
 from __future__ import annotations
@@ -83,10 +84,10 @@ def test_an_ac_coupled_accelerometer_upside_down_labels_as_the_right_way_up(para
     ac_inverted = -(accel - np.median(accel[:2000]))
     for chunk_s in (0.01, 0.003):
         labels = _labels(params, face, ac_inverted, chunk_s)
-        assert [l.decision()[:2] for l in labels] == [l.decision()[:2] for l in upright]
-        assert all(l.vibration_mount == "inverted" for l in labels)
-        assert [l.confidence for l in labels] == pytest.approx(
-            [l.confidence for l in upright], abs=0.02
+        assert [lab.decision()[:2] for lab in labels] == [lab.decision()[:2] for lab in upright]
+        assert all(lab.vibration_mount == "inverted" for lab in labels)
+        assert [lab.confidence for lab in labels] == pytest.approx(
+            [lab.confidence for lab in upright], abs=0.02
         )
 
 
@@ -96,4 +97,4 @@ def test_without_an_imu_an_ac_coupled_accelerometer_is_taken_as_configured(param
     labelled."""
     accel = np.asarray(face.vibration.accel_mps2, dtype=float)
     labels = _labels(params, face, accel - np.median(accel[:2000]), imu=False)
-    assert len(labels) == 5 and all(l.vibration_mount is None for l in labels)
+    assert len(labels) == 5 and all(lab.vibration_mount is None for lab in labels)

@@ -1,4 +1,5 @@
-"""A recording whose sensor clocks are offset (tail_beam_id.signals.timing): one impact cannot show it,
+"""A recording whose sensor clocks are offset (tail_beam_id.signals.timing): one impact cannot show
+it,
 a recording can; its labels that use the delay from onset to camera stamp are then decided
 without the delay and capped."""
 
@@ -52,7 +53,8 @@ def test_a_recording_is_suspect_only_with_enough_impacts_and_enough_unusual_ones
 def test_the_unusual_count_a_recording_needs_follows_the_binomial_tail(checked, fewest):
     """The fewest unusual delays that make a recording of ``checked`` impacts suspect are the
     smallest k with P(X >= k) < 0.001 for X ~ Binomial(checked, 0.03), computed by hand:
-    P(X >= 4 | 10) = 1.5e-4 but P(X >= 3 | 10) = 2.8e-3; P(X >= 5 | 20) = 2.6e-4, P(>= 4) = 2.7e-3."""
+    P(X >= 4 | 10) = 1.5e-4 but P(X >= 3 | 10) = 2.8e-3; P(X >= 5 | 20) = 2.6e-4, P(>= 4) =
+    2.7e-3."""
     assert not judge(checked, fewest - 1, CONFIG)
     assert judge(checked, fewest, CONFIG)
 
@@ -75,7 +77,8 @@ def test_identify_and_calibrate_refuse_a_bad_timing_section_before_they_read_the
 
     config = tmp_path / "bad.yaml"
     config.write_text(
-        "/**:\n  ros__parameters:\n    identification:\n      sensor_timing:\n        agreeing_rate: 0.7\n"
+        "/**:\n  ros__parameters:\n    identification:\n      sensor_timing:\n        "
+        "agreeing_rate: 0.7\n"
     )
     assert main([command, str(tmp_path / "no_such_bag"), "--config", str(config)]) == 2
     error = capsys.readouterr().err
@@ -171,8 +174,7 @@ def test_a_suspect_recording_is_decided_without_the_delay_and_keeps_its_accuracy
     signals still tell the materials apart. With the camera 0.5 ms late, every label of a
     self-calibrated pass says delay_untrusted, its probability does not move when the delay is
     moved by another 0.5 ms (the twin without the delay decided it), and it is right about as
-    often as on the recording as simulated (within 2 of 20; capped but still read from the
-    delay, 10 of 20 were right against 15)."""
+    often as on the recording as simulated (within 2 of 20)."""
     late = list(
         foreign_records(
             params,

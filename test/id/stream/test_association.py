@@ -1,4 +1,5 @@
-"""Impact association (tail_beam_id.stream.association): which rebound is an impact's, what overlaps it,
+"""Impact association (tail_beam_id.stream.association): which rebound is an impact's, what
+overlaps it,
 when the camera has said all it will. Expected values follow from the configured windows."""
 
 from __future__ import annotations
@@ -78,7 +79,8 @@ def test_a_slow_cameras_rebound_window_is_wider_by_its_extra_frame(params):
 
 
 def test_a_rebound_that_is_no_number_is_counted_and_a_repeat_ignored(book):
-    """A rebound with a non-finite stamp or velocity is left out and counted; one not after the newest is a repeat."""
+    """A rebound with a non-finite stamp or velocity is left out and counted; one not after the
+    newest is a repeat."""
     book.add_rebound(math.nan, UP)
     book.add_rebound(1.0, np.array([0.0, math.inf, 1.0]))
     book.add_rebound(1.0, UP)
@@ -155,7 +157,8 @@ def test_a_late_rebound_goes_to_the_latest_waiting_pulse_and_never_past_another_
 
 
 def test_late_rebounds_can_be_switched_off(params):
-    """late_rebound_max_s: 0 turns the rule off (the rebound is then an impact of its own, as before)."""
+    """late_rebound_max_s: 0 turns the rule off (the rebound is then an impact of its own, as
+    before)."""
     import copy
 
     section = copy.deepcopy(params["identification"])

@@ -15,7 +15,8 @@ def test_coal_and_mudstone_twins_differ_only_in_contact_duration(params):
     # lasts about 0.1 ms longer for the coal, less than one 2 kHz IMU period (0.5 ms) or one
     # 5 kHz camera frame (0.2 ms) can resolve. At the shipped rates no method can tell them
     # apart; at 20 kHz the duration is resolved (evaluation: the `fast` setting).
-    """A coal and a mudstone sphere can share moment impulse, rebound speed and peak pressure within noise, differing only by a contact 60-200 us longer."""
+    """A coal and a mudstone sphere can share moment impulse, rebound speed and peak pressure
+    within noise, differing only by a contact 60-200 us longer."""
     fields = {"drop_height_m": 3.0, "position_m": 1.0, "restitution": 0.35}
     mud = impact(
         params, tier="rigid", noise=0.0, material="mudstone", radius_m=0.025, **fields
@@ -42,7 +43,8 @@ def test_threshold_holds_on_the_paper_scene_and_breaks_on_the_stream(params):
     # 25 mm spheres; on the stream scene size, height and restitution confound it, while the
     # classifier that sees the moment impulse and the contact duration as well does better.
     # Seeds 9001/9002: neither training (7, 8) nor evaluation (41001-41003) uses them.
-    """The study's rebound threshold is 90 % right on its own scene, at most 80 % on the stream scene, where the statistical method beats it by 10 points."""
+    """The study's rebound threshold is 90 % right on its own scene, at most 80 % on the stream
+    scene, where the statistical method beats it by 10 points."""
     from tail_beam_id.study.dataset import settings
     from tail_beam_id.study.runs import run_set
 

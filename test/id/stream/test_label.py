@@ -1,5 +1,6 @@
 """The one rule pairing labels with impacts (tail_beam_id.stream.label.match) and its tolerance
-parameter: one to one, closest pair first, inclusive at the tolerance, extras and misses counted."""
+parameter: one to one, closest pair first, inclusive at the tolerance, extras and misses
+counted."""
 
 from __future__ import annotations
 
@@ -20,21 +21,24 @@ def labels(*stamps_s: float) -> list[Label]:
 
 
 def test_a_truth_takes_the_nearest_label_and_the_rest_are_extra():
-    """Of three labels the one nearest the contact start is the impact's; the others (one within the tolerance) are extra."""
+    """Of three labels the one nearest the contact start is the impact's; the others (one within
+    the tolerance) are extra."""
     matching = match(truths(1.0), labels(1.003, 0.999, 1.3), TOLERANCE_S)
     assert matching == Matching(pairs=((0, 1),), missed=(), extra=(0, 2))
     assert matching.label_index(0) == 1
 
 
 def test_the_closest_pair_wins_whatever_the_truths_order():
-    """A label within reach of two truths goes to the nearer one, even when the other comes first; the other is missed."""
+    """A label within reach of two truths goes to the nearer one, even when the other comes
+    first; the other is missed."""
     matching = match(truths(1.0, 1.003), labels(1.0025), TOLERANCE_S)
     assert matching.pairs == ((1, 0),) and matching.missed == (0,) and matching.extra == ()
     assert matching.label_index(0) is None
 
 
 def test_one_label_never_counts_for_two_truths():
-    """Two truths whose nearest label is the same one: it pairs with the nearer, the other takes the next label within reach."""
+    """Two truths whose nearest label is the same one: it pairs with the nearer, the other takes
+    the next label within reach."""
     # Per truth nearest-label (the old rule) gave label 0 to both impacts and left label 1 extra.
     matching = match(truths(1.0, 1.002), labels(1.0011, 0.997), TOLERANCE_S)
     assert matching.pairs == ((0, 1), (1, 0)) and matching.missed == () and matching.extra == ()
@@ -43,7 +47,8 @@ def test_one_label_never_counts_for_two_truths():
 
 
 def test_the_tolerance_is_inclusive_and_nothing_beyond_it_pairs():
-    """A label exactly the tolerance early or late pairs; one 1 us further does not, and counts as extra with the impact missed."""
+    """A label exactly the tolerance early or late pairs; one 1 us further does not, and counts
+    as extra with the impact missed."""
     for sign in (1.0, -1.0):
         assert match(truths(1.0), labels(1.0 + sign * TOLERANCE_S), TOLERANCE_S).pairs == ((0, 0),)
         beyond = match(truths(1.0), labels(1.0 + sign * (TOLERANCE_S + 1e-6)), TOLERANCE_S)
@@ -51,7 +56,8 @@ def test_the_tolerance_is_inclusive_and_nothing_beyond_it_pairs():
 
 
 def test_extras_and_misses_are_counted_in_a_stream():
-    """Three impacts, four labels: two pairs, the impact without a label near it missed, the two stray labels extra."""
+    """Three impacts, four labels: two pairs, the impact without a label near it missed, the two
+    stray labels extra."""
     matching = match_stamps([0.5, 1.0, 1.5], [2.0, 0.501, 1.2, 1.4995], 0.005)
     assert matching.pairs == ((0, 1), (2, 3))
     assert matching.missed == (1,) and matching.extra == (0, 2)
@@ -60,7 +66,8 @@ def test_extras_and_misses_are_counted_in_a_stream():
 
 
 def test_the_tolerance_comes_from_the_identification_section(params):
-    """identification.match_tolerance_s is 5 ms as shipped; missing, zero or over 0.1 s it is refused naming the field and the range."""
+    """identification.match_tolerance_s is 5 ms as shipped; missing, zero or over 0.1 s it is
+    refused naming the field and the range."""
     assert match_tolerance_s(params["identification"]) == pytest.approx(0.005)
     for bad in (None, 0.0, -0.001, 0.2, "soon"):
         with pytest.raises(InputError) as error:
@@ -96,7 +103,8 @@ def test_a_label_never_carries_a_value_that_is_no_number():
 
 
 def test_a_label_reads_back_from_its_json_as_it_was():
-    """Label -> JSON -> Label is the identity, and the JSON keeps the contract's field names and order."""
+    """Label -> JSON -> Label is the identity, and the JSON keeps the contract's field names and
+    order."""
     import json
 
     label = Label(
@@ -124,7 +132,8 @@ def test_another_identifiers_label_with_the_contract_fields_only_is_read_and_its
     """docs/interface.md requires impact_stamp, label, confidence and method; the suite's fields
     default, and a key the suite does not know survives a round trip untouched."""
     label = Label.from_json(
-        '{"impact_stamp": 1.5, "label": "coal", "confidence": 0.8, "method": "cnn", "model_version": "v3", '
+        '{"impact_stamp": 1.5, "label": "coal", "confidence": 0.8, "method": "cnn", '
+        '"model_version": "v3", '
         '"material": "sandstone", "extra": 1}'
     )
     assert (label.impact_stamp_s, label.material, label.signals, label.latency_ms) == (
@@ -175,20 +184,24 @@ def test_another_identifiers_label_with_the_contract_fields_only_is_read_and_its
             "label.confidence",
         ),
         (
-            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "signals": "imu"}',
+            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "signals": '
+            '"imu"}',
             "label.signals",
         ),
         (
-            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "features": {"x": "big"}}',
+            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "features": '
+            '{"x": "big"}}',
             "label.features.x",
         ),
         (
-            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "overlap": 1}',
+            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "overlap": '
+            "1}",
             "label.overlap",
         ),
         ('{"impact_stamp": NaN, "label": "coal", "confidence": 0.9, "method": "m"}', "label"),
         (
-            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "score": Infinity}',
+            '{"impact_stamp": 1.0, "label": "coal", "confidence": 0.9, "method": "m", "score": '
+            "Infinity}",
             "label",
         ),
         ('{"impact_stamp": 1.0, ', "label"),

@@ -101,7 +101,8 @@ def test_batch_streams_match_the_sensors_sampling_of_a_solved_impact(default_sce
 
 
 def test_batch_stream_noise_has_the_configured_rms(default_scene):
-    """The batch streams' pressure noise (noisy minus noise-free, same seed) has the configured RMS within 2 %."""
+    """The batch streams' pressure noise (noisy minus noise-free, same seed) has the configured
+    RMS within 2 %."""
     scene = default_scene
     structure = structure_for(TIERS["rigid"], scene.support, ())
     impacts = _random_impacts(scene, 200, seed=5)
@@ -113,7 +114,8 @@ def test_batch_stream_noise_has_the_configured_rms(default_scene):
 
 
 def test_low_speed_impacts_are_flagged_for_a_possible_re_contact(default_scene):
-    """A 0.25 m/s impact is flagged for a possible re-contact (and the hybrid solver indeed finds more than one contact); an 8 m/s one is not."""
+    """A 0.25 m/s impact is flagged for a possible re-contact (and the hybrid solver indeed
+    finds more than one contact); an 8 m/s one is not."""
     scene = default_scene
     structure = structure_for(TIERS["rigid"], scene.support, ())
     batch = ImpactBatch.from_arrays(
@@ -142,7 +144,8 @@ def test_low_speed_impacts_are_flagged_for_a_possible_re_contact(default_scene):
 
 
 def test_batch_input_errors_name_the_field_and_the_impact(default_scene):
-    """A bad radius, material or position in a batch is an InputError naming the field and the index of the first bad impact."""
+    """A bad radius, material or position in a batch is an InputError naming the field and the
+    index of the first bad impact."""
     scene = default_scene
     with pytest.raises(InputError, match=r"radius_m\[1\]"):
         ImpactBatch.from_arrays(

@@ -119,7 +119,8 @@ def _run_json(capsys, *argv):
 
 
 def test_simulate_json_reports_tier_solver_and_error_estimate(capsys):
-    """--json reports the auto-chosen tier and solver with an estimate within tolerance, --check's measured differences, and null (not a guess) for a fixed-step solver."""
+    """--json reports the auto-chosen tier and solver with an estimate within tolerance,
+    --check's measured differences, and null (not a guess) for a fixed-step solver."""
     summary = _run_json(capsys, "--outputs", "rebound")
     assert (summary["tier"], summary["solver"]) == ("impulse", "impulse")
     assert 0 < summary["error_estimate"] <= 0.01
@@ -135,7 +136,8 @@ def test_simulate_json_reports_tier_solver_and_error_estimate(capsys):
 
 
 def test_bad_needs_are_reported_with_field_and_range(capsys):
-    """Unknown outputs and a zero tolerance are refused naming fidelity.outputs or fidelity.tolerance and the range, in one line from the CLI."""
+    """Unknown outputs and a zero tolerance are refused naming fidelity.outputs or
+    fidelity.tolerance and the range, in one line from the CLI."""
     with pytest.raises(InputError, match="fidelity.outputs"):
         Needs.of(["sound"], 0.01)
     code = main(["simulate", "--tolerance", "0"])

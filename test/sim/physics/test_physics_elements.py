@@ -29,7 +29,8 @@ def test_impact_speed_is_free_fall_speed(default_scene):
 
 
 def test_jack_stiffness_matches_hand_calculation(default_scene):
-    """K_Q = beta_eff S / L with the thin wall's hoop compliance in series (docs/physics.md), worked by hand
+    """K_Q = beta_eff S / L with the thin wall's hoop compliance in series (docs/physics.md),
+    worked by hand
     for the nominal jack: bore 160 mm, column 0.20 m, wall 20 mm, E 206 GPa, beta 1.95 GPa."""
     beta_eff = 1.0 / (1.0 / 1.95e9 + 0.160 / (0.020 * 206e9))
     k_hand = beta_eff * math.pi * 0.080**2 / 0.20
@@ -125,15 +126,18 @@ def _delivered_restitution(law: str, e: float) -> float:
 
 @pytest.mark.parametrize("e", REQUESTED_E)
 def test_default_law_delivers_requested_restitution(e):
-    """issue 2: the default law delivers e within 2 % over 0.3-0.9 (full simulation on a rigid wall;
-    the law's chi comes from a separate dimensionless integration, so this checks one against the other)."""
+    """The default law delivers e within 2 % over 0.3-0.9 (full simulation on a rigid
+    wall;
+    the law's chi comes from a separate dimensionless integration, so this checks one against the
+    other)."""
     scene = Scene.from_params(_heavy_stiff_support_params(), {"impact_speed_mps": 5.0})
     assert scene.contact_model == "calibrated"
     assert _delivered_restitution("calibrated", e) == pytest.approx(e, rel=0.02)
 
 
 def test_lankarani_nikravesh_underdissipates_at_low_restitution():
-    """L-N's chi = 3(1-e^2)/4 is derived for e near 1: at e = 0.3 it returns far more energy than asked
+    """L-N's chi = 3(1-e^2)/4 is derived for e near 1: at e = 0.3 it returns far more energy than
+    asked
     (published: Flores et al. 2011, fig. 7), while it is close at e = 0.9."""
     low = _delivered_restitution("lankarani_nikravesh", 0.3)
     high = _delivered_restitution("lankarani_nikravesh", 0.9)
@@ -145,14 +149,17 @@ def test_lankarani_nikravesh_underdissipates_at_low_restitution():
 
 @pytest.mark.parametrize("law", ["hunt_crossley", "flores", "gonthier"])
 def test_published_laws_are_selectable_and_dissipate(law):
-    """Every published law loses energy (0 < e_delivered < 1) and loses more when asked for a lower e."""
+    """Every published law loses energy (0 < e_delivered < 1) and loses more when asked for a
+    lower e."""
     low, high = _delivered_restitution(law, 0.3), _delivered_restitution(law, 0.9)
     assert 0.0 < low < high < 1.0
 
 
 def test_angular_impulse_about_hinge_equals_particle_momentum_change(params):
-    """Angular momentum about the hinge: over one short contact the beam gains I_C dphi' = x m (v_in + v_out)
-    (the jack's moment during 0.2 ms is negligible next to the impulse). No gravity, to isolate the contact."""
+    """Angular momentum about the hinge: over one short contact the beam gains I_C dphi' = x m
+    (v_in + v_out)
+    (the jack's moment during 0.2 ms is negligible next to the impulse). No gravity, to isolate the
+    contact."""
     deep = deep_merge(load_parameters(), {"support": {"gravity_mps2": 0.0}})
     for position in (0.3, 1.0, 1.5):
         scene = Scene.from_params(deep, {"position_m": position, "impact_speed_mps": 8.0})

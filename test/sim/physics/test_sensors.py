@@ -1,4 +1,5 @@
-"""The sensor models: seeded reproducibility, noise level, the IMU's sample mean or low-pass, saturation."""
+"""The sensor models: seeded reproducibility, noise level, the IMU's sample mean or low-pass,
+saturation."""
 
 from __future__ import annotations
 
@@ -17,7 +18,8 @@ from tail_beam_sim.physics.simulate import simulate
 
 
 def test_same_seed_same_streams_other_seed_other_noise(params):
-    """The same seed gives bit-identical pressure, IMU and rebound readings; another seed other pressure noise."""
+    """The same seed gives bit-identical pressure, IMU and rebound readings; another seed other
+    pressure noise."""
     a = simulate(Scene.from_params(params, {"seed": 7}))
     b = simulate(Scene.from_params(params, {"seed": 7}))
     c = simulate(Scene.from_params(params, {"seed": 8}))
@@ -54,7 +56,8 @@ def test_noise_rms_matches_configuration(params):
 
 def test_imu_sample_is_the_mean_over_its_period(params):
     """Each noise-free IMU sample equals the time average of the instantaneous specific force over
-    the preceding sample period, integrated numerically from the dense history (contact included)."""
+    the preceding sample period, integrated numerically from the dense history (contact
+    included)."""
     scene = Scene.from_params(params)
     result = simulate(scene)
     h = result.history
@@ -184,7 +187,8 @@ def test_the_low_pass_delays_the_contacts_pulse_by_its_group_delay(params):
     ],
 )
 def test_a_bad_imu_filter_setting_is_refused_by_name(params, field, value):
-    """Out of range (order 0-10, cut-off in (0, 0.5] of the rate, oversample 2-32): refused naming the field."""
+    """Out of range (order 0-10, cut-off in (0, 0.5] of the rate, oversample 2-32): refused
+    naming the field."""
     bad = deep_merge(copy.deepcopy(params), {"sensors": {field: value}})
     with pytest.raises(InputError, match=f"sensors.{field}"):
         Scene.from_params(bad)

@@ -1,5 +1,6 @@
 """The solvers' written contract (tail_beam_sim.physics.solvers): every registered solver fills
-the same Trajectory fields; a failed solve is a SolverError with its own exit status and log line."""
+the same Trajectory fields; a failed solve is a SolverError with its own exit status and log
+line."""
 
 from __future__ import annotations
 
@@ -19,7 +20,8 @@ from tail_beam_sim.physics.simulate import build_problem, simulate
 from tail_beam_sim.physics.solvers import SOLVERS, SolverError, Trajectory, solve
 from tail_beam_sim.physics.solvers.problem import FreeSegment
 
-# Flores et al.'s law asks chi = 8 (1 - e) / (5 e) = 52 for e = 0.03: past the pulse table (chi <= 40),
+# Flores et al.'s law asks chi = 8 (1 - e) / (5 e) = 52 for e = 0.03: past the pulse table (chi <=
+# 40),
 # which the impulse solver cannot go beyond.
 OUT_OF_RANGE = {"contact_model": "flores", "restitution": 0.03}
 

@@ -34,7 +34,8 @@ def _problem(params, tier: str = "rigid", **overrides):
 
 @pytest.fixture(scope="module")
 def rigid_reference(params):
-    """Radau at rtol 1e-10, converged: the same at 1e-9 agrees to better than 1e-6 (refinement check)."""
+    """Radau at rtol 1e-10, converged: the same at 1e-9 agrees to better than 1e-6 (refinement
+    check)."""
     problem = _problem(params)
     reference = measure(solve(problem, "Radau", rtol=1e-10), IMU_RATE_HZ)
     coarser = measure(solve(problem, "Radau", rtol=1e-9), IMU_RATE_HZ)
@@ -42,7 +43,8 @@ def rigid_reference(params):
     return problem, reference
 
 
-# (solver, options, bound on the relative error of rebound, peak force, peak pressure, IMU waveform)
+# (solver, options, bound on the relative error of rebound, peak force, peak pressure, IMU
+# waveform)
 CASES = [
     ("hybrid", {}, 1e-3),
     ("hybrid", {"contact": "rk4"}, RK4_CONTACT_ERROR),
@@ -62,7 +64,8 @@ CASES = [
     ids=[f"{c[0]}-{'-'.join(map(str, c[1].values()))}" for c in CASES],
 )
 def test_solver_agrees_with_converged_reference(rigid_reference, name, options, bound):
-    """Each solver's rebound, peak force, peak pressure and IMU waveform are within its stated bound of converged Radau, with one contact."""
+    """Each solver's rebound, peak force, peak pressure and IMU waveform are within its stated
+    bound of converged Radau, with one contact."""
     problem, reference = rigid_reference
     trajectory = solve(problem, name, **options)
     measured = errors(measure(trajectory, IMU_RATE_HZ), reference)
@@ -127,7 +130,8 @@ def test_pulse_table_elastic_row_is_the_closed_form_hertz_impact():
 
 @pytest.mark.parametrize("chi", [0.1, 0.7, 3.0, 15.0])
 def test_pulse_table_restitution_matches_the_contact_modules_integration(chi):
-    """Two separate integrations of the same dimensionless contact (contact.py's and the table's)."""
+    """Two separate integrations of the same dimensionless contact (contact.py's and the
+    table's)."""
     table = pulse_table()
     i = int(np.argmin(np.abs(table.chi - chi)))
     assert table.restitution[i] == pytest.approx(
@@ -174,7 +178,8 @@ def test_structure_response_is_exact_for_a_piecewise_linear_force(params):
 
 
 def test_trajectory_is_continuous_and_defined_everywhere(params):
-    """Sampling before, through, after the contact and beyond the window, for each solver family."""
+    """Sampling before, through, after the contact and beyond the window, for each solver
+    family."""
     problem = _problem(params)
     for name, options in (
         ("hybrid", {}),
@@ -193,7 +198,8 @@ def test_trajectory_is_continuous_and_defined_everywhere(params):
 
 
 def test_unknown_solver_and_bad_options_name_the_field(params):
-    """An unknown solver, an option out of range or one the solver does not take is an InputError naming it (bad input, not a failed solve)."""
+    """An unknown solver, an option out of range or one the solver does not take is an
+    InputError naming it (bad input, not a failed solve)."""
     problem = _problem(params)
     with pytest.raises(InputError, match="solver = 'nope'"):
         solve(problem, "nope")
@@ -218,7 +224,8 @@ def test_unknown_solver_and_bad_options_name_the_field(params):
 
 
 def test_scipy_methods_refuse_the_history_dependent_crushing_contact(params):
-    """scipy's methods refuse the crushing contact (its force depends on the peak so far) with a SolverError saying why."""
+    """scipy's methods refuse the crushing contact (its force depends on the peak so far) with a
+    SolverError saying why."""
     from tail_beam_sim.physics.simulate import crushing_contact
 
     scene = Scene.from_params(deep_merge(load_parameters(), {}))

@@ -10,7 +10,8 @@ from tail_beam_sim.physics.benchmark import Row, mark_pareto
 
 
 def test_bench_prints_figures_marks_the_front_and_writes_charts(tmp_path, capsys):
-    """`tail-beam bench --json` reports every solver against Radau, both ends of the Pareto front on it, the hybrid within 1 %, and writes PNG charts."""
+    """`tail-beam bench --json` reports every solver against Radau, both ends of the Pareto
+    front on it, the hybrid within 1 %, and writes PNG charts."""
     code = main(
         [
             "bench",

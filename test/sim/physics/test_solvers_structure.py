@@ -1,4 +1,5 @@
-"""The beam with bending modes: the finite-element generator, the shipped table, the coupled model."""
+"""The beam with bending modes: the finite-element generator, the shipped table, the coupled
+model."""
 
 from __future__ import annotations
 
@@ -130,7 +131,8 @@ def test_bending_modes_leave_rebound_and_add_imu_vibration(params):
 
 
 def test_mode_table_errors_name_the_field(params):
-    """Too many modes or a negative mode frequency is an InputError naming modes.count or the mode's field."""
+    """Too many modes or a negative mode frequency is an InputError naming modes.count or the
+    mode's field."""
     bad = deep_merge(load_parameters(), {"modes": {"count": 9}})
     with pytest.raises(InputError, match="modes.count"):
         load_bending_modes(bad)

@@ -103,7 +103,8 @@ EXTREMES = {
 
 @pytest.mark.parametrize("overrides", EXTREMES.values(), ids=EXTREMES.keys())
 def test_default_solver_at_the_extremes_agrees_with_radau(params, overrides):
-    """At the extremes of size, position and drop, the hybrid's contacts match Radau's in number, rebound, peak force and duration."""
+    """At the extremes of size, position and drop, the hybrid's contacts match Radau's in
+    number, rebound, peak force and duration."""
     problem = _problem(params, **overrides)
     hybrid = solve(problem)
     reference = solve(problem, "Radau", rtol=1e-9)
@@ -121,7 +122,8 @@ def test_default_solver_at_the_extremes_agrees_with_radau(params, overrides):
 
 
 def test_chain_of_re_contacts_until_the_particle_settles(params):
-    """Half a millimetre near the tip (the floor for commands, 1 mm, lowered here): the particle bounces seven times and comes to rest on the
+    """Half a millimetre near the tip (the floor for commands, 1 mm, lowered here): the particle
+    bounces seven times and comes to rest on the
     plate; every contact's start and speeds agree with Radau."""
     tiny = {
         **params,

@@ -35,7 +35,8 @@ def _config(name: str) -> str:
 
 
 def test_beam_at_rest_reads_setting_pressure_and_gravity_with_configured_noise():
-    """With no impact the streams sit on the k / rate grid from 0, reading the setting pressure and +g with the configured noise RMS, and no rebound or truth."""
+    """With no impact the streams sit on the k / rate grid from 0, reading the setting pressure
+    and +g with the configured noise RMS, and no rebound or truth."""
     stream = make_stream()
     chunk = stream.advance(2.0)
     spec = stream.sensors
@@ -44,7 +45,8 @@ def test_beam_at_rest_reads_setting_pressure_and_gravity_with_configured_noise()
     assert chunk.imu.stamp_s.size == int(2.0 * spec.imu_rate_hz) + 1
     n = chunk.pressure.stamp_s.size
     pressure = chunk.pressure.pressure_pa
-    # A plate at rest: static setting pressure; the accelerometer reads +g along z (docs/physics.md).
+    # A plate at rest: static setting pressure; the accelerometer reads +g along z
+    # (docs/physics.md).
     assert abs(
         pressure.mean() - stream.support.setting_pressure_pa
     ) < 4 * spec.pressure_noise_pa / math.sqrt(n)
@@ -61,7 +63,8 @@ def test_beam_at_rest_reads_setting_pressure_and_gravity_with_configured_noise()
 
 
 def test_output_does_not_depend_on_how_time_is_chunked():
-    """Advancing in 41 random chunks gives the same stamps, noise, signals, rebounds and truths as advancing at once."""
+    """Advancing in 41 random chunks gives the same stamps, noise, signals, rebounds and truths
+    as advancing at once."""
     whole, pieces = make_stream(), make_stream()
     for stream in (whole, pieces):
         stream.submit(COAL, 0.1)
@@ -117,7 +120,8 @@ def test_an_imu_behind_a_low_pass_is_the_same_however_time_is_chunked():
 
 
 def test_block_noise_is_the_same_whole_or_in_pieces():
-    """Block noise taken sample by sample equals the block taken at once, and another seed gives other noise."""
+    """Block noise taken sample by sample equals the block taken at once, and another seed gives
+    other noise."""
     noise = BlockNoise(seed=5, stream=1, width=2, block_samples=7)
     whole = noise.take(3, 30)
     pieces = np.concatenate([BlockNoise(5, 1, 2, 7).take(3 + i, 1) for i in range(30)])
@@ -165,7 +169,8 @@ def oscillator_pressure(
 
 def test_ringing_carries_across_impacts_like_superposed_impulse_responses():
     # The rigid tier: the closed-form oscillator below is the rigid beam on its jack.
-    """An impact on a still-ringing beam adds to the ringing like superposed impulse responses of the rigid oscillator, within 3 % of the swing, and unlike the second impact alone."""
+    """An impact on a still-ringing beam adds to the ringing like superposed impulse responses
+    of the rigid oscillator, within 3 % of the swing, and unlike the second impact alone."""
     stream = make_stream(sensors=NO_NOISE, stream={"min_impact_gap_s": 0.01, "tier": "rigid"})
     first = stream.submit(MARBLE, 0.1)
     second = stream.submit(
@@ -181,13 +186,15 @@ def test_ringing_carries_across_impacts_like_superposed_impulse_responses():
     late = stamps > second.contact_stamp_s + 2e-3
     # Short-impulse model vs the solved contacts: within 3 % of the swing after both impacts.
     assert np.max(np.abs(pressure[late] - expected[late])) < 0.03 * swing
-    # The second impact alone (on a beam at rest) would give a different history: the state matters.
+    # The second impact alone (on a beam at rest) would give a different history: the state
+    # matters.
     alone = oscillator_pressure(stream, truths[1:], stamps)
     assert np.max(np.abs(pressure[late] - alone[late])) > 0.1 * swing
 
 
 def test_contact_stamps_respect_the_gap_and_the_lead():
-    """A contact comes no sooner than command_lead_s after the produced samples and min_impact_gap_s after the previous particle left; a future stamp is granted as asked."""
+    """A contact comes no sooner than command_lead_s after the produced samples and
+    min_impact_gap_s after the previous particle left; a future stamp is granted as asked."""
     stream = make_stream()
     stream.advance(0.5)
     gap, lead = stream.params.min_impact_gap_s, stream.params.command_lead_s
@@ -205,7 +212,8 @@ def test_contact_stamps_respect_the_gap_and_the_lead():
 
 
 def test_queue_is_bounded_and_a_refusal_names_the_limit():
-    """Beyond max_queued_impacts a command is refused naming the limit, without taking an id; once the queue drains commands are taken again."""
+    """Beyond max_queued_impacts a command is refused naming the limit, without taking an id;
+    once the queue drains commands are taken again."""
     stream = make_stream(stream={"max_queued_impacts": 2})
     stream.submit(COAL)
     stream.submit(COAL)
@@ -237,7 +245,8 @@ def test_bad_command_is_refused_and_leaves_the_stream_untouched(command, field):
 
 
 def test_each_rebound_and_truth_comes_once_with_contract_fields():
-    """Each impact's rebound and truth come exactly once, in order, the rebound stamped at the first camera frame after separation and the truth after the contact."""
+    """Each impact's rebound and truth come exactly once, in order, the rebound stamped at the
+    first camera frame after separation and the truth after the contact."""
     stream = make_stream()
     ids = [stream.submit({**COAL, "impact_id": f"x{i}"}).impact_id for i in range(3)]
     out = [stream.advance(t) for t in np.arange(0.05, 2.0, 0.05)]
@@ -245,7 +254,8 @@ def test_each_rebound_and_truth_comes_once_with_contract_fields():
     truths = [t for c in out for t in c.truths]
     assert [r[0] for r in rebounds] == ids and [t[1]["impact_id"] for t in truths] == ids
     for (_, rebound), (stamp, truth) in zip(rebounds, truths):
-        # The camera stamps the first frame at or after separation; the truth says when contact was.
+        # The camera stamps the first frame at or after separation; the truth says when contact
+        # was.
         assert (
             truth["final_separation_stamp"]
             <= rebound.stamp_s
@@ -256,7 +266,8 @@ def test_each_rebound_and_truth_comes_once_with_contract_fields():
 
 
 def test_the_gap_holds_after_the_previous_impact_is_long_reported():
-    """The minimum gap after the previous particle left still holds once that impact's truth is out."""
+    """The minimum gap after the previous particle left still holds once that impact's truth is
+    out."""
     stream = make_stream()
     first = stream.submit(COAL)
     stream.advance(first.truth_stamp_s + 0.01)  # rebound and truth are out; the beam still rings

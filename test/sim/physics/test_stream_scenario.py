@@ -26,7 +26,8 @@ def scenario(node_params, **changes):
 
 
 def test_generated_stream_has_the_exact_gangue_share_and_stays_in_its_ranges(node_params):
-    """A generated stream of 40 has exactly 10 gangue impacts, every size, height, position, restitution and gap in its configured range, and unique ids."""
+    """A generated stream of 40 has exactly 10 gangue impacts, every size, height, position,
+    restitution and gap in its configured range, and unique ids."""
     planned = scenario(node_params, source="generated", count=40, gangue_fraction=0.25, seed=7)
     materials = material_table(node_params)
     gangue = [p for p in planned if materials[p.command["material"]].material_class == "gangue"]
@@ -54,10 +55,12 @@ def test_generated_stream_is_reproducible_by_seed(node_params):
 
 
 def test_scenario_file_keeps_order_and_requested_stamps(tmp_path, node_params):
-    """A scenario file's impacts keep their order and requested contact stamps, which are not passed on as command fields."""
+    """A scenario file's impacts keep their order and requested contact stamps, which are not
+    passed on as command fields."""
     path = tmp_path / "impacts.yaml"
     path.write_text(
-        "- {material: coal, radius_m: 0.03, drop_height_m: 2.0, position_m: 0.5, contact_stamp_s: 1.5}\n"
+        "- {material: coal, radius_m: 0.03, drop_height_m: 2.0, position_m: 0.5, contact_stamp_s: "
+        "1.5}\n"
         "- {material: marble, radius_m: 0.03, impact_speed_mps: 7.0, position_m: 0.9}\n"
     )
     planned = scenario(node_params, source="file", file=str(path))
@@ -81,7 +84,8 @@ def test_scenario_file_keeps_order_and_requested_stamps(tmp_path, node_params):
     ],
 )
 def test_bad_scenario_fails_at_start_up_naming_the_field(node_params, changes, field):
-    """Each bad scenario setting is an InputError whose field names it, down to the index of a bad range bound or impact."""
+    """Each bad scenario setting is an InputError whose field names it, down to the index of a
+    bad range bound or impact."""
     with pytest.raises(InputError) as info:
         scenario(node_params, **changes)
     assert info.value.field == field
@@ -91,7 +95,8 @@ def test_bad_item_in_a_scenario_file_is_named_by_index(tmp_path, node_params):
     """A bad impact in a scenario file is named by its index and field."""
     path = tmp_path / "impacts.yaml"
     path.write_text(
-        "impacts:\n- {material: coal, radius_m: 0.03, drop_height_m: 2.0, position_m: 0.5}\n- {material: chalk}\n"
+        "impacts:\n- {material: coal, radius_m: 0.03, drop_height_m: 2.0, position_m: 0.5}\n- "
+        "{material: chalk}\n"
     )
     with pytest.raises(InputError) as info:
         scenario(node_params, source="file", file=str(path))

@@ -65,11 +65,15 @@ def workspace(tmp_path_factory):
     return root / "install"
 
 
-PREFIX = "$(python -c 'from ament_index_python import get_package_prefix; print(get_package_prefix(\"tail_beam\"))')"
+PREFIX = (
+    "$(python -c 'from ament_index_python import get_package_prefix; "
+    'print(get_package_prefix("tail_beam"))\')'
+)
 
 
 def test_ament_index_finds_the_package_and_its_executables(workspace):
-    """The colcon-built workspace registers tail_beam in the ament index with the four executables and tail-beam under lib/tail_beam."""
+    """The colcon-built workspace registers tail_beam in the ament index with the four
+    executables and tail-beam under lib/tail_beam."""
     result = in_workspace(workspace, f"echo {PREFIX}; ls {PREFIX}/lib/tail_beam")
     assert result.returncode == 0, result.stderr
     prefix, *executables = result.stdout.split()
@@ -78,8 +82,12 @@ def test_ament_index_finds_the_package_and_its_executables(workspace):
 
 
 def test_the_installed_package_runs_with_its_installed_config(workspace):
-    """In the workspace, the package imports from its install space and reads config/ from share/tail_beam/config."""
-    probe = "import tail_beam_sim, tail_beam_sim.config as c; print(tail_beam_sim.__file__); print(c.default_config_dir())"
+    """In the workspace, the package imports from its install space and reads config/ from
+    share/tail_beam/config."""
+    probe = (
+        "import tail_beam_sim, tail_beam_sim.config as c; "
+        "print(tail_beam_sim.__file__); print(c.default_config_dir())"
+    )
     result = in_workspace(workspace, f"python -c {shlex.quote(probe)}")
     assert result.returncode == 0, result.stderr
     module, config = result.stdout.split()
@@ -90,7 +98,8 @@ def test_the_installed_package_runs_with_its_installed_config(workspace):
 
 
 def test_sim_node_found_through_the_index_runs_and_exits_cleanly(workspace):
-    """sim_node run from the installed lib/tail_beam simulates a generated impact and exits 0 when idle."""
+    """sim_node run from the installed lib/tail_beam simulates a generated impact and exits 0
+    when idle."""
     run = (
         f"{PREFIX}/lib/tail_beam/sim_node --ros-args -p sim_node.realtime_factor:=0.0 "
         "-p sim_node.exit_after_idle_s:=0.2 -p scenario.source:=generated -p scenario.count:=1"

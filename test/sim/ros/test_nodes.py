@@ -62,7 +62,9 @@ def connected(probe: Probe, node) -> bool:
 
 
 def test_sim_node_turns_commands_into_the_contract_messages():
-    """Two commands give two truths with their ids and labels, every pressure and IMU sample from t = 0 at k / rate with the contract's frames, units and variances, and rebounds at the camera's frame after separation."""
+    """Two commands give two truths with their ids and labels, every pressure and IMU sample
+    from t = 0 at k / rate with the contract's frames, units and variances, and rebounds at the
+    camera's frame after separation."""
     with ros_context() as (context, executor):
         sim = sim_node(context, **{"sim_node.wait_for_subscribers": 1})
         probe = Probe(context, SIM_TOPICS)
@@ -119,7 +121,8 @@ def test_sim_node_turns_commands_into_the_contract_messages():
 
 
 def test_malformed_commands_are_logged_with_the_field_and_lose_no_valid_impact():
-    """Each malformed impact_cmd is one error line naming the field and range, and the valid commands around them are all simulated."""
+    """Each malformed impact_cmd is one error line naming the field and range, and the valid
+    commands around them are all simulated."""
     bad = {
         "not json": "{material: coal",
         "material": json.dumps({**COAL, "material": "granite"}),
@@ -165,7 +168,8 @@ def test_malformed_commands_are_logged_with_the_field_and_lose_no_valid_impact()
 
 
 def test_queue_overflow_is_a_warning_and_the_queued_impacts_all_happen():
-    """A command beyond stream.max_queued_impacts is one warning naming the limit and the impact; the queued impacts all happen."""
+    """A command beyond stream.max_queued_impacts is one warning naming the limit and the
+    impact; the queued impacts all happen."""
     with ros_context() as (context, executor):
         sim = sim_node(
             context, **{"stream.max_queued_impacts": 2, "sim_node.realtime_factor": 1.0}
@@ -191,7 +195,8 @@ def test_queue_overflow_is_a_warning_and_the_queued_impacts_all_happen():
 
 
 def test_id_node_labels_each_impact_of_a_live_sim_node():
-    """id_node labels each of a live sim_node's impacts (the suite's matching rule, tail_beam_id.stream.label), in stamp order, missing no sample."""
+    """id_node labels each of a live sim_node's impacts (the suite's matching rule,
+    tail_beam_id.stream.label), in stamp order, missing no sample."""
     with ros_context() as (context, executor):
         sim = sim_node(
             context,
@@ -249,7 +254,8 @@ def offline_chunk(count: int = 3, duration_s: float = 2.5):
 
 
 def test_id_node_labels_from_what_remains_when_a_stream_stops():
-    """When the IMU stream stops between impacts, id_node labels the later ones from pressure and the camera, and says so in signals."""
+    """When the IMU stream stops between impacts, id_node labels the later ones from pressure
+    and the camera, and says so in signals."""
     chunk = offline_chunk()
     starts = [t["contact_start_stamp"] for _, t in chunk.truths]
     stop_s = 0.5 * (starts[0] + starts[1])  # the IMU stops between the first and second impact
@@ -380,12 +386,14 @@ def test_id_node_survives_a_restarted_simulator_and_a_stamp_from_the_future():
         log = " | ".join(
             m.msg for m in feeder.messages["/rosout"] if m.name.endswith("tail_beam_id")
         )
-    assert [(l.material, l.confidence) for l in labels] == [
-        (l.material, l.confidence) for l in expected
+    assert [(lab.material, lab.confidence) for lab in labels] == [
+        (lab.material, lab.confidence) for lab in expected
     ] * 2, log
     # Stamps cross the middleware as integer nanoseconds.
     np.testing.assert_allclose(
-        [l.impact_stamp_s for l in labels], [l.impact_stamp_s for l in expected] * 2, atol=1e-8
+        [lab.impact_stamp_s for lab in labels],
+        [lab.impact_stamp_s for lab in expected] * 2,
+        atol=1e-8,
     )
     assert "time jump" in log and "went back" in log
     assert "1 samples stamped more than 1 s ahead" in log
@@ -436,8 +444,10 @@ def test_id_node_gives_a_slow_cameras_late_rebounds_to_their_impacts_as_offline(
         labels = feeder.labels(topics.LABEL)
     matching = match(truths, labels, match_tolerance_s(params["identification"]))
     assert not matching.missed and not matching.extra
-    assert [(l.material, l.confidence, bool(l.features.get("rebound_late"))) for l in labels] == [
-        (l.material, l.confidence, bool(l.features.get("rebound_late"))) for l in expected
+    assert [
+        (lab.material, lab.confidence, bool(lab.features.get("rebound_late"))) for lab in labels
+    ] == [
+        (lab.material, lab.confidence, bool(lab.features.get("rebound_late"))) for lab in expected
     ]
 
 
@@ -487,7 +497,8 @@ def test_id_node_calibrates_itself_online_and_says_so():
 
 
 def test_publish_clock_gives_the_simulation_time_on_slash_clock():
-    """/clock ticks forward with simulation time, ending within one chunk of the last published sample."""
+    """/clock ticks forward with simulation time, ending within one chunk of the last published
+    sample."""
     from rosgraph_msgs.msg import Clock
 
     with ros_context() as (context, executor):
@@ -516,7 +527,8 @@ def test_publish_clock_gives_the_simulation_time_on_slash_clock():
 
 
 def test_replay_publishes_a_bag_in_log_time_order_with_its_clock(tmp_path, default_scene):
-    """bag_replay publishes every message of a simulated bag, the pressure values exactly as simulated, with /clock."""
+    """bag_replay publishes every message of a simulated bag, the pressure values exactly as
+    simulated, with /clock."""
     from rosgraph_msgs.msg import Clock
 
     from tail_beam_sim.bags import records as bagio

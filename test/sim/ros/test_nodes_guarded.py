@@ -57,11 +57,13 @@ def set_parameter(executor, node, target: str, name: str, value) -> tuple[bool, 
 
 
 def test_running_nodes_refuse_parameter_changes_and_keep_their_clock(tmp_path, procs):
-    """use_sim_time and start-up parameters set on a running recorder, replay and id_node are refused with a reason; the recorder keeps logging wall time."""
+    """use_sim_time and start-up parameters set on a running recorder, replay and id_node are
+    refused with a reason; the recorder keeps logging wall time."""
     bag = tmp_path / "recorded"
     replayed = tmp_path / "to_replay"
     write_segments(replayed, [records(50)])
-    ns = "/guarded"  # its own namespace: these processes are killed at the end, and linger in discovery a while
+    # its own namespace: these processes are killed at the end, and linger in discovery a while
+    ns = "/guarded"
     recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}", ns=ns)
     procs.start("id_node", ns=ns)
     procs.start(
@@ -97,7 +99,8 @@ def test_running_nodes_refuse_parameter_changes_and_keep_their_clock(tmp_path, p
 
 
 def test_bag_replay_publishes_the_sensors_only_unless_asked(tmp_path, procs):
-    """Default replay.topics: sensor data goes out, the recorded label and truth do not; listed, they do."""
+    """Default replay.topics: sensor data goes out, the recorded label and truth do not; listed,
+    they do."""
     bag = tmp_path / "bag"
     data = records(40)
     data.append(
@@ -165,7 +168,9 @@ def test_bag_replay_publishes_the_sensors_only_unless_asked(tmp_path, procs):
 
 
 def test_demo_skips_foreign_messages_on_its_topics(tmp_path):
-    """Non-JSON and wrong-shaped messages on label and impact_truth during `tail-beam demo`: skipped, counted, one warning per topic; the demo scores its own impacts (was: JSONDecodeError)."""
+    """Non-JSON and wrong-shaped messages on label and impact_truth during `tail-beam demo`:
+    skipped, counted, one warning per topic; the demo scores its own impacts (was:
+    JSONDecodeError)."""
     namespace = "/demo_hostile"
     demo = subprocess.Popen(
         [

@@ -92,7 +92,8 @@ def assert_same_labels(got: list[Label], expected: list[Label]) -> None:
 
 
 def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, procs):
-    """Real processes: the recorded live labels, the offline labels of the recorded bag and a fresh id_node's labels on its replay all agree, and no sample was lost."""
+    """Real processes: the recorded live labels, the offline labels of the recorded bag and a
+    fresh id_node's labels on its replay all agree, and no sample was lost."""
     bag = tmp_path / "live"
     with ros_context() as (context, executor):
         watcher = Probe(context, {topics.LABEL: String}, name="watcher")
@@ -170,7 +171,8 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
 
 
 def test_recorder_killed_with_sigkill_leaves_all_but_the_last_seconds_readable(tmp_path, procs):
-    """A recorder killed by SIGKILL loses at most its last 2 s; what is left reads without holes, and `tail-beam bag repair` completes it."""
+    """A recorder killed by SIGKILL loses at most its last 2 s; what is left reads without
+    holes, and `tail-beam bag repair` completes it."""
     bag = tmp_path / "killed"
     recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}", "recorder.segment_s:=0.5")
     sim = procs.start("sim_node", *short_scenario(30, "sim_node.wait_for_subscribers:=1"))
@@ -202,7 +204,8 @@ def test_recorder_killed_with_sigkill_leaves_all_but_the_last_seconds_readable(t
 
 
 def test_sigterm_closes_a_valid_sqlite3_bag(tmp_path, procs):
-    """SIGTERM closes the recorder's sqlite3 bag with its metadata, holding both impacts' truths and rebounds."""
+    """SIGTERM closes the recorder's sqlite3 bag with its metadata, holding both impacts' truths
+    and rebounds."""
     bag = tmp_path / "terminated"
     recorder = procs.start(
         "bag_recorder", f"recorder.bag_path:={bag}", "recorder.storage:=sqlite3"
@@ -221,7 +224,8 @@ def test_sigterm_closes_a_valid_sqlite3_bag(tmp_path, procs):
 def test_two_supports_in_one_domain_do_not_mix(procs):
     # The first impacts come 2 s into each stream: the sim_nodes wait only for their id_node, and
     # on a loaded machine the probe may take a second or two to be discovered.
-    """Two supports under their own namespaces in one domain each get only their own truths and labels."""
+    """Two supports under their own namespaces in one domain each get only their own truths and
+    labels."""
     supports = {"/support_01": ("2.5", 2), "/support_02": ("2.8", 3)}
     watched = {
         f"{ns}/{topic}": String for ns in supports for topic in (topics.IMPACT_TRUTH, topics.LABEL)

@@ -19,7 +19,8 @@ NS = "/support_07"
 
 
 def vibration_bytes(count: int, n: int = 128, rate_hz: float = 25600.0) -> list[tuple[int, bytes]]:
-    """``count`` serialized vibration blocks (noise-like samples), with log time = block stamp (ns)."""
+    """``count`` serialized vibration blocks (noise-like samples), with log time = block stamp
+    (ns)."""
     first = n * np.arange(count, dtype=np.int64)
     samples = np.random.default_rng(3).normal(9.81, 0.2, count * n).astype(np.float32)
     blocks = VibrationBlocks(
@@ -54,7 +55,8 @@ def files_and_spans(path: Path) -> list[tuple[int, int, int]]:
 
 
 def test_split_by_duration_starts_a_new_file_every_span_of_log_time(tmp_path):
-    """1 s of blocks split every 0.25 s of log time: 4 files, none spanning 0.25 s, all messages kept."""
+    """1 s of blocks split every 0.25 s of log time: 4 files, none spanning 0.25 s, all messages
+    kept."""
     records = vibration_bytes(200)  # 200 x 5 ms = 1 s
     write(tmp_path / "bag", records, max_duration_s=0.25)
     spans = files_and_spans(tmp_path / "bag")
@@ -105,7 +107,8 @@ def test_zstd_chunk_compression_is_on_by_default_and_the_file_stays_plain_mcap(t
 
 @pytest.mark.ros
 def test_recorder_writes_fully_qualified_names_counts_no_loss_and_splits(tmp_path):
-    """sim_node and bag_recorder in /support_07: the bag holds /support_07/<topic>, split into files
+    """sim_node and bag_recorder in /support_07: the bag holds /support_07/<topic>, split into
+    files
     of at most 0.4 s of log time, zstd chunks, the independent mcap reader decodes every file, the
     vibration indices run without a gap and the recorder's count of lost samples is 0."""
     from mcap.reader import make_reader

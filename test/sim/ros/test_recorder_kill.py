@@ -35,7 +35,8 @@ def wait_for(condition, timeout_s: float) -> bool:
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_a_killed_recorder_is_salvaged_to_within_a_second_of_the_kill(tmp_path, procs, storage):
-    """SIGKILL 2 s into an open 4 s segment: the segment is not empty, repair salvages it, the bag reads with no hole up to < 1 s before the kill (was: 0 bytes, 0 salvaged)."""
+    """SIGKILL 2 s into an open 4 s segment: the segment is not empty, repair salvages it, the
+    bag reads with no hole up to < 1 s before the kill (was: 0 bytes, 0 salvaged)."""
     bag = tmp_path / "killed"
     # A namespace of its own: the killed recorder's endpoints linger in discovery for a while, and
     # must not count as a subscriber for another test's simulator.

@@ -44,9 +44,10 @@ def test_an_event_of_a_replaced_subscription_does_not_end_the_recorder(tmp_path)
             suite.create_publisher(
                 String, topics.LABEL, ros_messages.EVENT_PUBLISHER_QOS
             )  # transient-local, as id_node's
-            durable = lambda: (
-                recorder._events[topics.LABEL][1][0] == DurabilityPolicy.TRANSIENT_LOCAL
-            )  # noqa: E731
+
+            def durable():
+                return recorder._events[topics.LABEL][1][0] == DurabilityPolicy.TRANSIENT_LOCAL
+
             deadline = time.monotonic() + 20
             while not durable() and time.monotonic() < deadline:
                 spin_once(executor, 0.02)
@@ -57,7 +58,8 @@ def test_an_event_of_a_replaced_subscription_does_not_end_the_recorder(tmp_path)
             intruder = rclpy.create_node("intruder", namespace="/resub", context=foreign)
             pub = intruder.create_publisher(String, topics.LABEL, RELIABLE)  # volatile
             time.sleep(1.0)  # discovery runs in the middleware's threads: the event is queued now
-            recorder._follow_event_publishers()  # re-subscribes volatile, destroying the old subscription
+            # re-subscribes volatile, destroying the old subscription
+            recorder._follow_event_publishers()
             deadline = time.monotonic() + 1.0
             while time.monotonic() < deadline:
                 spin_once(executor, 0.02)

@@ -38,7 +38,8 @@ def sim_node(context, namespace: str = ""):
 
 
 def send(executor, *argv: str) -> tuple[int, str, str, float]:
-    """Run `tail-beam send ARGV` while spinning this process's nodes; (exit status, stdout, stderr, wall time s)."""
+    """Run `tail-beam send ARGV` while spinning this process's nodes; (exit status, stdout,
+    stderr, wall time s)."""
     start = time.monotonic()
     proc = subprocess.Popen(
         [TAIL_BEAM, "send", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
@@ -54,7 +55,9 @@ def send(executor, *argv: str) -> tuple[int, str, str, float]:
 
 
 def test_yaml_list_is_simulated_and_each_truth_printed():
-    """`send --file config/impacts.yaml --wait-truth` to a support's namespace: sim_node takes all four commands, and one impact_truth per command comes back on stdout with its impact_id and the commanded values."""
+    """`send --file config/impacts.yaml --wait-truth` to a support's namespace: sim_node takes
+    all four commands, and one impact_truth per command comes back on stdout with its impact_id
+    and the commanded values."""
     listed = yaml.safe_load(IMPACTS.read_text())["impacts"]
     with ros_context() as (context, executor):
         sim = sim_node(context, "/support_07")
@@ -76,7 +79,8 @@ def test_yaml_list_is_simulated_and_each_truth_printed():
 
 
 def test_one_command_from_options_then_its_id_again_is_reported_refused():
-    """A command given as options is acknowledged and simulated; sent again, sim_node refuses the used impact_id and `--wait-truth` names it, exit 5."""
+    """A command given as options is acknowledged and simulated; sent again, sim_node refuses
+    the used impact_id and `--wait-truth` names it, exit 5."""
     with ros_context() as (context, executor):
         sim = sim_node(context)
         probe = Probe(context, {topics.IMPACT_TRUTH: String})
@@ -113,7 +117,8 @@ def test_one_command_from_options_then_its_id_again_is_reported_refused():
         *refusals, summary = err.strip().splitlines()
         assert (
             len(refusals) == 1
-            and "impact_id 'opt-1' refused by the simulator: impact_cmd rejected: impact_id = 'opt-1'"
+            and "impact_id 'opt-1' refused by the simulator: "
+            "impact_cmd rejected: impact_id = 'opt-1'"
             in refusals[0]
         )
         assert summary == "tail-beam send: error: 1 of 1 refused: impact_id 'opt-1'"
@@ -162,7 +167,8 @@ def test_one_command_from_options_then_its_id_again_is_reported_refused():
     ],
 )
 def test_bad_input_exits_2_naming_the_field_with_nothing_sent(tmp_path, argv, field):
-    """A bad field (options or an item of the YAML list), a bad timeout or namespace: exit 2 with one line naming it, before any waiting, and sim_node receives nothing."""
+    """A bad field (options or an item of the YAML list), a bad timeout or namespace: exit 2
+    with one line naming it, before any waiting, and sim_node receives nothing."""
     bad = tmp_path / "bad.yaml"
     listed = yaml.safe_load(IMPACTS.read_text())["impacts"]
     listed[1]["position_m"] = 3.0  # off the 1.6 m plate
@@ -189,7 +195,9 @@ def test_bad_input_exits_2_naming_the_field_with_nothing_sent(tmp_path, argv, fi
 
 
 def test_no_simulator_times_out_with_one_line():
-    """With no simulator (only a node that listens on impact_cmd), `send --timeout-s 3` exits 4 after the timeout, not much later, with one line naming the topic, the timeout and the listener that is no simulator."""
+    """With no simulator (only a node that listens on impact_cmd), `send --timeout-s 3` exits 4
+    after the timeout, not much later, with one line naming the topic, the timeout and the
+    listener that is no simulator."""
     with ros_context() as (context, executor):
         listener = Probe(context, {topics.IMPACT_CMD: String}, name="listener")
         executor.add_node(listener)
@@ -201,7 +209,8 @@ def test_no_simulator_times_out_with_one_line():
         "tail-beam send: error: no simulator subscribed to /impact_cmd within 3 s"
     )
     assert "/listener subscribes to it but publishes no impact_truth" in err
-    # The wait is the timeout; the rest is starting Python and rclpy (about 1.5 s here, 3 s loaded).
+    # The wait is the timeout; the rest is starting Python and rclpy (about 1.5 s here, 3 s
+    # loaded).
     assert 3.0 <= elapsed < 3.0 + 8.0
 
 

@@ -34,7 +34,8 @@ def stopped(args: list[str], after_s: float, sig: int) -> tuple[int, str]:
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_a_stop_signal_during_start_up_exits_0_without_a_traceback(exe, sig):
     """0.3 s after the start the executable is still importing rclpy, numpy and the models (over
-    a second here): a Ctrl-C there ended in a KeyboardInterrupt traceback, a SIGTERM in status -15."""
+    a second here): a Ctrl-C there ended in a KeyboardInterrupt traceback, a SIGTERM in status
+    -15."""
     code, out = stopped([str(BIN / exe)], 0.3, sig)
     assert code == 0, out[-1500:]
     assert not [word for word in NOISE if word in out], out[-1500:]
@@ -43,7 +44,8 @@ def test_a_stop_signal_during_start_up_exits_0_without_a_traceback(exe, sig):
 def test_a_stop_signal_while_the_simulator_is_busy_exits_0_without_a_traceback():
     """A generated scenario keeps sim_node's timer callback simulating and publishing most of the
     time; rclpy's own SIGINT handler raised KeyboardInterrupt inside it (or invalidated the
-    context under its publish), which the executor logged as a FATAL exception with its traceback."""
+    context under its publish), which the executor logged as a FATAL exception with its
+    traceback."""
     args = [
         str(BIN / "sim_node"),
         "--ros-args",
@@ -81,7 +83,10 @@ def test_a_stop_that_an_extension_turns_into_another_error_still_exits_0(
         "    return 3\n"
     )
     (tmp_path / "broken_node.py").write_text(f"raise {turned_into}('initialization failed')\n")
-    code = "import sys; sys.path.insert(0, sys.argv[1]); from tail_beam_sim.ros.start import run; sys.exit(run(sys.argv[2]))"
+    code = (
+        "import sys; sys.path.insert(0, sys.argv[1]); "
+        "from tail_beam_sim.ros.start import run; sys.exit(run(sys.argv[2]))"
+    )
     stopped_run = subprocess.run(
         [sys.executable, "-c", code, str(tmp_path), "fake_node"],
         capture_output=True,

@@ -63,7 +63,8 @@ def blocks_of(first_indices, n: int = 4, rate_hz: float = 1000.0) -> VibrationBl
 
 
 def test_antialias_filter_passes_the_band_and_stops_what_would_alias():
-    """Butterworth magnitude |H| = 1/sqrt(1 + (f/fc)^2n): a tone at 0.2 x rate passes (0.998), one at
+    """Butterworth magnitude |H| = 1/sqrt(1 + (f/fc)^2n): a tone at 0.2 x rate passes (0.998), one
+    at
     0.9 x rate, which would fold onto 0.1 x rate, is cut to under 0.04 of its amplitude."""
     rate, m = 25600.0, 4
     t = np.arange(200_000) / (m * rate)
@@ -384,7 +385,8 @@ def test_a_bag_with_relative_names_still_reads():
 
 @pytest.mark.ros
 def test_sim_node_publishes_contiguous_numbered_blocks():
-    """sim_node's blocks: consecutive indices from 0, stamp = index / rate, frame and range as documented."""
+    """sim_node's blocks: consecutive indices from 0, stamp = index / rate, frame and range as
+    documented."""
     from geometry_msgs.msg import TwistStamped
     from rclpy.parameter import Parameter
     from rosprobe import Probe, ros_context, spin_until
@@ -596,7 +598,8 @@ def test_an_empty_vibration_block_is_refused_by_name_and_hides_no_samples(tmp_pa
     """A client publishes a vibration message with no samples (``ranges`` empty, a valid header)
     at the index of the next real block. It carries no block: id_node refuses it with a line
     naming ``vibration.ranges`` and goes on (alone in a tick's batch it raised ValueError out of
-    the tick, which ends the node), and the real block at that index is used, no sample counted lost; the recorder records
+    the tick, which ends the node), and the real block at that index is used, no sample counted
+    lost; the recorder records
     it and warns; reading the bag is refused naming the field (it took the empty block for the
     index and dropped the real one as a repeat: 128 real samples silently lost)."""
     from rcl_interfaces.msg import Log
