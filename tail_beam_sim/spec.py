@@ -167,9 +167,11 @@ class Field:
     def range_text(self) -> str:
         """The allowed values as the reference page shows them (bounds by name where named)."""
         if self.kind in ("bool", "str", "floats", "strs", "mapping"):
-            return {"bool": "true, false", "floats": "list of numbers", "strs": "list of names"}.get(
-                self.kind, ""
-            )
+            return {
+                "bool": "true, false",
+                "floats": "list of numbers",
+                "strs": "list of names",
+            }.get(self.kind, "")
         if self.kind == "choice":
             return " \\| ".join(self.choices)
         if self.low is None and self.high is None:
@@ -289,9 +291,7 @@ def _int_range(low: float | None, high: float | None) -> str:
 
 
 def _is_number(value: object) -> bool:
-    return (
-        isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-    )
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _integral(value: object) -> int | None:
@@ -363,7 +363,9 @@ SUPPORT = Section(
         _f("gravity_mps2", "Gravitational acceleration.", "m/s^2", 0.0, 100.0),
         _open("beam_length_m", "Tail beam length from the hinge to its tip.", "m", high=20.0),
         _open("beam_mass_kg", "Mass of the tail beam.", "kg"),
-        _open("beam_inertia_about_hinge_kgm2", "Beam's moment of inertia about the hinge.", "kg m^2"),
+        _open(
+            "beam_inertia_about_hinge_kgm2", "Beam's moment of inertia about the hinge.", "kg m^2"
+        ),
         _str("plate_material", "Material of the impact plate (a materials entry)."),
         _open("plate_thickness_m", "Impact plate thickness.", "m", high=1.0),
         _f(
@@ -374,7 +376,12 @@ SUPPORT = Section(
             10.0,
             default=1.0,
         ),
-        _open("jack_pin_from_hinge_m", "Jack pin's distance from the hinge.", "m", high="beam_length_m"),
+        _open(
+            "jack_pin_from_hinge_m",
+            "Jack pin's distance from the hinge.",
+            "m",
+            high="beam_length_m",
+        ),
         _open("jack_angle_to_beam_deg", "Angle between the jack and the beam.", "deg", high=90.0),
         _open("jack_bore_m", "Jack cylinder bore.", "m", high=2.0),
         _open("jack_oil_column_m", "Length of the jack's oil column.", "m", high=10.0),
@@ -385,7 +392,9 @@ SUPPORT = Section(
         _f("jack_extra_compliance_mpn", "Compliance added in series with the jack.", "m/N", 0.0),
         _f("setting_pressure_pa", "Static (setting) pressure of the jack.", "Pa", 0.0),
         _f("imu_from_hinge_m", "IMU's distance from the hinge.", "m", 0.0, "beam_length_m"),
-        _f("impact_zone_min_m", "Nearest impact position to the hinge.", "m", 0.0, "beam_length_m"),
+        _f(
+            "impact_zone_min_m", "Nearest impact position to the hinge.", "m", 0.0, "beam_length_m"
+        ),
         _f("impact_zone_max_m", "Farthest impact position.", "m", 0.0, "beam_length_m"),
         _open("particle_radius_min_m", "Smallest particle radius accepted.", "m"),
         _f("particle_radius_max_m", "Largest particle radius.", "m", "particle_radius_min_m"),
@@ -435,7 +444,9 @@ SENSORS = Section(
         _f("pressure_rate_hz", "Jack pressure sample rate.", "Hz", *SENSOR_RATE),
         _f("pressure_noise_pa", "Pressure noise RMS.", "Pa", 0.0),
         _f("pressure_range_min_pa", "Lowest pressure the transducer reads.", "Pa"),
-        _open("pressure_range_max_pa", "Highest pressure it reads.", "Pa", "pressure_range_min_pa"),
+        _open(
+            "pressure_range_max_pa", "Highest pressure it reads.", "Pa", "pressure_range_min_pa"
+        ),
         _f("imu_rate_hz", "IMU sample rate.", "Hz", *SENSOR_RATE),
         _f(
             "imu_noise_nominal_rate_hz",
@@ -480,7 +491,9 @@ SENSORS = Section(
             0.0,
             default=0.002,
         ),
-        _open("vibration_range_mps2", "Accelerometer full scale.", "m/s^2", high=1e6, default=2000.0),
+        _open(
+            "vibration_range_mps2", "Accelerometer full scale.", "m/s^2", high=1e6, default=2000.0
+        ),
         _int("vibration_antialias_order", "Its Butterworth filter order.", 1, 10, default=4),
         _open(
             "vibration_antialias_cutoff_fraction",
@@ -551,7 +564,9 @@ FIDELITY = Section(
     "fidelity",
     "How much model a scene gets (`tail-beam simulate`).",
     (
-        _choice("tier", "Model tier when --tier is not given.", ("auto", *TIER_NAMES), default="auto"),
+        _choice(
+            "tier", "Model tier when --tier is not given.", ("auto", *TIER_NAMES), default="auto"
+        ),
         _kind(
             "strs",
             "outputs",
@@ -575,7 +590,9 @@ STREAM = Section(
     (
         _choice("tier", "Model tier of the stream.", TIER_NAMES, default="rigid"),
         _f("min_impact_gap_s", "Least time between two contacts.", "s", 0.0, 60.0),
-        _open("command_lead_s", "How far ahead of the stream a command is scheduled.", "s", high=60.0),
+        _open(
+            "command_lead_s", "How far ahead of the stream a command is scheduled.", "s", high=60.0
+        ),
         _int("max_queued_impacts", "Most impacts waiting to be simulated.", 1),
     ),
     file="sim_node.yaml",
@@ -595,7 +612,13 @@ SIM_NODE = Section(
     "sim_node",
     "sim_node's pacing and publishing.",
     (
-        _f("realtime_factor", "Simulation speed over wall clock (0 = as fast as possible).", "", 0.0, 1e6),
+        _f(
+            "realtime_factor",
+            "Simulation speed over wall clock (0 = as fast as possible).",
+            "",
+            0.0,
+            1e6,
+        ),
         _open("publish_period_s", "Timer period, wall clock.", "s", high=10.0),
         _open("max_chunk_s", "Most simulation time advanced per tick.", "s", high=10.0),
         _f("max_lag_s", "Lag behind real time after which it runs slower.", "s", 0.0, 3600.0),
@@ -624,16 +647,31 @@ SCENARIO = Section(
         _int("count", "Impacts generated.", 0, MAX_GENERATED),
         _f("gangue_fraction", "Share of gangue among them.", "", 0.0, 1.0),
         _kind(
-            "pair", "radius_m", "Radius range.", unit="m", low=0.0, high="particle_radius_max_m",
+            "pair",
+            "radius_m",
+            "Radius range.",
+            unit="m",
+            low=0.0,
+            high="particle_radius_max_m",
             low_open=True,
         ),
         _kind(
-            "pair", "drop_height_m", "Drop height range.", unit="m", low=0.0,
-            high="drop_height_max_m", low_open=True,
+            "pair",
+            "drop_height_m",
+            "Drop height range.",
+            unit="m",
+            low=0.0,
+            high="drop_height_max_m",
+            low_open=True,
         ),
         _kind("pair", "position_m", "Impact position range.", unit="m", low=0.0, low_open=True),
         _kind(
-            "pair", "interval_s", "Time between contacts.", unit="s", low=0.0, high=3600.0,
+            "pair",
+            "interval_s",
+            "Time between contacts.",
+            unit="s",
+            low=0.0,
+            high=3600.0,
             low_open=True,
         ),
         _f("start_s", "Simulation time of the first contact.", "s", 0.0, default=0.0),
@@ -646,7 +684,7 @@ RECORDER = Section(
     "recorder",
     "bag_recorder: what it writes and how often.",
     (
-        _str("bag_path", "Bag directory to create (\"\" = out/bags/tail_beam_<UTC time>)."),
+        _str("bag_path", 'Bag directory to create ("" = out/bags/tail_beam_<UTC time>).'),
         _str("storage", "Storage plugin: mcap or sqlite3."),
         _str("compression", "mcap chunk compression: zstd or none."),
         _open("segment_s", "Log time per segment file.", "s", high=3600.0),
@@ -680,7 +718,7 @@ REPLAY = Section(
     (
         _str("bag_path", "Bag directory to publish (required)."),
         _kind("strs", "topics", "Contract topics published."),
-        _str("namespace", "Namespace of the bag's topics to play (\"\" = the only one)."),
+        _str("namespace", 'Namespace of the bag\'s topics to play ("" = the only one).'),
         _f("start_offset_s", "Log time skipped from the first message.", "s", 0.0, 1e9),
         _bool("loop", "Start again at the end."),
         _f("rate", "Playback speed over the recorded one.", "", 0.01, 100.0),
@@ -710,7 +748,7 @@ ID_METHODS = ("threshold", "statistical", "physics")
 ID_NODE_TOP = Section(
     "",
     "Top-level parameters of id_node.",
-    (_str("method", "Identification method (\"\" = identification.method)."),),
+    (_str("method", 'Identification method ("" = identification.method).'),),
     file="id_node.yaml",
 )
 
@@ -720,11 +758,32 @@ ID_NODE = Section(
     (
         _open("poll_period_s", "Period at which samples go to the identifier.", "s", high=10.0),
         _QOS_DEPTH,
-        _open("flush_after_idle_s", "With no message this long, pending impacts are decided.", "s"),
-        _f("reorder_s", "Hold after arrival before a sample is handed on in stamp order.", "s", 0.0, 10.0),
-        _open("stream_idle_s", "A silent stream stops holding the others back after this.", "s", high=60.0),
-        _open("time_jump_s", "Stamps going back more than this start a new time base.", "s", high=1e6),
-        _f("calibrate_online_s", "Stamp time of data to self-calibrate from (0 = never).", "s", 0.0, 3600.0),
+        _open(
+            "flush_after_idle_s", "With no message this long, pending impacts are decided.", "s"
+        ),
+        _f(
+            "reorder_s",
+            "Hold after arrival before a sample is handed on in stamp order.",
+            "s",
+            0.0,
+            10.0,
+        ),
+        _open(
+            "stream_idle_s",
+            "A silent stream stops holding the others back after this.",
+            "s",
+            high=60.0,
+        ),
+        _open(
+            "time_jump_s", "Stamps going back more than this start a new time base.", "s", high=1e6
+        ),
+        _f(
+            "calibrate_online_s",
+            "Stamp time of data to self-calibrate from (0 = never).",
+            "s",
+            0.0,
+            3600.0,
+        ),
     ),
     file="id_node.yaml",
 )
@@ -735,7 +794,11 @@ IDENTIFICATION = Section(
     "Coal-gangue identification: method, windows and timeouts (stamp time, s).",
     (
         _choice("method", "Identification method.", ID_METHODS),
-        _bool("self_calibrate", "`tail-beam identify` calibrates to the bag's support first.", default=True),
+        _bool(
+            "self_calibrate",
+            "`tail-beam identify` calibrates to the bag's support first.",
+            default=True,
+        ),
         _open("window_s", "Signal after the onset every method waits for.", **_WINDOW),
         _open(
             "vibration_window_s",
@@ -744,28 +807,75 @@ IDENTIFICATION = Section(
             high="window_s",
             default=None,
         ),
-        _open("pressure_pre_s", "Pressure before the onset the fit learns the background from.", **_WINDOW),
-        _open("impulse_pre_s", "IMU background fitted over this much before the pulse.", **_WINDOW),
-        _open("impulse_skip_s", "Plate velocity fitted from this long after the onset.", **_WINDOW),
+        _open(
+            "pressure_pre_s",
+            "Pressure before the onset the fit learns the background from.",
+            **_WINDOW,
+        ),
+        _open(
+            "impulse_pre_s", "IMU background fitted over this much before the pulse.", **_WINDOW
+        ),
+        _open(
+            "impulse_skip_s", "Plate velocity fitted from this long after the onset.", **_WINDOW
+        ),
         _open("impulse_post_s", "... up to this long after it (<= window_s).", **_WINDOW),
         _open("stream_timeout_s", "A continuous stream lagging this much is stopped.", **_WINDOW),
         _open("camera_timeout_s", "Wait for the camera after the rebound window.", **_WINDOW),
         _open("overlap_window_s", "Onsets closer than this overlap (<= window_s).", **_WINDOW),
-        _f("overlap_confidence_cap", "Most confidence of an overlapping impact's label.", "", 0.5, 1.0),
-        _open("match_tolerance_s", "Scoring: a label's onset within this of the contact start.", "s", high=0.1),
+        _f(
+            "overlap_confidence_cap",
+            "Most confidence of an overlapping impact's label.",
+            "",
+            0.5,
+            1.0,
+        ),
+        _open(
+            "match_tolerance_s",
+            "Scoring: a label's onset within this of the contact start.",
+            "s",
+            high=0.1,
+        ),
     ),
     file="identification.yaml",
-    sections=("sensor_timing", "contact_fit", "detection", "evaluation", "statistical", "threshold", "physics"),
+    sections=(
+        "sensor_timing",
+        "contact_fit",
+        "detection",
+        "evaluation",
+        "statistical",
+        "threshold",
+        "physics",
+    ),
 )
 
 SENSOR_TIMING = Section(
     "identification.sensor_timing",
     "The check of the camera's and the acceleration channel's clocks.",
     (
-        _int("min_impacts", "Impacts checked before a recording is judged.", 1, MAX_QOS_DEPTH, default=10),
-        _open("agreeing_rate", "Share of unusual delays agreeing clocks give.", high=0.5, default=0.03),
-        _open("false_alarm", "Share of agreeing recordings called suspect.", high=0.5, default=1e-3),
-        _f("confidence_cap", "Confidence cap of a suspect recording's delay labels.", "", 0.5, 1.0, default=0.6),
+        _int(
+            "min_impacts",
+            "Impacts checked before a recording is judged.",
+            1,
+            MAX_QOS_DEPTH,
+            default=10,
+        ),
+        _open(
+            "agreeing_rate",
+            "Share of unusual delays agreeing clocks give.",
+            high=0.5,
+            default=0.03,
+        ),
+        _open(
+            "false_alarm", "Share of agreeing recordings called suspect.", high=0.5, default=1e-3
+        ),
+        _f(
+            "confidence_cap",
+            "Confidence cap of a suspect recording's delay labels.",
+            "",
+            0.5,
+            1.0,
+            default=0.6,
+        ),
     ),
     file="identification.yaml",
 )
@@ -775,19 +885,57 @@ CONTACT_FIT = Section(
     "identification.contact_fit",
     "The contact's duration read from the acceleration pulse (feature contact_duration_s).",
     (
-        _open("ring_start_s", "Ring-down read from this long after the onset.", default=0.0015, **_FIT_S),
-        _open("ring_end_s", "... to this long after it (> ring_start_s).", default=0.006, **_FIT_S),
+        _open(
+            "ring_start_s",
+            "Ring-down read from this long after the onset.",
+            default=0.0015,
+            **_FIT_S,
+        ),
+        _open(
+            "ring_end_s", "... to this long after it (> ring_start_s).", default=0.006, **_FIT_S
+        ),
         _open("before_s", "Fit from this long before the onset.", default=0.0003, **_FIT_S),
-        _open("early_ring_start_s", "Second pass: ring-down not before this.", default=0.0005, **_FIT_S),
-        _open("ring_after_contact_s", "Second pass: this after the first pass's contact.", default=0.0001, **_FIT_S),
-        _f("ring_after_contact_factor", "... plus this many first-pass durations.", "", 1.0, 10.0, default=1.5),
+        _open(
+            "early_ring_start_s",
+            "Second pass: ring-down not before this.",
+            default=0.0005,
+            **_FIT_S,
+        ),
+        _open(
+            "ring_after_contact_s",
+            "Second pass: this after the first pass's contact.",
+            default=0.0001,
+            **_FIT_S,
+        ),
+        _f(
+            "ring_after_contact_factor",
+            "... plus this many first-pass durations.",
+            "",
+            1.0,
+            10.0,
+            default=1.5,
+        ),
         _open("after_s", "Fit to this long after the onset.", default=0.003, **_FIT_S),
         _open("min_duration_s", "Shortest half-sine force tried.", default=3.0e-5, **_FIT_S),
         _open("max_duration_s", "Longest half-sine force tried.", default=0.002, **_FIT_S),
         _int("max_modes", "Most damped sinusoids read from the ring-down.", 1, 8, default=4),
         _int("min_ring_samples", "Fewer ring-down samples: no fit.", 8, 10000, default=24),
-        _f("min_mode_frequency_hz", "Slower poles are left to the sway.", "Hz", 0.0, 1e5, default=150.0),
-        _f("max_fit_rate_hz", "A faster channel is decimated to at most this.", "Hz", 1000.0, 1e6, default=51200.0),
+        _f(
+            "min_mode_frequency_hz",
+            "Slower poles are left to the sway.",
+            "Hz",
+            0.0,
+            1e5,
+            default=150.0,
+        ),
+        _f(
+            "max_fit_rate_hz",
+            "A faster channel is decimated to at most this.",
+            "Hz",
+            1000.0,
+            1e6,
+            default=51200.0,
+        ),
     ),
     file="identification.yaml",
 )
@@ -806,19 +954,60 @@ DETECTION = Section(
         _open("sway_window_s", "Free sway fitted over this before the look-back.", **_DET_S),
         _open("noise_block_s", "Noise RMS estimated over blocks of this.", "s", high=100.0),
         _open("max_contact_s", "Longest contact a pulse may span.", **_DET_S),
-        _open("rebound_early_tolerance_s", "A rebound this early still belongs to the pulse.", **_DET_S),
+        _open(
+            "rebound_early_tolerance_s",
+            "A rebound this early still belongs to the pulse.",
+            **_DET_S,
+        ),
         _open("unconfirmed_pulse_sigma", "An unconfirmed pulse must be this strong.", high=1e6),
-        _open("pressure_confirm_sigma", "Moment impulse confirming a pulse, standard errors.", **_SIGMA),
-        _open("pressure_threshold_sigma", "Pressure-only detection threshold, standard errors.", **_SIGMA),
+        _open(
+            "pressure_confirm_sigma",
+            "Moment impulse confirming a pulse, standard errors.",
+            **_SIGMA,
+        ),
+        _open(
+            "pressure_threshold_sigma",
+            "Pressure-only detection threshold, standard errors.",
+            **_SIGMA,
+        ),
         _open("ring_fraction", "Threshold over the ringing's envelope after a pulse.", high=100.0),
         _open("ring_decay_s", "Decay time of that envelope.", "s", high=10.0),
         _open("ring_window_s", "How long the raised threshold lasts.", "s", high=10.0),
-        _open("rebound_onset_lead_s", "Onset of a rebound-only impact before its stamp.", **_DET_S),
-        _open("pressure_onset_uncertainty_s", "Onset uncertainty of pressure-only detection.", **_DET_S),
-        _open("onset_before_rebound_max_s", "Contact began at most this before the rebound.", **_DET_S),
-        _open("rebound_frame_allowance_s", "Camera frame the rebound window allows for.", default=0.0005, **_DET_S),
-        _f("pressure_drift_confirm_sigma", "Moment impulse kept against a drifting sway.", "", 0.0, 1e3, default=2.5),
-        _f("late_rebound_max_s", "A late rebound up to this after the onset (0 = off).", "s", 0.0, 1.0, default=0.025),
+        _open(
+            "rebound_onset_lead_s", "Onset of a rebound-only impact before its stamp.", **_DET_S
+        ),
+        _open(
+            "pressure_onset_uncertainty_s",
+            "Onset uncertainty of pressure-only detection.",
+            **_DET_S,
+        ),
+        _open(
+            "onset_before_rebound_max_s",
+            "Contact began at most this before the rebound.",
+            **_DET_S,
+        ),
+        _open(
+            "rebound_frame_allowance_s",
+            "Camera frame the rebound window allows for.",
+            default=0.0005,
+            **_DET_S,
+        ),
+        _f(
+            "pressure_drift_confirm_sigma",
+            "Moment impulse kept against a drifting sway.",
+            "",
+            0.0,
+            1e3,
+            default=2.5,
+        ),
+        _f(
+            "late_rebound_max_s",
+            "A late rebound up to this after the onset (0 = off).",
+            "s",
+            0.0,
+            1.0,
+            default=0.025,
+        ),
     ),
     file="identification.yaml",
 )
@@ -855,7 +1044,12 @@ STATISTICAL = Section(
     "identification.statistical",
     "The statistical method.",
     (
-        _f("outside_confidence_cap", "Confidence cap outside the training envelope.", default=0.6, **_CAP),
+        _f(
+            "outside_confidence_cap",
+            "Confidence cap outside the training envelope.",
+            default=0.6,
+            **_CAP,
+        ),
         _open(
             "reference_camera_frame_rate_hz",
             "Camera frame rate of the training's streams.",
@@ -881,7 +1075,13 @@ HYSTERESIS = Section(
     (
         _open("reference_restitution", "Gangue restitution the latent refers to.", high=0.999),
         _kind("floats", "bin_edges", "Edges of the latent's bins (increasing)."),
-        _int("min_impacts", "Impacts with every signal needed to read it.", 1, MAX_QOS_DEPTH, default=8),
+        _int(
+            "min_impacts",
+            "Impacts with every signal needed to read it.",
+            1,
+            MAX_QOS_DEPTH,
+            default=8,
+        ),
     ),
     file="identification.yaml",
 )
@@ -897,7 +1097,9 @@ PHYSICS = Section(
     "identification.physics",
     "The physics method's inversion: priors and observation errors.",
     (
-        _kind("pair", "prior_radius_m", "Prior radius range (log-uniform).", low=0.0, low_open=True),
+        _kind(
+            "pair", "prior_radius_m", "Prior radius range (log-uniform).", low=0.0, low_open=True
+        ),
         _kind("pair", "prior_drop_height_m", "Prior drop height range.", low=0.0, low_open=True),
         _kind("pair", "prior_position_m", "Prior impact position range.", low=0.0, low_open=True),
         _int("prior_samples", "Prior particles per material.", 100, MAX_QOS_DEPTH),
@@ -1030,7 +1232,8 @@ def render_reference(config_dir: Path | None = None) -> str:
     lines = [
         "# Parameter reference",
         "",
-        "Generated from the tables of `tail_beam_sim/spec.py`; do not edit by hand. Regenerate with",
+        "Generated from the tables of `tail_beam_sim/spec.py`; do not edit by hand.",
+        "Regenerate with",
         "",
         "    python -m tail_beam_sim.spec > docs/parameters.md",
         "",

@@ -10,8 +10,9 @@ bag_replay and ``tail-beam identify`` find the contract topics under any namespa
 parameter is read at start-up only, so changes at run time (``use_sim_time`` included, which
 would rewrite the log times) are refused.
 
-Like ``ros2 bag record``: a new file every ``max_bag_duration_s`` of log time or
-``max_bag_size_bytes`` (0 = never), mcap chunks zstd-compressed (``compression``), and a count
+Like ``ros2 bag record``: a new file every ``max_bag_duration_s`` of log time (at least 1 s) or
+``max_bag_size_bytes`` (at least 1 MiB; 0 = never: a smaller split would write a file per
+message and lose most of them), mcap chunks zstd-compressed (``compression``), and a count
 of messages lost, reported on exit and kept in the bag's metadata (``custom_data``): the
 vibration samples missing from the running index, and the middleware's message-lost events.
 
@@ -43,7 +44,7 @@ from tail_beam_sim import topics
 from tail_beam_sim.bags.read import TIME_JUMP_S
 from tail_beam_sim.bags.records import COMPRESSIONS
 from tail_beam_sim.bags.write import SegmentedBagWriter
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.sensors import BlockSequencer, IndexSpan, VibrationBlocks
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.ros.params import (
@@ -53,6 +54,7 @@ from tail_beam_sim.ros.params import (
     refuse_runtime_changes,
 )
 from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
+from tail_beam_sim.spec import RECORDER
 
 LOST_KEYS = (
     "tail_beam.vibration_lost_samples",
@@ -81,42 +83,25 @@ class RecorderNode(Node):
         params = declare_and_read(self, config_defaults(["recorder.yaml"], with_physics=False))[
             "recorder"
         ]
-        segment_s = require_range(
-            "recorder.segment_s", params.get("segment_s"), 0.0, 3600.0, low_open=True, unit="s"
-        )
-        flush_s = require_range(
-            "recorder.flush_s", params.get("flush_s"), 0.0, 3600.0, low_open=True, unit="s"
-        )
-        depth = int(require_range("recorder.qos_depth", params.get("qos_depth"), 0, 1e6))
-        max_duration_s = require_range(
-            "recorder.max_bag_duration_s",
-            params.get("max_bag_duration_s", 0.0),
-            0.0,
-            1e7,
-            unit="s",
-        )
-        max_size = int(
-            require_range(
-                "recorder.max_bag_size_bytes",
-                params.get("max_bag_size_bytes", 0),
-                0,
-                2**62,
-                unit="bytes",
-            )
-        )
-        compression = params.get("compression", "zstd")
+        checked = RECORDER.check(params)
+        segment_s = checked["segment_s"]
+        flush_s = checked["flush_s"]
+        depth = checked["qos_depth"]
+        max_duration_s = checked["max_bag_duration_s"]
+        max_size = checked["max_bag_size_bytes"]
+        compression = checked["compression"]
         if compression not in COMPRESSIONS:
             raise InputError(
                 "recorder.compression", compression, f"must be one of {', '.join(COMPRESSIONS)}"
             )
-        path = params.get("bag_path") or default_bag_path()
+        path = checked["bag_path"] or default_bag_path()
         self.names = {
             topic: self.resolve_topic_name(topic) for topic in topics.MSG_TYPES
         }  # contract -> fully qualified
         try:
             self.writer = SegmentedBagWriter(
                 path,
-                params.get("storage", "mcap"),
+                checked["storage"],
                 {self.names[t]: m for t, m in topics.MSG_TYPES.items()},
                 compression=compression,
                 max_duration_s=max_duration_s,

@@ -10,9 +10,10 @@ that is missing, empty, truncated, not a bag or without any of those topics stop
 start-up with one line naming the problem. Every parameter is read at start-up only, so changes
 at run time are refused.
 
-Like ``ros2 bag play``: ``rate``, ``start_offset_s`` (skip that much log time from the first
-message), ``topics`` (contract names), ``publish_clock`` and ``loop`` (start again at the
-end). The bag's topics are found under any namespace and published under the node's own
+Like ``ros2 bag play``: ``rate`` (0.01 to 100 times the recorded speed), ``start_offset_s``
+(skip that much log time from the first message; past the bag's end is refused, naming its
+duration), ``topics`` (contract names), ``publish_clock`` and ``loop`` (start again at the end;
+refused for messages at a single instant, which would replay without pause). The bag's topics are found under any namespace and published under the node's own
 (relative names); a bag of several supports needs ``namespace`` to say which one.
 """
 
@@ -28,7 +29,7 @@ from rosgraph_msgs.msg import Clock
 
 from tail_beam_sim import topics
 from tail_beam_sim.bags.read import RawMessage, open_segments_note, raw_messages
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import InputError
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.ros.params import (
     ALL_PARAMETERS,
@@ -37,6 +38,7 @@ from tail_beam_sim.ros.params import (
     refuse_runtime_changes,
 )
 from tail_beam_sim.ros.spin import PublishBacklog, SubscriberGate, drain, run_node
+from tail_beam_sim.spec import REPLAY
 
 WAITED_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION, topics.REBOUND_VELOCITY)
 
@@ -49,47 +51,47 @@ class ReplayNode(Node):
         params = declare_and_read(self, config_defaults(["replay.yaml"], with_physics=False))[
             "replay"
         ]
-        if not params.get("bag_path"):
+        checked = REPLAY.check(params)
+        if not checked["bag_path"]:
             raise InputError(
                 "replay.bag_path", params.get("bag_path"), "required: the bag directory to publish"
             )
-        self.rate = require_range("replay.rate", params.get("rate"), 0.0, 1e6, low_open=True)
-        period = require_range(
-            "replay.publish_period_s",
-            params.get("publish_period_s"),
-            0.0,
-            10.0,
-            low_open=True,
-            unit="s",
-        )
-        wait_for = int(
-            require_range(
-                "replay.wait_for_subscribers", params.get("wait_for_subscribers"), 0, 1000
-            )
-        )
-        settle = require_range(
-            "replay.subscriber_settle_s", params.get("subscriber_settle_s"), 0.0, 60.0, unit="s"
-        )
-        depth = int(require_range("replay.qos_depth", params.get("qos_depth"), 0, 1e6))
-        chosen = list(params.get("topics") or [])
+        self.rate = checked["rate"]
+        period = checked["publish_period_s"]
+        wait_for = checked["wait_for_subscribers"]
+        settle = checked["subscriber_settle_s"]
+        depth = checked["qos_depth"]
+        chosen = checked["topics"]
         unknown = sorted(set(chosen) - set(topics.MSG_TYPES))
         if unknown or not chosen:
             raise InputError(
                 "replay.topics", chosen, f"must name some of {', '.join(topics.MSG_TYPES)}"
             )
-        self.start_offset_s = require_range(
-            "replay.start_offset_s", params.get("start_offset_s", 0.0), 0.0, 1e9, unit="s"
-        )
-        self.loop = bool(params.get("loop", False))
-        self.namespace = params.get("namespace") or None
+        self.start_offset_s = checked["start_offset_s"]
+        self.loop = checked["loop"]
+        self.namespace = checked["namespace"] or None
         self._chosen = chosen
         self._bag_path = params["bag_path"]
         self._open()  # opens the bag: errors surface here
+        if self._next is None and self._skipped_span_s is not None:
+            raise InputError(
+                "replay.start_offset_s",
+                self.start_offset_s,
+                f"is past the end of the bag: its messages on replay.topics span "
+                f"{self._skipped_span_s:g} s of log time",
+            )
         if self._next is None:
             raise InputError(
                 "replay.bag_path",
                 params["bag_path"],
                 f"holds no messages on replay.topics ({', '.join(chosen)})",
+            )
+        if self.loop and not self._spans_log_time():
+            raise InputError(
+                "replay.loop",
+                True,
+                "needs messages on replay.topics that span some log time after start_offset_s; "
+                "these are all at one instant, so every pass would start again at once",
             )
         qos = ros_messages.stream_qos(depth)
         self._pubs = {
@@ -130,11 +132,24 @@ class ReplayNode(Node):
             self._bag_path, self._chosen, namespace=self.namespace
         )
         self._next: RawMessage | None = next(self._messages, None)
+        self._skipped_span_s: float | None = None  # log time of what the offset skipped, s
         if self._next is not None and self.start_offset_s > 0.0:
-            start_ns = self._next.log_time_ns + int(round(self.start_offset_s * 1e9))
+            first_ns = last_ns = self._next.log_time_ns
+            start_ns = first_ns + int(round(self.start_offset_s * 1e9))
             while self._next is not None and self._next.log_time_ns < start_ns:
+                last_ns = self._next.log_time_ns
                 self._next = next(self._messages, None)
+            if self._next is None:
+                self._skipped_span_s = (last_ns - first_ns) * 1e-9
         self._origin = None
+
+    def _spans_log_time(self) -> bool:
+        """Whether the messages played (from the start offset on) span more than one instant:
+        a looping replay of a single instant would start its next pass at once, forever. Reads
+        the bag afresh up to the first message later than the first one played."""
+        first_ns = self._next.log_time_ns if self._next is not None else None
+        messages = raw_messages(self._bag_path, self._chosen, namespace=self.namespace)
+        return any(m.log_time_ns > first_ns for m in messages if first_ns is not None)
 
     def _tick(self) -> None:
         if not self._backlog.flush():

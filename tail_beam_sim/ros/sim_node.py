@@ -33,7 +33,7 @@ from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
 
 from tail_beam_sim import topics
-from tail_beam_sim.errors import InputError, require_range, shorten
+from tail_beam_sim.errors import InputError, shorten
 from tail_beam_sim.physics.command import parse_command
 from tail_beam_sim.physics.scenario import PlannedImpact, load_scenario
 from tail_beam_sim.physics.solvers import SolverError
@@ -49,6 +49,7 @@ from tail_beam_sim.ros.spin import (
     run_node,
 )
 from tail_beam_sim.ros.usage import NodeUsage
+from tail_beam_sim.spec import SIM_NODE
 
 SCENARIO_IDLE_S = 1.0  # exit_after_idle_s -1 (auto): idle time before exiting after a file or generated scenario, s
 
@@ -97,40 +98,15 @@ class SimNode(Node):
         super().__init__("tail_beam_sim", **kwargs)
         params = declare_and_read(self, config_defaults(["sim_node.yaml"], with_physics=True))
         node = params["sim_node"]
-        self.realtime_factor = require_range(
-            "sim_node.realtime_factor", node.get("realtime_factor"), 0.0, 1e6
-        )
-        period = require_range(
-            "sim_node.publish_period_s",
-            node.get("publish_period_s"),
-            0.0,
-            10.0,
-            low_open=True,
-            unit="s",
-        )
-        self.max_chunk_s = require_range(
-            "sim_node.max_chunk_s", node.get("max_chunk_s"), 0.0, 10.0, low_open=True, unit="s"
-        )
-        self.max_lag_s = require_range(
-            "sim_node.max_lag_s", node.get("max_lag_s"), 0.0, 3600.0, unit="s"
-        )
-        idle = node.get("exit_after_idle_s")
-        idle = (
-            -1.0
-            if idle == -1
-            else require_range(
-                "sim_node.exit_after_idle_s", idle, 0.0, None, unit="s (or -1: auto)"
-            )
-        )
-        depth = int(require_range("sim_node.qos_depth", node.get("qos_depth"), 0, 1e6))
-        wait_for = int(
-            require_range(
-                "sim_node.wait_for_subscribers", node.get("wait_for_subscribers"), 0, 1000
-            )
-        )
-        settle = require_range(
-            "sim_node.subscriber_settle_s", node.get("subscriber_settle_s"), 0.0, 60.0, unit="s"
-        )
+        checked = SIM_NODE.check(node)
+        self.realtime_factor = checked["realtime_factor"]
+        period = checked["publish_period_s"]
+        self.max_chunk_s = checked["max_chunk_s"]
+        self.max_lag_s = checked["max_lag_s"]
+        idle = checked["exit_after_idle_s"]
+        depth = checked["qos_depth"]
+        wait_for = checked["wait_for_subscribers"]
+        settle = checked["subscriber_settle_s"]
         self.stream = StreamSimulator.from_params(params)
         # The scenario is validated whole now, and fed to the stream as its impacts fall due.
         self._planned: deque[PlannedImpact] = deque(
@@ -158,7 +134,7 @@ class SimNode(Node):
         )
         self._truth_pub = self.create_publisher(String, topics.IMPACT_TRUTH, event_qos)
         self._clock_pub = (
-            self.create_publisher(Clock, "/clock", 10) if node.get("publish_clock") else None
+            self.create_publisher(Clock, "/clock", 10) if checked["publish_clock"] else None
         )
         # Keep-all: a burst of commands waits in the reader's history instead of overwriting itself.
         self.create_subscription(

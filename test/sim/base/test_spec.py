@@ -60,7 +60,11 @@ def test_the_shipped_sections_pass_their_own_checks():
 @pytest.mark.parametrize(
     "field, value, message",
     [
-        (spec.Field("x_s", "", low=0.0, high=10.0, low_open=True, unit="s"), -1, "must be in (0, 10] s"),
+        (
+            spec.Field("x_s", "", low=0.0, high=10.0, low_open=True, unit="s"),
+            -1,
+            "must be in (0, 10] s",
+        ),
         (spec.Field("x", "", low=0.0), "abc", "must be >= 0 (a finite number)"),
         (spec.Field("x", "", kind="int", low=1, high=8), 2.5, "must be an integer in [1, 8]"),
         (spec.Field("x", "", kind="bool"), "yes", "must be true or false"),
@@ -106,12 +110,10 @@ def test_a_pair_checks_both_ends():
 
 def test_an_off_value_outside_the_range_is_taken_and_named():
     """recorder.max_bag_duration_s: 0 (never split) is taken, 1e-9 refused naming both."""
-    assert spec.RECORDER.check(
-        {"max_bag_duration_s": 0}, only=["max_bag_duration_s"]
-    ) == {"max_bag_duration_s": 0.0}
-    with pytest.raises(
-        InputError, match=r"must be in \[1, 1e\+07\] s, or 0 \(never split\)"
-    ):
+    assert spec.RECORDER.check({"max_bag_duration_s": 0}, only=["max_bag_duration_s"]) == {
+        "max_bag_duration_s": 0.0
+    }
+    with pytest.raises(InputError, match=r"must be in \[1, 1e\+07\] s, or 0 \(never split\)"):
         spec.RECORDER.check({"max_bag_duration_s": 1e-9}, only=["max_bag_duration_s"])
 
 

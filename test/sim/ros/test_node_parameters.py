@@ -265,3 +265,125 @@ def test_numbers_config_reads_as_text_take_numbers_and_the_shipped_files_load():
         IdNode(context=context).destroy_node()
     finally:
         rclpy.try_shutdown(context=context)
+
+
+@pytest.mark.parametrize(
+    "name, value, allowed",
+    [
+        ("max_bag_duration_s", 1e-9, r"must be in \[1, 1e\+07\] s, or 0 \(never split\)"),
+        ("max_bag_duration_s", 1e-10, r"must be in \[1, 1e\+07\] s, or 0 \(never split\)"),
+        ("max_bag_size_bytes", 1, r"must be an integer in \[1048576, \d+\] bytes, or 0"),
+        ("max_bag_size_bytes", 1000.5, r"must be an integer in \[1048576, \d+\] bytes, or 0"),
+    ],
+)
+def test_a_bag_split_too_small_or_not_whole_is_refused(tmp_path, name, value, allowed):
+    """recorder.max_bag_duration_s and max_bag_size_bytes below 1 s and 1 MiB (a file per
+    message, most messages lost), a duration that rounds to 0 ns, and a fractional byte count
+    are refused at start-up, naming the field and its range; 0 (never split) is taken."""
+    from tail_beam_sim.ros.recorder_node import RecorderNode
+
+    with ros_context() as (context, _):
+        overrides = [
+            Parameter("recorder.bag_path", value=str(tmp_path / "bag")),
+            Parameter(f"recorder.{name}", value=value),
+        ]
+        with pytest.raises(InputError, match=rf"recorder\.{name} = {value!r}: {allowed}"):
+            RecorderNode(context=context, parameter_overrides=overrides)
+        node = RecorderNode(
+            context=context,
+            parameter_overrides=[
+                Parameter("recorder.bag_path", value=str(tmp_path / "kept")),
+                Parameter(f"recorder.{name}", value=0),
+            ],
+        )
+        try:
+            assert node.writer.max_duration_ns == 0 and node.writer.max_size_bytes == 0
+        finally:
+            node.writer.close()
+            node.destroy_node()
+
+
+@pytest.mark.slow
+def test_a_refused_bag_split_is_one_line_at_start_up(tmp_path):
+    """bag_recorder with -p recorder.max_bag_size_bytes:=1 exits with status 2 and one line
+    naming the field and its range, no traceback."""
+    result = run_main(
+        "bag_recorder",
+        "-p",
+        f"recorder.bag_path:={tmp_path / 'bag'}",
+        "-p",
+        "recorder.max_bag_size_bytes:=1",
+    )
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr, result.stderr
+    lines = [
+        line for line in result.stderr.splitlines() if line.startswith("bag_recorder: error:")
+    ]
+    assert len(lines) == 1 and "recorder.max_bag_size_bytes = 1: must be" in lines[0], lines
+    assert not (tmp_path / "bag").exists()
+
+
+def replay_overrides(bag, **values) -> list[Parameter]:
+    """Parameters of a ReplayNode playing ``bag``, with ``replay.<name>`` values."""
+    return [Parameter("replay.bag_path", value=str(bag))] + [
+        Parameter(f"replay.{name}", value=value) for name, value in values.items()
+    ]
+
+
+def test_a_replay_rate_outside_its_range_is_refused(tmp_path):
+    """-p replay.rate:=1e-300 (a replay that never advances) and 1e6 are refused naming
+    replay.rate and [0.01, 100]; 0.01 is taken."""
+    from bag_helpers import records, write_segments
+
+    from tail_beam_sim.ros.replay_node import ReplayNode
+
+    write_segments(tmp_path / "bag", [records(20)])
+    with ros_context() as (context, _):
+        for rate in (1e-300, 1e6):
+            with pytest.raises(InputError, match=r"replay\.rate = .*: must be in \[0\.01, 100\]$"):
+                ReplayNode(
+                    context=context,
+                    parameter_overrides=replay_overrides(tmp_path / "bag", rate=rate),
+                )
+        node = ReplayNode(
+            context=context, parameter_overrides=replay_overrides(tmp_path / "bag", rate=0.01)
+        )
+        assert node.rate == 0.01
+        node.destroy_node()
+
+
+def test_a_loop_over_one_instant_is_refused(tmp_path):
+    """replay.loop over a bag whose messages are all at one log time (one pressure and one IMU
+    sample) would start each pass again at once, a busy loop: it is refused at start-up naming
+    replay.loop. The same bag without loop plays."""
+    from bag_helpers import records, write_segments
+
+    from tail_beam_sim.ros.replay_node import ReplayNode
+
+    write_segments(tmp_path / "bag", [records(1)])
+    with ros_context() as (context, _):
+        with pytest.raises(InputError, match=r"replay\.loop = True: needs messages .* span"):
+            ReplayNode(
+                context=context, parameter_overrides=replay_overrides(tmp_path / "bag", loop=True)
+            )
+        ReplayNode(context=context, parameter_overrides=replay_overrides(tmp_path / "bag"))
+
+
+def test_a_start_offset_past_the_bags_end_names_its_duration(tmp_path):
+    """replay.start_offset_s beyond the bag's last message said the bag "holds no messages on
+    replay.topics"; it now names the offset and the log time the bag's messages span."""
+    from bag_helpers import RATE_HZ, records, write_segments
+
+    from tail_beam_sim.ros.replay_node import ReplayNode
+
+    write_segments(tmp_path / "bag", [records(20)])
+    span = f"{19 / RATE_HZ:g}"
+    with ros_context() as (context, _):
+        with pytest.raises(
+            InputError,
+            match=rf"replay\.start_offset_s = 50\.0: is past the end of the bag: .* span {span} s",
+        ):
+            ReplayNode(
+                context=context,
+                parameter_overrides=replay_overrides(tmp_path / "bag", start_offset_s=50.0),
+            )
