@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy import signal
@@ -285,9 +286,7 @@ class AntiAliasFilter:
         self, rate_hz: float, order: int, cutoff_fraction: float, oversample: int
     ) -> None:
         self.oversample = oversample
-        self._sos = signal.butter(
-            order, cutoff_fraction * rate_hz, btype="low", fs=oversample * rate_hz, output="sos"
-        )
+        self._sos, self._zi_unit = _butterworth(rate_hz, order, cutoff_fraction, oversample)
         self._zi: np.ndarray | None = None
 
     def __call__(self, dense: np.ndarray) -> np.ndarray:
@@ -296,9 +295,22 @@ class AntiAliasFilter:
         if dense.size == 0:
             return dense.copy()
         if self._zi is None:  # start settled on the first value (the beam at rest reads +g)
-            self._zi = signal.sosfilt_zi(self._sos) * dense[0]
+            self._zi = self._zi_unit * dense[0]
         out, self._zi = signal.sosfilt(self._sos, dense, zi=self._zi)
         return out
+
+
+@lru_cache(maxsize=32)
+def _butterworth(
+    rate_hz: float, order: int, cutoff_fraction: float, oversample: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The low-pass's second-order sections and their settled state for a unit input, designed
+    once per setting: the design costs more than filtering one impact's samples. Shared between
+    filters, which only read them."""
+    sos = signal.butter(
+        order, cutoff_fraction * rate_hz, btype="low", fs=oversample * rate_hz, output="sos"
+    )
+    return sos, signal.sosfilt_zi(sos)
 
 
 @dataclass
