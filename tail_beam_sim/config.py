@@ -27,6 +27,11 @@ DEFAULT_FILES = (
     "fidelity.yaml",
 )
 CONFIG_DIR_ENV = "TAIL_BEAM_CONFIG_DIR"
+# Bounds of a YAML file the suite reads (parameter files, impact lists): a file past them is no
+# such file, and reading it on would cost unbounded memory or time.
+MAX_FILE_BYTES = 8 * 1024 * 1024
+MAX_VALUES = 1_000_000  # values a file may expand to, an alias counted at each use
+MAX_DEPTH = 100  # nesting of mappings and lists
 
 
 def default_config_dir() -> Path:
@@ -53,20 +58,68 @@ def default_config_dir() -> Path:
     )
 
 
-def read_parameter_file(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read one ROS 2 parameter file and return its merged ``ros__parameters``."""
-    file_path = Path(path)
+def read_yaml_file(path: str | os.PathLike[str], field: str = "config") -> Any:
+    """The value of the YAML file ``path``, or InputError naming it as ``field`` and saying
+    why not: unreadable, larger than MAX_FILE_BYTES (read no further: ``/dev/zero`` is refused,
+    not read), not UTF-8 text, not YAML, nested too deep to read, holding an integer past
+    Python's digit limit, or expanding past MAX_VALUES values or MAX_DEPTH levels (anchors whose
+    aliases multiply, or refer to themselves)."""
     try:
-        text = file_path.read_text(encoding="utf-8")
+        with open(path, "rb") as stream:
+            raw = stream.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise InputError(
-            "config", str(path), f"must be a readable file ({exc.strerror})"
+            field, str(path), f"must be a readable file ({exc.strerror or exc})"
+        ) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise InputError(
+            field, str(path), f"is larger than {MAX_FILE_BYTES} bytes: not a YAML file to read"
+        )
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(
+            field, str(path), f"must be UTF-8 text (byte {exc.start} is not)"
         ) from None
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         first_line = str(exc).splitlines()[0] if str(exc) else "syntax error"
-        raise InputError("config", str(path), f"must be valid YAML ({first_line})") from None
+        raise InputError(field, str(path), f"must be valid YAML ({first_line})") from None
+    except RecursionError:
+        raise InputError(field, str(path), "is nested too deep to read") from None
+    except ValueError as exc:  # an integer of more than 4300 digits
+        raise InputError(
+            field, str(path), f"holds a value that cannot be read ({str(exc)[:60]})"
+        ) from None
+    _check_extent(data, field, path)
+    return data
+
+
+def _check_extent(data: Any, field: str, path: str | os.PathLike[str]) -> None:
+    """InputError when ``data`` holds more than MAX_VALUES values or nests deeper than
+    MAX_DEPTH (walked without recursion; an alias is walked at each of its uses)."""
+    stack = [(data, 1)]
+    values = 0
+    while stack:
+        value, depth = stack.pop()
+        values += 1
+        if values > MAX_VALUES or depth > MAX_DEPTH:
+            raise InputError(
+                field,
+                str(path),
+                f"expands to more than {MAX_VALUES} values or {MAX_DEPTH} levels "
+                "(YAML anchors that multiply or refer to themselves?)",
+            )
+        if isinstance(value, Mapping):
+            stack.extend((item, depth + 1) for item in value.values())
+        elif isinstance(value, list):
+            stack.extend((item, depth + 1) for item in value)
+
+
+def read_parameter_file(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read one ROS 2 parameter file and return its merged ``ros__parameters``."""
+    data = read_yaml_file(path, "config")
     if data is None:
         return {}
     if not isinstance(data, Mapping):

@@ -23,11 +23,15 @@ from typing import Any
 
 from tail_beam_sim.cli import EXIT_REFUSED, EXIT_TIMEOUT
 from tail_beam_sim.cli.common import add_config_option
-from tail_beam_sim.config import default_config_dir, load_parameters, section
+from tail_beam_sim.config import default_config_dir, load_parameters, read_yaml_file, section
 from tail_beam_sim.errors import InputError, require_range, shorten
 from tail_beam_sim.physics.command import parse_command
 from tail_beam_sim.physics.materials import material_table
-from tail_beam_sim.physics.scenario import check_impacts, read_scenario_file
+from tail_beam_sim.physics.scenario import (
+    check_impacts,
+    read_scenario_file,
+    resolve_scenario_file,
+)
 from tail_beam_sim.physics.scene import Impact
 from tail_beam_sim.physics.support import Support
 
@@ -131,6 +135,9 @@ def read_commands(args: argparse.Namespace, params: Mapping[str, Any]) -> list[d
             f"give either --file or the impact options, not both ({', '.join(options)} given)",
         )
     if args.file is not None:
+        # The file checked by the suite's bounded reader first (size, encoding, nesting,
+        # anchors): a hostile file is one line naming it, not a traceback or all of memory.
+        read_yaml_file(resolve_scenario_file(args.file), "--file")
         commands = [
             item.command for item in read_scenario_file(args.file, field="--file", item="impacts")
         ]
