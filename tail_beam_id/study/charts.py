@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from tail_beam_id.study.dataset import FOREIGN_SCENES
+from tail_beam_id.study.dataset import FOREIGN_SCENES, SCENE_SETS
 from tail_beam_id.study.evaluation import Summary
 from tail_beam_sim.plotting import pyplot, save_figure
 
@@ -16,20 +16,28 @@ MARKERS = {"threshold": "s", "statistical": "o", "physics": "^"}
 
 
 def _noise(setting: str) -> float:
-    """The noise factor of a setting key 'rates/xN' (NaN for the foreign set, whose every
-    support has its own noise)."""
-    return float(setting.split("/x")[1]) if "/x" in setting else math.nan
+    """The noise factor of a setting key 'rates/xN' or 'rates/xN/profile' (NaN for sensors
+    drawn with each support, whose noise is their own)."""
+    return float(setting.split("/x")[1].split("/")[0]) if "/x" in setting else math.nan
 
 
 def accuracy_vs_latency(items: Sequence[Summary], path: Path) -> Path:
-    """Accuracy (95 % CI bars) against median data latency plus median compute time, ms."""
+    """Accuracy (95 % CI bars) against median data latency plus median compute time, ms: one
+    panel per scene set, at most three to a row."""
     plt = pyplot()
-    sets = sorted({s.scene_set for s in items})
+    sets = _in_order({s.scene_set for s in items})
+    columns = max(1, min(3, len(sets)))
+    rows = max(1, math.ceil(len(sets) / columns))
     fig, axes = plt.subplots(
-        1, len(sets), figsize=(5.0 * len(sets), 4.2), squeeze=False, constrained_layout=True
+        rows,
+        columns,
+        figsize=(4.8 * columns, 3.9 * rows),
+        squeeze=False,
+        constrained_layout=True,
     )
-    colours = {}
-    for ax, scene_set in zip(axes[0], sets):
+    flat = list(axes.flat)
+    colours: dict[str, str] = {}
+    for ax, scene_set in zip(flat, sets):
         for s in (i for i in items if i.scene_set == scene_set):
             x = s.data_latency_ms["median"] + s.compute_ms["median"]
             colour = colours.setdefault(s.setting, f"C{len(colours) % 10}")
@@ -42,31 +50,40 @@ def accuracy_vs_latency(items: Sequence[Summary], path: Path) -> Path:
                 ],
                 fmt=MARKERS.get(s.method, "x"),
                 color=colour,
-                ms=6,
+                ms=5,
                 capsize=2,
                 alpha=0.85,
             )
-        ax.set_title(f"{scene_set}")
-        ax.set_xlabel("latency after contact: data + compute, median (ms)")
+        ax.set_title(scene_set)
+        ax.set_xlabel("data + compute latency after contact, median (ms)")
         ax.set_ylabel("accuracy (%)")
         ax.grid(alpha=0.3)
+    for ax in flat[len(sets) :]:
+        ax.axis("off")
     handles = [
         plt.Line2D([], [], marker=m, ls="", color="k", label=name) for name, m in MARKERS.items()
     ]
     handles += [
         plt.Line2D([], [], marker="o", ls="", color=c, label=k) for k, c in colours.items()
     ]
-    axes[0][-1].legend(handles=handles, fontsize=7, loc="lower right")
+    legend_ax = flat[len(sets)] if len(sets) < len(flat) else flat[-1]
+    legend_ax.legend(handles=handles, fontsize=7, loc="center" if len(sets) < len(flat) else 0)
     fig.suptitle(
-        "accuracy against latency (shape: method, colour: rates/noise; one point per data window)"
+        "accuracy against latency (shape: method; colour: sensor setting; "
+        "one point per data window; bars: 95 % interval)"
     )
     return save_figure(fig, path, 100, "--out")
+
+
+def _in_order(sets: set[str]) -> list[str]:
+    """Scene sets in SCENE_SETS' order (nominal support first), any other after, by name."""
+    return sorted(sets, key=lambda n: (SCENE_SETS.index(n) if n in SCENE_SETS else 99, n))
 
 
 def _panels(plt, items: Sequence[Summary]):  # type: ignore[no-untyped-def]
     """One subplot per scene set, side by side (one empty panel saying so when there is nothing
     to chart, e.g. a run too small to fill two size bins)."""
-    sets = sorted({s.scene_set for s in items})
+    sets = _in_order({s.scene_set for s in items})
     fig, axes = plt.subplots(
         1,
         max(len(sets), 1),
@@ -176,13 +193,12 @@ def reliability_diagram(items: Sequence[Summary], path: Path, window_s: float) -
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6, loc="lower right")
     fig.suptitle("reliability: stated confidence against accuracy")
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, 100, "--out")
 
 
 def write_all(items: Sequence[Summary], directory: Path, window_s: float) -> list[Path]:
-    """All four charts into ``directory`` (size, noise and reliability at data window ``window_s``)."""
+    """All four charts into ``directory`` (size, noise and reliability at data window
+    ``window_s``)."""
     directory.mkdir(parents=True, exist_ok=True)
     return [
         reliability_diagram(items, directory / "reliability.png", window_s),

@@ -66,10 +66,12 @@ class Summary:
     extra: dict[str, Any] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
+        """The fields as a JSON-ready dict."""
         return dict(self.__dict__)
 
 
 def _percentiles(values: Sequence[float]) -> dict[str, float]:
+    """Median, 95th percentile and maximum (NaN when empty)."""
     if not values:
         return {"median": math.nan, "p95": math.nan, "max": math.nan}
     array = np.asarray(values, dtype=float)
@@ -208,6 +210,7 @@ def group(records: Iterable[Record]) -> dict[tuple[str, str, str, float], list[R
 
 
 def summaries(records: Sequence[Record], size_bins_m: Sequence[float]) -> list[Summary]:
+    """The figures of every (scene set, setting, method, data window) group."""
     return [summarise(g, size_bins_m) for g in group(records).values()]
 
 
@@ -221,37 +224,54 @@ def large_particle_accuracy(
 
 
 def format_table(items: Sequence[Summary]) -> str:
-    """A plain-text table of the main figures, one line per group."""
+    """A plain-text table of the main figures, one line per group, columns as wide as the
+    longest scene set, setting and method."""
+    w_set = max([9, *(len(s.scene_set) for s in items)])
+    w_setting = max([12, *(len(s.setting) for s in items)])
+    w_method = max([11, *(len(s.method) for s in items)])
     lines = [
-        f"{'set':9} {'setting':12} {'method':11} {'win ms':>6} {'n':>4} {'acc %':>6} {'95% CI':>13} {'bal %':>6} {'95% CI':>13} "
-        f"{'det':>4} {'fp':>3} {'wrong>=.9':>9} {'ECE':>5} {'data ms med/p95':>16} {'cpu ms med/p95':>15}"
+        f"{'set':{w_set}} {'setting':{w_setting}} {'method':{w_method}} {'win ms':>6} {'n':>4} "
+        f"{'acc %':>6} {'95% CI':>13} {'bal %':>6} {'95% CI':>13} {'det':>4} {'fp':>3} "
+        f"{'wrong>=.9':>9} {'ECE':>5} {'data ms med/p95':>16} {'cpu ms med/p95':>15}"
     ]
     for s in items:
+        acc_low, acc_high = (100 * v for v in s.accuracy_ci)
+        bal_low, bal_high = (100 * v for v in s.balanced_ci)
+        data, cpu = s.data_latency_ms, s.compute_ms
         lines.append(
-            f"{s.scene_set:9} {s.setting:12} {s.method:11} {1e3 * s.window_s:6.1f} {s.n:4d} {100 * s.accuracy:6.1f} "
-            f"{100 * s.accuracy_ci[0]:5.1f}-{100 * s.accuracy_ci[1]:5.1f}  {100 * s.balanced_accuracy:6.1f} "
-            f"{100 * s.balanced_ci[0]:5.1f}-{100 * s.balanced_ci[1]:5.1f}  {s.detected:4d} {s.false_labels:3d} "
+            f"{s.scene_set:{w_set}} {s.setting:{w_setting}} {s.method:{w_method}} "
+            f"{1e3 * s.window_s:6.1f} {s.n:4d} {100 * s.accuracy:6.1f} "
+            f"{acc_low:5.1f}-{acc_high:5.1f}  {100 * s.balanced_accuracy:6.1f} "
+            f"{bal_low:5.1f}-{bal_high:5.1f}  {s.detected:4d} {s.false_labels:3d} "
             f"{s.extra.get('confident_wrong', 0):9d} {s.extra.get('ece', math.nan):5.3f} "
-            f"{s.data_latency_ms['median']:7.1f}/{s.data_latency_ms['p95']:6.1f}  {s.compute_ms['median']:6.2f}/{s.compute_ms['p95']:6.2f}"
+            f"{data['median']:7.1f}/{data['p95']:6.1f}  {cpu['median']:6.2f}/{cpu['p95']:6.2f}"
         )
     return "\n".join(lines)
 
 
+def _group_name(s: Summary) -> str:
+    return f"{s.scene_set} {s.setting} {s.method} {1e3 * s.window_s:g} ms"
+
+
 def format_confusion(s: Summary) -> str:
+    """One line: what each truth was labelled (coal, gangue, missed)."""
     c = s.confusion
     return (
-        f"{s.scene_set} {s.setting} {s.method} {1e3 * s.window_s:g} ms: truth coal -> coal {c['coal']['coal']}, gangue {c['coal']['gangue']}, "
-        f"missed {c['coal']['missed']}; truth gangue -> coal {c['gangue']['coal']}, gangue {c['gangue']['gangue']}, "
+        f"{_group_name(s)}: truth coal -> coal {c['coal']['coal']}, "
+        f"gangue {c['coal']['gangue']}, missed {c['coal']['missed']}; "
+        f"truth gangue -> coal {c['gangue']['coal']}, gangue {c['gangue']['gangue']}, "
         f"missed {c['gangue']['missed']}"
     )
 
 
 def format_sizes(s: Summary) -> str:
+    """One line: accuracy per radius bin."""
     parts = [
-        f"{1e3 * b['radius_m'][0]:.0f}-{1e3 * b['radius_m'][1]:.0f} mm: {100 * b['accuracy']:.0f}% (n {b['n']})"
+        f"{1e3 * b['radius_m'][0]:.0f}-{1e3 * b['radius_m'][1]:.0f} mm: "
+        f"{100 * b['accuracy']:.0f}% (n {b['n']})"
         for b in s.by_size
     ]
-    return f"{s.scene_set} {s.setting} {s.method} {1e3 * s.window_s:g} ms: " + "; ".join(parts)
+    return f"{_group_name(s)}: " + "; ".join(parts)
 
 
 def stamp_summary(items: Sequence[Summary]) -> list[dict[str, Any]]:
