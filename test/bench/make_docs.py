@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+MARK = "<!-- make_docs:"  # a page's state for the index: "ok, quick, 1.5 min"
 PNG_LIMIT_BYTES = 250_000  # a chart larger than this is stored with a 256-colour palette
 
 
@@ -74,8 +75,8 @@ FAMILIES: tuple[Family, ...] = (
         "every method on the nominal support's scene sets (paper, stream, mismatch) and on "
         "foreign supports (foreign, foreign_paper): accuracy with 95 % intervals, latency",
         "tail-beam evaluate --windows-ms 6,24 --out {out} --plot",
-        "tail-beam evaluate --count 20 --noise 1 --windows-ms 6,24 --out {out} --plot",
-        20.0,
+        "tail-beam evaluate --count 40 --noise 1 --windows-ms 6,24 --out {out} --plot",
+        25.0,
         {
             "accuracy_vs_latency.png": "identification_accuracy_vs_latency.png",
             "accuracy_vs_size.png": "identification_accuracy_vs_size.png",
@@ -290,11 +291,18 @@ def _blocks(text: str) -> str:
     return "\n\n".join(parts)
 
 
+def _state(outcome: Outcome, quick: bool) -> str:
+    """'ok' or 'FAILED', the sizing and the minutes taken."""
+    ok = "ok" if outcome.ok else "FAILED"
+    return f"{ok}, {'quick' if quick else 'full'}, {outcome.seconds / 60:.1f} min"
+
+
 def page(outcome: Outcome, revision: str, date: str, quick: bool, docs: Path) -> str:
     """The markdown page of one family's run (a failure page when it failed)."""
     family = outcome.family
     sizing = "quick (`--quick`, small sizes, wide intervals)" if quick else "full"
     head = [
+        f"{MARK} {_state(outcome, quick)} -->",
         f"# {family.title}",
         "",
         f"{family.summary}.",
@@ -362,26 +370,18 @@ def index(outcomes: Sequence[Outcome], results: Path, quick: bool) -> str:
     extra = [o.family for o in outcomes if o.family not in FAMILIES]
     for family in [*FAMILIES, *extra]:
         path = results / f"{family.name}.md"
-        if family.name in ran:
-            o = ran[family.name]
-            sizing = "quick" if quick else "full"
-            state = f"{'ok' if o.ok else 'FAILED'}, {sizing}, {o.seconds / 60:.1f} min"
-        else:
-            state = _state_of(path)
+        state = _state(ran[family.name], quick) if family.name in ran else _state_of(path)
         lines.append(f"| [{family.name}]({family.name}.md) | {family.summary} | {state} |")
     return "\n".join(lines) + "\n"
 
 
 def _state_of(path: Path) -> str:
-    """The state of a page this run left alone, read from its header."""
+    """The state of a page this run left alone, from the mark its run left in it."""
     if not path.exists():
         return "not generated"
-    text = path.read_text(encoding="utf-8")
-    if "**FAILED**" in text:
-        return "FAILED"
-    for line in text.splitlines():
-        if line.startswith("Commit "):
-            return "; ".join(line.split("; ")[:2])
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if line.startswith(MARK):
+            return line.removeprefix(MARK).removesuffix(" -->").strip()
     return "unknown"
 
 
