@@ -1,8 +1,9 @@
 """Impact association: which detections, rebounds and neighbours belong to one impact.
 
-The identifier (:mod:`tail_beam_id.stream.identifier`) finds candidate impacts in three ways (a pulse
-in an acceleration channel, a rebound no pulse claims, a step in the jack pressure) and keeps
-them here until decided. This module holds the rules that tie them together, all on stamps (s):
+The identifier's impact finder (:mod:`tail_beam_id.stream.detection`) finds candidate impacts
+in three ways (a pulse in an acceleration channel, a rebound no pulse claims, a step in the
+jack pressure) and keeps them here until decided. This module holds the rules that tie them
+together, all on stamps (s):
 
 * which camera rebound is an impact's (its rebound window);
 * whether another impact lies close enough to spoil its features (overlap);
@@ -32,14 +33,13 @@ class PendingImpact:
 
     onset_s: float
     pulse: Pulse | None
-    rebound: tuple[float, np.ndarray] | None = (
-        None  # (camera stamp s, velocity m/s in the plate frame)
-    )
-    source: str = (
-        "imu"  # what detected it: imu (a pulse in an acceleration channel) | rebound | pressure
-    )
+    rebound: tuple[float, np.ndarray] | None = None  # (camera stamp s, velocity m/s, plate)
+    # What detected it: imu (a pulse in an acceleration channel) | rebound | pressure.
+    source: str = "imu"
     channel: str = "imu"  # the acceleration channel of its pulse: imu | vibration
-    late_rebound: bool = False  # its rebound came after its window (a camera slower than known): ImpactAssociation.late_claimant
+    # Its rebound came after its window (a camera slower than known):
+    # ImpactAssociation.late_claimant.
+    late_rebound: bool = False
 
 
 class ImpactAssociation:
@@ -56,14 +56,11 @@ class ImpactAssociation:
         self.config = config
         self.frame_period_at = frame_period_at
         self.pending: list[PendingImpact] = []
-        self.rebounds: list[
-            tuple[float, np.ndarray]
-        ] = []  # (stamp s, velocity m/s), in stamp order
+        self.rebounds: list[tuple[float, np.ndarray]] = []  # (stamp s, velocity m/s), in order
         self.refused_rebounds = 0  # rebounds with a non-finite stamp or velocity, left out
         self.used_rebounds: set[float] = set()  # stamps of rebounds given to an impact
-        self.decided: list[
-            float
-        ] = []  # onsets of recently decided impacts (overlap and ringing checks), s
+        # Onsets of recently decided impacts (overlap and ringing checks), s.
+        self.decided: list[float] = []
 
     def add_rebound(self, stamp_s: float, velocity_mps: np.ndarray) -> None:
         """One rebound: the camera's stamp (s) and the particle's velocity (3,) in the plate frame.
@@ -124,9 +121,9 @@ class ImpactAssociation:
         """The impact a rebound that no window claims was stamped late for, or None: the latest
         onset before ``stamp_s`` (pending or decided) is a pulse's, still waiting without a
         rebound, at most ``late_rebound_max_s`` before it. A camera slower than its frame is
-        known to be (tail_beam_id.signals.camera: read from the 4th rebound on, up to 2 ms) stamps a
-        rebound up to a frame after the contact ended; another impact's onset in between means
-        the rebound may be that one's, and it is not given."""
+        known to be (:mod:`tail_beam_id.signals.camera`: read from the 4th rebound on, up to
+        2 ms) stamps a rebound up to a frame after the contact ended; another impact's onset in
+        between means the rebound may be that one's, and it is not given."""
         late_s = self.config.detection.late_rebound_max_s
         onsets = [i.onset_s for i in self.pending] + self.decided
         before = [t for t in onsets if t < stamp_s]
@@ -146,7 +143,8 @@ class ImpactAssociation:
     def take_late_rebound(
         self, impact: PendingImpact, stamp_s: float, velocity_mps: np.ndarray
     ) -> None:
-        """Give ``impact`` the rebound at ``stamp_s`` that came after its window (late_claimant)."""
+        """Give ``impact`` the rebound at ``stamp_s`` (s) that came after its window
+        (late_claimant)."""
         impact.rebound = (stamp_s, velocity_mps)
         impact.late_rebound = True
         self.used_rebounds.add(stamp_s)
@@ -210,7 +208,8 @@ class ImpactAssociation:
         return max(horizon, self.rebound_window(impact)[1] + self.config.camera_timeout_s)
 
     def forget_before(self, stamp_s: float) -> None:
-        """Drop rebounds and decided onsets older than ``stamp_s`` (s): no pending decision needs them."""
+        """Drop rebounds and decided onsets older than ``stamp_s`` (s): no pending decision
+        needs them."""
         self.rebounds = [r for r in self.rebounds if r[0] >= stamp_s]
         self.decided = [t for t in self.decided if t >= stamp_s]
         self.used_rebounds = {t for t in self.used_rebounds if t >= stamp_s}

@@ -30,7 +30,8 @@ def sandstone(params):
 
 
 def _key(labels):
-    return [(l.impact_stamp_s, l.material, l.confidence, l.signals) for l in labels]
+    """What two runs' labels must agree on: stamp, material, confidence and signals."""
+    return [(lab.impact_stamp_s, lab.material, lab.confidence, lab.signals) for lab in labels]
 
 
 def _twice(stream):
@@ -45,9 +46,8 @@ def _twice(stream):
 def test_every_sample_repeated_gives_the_labels_of_the_plain_streams(params, sandstone):
     """Each pressure and IMU sample delivered twice with the same stamp (a bag holding a topic
     twice): the repeats are dropped as a repeated stamp is (Series.append), and the labels are
-    those of the plain streams. (Until repeats inside one delivery were dropped too, the IMU's
-    sample period read from the stamps came out 0 and the detector divided by it:
-    ZeroDivisionError out of `tail-beam identify` and `tail-beam calibrate`.)"""
+    those of the plain streams (a repeat inside one delivery too: it would give the IMU a
+    sample period of 0)."""
     section = params["identification"]
     plain = replay(
         StreamIdentifier("statistical", section, params),
@@ -68,8 +68,8 @@ def test_every_sample_repeated_gives_the_labels_of_the_plain_streams(params, san
 def test_an_accelerometer_alone_is_identified(params, sandstone):
     """The accelerometer's blocks and the camera, no jack pressure and no IMU (a support
     instrumented with those two): the accelerometer finds the impact, as id_node's live
-    identifier does. (Until replay took its span from the accelerometer too, it fed only the
-    rebounds when pressure and IMU were missing: a label from the camera alone.)"""
+    identifier does (replay takes its span from the accelerometer too), not the camera
+    alone."""
     section = params["identification"]
     labels = replay(
         StreamIdentifier("statistical", section, params),
@@ -84,9 +84,8 @@ def test_an_accelerometer_alone_is_identified(params, sandstone):
 
 def test_accelerometer_samples_outside_the_pressure_and_imu_span_are_fed(params, sandstone):
     """An accelerometer that runs on after the pressure and IMU stopped (their recording cut
-    short of the impact) still has its samples fed: the impact after their end is found on it.
-    (Until replay took its span from the accelerometer too, samples past the last pressure or
-    IMU stamp were dropped without a word.)"""
+    short of the impact) still has its samples fed: the impact after their end is found on
+    it."""
     section = params["identification"]
     contact = sandstone.contact_stamp_s
     cut = sandstone.pressure.stamp_s < contact - 0.05
@@ -109,5 +108,5 @@ def test_accelerometer_samples_outside_the_pressure_and_imu_span_are_fed(params,
         [sandstone.rebound],
         vibration=sandstone.vibration,
     )
-    assert [l.signals for l in labels] == [("vibration", "rebound_velocity")]
+    assert [label.signals for label in labels] == [("vibration", "rebound_velocity")]
     assert abs(labels[0].impact_stamp_s - contact) < float(section["match_tolerance_s"])

@@ -101,8 +101,8 @@ def test_without_vibration_the_imu_is_the_channel(params, fast_impact):
         imu,
         [fast_impact.rebound],
     )
-    assert [(l.impact_stamp_s, l.material, l.confidence) for l in labels] == [
-        (l.impact_stamp_s, l.material, l.confidence) for l in plain
+    assert [(lab.impact_stamp_s, lab.material, lab.confidence) for lab in labels] == [
+        (lab.impact_stamp_s, lab.material, lab.confidence) for lab in plain
     ]
 
 
@@ -131,9 +131,10 @@ def test_vibration_with_mismatched_lengths_is_refused(params):
 
 
 def test_evaluation_feeds_the_accelerometer_where_the_setting_has_one(params):
-    """tail-beam evaluate and training feed the vibration blocks as id_node does: at the shipped
-    setting the labels name `vibration` and carry its period, at the IMU-only `nominal` setting the
-    same impacts (the same IMU noise) are labelled from the IMU, and the shipped setting is the default."""
+    """tail-beam evaluate and training feed the vibration blocks as id_node does: at the
+    shipped setting the labels name `vibration` and carry its period, at the IMU-only `nominal`
+    setting the same impacts (the same IMU noise) are labelled from the IMU, and the shipped
+    setting is the default."""
     from tail_beam_id.study.dataset import evaluation_params, settings
     from tail_beam_id.study.runs import run_set
 
@@ -161,7 +162,8 @@ def test_evaluation_feeds_the_accelerometer_where_the_setting_has_one(params):
 
 
 def test_a_setting_with_a_bad_accelerometer_rate_names_the_field(params):
-    """A vibration rate that is neither 0 (none) nor within the sensor's range is refused in one line naming the setting's field."""
+    """A vibration rate that is neither 0 (none) nor within the sensor's range is refused in
+    one line naming the setting's field."""
     import copy
 
     from tail_beam_id.study.dataset import settings
@@ -174,9 +176,9 @@ def test_a_setting_with_a_bad_accelerometer_rate_names_the_field(params):
 
 
 def test_shipped_models_are_trained_with_the_accelerometer():
-    """The shipped models were trained with the accelerometer fed where the layout has one: the training
-    records include impacts whose acceleration features came from the vibration stream, and the physics
-    method's lag table for that channel is learnt from them."""
+    """The shipped models were trained with the accelerometer fed where the layout has one: the
+    training records include impacts whose acceleration features came from the vibration
+    stream, and the physics method's lag table for that channel is learnt from them."""
     import json
 
     from tail_beam_id.methods import MODELS_DIR
@@ -225,15 +227,13 @@ def test_an_impact_the_accelerometer_found_is_decided_on_its_shorter_window(para
 @pytest.mark.parametrize("channel", ["vibration", "imu", "imu beside the accelerometer"])
 def test_an_acceleration_channel_that_comes_back_after_a_gap_is_taken_up_again(params, channel):
     """The acceleration channel's samples stop for 300 ms (longer than stream_timeout_s) and come
-    again: its driver restarted, its cable back. ``vibration``: the accelerometer beside the
-    IMU was declared stopped for good, and after the gap the impacts were decided from the IMU
-    and the accelerometer in turn, one twice (an extra label in 20); now the IMU stands in from
-    the stop until the accelerometer has had a sway and a baseline window of its new samples.
-    ``imu``: the IMU alone; the jack pressure stood in from its stop and went on finding
-    impacts beside the IMU's once it was back (2 extra labels in 20); now it stands in only
-    there. Every impact after the channel is back is decided from it. ``imu beside the
-    accelerometer``: the IMU's gap is covered by the accelerometer, so the pressure never
-    stands in (its detector scanned the whole recording for that gap's impacts before)."""
+    again: its driver restarted, its cable back. Every impact is labelled once. ``vibration``:
+    the IMU stands in for the accelerometer beside it from the stop until the accelerometer has
+    had a sway and a baseline window of its new samples. ``imu``: the IMU alone; the jack
+    pressure stands in from its stop until it is back, and only there. Every impact after the
+    channel is back is decided from it. ``imu beside the accelerometer``: the IMU's gap is
+    covered by the accelerometer, so the pressure never stands in (its detector never
+    scans)."""
     from tail_beam_id.stream.label import match
     from tail_beam_id.study.dataset import settings, support_streams
 

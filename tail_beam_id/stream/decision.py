@@ -1,0 +1,247 @@
+"""Turning one pending impact into a :class:`~tail_beam_id.stream.label.Label`: its features
+read from the streams (the pressure fit, the impulse and contact fit of its pulse, its
+rebound), the method's decision on them, and what the label says of how far to trust it.
+
+An IMU pulse nothing else confirms (no rebound, no pressure impulse) while the beam still rings
+from an earlier impact, or too weak to stand alone, gives no label. A label's confidence is
+capped when another impact overlaps it, or once the recording's sensor timing is found suspect
+(:mod:`tail_beam_id.signals.timing`); then the decision is made without the rebound delay
+where the method can.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import replace
+from typing import Any
+
+from tail_beam_id.methods import Decision, Method
+from tail_beam_id.signals.contact_fit import clipped_near, fit_contact
+from tail_beam_id.signals.features import (
+    VIBRATION_CHANNEL,
+    BeamModel,
+    PressureFit,
+    fit_pressure,
+    impact_features,
+    imu_impulse,
+)
+from tail_beam_id.signals.timing import (
+    DELAY_UNTRUSTED,
+    OUTSIDE_NAME,
+    UNUSUAL,
+    SensorTiming,
+    TimingConfig,
+    judge,
+)
+from tail_beam_id.stream.acceleration import PlateNormalAcceleration
+from tail_beam_id.stream.association import ImpactAssociation, PendingImpact
+from tail_beam_id.stream.camera_frame import CameraFrame
+from tail_beam_id.stream.channels import SensorChannels
+from tail_beam_id.stream.config import IdentifierConfig
+from tail_beam_id.stream.label import Label, make_label
+
+UNUSUAL_DELAY_PROBABILITY = 0.5  # above it, the delay check counts an impact's delay unusual
+
+
+def profile_says_timing_suspect(merged: Mapping[str, Any], config: TimingConfig) -> bool:
+    """A self-calibration pass over the recording (its profile's ``calibration`` section) found
+    its sensor timing suspect (:mod:`tail_beam_id.signals.timing`): then the labels are capped
+    from the first."""
+    calibration = merged.get("calibration") or {}
+    checked, unusual = (
+        calibration.get("delay_checked_impacts"),
+        calibration.get("delay_unusual_impacts"),
+    )
+    if not isinstance(checked, int) or not isinstance(unusual, int):
+        return False
+    return judge(checked, unusual, config)
+
+
+class ImpactDecider:
+    """Decides pending impacts with a method and labels them (module docstring)."""
+
+    def __init__(
+        self,
+        config: IdentifierConfig,
+        model: BeamModel,
+        method: Method,
+        calibrated: bool,
+        timing: SensorTiming,
+        channels: SensorChannels,
+        acceleration: PlateNormalAcceleration,
+        association: ImpactAssociation,
+        camera: CameraFrame,
+    ) -> None:
+        """``model``: the support the features are read with; ``method``: what decides;
+        ``calibrated``: the support parameters are a profile measured on this support (the
+        methods then use their calibrated models); ``timing``: the delay check's running
+        verdict on the recording's sensor timing; the others: the parts of the identifier
+        this one reads."""
+        self.config = config
+        self.model = model
+        self.method = method
+        self.calibrated = calibrated
+        self.timing = timing
+        self.channels = channels
+        self.acceleration = acceleration
+        self.association = association
+        self.camera = camera
+
+    def decide(self, impact: PendingImpact) -> Label | None:
+        """The label of ``impact``, now that its data are in; None when it is taken for the
+        beam's ringing or noise. Records its onset among the decided ones."""
+        started_s = time.perf_counter()
+        cfg = self.config
+        channels, association = self.channels, self.association
+        association.take_rebound(impact)
+        overlap = association.overlapping(impact)
+        onset_s = impact.onset_s
+        if impact.rebound is not None and not impact.late_rebound:
+            before_s = cfg.detection.onset_before_rebound_max_s + association.slow_camera_s(
+                impact.onset_s
+            )
+            onset_s = max(onset_s, impact.rebound[0] - before_s)
+        window_s, post_s, _ = association.windows(impact)
+        fit: PressureFit | None = None
+        if channels.pressure.stamp_s.size:
+            fit = fit_pressure(
+                self.model,
+                channels.pressure.stamp_s,
+                channels.pressure.values[:, 0],
+                onset_s,
+                cfg.pressure_pre_s,
+                window_s,
+            )
+        if impact.pulse is not None and impact.rebound is None:
+            ringing = any(
+                0.0 < impact.onset_s - t < cfg.detection.ring_window_s for t in association.decided
+            )
+            weak = (
+                impact.pulse.peak_sigma < cfg.detection.unconfirmed_pulse_sigma
+                and not self._pressure_confirms(fit)
+            )
+            if ringing or weak:
+                return None  # the beam still ringing, or noise: nothing else saw an impact
+        impulse = contact = None
+        saturated = ["jack_pressure"] if fit is not None and fit.saturated else []
+        if impact.pulse is not None:
+            series, values = (
+                (channels.vibration, self.acceleration.vibration_z())
+                if impact.channel == "vibration"
+                else (channels.imu, self.acceleration.imu_z())
+            )
+            impulse = imu_impulse(
+                self.model,
+                series.stamp_s,
+                values,
+                impact.pulse,
+                cfg.impulse_pre_s,
+                cfg.impulse_skip_s,
+                post_s,
+            )
+            contact = fit_contact(
+                series.stamp_s,
+                values,
+                impact.pulse.onset_s,
+                impact.pulse.period_s,
+                impact.pulse.noise_mps2,
+                cfg.contact_fit,
+            )
+            if clipped_near(series.stamp_s, values, impact.pulse.onset_s, cfg.contact_fit):
+                saturated.append(impact.channel)
+        features = impact_features(self.model, impact.pulse, impulse, fit, impact.rebound, contact)
+        signals = []
+        if fit is not None and not fit.saturated:
+            signals.append("jack_pressure")
+        if impact.pulse is not None:
+            signals.append(impact.channel)
+        if impact.rebound is not None:
+            signals.append("rebound_velocity")
+        if self.calibrated:
+            features["support_calibrated"] = 1.0
+        if impact.rebound is not None:
+            frame_period_s = self.camera.period_at(impact.rebound[0])
+            if impact.late_rebound:
+                # Stamped after the window the known frame allows: the frame is at least the
+                # delay from the onset (erring long only makes the decision less sure).
+                frame_period_s = max(
+                    frame_period_s or 0.0,
+                    impact.rebound[0] - impact.onset_s,
+                    features.get("rebound_delay_s", 0.0),
+                )
+                features["rebound_late"] = 1.0
+            if frame_period_s is not None:
+                features["camera_frame_period_s"] = frame_period_s
+        if impulse is not None and impact.channel == "vibration":
+            # The imu_* features came from the accelerometer (anti-alias filtered point samples,
+            # not the IMU's period means): the physics method keeps a lag model of its own for it.
+            features[VIBRATION_CHANNEL] = 1.0
+        decision: Decision = self.method.decide(features)
+        timing_suspect = False
+        if UNUSUAL in decision.estimates:
+            self.timing.add(decision.estimates[UNUSUAL] > UNUSUAL_DELAY_PROBABILITY)
+            timing_suspect = self.timing.suspect
+            if timing_suspect:
+                decision = self._decide_without_the_delay(features, decision)
+        if decision.signals is not None:
+            # The label says what the decision rested on (a pulse whose duration was not read:
+            # not the acceleration channel).
+            signals = [
+                s
+                for s in signals
+                if ("imu" if s in ("imu", "vibration") else s) in decision.signals
+            ]
+        confidence = decision.confidence
+        if overlap:
+            confidence = min(confidence, cfg.overlap_confidence_cap)
+        if timing_suspect:
+            confidence = min(confidence, cfg.timing.confidence_cap)
+            decision = replace(
+                decision, outside_training=(*decision.outside_training, OUTSIDE_NAME)
+            )
+        association.decided.append(impact.onset_s)
+        horizon_s = association.data_horizon_s(impact)
+        return make_label(
+            impact_stamp_s=onset_s,
+            decision=decision,
+            confidence=confidence,
+            method=self.method.name,
+            compute_ms=(time.perf_counter() - started_s) * 1e3,
+            data_latency_ms=(horizon_s - onset_s) * 1e3,
+            signals=signals,
+            overlap=overlap,
+            calibrated=self.calibrated,
+            features=features,
+            saturated=saturated,
+            imu_inverted=self.acceleration.imu_inverted,
+            vibration_inverted=impact.channel == "vibration"
+            and self.acceleration.vibration_inverted,
+        )
+
+    def _decide_without_the_delay(
+        self, features: dict[str, float], decision: Decision
+    ) -> Decision:
+        """The decision of the method's twin without the rebound delay, once the recording's
+        delays are found unlike the training's (the camera's and the acceleration channel's
+        clocks offset: :mod:`tail_beam_id.signals.timing`): a delay shifted by an offset
+        pushes every label one way, while the other signals still tell the materials apart.
+        Sets ``delay_untrusted`` in ``features``. Keeps the delay check's own estimates (the
+        calibration counts them), and ``decision`` as it is when the method has no such twin
+        (it would read the delay again)."""
+        untrusted = self.method.decide({**features, DELAY_UNTRUSTED: 1.0})
+        if UNUSUAL in untrusted.estimates or not untrusted.signals:
+            return decision
+        features[DELAY_UNTRUSTED] = 1.0
+        checked = {k: v for k, v in decision.estimates.items() if k in ("delay_residual", UNUSUAL)}
+        return replace(untrusted, estimates={**untrusted.estimates, **checked})
+
+    def _pressure_confirms(self, fit: PressureFit | None) -> bool:
+        """The jack pressure saw a moment impulse ``pressure_confirm_sigma`` standard errors
+        above zero at this onset."""
+        threshold = self.config.detection.pressure_confirm_sigma
+        return (
+            fit is not None
+            and not fit.saturated
+            and fit.moment_impulse_nms > threshold * fit.sigma_nms
+        )
