@@ -1,5 +1,5 @@
-"""What a commissioning run buys (issue 9): a few labelled impacts on a support the models never
-saw, used to refine its self-calibrated labels. Prints figures, asserts nothing.
+"""What a commissioning run buys: a few labelled impacts on a support the models never saw,
+used to refine its self-calibrated labels. Prints figures, asserts nothing.
 
 Each foreign support (`tail-beam evaluate`'s foreign set, shipped sensors, self-calibrated as
 `tail-beam identify` does by default) is recorded as one stream of 20 impacts. Its first k
@@ -11,7 +11,7 @@ any confidence cap). Missed impacts count as wrong in both.
 
     python test/bench/bench_commissioning.py --supports 30      # about 1.5 minutes here
 
-The refinement is a measurement, not shipped: on 30 supports it bought no accuracy (README).
+The refinement is a measurement, not shipped (docs/results/commissioning.md has its figures).
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ LOG_SCALE_PRIOR = 0.5  # prior standard deviation of log a
 def fit_refinement(
     logits: np.ndarray, is_coal: np.ndarray, prior_b: float, with_scale: bool
 ) -> tuple[float, float]:
-    """(a, b) maximising the labelled impacts' likelihood of sigmoid(a * logit + b) times the priors."""
+    """(a, b) maximising the labelled impacts' likelihood of sigmoid(a * logit + b) times the
+    priors."""
 
     def loss(theta: np.ndarray) -> float:
         log_a = theta[1] if with_scale else 0.0
@@ -84,11 +85,13 @@ def main() -> int:
     for record in records:
         by_support.setdefault(record.index // IMPACTS_PER_SUPPORT, []).append(record)
     print(
-        f"{args.supports} foreign supports x {IMPACTS_PER_SUPPORT} impacts, seed {seed}, shipped sensors, self-calibrated; "
+        f"{args.supports} foreign supports x {IMPACTS_PER_SUPPORT} impacts, seed {seed}, shipped "
+        "sensors, self-calibrated; "
         f"all impacts: {100 * np.mean([r.correct for r in records]):.1f} % right"
     )
     print(
-        "| labelled per support | refinement | scored impacts | as identified | refined | wrong at >= 0.9: as identified / refined |"
+        "| labelled per support | refinement | scored impacts | as identified | refined | wrong "
+        "at >= 0.9: as identified / refined |"
     )
     print("| --- | --- | --- | --- | --- | --- |")
     for k in args.labelled:
@@ -126,7 +129,8 @@ def main() -> int:
                             refined_confident += (not ok) and sure
             what = f"offset (prior sd {prior_b:g})" + (" and scale" if with_scale else "")
             print(
-                f"| {k} | {what} | {n} | {100 * right / n:.1f} % | {100 * refined_right / n:.1f} % | {confident} / {refined_confident} |",
+                f"| {k} | {what} | {n} | {100 * right / n:.1f} % | {100 * refined_right / n:.1f} "
+                f"% | {confident} / {refined_confident} |",
                 flush=True,
             )
     return 0

@@ -1,9 +1,9 @@
-"""What the contact's duration read from the acceleration pulse buys (tail_beam_id.signals.contact_fit,
-feature ``contact_duration_s``): networks like the statistical method's three-signal one,
-retrained without it, with it, and with the true contact duration (from impact_truth) in its
-place, scored on the paper and stream scenes of the nominal support and on foreign supports
-(the true support known), all at the shipped sensors (25.6 kHz accelerometer, 5 kHz camera).
-Prints a table, asserts nothing, ships nothing.
+"""What the contact's duration read from the acceleration pulse buys
+(tail_beam_id.signals.contact_fit, feature ``contact_duration_s``): networks like the
+statistical method's three-signal one, retrained without it, with it, and with the true contact
+duration (from impact_truth) in its place, scored on the paper and stream scenes of the nominal
+support and on foreign supports (the true support known), all at the shipped sensors (25.6 kHz
+accelerometer, 5 kHz camera). Prints a table, asserts nothing, ships nothing.
 
     python test/bench/bench_contact.py                  # about 3 minutes here
     python test/bench/bench_contact.py --varied 800 --supports 5   # quicker, wider intervals
@@ -84,7 +84,8 @@ def main() -> int:
                 )
             )
     print(
-        f"{len(train)} training impacts (simulated and identified in {time.perf_counter() - started:.0f} s)",
+        f"{len(train)} training impacts (simulated and identified in "
+        f"{time.perf_counter() - started:.0f} s)",
         file=sys.stderr,
     )
     every = feature_list(("jack_pressure", "imu", "rebound_velocity"))
@@ -126,7 +127,8 @@ def main() -> int:
             n = len(yt) + lost
             lo, hi = wilson(min(right), n)
             cells.append(
-                f"{100 * right[0] / n:.1f} / {100 * right[1] / n:.1f} % ({100 * lo:.0f}-{100 * hi:.0f}, n {n})"
+                f"{100 * right[0] / n:.1f} / {100 * right[1] / n:.1f} % "
+                f"({100 * lo:.0f}-{100 * hi:.0f}, n {n})"
             )
         print(f"| {label} | " + " | ".join(cells) + " |", flush=True)
     return 0

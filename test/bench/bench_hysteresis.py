@@ -1,13 +1,15 @@
 """What reading the support's contact hysteresis from its recording buys on a law no training
-saw (issue 9: the independent evaluation's supports follow a hysteresis law of their own): the
-hysteresis network (tail_beam_id.methods.hysteresis) refitted with one law left out, and the foreign
-supports of that law self-calibrated and identified with it and without the hysteresis (the
+saw (the independent evaluation's supports follow a hysteresis law of their own): the
+hysteresis network (tail_beam_id.methods.hysteresis) refitted with one law left out, and the
+foreign supports of that law self-calibrated and identified with it and without the hysteresis (the
 shipped statistical networks either way, which did see every law: the "without" column is if
 anything flattered). Prints a table, asserts nothing, ships nothing.
 
-    python -m tail_beam_id.study.training --count 300 --varied-count 3000 --cache records.json  # once (6.5 min)
+    # once (6.5 min):
+    python -m tail_beam_id.study.training --count 300 --varied-count 3000 --cache records.json
     python test/bench/bench_hysteresis.py --cache records.json          # about 6 minutes here
-    python test/bench/bench_hysteresis.py --varied 1000 --supports 10   # simulates its own, quicker, wider intervals
+    # simulates its own, quicker, wider intervals:
+    python test/bench/bench_hysteresis.py --varied 1000 --supports 10
 
 Training: the training cache's drawn-support records (``--cache``), or ``--varied`` stream-scene
 and a fifth as many paper-scene impacts on drawn supports identified knowing their support
@@ -85,7 +87,8 @@ def main() -> int:
     base_model = load_model("statistical")
     laws = sorted({recorded.support.contact_model for recorded in streams["paper"]})
     print(
-        "| law left out (foreign supports) | paper: without → with the hysteresis | stream: without → with |"
+        "| law left out (foreign supports) | paper: without → with the hysteresis | stream: "
+        "without → with |"
     )
     print("| --- | --- | --- |")
     with tempfile.TemporaryDirectory() as folder:
@@ -125,7 +128,8 @@ def main() -> int:
                     n += len(recorded.truths)
                 low, high = wilson(right["with"], n)
                 cells.append(
-                    f"{100 * right['without'] / n:.1f} → {100 * right['with'] / n:.1f} % ({100 * low:.1f}–{100 * high:.1f}, n {n})"
+                    f"{100 * right['without'] / n:.1f} → {100 * right['with'] / n:.1f} % "
+                    f"({100 * low:.1f}–{100 * high:.1f}, n {n})"
                 )
             print(f"| {law} ({n // 20}) | {cells[0]} | {cells[1]} |", flush=True)
     print(f"\n({time.perf_counter() - started:.0f} s)", file=sys.stderr)
@@ -133,7 +137,8 @@ def main() -> int:
 
 
 def _identifier(params, recorded, model_path: str):
-    """identify(model_params): the recording's labels, the statistical method from ``model_path``."""
+    """identify(model_params): the recording's labels, the statistical method from
+    ``model_path``."""
     from tail_beam_id.stream.identifier import StreamIdentifier
     from tail_beam_id.stream.replay import replay
 

@@ -202,10 +202,12 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     print(
-        f"ROS_DOMAIN_ID {os.environ['ROS_DOMAIN_ID']}, {os.cpu_count()} cores, {args.repeats} repeats, {args.duration:g} s each"
+        f"ROS_DOMAIN_ID {os.environ['ROS_DOMAIN_ID']}, {os.cpu_count()} cores, {args.repeats} "
+        f"repeats, {args.duration:g} s each"
     )
     print(
-        f"{'rate Hz':>8} {'msgs/s':>8} {'lost':>6} {'realtime':>9} {'latency ms':>11} {'labelled':>9}"
+        f"{'rate Hz':>8} {'msgs/s':>8} {'lost':>6} {'realtime':>9} {'latency ms':>11} "
+        f"{'labelled':>9}"
     )
     for rate in args.rates:
         runs = [run_identification(rate, args.duration) for _ in range(args.repeats)]
@@ -221,8 +223,10 @@ def main() -> None:
             print(f"         {error}", flush=True)
     runs = [run_recorder(args.duration) for _ in range(args.repeats)]
     print(
-        f"recorder: {statistics.median(r['msgs_per_s'] for r in runs):.0f} messages/s written (median) from sim_node running "
-        f"as fast as it can (2 kHz + 2 kHz; the simulator is the limit), lost at most {max(r['lost'] for r in runs):.0f} "
+        f"recorder: {statistics.median(r['msgs_per_s'] for r in runs):.0f} messages/s written "
+        "(median) from sim_node running "
+        "as fast as it can (2 kHz + 2 kHz; the simulator is the limit), lost at most "
+        f"{max(r['lost'] for r in runs):.0f} "
         f"of {runs[0]['written']:.0f}"
     )
     print(

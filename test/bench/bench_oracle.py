@@ -1,4 +1,4 @@
-"""What the foreign supports' gap is made of (issue 9): networks like the statistical method's
+"""What the foreign supports' gap is made of: networks like the statistical method's
 three-signal one, retrained with and without an oracle input that no sensor of the contract
 gives (where the particle struck the beam, where the IMU is bolted), scored on the nominal
 support's stream scene and on the foreign supports (shipped sensors, the true support known:
@@ -90,7 +90,8 @@ def main() -> int:
             }
             foreign.append(record)
     print(
-        f"{len(train)} training impacts, {len(stream)} stream and {len(foreign)} foreign test impacts "
+        f"{len(train)} training impacts, {len(stream)} stream and {len(foreign)} foreign test "
+        "impacts "
         f"(simulated in {time.perf_counter() - started:.0f} s)",
         file=sys.stderr,
     )
@@ -138,7 +139,8 @@ def main() -> int:
             n = len(yt) + lost
             lo, hi = wilson(min(right), n)
             cells.append(
-                f"{100 * right[0] / n:.1f} / {100 * right[1] / n:.1f} % ({100 * lo:.0f}-{100 * hi:.0f}, n {n})"
+                f"{100 * right[0] / n:.1f} / {100 * right[1] / n:.1f} % "
+                f"({100 * lo:.0f}-{100 * hi:.0f}, n {n})"
             )
         print(f"| {label} | {cells[0]} | {cells[1]} |", flush=True)
     return 0

@@ -3,13 +3,13 @@ training assume: the foreign set's recordings, changed the way another sensor, D
 could change them, each identified as `tail-beam identify` does (self-calibrated, shipped
 sensors). Prints a table; asserts nothing.
 
-    python test/bench/bench_robustness.py                       # 10 supports x 20 impacts, about 3 minutes here
+    python test/bench/bench_robustness.py    # 10 supports x 20 impacts, about 3 minutes here
     python test/bench/bench_robustness.py --changes baseline,camera_late_0.2ms
 
 Each change is applied to the recorded streams, not simulated afresh, so every row scores the
 same impacts as the baseline. Compare each row's accuracy and its wrong labels at confidence
 >= 0.9 with the baseline's: a change that costs accuracy but not confidence is honest, one that
-makes labels surely wrong is what to guard against (README, Supports other than the shipped one).
+makes labels surely wrong is what to guard against.
 """
 
 from __future__ import annotations
@@ -206,7 +206,8 @@ def main() -> int:
         )
     )
     print(
-        f"{args.supports} foreign supports x {IMPACTS_PER_SUPPORT} impacts, seed {seed}, shipped sensors, self-calibrated "
+        f"{args.supports} foreign supports x {IMPACTS_PER_SUPPORT} impacts, seed {seed}, shipped "
+        "sensors, self-calibrated "
         f"(recorded in {time.perf_counter() - started:.0f} s)",
         file=sys.stderr,
     )
@@ -236,7 +237,8 @@ def main() -> int:
         )
         labelled = [r.label.confidence for r in records if r.label is not None]
         print(
-            f"| {what} | {100 * right / (n + extra):.1f} % ({100 * low:.1f}-{100 * high:.1f}) | {extra} | "
+            f"| {what} | {100 * right / (n + extra):.1f} % ({100 * low:.1f}-{100 * high:.1f}) | "
+            f"{extra} | "
             f"{sum(r.label is None for r in records)} | {confident} | {np.mean(labelled):.3f} |",
             flush=True,
         )

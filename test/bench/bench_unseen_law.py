@@ -1,4 +1,4 @@
-"""What a contact law no training impact had costs (issue 9: the independent evaluation's
+"""What a contact law no training impact had costs (the independent evaluation's
 supports follow a hysteresis law of their own): networks like the statistical method's
 three-signal one, fitted on drawn training supports with every law and again with one law left
 out, scored on the foreign supports of that law (the stream and the paper scene, shipped
@@ -11,8 +11,8 @@ Training: ``--varied`` stream-scene and a fifth as many paper-scene impacts on d
 supports (sensors drawn with each, identified knowing their support; training's seeds 9 and 10)
 and ``--stream`` impacts of the nominal support at the shipped sensors (seed 7). With
 ``--no-scale`` the drawn supports keep each law's hysteresis as published
-(``identification.evaluation.supports.training.contact_damping_scale`` left out), as before the
-scale was drawn. Test: ``--supports`` foreign supports x 20 impacts of each scene (seed 41004).
+(``identification.evaluation.supports.training.contact_damping_scale`` left out). Test:
+``--supports`` foreign supports x 20 impacts of each scene (seed 41004).
 Each network is fitted from two seeded starts and both are scored.
 """
 
@@ -103,7 +103,8 @@ def main() -> int:
             )
     print(
         f"{len(train)} training impacts, {sum(map(len, tests.values()))} foreign test impacts "
-        f"(simulated in {time.perf_counter() - started:.0f} s){' (hysteresis as published)' if args.no_scale else ''}",
+        f"(simulated in {time.perf_counter() - started:.0f} "
+        f"s){' (hysteresis as published)' if args.no_scale else ''}",
         file=sys.stderr,
     )
     names = feature_list(("jack_pressure", "imu", "rebound_velocity"))
@@ -146,11 +147,15 @@ def main() -> int:
             for net, low, high, mean, scale in models
         ]
         lo, hi = wilson(min(right), n)
-        return f"{100 * right[0] / n:.1f} / {100 * right[1] / n:.1f} % ({100 * lo:.0f}-{100 * hi:.0f}, n {n})"
+        return (
+            f"{100 * right[0] / n:.1f} / {100 * right[1] / n:.1f} % "
+            f"({100 * lo:.0f}-{100 * hi:.0f}, n {n})"
+        )
 
     every = fitted(train)
     print(
-        "| law (foreign supports) | stream, trained with it | stream, left out | paper, trained with it | paper, left out |"
+        "| law (foreign supports) | stream, trained with it | stream, left out | paper, trained "
+        "with it | paper, left out |"
     )
     print("| --- | --- | --- | --- | --- |")
     for law in sorted(set(foreign_laws.values())):

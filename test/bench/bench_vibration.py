@@ -12,8 +12,8 @@ run, from the recorded bag and /proc:
   /proc/<pid>/stat, one core = 100 %);
 * bag size per minute of the support (the run's bag, scaled), with the compression asked for;
 * identification: live labels against the truths (missed and extra count), R >= 50 mm apart,
-  the wall latency of each label after its contact end's data and after the last data it needed, and whether `tail-beam
-  identify` on the bag gives the same labels.
+  the wall latency of each label after its contact end's data and after the last data it
+  needed, and whether `tail-beam identify` on the bag gives the same labels.
 
 Usage: python test/bench/bench_vibration.py [--rates 25600 51200 76800 100000] [--duration 20]
        [--compression zstd none]
@@ -117,7 +117,8 @@ def run(
     ident.wait(timeout=60)
     id_err.close()
     sim_err.close()
-    # Steady part: from 4 s after start (start-up and the 2 s subscriber settle) to the last sample.
+    # Steady part: from 4 s after start (start-up and the 2 s subscriber settle) to the last
+    # sample.
     steady = [
         s
         for s in samples
@@ -236,7 +237,7 @@ def identification_scores(
         "after_data_ms": (float(np.median(after_data_ms)), float(np.max(after_data_ms)))
         if after_data_ms
         else (float("nan"),) * 2,
-        "same_offline": [l.decision() for l in labels] == [l.decision() for l in offline],
+        "same_offline": [x.decision() for x in labels] == [x.decision() for x in offline],
     }
 
 
@@ -264,7 +265,8 @@ def main() -> int:
         type=Path,
         default=None,
         metavar="DIR",
-        help="write the bags and id_node's logs here and keep them (default: a temporary directory)",
+        help="write the bags and id_node's logs here and keep them "
+        "(default: a temporary directory)",
     )
     args = parser.parse_args()
     sim_params = dict(item.split(":=", 1) for item in args.sim_param)
@@ -274,7 +276,8 @@ def main() -> int:
         flush=True,
     )
     print(
-        "| vibration rate | compression | real-time ratio | lost (vibration / pressure / IMU samples) | id_node gap warnings "
+        "| vibration rate | compression | real-time ratio | lost (vibration / pressure / IMU "
+        "samples) | id_node gap warnings "
         "| CPU sim / id / recorder | bag MB per min | labels |"
     )
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
@@ -302,16 +305,22 @@ def main() -> int:
                     else "n/a"
                 )
                 print(
-                    f"| {rate / 1000:g} kHz | {compression} | {r['realtime']:.3f} | {r['vib_lost']} / {r['pressure_lost']} / {r['imu_lost']} "
-                    f"| {r['id_gap_warnings']} | {cpu_text} | {r['mb_per_min']:.1f} | {r['labels']} |",
+                    f"| {rate / 1000:g} kHz | {compression} | {r['realtime']:.3f} | "
+                    f"{r['vib_lost']} / {r['pressure_lost']} / {r['imu_lost']} "
+                    f"| {r['id_gap_warnings']} | {cpu_text} | {r['mb_per_min']:.1f} | "
+                    f"{r['labels']} |",
                     flush=True,
                 )
                 print(f"    recorder: {r['recorder_line']}", file=sys.stderr)
                 print(
-                    f"    identification: {r['correct']}/{r['impacts']} correct ({r['missed']} missed, {r['extra']} extra), "
-                    f"R >= 50 mm {r['big_correct']}/{r['big']}; label after the contact end's data: median "
-                    f"{r['latency_ms'][0]:.1f} ms, max {r['latency_ms'][1]:.1f} ms (wall); after the block holding the last "
-                    f"sample it needed: median {r['after_data_ms'][0]:.1f} ms, max {r['after_data_ms'][1]:.1f} ms; "
+                    f"    identification: {r['correct']}/{r['impacts']} correct ({r['missed']} "
+                    f"missed, {r['extra']} extra), "
+                    f"R >= 50 mm {r['big_correct']}/{r['big']}; label after the contact end's "
+                    "data: median "
+                    f"{r['latency_ms'][0]:.1f} ms, max {r['latency_ms'][1]:.1f} ms (wall); after "
+                    "the block holding the last "
+                    f"sample it needed: median {r['after_data_ms'][0]:.1f} ms, max "
+                    f"{r['after_data_ms'][1]:.1f} ms; "
                     f"live labels = offline: {r['same_offline']}",
                     flush=True,
                 )
