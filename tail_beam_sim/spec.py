@@ -8,8 +8,8 @@ allowed, unit included. The same tables render the parameter reference::
 
     python -m tail_beam_sim.spec > docs/parameters.md
 
-and let a test check that config/ and the tables agree (:func:`unspecified_keys`,
-:func:`missing_keys`).
+(another package's sections join with its module named after the command) and let a test
+check that config/ and the tables agree (:func:`unspecified_keys`, :func:`missing_keys`).
 
 A bound may be a number or the name of another field of the section checked before it (a
 jack pin on the beam: ``high="beam_length_m"``), or of a value the caller passes in
@@ -20,6 +20,7 @@ bound that names nothing given is no bound.
 from __future__ import annotations
 
 import fnmatch
+import importlib
 import math
 import sys
 from collections.abc import Iterable, Iterator, Mapping, Sequence
@@ -308,33 +309,35 @@ def _integral(value: object) -> int | None:
     return int(value)
 
 
-def _f(name: str, meaning: str, unit: str = "", low: Bound = None, high: Bound = None, **kw: Any):
+def number(
+    name: str, meaning: str, unit: str = "", low: Bound = None, high: Bound = None, **kw: Any
+):
     """A float field (the tables' shorthand)."""
     return Field(name, meaning, "float", unit, low, high, **kw)
 
 
-def _open(name: str, meaning: str, unit: str = "", low: Bound = 0.0, high: Bound = None, **kw):
+def positive(name: str, meaning: str, unit: str = "", low: Bound = 0.0, high: Bound = None, **kw):
     """A float field whose low bound (0 unless given) is excluded."""
     return Field(name, meaning, "float", unit, low, high, low_open=True, **kw)
 
 
-def _int(name: str, meaning: str, low: Bound = None, high: Bound = None, **kw: Any) -> Field:
+def integer(name: str, meaning: str, low: Bound = None, high: Bound = None, **kw: Any) -> Field:
     return Field(name, meaning, "int", kw.pop("unit", ""), low, high, **kw)
 
 
-def _str(name: str, meaning: str, **kw: Any) -> Field:
+def text(name: str, meaning: str, **kw: Any) -> Field:
     return Field(name, meaning, "str", **kw)
 
 
-def _bool(name: str, meaning: str, **kw: Any) -> Field:
+def flag(name: str, meaning: str, **kw: Any) -> Field:
     return Field(name, meaning, "bool", **kw)
 
 
-def _choice(name: str, meaning: str, choices: Sequence[str], **kw: Any) -> Field:
+def choice(name: str, meaning: str, choices: Sequence[str], **kw: Any) -> Field:
     return Field(name, meaning, "choice", choices=tuple(choices), **kw)
 
 
-def _kind(kind: str, name: str, meaning: str, **kw: Any) -> Field:
+def of_kind(kind: str, name: str, meaning: str, **kw: Any) -> Field:
     return Field(name, meaning, kind, **kw)
 
 
@@ -360,15 +363,15 @@ SUPPORT = Section(
     "support",
     "The hydraulic support: beam, plate, jack and the limits of what may strike it.",
     (
-        _f("gravity_mps2", "Gravitational acceleration.", "m/s^2", 0.0, 100.0),
-        _open("beam_length_m", "Tail beam length from the hinge to its tip.", "m", high=20.0),
-        _open("beam_mass_kg", "Mass of the tail beam.", "kg"),
-        _open(
+        number("gravity_mps2", "Gravitational acceleration.", "m/s^2", 0.0, 100.0),
+        positive("beam_length_m", "Tail beam length from the hinge to its tip.", "m", high=20.0),
+        positive("beam_mass_kg", "Mass of the tail beam.", "kg"),
+        positive(
             "beam_inertia_about_hinge_kgm2", "Beam's moment of inertia about the hinge.", "kg m^2"
         ),
-        _str("plate_material", "Material of the impact plate (a materials entry)."),
-        _open("plate_thickness_m", "Impact plate thickness.", "m", high=1.0),
-        _f(
+        text("plate_material", "Material of the impact plate (a materials entry)."),
+        positive("plate_thickness_m", "Impact plate thickness.", "m", high=1.0),
+        number(
             "contact_damping_scale",
             "Factor on the contact law's hysteresis (1 = as published).",
             "(dimensionless)",
@@ -376,32 +379,36 @@ SUPPORT = Section(
             10.0,
             default=1.0,
         ),
-        _open(
+        positive(
             "jack_pin_from_hinge_m",
             "Jack pin's distance from the hinge.",
             "m",
             high="beam_length_m",
         ),
-        _open("jack_angle_to_beam_deg", "Angle between the jack and the beam.", "deg", high=90.0),
-        _open("jack_bore_m", "Jack cylinder bore.", "m", high=2.0),
-        _open("jack_oil_column_m", "Length of the jack's oil column.", "m", high=10.0),
-        _open("jack_wall_thickness_m", "Jack cylinder wall thickness.", "m", high=1.0),
-        _open("jack_wall_youngs_modulus_pa", "Young's modulus of the cylinder wall.", "Pa"),
-        _open("oil_bulk_modulus_pa", "Bulk modulus of the hydraulic oil.", "Pa"),
-        _f("jack_damping_nspm", "Viscous damping of the jack.", "N s/m", 0.0),
-        _f("jack_extra_compliance_mpn", "Compliance added in series with the jack.", "m/N", 0.0),
-        _f("setting_pressure_pa", "Static (setting) pressure of the jack.", "Pa", 0.0),
-        _f("imu_from_hinge_m", "IMU's distance from the hinge.", "m", 0.0, "beam_length_m"),
-        _f(
+        positive(
+            "jack_angle_to_beam_deg", "Angle between the jack and the beam.", "deg", high=90.0
+        ),
+        positive("jack_bore_m", "Jack cylinder bore.", "m", high=2.0),
+        positive("jack_oil_column_m", "Length of the jack's oil column.", "m", high=10.0),
+        positive("jack_wall_thickness_m", "Jack cylinder wall thickness.", "m", high=1.0),
+        positive("jack_wall_youngs_modulus_pa", "Young's modulus of the cylinder wall.", "Pa"),
+        positive("oil_bulk_modulus_pa", "Bulk modulus of the hydraulic oil.", "Pa"),
+        number("jack_damping_nspm", "Viscous damping of the jack.", "N s/m", 0.0),
+        number(
+            "jack_extra_compliance_mpn", "Compliance added in series with the jack.", "m/N", 0.0
+        ),
+        number("setting_pressure_pa", "Static (setting) pressure of the jack.", "Pa", 0.0),
+        number("imu_from_hinge_m", "IMU's distance from the hinge.", "m", 0.0, "beam_length_m"),
+        number(
             "impact_zone_min_m", "Nearest impact position to the hinge.", "m", 0.0, "beam_length_m"
         ),
-        _f("impact_zone_max_m", "Farthest impact position.", "m", 0.0, "beam_length_m"),
-        _open("particle_radius_min_m", "Smallest particle radius accepted.", "m"),
-        _f("particle_radius_max_m", "Largest particle radius.", "m", "particle_radius_min_m"),
-        _open("drop_height_min_m", "Lowest drop height accepted.", "m"),
-        _f("drop_height_max_m", "Highest drop height.", "m", "drop_height_min_m"),
-        _open("impact_speed_min_mps", "Slowest impact speed accepted.", "m/s"),
-        _f("impact_speed_max_mps", "Fastest impact speed.", "m/s", "impact_speed_min_mps"),
+        number("impact_zone_max_m", "Farthest impact position.", "m", 0.0, "beam_length_m"),
+        positive("particle_radius_min_m", "Smallest particle radius accepted.", "m"),
+        number("particle_radius_max_m", "Largest particle radius.", "m", "particle_radius_min_m"),
+        positive("drop_height_min_m", "Lowest drop height accepted.", "m"),
+        number("drop_height_max_m", "Highest drop height.", "m", "drop_height_min_m"),
+        positive("impact_speed_min_mps", "Slowest impact speed accepted.", "m/s"),
+        number("impact_speed_max_mps", "Fastest impact speed.", "m/s", "impact_speed_min_mps"),
     ),
     file="support.yaml",
 )
@@ -410,12 +417,12 @@ MATERIAL = Section(
     "materials.*",
     "One particle or plate material (an entry per name).",
     (
-        _choice("class", "What it is.", MATERIAL_CLASSES),
-        _open("density_kgpm3", "Density.", "kg/m^3", high=30000.0),
-        _open("youngs_modulus_pa", "Young's modulus.", "Pa", high=2e12),
-        _open("poisson_ratio", "Poisson's ratio.", low=-1.0, high=0.5),
-        _open("restitution", "Nominal coefficient of restitution on steel.", low=0.0, high=1.0),
-        _kind(
+        choice("class", "What it is.", MATERIAL_CLASSES),
+        positive("density_kgpm3", "Density.", "kg/m^3", high=30000.0),
+        positive("youngs_modulus_pa", "Young's modulus.", "Pa", high=2e12),
+        positive("poisson_ratio", "Poisson's ratio.", low=-1.0, high=0.5),
+        positive("restitution", "Nominal coefficient of restitution on steel.", low=0.0, high=1.0),
+        of_kind(
             "pair",
             "restitution_range",
             "Restitution a realistic scene draws from (absent: the nominal one).",
@@ -424,7 +431,7 @@ MATERIAL = Section(
             low_open=True,
             default=None,
         ),
-        _open(
+        positive(
             "crushing_strength_pa",
             "Uniaxial crushing strength (a brittle contact only).",
             "Pa",
@@ -440,42 +447,42 @@ SENSORS = Section(
     "Sensor layout: rates, noise and sampling filters of the jack pressure, IMU, camera and "
     "tail-beam accelerometer.",
     (
-        _int("seed", "Seed of the sensors' noise.", 0, default=0),
-        _f("pressure_rate_hz", "Jack pressure sample rate.", "Hz", *SENSOR_RATE),
-        _f("pressure_noise_pa", "Pressure noise RMS.", "Pa", 0.0),
-        _f("pressure_range_min_pa", "Lowest pressure the transducer reads.", "Pa"),
-        _open(
+        integer("seed", "Seed of the sensors' noise.", 0, default=0),
+        number("pressure_rate_hz", "Jack pressure sample rate.", "Hz", *SENSOR_RATE),
+        number("pressure_noise_pa", "Pressure noise RMS.", "Pa", 0.0),
+        number("pressure_range_min_pa", "Lowest pressure the transducer reads.", "Pa"),
+        positive(
             "pressure_range_max_pa", "Highest pressure it reads.", "Pa", "pressure_range_min_pa"
         ),
-        _f("imu_rate_hz", "IMU sample rate.", "Hz", *SENSOR_RATE),
-        _f(
+        number("imu_rate_hz", "IMU sample rate.", "Hz", *SENSOR_RATE),
+        number(
             "imu_noise_nominal_rate_hz",
             "Rate at which the IMU noise RMS below holds (it scales with sqrt of the rate).",
             "Hz",
             *SENSOR_RATE,
         ),
-        _f("imu_accel_noise_mps2", "IMU specific-force noise RMS.", "m/s^2", 0.0),
-        _f("imu_gyro_noise_radps", "IMU angular-rate noise RMS.", "rad/s", 0.0),
-        _int(
+        number("imu_accel_noise_mps2", "IMU specific-force noise RMS.", "m/s^2", 0.0),
+        number("imu_gyro_noise_radps", "IMU angular-rate noise RMS.", "rad/s", 0.0),
+        integer(
             "imu_antialias_order",
             "IMU sampling filter: 0 = mean over the sample period, N = Butterworth order.",
             0,
             10,
             default=0,
         ),
-        _open(
+        positive(
             "imu_antialias_cutoff_fraction",
             "Its cut-off over the sample rate.",
             high=0.5,
             default=0.25,
         ),
-        _int("imu_oversample", "Beam response computed per IMU sample.", 2, 32, default=4),
-        _f("camera_frame_rate_hz", "Rebound camera frame rate.", "Hz", *SENSOR_RATE),
-        _f("camera_velocity_noise_mps", "Rebound-velocity noise RMS.", "m/s", 0.0),
-        _f(
+        integer("imu_oversample", "Beam response computed per IMU sample.", 2, 32, default=4),
+        number("camera_frame_rate_hz", "Rebound camera frame rate.", "Hz", *SENSOR_RATE),
+        number("camera_velocity_noise_mps", "Rebound-velocity noise RMS.", "m/s", 0.0),
+        number(
             "camera_velocity_noise_fraction", "Rebound-velocity noise as a fraction.", "", 0.0, 1.0
         ),
-        _f(
+        number(
             "vibration_rate_hz",
             "Tail-beam accelerometer sample rate.",
             "Hz",
@@ -483,25 +490,27 @@ SENSORS = Section(
             100000.0,
             default=25600.0,
         ),
-        _int("vibration_block_samples", "Samples per vibration message.", 1, 65536, default=128),
-        _f(
+        integer(
+            "vibration_block_samples", "Samples per vibration message.", 1, 65536, default=128
+        ),
+        number(
             "vibration_noise_density_mps2_rthz",
             "Accelerometer white-noise density.",
             "m/s^2/sqrt(Hz)",
             0.0,
             default=0.002,
         ),
-        _open(
+        positive(
             "vibration_range_mps2", "Accelerometer full scale.", "m/s^2", high=1e6, default=2000.0
         ),
-        _int("vibration_antialias_order", "Its Butterworth filter order.", 1, 10, default=4),
-        _open(
+        integer("vibration_antialias_order", "Its Butterworth filter order.", 1, 10, default=4),
+        positive(
             "vibration_antialias_cutoff_fraction",
             "Its cut-off over the sample rate.",
             high=0.5,
             default=0.4,
         ),
-        _int("vibration_oversample", "Beam response computed per sample.", 2, 32, default=4),
+        integer("vibration_oversample", "Beam response computed per sample.", 2, 32, default=4),
     ),
     file="sensors.yaml",
 )
@@ -511,25 +520,27 @@ SCENE = Section(
     "The impact of `tail-beam simulate` and the window simulated (impact fields are checked "
     "against the support's limits).",
     (
-        _str("material", "Particle material (a coal or gangue materials entry)."),
-        _f(
+        text("material", "Particle material (a coal or gangue materials entry)."),
+        number(
             "radius_m",
             "Particle radius.",
             "m",
             "support.particle_radius_min_m",
             "support.particle_radius_max_m",
         ),
-        _f(
+        number(
             "drop_height_m",
             "Drop height (or impact_speed_mps).",
             "m",
             "support.drop_height_min_m",
             "support.drop_height_max_m",
         ),
-        _f("position_m", "Impact position from the hinge.", "m", 0.0, "support.beam_length_m"),
-        _choice("contact_model", "Contact law.", CONTACT_LAWS, default="calibrated"),
-        _open("window_s", "Time simulated after first contact.", "s", high=10.0, default=0.05),
-        _f("pre_contact_s", "Time simulated before first contact.", "s", 0.0, 10.0, default=0.005),
+        number("position_m", "Impact position from the hinge.", "m", 0.0, "support.beam_length_m"),
+        choice("contact_model", "Contact law.", CONTACT_LAWS, default="calibrated"),
+        positive("window_s", "Time simulated after first contact.", "s", high=10.0, default=0.05),
+        number(
+            "pre_contact_s", "Time simulated before first contact.", "s", 0.0, 10.0, default=0.005
+        ),
     ),
     file="scene.yaml",
 )
@@ -538,9 +549,9 @@ MODES = Section(
     "modes",
     "The beam's bending modes (derived by `tail-beam modes`).",
     (
-        _int("count", "How many of the bending_N modes the model uses.", 0, "bending_modes"),
-        _kind("mapping", "derived_from", "The beam model the modes were derived from."),
-        _kind("floats", "stations_m", "Positions along the beam the shapes are given at, m."),
+        integer("count", "How many of the bending_N modes the model uses.", 0, "bending_modes"),
+        of_kind("mapping", "derived_from", "The beam model the modes were derived from."),
+        of_kind("floats", "stations_m", "Positions along the beam the shapes are given at, m."),
     ),
     file="modes.yaml",
     sections=("bending_*",),
@@ -550,12 +561,12 @@ BENDING_MODE = Section(
     "modes.bending_*",
     "One bending mode.",
     (
-        _open("frequency_hz", "Undamped frequency (beam held at hinge and jack pin).", "Hz"),
-        _f("damping_ratio", "Modal damping ratio.", "", 0.0, 1.0),
-        _open("modal_mass_kg", "Modal mass (shape normalised to 1 at the tip).", "kg"),
-        _f("rigid_coupling_kgm", "Mass coupling with the rigid rotation.", "kg m"),
-        _kind("floats", "shape", "Mode shape at modes.stations_m."),
-        _kind("floats", "slope_radpm", "Its slope at modes.stations_m, rad/m."),
+        positive("frequency_hz", "Undamped frequency (beam held at hinge and jack pin).", "Hz"),
+        number("damping_ratio", "Modal damping ratio.", "", 0.0, 1.0),
+        positive("modal_mass_kg", "Modal mass (shape normalised to 1 at the tip).", "kg"),
+        number("rigid_coupling_kgm", "Mass coupling with the rigid rotation.", "kg m"),
+        of_kind("floats", "shape", "Mode shape at modes.stations_m."),
+        of_kind("floats", "slope_radpm", "Its slope at modes.stations_m, rad/m."),
     ),
     file="modes.yaml",
 )
@@ -564,17 +575,19 @@ FIDELITY = Section(
     "fidelity",
     "How much model a scene gets (`tail-beam simulate`).",
     (
-        _choice(
+        choice(
             "tier", "Model tier when --tier is not given.", ("auto", *TIER_NAMES), default="auto"
         ),
-        _kind(
+        of_kind(
             "strs",
             "outputs",
             "What the scene needs, for the automatic choice (rebound, contact, pressure, imu).",
             default=list(FIDELITY_OUTPUTS),
         ),
-        _open("tolerance", "Relative error the automatic choice accepts.", high=1.0, default=0.01),
-        _open(
+        positive(
+            "tolerance", "Relative error the automatic choice accepts.", high=1.0, default=0.01
+        ),
+        positive(
             "crushing_confinement_factor",
             "Brittle tier: crushing pressure over the material's crushing strength.",
             high=100.0,
@@ -588,23 +601,23 @@ STREAM = Section(
     "stream",
     "sim_node's continuous simulation.",
     (
-        _choice("tier", "Model tier of the stream.", TIER_NAMES, default="rigid"),
-        _f("min_impact_gap_s", "Least time between two contacts.", "s", 0.0, 60.0),
-        _open(
+        choice("tier", "Model tier of the stream.", TIER_NAMES, default="rigid"),
+        number("min_impact_gap_s", "Least time between two contacts.", "s", 0.0, 60.0),
+        positive(
             "command_lead_s", "How far ahead of the stream a command is scheduled.", "s", high=60.0
         ),
-        _int("max_queued_impacts", "Most impacts waiting to be simulated.", 1),
+        integer("max_queued_impacts", "Most impacts waiting to be simulated.", 1),
     ),
     file="sim_node.yaml",
 )
 
-_QOS_DEPTH = _int(
+QOS_DEPTH = integer(
     "qos_depth", "History depth of the stream topics, messages (0 = keep all).", 0, MAX_QOS_DEPTH
 )
-_WAIT_FOR = _int(
+WAIT_FOR_SUBSCRIBERS = integer(
     "wait_for_subscribers", "Subscribers each stream waits for before publishing.", 0, 1000
 )
-_SETTLE = _f(
+SUBSCRIBER_SETTLE = number(
     "subscriber_settle_s", "Wait after they matched, for discovery to settle.", "s", 0.0, 60.0
 )
 
@@ -612,21 +625,21 @@ SIM_NODE = Section(
     "sim_node",
     "sim_node's pacing and publishing.",
     (
-        _f(
+        number(
             "realtime_factor",
             "Simulation speed over wall clock (0 = as fast as possible).",
             "",
             0.0,
             1e6,
         ),
-        _open("publish_period_s", "Timer period, wall clock.", "s", high=10.0),
-        _open("max_chunk_s", "Most simulation time advanced per tick.", "s", high=10.0),
-        _f("max_lag_s", "Lag behind real time after which it runs slower.", "s", 0.0, 3600.0),
-        _WAIT_FOR,
-        _SETTLE,
-        _bool("publish_clock", "Publish simulation time on /clock."),
-        _QOS_DEPTH,
-        _f(
+        positive("publish_period_s", "Timer period, wall clock.", "s", high=10.0),
+        positive("max_chunk_s", "Most simulation time advanced per tick.", "s", high=10.0),
+        number("max_lag_s", "Lag behind real time after which it runs slower.", "s", 0.0, 3600.0),
+        WAIT_FOR_SUBSCRIBERS,
+        SUBSCRIBER_SETTLE,
+        flag("publish_clock", "Publish simulation time on /clock."),
+        QOS_DEPTH,
+        number(
             "exit_after_idle_s",
             "Exit after this long with nothing to simulate (0 = never).",
             "s",
@@ -642,11 +655,11 @@ SCENARIO = Section(
     "scenario",
     "sim_node's start-up impacts: none, a file, or a generated caving stream.",
     (
-        _choice("source", "Where the impacts come from.", SCENARIO_SOURCES, default="none"),
-        _str("file", "Scenario file (source file).", default=""),
-        _int("count", "Impacts generated.", 0, MAX_GENERATED),
-        _f("gangue_fraction", "Share of gangue among them.", "", 0.0, 1.0),
-        _kind(
+        choice("source", "Where the impacts come from.", SCENARIO_SOURCES, default="none"),
+        text("file", "Scenario file (source file).", default=""),
+        integer("count", "Impacts generated.", 0, MAX_GENERATED),
+        number("gangue_fraction", "Share of gangue among them.", "", 0.0, 1.0),
+        of_kind(
             "pair",
             "radius_m",
             "Radius range.",
@@ -655,7 +668,7 @@ SCENARIO = Section(
             high="particle_radius_max_m",
             low_open=True,
         ),
-        _kind(
+        of_kind(
             "pair",
             "drop_height_m",
             "Drop height range.",
@@ -664,8 +677,8 @@ SCENARIO = Section(
             high="drop_height_max_m",
             low_open=True,
         ),
-        _kind("pair", "position_m", "Impact position range.", unit="m", low=0.0, low_open=True),
-        _kind(
+        of_kind("pair", "position_m", "Impact position range.", unit="m", low=0.0, low_open=True),
+        of_kind(
             "pair",
             "interval_s",
             "Time between contacts.",
@@ -674,8 +687,8 @@ SCENARIO = Section(
             high=3600.0,
             low_open=True,
         ),
-        _f("start_s", "Simulation time of the first contact.", "s", 0.0, default=0.0),
-        _int("seed", "Seed of the generated stream.", 0, default=0),
+        number("start_s", "Simulation time of the first contact.", "s", 0.0, default=0.0),
+        integer("seed", "Seed of the generated stream.", 0, default=0),
     ),
     file="sim_node.yaml",
 )
@@ -684,12 +697,14 @@ RECORDER = Section(
     "recorder",
     "bag_recorder: what it writes and how often.",
     (
-        _str("bag_path", 'Bag directory to create ("" = out/bags/tail_beam_<UTC time>).'),
-        _str("storage", "Storage plugin: mcap or sqlite3."),
-        _str("compression", "mcap chunk compression: zstd or none."),
-        _open("segment_s", "Log time per segment file.", "s", high=3600.0),
-        _open("flush_s", "Wall time between flushes (what a SIGKILL may lose).", "s", high=3600.0),
-        _f(
+        text("bag_path", 'Bag directory to create ("" = out/bags/tail_beam_<UTC time>).'),
+        text("storage", "Storage plugin: mcap or sqlite3."),
+        text("compression", "mcap chunk compression: zstd or none."),
+        positive("segment_s", "Log time per segment file.", "s", high=3600.0),
+        positive(
+            "flush_s", "Wall time between flushes (what a SIGKILL may lose).", "s", high=3600.0
+        ),
+        number(
             "max_bag_duration_s",
             "Start a new file after this much log time.",
             "s",
@@ -698,7 +713,7 @@ RECORDER = Section(
             off=0.0,
             off_meaning="never split",
         ),
-        _int(
+        integer(
             "max_bag_size_bytes",
             "Start a new file at this size.",
             MIB,
@@ -707,7 +722,7 @@ RECORDER = Section(
             off=0,
             off_meaning="never split",
         ),
-        _QOS_DEPTH,
+        QOS_DEPTH,
     ),
     file="recorder.yaml",
 )
@@ -716,17 +731,17 @@ REPLAY = Section(
     "replay",
     "bag_replay: which bag, what of it and how fast.",
     (
-        _str("bag_path", "Bag directory to publish (required)."),
-        _kind("strs", "topics", "Contract topics published."),
-        _str("namespace", 'Namespace of the bag\'s topics to play ("" = the only one).'),
-        _f("start_offset_s", "Log time skipped from the first message.", "s", 0.0, 1e9),
-        _bool("loop", "Start again at the end."),
-        _f("rate", "Playback speed over the recorded one.", "", 0.01, 100.0),
-        _bool("publish_clock", "Publish the log time on /clock."),
-        _WAIT_FOR,
-        _SETTLE,
-        _open("publish_period_s", "Timer period, wall clock.", "s", high=10.0),
-        _QOS_DEPTH,
+        text("bag_path", "Bag directory to publish (required)."),
+        of_kind("strs", "topics", "Contract topics published."),
+        text("namespace", 'Namespace of the bag\'s topics to play ("" = the only one).'),
+        number("start_offset_s", "Log time skipped from the first message.", "s", 0.0, 1e9),
+        flag("loop", "Start again at the end."),
+        number("rate", "Playback speed over the recorded one.", "", 0.01, 100.0),
+        flag("publish_clock", "Publish the log time on /clock."),
+        WAIT_FOR_SUBSCRIBERS,
+        SUBSCRIBER_SETTLE,
+        positive("publish_period_s", "Timer period, wall clock.", "s", high=10.0),
+        QOS_DEPTH,
     ),
     file="replay.yaml",
 )
@@ -735,386 +750,13 @@ SEND = Section(
     "send",
     "`tail-beam send` (the command line checks these, naming its options).",
     (
-        _open("timeout_s", "How long to wait for sim_node.", "s", high=86400.0),
-        _open("truth_timeout_s", "How long --wait-truth waits.", "s", high=86400.0),
+        positive("timeout_s", "How long to wait for sim_node.", "s", high=86400.0),
+        positive("truth_timeout_s", "How long --wait-truth waits.", "s", high=86400.0),
     ),
     file="send.yaml",
 )
 
-# --- tail_beam_id ------------------------------------------------------------------------------
-
-ID_METHODS = ("threshold", "statistical", "physics")
-
-ID_NODE_TOP = Section(
-    "",
-    "Top-level parameters of id_node.",
-    (_str("method", 'Identification method ("" = identification.method).'),),
-    file="id_node.yaml",
-)
-
-ID_NODE = Section(
-    "id_node",
-    "id_node: pacing, arrival order and online calibration (wall-clock s unless said).",
-    (
-        _open("poll_period_s", "Period at which samples go to the identifier.", "s", high=10.0),
-        _QOS_DEPTH,
-        _open(
-            "flush_after_idle_s", "With no message this long, pending impacts are decided.", "s"
-        ),
-        _f(
-            "reorder_s",
-            "Hold after arrival before a sample is handed on in stamp order.",
-            "s",
-            0.0,
-            10.0,
-        ),
-        _open(
-            "stream_idle_s",
-            "A silent stream stops holding the others back after this.",
-            "s",
-            high=60.0,
-        ),
-        _open(
-            "time_jump_s", "Stamps going back more than this start a new time base.", "s", high=1e6
-        ),
-        _f(
-            "calibrate_online_s",
-            "Stamp time of data to self-calibrate from (0 = never).",
-            "s",
-            0.0,
-            3600.0,
-        ),
-    ),
-    file="id_node.yaml",
-)
-
-_WINDOW = dict(unit="s", high=10.0)
-IDENTIFICATION = Section(
-    "identification",
-    "Coal-gangue identification: method, windows and timeouts (stamp time, s).",
-    (
-        _choice("method", "Identification method.", ID_METHODS),
-        _bool(
-            "self_calibrate",
-            "`tail-beam identify` calibrates to the bag's support first.",
-            default=True,
-        ),
-        _open("window_s", "Signal after the onset every method waits for.", **_WINDOW),
-        _open(
-            "vibration_window_s",
-            "The same for an impact found in the accelerometer's stream (absent: window_s).",
-            "s",
-            high="window_s",
-            default=None,
-        ),
-        _open(
-            "pressure_pre_s",
-            "Pressure before the onset the fit learns the background from.",
-            **_WINDOW,
-        ),
-        _open(
-            "impulse_pre_s", "IMU background fitted over this much before the pulse.", **_WINDOW
-        ),
-        _open(
-            "impulse_skip_s", "Plate velocity fitted from this long after the onset.", **_WINDOW
-        ),
-        _open("impulse_post_s", "... up to this long after it (<= window_s).", **_WINDOW),
-        _open("stream_timeout_s", "A continuous stream lagging this much is stopped.", **_WINDOW),
-        _open("camera_timeout_s", "Wait for the camera after the rebound window.", **_WINDOW),
-        _open("overlap_window_s", "Onsets closer than this overlap (<= window_s).", **_WINDOW),
-        _f(
-            "overlap_confidence_cap",
-            "Most confidence of an overlapping impact's label.",
-            "",
-            0.5,
-            1.0,
-        ),
-        _open(
-            "match_tolerance_s",
-            "Scoring: a label's onset within this of the contact start.",
-            "s",
-            high=0.1,
-        ),
-    ),
-    file="identification.yaml",
-    sections=(
-        "sensor_timing",
-        "contact_fit",
-        "detection",
-        "evaluation",
-        "statistical",
-        "threshold",
-        "physics",
-    ),
-)
-
-SENSOR_TIMING = Section(
-    "identification.sensor_timing",
-    "The check of the camera's and the acceleration channel's clocks.",
-    (
-        _int(
-            "min_impacts",
-            "Impacts checked before a recording is judged.",
-            1,
-            MAX_QOS_DEPTH,
-            default=10,
-        ),
-        _open(
-            "agreeing_rate",
-            "Share of unusual delays agreeing clocks give.",
-            high=0.5,
-            default=0.03,
-        ),
-        _open(
-            "false_alarm", "Share of agreeing recordings called suspect.", high=0.5, default=1e-3
-        ),
-        _f(
-            "confidence_cap",
-            "Confidence cap of a suspect recording's delay labels.",
-            "",
-            0.5,
-            1.0,
-            default=0.6,
-        ),
-    ),
-    file="identification.yaml",
-)
-
-_FIT_S = dict(unit="s", high=0.1)
-CONTACT_FIT = Section(
-    "identification.contact_fit",
-    "The contact's duration read from the acceleration pulse (feature contact_duration_s).",
-    (
-        _open(
-            "ring_start_s",
-            "Ring-down read from this long after the onset.",
-            default=0.0015,
-            **_FIT_S,
-        ),
-        _open(
-            "ring_end_s", "... to this long after it (> ring_start_s).", default=0.006, **_FIT_S
-        ),
-        _open("before_s", "Fit from this long before the onset.", default=0.0003, **_FIT_S),
-        _open(
-            "early_ring_start_s",
-            "Second pass: ring-down not before this.",
-            default=0.0005,
-            **_FIT_S,
-        ),
-        _open(
-            "ring_after_contact_s",
-            "Second pass: this after the first pass's contact.",
-            default=0.0001,
-            **_FIT_S,
-        ),
-        _f(
-            "ring_after_contact_factor",
-            "... plus this many first-pass durations.",
-            "",
-            1.0,
-            10.0,
-            default=1.5,
-        ),
-        _open("after_s", "Fit to this long after the onset.", default=0.003, **_FIT_S),
-        _open("min_duration_s", "Shortest half-sine force tried.", default=3.0e-5, **_FIT_S),
-        _open("max_duration_s", "Longest half-sine force tried.", default=0.002, **_FIT_S),
-        _int("max_modes", "Most damped sinusoids read from the ring-down.", 1, 8, default=4),
-        _int("min_ring_samples", "Fewer ring-down samples: no fit.", 8, 10000, default=24),
-        _f(
-            "min_mode_frequency_hz",
-            "Slower poles are left to the sway.",
-            "Hz",
-            0.0,
-            1e5,
-            default=150.0,
-        ),
-        _f(
-            "max_fit_rate_hz",
-            "A faster channel is decimated to at most this.",
-            "Hz",
-            1000.0,
-            1e6,
-            default=51200.0,
-        ),
-    ),
-    file="identification.yaml",
-)
-
-_SIGMA = dict(high=1e3)
-_DET_S = dict(unit="s", high=1.0)
-DETECTION = Section(
-    "identification.detection",
-    "Impact detection in the IMU, accelerometer and pressure streams (thresholds in noise RMS).",
-    (
-        _open("accel_threshold_sigma", "A pulse starts below -this.", **_SIGMA),
-        _open("extend_threshold_sigma", "The pulse extends over samples beyond this.", **_SIGMA),
-        _open("onset_threshold_sigma", "Its onset: the first sample beyond this.", **_SIGMA),
-        _open("onset_lookback_s", "Onset looked for up to this before the detection.", **_DET_S),
-        _open("baseline_window_s", "Background fitted over this before the pulse.", **_DET_S),
-        _open("sway_window_s", "Free sway fitted over this before the look-back.", **_DET_S),
-        _open("noise_block_s", "Noise RMS estimated over blocks of this.", "s", high=100.0),
-        _open("max_contact_s", "Longest contact a pulse may span.", **_DET_S),
-        _open(
-            "rebound_early_tolerance_s",
-            "A rebound this early still belongs to the pulse.",
-            **_DET_S,
-        ),
-        _open("unconfirmed_pulse_sigma", "An unconfirmed pulse must be this strong.", high=1e6),
-        _open(
-            "pressure_confirm_sigma",
-            "Moment impulse confirming a pulse, standard errors.",
-            **_SIGMA,
-        ),
-        _open(
-            "pressure_threshold_sigma",
-            "Pressure-only detection threshold, standard errors.",
-            **_SIGMA,
-        ),
-        _open("ring_fraction", "Threshold over the ringing's envelope after a pulse.", high=100.0),
-        _open("ring_decay_s", "Decay time of that envelope.", "s", high=10.0),
-        _open("ring_window_s", "How long the raised threshold lasts.", "s", high=10.0),
-        _open(
-            "rebound_onset_lead_s", "Onset of a rebound-only impact before its stamp.", **_DET_S
-        ),
-        _open(
-            "pressure_onset_uncertainty_s",
-            "Onset uncertainty of pressure-only detection.",
-            **_DET_S,
-        ),
-        _open(
-            "onset_before_rebound_max_s",
-            "Contact began at most this before the rebound.",
-            **_DET_S,
-        ),
-        _open(
-            "rebound_frame_allowance_s",
-            "Camera frame the rebound window allows for.",
-            default=0.0005,
-            **_DET_S,
-        ),
-        _f(
-            "pressure_drift_confirm_sigma",
-            "Moment impulse kept against a drifting sway.",
-            "",
-            0.0,
-            1e3,
-            default=2.5,
-        ),
-        _f(
-            "late_rebound_max_s",
-            "A late rebound up to this after the onset (0 = off).",
-            "s",
-            0.0,
-            1.0,
-            default=0.025,
-        ),
-    ),
-    file="identification.yaml",
-)
-
-EVALUATION = Section(
-    "identification.evaluation",
-    "Scene sets of `tail-beam evaluate` and of training (checked where they are used).",
-    (
-        _kind("mapping", "seeds", "Seed of each scene set."),
-        _int("training_seed", "Seed of the training set."),
-        _int("impacts_per_set", "Impacts per scene set."),
-        _kind("floats", "noise_factors", "Noise factors evaluated."),
-        _choice("tier", "Model the impacts are simulated with.", ("rigid", "modal")),
-        _f("pre_contact_s", "Signal simulated before each contact.", "s"),
-        _f("window_s", "Signal simulated after each contact.", "s"),
-        _kind("mapping", "rates", "Sensor settings by name (Hz)."),
-        _kind("strs", "default_rates", "Sensor settings a plain evaluate runs."),
-        _kind("mapping", "material_mix", "Each material's share of a scene set."),
-        _kind("mapping", "paper", "The paper scene's impact ranges."),
-        _kind("mapping", "stream", "The stream scene's impact ranges."),
-        _f("support_perturbation", "Mismatch set: scale of the support's perturbation."),
-        _kind("strs", "mismatch_contact_models", "Mismatch set: contact laws."),
-        _kind("mapping", "supports", "Ranges supports other than the nominal one are drawn from."),
-        _int("foreign_supports", "Supports of the foreign set."),
-        _int("foreign_impacts_per_support", "Impacts per foreign support."),
-        _f("stream_gap_s", "Least time between the foreign set's impacts.", "s"),
-        _kind("floats", "size_bins_m", "Radius bins of the accuracy-by-size table, m."),
-    ),
-    file="identification.yaml",
-)
-
-_CAP = dict(low=0.5, high=1.0)
-STATISTICAL = Section(
-    "identification.statistical",
-    "The statistical method.",
-    (
-        _f(
-            "outside_confidence_cap",
-            "Confidence cap outside the training envelope.",
-            default=0.6,
-            **_CAP,
-        ),
-        _open(
-            "reference_camera_frame_rate_hz",
-            "Camera frame rate of the training's streams.",
-            "Hz",
-            high=1e6,
-            default=5000.0,
-        ),
-        _open(
-            "slowest_delay_camera_frame_rate_hz",
-            "Slower cameras are decided without the rebound delay.",
-            "Hz",
-            high=1e6,
-            default=2000.0,
-        ),
-    ),
-    file="identification.yaml",
-    sections=("hysteresis",),
-)
-
-HYSTERESIS = Section(
-    "identification.statistical.hysteresis",
-    "The support's contact hysteresis read by self-calibration.",
-    (
-        _open("reference_restitution", "Gangue restitution the latent refers to.", high=0.999),
-        _kind("floats", "bin_edges", "Edges of the latent's bins (increasing)."),
-        _int(
-            "min_impacts",
-            "Impacts with every signal needed to read it.",
-            1,
-            MAX_QOS_DEPTH,
-            default=8,
-        ),
-    ),
-    file="identification.yaml",
-)
-
-THRESHOLD = Section(
-    "identification.threshold",
-    "The threshold method.",
-    (_f("extrapolation_confidence_cap", "Confidence cap outside the tuned range.", **_CAP),),
-    file="identification.yaml",
-)
-
-PHYSICS = Section(
-    "identification.physics",
-    "The physics method's inversion: priors and observation errors.",
-    (
-        _kind(
-            "pair", "prior_radius_m", "Prior radius range (log-uniform).", low=0.0, low_open=True
-        ),
-        _kind("pair", "prior_drop_height_m", "Prior drop height range.", low=0.0, low_open=True),
-        _kind("pair", "prior_position_m", "Prior impact position range.", low=0.0, low_open=True),
-        _int("prior_samples", "Prior particles per material.", 100, MAX_QOS_DEPTH),
-        _int("seed", "Seed of the prior.", default=0),
-        _f("moment_model_error", "Relative error of the rigid-beam moment impulse.", "", 0.0, 1.0),
-        _f("duration_model_error", "Relative error of the Hertz contact duration.", "", 0.0, 1.0),
-        _open("rebound_noise_mps", "Camera rebound-velocity noise RMS.", "m/s"),
-        _f("rebound_noise_fraction", "... plus this fraction of the reading.", "", 0.0, 1.0),
-        _f("outlier_log_likelihood", "Below this no particle explains the impact.", "", None, 0.0),
-        _f("outlier_confidence_cap", "Confidence cap of such an impact.", **_CAP),
-    ),
-    file="identification.yaml",
-)
-
-SECTIONS: tuple[Section, ...] = (
+PARAMETER_SECTIONS: tuple[Section, ...] = (
     SUPPORT,
     MATERIAL,
     SENSORS,
@@ -1128,22 +770,20 @@ SECTIONS: tuple[Section, ...] = (
     RECORDER,
     REPLAY,
     SEND,
-    ID_NODE_TOP,
-    ID_NODE,
-    IDENTIFICATION,
-    SENSOR_TIMING,
-    CONTACT_FIT,
-    DETECTION,
-    EVALUATION,
-    STATISTICAL,
-    HYSTERESIS,
-    THRESHOLD,
-    PHYSICS,
 )
 NOT_PARAMETERS = ("impacts.yaml",)  # config/ files that hold a scene list, not parameters
 
 
 # --- config/ against the tables ------------------------------------------------------------------
+
+
+def sections_of(modules: Iterable[str] = ()) -> tuple[Section, ...]:
+    """This module's sections and the ``PARAMETER_SECTIONS`` of each of ``modules`` (dotted
+    module names: another package declares its own sections where it reads them)."""
+    found = list(PARAMETER_SECTIONS)
+    for name in modules:
+        found += [s for s in importlib.import_module(name).PARAMETER_SECTIONS if s not in found]
+    return tuple(found)
 
 
 def _matches(path: str, pattern: str) -> bool:
@@ -1154,9 +794,9 @@ def _matches(path: str, pattern: str) -> bool:
     return len(parts) == len(wanted) and all(map(fnmatch.fnmatchcase, parts, wanted))
 
 
-def section_for(path: str) -> Section | None:
+def section_for(path: str, sections: Iterable[Section] = PARAMETER_SECTIONS) -> Section | None:
     """The section declared for the dotted section ``path`` (``materials.coal``), if any."""
-    return next((s for s in SECTIONS if _matches(path, s.path)), None)
+    return next((s for s in sections if _matches(path, s.path)), None)
 
 
 def shipped_parameters(config_dir: Path | None = None) -> dict[str, dict[str, Any]]:
@@ -1169,43 +809,51 @@ def shipped_parameters(config_dir: Path | None = None) -> dict[str, dict[str, An
     }
 
 
-def unspecified_keys(params: Mapping[str, Any]) -> list[str]:
-    """Dotted names in ``params`` that no section declares (a mapping field covers its keys)."""
+def unspecified_keys(
+    params: Mapping[str, Any], sections: Iterable[Section] = PARAMETER_SECTIONS
+) -> list[str]:
+    """Dotted names in ``params`` that none of ``sections`` declares (a ``mapping`` field
+    covers the keys under it)."""
+    sections = tuple(sections)
     out = []
     for name in flatten(params):
-        parent, _, leaf = name.rpartition(".")
+        parts = name.split(".")
         covered = False
-        prefix = ""
-        for part in name.split("."):
-            section = section_for(prefix)
-            if section is not None and part in section and section[part].kind == "mapping":
+        for depth in range(len(parts) - 1):
+            section = section_for(".".join(parts[:depth]), sections)
+            head = parts[depth]
+            if section is not None and head in section and section[head].kind == "mapping":
                 covered = True
                 break
-            prefix = f"{prefix}.{part}" if prefix else part
-        section = section_for(parent)
-        if not covered and (section is None or leaf not in section):
+        section = section_for(".".join(parts[:-1]), sections)
+        if not covered and (section is None or parts[-1] not in section):
             out.append(name)
     return out
 
 
 def _mappings(params: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, Mapping]]:
+    """Every mapping in ``params`` with its dotted path ("" for ``params`` itself)."""
     yield prefix, params
     for key, value in params.items():
         if isinstance(value, Mapping):
             yield from _mappings(value, f"{prefix}.{key}" if prefix else key)
 
 
-def missing_keys(params: Mapping[str, Any], sections: Iterable[Section] = SECTIONS) -> list[str]:
-    """Required fields of ``sections`` that ``params`` has the section of but not the field."""
+def missing_keys(
+    params: Mapping[str, Any], sections: Iterable[Section] = PARAMETER_SECTIONS
+) -> list[str]:
+    """Required fields of ``sections`` that ``params`` holds the section of but not the field
+    (the top-level section only where ``params`` holds one of its fields)."""
     out = []
     found = list(_mappings(params))
     for section in sections:
         for path, body in found:
-            if path and _matches(path, section.path) or (section.path == path == ""):
-                if section.path == "" and not any(f.name in body for f in section):
-                    continue  # the top level holds another file's sections
-                prefix = f"{path}." if path else ""
-                out += [f"{prefix}{f.name}" for f in section if f.required and f.name not in body]
+            if not _matches(path, section.path):
+                continue
+            if not path and not any(f.name in body for f in section):
+                continue  # the top level of a file that holds other sections only
+            prefix = f"{path}." if path else ""
+            out += [f"{prefix}{f.name}" for f in section if f.required and f.name not in body]
     return out
 
 
@@ -1221,21 +869,27 @@ def _default_text(value: Any) -> str:
         return f'`"{value}"`' if value == "" else f"`{value}`"
     if isinstance(value, Mapping):
         return "(table)"
-    text = shorten(value, 40)
-    return f"`{text}`"
+    if isinstance(value, list) and len(value) > 6:
+        return f"{len(value)} values"
+    return f"`{shorten(value, 40)}`"
 
 
-def render_reference(config_dir: Path | None = None) -> str:
-    """The parameter reference (docs/parameters.md) as Markdown: a table per section with each
-    field's unit, allowed range, default (config/'s value, else the built-in one) and meaning."""
+def render_reference(
+    sections: Iterable[Section] = PARAMETER_SECTIONS,
+    command: str = "python -m tail_beam_sim.spec",
+    config_dir: Path | None = None,
+) -> str:
+    """The parameter reference as Markdown: a table per section with each field's unit,
+    allowed range, default (config/'s value, else the built-in one) and meaning; the header
+    names ``command``, which prints it."""
     files = shipped_parameters(config_dir)
     lines = [
         "# Parameter reference",
         "",
-        "Generated from the tables of `tail_beam_sim/spec.py`; do not edit by hand.",
-        "Regenerate with",
+        "Generated from the parameter tables (`tail_beam_sim/spec.py` and the sections each",
+        "package declares where it reads them); do not edit by hand. Regenerate with",
         "",
-        "    python -m tail_beam_sim.spec > docs/parameters.md",
+        f"    {command} > docs/parameters.md",
         "",
         "Every parameter is a ROS 2 parameter of the nodes that read its file (`-p name:=value`,",
         "`--params-file`) and is read by the commands from the same files. A range `(a, b]`",
@@ -1243,21 +897,16 @@ def render_reference(config_dir: Path | None = None) -> str:
         "value; a parameter config/ leaves out takes the built-in one; `—` means required.",
         "",
     ]
-    for section in SECTIONS:
-        title = section.path or "(top level)"
-        lines += [f"## `{title}`", "", section.meaning, ""]
+    for section in sections:
+        lines += [f"## `{section.path or '(top level)'}`", "", section.meaning, ""]
         if section.file:
             lines += [f"File: `config/{section.file}`.", ""]
         lines += ["| name | unit | range | default | meaning |", "|---|---|---|---|---|"]
-        shipped = files.get(section.file, {})
-        body = _first_instance(shipped, section.path)
+        body = _first_instance(files.get(section.file, {}), section.path)
         for spec in section:
             value = body.get(spec.name, spec.default) if body is not None else spec.default
-            if spec.kind == "floats" and isinstance(value, list) and len(value) > 6:
-                value = f"{len(value)} values"
-            unit = spec.unit if spec.kind not in ("int",) or spec.unit else ""
             lines.append(
-                f"| `{spec.name}` | {unit or ''} | {spec.range_text()} | {_default_text(value)} "
+                f"| `{spec.name}` | {spec.unit} | {spec.range_text()} | {_default_text(value)} "
                 f"| {spec.meaning} |"
             )
         lines.append("")
@@ -1272,8 +921,16 @@ def _first_instance(params: Mapping[str, Any], pattern: str) -> Mapping[str, Any
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Print the parameter reference (``python -m tail_beam_sim.spec > docs/parameters.md``)."""
-    sys.stdout.write(render_reference())
+    """Print the parameter reference of this module's sections and those of the modules
+    named on the command line (``python -m tail_beam_sim.spec <module> ...``)."""
+    modules = list(sys.argv[1:] if argv is None else argv)
+    command = " ".join(["python -m tail_beam_sim.spec", *modules])
+    try:
+        sections = sections_of(modules)
+    except (ImportError, AttributeError) as exc:
+        print(f"tail_beam_sim.spec: error: {exc}", file=sys.stderr)
+        return 2
+    sys.stdout.write(render_reference(sections, command))
     return 0
 
 

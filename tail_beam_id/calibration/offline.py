@@ -44,11 +44,12 @@ from scipy.signal import welch
 from tail_beam_id.calibration.modes import MIN_FREQUENCY_HZ as MIN_MODE_FREQUENCY_HZ
 from tail_beam_id.calibration.modes import RingingMode, ring_decay_s, ringing_modes, sample_noise
 from tail_beam_id.methods import hysteresis, load_model
+from tail_beam_id.methods.statistical import HYSTERESIS
 from tail_beam_id.signals.camera import frame_period_s
 from tail_beam_id.signals.timing import UNUSUAL
 from tail_beam_id.stream.label import Label
 from tail_beam_sim.config import deep_merge
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.support import Support
 
@@ -361,14 +362,7 @@ def _hysteresis_weights(
     if model is None:
         return None, None, None
     section = params["identification"]["statistical"]["hysteresis"]
-    min_impacts = int(
-        require_range(
-            "identification.statistical.hysteresis.min_impacts",
-            section.get("min_impacts", 8),
-            1,
-            1e6,
-        )
-    )
+    min_impacts = HYSTERESIS.check(section, only=("min_impacts",))["min_impacts"]
     factor = (
         1.0
         if inertia_kgm2 is None

@@ -25,7 +25,7 @@ from scipy.special import ndtr
 
 from tail_beam_id.methods.base import Decision
 from tail_beam_id.signals.features import VIBRATION_CHANNEL
-from tail_beam_sim.errors import InputError, require_int, require_range, require_section
+from tail_beam_sim.errors import require_section
 from tail_beam_sim.physics.contact import (
     effective_modulus_pa,
     hertz_constant,
@@ -33,11 +33,44 @@ from tail_beam_sim.physics.contact import (
 )
 from tail_beam_sim.physics.materials import material_table, sphere_mass_kg
 from tail_beam_sim.physics.support import Support
+from tail_beam_sim.spec import Section, integer, number, of_kind, positive
 
 LOG_IMPOSSIBLE = math.log(1e-100)  # log-likelihood of an observation a particle cannot give
 
 
 DURATION_CACHE_SIZE = 8  # IMU periods whose per-particle duration terms are kept
+
+
+_CAP = dict(low=0.5, high=1.0)
+
+PHYSICS = Section(
+    "identification.physics",
+    "The physics method's inversion: priors and observation errors.",
+    (
+        of_kind(
+            "pair", "prior_radius_m", "Prior radius range (log-uniform).", low=0.0, low_open=True
+        ),
+        of_kind("pair", "prior_drop_height_m", "Prior drop height range.", low=0.0, low_open=True),
+        of_kind(
+            "pair", "prior_position_m", "Prior impact position range.", low=0.0, low_open=True
+        ),
+        integer("prior_samples", "Prior particles per material.", 100, 10**6),
+        integer("seed", "Seed of the prior.", default=0),
+        number(
+            "moment_model_error", "Relative error of the rigid-beam moment impulse.", "", 0.0, 1.0
+        ),
+        number(
+            "duration_model_error", "Relative error of the Hertz contact duration.", "", 0.0, 1.0
+        ),
+        positive("rebound_noise_mps", "Camera rebound-velocity noise RMS.", "m/s"),
+        number("rebound_noise_fraction", "... plus this fraction of the reading.", "", 0.0, 1.0),
+        number(
+            "outlier_log_likelihood", "Below this no particle explains the impact.", "", None, 0.0
+        ),
+        number("outlier_confidence_cap", "Confidence cap of such an impact.", **_CAP),
+    ),
+    file="identification.yaml",
+)
 
 
 @dataclass(frozen=True)
@@ -58,60 +91,7 @@ class PhysicsConfig:
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> PhysicsConfig:
-        p = params or {}
-
-        def pair(name: str) -> tuple[float, float]:
-            value = p.get(name)
-            if not isinstance(value, (list, tuple)) or len(value) != 2:
-                raise InputError(f"identification.physics.{name}", value, "must be [low, high]")
-            low = require_range(
-                f"identification.physics.{name}[0]", value[0], 0.0, None, low_open=True
-            )
-            return low, require_range(f"identification.physics.{name}[1]", value[1], low, None)
-
-        return cls(
-            prior_radius_m=pair("prior_radius_m"),
-            prior_drop_height_m=pair("prior_drop_height_m"),
-            prior_position_m=pair("prior_position_m"),
-            prior_samples=require_int(
-                "identification.physics.prior_samples", p.get("prior_samples"), 100, 10**6
-            ),
-            seed=int(p.get("seed", 0)),
-            moment_model_error=require_range(
-                "identification.physics.moment_model_error", p.get("moment_model_error"), 0.0, 1.0
-            ),
-            duration_model_error=require_range(
-                "identification.physics.duration_model_error",
-                p.get("duration_model_error"),
-                0.0,
-                1.0,
-            ),
-            rebound_noise_mps=require_range(
-                "identification.physics.rebound_noise_mps",
-                p.get("rebound_noise_mps"),
-                0.0,
-                None,
-                low_open=True,
-            ),
-            rebound_noise_fraction=require_range(
-                "identification.physics.rebound_noise_fraction",
-                p.get("rebound_noise_fraction"),
-                0.0,
-                1.0,
-            ),
-            outlier_log_likelihood=require_range(
-                "identification.physics.outlier_log_likelihood",
-                p.get("outlier_log_likelihood"),
-                None,
-                0.0,
-            ),
-            outlier_confidence_cap=require_range(
-                "identification.physics.outlier_confidence_cap",
-                p.get("outlier_confidence_cap"),
-                0.5,
-                1.0,
-            ),
-        )
+        return cls(**PHYSICS.check(params or {}))
 
 
 @dataclass(frozen=True)

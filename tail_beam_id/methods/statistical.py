@@ -49,7 +49,8 @@ from tail_beam_id.methods.base import Decision, cap_confidence, sigmoid
 from tail_beam_id.methods.hysteresis import applied_shift, hysteresis_shift, joint_inputs
 from tail_beam_id.methods.inputs import base_vector
 from tail_beam_id.signals.timing import DELAY_UNTRUSTED, UNUSUAL
-from tail_beam_sim.errors import InputError, require_range, require_section
+from tail_beam_sim.errors import InputError, require_section
+from tail_beam_sim.spec import Section, integer, number, of_kind, positive
 
 # Each signal's features, with the floor (in the feature's unit) below which a noisy reading is
 # clipped before taking its log; None = used as is (a sign or a ratio near 1).
@@ -82,6 +83,55 @@ SLOWER = 1.05  # a camera frame this many times the reference (or slowest) frame
 # The features that say how large an impact is (its moment impulse), in order of preference: a
 # model's temperature grows as it gets smaller (tail_beam_id.study.training.fit_size_temperature).
 SIZE_FEATURES = ("moment_impulse_pressure_nms", "moment_impulse_imu_nms")
+
+
+_CAP = dict(low=0.5, high=1.0)
+
+STATISTICAL = Section(
+    "identification.statistical",
+    "The statistical method.",
+    (
+        number(
+            "outside_confidence_cap",
+            "Confidence cap outside the training envelope.",
+            default=0.6,
+            **_CAP,
+        ),
+        positive(
+            "reference_camera_frame_rate_hz",
+            "Camera frame rate of the training's streams.",
+            "Hz",
+            high=1e6,
+            default=5000.0,
+        ),
+        positive(
+            "slowest_delay_camera_frame_rate_hz",
+            "Slower cameras are decided without the rebound delay.",
+            "Hz",
+            high=1e6,
+            default=2000.0,
+        ),
+    ),
+    file="identification.yaml",
+    sections=("hysteresis",),
+)
+
+HYSTERESIS = Section(
+    "identification.statistical.hysteresis",
+    "The support's contact hysteresis read by self-calibration.",
+    (
+        positive("reference_restitution", "Gangue restitution the latent refers to.", high=0.999),
+        of_kind("floats", "bin_edges", "Edges of the latent's bins (increasing)."),
+        integer(
+            "min_impacts",
+            "Impacts with every signal needed to read it.",
+            1,
+            10**6,
+            default=8,
+        ),
+    ),
+    file="identification.yaml",
+)
 
 
 def size_feature(names: Sequence[tuple[str, float | None]]) -> str | None:
@@ -192,12 +242,8 @@ class StatisticalMethod:
         section = require_section(
             "identification.statistical", (params.get("identification") or {}).get("statistical")
         )
-        cap = require_range(
-            "identification.statistical.outside_confidence_cap",
-            section.get("outside_confidence_cap", 0.6),
-            0.5,
-            1.0,
-        )
+        checked = STATISTICAL.check(section)
+        cap = checked["outside_confidence_cap"]
         families = [model["subsets"], model.get("calibrated_subsets") or {}]
         stale = [
             key
@@ -214,22 +260,8 @@ class StatisticalMethod:
         for family in families:
             for key, subset in family.items():
                 _check_temperature_size(key, subset)
-        rate = require_range(
-            "identification.statistical.reference_camera_frame_rate_hz",
-            section.get("reference_camera_frame_rate_hz", 5000.0),
-            0.0,
-            1e6,
-            low_open=True,
-            unit="Hz",
-        )
-        slowest = require_range(
-            "identification.statistical.slowest_delay_camera_frame_rate_hz",
-            section.get("slowest_delay_camera_frame_rate_hz", 2000.0),
-            0.0,
-            1e6,
-            low_open=True,
-            unit="Hz",
-        )
+        rate = checked["reference_camera_frame_rate_hz"]
+        slowest = checked["slowest_delay_camera_frame_rate_hz"]
         hysteresis = model.get("hysteresis")
         calibration = params.get("calibration") or {}
         weights = _profile_weights(

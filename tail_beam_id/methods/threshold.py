@@ -15,9 +15,25 @@ from dataclasses import dataclass
 from typing import Any
 
 from tail_beam_id.methods.base import Decision, sigmoid
-from tail_beam_sim.errors import require_range, require_section
+from tail_beam_sim.errors import require_section
+from tail_beam_sim.spec import Section, number
 
 FLOOR = 1e-9  # features are positive physical magnitudes; a noisy reading below this is clipped
+
+
+THRESHOLD = Section(
+    "identification.threshold",
+    "The threshold method.",
+    (
+        number(
+            "extrapolation_confidence_cap",
+            "Confidence cap outside the tuned range.",
+            low=0.5,
+            high=1.0,
+        ),
+    ),
+    file="identification.yaml",
+)
 
 
 @dataclass(frozen=True)
@@ -43,12 +59,7 @@ class ThresholdMethod:
         section = require_section(
             "identification.threshold", params["identification"].get("threshold")
         )
-        cap = require_range(
-            "identification.threshold.extrapolation_confidence_cap",
-            section.get("extrapolation_confidence_cap"),
-            0.5,
-            1.0,
-        )
+        cap = THRESHOLD.check(section)["extrapolation_confidence_cap"]
         rules = [
             Rule(r["feature"], float(r["threshold"]), float(r["slope"]), tuple(r["seen"]))
             for r in model["rules"]

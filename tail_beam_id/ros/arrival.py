@@ -35,8 +35,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from tail_beam_id.stream.release import Release, feed
-from tail_beam_sim.errors import require_range
 from tail_beam_sim.physics.sensors import BlockSequencer, VibrationBlocks
+from tail_beam_sim.spec import QOS_DEPTH, Section, number, positive
 
 if TYPE_CHECKING:
     from tail_beam_id.calibration.online import OnlineCalibration
@@ -45,6 +45,43 @@ if TYPE_CHECKING:
 
 CONTINUOUS = ("jack_pressure", "imu", "vibration")
 MAX_ASIDE_SAMPLES = 2_000_000  # samples held aside as "ahead of the others" (bounded memory)
+
+
+ID_NODE = Section(
+    "id_node",
+    "id_node: pacing, arrival order and online calibration (wall-clock s unless said).",
+    (
+        positive("poll_period_s", "Period at which samples go to the identifier.", "s", high=10.0),
+        QOS_DEPTH,
+        positive(
+            "flush_after_idle_s", "With no message this long, pending impacts are decided.", "s"
+        ),
+        number(
+            "reorder_s",
+            "Hold after arrival before a sample is handed on in stamp order.",
+            "s",
+            0.0,
+            10.0,
+        ),
+        positive(
+            "stream_idle_s",
+            "A silent stream stops holding the others back after this.",
+            "s",
+            high=60.0,
+        ),
+        positive(
+            "time_jump_s", "Stamps going back more than this start a new time base.", "s", high=1e6
+        ),
+        number(
+            "calibrate_online_s",
+            "Stamp time of data to self-calibrate from (0 = never).",
+            "s",
+            0.0,
+            3600.0,
+        ),
+    ),
+    file="id_node.yaml",
+)
 
 
 @dataclass(frozen=True)
@@ -57,22 +94,7 @@ class GateConfig:
 
     @classmethod
     def from_params(cls, node: dict) -> GateConfig:
-        return cls(
-            reorder_s=require_range(
-                "id_node.reorder_s", node.get("reorder_s"), 0.0, 10.0, unit="s"
-            ),
-            stream_idle_s=require_range(
-                "id_node.stream_idle_s",
-                node.get("stream_idle_s"),
-                0.0,
-                60.0,
-                low_open=True,
-                unit="s",
-            ),
-            time_jump_s=require_range(
-                "id_node.time_jump_s", node.get("time_jump_s"), 0.0, 1e6, low_open=True, unit="s"
-            ),
-        )
+        return cls(**ID_NODE.check(node, only=("reorder_s", "stream_idle_s", "time_jump_s")))
 
 
 @dataclass

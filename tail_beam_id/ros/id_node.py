@@ -41,11 +41,17 @@ from std_msgs.msg import String
 
 from tail_beam_id.calibration.online import OnlineCalibration
 from tail_beam_id.methods import Method
-from tail_beam_id.ros.arrival import GateConfig, GatedIdentifier
+from tail_beam_id.methods.physics import PHYSICS
+from tail_beam_id.methods.statistical import HYSTERESIS, STATISTICAL
+from tail_beam_id.methods.threshold import THRESHOLD
+from tail_beam_id.ros.arrival import ID_NODE, GateConfig, GatedIdentifier
+from tail_beam_id.signals.contact_fit import CONTACT_FIT
+from tail_beam_id.signals.imu_detection import DETECTION
+from tail_beam_id.signals.timing import SENSOR_TIMING
+from tail_beam_id.stream.config import EVALUATION, IDENTIFICATION
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label
 from tail_beam_sim import topics
-from tail_beam_sim.errors import require_range
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.ros.params import (
     ALL_PARAMETERS,
@@ -54,10 +60,35 @@ from tail_beam_sim.ros.params import (
     refuse_runtime_changes,
 )
 from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
+from tail_beam_sim.spec import Section, text
 
 MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
 WAKE_MARGIN_S = (
     2e-4  # the wake runs this long after the hold has passed, s (a timer may fire a little early)
+)
+
+
+ID_NODE_TOP = Section(
+    "",
+    "Top-level parameters of id_node.",
+    (text("method", 'Identification method ("" = identification.method).'),),
+    file="id_node.yaml",
+)
+
+# The identifier's parameter sections, each declared where it is read: the reference page is
+# ``python -m tail_beam_sim.spec tail_beam_id.ros.id_node > docs/parameters.md``.
+PARAMETER_SECTIONS = (
+    ID_NODE_TOP,
+    ID_NODE,
+    IDENTIFICATION,
+    SENSOR_TIMING,
+    CONTACT_FIT,
+    DETECTION,
+    EVALUATION,
+    STATISTICAL,
+    HYSTERESIS,
+    THRESHOLD,
+    PHYSICS,
 )
 
 
@@ -97,18 +128,10 @@ class IdNode(Node):
             open_sections=("calibration",),
         )
         node = params["id_node"]
-        period = require_range(
-            "id_node.poll_period_s", node.get("poll_period_s"), 0.0, 10.0, low_open=True, unit="s"
-        )
-        self.flush_after_idle_s = require_range(
-            "id_node.flush_after_idle_s",
-            node.get("flush_after_idle_s"),
-            0.0,
-            None,
-            low_open=True,
-            unit="s",
-        )
-        depth = int(require_range("id_node.qos_depth", node.get("qos_depth"), 0, 1e6))
+        checked = ID_NODE.check(node)
+        period = checked["poll_period_s"]
+        self.flush_after_idle_s = checked["flush_after_idle_s"]
+        depth = checked["qos_depth"]
         method = params.get("method") or None
 
         def new_identifier(trained: Method | None) -> StreamIdentifier:
@@ -116,9 +139,7 @@ class IdNode(Node):
                 method, params=params["identification"], model_params=params, prebuilt=trained
             )
 
-        learn_s = require_range(
-            "id_node.calibrate_online_s", node.get("calibrate_online_s"), 0.0, 3600.0, unit="s"
-        )
+        learn_s = checked["calibrate_online_s"]
         calibration = None
         if learn_s > 0.0:
             calibration = OnlineCalibration(

@@ -34,13 +34,76 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.spec import Section, integer, number, positive
 
 PENCIL_WIDTH = 24  # columns of the ring-down's Hankel matrix: 3 x the most poles (8) read from it
 # Durations of the first, coarse search (a log grid from min_duration_s to max_duration_s, each
 # 1.25 x the one before at the defaults). With 12 (1.46 x) the search could stop in a local
 # minimum: one particle read 69 or 122 us by the support it struck (README, Identification).
 COARSE_DURATIONS = 20
+
+
+_FIT_S = dict(unit="s", high=0.1)
+
+CONTACT_FIT = Section(
+    "identification.contact_fit",
+    "The contact's duration read from the acceleration pulse (feature contact_duration_s).",
+    (
+        positive(
+            "ring_start_s",
+            "Ring-down read from this long after the onset.",
+            default=0.0015,
+            **_FIT_S,
+        ),
+        positive(
+            "ring_end_s", "... to this long after it (> ring_start_s).", default=0.006, **_FIT_S
+        ),
+        positive("before_s", "Fit from this long before the onset.", default=0.0003, **_FIT_S),
+        positive(
+            "early_ring_start_s",
+            "Second pass: ring-down not before this.",
+            default=0.0005,
+            **_FIT_S,
+        ),
+        positive(
+            "ring_after_contact_s",
+            "Second pass: this after the first pass's contact.",
+            default=0.0001,
+            **_FIT_S,
+        ),
+        number(
+            "ring_after_contact_factor",
+            "... plus this many first-pass durations.",
+            "",
+            1.0,
+            10.0,
+            default=1.5,
+        ),
+        positive("after_s", "Fit to this long after the onset.", default=0.003, **_FIT_S),
+        positive("min_duration_s", "Shortest half-sine force tried.", default=3.0e-5, **_FIT_S),
+        positive("max_duration_s", "Longest half-sine force tried.", default=0.002, **_FIT_S),
+        integer("max_modes", "Most damped sinusoids read from the ring-down.", 1, 8, default=4),
+        integer("min_ring_samples", "Fewer ring-down samples: no fit.", 8, 10000, default=24),
+        number(
+            "min_mode_frequency_hz",
+            "Slower poles are left to the sway.",
+            "Hz",
+            0.0,
+            1e5,
+            default=150.0,
+        ),
+        number(
+            "max_fit_rate_hz",
+            "A faster channel is decimated to at most this.",
+            "Hz",
+            1000.0,
+            1e6,
+            default=51200.0,
+        ),
+    ),
+    file="identification.yaml",
+)
 
 
 @dataclass(frozen=True)
@@ -67,65 +130,7 @@ class ContactFitConfig:
 
     @classmethod
     def from_params(cls, section: Mapping[str, Any] | None) -> ContactFitConfig:
-        section = section or {}
-        default = cls()
-
-        def seconds(name: str, high: float = 0.1) -> float:
-            return require_range(
-                f"identification.contact_fit.{name}",
-                section.get(name, getattr(default, name)),
-                0.0,
-                high,
-                low_open=True,
-                unit="s",
-            )
-
-        config = cls(
-            ring_start_s=seconds("ring_start_s"),
-            ring_end_s=seconds("ring_end_s"),
-            before_s=seconds("before_s"),
-            early_ring_start_s=seconds("early_ring_start_s"),
-            ring_after_contact_s=seconds("ring_after_contact_s"),
-            ring_after_contact_factor=require_range(
-                "identification.contact_fit.ring_after_contact_factor",
-                section.get("ring_after_contact_factor", default.ring_after_contact_factor),
-                1.0,
-                10.0,
-            ),
-            after_s=seconds("after_s"),
-            min_duration_s=seconds("min_duration_s"),
-            max_duration_s=seconds("max_duration_s"),
-            max_modes=int(
-                require_range(
-                    "identification.contact_fit.max_modes",
-                    section.get("max_modes", default.max_modes),
-                    1,
-                    8,
-                )
-            ),
-            min_ring_samples=int(
-                require_range(
-                    "identification.contact_fit.min_ring_samples",
-                    section.get("min_ring_samples", default.min_ring_samples),
-                    8,
-                    10000,
-                )
-            ),
-            min_mode_frequency_hz=require_range(
-                "identification.contact_fit.min_mode_frequency_hz",
-                section.get("min_mode_frequency_hz", default.min_mode_frequency_hz),
-                0.0,
-                1e5,
-                unit="Hz",
-            ),
-            max_fit_rate_hz=require_range(
-                "identification.contact_fit.max_fit_rate_hz",
-                section.get("max_fit_rate_hz", default.max_fit_rate_hz),
-                1000.0,
-                1e6,
-                unit="Hz",
-            ),
-        )
+        config = cls(**CONTACT_FIT.check(section or {}))
         if config.ring_end_s <= config.ring_start_s:
             raise InputError(
                 "identification.contact_fit.ring_end_s",

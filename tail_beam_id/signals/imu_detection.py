@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_sim.errors import require_range
+from tail_beam_sim.spec import Section, number, positive
 
 MAD_TO_SIGMA = 1.4826  # median absolute deviation of a Gaussian times this = its RMS
 PERIOD_SAMPLES = 64  # the sample period is read from the first this many stamps
@@ -31,6 +31,87 @@ PERIOD_SAMPLES = 64  # the sample period is read from the first this many stamps
 ONSET_LOOKBACK_MIN_SAMPLES = 4
 # The look-back's sway background needs at least this many samples (else a straight line).
 SWAY_FIT_MIN_SAMPLES = 6
+
+
+_SIGMA = dict(high=1e3)
+
+_DET_S = dict(unit="s", high=1.0)
+
+DETECTION = Section(
+    "identification.detection",
+    "Impact detection in the IMU, accelerometer and pressure streams (thresholds in noise RMS).",
+    (
+        positive("accel_threshold_sigma", "A pulse starts below -this.", **_SIGMA),
+        positive(
+            "extend_threshold_sigma", "The pulse extends over samples beyond this.", **_SIGMA
+        ),
+        positive("onset_threshold_sigma", "Its onset: the first sample beyond this.", **_SIGMA),
+        positive(
+            "onset_lookback_s", "Onset looked for up to this before the detection.", **_DET_S
+        ),
+        positive("baseline_window_s", "Background fitted over this before the pulse.", **_DET_S),
+        positive("sway_window_s", "Free sway fitted over this before the look-back.", **_DET_S),
+        positive("noise_block_s", "Noise RMS estimated over blocks of this.", "s", high=100.0),
+        positive("max_contact_s", "Longest contact a pulse may span.", **_DET_S),
+        positive(
+            "rebound_early_tolerance_s",
+            "A rebound this early still belongs to the pulse.",
+            **_DET_S,
+        ),
+        positive("unconfirmed_pulse_sigma", "An unconfirmed pulse must be this strong.", high=1e6),
+        positive(
+            "pressure_confirm_sigma",
+            "Moment impulse confirming a pulse, standard errors.",
+            **_SIGMA,
+        ),
+        positive(
+            "pressure_threshold_sigma",
+            "Pressure-only detection threshold, standard errors.",
+            **_SIGMA,
+        ),
+        positive(
+            "ring_fraction", "Threshold over the ringing's envelope after a pulse.", high=100.0
+        ),
+        positive("ring_decay_s", "Decay time of that envelope.", "s", high=10.0),
+        positive("ring_window_s", "How long the raised threshold lasts.", "s", high=10.0),
+        positive(
+            "rebound_onset_lead_s", "Onset of a rebound-only impact before its stamp.", **_DET_S
+        ),
+        positive(
+            "pressure_onset_uncertainty_s",
+            "Onset uncertainty of pressure-only detection.",
+            **_DET_S,
+        ),
+        positive(
+            "onset_before_rebound_max_s",
+            "Contact began at most this before the rebound.",
+            **_DET_S,
+        ),
+        positive(
+            "rebound_frame_allowance_s",
+            "Camera frame the rebound window allows for.",
+            default=0.0005,
+            **_DET_S,
+        ),
+        number(
+            "pressure_drift_confirm_sigma",
+            "Moment impulse kept against a drifting sway.",
+            "",
+            0.0,
+            1e3,
+            default=2.5,
+        ),
+        number(
+            "late_rebound_max_s",
+            "A late rebound up to this after the onset (0 = off).",
+            "s",
+            0.0,
+            1.0,
+            default=0.025,
+        ),
+    ),
+    file="identification.yaml",
+)
 
 
 @dataclass(frozen=True)
@@ -62,52 +143,7 @@ class DetectionConfig:
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> DetectionConfig:
         """Validate the ``identification.detection`` section."""
-        p = params or {}
-
-        def get(name: str, low: float, high: float, unit: str = "") -> float:
-            return require_range(
-                f"identification.detection.{name}",
-                p.get(name),
-                low,
-                high,
-                low_open=True,
-                unit=unit,
-            )
-
-        return cls(
-            accel_threshold_sigma=get("accel_threshold_sigma", 0.0, 1e3),
-            extend_threshold_sigma=get("extend_threshold_sigma", 0.0, 1e3),
-            onset_threshold_sigma=get("onset_threshold_sigma", 0.0, 1e3),
-            onset_lookback_s=get("onset_lookback_s", 0.0, 1.0, "s"),
-            baseline_window_s=get("baseline_window_s", 0.0, 1.0, "s"),
-            sway_window_s=get("sway_window_s", 0.0, 1.0, "s"),
-            noise_block_s=get("noise_block_s", 0.0, 100.0, "s"),
-            max_contact_s=get("max_contact_s", 0.0, 1.0, "s"),
-            rebound_early_tolerance_s=get("rebound_early_tolerance_s", 0.0, 1.0, "s"),
-            unconfirmed_pulse_sigma=get("unconfirmed_pulse_sigma", 0.0, 1e6),
-            pressure_confirm_sigma=get("pressure_confirm_sigma", 0.0, 1e3),
-            pressure_threshold_sigma=get("pressure_threshold_sigma", 0.0, 1e3),
-            ring_fraction=get("ring_fraction", 0.0, 100.0),
-            ring_decay_s=get("ring_decay_s", 0.0, 10.0, "s"),
-            ring_window_s=get("ring_window_s", 0.0, 10.0, "s"),
-            rebound_onset_lead_s=get("rebound_onset_lead_s", 0.0, 1.0, "s"),
-            pressure_onset_uncertainty_s=get("pressure_onset_uncertainty_s", 0.0, 1.0, "s"),
-            onset_before_rebound_max_s=get("onset_before_rebound_max_s", 0.0, 1.0, "s"),
-            rebound_frame_allowance_s=get("rebound_frame_allowance_s", 0.0, 1.0, "s"),
-            pressure_drift_confirm_sigma=require_range(
-                "identification.detection.pressure_drift_confirm_sigma",
-                p.get("pressure_drift_confirm_sigma", cls.pressure_drift_confirm_sigma),
-                0.0,
-                1e3,
-            ),
-            late_rebound_max_s=require_range(
-                "identification.detection.late_rebound_max_s",
-                p.get("late_rebound_max_s", cls.late_rebound_max_s),
-                0.0,
-                1.0,
-                unit="s",
-            ),
-        )
+        return cls(**DETECTION.check(params or {}))
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ from typing import Any
 
 from scipy.special import bdtrc
 
-from tail_beam_sim.errors import require_range
+from tail_beam_sim.spec import Section, integer, number, positive
 
 UNUSUAL = (
     "delay_unusual"  # the decision estimate: 1.0 when the impact's delay is unusual, 0.0 when not
@@ -37,6 +37,39 @@ OUTSIDE_NAME = "sensor_timing"  # what a capped label lists in outside_training
 # The feature (1.0) of an impact decided without its delay because the recording's delays were
 # found unlike the training's: methods with a twin fitted without the delay use it then.
 DELAY_UNTRUSTED = "delay_untrusted"
+
+
+SENSOR_TIMING = Section(
+    "identification.sensor_timing",
+    "The check of the camera's and the acceleration channel's clocks.",
+    (
+        integer(
+            "min_impacts",
+            "Impacts checked before a recording is judged.",
+            1,
+            10**6,
+            default=10,
+        ),
+        positive(
+            "agreeing_rate",
+            "Share of unusual delays agreeing clocks give.",
+            high=0.5,
+            default=0.03,
+        ),
+        positive(
+            "false_alarm", "Share of agreeing recordings called suspect.", high=0.5, default=1e-3
+        ),
+        number(
+            "confidence_cap",
+            "Confidence cap of a suspect recording's delay labels.",
+            "",
+            0.5,
+            1.0,
+            default=0.6,
+        ),
+    ),
+    file="identification.yaml",
+)
 
 
 @dataclass(frozen=True)
@@ -53,25 +86,7 @@ class TimingConfig:
 
     @classmethod
     def from_params(cls, section: Mapping[str, Any]) -> TimingConfig:
-        name = "identification.sensor_timing"
-        return cls(
-            min_impacts=int(
-                require_range(f"{name}.min_impacts", section.get("min_impacts", 10), 1, 1e6)
-            ),
-            agreeing_rate=require_range(
-                f"{name}.agreeing_rate",
-                section.get("agreeing_rate", 0.03),
-                0.0,
-                0.5,
-                low_open=True,
-            ),
-            false_alarm=require_range(
-                f"{name}.false_alarm", section.get("false_alarm", 1e-3), 0.0, 0.5, low_open=True
-            ),
-            confidence_cap=require_range(
-                f"{name}.confidence_cap", section.get("confidence_cap", 0.6), 0.5, 1.0
-            ),
-        )
+        return cls(**SENSOR_TIMING.check(section))
 
 
 class SensorTiming:

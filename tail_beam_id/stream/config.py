@@ -10,7 +10,115 @@ from tail_beam_id.methods import METHODS
 from tail_beam_id.signals.contact_fit import ContactFitConfig
 from tail_beam_id.signals.imu_detection import DetectionConfig
 from tail_beam_id.signals.timing import TimingConfig
-from tail_beam_sim.errors import InputError, require_range, require_section
+from tail_beam_sim.errors import InputError, require_section
+from tail_beam_sim.spec import Section, choice, flag, integer, number, of_kind, positive
+
+_WINDOW = dict(unit="s", high=10.0)
+
+IDENTIFICATION = Section(
+    "identification",
+    "Coal-gangue identification: method, windows and timeouts (stamp time, s).",
+    (
+        choice("method", "Identification method.", tuple(METHODS)),
+        flag(
+            "self_calibrate",
+            "`tail-beam identify` calibrates to the bag's support first.",
+            default=True,
+        ),
+        positive("window_s", "Signal after the onset every method waits for.", **_WINDOW),
+        positive(
+            "vibration_window_s",
+            "The same for an impact found in the accelerometer's stream (absent: window_s).",
+            "s",
+            high="window_s",
+            default=None,
+        ),
+        positive(
+            "pressure_pre_s",
+            "Pressure before the onset the fit learns the background from.",
+            **_WINDOW,
+        ),
+        positive(
+            "impulse_pre_s", "IMU background fitted over this much before the pulse.", **_WINDOW
+        ),
+        positive(
+            "impulse_skip_s", "Plate velocity fitted from this long after the onset.", **_WINDOW
+        ),
+        positive("impulse_post_s", "... up to this long after it (<= window_s).", **_WINDOW),
+        positive(
+            "stream_timeout_s", "A continuous stream lagging this much is stopped.", **_WINDOW
+        ),
+        positive("camera_timeout_s", "Wait for the camera after the rebound window.", **_WINDOW),
+        positive("overlap_window_s", "Onsets closer than this overlap (<= window_s).", **_WINDOW),
+        number(
+            "overlap_confidence_cap",
+            "Most confidence of an overlapping impact's label.",
+            "",
+            0.5,
+            1.0,
+        ),
+        positive(
+            "match_tolerance_s",
+            "Scoring: a label's onset within this of the contact start.",
+            "s",
+            high=0.1,
+        ),
+    ),
+    file="identification.yaml",
+    sections=(
+        "sensor_timing",
+        "contact_fit",
+        "detection",
+        "evaluation",
+        "statistical",
+        "threshold",
+        "physics",
+    ),
+)
+
+# The fields IdentifierConfig holds (the method's and scoring's are read where they are used).
+CHECKED = (
+    "method",
+    "window_s",
+    "vibration_window_s",
+    "pressure_pre_s",
+    "impulse_pre_s",
+    "impulse_skip_s",
+    "impulse_post_s",
+    "stream_timeout_s",
+    "camera_timeout_s",
+    "overlap_window_s",
+    "overlap_confidence_cap",
+)
+
+EVALUATION = Section(
+    "identification.evaluation",
+    "Scene sets of `tail-beam evaluate` and of training (checked where they are used).",
+    (
+        of_kind("mapping", "seeds", "Seed of each scene set."),
+        integer("training_seed", "Seed of the training set."),
+        integer("impacts_per_set", "Impacts per scene set."),
+        of_kind("floats", "noise_factors", "Noise factors evaluated."),
+        choice("tier", "Model the impacts are simulated with.", ("rigid", "modal")),
+        number("pre_contact_s", "Signal simulated before each contact.", "s"),
+        number("window_s", "Signal simulated after each contact.", "s"),
+        of_kind("mapping", "rates", "Sensor settings by name (Hz)."),
+        of_kind("strs", "default_rates", "Sensor settings a plain evaluate runs."),
+        of_kind("mapping", "material_mix", "Each material's share of a scene set."),
+        of_kind("mapping", "paper", "The paper scene's impact ranges."),
+        of_kind("mapping", "stream", "The stream scene's impact ranges."),
+        number("support_perturbation", "Mismatch set: scale of the support's perturbation."),
+        of_kind("strs", "mismatch_contact_models", "Mismatch set: contact laws."),
+        of_kind(
+            "mapping", "supports", "Ranges supports other than the nominal one are drawn from."
+        ),
+        integer("foreign_supports", "Supports of the foreign set."),
+        integer("foreign_impacts_per_support", "Impacts per foreign support."),
+        number("stream_gap_s", "Least time between the foreign set's impacts.", "s"),
+        of_kind("floats", "size_bins_m", "Radius bins of the accuracy-by-size table, m."),
+    ),
+    file="identification.yaml",
+)
 
 
 @dataclass(frozen=True)
@@ -37,54 +145,24 @@ class IdentifierConfig:
         if not isinstance(params, Mapping):
             raise InputError("identification", params, "missing parameter section")
 
-        def seconds(name: str) -> float:
-            return require_range(
-                f"identification.{name}", params.get(name), 0.0, 10.0, low_open=True, unit="s"
-            )
-
-        method = params.get("method")
-        if method not in METHODS:
-            raise InputError(
-                "identification.method", method, f"must be one of {', '.join(METHODS)}"
-            )
-        window = seconds("window_s")
-        overlap = seconds("overlap_window_s")
-        if seconds("impulse_post_s") > window:
+        checked = IDENTIFICATION.check(params, only=CHECKED)
+        window = checked["window_s"]
+        if checked["impulse_post_s"] > window:
             raise InputError(
                 "identification.impulse_post_s",
                 params.get("impulse_post_s"),
                 f"must be <= window_s ({window:g} s)",
             )
-        if overlap > window:
+        if checked["overlap_window_s"] > window:
             raise InputError(
-                "identification.overlap_window_s", overlap, f"must be <= window_s ({window:g} s)"
+                "identification.overlap_window_s",
+                checked["overlap_window_s"],
+                f"must be <= window_s ({window:g} s)",
             )
-        vibration_window = params.get("vibration_window_s", window)
-        vibration_window = require_range(
-            "identification.vibration_window_s",
-            vibration_window,
-            0.0,
-            window,
-            low_open=True,
-            unit="s",
-        )
+        if checked["vibration_window_s"] is None:
+            checked["vibration_window_s"] = window
         return cls(
-            method=method,
-            window_s=window,
-            vibration_window_s=vibration_window,
-            pressure_pre_s=seconds("pressure_pre_s"),
-            impulse_pre_s=seconds("impulse_pre_s"),
-            impulse_skip_s=seconds("impulse_skip_s"),
-            impulse_post_s=seconds("impulse_post_s"),
-            stream_timeout_s=seconds("stream_timeout_s"),
-            camera_timeout_s=seconds("camera_timeout_s"),
-            overlap_window_s=overlap,
-            overlap_confidence_cap=require_range(
-                "identification.overlap_confidence_cap",
-                params.get("overlap_confidence_cap"),
-                0.5,
-                1.0,
-            ),
+            **checked,
             detection=DetectionConfig.from_params(
                 require_section("identification.detection", params.get("detection"))
             ),

@@ -23,13 +23,13 @@ from functools import cached_property
 from typing import Any
 
 from tail_beam_id.methods import Decision
+from tail_beam_id.stream.config import IDENTIFICATION
 from tail_beam_sim.errors import InputError, require_finite, require_range
 
 TRUTH_STAMP = "contact_start_stamp"  # the impact_truth field a label's stamp is compared with, s
 LABEL_STAMP = "impact_stamp"  # the label field holding the detected contact start, s
-MATCH_TOLERANCE_MAX_S = (
-    0.1  # above this a label could reach a neighbouring impact of a stream (>= 0.2 s apart), s
-)
+# Above this a label could reach a neighbouring impact of a stream (>= 0.2 s apart), s.
+MATCH_TOLERANCE_MAX_S = IDENTIFICATION["match_tolerance_s"].high
 
 
 MATERIALS = ("coal", "gangue")  # the values of a label's "label" field
@@ -240,14 +240,7 @@ def _mount(obj: Mapping[str, Any], key: str, where: str) -> str | None:
 
 def match_tolerance_s(section: Mapping[str, Any]) -> float:
     """``identification.match_tolerance_s`` of the ``identification`` section, validated (0, 0.1] s."""
-    return require_range(
-        "identification.match_tolerance_s",
-        section.get("match_tolerance_s"),
-        0.0,
-        MATCH_TOLERANCE_MAX_S,
-        low_open=True,
-        unit="s",
-    )
+    return IDENTIFICATION.check(section, only=("match_tolerance_s",))["match_tolerance_s"]
 
 
 @dataclass(frozen=True)

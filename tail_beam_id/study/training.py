@@ -33,6 +33,7 @@ from tail_beam_id.methods.hysteresis import (
     latent_bin,
 )
 from tail_beam_id.methods.statistical import (
+    HYSTERESIS,
     SIGNAL_ORDER,
     WITHOUT_DELAY,
     base_vector,
@@ -48,7 +49,7 @@ from tail_beam_id.stream.label import Label
 from tail_beam_id.study.dataset import DRAWN_SETS, evaluation_params, settings
 from tail_beam_id.study.runs import Record, run_set
 from tail_beam_sim.config import load_parameters
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.contact import hertz_elastic_impact, hertz_stiffness
 from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.scene import Impact
@@ -235,13 +236,7 @@ def hysteresis_section(section: Mapping[str, Any]) -> tuple[list[float], float]:
             "must be a non-empty list of finite numbers, strictly increasing",
         )
     # A restitution of 1 has no hysteresis (chi 0), so the latent's log needs it below 1.
-    reference = require_range(
-        f"{field}.reference_restitution",
-        section.get("reference_restitution"),
-        0.0,
-        0.999,
-        low_open=True,
-    )
+    reference = HYSTERESIS.check(section, only=("reference_restitution",))["reference_restitution"]
     return [float(e) for e in edges], float(reference)
 
 

@@ -14,6 +14,13 @@ from tail_beam_sim.config import deep_merge
 from tail_beam_sim.errors import InputError
 
 REPO = Path(__file__).resolve().parents[3]
+# The identifier declares its sections where it reads them; the reference page joins them.
+ID_SECTIONS = "tail_beam_id.ros.id_node"
+
+
+def every_section() -> tuple[spec.Section, ...]:
+    """The simulator's sections and the identifier's."""
+    return spec.sections_of([ID_SECTIONS])
 
 
 def shipped() -> dict:
@@ -26,12 +33,12 @@ def shipped() -> dict:
 
 def test_every_config_key_has_a_spec():
     """Each key of config/*.yaml (impacts.yaml aside) is declared by a section of spec.py."""
-    assert spec.unspecified_keys(shipped()) == []
+    assert spec.unspecified_keys(shipped(), every_section()) == []
 
 
 def test_every_required_field_is_in_config():
     """Each field without a default is present in config/ wherever its section is."""
-    assert spec.missing_keys(shipped()) == []
+    assert spec.missing_keys(shipped(), every_section()) == []
 
 
 def test_a_key_config_lacks_or_adds_is_found():
@@ -39,8 +46,8 @@ def test_a_key_config_lacks_or_adds_is_found():
     params = shipped()
     params["support"]["beam_lenght_m"] = 1.0
     del params["materials"]["coal"]["density_kgpm3"]
-    assert spec.unspecified_keys(params) == ["support.beam_lenght_m"]
-    assert spec.missing_keys(params) == ["materials.coal.density_kgpm3"]
+    assert spec.unspecified_keys(params, every_section()) == ["support.beam_lenght_m"]
+    assert spec.missing_keys(params, every_section()) == ["materials.coal.density_kgpm3"]
 
 
 def test_the_shipped_sections_pass_their_own_checks():
@@ -51,7 +58,7 @@ def test_the_shipped_sections_pass_their_own_checks():
         "particle_radius_max_m": 0.5,
         "drop_height_max_m": 50.0,
     }
-    for section in spec.SECTIONS:
+    for section in every_section():
         for path, body in spec._mappings(params):
             if path and spec._matches(path, section.path):
                 section.check(body, where=path, context=context)
@@ -129,15 +136,16 @@ def test_the_tables_choices_are_the_models():
 
 
 def test_the_reference_page_is_up_to_date():
-    """docs/parameters.md is what ``python -m tail_beam_sim.spec`` prints, and its header names
-    that command."""
+    """docs/parameters.md is what ``python -m tail_beam_sim.spec tail_beam_id.ros.id_node``
+    prints, and its header names that command."""
     printed = subprocess.run(
-        [sys.executable, "-m", "tail_beam_sim.spec"],
+        [sys.executable, "-m", "tail_beam_sim.spec", ID_SECTIONS],
         capture_output=True,
         text=True,
         check=True,
         cwd=REPO,
     ).stdout
-    assert "python -m tail_beam_sim.spec > docs/parameters.md" in printed.split("##")[0]
+    command = f"python -m tail_beam_sim.spec {ID_SECTIONS} > docs/parameters.md"
+    assert command in printed.split("##")[0]
     assert "| `max_bag_size_bytes` | bytes |" in printed
     assert (REPO / "docs" / "parameters.md").read_text(encoding="utf-8") == printed
