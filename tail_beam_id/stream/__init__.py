@@ -2,4 +2,19 @@
 with their rebounds, each decided once and labelled (the same code serves id_node and
 ``tail-beam identify``)."""
 
-__all__ = ["association", "buffers", "identifier", "label", "replay"]
+__all__ = [
+    "acceleration",
+    "association",
+    "buffers",
+    "camera_frame",
+    "channels",
+    "config",
+    "decision",
+    "detection",
+    "identifier",
+    "label",
+    "readiness",
+    "release",
+    "replay",
+    "retention",
+]
