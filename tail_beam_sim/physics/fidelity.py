@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from tail_beam_sim.config import load_parameters
-from tail_beam_sim.errors import InputError, require_range, require_section
+from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.contact import damping_factor, hertz_stiffness
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
@@ -51,6 +51,7 @@ from tail_beam_sim.physics.structure import (
     rigid_beam,
 )
 from tail_beam_sim.physics.support import Support
+from tail_beam_sim.spec import FIDELITY
 
 OUTPUTS = ("rebound", "contact", "pressure", "imu")
 PHASES = (0.0, 0.25, 0.5, 0.75)  # where, as a fraction of a sample period, an impulse may fall
@@ -132,7 +133,9 @@ class Needs:
                 sorted(chosen),
                 f"must be a non-empty subset of {', '.join(OUTPUTS)}",
             )
-        return cls(chosen, require_range("fidelity.tolerance", tolerance, 0.0, 1.0, low_open=True))
+        return cls(
+            chosen, FIDELITY.check({"tolerance": tolerance}, only=("tolerance",))["tolerance"]
+        )
 
 
 @dataclass(frozen=True)
@@ -147,21 +150,12 @@ class FidelitySettings:
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> FidelitySettings:
-        section = require_section("fidelity", params.get("fidelity"))
-        tier = section.get("tier", "auto")
-        if tier not in TIER_CHOICES:
-            raise InputError("fidelity.tier", tier, f"must be one of {', '.join(TIER_CHOICES)}")
+        values = FIDELITY.check(params.get("fidelity"))
         return cls(
-            tier=tier,
-            needs=Needs.of(section.get("outputs", OUTPUTS), section.get("tolerance", 0.01)),
+            tier=values["tier"],
+            needs=Needs.of(values["outputs"], values["tolerance"]),
             modes=load_bending_modes(params),
-            crushing_confinement_factor=require_range(
-                "fidelity.crushing_confinement_factor",
-                section.get("crushing_confinement_factor", 3.0),
-                0.0,
-                100.0,
-                low_open=True,
-            ),
+            crushing_confinement_factor=values["crushing_confinement_factor"],
         )
 
 

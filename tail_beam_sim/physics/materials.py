@@ -9,9 +9,9 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.spec import MATERIAL
 
-MATERIAL_CLASSES = ("coal", "gangue", "structure")
 Number = TypeVar("Number", float, np.ndarray)
 
 
@@ -48,52 +48,13 @@ class Material:
         field = f"materials.{name}"
         if not isinstance(params, Mapping):
             raise InputError(field, params, "must be a mapping of material properties")
-        material_class = params.get("class")
-        if material_class not in MATERIAL_CLASSES:
-            raise InputError(
-                f"{field}.class", material_class, f"must be one of {MATERIAL_CLASSES}"
-            )
-        low_high = params.get(
-            "restitution_range", [params.get("restitution"), params.get("restitution")]
-        )
-        if not isinstance(low_high, (list, tuple)) or len(low_high) != 2:
-            raise InputError(f"{field}.restitution_range", low_high, "must be [low, high]")
-        low = require_range(f"{field}.restitution_range[0]", low_high[0], 0.0, 1.0, low_open=True)
-        high = require_range(f"{field}.restitution_range[1]", low_high[1], low, 1.0)
+        values = MATERIAL.check(params, where=field)
+        low_high = values.pop("restitution_range") or (values["restitution"],) * 2
         return cls(
             name=name,
-            material_class=str(material_class),
-            density_kgpm3=require_range(
-                f"{field}.density_kgpm3",
-                params.get("density_kgpm3"),
-                0.0,
-                30000.0,
-                low_open=True,
-                unit="kg/m^3",
-            ),
-            youngs_modulus_pa=require_range(
-                f"{field}.youngs_modulus_pa",
-                params.get("youngs_modulus_pa"),
-                0.0,
-                2e12,
-                low_open=True,
-                unit="Pa",
-            ),
-            poisson_ratio=require_range(
-                f"{field}.poisson_ratio", params.get("poisson_ratio"), -1.0, 0.5, low_open=True
-            ),
-            restitution=require_range(
-                f"{field}.restitution", params.get("restitution"), 0.0, 1.0, low_open=True
-            ),
-            restitution_range=(low, high),
-            crushing_strength_pa=require_range(
-                f"{field}.crushing_strength_pa",
-                params.get("crushing_strength_pa", 1e12),
-                0.0,
-                None,
-                low_open=True,
-                unit="Pa",
-            ),
+            material_class=values.pop("class"),
+            restitution_range=low_high,
+            **values,
         )
 
 

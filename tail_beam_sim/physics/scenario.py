@@ -17,13 +17,14 @@ import numpy as np
 import yaml
 
 from tail_beam_sim.config import default_config_dir
-from tail_beam_sim.errors import InputError, require_int, require_range
+from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.materials import Material
 from tail_beam_sim.physics.scene import Impact
 from tail_beam_sim.physics.support import Support
+from tail_beam_sim.spec import SCENARIO
 
-SOURCES = ("none", "file", "generated")
-MAX_GENERATED = 100_000
+SOURCES = SCENARIO["source"].choices
+MAX_GENERATED = SCENARIO["count"].high
 
 
 @dataclass(frozen=True)
@@ -119,15 +120,17 @@ def read_scenario_file(
     return planned
 
 
-def _range(
-    params: Mapping[str, Any], name: str, low: float, high: float | None, unit: str
-) -> tuple[float, float]:
-    value = params.get(name)
-    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 2:
-        raise InputError(f"scenario.{name}", value, f"must be [low, high] in {unit}")
-    lo = require_range(f"scenario.{name}[0]", value[0], low, high, low_open=True, unit=unit)
-    hi = require_range(f"scenario.{name}[1]", value[1], lo, high, unit=unit)
-    return lo, hi
+# The fields of the scenario section a generated stream reads.
+GENERATED_FIELDS = (
+    "count",
+    "gangue_fraction",
+    "radius_m",
+    "drop_height_m",
+    "position_m",
+    "interval_s",
+    "start_s",
+    "seed",
+)
 
 
 def generate_caving_stream(
@@ -141,20 +144,18 @@ def generate_caving_stream(
     ``restitution_range``, the time between contacts uniform in ``interval_s``. The support,
     when given, bounds the ranges (every impact is validated against it by :func:`load_scenario`).
     """
-    count = params.get("count")
-    require_int("scenario.count", count, 0, MAX_GENERATED)
-    seed = params.get("seed", 0)
-    require_int("scenario.seed", seed, 0)
-    fraction = require_range("scenario.gangue_fraction", params.get("gangue_fraction"), 0.0, 1.0)
-    radius = _range(
-        params, "radius_m", 0.0, support.particle_radius_max_m if support else None, "m"
+    bounds = (
+        {
+            "particle_radius_max_m": support.particle_radius_max_m,
+            "drop_height_max_m": support.drop_height_max_m,
+        }
+        if support
+        else {}
     )
-    height = _range(
-        params, "drop_height_m", 0.0, support.drop_height_max_m if support else None, "m"
-    )
-    position = _range(params, "position_m", 0.0, None, "m")
-    interval = _range(params, "interval_s", 0.0, 3600.0, "s")
-    start = require_range("scenario.start_s", params.get("start_s", 0.0), 0.0, None, unit="s")
+    values = SCENARIO.check(params, only=GENERATED_FIELDS, context=bounds)
+    count, seed, fraction = values["count"], values["seed"], values["gangue_fraction"]
+    radius, height = values["radius_m"], values["drop_height_m"]
+    position, interval, start = values["position_m"], values["interval_s"], values["start_s"]
     coal = sorted(name for name, m in materials.items() if m.material_class == "coal")
     gangue = sorted(name for name, m in materials.items() if m.material_class == "gangue")
     if (fraction < 1.0 and not coal) or (fraction > 0.0 and not gangue):

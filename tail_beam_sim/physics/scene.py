@@ -11,8 +11,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
-from tail_beam_sim.errors import InputError, require_int, require_range
-from tail_beam_sim.physics.contact import CONTACT_LAWS, DEFAULT_CONTACT_LAW
+from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.physics.contact import DEFAULT_CONTACT_LAW
 from tail_beam_sim.physics.materials import (
     Material,
     material_table,
@@ -20,6 +20,7 @@ from tail_beam_sim.physics.materials import (
     sphere_mass_kg,
 )
 from tail_beam_sim.physics.support import Support
+from tail_beam_sim.spec import SCENE, SENSORS
 
 MAX_IMPACT_ID_CHARS = (
     128  # docs/interface.md: an impact_id is a printable string of 1..128 characters
@@ -224,124 +225,7 @@ class SensorSpec:
         if not isinstance(params, Mapping):
             raise InputError("sensors", params, "missing parameter section")
 
-        def rate(name: str) -> float:
-            return require_range(f"sensors.{name}", params.get(name), 1.0, 1e6, unit="Hz")
-
-        def noise(name: str, unit: str) -> float:
-            return require_range(f"sensors.{name}", params.get(name), 0.0, None, unit=unit)
-
-        seed = params.get("seed", 0)
-        require_int("sensors.seed", seed, 0)
-        low = require_range(
-            "sensors.pressure_range_min_pa", params.get("pressure_range_min_pa"), unit="Pa"
-        )
-        return cls(
-            seed=seed,
-            pressure_rate_hz=rate("pressure_rate_hz"),
-            pressure_noise_pa=noise("pressure_noise_pa", "Pa"),
-            pressure_range_min_pa=low,
-            pressure_range_max_pa=require_range(
-                "sensors.pressure_range_max_pa",
-                params.get("pressure_range_max_pa"),
-                low,
-                None,
-                low_open=True,
-                unit="Pa",
-            ),
-            imu_rate_hz=rate("imu_rate_hz"),
-            imu_noise_nominal_rate_hz=rate("imu_noise_nominal_rate_hz"),
-            imu_accel_noise_mps2=noise("imu_accel_noise_mps2", "m/s^2"),
-            imu_gyro_noise_radps=noise("imu_gyro_noise_radps", "rad/s"),
-            camera_frame_rate_hz=rate("camera_frame_rate_hz"),
-            camera_velocity_noise_mps=noise("camera_velocity_noise_mps", "m/s"),
-            camera_velocity_noise_fraction=require_range(
-                "sensors.camera_velocity_noise_fraction",
-                params.get("camera_velocity_noise_fraction"),
-                0.0,
-                1.0,
-            ),
-            **_vibration_params(params),
-            **_imu_filter_params(params),
-        )
-
-
-def _integer(name: str, value: Any, low: int, high: int) -> int:
-    """An integer parameter in [low, high], or InputError naming it."""
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, float))
-        or value != int(value)
-        or not low <= value <= high
-    ):
-        raise InputError(f"sensors.{name}", value, f"must be an integer in [{low}, {high}]")
-    return int(value)
-
-
-def _vibration_params(params: Mapping[str, Any]) -> dict[str, Any]:
-    """The accelerometer's values of the ``sensors`` section (defaults where absent)."""
-    out: dict[str, Any] = {}
-    if "vibration_rate_hz" in params:
-        out["vibration_rate_hz"] = require_range(
-            "sensors.vibration_rate_hz", params["vibration_rate_hz"], 1000.0, 100000.0, unit="Hz"
-        )
-    if "vibration_block_samples" in params:
-        out["vibration_block_samples"] = _integer(
-            "vibration_block_samples", params["vibration_block_samples"], 1, 65536
-        )
-    if "vibration_noise_density_mps2_rthz" in params:
-        out["vibration_noise_density_mps2_rthz"] = require_range(
-            "sensors.vibration_noise_density_mps2_rthz",
-            params["vibration_noise_density_mps2_rthz"],
-            0.0,
-            None,
-            unit="m/s^2/sqrt(Hz)",
-        )
-    if "vibration_range_mps2" in params:
-        out["vibration_range_mps2"] = require_range(
-            "sensors.vibration_range_mps2",
-            params["vibration_range_mps2"],
-            0.0,
-            1e6,
-            low_open=True,
-            unit="m/s^2",
-        )
-    if "vibration_antialias_order" in params:
-        out["vibration_antialias_order"] = _integer(
-            "vibration_antialias_order", params["vibration_antialias_order"], 1, 10
-        )
-    if "vibration_antialias_cutoff_fraction" in params:
-        out["vibration_antialias_cutoff_fraction"] = require_range(
-            "sensors.vibration_antialias_cutoff_fraction",
-            params["vibration_antialias_cutoff_fraction"],
-            0.0,
-            0.5,
-            low_open=True,
-        )
-    if "vibration_oversample" in params:
-        out["vibration_oversample"] = _integer(
-            "vibration_oversample", params["vibration_oversample"], 2, 32
-        )
-    return out
-
-
-def _imu_filter_params(params: Mapping[str, Any]) -> dict[str, Any]:
-    """The IMU's sampling filter in the ``sensors`` section (defaults where absent)."""
-    out: dict[str, Any] = {}
-    if "imu_antialias_order" in params:
-        out["imu_antialias_order"] = _integer(
-            "imu_antialias_order", params["imu_antialias_order"], 0, 10
-        )
-    if "imu_antialias_cutoff_fraction" in params:
-        out["imu_antialias_cutoff_fraction"] = require_range(
-            "sensors.imu_antialias_cutoff_fraction",
-            params["imu_antialias_cutoff_fraction"],
-            0.0,
-            0.5,
-            low_open=True,
-        )
-    if "imu_oversample" in params:
-        out["imu_oversample"] = _integer("imu_oversample", params["imu_oversample"], 2, 32)
-    return out
+        return cls(**SENSORS.check(params))
 
 
 @dataclass(frozen=True)
@@ -387,21 +271,14 @@ class Scene:
             support,
             text_numbers=True,
         )
-        contact_model = scene_params.get("contact_model", DEFAULT_CONTACT_LAW)
-        if contact_model not in CONTACT_LAWS:
-            raise InputError(
-                "contact_model", contact_model, f"must be one of {', '.join(CONTACT_LAWS)}"
-            )
+        # Named without the section: these values may come from a command line.
+        scene = SCENE.check(
+            scene_params, where="", only=("contact_model", "window_s", "pre_contact_s")
+        )
         return cls(
             support=support,
             impact=impact,
             sensors=SensorSpec.from_params(sensor_params),
             materials=materials,
-            contact_model=contact_model,
-            window_s=require_range(
-                "window_s", scene_params.get("window_s", 0.05), 0.0, 10.0, low_open=True, unit="s"
-            ),
-            pre_contact_s=require_range(
-                "pre_contact_s", scene_params.get("pre_contact_s", 0.005), 0.0, 10.0, unit="s"
-            ),
+            **scene,
         )

@@ -34,8 +34,7 @@ from typing import Any
 import numpy as np
 
 from tail_beam_sim.config import section
-from tail_beam_sim.errors import InputError, require_int, require_range
-from tail_beam_sim.physics.contact import CONTACT_LAWS
+from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.fidelity import DEFAULT_TIER, get_tier, structure_for
 from tail_beam_sim.physics.materials import Material, material_table
 from tail_beam_sim.physics.result import impact_truth
@@ -58,6 +57,7 @@ from tail_beam_sim.physics.solvers import DEFAULT_SOLVER, ImpactProblem, Samples
 from tail_beam_sim.physics.solvers.problem import FreeSegment
 from tail_beam_sim.physics.structure import LinearStructure, load_bending_modes, rigid_beam
 from tail_beam_sim.physics.support import Support
+from tail_beam_sim.spec import SCENE, STREAM
 
 NOISE_BLOCK_SAMPLES = 4096  # noise is drawn per block of this many sample indices (any size works)
 _PRESSURE_NOISE_STREAM, _IMU_NOISE_STREAM, _VIBRATION_NOISE_STREAM = (
@@ -71,6 +71,9 @@ class QueueFull(InputError):
     """An impact refused because ``stream.max_queued_impacts`` impacts are already waiting."""
 
 
+STREAM_FIELDS = ("min_impact_gap_s", "command_lead_s", "max_queued_impacts")  # StreamParams
+
+
 @dataclass(frozen=True)
 class StreamParams:
     """Timing of the stream (s) and the bound of its impact queue."""
@@ -82,22 +85,7 @@ class StreamParams:
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> StreamParams:
         """Validate the ``stream`` parameter section."""
-        return cls(
-            min_impact_gap_s=require_range(
-                "stream.min_impact_gap_s", params.get("min_impact_gap_s"), 0.0, 60.0, unit="s"
-            ),
-            command_lead_s=require_range(
-                "stream.command_lead_s",
-                params.get("command_lead_s"),
-                0.0,
-                60.0,
-                low_open=True,
-                unit="s",
-            ),
-            max_queued_impacts=require_int(
-                "stream.max_queued_impacts", params.get("max_queued_impacts"), 1
-            ),
-        )
+        return cls(**STREAM.check(params, only=STREAM_FIELDS))
 
 
 @dataclass
@@ -293,21 +281,13 @@ class StreamSimulator:
         materials = material_table(params)
         support = Support.from_params(section(params, "support"), materials)
         tier = get_tier(section(params, "stream").get("tier", DEFAULT_TIER))
-        scene = section(params, "scene")
-        contact_model = scene.get("contact_model")
-        if contact_model not in CONTACT_LAWS:
-            raise InputError(
-                "scene.contact_model", contact_model, f"must be one of {', '.join(CONTACT_LAWS)}"
-            )
+        scene = SCENE.check(section(params, "scene"), only=("contact_model", "window_s"))
         return cls(
             support=support,
             materials=materials,
             sensors=SensorSpec.from_params(section(params, "sensors")),
             stream=StreamParams.from_params(section(params, "stream")),
-            contact_model=contact_model,
-            window_s=require_range(
-                "scene.window_s", scene.get("window_s"), 0.0, 10.0, low_open=True, unit="s"
-            ),
+            **scene,
             structure=structure_for(tier, support, load_bending_modes(params)),
             solver=tier.default_solver,
             **options,

@@ -28,8 +28,9 @@ from typing import Any
 import numpy as np
 from scipy.linalg import eigh
 
-from tail_beam_sim.errors import InputError, require_int, require_range
+from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.support import Support
+from tail_beam_sim.spec import BENDING_MODE, MODES
 
 
 @dataclass(frozen=True)
@@ -221,6 +222,9 @@ class BendingMode:
         )
 
 
+MODE_FIELDS = ("frequency_hz", "damping_ratio", "modal_mass_kg", "rigid_coupling_kgm")  # numbers
+
+
 def load_bending_modes(params: Mapping[str, Any]) -> tuple[BendingMode, ...]:
     """The first ``modes.count`` bending modes of the ``modes`` parameter section."""
     section = params.get("modes")
@@ -229,8 +233,11 @@ def load_bending_modes(params: Mapping[str, Any]) -> tuple[BendingMode, ...]:
     names = sorted(
         (k for k in section if k.startswith("bending_")), key=lambda k: int(k.split("_")[1])
     )
-    count = section.get("count", len(names))
-    require_int("modes.count", count, 0, len(names))
+    count = MODES.check(
+        {"count": section.get("count", len(names))},
+        only=("count",),
+        context={"bending_modes": len(names)},
+    )["count"]
     stations = np.asarray(section.get("stations_m", []), dtype=float)
     if stations.ndim != 1 or stations.size < 2 or np.any(np.diff(stations) <= 0):
         raise InputError(
@@ -251,28 +258,7 @@ def load_bending_modes(params: Mapping[str, Any]) -> tuple[BendingMode, ...]:
         modes.append(
             BendingMode(
                 name=name,
-                frequency_hz=require_range(
-                    f"{field_}.frequency_hz",
-                    body.get("frequency_hz"),
-                    0.0,
-                    None,
-                    low_open=True,
-                    unit="Hz",
-                ),
-                damping_ratio=require_range(
-                    f"{field_}.damping_ratio", body.get("damping_ratio"), 0.0, 1.0
-                ),
-                modal_mass_kg=require_range(
-                    f"{field_}.modal_mass_kg",
-                    body.get("modal_mass_kg"),
-                    0.0,
-                    None,
-                    low_open=True,
-                    unit="kg",
-                ),
-                rigid_coupling_kgm=require_range(
-                    f"{field_}.rigid_coupling_kgm", body.get("rigid_coupling_kgm"), unit="kg m"
-                ),
+                **BENDING_MODE.check(body, where=field_, only=MODE_FIELDS),
                 stations_m=stations,
                 shape=shape,
                 slope_radpm=slope,

@@ -9,6 +9,7 @@ from typing import Any
 
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.materials import Material
+from tail_beam_sim.spec import SUPPORT
 
 
 @dataclass(frozen=True)
@@ -112,65 +113,14 @@ class Support:
         if not isinstance(params, Mapping):
             raise InputError("support", params, "missing parameter section")
 
-        def get(
-            name: str, low: float | None, high: float | None, unit: str, low_open: bool = True
-        ) -> float:
-            if name not in params:
-                raise InputError(f"support.{name}", None, "missing from the config")
-            return require_range(
-                f"support.{name}", params[name], low, high, low_open=low_open, unit=unit
-            )
-
-        def limits(name: str, suffix: str, unit: str) -> dict[str, float]:
-            low = get(f"{name}_min_{suffix}", 0.0, None, unit)
-            return {
-                f"{name}_min_{suffix}": low,
-                f"{name}_max_{suffix}": get(
-                    f"{name}_max_{suffix}", low, None, unit, low_open=False
-                ),
-            }
-
         plate_name = params.get("plate_material")
         if plate_name not in materials:
             raise InputError(
                 "support.plate_material", plate_name, f"must be one of {sorted(materials)}"
             )
-        length = get("beam_length_m", 0.0, 20.0, "m")
-        support = cls(
-            gravity_mps2=get("gravity_mps2", 0.0, 100.0, "m/s^2", low_open=False),
-            beam_length_m=length,
-            beam_mass_kg=get("beam_mass_kg", 0.0, None, "kg"),
-            beam_inertia_about_hinge_kgm2=get(
-                "beam_inertia_about_hinge_kgm2", 0.0, None, "kg m^2"
-            ),
-            plate=materials[plate_name],
-            plate_thickness_m=get("plate_thickness_m", 0.0, 1.0, "m"),
-            jack_pin_from_hinge_m=get("jack_pin_from_hinge_m", 0.0, length, "m"),
-            jack_angle_to_beam_deg=get("jack_angle_to_beam_deg", 0.0, 90.0, "deg"),
-            jack_bore_m=get("jack_bore_m", 0.0, 2.0, "m"),
-            jack_oil_column_m=get("jack_oil_column_m", 0.0, 10.0, "m"),
-            jack_wall_thickness_m=get("jack_wall_thickness_m", 0.0, 1.0, "m"),
-            jack_wall_youngs_modulus_pa=get("jack_wall_youngs_modulus_pa", 0.0, None, "Pa"),
-            oil_bulk_modulus_pa=get("oil_bulk_modulus_pa", 0.0, None, "Pa"),
-            jack_damping_nspm=get("jack_damping_nspm", 0.0, None, "N s/m", low_open=False),
-            jack_extra_compliance_mpn=get(
-                "jack_extra_compliance_mpn", 0.0, None, "m/N", low_open=False
-            ),
-            setting_pressure_pa=get("setting_pressure_pa", 0.0, None, "Pa", low_open=False),
-            imu_from_hinge_m=get("imu_from_hinge_m", 0.0, length, "m", low_open=False),
-            impact_zone_min_m=get("impact_zone_min_m", 0.0, length, "m", low_open=False),
-            impact_zone_max_m=get("impact_zone_max_m", 0.0, length, "m", low_open=False),
-            **limits("particle_radius", "m", "m"),
-            **limits("drop_height", "m", "m"),
-            **limits("impact_speed", "mps", "m/s"),
-            contact_damping_scale=require_range(
-                "support.contact_damping_scale",
-                params.get("contact_damping_scale", 1.0),
-                0.1,
-                10.0,
-                unit="(dimensionless)",
-            ),
-        )
+        values = SUPPORT.check(params)
+        values["plate"] = materials[values.pop("plate_material")]
+        support = cls(**values)
         if support.impact_zone_min_m > support.impact_zone_max_m:
             raise InputError(
                 "support.impact_zone_min_m",
