@@ -372,9 +372,8 @@ class StatisticalMethod:
         The delay from onset to camera stamp is the contact duration plus the camera's lag,
         uniform over its frame period P. The network learnt it with the training's cameras,
         whose lag is about half the reference frame P0; so each row moves the delay by
-        P0/2 - u for u over (0, min(P, delay)), and the decision averages the rows' probabilities: a 1 kHz
-        camera's impact is no longer read as a contact up to 1 ms long (a foreign set's 1 kHz
-        camera: 61.5 % with 49 of 200 wrong at >= 0.9 when it was)."""
+        P0/2 - u for u over (0, min(P, delay)), and the decision averages the rows'
+        probabilities, so that a 1 kHz camera's lag is not read as a contact up to 1 ms long."""
         x = base_vector(features, names)
         period = features.get("camera_frame_period_s")
         column = next((k for k, (name, _) in enumerate(names) if name == "rebound_delay_s"), None)

@@ -2,9 +2,9 @@
 
 Why: the time from the pulse's onset to the camera's end-of-contact stamp carries the contact
 duration (the particle's stiffness and mass), but up to one camera frame (0.2 ms at 5 kHz) of
-lag blurs it, as long as a 25 mm particle's whole contact. Given the true duration, networks
-like the statistical method's labelled the paper scene 100 % and the stream scene 99.7-100 %
-instead of 91 % and 93 % (``test/bench/bench_contact.py``). A tail-beam accelerometer at
+lag blurs it, as long as a 25 mm particle's whole contact; the duration itself tells coal from
+gangue far better (``test/bench/bench_contact.py`` measures by how much). A tail-beam
+accelerometer at
 10-50 kHz samples the contact several times; what it reads is the contact force passed through
 the beam: directly (the rigid beam's acceleration is the force's moment over its inertia) and
 through each bending mode, which goes on ringing after the particle has left.

@@ -518,9 +518,9 @@ class PulseDetector:
         sample index: a constant plus the beam's free sway (cosine and sine at its frequency)
         fitted over ``sway_window_s`` before ``lo``. After a large impact the beam sways for
         seconds; within the look-back and the contact the sway curves, and a straight line
-        fitted before it leaves it by many noise RMS (the onset was found a sample or more
-        early), while a quadratic extrapolates the noise too far. Without a known sway
-        frequency, or too few clean samples, a straight line over the baseline as before."""
+        fitted before it leaves it by many noise RMS (an onset a sample or more early), while a
+        quadratic extrapolates the noise too far. Without a known sway frequency, or too few
+        clean samples: a straight line over the baseline window."""
         c = self.config
         reach = max(baseline, int(round(c.sway_window_s / period)))
         start = max(lo - reach, 0)

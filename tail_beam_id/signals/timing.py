@@ -129,6 +129,7 @@ def judge(checked: int, unusual: int, config: TimingConfig) -> bool:
     unusual with probability agreeing_rate (at 3 % and 0.001: 4 of 10, 5 of 20, 7 of 40)."""
     if checked < config.min_impacts or unusual <= 0:
         return False
-    # bdtrc(k - 1, n, p) = P(X >= k) for X ~ Binomial(n, p): scipy.stats.binom.sf's value at
-    # about 1 us instead of 80 (it runs once per impact until the recording is judged suspect).
+    # bdtrc(k - 1, n, p) = P(X >= k) for X ~ Binomial(n, p): scipy.stats.binom.sf's value
+    # without its distribution object's overhead (it runs once per impact until the recording
+    # is judged suspect).
     return float(bdtrc(unusual - 1, checked, config.agreeing_rate)) < config.false_alarm

@@ -336,8 +336,8 @@ def fit_size_temperature(
     on held-out impacts: a temperature that grows as the impact gets smaller (``log_size``: the
     log of its moment impulse; ``reference``: the training median of it). A small particle's
     contact is shorter than what the camera's frame resolves, so the features that tell coal
-    from gangue are least sure there; one temperature for all made the small ones overconfident
-    on supports no training saw (issue 9: wrong at confidence >= 0.9)."""
+    from gangue are least sure there; one temperature for all would make the small ones
+    overconfident on supports no training saw."""
     du = reference - log_size
 
     def loss(p: np.ndarray) -> float:
@@ -468,9 +468,9 @@ def fit_subset(
 ) -> dict[str, Any]:
     """Standardise, fit the logistic weights on the training impacts, the temperature on the
     held-out impacts of drawn supports: each struck a support no training impact struck, as a
-    user's support is one the model never saw (issue 9: probabilities calibrated on unseen
-    supports; the nominal support's own held-out impacts would make it surer than it has a
-    right to be elsewhere). All held-out impacts when fewer than MIN_UNSEEN_IMPACTS are."""
+    user's support is one the model never saw (probabilities calibrated on unseen supports;
+    the nominal support's own held-out impacts would make it surer than it has a right to be
+    elsewhere). All held-out impacts when fewer than MIN_UNSEEN_IMPACTS are."""
     base = np.array([base_vector(r.label.features, names) for r in records])
     y = np.array([1.0 if r.is_coal else 0.0 for r in records])
     train = np.array([(r.scene_set, r.index) not in held for r in records])

@@ -19,9 +19,9 @@ vibration samples missing from the running index, and the middleware's message-l
 Like rosbag2, it subscribes to the event topics (rebound_velocity, impact_truth, label) with
 the durability their publishers offer: transient-local when every publisher offers it (the
 suite's nodes do), so that the events published before the recorder matched them are in the
-bag too (a label published in the moment before was lost); volatile as soon as one publisher
-does not, since a transient-local subscription would not match it. An event delivered twice
-across such a switch is written once.
+bag too (a label published in the moment before the match included); volatile as soon as one
+publisher does not, since a transient-local subscription would not match it. An event
+delivered twice across such a switch is written once.
 """
 
 from __future__ import annotations
