@@ -27,7 +27,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 MARK = "<!-- make_docs:"  # a page's state for the index: "ok, quick, 1.5 min"
-PNG_LIMIT_BYTES = 250_000  # a chart larger than this is stored with a 256-colour palette
+PNG_LIMIT_BYTES = 250_000
+GENERATED = (
+    ":(exclude)docs/results/*.md",
+    ":(exclude)docs/*.png",
+)  # left out of "dirty"  # a chart larger than this is stored with a 256-colour palette
 
 
 @dataclass(frozen=True)
@@ -185,7 +189,8 @@ class Outcome:
 
 
 def commit(root: Path) -> str:
-    """``git rev-parse --short HEAD`` of ``root``, plus `` dirty`` when its tree has changes."""
+    """``git rev-parse --short HEAD`` of ``root``, plus `` dirty`` when its tree has changes
+    other than the pages and charts this script writes."""
     try:
         head = subprocess.run(
             ["git", "rev-parse", "--short", "HEAD"],
@@ -195,7 +200,7 @@ def commit(root: Path) -> str:
             check=True,
         ).stdout.strip()
         status = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
+            ["git", "status", "--porcelain", "--untracked-files=no", "--", ".", *GENERATED],
             cwd=root,
             capture_output=True,
             text=True,
@@ -361,17 +366,23 @@ def index(outcomes: Sequence[Outcome], results: Path, quick: bool) -> str:
         "python test/bench/make_docs.py --only FAMILY    # one family (comma-separated for more)",
         "```",
         "",
-        f"The full run takes about {total:.0f} minutes on a 2-core machine (the node benchmarks "
-        "need ROS 2); `--quick` about a quarter of that. It also rewrites the charts in docs/.",
+        f"The full run takes about {total:.0f} minutes on a 2-core machine (an estimate from each "
+        "family's sizing; the last column gives the time each page's run took), `--quick` about "
+        "a quarter of that; the node families need ROS 2. It also rewrites the charts in docs/.",
         "",
         "| page | what it measures | last run |",
         "| --- | --- | --- |",
     ]
-    extra = [o.family for o in outcomes if o.family not in FAMILIES]
-    for family in [*FAMILIES, *extra]:
+    listed = [*FAMILIES, *(o.family for o in outcomes if o.family not in FAMILIES)]
+    for family in listed:
         path = results / f"{family.name}.md"
         state = _state(ran[family.name], quick) if family.name in ran else _state_of(path)
         lines.append(f"| [{family.name}]({family.name}.md) | {family.summary} | {state} |")
+    others = sorted(
+        p.name for p in results.glob("*.md") if p.stem not in {"README", *(f.name for f in listed)}
+    )
+    if others:
+        lines += ["", "Not written by this script: " + ", ".join(f"[{n}]({n})" for n in others)]
     return "\n".join(lines) + "\n"
 
 

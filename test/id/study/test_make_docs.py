@@ -124,3 +124,35 @@ def test_unknown_family_is_refused_by_name(make_docs, capsys):
         make_docs.main(["--only", "solvers,nosuch"])
     err = capsys.readouterr().err
     assert "nosuch" in err and "identification" in err
+
+
+def test_commit_is_dirty_for_changed_code_but_not_for_its_own_pages(make_docs, tmp_path):
+    """The commit header says dirty when a tracked file other than docs/results/*.md and
+    docs/*.png differs from HEAD, and not for those, which the script itself rewrites."""
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
+    (tmp_path / "docs" / "results").mkdir(parents=True)
+    for name in ("code.py", "docs/results/solvers.md", "docs/chart.png"):
+        (tmp_path / name).write_text("old\n")
+    subprocess.run([*git, "init", "-q"], check=True)
+    subprocess.run([*git, "add", "."], check=True)
+    subprocess.run([*git, "commit", "-q", "-m", "c"], check=True)
+    clean = make_docs.commit(tmp_path)
+    assert len(clean) >= 7 and "dirty" not in clean
+    (tmp_path / "docs" / "results" / "solvers.md").write_text("new\n")
+    (tmp_path / "docs" / "chart.png").write_text("new\n")
+    assert make_docs.commit(tmp_path) == clean
+    (tmp_path / "code.py").write_text("new\n")
+    assert make_docs.commit(tmp_path) == f"{clean} dirty"
+
+
+def test_index_links_pages_the_script_does_not_write(make_docs, tmp_path):
+    """Other pages in docs/results/ (an archive kept by hand) are linked from the index as not
+    written by the script."""
+    family = _family(make_docs, tmp_path)
+    docs = tmp_path / "docs"
+    (docs / "results").mkdir(parents=True)
+    (docs / "results" / "archive.md").write_text("# Archived figures\n")
+    make_docs.generate([family], True, ROOT, tmp_path / "work", docs)
+    index = (docs / "results" / "README.md").read_text()
+    assert "Not written by this script: [archive.md](archive.md)" in index
+    assert "[fake.md]" not in index.split("Not written by this script")[1]
