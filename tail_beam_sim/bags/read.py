@@ -31,6 +31,10 @@ SENSOR_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.REBOUND_VELOCITY)
 # The streams the identifier labels from: any one of them makes a bag identifiable (a support
 # without a camera, or with the accelerometer and the camera only, is labelled as id_node does).
 IDENTIFY_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION, topics.REBOUND_VELOCITY)
+# The continuous streams: their stamps set a recording's time base (id_node's arrival gate).
+CONTINUOUS_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION)
+# Where an event's JSON says when it happened.
+EVENT_STAMPS = {topics.IMPACT_TRUTH: "contact_start_stamp", topics.LABEL: "impact_stamp"}
 TIME_JUMP_S = 1.0  # stamps back by more than this on a stream: a new time base (id_node.time_jump_s's default)
 _REPAIR_HINT = "run `tail-beam bag repair PATH` to recover what was written"
 
@@ -386,53 +390,158 @@ def _read(
     """The bag's messages decoded into runs (one per time base), the namespace read, the first
     time jump of each topic (log time s, stamps back by s), whether the bag is partial and the
     messages set aside."""
-    aside = SetAside()
-    runs = [_Run()]
-    chosen = "/"
-    latest: dict[str, float] = {}
-    run_of: dict[str, int] = {}  # per sensor topic, the run its messages go to
-    jumps: dict[str, tuple[float, float]] = {}
+    reader = _Sorter()
     for raw in raw_messages(path, None, required, namespace, any_of):
         if raw.topic not in topics.MSG_TYPES:
             continue
-        chosen = topics.namespace_of(raw.full_topic)
-        msg = TYPESTORE.deserialize_cdr(raw.data, raw.msgtype)
-        index = max(run_of.values(), default=0)  # a JSON topic's message: the newest run
-        if raw.topic in SENSOR_TOPICS or raw.topic == topics.VIBRATION:
-            # In recorded order, a stream whose stamps go back by more than TIME_JUMP_S started a
-            # new time base (a restarted simulator, a looped replay): its messages from here on
-            # belong to its next run; the first jump per topic is noted.
-            stamp = _stamp(msg)
-            index = run_of.get(raw.topic, 0)
-            if stamp < latest.get(raw.topic, -math.inf) - TIME_JUMP_S:
-                jumps.setdefault(raw.topic, (raw.log_time_ns * 1e-9, latest[raw.topic] - stamp))
-                index += 1
-                latest[raw.topic] = stamp
-                if index == len(runs):
-                    runs.append(_Run())
-            latest[raw.topic] = max(stamp, latest.get(raw.topic, -math.inf))
-            run_of[raw.topic] = index
-        run = runs[index]
-        if raw.topic == topics.VIBRATION:
-            run.vibration.append(vibration_fields(msg))
-        elif raw.topic == topics.JACK_PRESSURE:
-            run.pressure.append((_stamp(msg), msg.fluid_pressure))
-        elif raw.topic == topics.IMU:
-            w, a = msg.angular_velocity, msg.linear_acceleration
-            run.imu.append((_stamp(msg), w.x, w.y, w.z, a.x, a.y, a.z))
-        elif raw.topic == topics.REBOUND_VELOCITY:
-            v = msg.twist.linear
-            run.rebounds.append((_stamp(msg), np.array([v.x, v.y, v.z])))
-        else:
-            value = _json(msg.data)
-            if value is None:
-                aside.add(raw.topic, "holds a number past the 4300-digit limit")
-            else:
-                run.json_topics[raw.topic].append(value)
-    for run in runs:
+        reader.chosen = topics.namespace_of(raw.full_topic)
+        reader.add(raw, TYPESTORE.deserialize_cdr(raw.data, raw.msgtype))
+    reader.finish()
+    for run in reader.runs:
         _check_index(run.vibration)
     partial = (Path(path) / PARTIAL_DIR).is_dir() and any((Path(path) / PARTIAL_DIR).iterdir())
-    return runs, chosen, jumps, partial, aside
+    return reader.runs, reader.chosen, reader.jumps, partial, reader.aside
+
+
+class _Sorter:
+    """Puts a bag's decoded messages, in recorded order, into runs (one per time base), setting
+    aside what id_node would not take, each counted by topic and reason:
+
+    * a continuous stream (jack pressure, IMU, vibration) whose stamps go back by more than
+      TIME_JUMP_S starts its next run (a restarted simulator, a looped replay);
+    * a message of a continuous stream stamped more than TIME_JUMP_S ahead of its own stream
+      and of the others (a clock gone wrong) is held: taken once another stream reaches it (a
+      new time base every stream moved to), set aside when its stream goes on before it or the
+      recording ends without another stream reaching it (a stream alone is taken as it is);
+    * an event (rebound, truth, label) goes to the newest run, and is set aside when it is
+      stamped before that run's first continuous sample: a recorder started late receives
+      transient-local events of impacts from before its recording;
+    * a message that cannot be taken at all (a vibration message carrying no block, JSON with
+      an integer past the digit limit) is set aside.
+    """
+
+    def __init__(self) -> None:
+        self.aside = SetAside()
+        self.runs = [_Run()]
+        self.chosen = "/"
+        self.jumps: dict[str, tuple[float, float]] = {}
+        self.latest: dict[str, float] = {}  # per continuous topic, the newest stamp taken
+        self.run_of: dict[str, int] = {}  # per continuous topic, the run its messages go to
+        self.held: dict[str, list[tuple[float, Any]]] = {}  # per topic: (stamp, decoded) ahead
+        self.events: list[list[tuple[str, float | None, Any]]] = [[]]  # per run, in order
+
+    def add(self, raw: RawMessage, msg: Any) -> None:
+        """One decoded message, in recorded order."""
+        if raw.topic in CONTINUOUS_TOPICS:
+            decoded = self._decode(raw.topic, msg)
+            if decoded is not None:
+                self._continuous(raw, _stamp(msg), decoded)
+            return
+        newest = max(self.run_of.values(), default=0)
+        if raw.topic == topics.REBOUND_VELOCITY:
+            v = msg.twist.linear
+            event = (_stamp(msg), np.array([v.x, v.y, v.z]))
+            self.events[newest].append((raw.topic, event[0], event))
+            return
+        value = _json(msg.data)
+        if value is None:
+            self.aside.add(raw.topic, "holds a number past the 4300-digit limit")
+            return
+        stamp = value.get(EVENT_STAMPS.get(raw.topic, ""))
+        finite = isinstance(stamp, (int, float)) and not isinstance(stamp, bool)
+        self.events[newest].append((raw.topic, float(stamp) if finite else None, value))
+
+    def _decode(self, topic: str, msg: Any) -> Any:
+        if topic == topics.JACK_PRESSURE:
+            return _stamp(msg), msg.fluid_pressure
+        if topic == topics.IMU:
+            w, a = msg.angular_velocity, msg.linear_acceleration
+            return _stamp(msg), w.x, w.y, w.z, a.x, a.y, a.z
+        try:
+            return vibration_fields(msg)
+        except InputError as exc:
+            self.aside.add(topic, f"carries no block ({exc.field} {exc.allowed})")
+            return None
+
+    def _continuous(self, raw: RawMessage, stamp: float, decoded: Any) -> None:
+        topic = raw.topic
+        held = self.held.get(topic)
+        if held:
+            if stamp >= held[0][0] - TIME_JUMP_S:
+                held.append((stamp, decoded))  # the run ahead goes on
+                return
+            self._set_aside_held(topic)  # its stream went on before it: a stamp gone wrong
+        latest = self.latest.get(topic, -math.inf)
+        if stamp < latest - TIME_JUMP_S:
+            self.jumps.setdefault(topic, (raw.log_time_ns * 1e-9, latest - stamp))
+            self.run_of[topic] = self.run_of.get(topic, 0) + 1
+            self.latest[topic] = stamp
+            if self.run_of[topic] == len(self.runs):
+                self.runs.append(_Run())
+                self.events.append([])
+        elif stamp > max(latest, self._reach(topic)) + TIME_JUMP_S:
+            self.held[topic] = [(stamp, decoded)]
+            return
+        self._take(topic, stamp, decoded)
+
+    def _reach(self, topic: str) -> float:
+        """The newest stamp the other continuous streams have taken or hold (-inf: none)."""
+        stamps = [s for name, s in self.latest.items() if name != topic]
+        stamps += [h[-1][0] for name, h in self.held.items() if name != topic and h]
+        return max(stamps, default=-math.inf)
+
+    def _take(self, topic: str, stamp: float, decoded: Any) -> None:
+        self.latest[topic] = max(stamp, self.latest.get(topic, -math.inf))
+        run = self.runs[self.run_of.setdefault(topic, 0)]
+        {
+            topics.JACK_PRESSURE: run.pressure,
+            topics.IMU: run.imu,
+            topics.VIBRATION: run.vibration,
+        }[topic].append(decoded)
+        # What another stream holds ahead is taken once this one reaches it.
+        for name, held in list(self.held.items()):
+            if name != topic and held and stamp >= held[0][0] - TIME_JUMP_S:
+                del self.held[name]
+                for item in held:
+                    self._take(name, *item)
+
+    def _set_aside_held(self, topic: str) -> None:
+        held = self.held.pop(topic, [])
+        if held:
+            self.aside.add(
+                topic,
+                f"stamped more than {TIME_JUMP_S:g} s ahead of the recording "
+                "(a stamp gone wrong; id_node sets it aside too)",
+                len(held),
+            )
+
+    def finish(self) -> None:
+        """The end of the recording: what is held ahead of the other streams is set aside (a
+        stream alone is taken as it is); the events go to their runs, those stamped before
+        their run's first continuous sample set aside."""
+        for topic in list(self.held):
+            others = any(name != topic for name in self.latest)
+            if others:
+                self._set_aside_held(topic)
+            else:
+                for item in self.held.pop(topic):
+                    self._take(topic, *item)
+        for run, events in zip(self.runs, self.events):
+            stamps = [min(r[0] for r in run.pressure)] if run.pressure else []
+            stamps += [min(r[0] for r in run.imu)] if run.imu else []
+            stamps += [min(v[1] for v in run.vibration)] if run.vibration else []
+            first = min(stamps, default=-math.inf)
+            for topic, stamp, value in events:
+                if stamp is not None and stamp < first:
+                    self.aside.add(
+                        topic,
+                        "stamped before the recording's first sensor sample (an event from "
+                        "before the recorder started)",
+                    )
+                elif topic == topics.REBOUND_VELOCITY:
+                    run.rebounds.append(value)
+                else:
+                    run.json_topics[topic].append(value)
 
 
 def _assemble(

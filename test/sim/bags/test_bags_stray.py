@@ -95,3 +95,39 @@ def test_an_integer_past_the_digit_limit_on_a_json_topic_costs_that_message(
     calibrated = run("calibrate", str(bag))
     assert calibrated.returncode == 0 and "Traceback" not in calibrated.stderr, calibrated.stderr
     assert "set aside" in calibrated.stderr
+
+
+def old_events(log_ns: int, count: int = 50) -> list:
+    """What a recorder started late receives from transient-local publishers at ``log_ns``:
+    ``count`` rebounds and truths of impacts the simulator ran 20 to 90 s before."""
+    out = []
+    for k in range(count):
+        stamp = 20.0 + 70.0 * k / count
+        topic, _, msg = bagio.rebound_msg(stamp + 0.005, [0.0, 0.3, 5.9])
+        out.append((topic, log_ns + 2 * k, serialized([(topic, 0, msg)])[0][2]))
+        truth = {"impact_id": f"old-{k}", "label": "gangue", "contact_start_stamp": stamp}
+        out.append(string_record(topics.IMPACT_TRUTH, log_ns + 2 * k + 1, json.dumps(truth)))
+    return out
+
+
+def test_events_from_before_a_late_recorder_started_are_set_aside_not_a_new_run(
+    tmp_path, coal_records, clean_labels
+):
+    """A recorder started while the simulator ran: 50 rebounds and 50 truths stamped 20 to 90 s,
+    delivered after the first sensor samples and the live impact's rebound, are set aside and
+    counted (not 'stamps go back', not a second run); the live impact is labelled once, as in
+    the clean recording, and no camera-only label comes from before the sensor data."""
+    rebound_log = next(ns for topic, ns, _ in coal_records if topic == topics.REBOUND_VELOCITY)
+    bag = write(
+        tmp_path / "bag", sorted(coal_records + old_events(rebound_log + 1), key=lambda r: r[1])
+    )
+    runs = read_runs(bag, required=(), any_of=(topics.JACK_PRESSURE,))
+    assert len(runs) == 1 and not runs[0].time_jumps
+    assert len(runs[0].rebounds) == 1 and len(runs[0].json_topics[topics.IMPACT_TRUTH]) == 1
+    assert sum(runs[0].set_aside.values()) == 100
+    result = run("identify", str(bag), "--no-calibrate")
+    assert kept(labels_of(result)) == clean_labels
+    assert "stamps go back" not in result.stderr
+    said = [line for line in result.stderr.splitlines() if "set aside" in line]
+    assert {line.split(": ")[1] for line in said} >= {"/ rebound_velocity", "/ impact_truth"}
+    assert "50 message(s)" in said[0], said
