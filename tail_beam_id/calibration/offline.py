@@ -13,16 +13,16 @@ read off its own signals:
   weighted least-squares ratio, over all the recording's impacts, of the moment the calibrated
   jack pressure saw to the velocity step the IMU saw (:func:`imu_gain`);
 - the beam's bending modes as the acceleration channel sees them ring after each impact (their
-  frequencies and damping, tail_beam_id.calibration.modes): the slowest one's decay time becomes the
-  detector's ``ring_decay_s``, so that a lightly damped beam's ringing is followed for as long
+  frequencies and damping, tail_beam_id.calibration.modes): the slowest one's decay time becomes
+  the detector's ``ring_decay_s``, so that a lightly damped beam's ringing is followed for as long
   as it lasts and a stiff, well damped beam's no longer than it does;
 - the camera's frame period, from the grid of all the recording's rebound stamps
-  (tail_beam_id.signals.camera): the identifier otherwise reads it from the stamps up to each impact,
-  and assumes config/'s camera until four rebounds have come, so a slow camera's first impacts
-  were decided as if its lag were a 5 kHz camera's;
-- the support's contact hysteresis (tail_beam_id.methods.hysteresis): which of the trained hysteresis
-  bins the recording's impacts, taken together, fit best (no labels: each bin's coal share is
-  fitted too), so that the statistical method decides each impact knowing it;
+  (tail_beam_id.signals.camera): the identifier otherwise reads it from the stamps up to each
+  impact, and assumes config/'s camera until four rebounds have come, so a slow camera's first
+  impacts were decided as if its lag were a 5 kHz camera's;
+- the support's contact hysteresis (tail_beam_id.methods.hysteresis): which of the trained
+  hysteresis bins the recording's impacts, taken together, fit best (no labels: each bin's coal
+  share is fitted too), so that the statistical method decides each impact knowing it;
 - the noise of each sensor.
 
 The result is a ROS 2 parameter file (``tail-beam calibrate BAG --out profile.yaml``) that
@@ -56,7 +56,8 @@ from tail_beam_sim.physics.support import Support
 SWAY_BAND_HZ = (5.0, 300.0)  # where the beam's sway on the jack can be (nominal 39 Hz)
 MIN_PEAK_RATIO = 8.0  # the sway peak must stand this far above the spectrum's median in the band
 # The spectrum's bins must be at most this fraction of the sway frequency found: a recording too
-# short to resolve it (one 55 ms impact put a 39.3 Hz sway at 37.2 Hz: 18 Hz bins) measures nothing.
+# short to resolve it (one 55 ms impact put a 39.3 Hz sway at 37.2 Hz: 18 Hz bins) measures
+# nothing.
 MAX_BIN_FRACTION = 0.05
 MIN_IMPACTS = 3  # impacts needed for the IMU gain
 GAIN_SIGMA = (
@@ -78,17 +79,20 @@ class SupportProfile:
     pressure_noise_pa: float | None
     imu_accel_noise_mps2: float | None
     # Impacts of the pass whose delay from onset to camera stamp the statistical method checked,
-    # and those it found unusual (tail_beam_id.signals.timing: too many, and the sensors' clocks may be
+    # and those it found unusual (tail_beam_id.signals.timing: too many, and the sensors' clocks
+    # may be
     # offset; the identifier then caps the labels that use the delay from the first one on).
     delay_checked_impacts: int | None = None
     delay_unusual_impacts: int | None = None
-    # The bending modes the impacts set ringing (tail_beam_id.calibration.modes), ascending: Hz and damping
+    # The bending modes the impacts set ringing (tail_beam_id.calibration.modes), ascending: Hz and
+    # damping
     # ratio; None when none could be measured (too few impacts, or the channel too slow).
     ringing_modes_hz: list[float] | None = None
     ringing_damping_ratios: list[float] | None = None
     # The camera's frame rate read from the grid of every rebound stamp, Hz; None without a grid.
     camera_frame_rate_hz: float | None = None
-    # The weight of each hysteresis bin of the statistical model (tail_beam_id.methods.hysteresis) and
+    # The weight of each hysteresis bin of the statistical model (tail_beam_id.methods.hysteresis)
+    # and
     # the impacts they rest on; None when too few impacts had every signal.
     hysteresis_weights: list[float] | None = None
     hysteresis_impacts: int | None = None
@@ -107,7 +111,8 @@ class SupportProfile:
         )
 
     def describe_modes(self) -> str:
-        """The measured bending modes in a few words ('ringing 400 Hz (3.7 %), 1269 Hz (1.5 %)')."""
+        """The measured bending modes in a few words ('ringing 400 Hz (3.7 %), 1269 Hz (1.5
+        %)')."""
         if not self.ringing_modes_hz or not self.ringing_damping_ratios:
             return "no bending mode measured in the ringing"
         modes = ", ".join(
@@ -152,8 +157,8 @@ class SupportProfile:
 
 def robust_noise(values: np.ndarray) -> float | None:
     """Noise RMS of a sampled signal from the median absolute first difference (slow motion and
-    the odd impact barely move it: tail_beam_id.calibration.modes.sample_noise), in the signal's unit; None
-    with fewer than 16 samples."""
+    the odd impact barely move it: tail_beam_id.calibration.modes.sample_noise), in the signal's
+    unit; None with fewer than 16 samples."""
     return None if values.size < 16 else sample_noise(values)
 
 
@@ -232,7 +237,8 @@ def calibrate(
     modes each impact's onset). ``ringing`` (stamps s, m/s^2) is the channel the bending modes
     are read from: the tail-beam accelerometer where there is one (it sees modes up to ten
     times higher), else the IMU's z. ``rebound_stamps_s`` (s) give the camera's frame.
-    ``hysteresis_model``: the statistical model's hysteresis network (default: the shipped one's)."""
+    ``hysteresis_model``: the statistical model's hysteresis network (default: the shipped
+    one's)."""
     # A sample with a non-finite stamp or value is a lost sample here too, as for the identifier
     # (one NaN pressure sample made the spectrum, and so the whole calibration, fail).
     p_stamp, p_value = _finite(*pressure)
@@ -315,7 +321,8 @@ def imu_gain(features: Sequence[Mapping[str, float]]) -> tuple[float, int, float
     Every impact counts, however small: the median gain of only the impacts whose pressure
     moment stood 5 sigma clear picked those that noise had pushed up, and on the paper scene's
     25 mm spheres, where 3 to 12 of 20 impacts stood clear, that read the beam's inertia 1.2 to
-    2.7 times too high (foreign supports, seed 41004: README, Supports other than the shipped one)."""
+    2.7 times too high (foreign supports, seed 41004: README, Supports other than the shipped
+    one)."""
     rows = [
         (
             f["moment_impulse_pressure_nms"],
@@ -393,7 +400,8 @@ def _finite(stamp_s: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.nda
 
 
 def with_profile(params: Mapping[str, Any], profile: SupportProfile) -> dict[str, Any]:
-    """``params`` with the profile's parameters merged in (what ``--config profile.yaml`` gives)."""
+    """``params`` with the profile's parameters merged in (what ``--config profile.yaml``
+    gives)."""
     merged = copy.deepcopy(dict(params))
     deep_merge(merged, profile.parameters()["/**"]["ros__parameters"])
     return merged

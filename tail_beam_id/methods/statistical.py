@@ -24,8 +24,8 @@ says of the contact's duration, and the decision is averaged over the lag the ca
 added (``_lag_rows``), as it is for any camera between the training's reference and slowest.
 
 On a support whose profile carries its contact hysteresis (``calibration.hysteresis_weights``,
-read by self-calibration from the recording's impacts: tail_beam_id.methods.hysteresis), an impact with
-every signal has its logit moved by what knowing the support's hysteresis says
+read by self-calibration from the recording's impacts: tail_beam_id.methods.hysteresis), an impact
+with every signal has its logit moved by what knowing the support's hysteresis says
 (``hysteresis_shift`` in its features, ``hysteresis_shift_read`` what the weights said): the
 same rebound means coal on one support and mudstone on another, which no single impact tells.
 The shift moves the boundary; it never makes a label surer than the impact alone says
@@ -79,7 +79,8 @@ FULL_KEY = "+".join(
 # training drew: its lag (up to a frame) then swamps the contact duration the delay carries.
 WITHOUT_DELAY = "~without_delay"
 LAG_ROWS = 16  # lags a camera slower than the training's is averaged over
-SLOWER = 1.05  # a camera frame this many times the reference (or slowest) frame or longer counts as slower
+# a camera frame this many times the reference (or slowest) frame or longer counts as slower
+SLOWER = 1.05
 # The features that say how large an impact is (its moment impulse), in order of preference: a
 # model's temperature grows as it gets smaller (tail_beam_id.study.training.fit_size_temperature).
 SIZE_FEATURES = ("moment_impulse_pressure_nms", "moment_impulse_imu_nms")
@@ -166,7 +167,8 @@ def _check_temperature_size(key: str, model: Mapping[str, Any]) -> None:
         raise InputError(
             field,
             size,
-            f"must name one of the model's features ({', '.join(names)}): retrain (python -m tail_beam_id.study.training)",
+            f"must name one of the model's features ({', '.join(names)}): retrain (python -m "
+            "tail_beam_id.study.training)",
         )
     for part in ("slope", "reference"):
         value = size.get(part)
@@ -231,7 +233,8 @@ class StatisticalMethod:
         # without it was trained.
         self.slowest_delay_frame_period_s = slowest_delay_frame_period_s
         # The network reading an impact's class with its support's hysteresis, and the support's
-        # bins' weights from its profile (tail_beam_id.methods.hysteresis); None: decided without them.
+        # bins' weights from its profile (tail_beam_id.methods.hysteresis); None: decided without
+        # them.
         self.hysteresis = hysteresis
         self.hysteresis_weights = (
             None if hysteresis is None or hysteresis_weights is None else list(hysteresis_weights)
@@ -255,7 +258,8 @@ class StatisticalMethod:
             raise InputError(
                 "statistical model",
                 stale[0],
-                "is a per-rate model without an envelope: retrain (python -m tail_beam_id.study.training)",
+                "is a per-rate model without an envelope: retrain (python -m "
+                "tail_beam_id.study.training)",
             )
         for family in families:
             for key, subset in family.items():
@@ -355,7 +359,8 @@ class StatisticalMethod:
         return self._slower_than_trained(features) and duration_read(features)
 
     def _slower_than_trained(self, features: Mapping[str, float]) -> bool:
-        """The impact has a delay and its camera frame is longer than the slowest the training drew."""
+        """The impact has a delay and its camera frame is longer than the slowest the training
+        drew."""
         period = features.get("camera_frame_period_s")
         return (
             "rebound_delay_s" in features
@@ -392,9 +397,9 @@ class StatisticalMethod:
 
 def duration_read(features: Mapping[str, float]) -> bool:
     """Whether the impact's contact duration was read from its pulse: a channel too slow for
-    that gives exactly its sample period (tail_beam_id.signals.contact_fit.fit_contact). Without it the
-    delay is the only timing the impact has, and even a slow camera's, averaged over its lag,
-    tells more than none: on 200 foreign impacts with a 1 kHz camera, a 2 kHz IMU alone scored
+    that gives exactly its sample period (tail_beam_id.signals.contact_fit.fit_contact). Without
+    it the delay is the only timing the impact has, and even a slow camera's, averaged over its
+    lag, tells more than none: on 200 foreign impacts with a 1 kHz camera, a 2 kHz IMU alone scored
     65.0 % averaged against 59.0 % without the delay, a 5 kHz one 67.0 against 56.5 %; where the
     duration is read the delay adds little and a slow camera's blurs it (a 10 kHz IMU 73.0
     against 77.0 %, the tail-beam accelerometer 78.0 against 86.5 %)."""
@@ -415,7 +420,8 @@ def _profile_weights(
         raise InputError(
             field,
             weights,
-            "needs a statistical model with a hysteresis network: retrain (python -m tail_beam_id.study.training)",
+            "needs a statistical model with a hysteresis network: retrain (python -m "
+            "tail_beam_id.study.training)",
         )
     model_edges = [float(e) for e in hysteresis["bin_edges"]]
     if edges is not None and (

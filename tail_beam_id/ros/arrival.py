@@ -11,8 +11,8 @@ vibration) has reached its stamp, and until it has been held ``reorder_s`` of wa
 a late message on another topic, a rebound, may need to catch up); then it releases all
 streams up to one common stamp, the watermark, as the offline replay does. A stream that has
 sent nothing for ``stream_idle_s`` of wall time no longer holds the others back (a sensor
-gone; at start-up, one not heard from ``stream_idle_s`` after the first is taken as absent): the identifier then sees it lag and declares it stopped, as it does on a bag in which
-that sensor ends.
+gone; at start-up, one not heard from ``stream_idle_s`` after the first is taken as absent): the
+identifier then sees it lag and declares it stopped, as it does on a bag in which that sensor ends.
 
 Time jumps: stamps that go back by more than ``time_jump_s`` on a continuous stream mean a new
 time base (a simulator restarted, a replay looped): :meth:`ArrivalGate.add` reports where the
@@ -123,7 +123,9 @@ class Counts:
         0  # set aside: a run stamped more than time_jump_s ahead of the live streams
     )
     ahead_dropped: int = 0  # of those, dropped (the time base did not move)
-    refused_rebounds: int = 0  # rebound not finite, or stamped more than time_jump_s behind the watermark or ahead of the streams
+    # rebound not finite, or stamped more than time_jump_s behind the watermark or ahead of the
+    # streams
+    refused_rebounds: int = 0
 
 
 class ArrivalGate:
@@ -184,7 +186,8 @@ class ArrivalGate:
                 else:
                     self.counts.ahead_dropped += hi - lo
                 continue
-            if stream.aside:  # the stream went on in the old time base: what it sent ahead was a stamp gone wrong
+            # the stream went on in the old time base: what it sent ahead was a stamp gone wrong
+            if stream.aside:
                 self.counts.ahead_dropped += sum(c.stamp_s.size for c in stream.aside)
                 stream.aside = []
             self._accept(stream, stamp_s[lo:hi], values[lo:hi], now_s)
@@ -194,7 +197,8 @@ class ArrivalGate:
     def _accept(
         self, stream: _Stream, stamp_s: np.ndarray, values: np.ndarray, now_s: float
     ) -> None:
-        """Hold samples for release (a repeat or a step back within time_jump_s refused, counted)."""
+        """Hold samples for release (a repeat or a step back within time_jump_s refused,
+        counted)."""
         fresh = stamp_s > np.maximum.accumulate(np.concatenate([[stream.latest_s], stamp_s]))[:-1]
         self.counts.repeated_samples += int((~fresh).sum())
         if fresh.any():
@@ -203,7 +207,8 @@ class ArrivalGate:
             stream.last_arrival_s = now_s
 
     def _promote(self, now_s: float) -> None:
-        """Accept what was set aside once the other live streams have come within time_jump_s of it."""
+        """Accept what was set aside once the other live streams have come within time_jump_s of
+        it."""
         for name, stream in self.streams.items():
             if (
                 stream.aside
@@ -357,7 +362,8 @@ class GatedIdentifier:
         end_of_data: bool = False,
     ) -> list[Label]:
         """Admit what arrived (all of it at wall clock ``now_s``); the labels of what is now
-        decided (with ``end_of_data``, of everything pending): :meth:`admit` then :meth:`decide`."""
+        decided (with ``end_of_data``, of everything pending): :meth:`admit` then
+        :meth:`decide`."""
         labels = self.admit(now_s, arrivals, blocks, rebounds)
         return labels + self.decide(now_s, end_of_data)
 
@@ -412,7 +418,8 @@ class GatedIdentifier:
             aside = self.gate.take_aside()
             labels += self._restart(
                 arrived_s,
-                f"every stream's stamps moved ahead by more than {self.gate.config.time_jump_s:g} s",
+                f"every stream's stamps moved ahead by more than {self.gate.config.time_jump_s:g} "
+                "s",
             )
             for name, (stamps, values) in aside.items():
                 self.gate.add(name, stamps, values, arrived_s)
@@ -447,7 +454,8 @@ class GatedIdentifier:
         """Decide everything of the old time base; then a fresh identifier and gate."""
         labels = self._decide(now_s, everything=True)
         self.notes.append(
-            f"time jump: {why}; decided what was pending ({len(labels)} labels), identifying afresh"
+            f"time jump: {why}; decided what was pending ({len(labels)} labels), identifying "
+            "afresh"
         )
         self.time_jumps += 1
         self._counts_before = self.count_totals()
@@ -460,7 +468,8 @@ class GatedIdentifier:
         return labels
 
     def _admit_blocks(self, blocks: VibrationBlocks, now_s: float) -> None:
-        """Vibration blocks into running-index order (gaps and late blocks noted), then the gate."""
+        """Vibration blocks into running-index order (gaps and late blocks noted), then the
+        gate."""
         if not blocks.count:
             return
         behind = (
@@ -472,12 +481,14 @@ class GatedIdentifier:
             and blocks.stamp_s[0]
             > self.gate.streams["vibration"].latest_s + self.gate.config.time_jump_s
         ):
-            self.sequencer.restart()  # the index began again with the clock ahead: a restarted source
+            # the index began again with the clock ahead: a restarted source
+            self.sequencer.restart()
         report = self.sequencer.push(blocks)
         if report.gaps:
             missing = sum(n for _, n in report.gaps)
             self.notes.append(
-                f"vibration: {len(report.gaps)} gap(s), {missing} samples lost (first missing index "
+                f"vibration: {len(report.gaps)} gap(s), {missing} samples lost (first missing "
+                "index "
                 f"{report.gaps[0][0]}); {self.sequencer.lost_samples} lost in all"
             )
         if report.late:
@@ -487,8 +498,10 @@ class GatedIdentifier:
             )
         if report.misindexed:
             self.notes.append(
-                f"vibration: {report.misindexed} block(s) refused whose running index (angle_min, angle_max) "
-                "is behind the samples already used while their stamps are not: the publisher's index must "
+                f"vibration: {report.misindexed} block(s) refused whose running index (angle_min, "
+                "angle_max) "
+                "is behind the samples already used while their stamps are not: the publisher's "
+                "index must "
                 f"count the samples (docs/interface.md); {self.sequencer.misindexed_blocks} in all"
             )
         if report.accepted.count:
@@ -501,7 +514,8 @@ class GatedIdentifier:
             )
 
     def _decide(self, now_s: float, everything: bool) -> list[Label]:
-        """Feed the identifier what the gate releases; its labels (all pending with ``everything``)."""
+        """Feed the identifier what the gate releases; its labels (all pending with
+        ``everything``)."""
         release = self.gate.release(now_s, everything=everything)
         if self.calibration is not None:
             self.calibration.record(release)
@@ -513,7 +527,8 @@ class GatedIdentifier:
                 f"{name} {n}" for name, n in self.identifier.refused_samples.items() if n
             )
             self.notes.append(
-                f"identification: {refused} sample(s) with a non-finite stamp or value left out (totals; "
+                f"identification: {refused} sample(s) with a non-finite stamp or value left out "
+                "(totals; "
                 f"this epoch: {counts})"
             )
         labels = self.identifier.poll()
@@ -533,7 +548,10 @@ class GatedIdentifier:
         if total != self._counts_noted:
             self._counts_noted = total
             self.notes.append(
-                f"arrival: {total[0]} repeated or out-of-order samples refused, {total[1]} samples stamped more than "
-                f"{self.gate.config.time_jump_s:g} s ahead of the other streams ({total[2]} of them dropped), "
-                f"{total[3]} rebounds refused (not finite, or stamped out of the streams' time) (totals)"
+                f"arrival: {total[0]} repeated or out-of-order samples refused, {total[1]} "
+                "samples stamped more than "
+                f"{self.gate.config.time_jump_s:g} s ahead of the other streams ({total[2]} of "
+                "them dropped), "
+                f"{total[3]} rebounds refused (not finite, or stamped out of the streams' time) "
+                "(totals)"
             )

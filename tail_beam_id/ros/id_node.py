@@ -120,7 +120,8 @@ class IdNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__("tail_beam_id", **kwargs)
-        # A support profile (tail-beam calibrate --out) brings its `calibration` section: what makes
+        # A support profile (tail-beam calibrate --out) brings its `calibration` section: what
+        # makes
         # the identifier decide as calibrated, as `tail-beam identify --config profile.yaml` does.
         params = declare_and_read(
             self,
@@ -164,7 +165,9 @@ class IdNode(Node):
             None  # the identifier's timing check whose suspicion was logged
         )
         self._woken_for_s = math.nan  # the due stamp the last wake was for
-        self._woke_s = -math.inf  # wall clock the last wake ran, s (another for the same due only for data it could not take)
+        # wall clock the last wake ran, s (another for the same due only for data it could not
+        # take)
+        self._woke_s = -math.inf
         self._last_arrival_s = time.monotonic()
         self._unflushed = False
         self.received = {
@@ -174,7 +177,8 @@ class IdNode(Node):
             topics.REBOUND_VELOCITY: 0,
         }
         self.published = 0
-        self.refused_blocks = 0  # vibration messages that carried no block (their index, period or range out of range)
+        # vibration messages that carried no block (their index, period or range out of range)
+        self.refused_blocks = 0
         sensor_qos = ros_messages.stream_qos(depth)
         event_qos = ros_messages.EVENT_QOS
         self._label_pub = self.create_publisher(
@@ -204,7 +208,8 @@ class IdNode(Node):
         self.get_logger().info(f"identifying with method {self.identifier.method.name}")
         if self.identifier.calibrated:
             self.get_logger().info(
-                "deciding with the support profile given (its calibration section): labels say calibrated: true"
+                "deciding with the support profile given (its calibration section): labels say "
+                "calibrated: true"
             )
         if calibration is not None:
             self.get_logger().info(
@@ -285,7 +290,8 @@ class IdNode(Node):
         return self.gated.identifier
 
     def _admit(self, part: dict[str, list], arrived_s: float) -> list[Label]:
-        """Hand the gated identifier one batch of messages (the newest arrived at ``arrived_s``)."""
+        """Hand the gated identifier one batch of messages (the newest arrived at
+        ``arrived_s``)."""
         arrivals: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         if part[topics.JACK_PRESSURE]:
             stamps, pressure = ros_messages.pressure_arrays(part[topics.JACK_PRESSURE])
@@ -302,7 +308,8 @@ class IdNode(Node):
                 f"; and {len(reasons) - MAX_REASONS} more" if len(reasons) > MAX_REASONS else ""
             )
             self.get_logger().warning(
-                f"vibration: {len(refused)} message(s) refused: {shown} ({self.refused_blocks} refused in all)"
+                f"vibration: {len(refused)} message(s) refused: {shown} ({self.refused_blocks} "
+                "refused in all)"
             )
         rebounds = [ros_messages.rebound_values(m) for m in part[topics.REBOUND_VELOCITY]]
         return self.gated.admit(arrived_s, arrivals, blocks, rebounds)
@@ -347,7 +354,8 @@ class IdNode(Node):
             self._label_pub.publish(String(data=label.to_json()))
             self.published += 1
             self.get_logger().info(
-                f"impact at {label.impact_stamp_s:.4f} s: {label.material} ({label.confidence:.2f}, {label.method}, "
+                f"impact at {label.impact_stamp_s:.4f} s: {label.material} "
+                f"({label.confidence:.2f}, {label.method}, "
                 f"signals {', '.join(label.signals)})"
             )
 

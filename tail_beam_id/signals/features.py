@@ -123,7 +123,8 @@ def fit_pressure(
 
 
 def _flat_lined(values: np.ndarray) -> bool:
-    """True when a clipped transducer shows: two or more samples exactly at the window's extreme."""
+    """True when a clipped transducer shows: two or more samples exactly at the window's
+    extreme."""
     return bool(np.sum(values == values.max()) >= 2 or np.sum(values == values.min()) >= 2)
 
 
@@ -202,7 +203,8 @@ def impact_features(
         features["imu_pulse_width_s"] = pulse.width_s
         features["imu_period_s"] = pulse.period_s
         if contact is not None:
-            # The contact's duration (the best-fitting pulse's) from the pulse and the ringing (tail_beam_id.signals.contact_fit;
+            # The contact's duration (the best-fitting pulse's) from the pulse and the ringing
+            # (tail_beam_id.signals.contact_fit;
             # a channel too slow to show it gives its sample period). Without it (a fast channel's
             # samples cut short) the acceleration features are not all there, and the models decide
             # without them (methods.statistical.signals_of).

@@ -116,7 +116,8 @@ DETECTION = Section(
 
 @dataclass(frozen=True)
 class DetectionConfig:
-    """Detection thresholds (in noise RMS, sigma) and windows (s); see config/identification.yaml."""
+    """Detection thresholds (in noise RMS, sigma) and windows (s); see
+    config/identification.yaml."""
 
     accel_threshold_sigma: float
     extend_threshold_sigma: float

@@ -92,7 +92,8 @@ class TimingConfig:
 class SensorTiming:
     """The count of a recording's impacts with a delay check and of the unusual ones; suspect
     once there are ``min_impacts`` and the unusual count is one agreeing clocks give less often
-    than ``false_alarm`` (and from then on), or from the start when a self-calibration pass over the recording found so."""
+    than ``false_alarm`` (and from then on), or from the start when a self-calibration pass over
+    the recording found so."""
 
     def __init__(self, config: TimingConfig, suspect: bool = False) -> None:
         self.config = config
@@ -116,9 +117,12 @@ class SensorTiming:
             else ""
         )
         return (
-            f"{self.unusual} of {self.checked} impacts{where} have a delay from onset to camera stamp unlike the training's "
-            "for their size and speed: the camera's and the acceleration channel's clocks may be offset (README, "
-            "Supports other than the shipped one); labels that used the delay are decided without it, "
+            f"{self.unusual} of {self.checked} impacts{where} have a delay from onset to camera "
+            "stamp unlike the training's "
+            "for their size and speed: the camera's and the acceleration channel's clocks may be "
+            "offset (README, "
+            "Supports other than the shipped one); labels that used the delay are decided without "
+            "it, "
             f"capped at {self.config.confidence_cap:g} and list {OUTSIDE_NAME} in outside_training"
         )
 

@@ -101,7 +101,8 @@ class Label:
 
     def as_dict(self) -> dict[str, Any]:
         """The ``label`` JSON object: the contract's fields first, then the suite's; the
-        optional keys only when they say something; a timing that was not measured (None) left out."""
+        optional keys only when they say something; a timing that was not measured (None) left
+        out."""
         out: dict[str, Any] = {
             LABEL_STAMP: self.impact_stamp_s,
             "label": self.material,
@@ -129,7 +130,8 @@ class Label:
         return out
 
     def to_json(self) -> str:
-        """The label as published on ``label`` and printed by ``tail-beam identify``: strict JSON."""
+        """The label as published on ``label`` and printed by ``tail-beam identify``: strict
+        JSON."""
         return json.dumps(self.as_dict(), allow_nan=False)
 
     @classmethod
@@ -239,7 +241,8 @@ def _mount(obj: Mapping[str, Any], key: str, where: str) -> str | None:
 
 
 def match_tolerance_s(section: Mapping[str, Any]) -> float:
-    """``identification.match_tolerance_s`` of the ``identification`` section, validated (0, 0.1] s."""
+    """``identification.match_tolerance_s`` of the ``identification`` section, validated (0, 0.1]
+    s."""
     return IDENTIFICATION.check(section, only=("match_tolerance_s",))["match_tolerance_s"]
 
 
@@ -267,7 +270,8 @@ class Matching:
 def match_stamps(
     truth_stamps_s: Sequence[float], label_stamps_s: Sequence[float], tolerance_s: float
 ) -> Matching:
-    """The rule of this module on bare stamps (s): truths' contact starts, labels' impact stamps."""
+    """The rule of this module on bare stamps (s): truths' contact starts, labels' impact
+    stamps."""
     order = sorted(range(len(label_stamps_s)), key=lambda j: label_stamps_s[j])
     ordered = [label_stamps_s[j] for j in order]
     candidates: list[tuple[float, int, int]] = []  # (|offset| s, truth index, label index)

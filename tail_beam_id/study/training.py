@@ -127,7 +127,8 @@ def _mlp_unpack(
 def _mlp_loss(
     theta: np.ndarray, z: np.ndarray, y: np.ndarray, h: int, l2: float
 ) -> tuple[float, np.ndarray]:
-    """Mean logistic loss of a one-hidden-layer tanh network plus ridge penalty, and its gradient."""
+    """Mean logistic loss of a one-hidden-layer tanh network plus ridge penalty, and its
+    gradient."""
     n, d = z.shape
     w1, b1, w2, b2 = _mlp_unpack(theta, d, h)
     hidden = np.tanh(z @ w1.T + b1)
@@ -244,8 +245,8 @@ def fit_hysteresis(
     records: Sequence[Record], section: Mapping[str, Any], seed: int
 ) -> dict[str, Any]:
     """The network that reads an impact's class and its support's hysteresis bin together
-    (tail_beam_id.methods.hysteresis), on the drawn supports' impacts identified knowing their support
-    (what a self-calibrated identifier sees) with every signal: standardised like the
+    (tail_beam_id.methods.hysteresis), on the drawn supports' impacts identified knowing their
+    support (what a self-calibrated identifier sees) with every signal: standardised like the
     statistical models, its temperature fitted on held-out impacts (each on a support no
     training impact struck) with their support's true bin."""
     edges, reference = hysteresis_section(section)
@@ -379,8 +380,8 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
 
     Impacts whose acceleration features came from the accelerometer are fitted too: its
     anti-alias filter shapes the pulse that ``contact_duration_s`` is read from
-    (tail_beam_id.signals.contact_fit) otherwise than an IMU's sample-period mean does. (Before that
-    feature they were left out: then they scored no better at the shipped layout, the 5 kHz
+    (tail_beam_id.signals.contact_fit) otherwise than an IMU's sample-period mean does. (Before
+    that feature they were left out: then they scored no better at the shipped layout, the 5 kHz
     camera's frame limiting the contact duration, and cost a 20 kHz IMU 0.5-2 points.)
     """
     every = list(records)
@@ -422,9 +423,9 @@ def fit_delay_check(
     records: Sequence[Record], names: Sequence[tuple[str, float | None]], model: Mapping[str, Any]
 ) -> dict[str, Any]:
     """The statistical method's check of an impact's delay from onset to camera stamp
-    (tail_beam_id.signals.timing): a ridge regression of the standardised log delay on the model's other
-    inputs (with their pairwise products), and per band of IMU periods (TIMING_BIN_EDGES_S) the
-    0.5-99.5 % band of the training residuals (None where too few records fall)."""
+    (tail_beam_id.signals.timing): a ridge regression of the standardised log delay on the model's
+    other inputs (with their pairwise products), and per band of IMU periods (TIMING_BIN_EDGES_S)
+    the 0.5-99.5 % band of the training residuals (None where too few records fall)."""
     low_env, high_env = (np.array(v) for v in model["envelope"])
     z = (
         np.clip(
@@ -603,7 +604,9 @@ def timing_table(records: Sequence[Record], vibration: bool = False) -> list[dic
     return table
 
 
-CACHE_FORMAT = "tail_beam training records 4"  # 2: the accelerometer fed (vibration_channel); 4: each record's contact law and scale
+# The cache layout: records with the accelerometer fed (vibration_channel) and each record's
+# contact law and scale.
+CACHE_FORMAT = "tail_beam training records 4"
 
 
 def save_cache(path: Path, records: Sequence[Record], paper: Sequence[Record]) -> None:
@@ -650,7 +653,8 @@ def load_cache(path: Path) -> tuple[list[Record], list[Record]]:
         AttributeError,
     ) as exc:  # InputError (a bad label) is a ValueError
         raise SystemExit(
-            f"training: error: --cache {path}: cannot be read ({exc}); delete it to simulate afresh"
+            f"training: error: --cache {path}: cannot be read ({exc}); delete it to simulate "
+            "afresh"
         ) from None
 
 

@@ -55,7 +55,9 @@ from tail_beam_sim.spec import FIDELITY
 
 OUTPUTS = ("rebound", "contact", "pressure", "imu")
 PHASES = (0.0, 0.25, 0.5, 0.75)  # where, as a fraction of a sample period, an impulse may fall
-SAMPLED_MARGIN = 1.25  # the pulse's finite length and the phases between those tried move the measured difference by a few %
+# The pulse's finite length and the phases between those tried move the measured difference
+# by a few %.
+SAMPLED_MARGIN = 1.25
 WAVEFORM_OUTPUTS = ("pressure", "imu")
 
 
@@ -220,7 +222,8 @@ def plan(scene: Scene, tier: str, needs: Needs, settings: FidelitySettings) -> P
 
 
 def model_errors(scene: Scene, needs: Needs, modes: Sequence[BendingMode]) -> dict[str, float]:
-    """Estimated relative error of each tier of the accuracy ladder against the richest (module docstring)."""
+    """Estimated relative error of each tier of the accuracy ladder against the richest (module
+    docstring)."""
     support, impact = scene.support, scene.impact
     rigid = structure_for(TIERS["rigid"], support, modes)
     modal = structure_for(TIERS["modal"], support, modes)

@@ -177,7 +177,8 @@ class SensorSpec:
     camera_frame_rate_hz: float
     camera_velocity_noise_mps: float
     camera_velocity_noise_fraction: float
-    # The tail-beam accelerometer (topic ``vibration``; tail_beam_sim.physics.sensors, docs/physics.md).
+    # The tail-beam accelerometer (topic ``vibration``; tail_beam_sim.physics.sensors,
+    # docs/physics.md).
     vibration_rate_hz: float = 25600.0
     vibration_block_samples: int = 128
     vibration_noise_density_mps2_rthz: float = 0.002  # white noise, m/s^2 per sqrt(Hz)

@@ -17,8 +17,8 @@ decays over about half a second), and its data acquisition samples noise between
   contact stamp, so the solver's convention (contact at zero penetration) holds exactly.
 * :meth:`StreamSimulator.advance` produces every sample of a time span at once (vectorised
   per chunk): jack pressure, IMU and accelerometer on their absolute grids ``k / rate`` (the
-  accelerometer's complete blocks only: the rest of a block waits for the next span), the rebounds and
-  truths whose stamps fall in the span. Noise is drawn per fixed block of sample indices, so
+  accelerometer's complete blocks only: the rest of a block waits for the next span), the rebounds
+  and truths whose stamps fall in the span. Noise is drawn per fixed block of sample indices, so
   the output depends only on the seed and the impacts, never on how the time was chunked
   (a real-time run and an as-fast-as-possible run give identical data).
 """
@@ -137,7 +137,8 @@ def rest_trajectory(structure: LinearStructure, gravity_mps2: float) -> Trajecto
 
 
 def _relative(stamp_s: np.ndarray, epoch_start_s: float) -> np.ndarray:
-    """Stamps as times of an epoch's trajectory (the rest epoch, starting at -inf, has no origin)."""
+    """Stamps as times of an epoch's trajectory (the rest epoch, starting at -inf, has no
+    origin)."""
     return stamp_s - epoch_start_s if math.isfinite(epoch_start_s) else stamp_s
 
 
@@ -330,7 +331,8 @@ class StreamSimulator:
             raise QueueFull(
                 "impact_cmd",
                 impact.impact_id or dict(command),
-                f"refused: queue full, {len(self._queue)} impacts already queued (stream.max_queued_impacts); "
+                f"refused: queue full, {len(self._queue)} impacts already queued "
+                "(stream.max_queued_impacts); "
                 "send impacts more slowly or raise the limit",
             )
         self._count += 1
@@ -454,7 +456,8 @@ class StreamSimulator:
         return ImuStream(stamps, gyro, accel, noise.gyro_radps**2, noise.accel_mps2**2)
 
     def _dense_imu_response(self, stamps_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The beam's (specific force z, pitch rate) at the IMU for its low-pass filter, at absolute stamps."""
+        """The beam's (specific force z, pitch rate) at the IMU for its low-pass filter, at
+        absolute stamps."""
         dense_period = 1.0 / (self.sensors.imu_oversample * self.sensors.imu_rate_hz)
         accel, rate = np.empty(stamps_s.size), np.empty(stamps_s.size)
         for trajectory, start, mask in self._by_epoch(stamps_s):

@@ -65,8 +65,10 @@ class LinearStructure:
         inverse = np.linalg.inv(vectors)
         object.__setattr__(self, "_eigen", (eigenvalues, vectors, inverse))
         object.__setattr__(self, "inv_mass", inv_mass)
-        # Per-structure products the solvers need for every impact (modal coordinates xi, x = V xi):
-        # xi gained per unit generalised force, and q'' from the structure's own forces per unit xi.
+        # Per-structure products the solvers need for every impact (modal coordinates xi, x = V
+        # xi):
+        # xi gained per unit generalised force, and q'' from the structure's own forces per unit
+        # xi.
         object.__setattr__(self, "modal_input", inverse[:, n:] @ inv_mass)
         object.__setattr__(
             self,
@@ -324,7 +326,8 @@ def euler_bernoulli_modes(
     count: int,
     elements: int,
 ) -> list[dict[str, Any]]:
-    """Bending modes of a uniform Euler-Bernoulli beam held (w = 0) at ``held_at_m``, free elsewhere.
+    """Bending modes of a uniform Euler-Bernoulli beam held (w = 0) at ``held_at_m``, free
+    elsewhere.
 
     Finite elements with cubic Hermite shapes and consistent mass. Returns, per mode,
     frequency_hz, modal_mass_kg, rigid_coupling_kgm and shape / slope_radpm at the nodes

@@ -60,7 +60,8 @@ class Support:
 
     @property
     def jack_stiffness_npm(self) -> float:
-        """Axial stiffness K_Q of the jack: oil column, wall and extra compliance in series, N/m."""
+        """Axial stiffness K_Q of the jack: oil column, wall and extra compliance in series,
+        N/m."""
         column = self.effective_bulk_modulus_pa * self.piston_area_m2 / self.jack_oil_column_m
         return 1.0 / (1.0 / column + self.jack_extra_compliance_mpn)
 

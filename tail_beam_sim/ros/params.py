@@ -88,8 +88,10 @@ def guard_parameter_services(node: Node) -> None:
             def refusal(p) -> str | None:
                 if p.value.type not in PARAMETER_TYPES:
                     return (
-                        f"{shorten(p.name, 60)}: value type {p.value.type} is no parameter type (must be one of "
-                        f"{min(PARAMETER_TYPES)}-{max(PARAMETER_TYPES)}, rcl_interfaces/ParameterType)"
+                        f"{shorten(p.name, 60)}: value type {p.value.type} is no parameter type "
+                        "(must be one of "
+                        f"{min(PARAMETER_TYPES)}-{max(PARAMETER_TYPES)}, "
+                        "rcl_interfaces/ParameterType)"
                     )
                 if not node.has_parameter(p.name):
                     return f"{shorten(p.name, 60)}: {node.get_name()} has no such parameter"
@@ -187,7 +189,8 @@ def say_unused_overrides(node: Node) -> None:
 
     if unknown:
         node.get_logger().warning(
-            f"ignored, not a parameter of {node.get_name()} nor of any tail_beam node (a typo?): {listed(unknown)}"
+            f"ignored, not a parameter of {node.get_name()} nor of any tail_beam node (a typo?): "
+            f"{listed(unknown)}"
         )
     if others:
         node.get_logger().info(f"ignored, parameters of other tail_beam nodes: {listed(others)}")

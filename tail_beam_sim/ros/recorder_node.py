@@ -148,7 +148,8 @@ class RecorderNode(Node):
             "the recorder reads its parameters at start-up only (restart it to change them)",
         )
         self.get_logger().info(
-            f"recording {', '.join(self.names.values())} to {self.bag_path} ({self.writer.storage}, compression {compression})"
+            f"recording {', '.join(self.names.values())} to {self.bag_path} "
+            f"({self.writer.storage}, compression {compression})"
         )
 
     def _subscribe(self, topic: str, qos: QoSProfile) -> object:
@@ -193,7 +194,8 @@ class RecorderNode(Node):
                 and current[0] == DurabilityPolicy.TRANSIENT_LOCAL
             ):
                 self.get_logger().info(
-                    f"{self.names[topic]}: a publisher offers volatile durability; recording it volatile "
+                    f"{self.names[topic]}: a publisher offers volatile durability; recording it "
+                    "volatile "
                     "(events published before a subscriber matched are not kept)"
                 )
 
@@ -221,7 +223,8 @@ class RecorderNode(Node):
                 self.refused_blocks += 1
                 if self.refused_blocks == 1 or self.refused_blocks % 1000 == 0:
                     self.get_logger().warning(
-                        f"vibration: a message that carries no block, recorded but not counted: {exc} "
+                        "vibration: a message that carries no block, recorded but not counted: "
+                        f"{exc} "
                         f"({self.refused_blocks} so far)"
                     )
                 return
@@ -253,24 +256,30 @@ class RecorderNode(Node):
             sequence.misindexed_blocks == 1 or sequence.misindexed_blocks % 1000 == 0
         ):
             self.get_logger().warning(
-                f"vibration: the block stamped {stamp:.6f} s has running index {index}, behind the samples already "
-                "recorded while its stamp is not: the publisher's index (angle_min, angle_max) must count the samples "
-                f"(docs/interface.md); reading this bag will refuse it ({sequence.misindexed_blocks} such blocks so far)"
+                f"vibration: the block stamped {stamp:.6f} s has running index {index}, behind "
+                "the samples already "
+                "recorded while its stamp is not: the publisher's index (angle_min, angle_max) "
+                "must count the samples "
+                "(docs/interface.md); reading this bag will refuse it "
+                f"({sequence.misindexed_blocks} such blocks so far)"
             )
 
     @property
     def misindexed_blocks(self) -> int:
-        """Vibration blocks recorded whose index is behind the stream's while their stamps are not."""
+        """Vibration blocks recorded whose index is behind the stream's while their stamps are
+        not."""
         return self._sequence.misindexed_blocks
 
     def _on_lost(self, info: QoSMessageLostInfo) -> None:
         self.lost_events += info.total_count_change
 
     def loss_report(self) -> str:
-        """One line: vibration samples and blocks recorded, samples missing, message-lost events."""
+        """One line: vibration samples and blocks recorded, samples missing, message-lost
+        events."""
         v = self.vibration
         return (
-            f"vibration {v.samples} samples in {v.blocks} blocks, {v.lost_samples} samples lost (index gaps); "
+            f"vibration {v.samples} samples in {v.blocks} blocks, {v.lost_samples} samples lost "
+            "(index gaps); "
             f"{self.lost_events} messages lost (middleware events)"
         )
 
@@ -280,7 +289,8 @@ class RecorderNode(Node):
         self.writer.set_custom_data(LOST_KEYS[1], str(self.lost_events))
         self.writer.close()
         print(
-            f"bag_recorder: closed {self.bag_path}: {self.writer.message_count} messages; {self.loss_report()}",
+            f"bag_recorder: closed {self.bag_path}: {self.writer.message_count} messages; "
+            f"{self.loss_report()}",
             file=sys.stderr,
         )
 

@@ -13,8 +13,9 @@ at run time are refused.
 Like ``ros2 bag play``: ``rate`` (0.01 to 100 times the recorded speed), ``start_offset_s``
 (skip that much log time from the first message; past the bag's end is refused, naming its
 duration), ``topics`` (contract names), ``publish_clock`` and ``loop`` (start again at the end;
-refused for messages at a single instant, which would replay without pause). The bag's topics are found under any namespace and published under the node's own
-(relative names); a bag of several supports needs ``namespace`` to say which one.
+refused for messages at a single instant, which would replay without pause). The bag's topics are
+found under any namespace and published under the node's own (relative names); a bag of several
+supports needs ``namespace`` to say which one.
 """
 
 from __future__ import annotations

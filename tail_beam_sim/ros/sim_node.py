@@ -1,11 +1,11 @@
 """``sim_node``: a ROS 2 node over :class:`tail_beam_sim.physics.stream.StreamSimulator`.
 
 Takes impacts on ``impact_cmd`` (and a start-up scenario), publishes ``jack_pressure``,
-``imu`` and ``vibration`` (the accelerometer's blocks) as continuous streams, ``rebound_velocity`` and ``impact_truth`` once per impact, and
-``/clock`` on request. A timer advances simulation time by the wall-clock time elapsed times
-``realtime_factor`` (0: as fast as possible), at most ``max_chunk_s`` per tick: a short stall
-is caught up; when it falls more than ``max_lag_s`` behind it runs slower than real time from
-there on. It never skips a sample.
+``imu`` and ``vibration`` (the accelerometer's blocks) as continuous streams, ``rebound_velocity``
+and ``impact_truth`` once per impact, and ``/clock`` on request. A timer advances simulation time
+by the wall-clock time elapsed times ``realtime_factor`` (0: as fast as possible), at most
+``max_chunk_s`` per tick: a short stall is caught up; when it falls more than ``max_lag_s`` behind
+it runs slower than real time from there on. It never skips a sample.
 
 Every ``impact_cmd`` is either queued (and simulated) or refused with one log line naming the
 field and the allowed range, and a running count (:class:`CommandCounts`); the subscription
@@ -51,30 +51,36 @@ from tail_beam_sim.ros.spin import (
 from tail_beam_sim.ros.usage import NodeUsage
 from tail_beam_sim.spec import SIM_NODE
 
-SCENARIO_IDLE_S = 1.0  # exit_after_idle_s -1 (auto): idle time before exiting after a file or generated scenario, s
+# exit_after_idle_s -1 (auto): idle time before exiting after a file or generated scenario, s
+SCENARIO_IDLE_S = 1.0
 
 USAGE = NodeUsage(
     executable="sim_node",
-    summary="The simulated tail beam: takes impacts on impact_cmd (and a start-up scenario) and publishes "
+    summary="The simulated tail beam: takes impacts on impact_cmd (and a start-up scenario) "
+    "and publishes "
     "jack_pressure, imu, rebound_velocity and impact_truth (docs/interface.md).",
     config_files=("sim_node.yaml",),
     examples=(
-        "sim_node                                                  # wait for impact_cmd (see tail-beam send)",
-        "sim_node --ros-args -p scenario.source:=generated -p scenario.count:=40 -p sim_node.realtime_factor:=0",
+        "sim_node                                                  # wait for impact_cmd (see "
+        "tail-beam send)",
+        "sim_node --ros-args -p scenario.source:=generated -p scenario.count:=40 -p "
+        "sim_node.realtime_factor:=0",
         "sim_node --ros-args -p scenario.source:=file -p scenario.file:=impacts.yaml",
         "sim_node --ros-args -r __ns:=/support_07 --params-file my.yaml",
     ),
 )
 
 
-REFUSAL_PREFIX = "impact_cmd "  # every line refusing a command starts so: "impact_cmd rejected: ...", "refused", "not simulated"
+# Every line refusing a command starts so: "impact_cmd rejected: ...", "refused", "not simulated".
+REFUSAL_PREFIX = "impact_cmd "
 
 
 def refusal_tag(command: object) -> str:
     """``impact_id '<id>'; `` for a command (a parsed impact_cmd) that carries a string
     impact_id, else "": sim_node puts it in the brackets that end a refusal's log line
     (``[impact_id 'run3-017'; 2 refused so far]``), and ``tail-beam send --wait-truth`` looks for
-    it on /rosout. Long ids are cut as every echoed value is (:func:`~tail_beam_sim.errors.shorten`)."""
+    it on /rosout. Long ids are cut as every echoed value is
+    (:func:`~tail_beam_sim.errors.shorten`)."""
     impact_id = command.get("impact_id") if isinstance(command, dict) else None
     return f"impact_id {shorten(impact_id)}; " if isinstance(impact_id, str) else ""
 
@@ -136,7 +142,8 @@ class SimNode(Node):
         self._clock_pub = (
             self.create_publisher(Clock, "/clock", 10) if checked["publish_clock"] else None
         )
-        # Keep-all: a burst of commands waits in the reader's history instead of overwriting itself.
+        # Keep-all: a burst of commands waits in the reader's history instead of overwriting
+        # itself.
         self.create_subscription(
             String, topics.IMPACT_CMD, self._on_command, ros_messages.COMMAND_QOS
         )
@@ -152,9 +159,12 @@ class SimNode(Node):
             self._on_set_parameters
         )  # after declaring: start-up values pass
         self.get_logger().info(
-            f"simulating at realtime_factor {self.realtime_factor:g}: pressure {self.stream.sensors.pressure_rate_hz:g} Hz, "
-            f"IMU {self.stream.sensors.imu_rate_hz:g} Hz, vibration {self.stream.sensors.vibration_rate_hz:g} Hz in blocks of "
-            f"{self.stream.sensors.vibration_block_samples}, scenario of {len(self._planned)} impact(s)"
+            f"simulating at realtime_factor {self.realtime_factor:g}: pressure "
+            f"{self.stream.sensors.pressure_rate_hz:g} Hz, "
+            f"IMU {self.stream.sensors.imu_rate_hz:g} Hz, vibration "
+            f"{self.stream.sensors.vibration_rate_hz:g} Hz in blocks of "
+            f"{self.stream.sensors.vibration_block_samples}, scenario of {len(self._planned)} "
+            "impact(s)"
             + (
                 f", exiting after {self.exit_after_idle_s:g} s idle"
                 if self.exit_after_idle_s > 0.0
@@ -164,13 +174,16 @@ class SimNode(Node):
 
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         """Refuse every change at run time: the node reads its parameters once, at start-up, and a
-        changed value would be reported by ``ros2 param get`` without being in effect. ``use_sim_time``
-        in particular: the simulator is the source of simulation time, never its consumer."""
+        changed value would be reported by ``ros2 param get`` without being in effect.
+        ``use_sim_time`` in particular: the simulator is the source of simulation time, never its
+        consumer."""
         names = ", ".join(p.name for p in changes)
         reason = (
-            f"{names}: sim_node reads its parameters at start-up only; restart it with --ros-args -p NAME:=VALUE"
+            f"{names}: sim_node reads its parameters at start-up only; restart it with --ros-args "
+            "-p NAME:=VALUE"
             + (
-                "; use_sim_time: the simulator makes simulation time (sim_node.publish_clock), it never follows /clock"
+                "; use_sim_time: the simulator makes simulation time (sim_node.publish_clock), it "
+                "never follows /clock"
                 if any(p.name == "use_sim_time" for p in changes)
                 else ""
             )
@@ -190,24 +203,28 @@ class SimNode(Node):
         except QueueFull as exc:
             self.commands.refused += 1
             self.get_logger().warning(
-                f"impact_cmd refused: {exc} [{refusal_tag(command)}{self.commands.refused} refused so far]"
+                f"impact_cmd refused: {exc} [{refusal_tag(command)}{self.commands.refused} "
+                "refused so far]"
             )
             return
         except InputError as exc:
             self.commands.refused += 1
             self.get_logger().error(
-                f"impact_cmd rejected: {exc} [{refusal_tag(command)}{self.commands.refused} refused so far]"
+                f"impact_cmd rejected: {exc} [{refusal_tag(command)}{self.commands.refused} "
+                "refused so far]"
             )
             return
         except SolverError as exc:
             self.commands.refused += 1
             self.get_logger().error(
-                f"impact_cmd not simulated: solver failed: {exc} [{refusal_tag(command)}{self.commands.refused} refused so far]"
+                f"impact_cmd not simulated: solver failed: {exc} "
+                f"[{refusal_tag(command)}{self.commands.refused} refused so far]"
             )
             return
         self.commands.queued += 1
         self.get_logger().info(
-            f"impact {scheduled.impact_id!r} queued: contact at {scheduled.contact_stamp_s:.4f} s ({self.stream.queued} queued)"
+            f"impact {scheduled.impact_id!r} queued: contact at {scheduled.contact_stamp_s:.4f} s "
+            f"({self.stream.queued} queued)"
         )
 
     def _feed_scenario(self, until_s: float) -> None:
@@ -252,7 +269,8 @@ class SimNode(Node):
                 return
             self._started = True
         if not self.context.ok() or not self._backlog.flush():
-            return  # shutting down, or a subscriber is behind: simulate no further until it has caught up
+            # shutting down, or a subscriber is behind: simulate no further until it has caught up
+            return
         target = self._target_time_s(time.monotonic())
         self._feed_scenario(target)
         chunk = self.stream.advance(target)
@@ -270,7 +288,8 @@ class SimNode(Node):
                 self.finished.set_result(True)
 
     def close(self) -> None:
-        """Before exiting: say what became of the commands; let the subscribers have every message published."""
+        """Before exiting: say what became of the commands; let the subscribers have every message
+        published."""
         self.get_logger().info(
             f"impact_cmd: {self.commands}; {len(self._planned)} scenario impact(s) not started"
         )
@@ -293,7 +312,8 @@ class SimNode(Node):
         for scheduled in chunk.started:
             self._last_activity_s = max(self._last_activity_s, scheduled.truth_stamp_s)
             self.get_logger().info(
-                f"impact {scheduled.impact_id}: {scheduled.impact.material.name} R {scheduled.impact.radius_m * 1e3:.0f} mm "
+                f"impact {scheduled.impact_id}: {scheduled.impact.material.name} R "
+                f"{scheduled.impact.radius_m * 1e3:.0f} mm "
                 f"at {scheduled.contact_stamp_s:.4f} s"
             )
         # The streams in one stamp order (a vibration block at its first sample's stamp), so that

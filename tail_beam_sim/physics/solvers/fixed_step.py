@@ -1,4 +1,5 @@
-"""Fixed-step explicit integrators over the whole window: semi-implicit Euler, velocity Verlet, RK4.
+"""Fixed-step explicit integrators over the whole window: semi-implicit Euler, velocity Verlet,
+RK4.
 
 The naive way to simulate an impact, kept as the baseline the other solvers are charted
 against: one step size ``dt_s`` for the 0.1-1 ms contact and the 50 ms of ringing alike. A
@@ -41,7 +42,8 @@ Stepper = Callable[[FloatDynamics, list, float, float, float], list]
 
 
 def stability_limit_s(problem: ImpactProblem, method: str) -> float:
-    """Largest stable step of ``method`` for this impact, s (contact near its peak, fastest mode)."""
+    """Largest stable step of ``method`` for this impact, s (contact near its peak, fastest
+    mode)."""
     approach = problem.impact_speed_mps - float(problem.contact_shape @ problem.qd0)
     delta_max = hertz_elastic_impact(
         problem.hertz_stiffness, problem.mass_kg, max(approach, 1e-3)
@@ -105,7 +107,8 @@ def solve(
         if dt_s > limit:
             raise SolverError(
                 method,
-                f"dt_s = {dt_s!r} is beyond the stability limit of {method} for this impact ({limit:.3g} s, set by the contact stiffness "
+                f"dt_s = {dt_s!r} is beyond the stability limit of {method} for this impact "
+                f"({limit:.3g} s, set by the contact stiffness "
                 f"or the fastest mode): use dt_s <= {0.5 * limit:.3g} s, or the hybrid solver",
             )
     step = STEPPERS[method]
@@ -193,7 +196,8 @@ def solve(
 
 
 def _fraction(before: float, after: float) -> float:
-    """Where, as a fraction of the step, a quantity going from ``before`` > 0 to ``after`` <= 0 crosses zero."""
+    """Where, as a fraction of the step, a quantity going from ``before`` > 0 to ``after`` <= 0
+    crosses zero."""
     return before / (before - after) if before > after else 1.0
 
 
@@ -215,7 +219,8 @@ def _check(
     if penetration.max() > RUNAWAY_FACTOR * elastic:
         raise SolverError(
             method,
-            f"penetration ran away to {penetration.max():.3g} m ({RUNAWAY_FACTOR:g} x the Hertz maximum): {advice}",
+            f"penetration ran away to {penetration.max():.3g} m ({RUNAWAY_FACTOR:g} x the Hertz "
+            f"maximum): {advice}",
         )
     for contact in contacts:
         k = min(int(round(contact.end_s / dt_s)), segment.t_s.size - 1)
@@ -223,6 +228,7 @@ def _check(
         if separation > contact.approach_speed_mps * (1 + ENERGY_GAIN_TOLERANCE):
             raise SolverError(
                 method,
-                f"the contact at t = {contact.start_s:.4g} s gained energy (leaves at {separation:.3f} m/s, came at "
+                f"the contact at t = {contact.start_s:.4g} s gained energy (leaves at "
+                f"{separation:.3f} m/s, came at "
                 f"{contact.approach_speed_mps:.3f} m/s): {advice}",
             )

@@ -129,7 +129,8 @@ def solve(problem: ImpactProblem, method: str = "Radau", rtol: float = 1e-8) -> 
             method, f"more than {MAX_PHASES} contact phases: the particle chatters on the plate"
         )
     q, qd = y[:n], y[n : 2 * n]
-    # Beyond the window the beam rings freely and the particle flies (or rests, if still in contact).
+    # Beyond the window the beam rings freely and the particle flies (or rests, if still in
+    # contact).
     segments.append(FreeSegment(t, math.inf, t, q, qd, float(y[-2]), float(y[-1])))
     # The integrator holds each step's local error within rtol (atol scaled to each state's size).
     return Trajectory(
@@ -164,7 +165,8 @@ def _segment(
 
 
 def _state_scale(problem: ImpactProblem, approach: float) -> np.ndarray:
-    """Typical size of each state over an impact: an elastic impulse's beam response, the contact."""
+    """Typical size of each state over an impact: an elastic impulse's beam response, the
+    contact."""
     structure = problem.structure
     impulse = 2.0 * problem.mass_kg * approach
     velocity = np.abs(structure.inv_mass @ problem.contact_shape) * impulse

@@ -232,9 +232,9 @@ def test_id_node_takes_a_support_profiles_calibration_section():
 
 def test_numbers_config_reads_as_text_take_numbers_and_the_shipped_files_load():
     """config/ writes 1.95e9 and the like, which PyYAML reads as text and rcl as a number: a
-    number for such a parameter (a profile's oil_bulk_modulus_pa, -p support.setting_pressure_pa:=2.1e7)
-    is taken, and so is every shipped parameter file given as --params-file (as rcl reads it);
-    text that is no number is refused by name."""
+    number for such a parameter (a profile's oil_bulk_modulus_pa,
+    -p support.setting_pressure_pa:=2.1e7) is taken, and so is every shipped parameter file
+    given as --params-file (as rcl reads it); text that is no number is refused by name."""
     from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.config import default_config_dir
     from tail_beam_sim.ros.sim_node import SimNode
