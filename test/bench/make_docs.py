@@ -182,6 +182,7 @@ class Outcome:
     stderr: str
     seconds: float
     charts: list[Path] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)  # charts expected in docs/, not written
 
     @property
     def ok(self) -> bool:
@@ -234,13 +235,28 @@ def run_family(family: Family, quick: bool, root: Path, work: Path, docs: Path) 
     command = (family.quick if quick else family.full).format(out=shown)
     print(f"[{family.name}] {command}", flush=True)
     started = time.monotonic()
+    try:
+        returncode, stdout, stderr = _run(argv_of(command), root, family.name)
+    except OSError as error:  # the command itself is missing
+        returncode, stdout, stderr = 127, "", f"{error}\n"
+    seconds = time.monotonic() - started
+    outcome = Outcome(family, command, returncode, stdout, stderr, seconds)
+    if outcome.ok:
+        for source, target in family.charts.items():
+            if (out / source).exists():
+                outcome.charts.append(store_chart(out / source, docs / target))
+            else:
+                outcome.missing.append(target)
+    status = "ok" if outcome.ok else f"FAILED (exit {returncode})"
+    print(f"[{family.name}] {status} in {seconds:.0f} s", flush=True)
+    return outcome
+
+
+def _run(argv: list[str], root: Path, name: str) -> tuple[int, str, str]:
+    """Run ``argv`` from ``root``: its exit status, stdout and stderr, stderr echoed as it
+    comes (the benchmarks' progress)."""
     with subprocess.Popen(
-        argv_of(command),
-        cwd=root,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        errors="replace",
+        argv, cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, errors="replace"
     ) as process:
         printed: list[str] = []
         reader = threading.Thread(target=lambda: printed.append(process.stdout.read()))
@@ -248,19 +264,10 @@ def run_family(family: Family, quick: bool, root: Path, work: Path, docs: Path) 
         progress = []
         for line in process.stderr:
             progress.append(line)
-            print(f"[{family.name}]   {line.rstrip()}", flush=True)
+            print(f"[{name}]   {line.rstrip()}", flush=True)
         reader.join()
-        process.wait()
-    stdout, stderr = "".join(printed), "".join(progress)
-    seconds = time.monotonic() - started
-    outcome = Outcome(family, command, process.returncode, stdout, stderr, seconds)
-    if outcome.ok:
-        for source, target in family.charts.items():
-            if (out / source).exists():
-                outcome.charts.append(store_chart(out / source, docs / target))
-    status = "ok" if outcome.ok else f"FAILED (exit {process.returncode})"
-    print(f"[{family.name}] {status} in {seconds:.0f} s", flush=True)
-    return outcome
+        returncode = process.wait()
+    return returncode, "".join(printed), "".join(progress)
 
 
 def store_chart(source: Path, target: Path) -> Path:
@@ -310,7 +317,7 @@ def page(outcome: Outcome, revision: str, date: str, quick: bool, docs: Path) ->
         f"{MARK} {_state(outcome, quick)} -->",
         f"# {family.title}",
         "",
-        f"{family.summary}.",
+        f"{family.summary[0].upper()}{family.summary[1:]}.",
         "",
         f"Regenerate: `python test/bench/make_docs.py --only {family.name}"
         + (" --quick" if quick else "")
@@ -337,6 +344,7 @@ def page(outcome: Outcome, revision: str, date: str, quick: bool, docs: Path) ->
             ]
         )
     charts = [f"![{path.stem}](../{path.relative_to(docs).as_posix()})" for path in outcome.charts]
+    charts += [f"Chart docs/{name} was not written by this run." for name in outcome.missing]
     return "\n".join(
         head
         + [
@@ -396,6 +404,13 @@ def _state_of(path: Path) -> str:
     return "unknown"
 
 
+def _write(path: Path, text: str) -> None:
+    """Write a page whole or not at all (through a temporary file and a rename)."""
+    partial = path.with_suffix(".md.partial")
+    partial.write_text(text, encoding="utf-8")
+    partial.replace(path)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -428,15 +443,16 @@ def generate(families: Sequence[Family], quick: bool, root: Path, work: Path, do
         print(f"({number}/{len(families)})", end=" ", flush=True)
         date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
         outcome = run_family(family, quick, root, work, docs)
-        (results / f"{family.name}.md").write_text(
-            page(outcome, revision, date, quick, docs), encoding="utf-8"
-        )
+        _write(results / f"{family.name}.md", page(outcome, revision, date, quick, docs))
         outcomes.append(outcome)
-    (results / "README.md").write_text(index(outcomes, results, quick), encoding="utf-8")
+    _write(results / "README.md", index(outcomes, results, quick))
     failed = [o for o in outcomes if not o.ok]
     print(f"wrote {len(outcomes)} pages and {sum(len(o.charts) for o in outcomes)} charts")
     for o in failed:
         print(f"FAILED: {o.family.name} (exit {o.returncode}): {o.command}")
+    for o in outcomes:
+        for name in o.missing:
+            print(f"MISSING CHART: {o.family.name} did not write docs/{name}")
     return 1 if failed else 0
 
 

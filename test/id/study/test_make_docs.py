@@ -156,3 +156,21 @@ def test_index_links_pages_the_script_does_not_write(make_docs, tmp_path):
     index = (docs / "results" / "README.md").read_text()
     assert "Not written by this script: [archive.md](archive.md)" in index
     assert "[fake.md]" not in index.split("Not written by this script")[1]
+
+
+def test_missing_command_and_missing_chart_are_reported(make_docs, tmp_path):
+    """A command that cannot start gives a FAILED page (status 127) instead of stopping the
+    run, and a chart a family promises but did not write is named on its page."""
+    absent = make_docs.Family(
+        "absent", "Absent", "a command that is not installed", "no-such-bench-xyz",
+        "no-such-bench-xyz", 0.1,
+    )  # fmt: skip
+    family = _family(make_docs, tmp_path)
+    family = make_docs.Family(**{**family.__dict__, "charts": {"other.png": "other_chart.png"}})
+    docs = tmp_path / "docs"
+    assert make_docs.generate([absent, family], False, ROOT, tmp_path / "work", docs) == 1
+    failed = (docs / "results" / "absent.md").read_text()
+    assert "**FAILED**" in failed and "exited with status 127" in failed
+    fake = (docs / "results" / "fake.md").read_text()
+    assert "Chart docs/other_chart.png was not written by this run." in fake
+    assert not list((docs / "results").glob("*.partial"))
