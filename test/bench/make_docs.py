@@ -303,6 +303,16 @@ def _blocks(text: str) -> str:
     return "\n\n".join(parts)
 
 
+def _log(stderr: str, limit: int = 40) -> list[str]:
+    """The context a benchmark prints on stderr (sizes, seeds, times), its '  ... ' progress
+    lines left out, as a text block under a heading (nothing when there is none)."""
+    lines = [x.rstrip() for x in stderr.splitlines() if x.strip() and not x.startswith("  ... ")]
+    if not lines:
+        return []
+    cut = [f"... ({len(lines) - limit} more lines)"] if len(lines) > limit else []
+    return ["Its log (stderr):", "", "```text", *lines[:limit], *cut, "```", ""]
+
+
 def _state(outcome: Outcome, quick: bool) -> str:
     """'ok' or 'FAILED', the sizing and the minutes taken."""
     ok = "ok" if outcome.ok else "FAILED"
@@ -354,6 +364,7 @@ def page(outcome: Outcome, revision: str, date: str, quick: bool, docs: Path) ->
             _blocks(outcome.stdout),
             "",
         ]
+        + _log(outcome.stderr)
         + ([*charts, ""] if charts else [])
     )
 

@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 print("progress on stderr", file=sys.stderr)
+print("  ... one step", file=sys.stderr)
 print("| case | accuracy |")
 print("| --- | --- |")
 print("| fake | 97.5 % |")
@@ -65,7 +66,9 @@ def test_page_carries_the_command_commit_date_and_the_printed_table(make_docs, t
     assert "UTC; sizing full;" in text
     assert "| fake | 97.5 % |" in text  # the table as markdown, not in a text block
     assert "```text\nafter the table: 42 impacts\n```" in text
-    assert "progress on stderr" not in text and "wrote " not in text
+    assert "wrote " not in text
+    assert "Its log (stderr):\n\n```text\nprogress on stderr\n```" in text  # no '  ... '
+
     assert (docs / "fake_chart.png").read_bytes()[:4] == b"\x89PNG"
     assert "![fake_chart](../fake_chart.png)" in text
     index = (docs / "results" / "README.md").read_text()
