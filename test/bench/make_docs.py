@@ -54,6 +54,18 @@ class Family:
 
 FAMILIES: tuple[Family, ...] = (
     Family(
+        "response",
+        "One impact: what the sensors see",
+        "a 25 mm coal sphere dropped 3.5 m onto the tail beam 1 m from the hinge: the tier "
+        "chosen, rebound, peak force and pressure, and the sensors' traces charted",
+        "tail-beam simulate --material coal --radius-m 0.025 --drop-height-m 3.5 "
+        "--position-m 1.0 --plot {out}/response_coal.png",
+        "tail-beam simulate --material coal --radius-m 0.025 --drop-height-m 3.5 "
+        "--position-m 1.0 --plot {out}/response_coal.png",
+        0.1,
+        {"response_coal.png": "response_coal.png"},
+    ),
+    Family(
         "solvers",
         "Solvers: time and error against a converged reference",
         "every solver and setting timed on one impact (rigid beam), errors against Radau "
@@ -305,8 +317,9 @@ def _blocks(text: str) -> str:
 
 def _log(stderr: str, limit: int = 40) -> list[str]:
     """The context a benchmark prints on stderr (sizes, seeds, times), its '  ... ' progress
-    lines left out, as a text block under a heading (nothing when there is none)."""
-    lines = [x.rstrip() for x in stderr.splitlines() if x.strip() and not x.startswith("  ... ")]
+    and 'wrote <file>' lines left out, as a text block under a heading (nothing when there is none)."""
+    skip = ("  ... ", "wrote ")
+    lines = [x.rstrip() for x in stderr.splitlines() if x.strip() and not x.startswith(skip)]
     if not lines:
         return []
     cut = [f"... ({len(lines) - limit} more lines)"] if len(lines) > limit else []
