@@ -316,9 +316,10 @@ def _blocks(text: str) -> str:
 
 
 def _log(stderr: str, limit: int = 40) -> list[str]:
-    """The context a benchmark prints on stderr (sizes, seeds, times), its '  ... ' progress
-    and 'wrote <file>' lines left out, as a text block under a heading (nothing when there is none)."""
-    skip = ("  ... ", "wrote ")
+    """The context a benchmark prints on stderr (sizes, seeds, times), as a text block under a
+    heading (nothing when there is none); progress ('  ... '), 'wrote <file>' and ROS [INFO]
+    lines left out."""
+    skip = ("  ... ", "wrote ", "[INFO]")
     lines = [x.rstrip() for x in stderr.splitlines() if x.strip() and not x.startswith(skip)]
     if not lines:
         return []
