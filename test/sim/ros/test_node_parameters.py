@@ -38,8 +38,9 @@ def run_main(executable: str, *ros_args: str) -> subprocess.CompletedProcess:
 @pytest.mark.slow
 @pytest.mark.parametrize("executable", sorted(MAINS))
 def test_a_params_file_that_is_no_yaml_or_missing_is_one_line_and_exit_2(tmp_path, executable):
-    """rclpy.init refuses a --params-file that is not YAML, one that does not exist and a
-    trailing -p with an RCLError; run_node let it out as a traceback with exit status 1."""
+    """A --params-file that is not YAML, one that does not exist and a trailing -p (each of
+    which rclpy.init refuses with an RCLError) end every executable with exit status 2 and one
+    error line naming the file or argument, no traceback."""
     broken = tmp_path / "params.yaml"
     broken.write_text("a: [b\n  c: }\n")
     for args, needle in (
@@ -57,9 +58,9 @@ def test_a_params_file_that_is_no_yaml_or_missing_is_one_line_and_exit_2(tmp_pat
 
 
 def test_a_storage_of_the_wrong_type_is_named(tmp_path):
-    """-p recorder.storage:=[1, 2] (a list where a name goes) raised TypeError (unhashable type:
-    'list') out of the recorder's start-up; now the InputError naming recorder.storage (and the
-    bag writer refuses a storage that is no name by itself, for its other callers)."""
+    """-p recorder.storage:=[1, 2] (a list where a name goes) or a number is refused at the
+    recorder's start-up with the InputError naming recorder.storage, not a TypeError; the bag
+    writer refuses a storage that is no name by itself too, for its other callers."""
     from tail_beam_sim.bags.write import SegmentedBagWriter
 
     with pytest.raises(InputError, match=r"storage = \[1, 2\]: must be one of mcap, sqlite3"):
@@ -79,10 +80,10 @@ def test_a_storage_of_the_wrong_type_is_named(tmp_path):
 
 
 def test_a_parameter_no_node_has_is_warned_not_ignored(capfd):
-    """``-p id_node.pol_period_s:=0.05`` (a typo) or a --params-file key no node declares was
-    dropped by rclpy without a word: the user believed it set. The node now warns once, naming
-    it; a parameter of another tail_beam node (a ``/**`` file shared by the suite) gets an
-    information line instead, and the node starts either way."""
+    """``-p id_node.pol_period_s:=0.05`` (a typo) or a --params-file key no node declares, which
+    rclpy would drop without a word, is named in one warning; a parameter of another tail_beam
+    node (a ``/**`` file shared by the suite) gets an information line instead, a parameter of
+    the node itself neither, and the node starts either way."""
     from tail_beam_id.ros.id_node import IdNode
 
     overrides = [
@@ -120,11 +121,10 @@ def test_a_parameter_no_node_has_is_warned_not_ignored(capfd):
     ],
 )
 def test_a_parameter_of_the_wrong_type_is_named_at_start_up(name, value, allowed):
-    """Values of the wrong type for parameters the node hands its models unchecked: a list where
-    a name goes (TypeError: unhashable type), NaN where a count goes (ValueError: cannot convert
-    float NaN to integer), text where an array goes (ValueError: could not convert string to
-    float) all ended sim_node's start-up in a traceback. Each is now the InputError naming the
-    parameter and the type its default has."""
+    """A value of the wrong type for a parameter sim_node hands its models (a list where a name
+    goes, NaN where a count goes, text where an array goes, text where a flag goes) is refused
+    at start-up with the InputError naming the parameter and the type its default has, not a
+    TypeError or ValueError from deep inside a model."""
     from tail_beam_sim.ros.sim_node import SimNode
 
     with ros_context() as (context, _):
@@ -134,10 +134,10 @@ def test_a_parameter_of_the_wrong_type_is_named_at_start_up(name, value, allowed
 
 @pytest.mark.slow
 def test_a_value_the_models_cannot_take_ends_start_up_with_one_line():
-    """-p modes.bending_1.frequency_hz:=1e308 is a finite number of the right type, but the modal
-    model's matrices overflow (LinAlgError out of sim_node's start-up, a traceback). Whatever a
-    model raises from the parameters given, the executable now ends with one line and exit 2,
-    naming the parameters set on its command line."""
+    """-p modes.bending_1.frequency_hz:=1e308 is a finite number of the right type on which
+    the modal model's matrices overflow. Whatever a model raises from the parameters given, the
+    executable ends with exit status 2 and one error line naming the parameters set on its
+    command line, no traceback."""
     result = run_main(
         "sim_node",
         "-p",
@@ -152,9 +152,9 @@ def test_a_value_the_models_cannot_take_ends_start_up_with_one_line():
 
 
 def test_a_start_offset_past_any_bag_is_named(tmp_path):
-    """-p replay.start_offset_s:=1e308 passed its check (>= 0, no upper bound) and overflowed
-    turning into nanoseconds (OverflowError out of bag_replay's start-up); now refused naming
-    replay.start_offset_s and its range (a bag's log time is int64 ns: under 9.2e9 s)."""
+    """-p replay.start_offset_s:=1e308, which would overflow as nanoseconds, is refused at
+    bag_replay's start-up naming replay.start_offset_s and its range: the offset has an upper
+    bound because a bag's log time is int64 ns (under 9.2e9 s)."""
     from bag_helpers import records, write_segments
 
     from tail_beam_sim.ros.replay_node import ReplayNode
@@ -173,8 +173,8 @@ def test_a_start_offset_past_any_bag_is_named(tmp_path):
 
 def test_a_looping_replay_whose_bag_went_away_stops_with_one_line(tmp_path):
     """bag_replay with replay.loop reopens its bag at each pass; a bag removed (or damaged at its
-    start) meanwhile raised InputError out of the timer, ending the process in a traceback. It
-    now stops as a bag found damaged part-way does: one logged line, exit status 1."""
+    start) meanwhile stops it as a bag found damaged part-way does: one logged line and exit
+    status 1, no exception out of the timer."""
     import shutil
 
     from bag_helpers import records, write_segments
@@ -201,10 +201,9 @@ def test_a_looping_replay_whose_bag_went_away_stops_with_one_line(tmp_path):
 
 def test_id_node_takes_a_support_profiles_calibration_section():
     """A profile written by `tail-beam calibrate` holds a `calibration` section that no config/
-    default declares: rclpy dropped it, so id_node with `--params-file profile.yaml` decided as
-    uncalibrated while `tail-beam identify --config profile.yaml` decided as calibrated. id_node
-    now takes that section (and does not warn of it), so its labels say calibrated: true, and
-    the support's hysteresis the profile read reaches the statistical method."""
+    default declares. id_node given it takes that section (and does not warn of it), so it
+    decides as calibrated, as `tail-beam identify --config profile.yaml` does, and the support's
+    hysteresis the profile read reaches the statistical method; without it, uncalibrated."""
     from tail_beam_id.ros.id_node import IdNode
 
     weights = [0.0, 0.9, 0.1, 0.0, 0.0, 0.0]  # one per hysteresis bin of the shipped model
@@ -370,8 +369,8 @@ def test_a_loop_over_one_instant_is_refused(tmp_path):
 
 
 def test_a_start_offset_past_the_bags_end_names_its_duration(tmp_path):
-    """replay.start_offset_s beyond the bag's last message said the bag "holds no messages on
-    replay.topics"; it now names the offset and the log time the bag's messages span."""
+    """replay.start_offset_s beyond the bag's last message is refused naming the offset and the
+    log time the bag's messages span (not as a bag that holds no messages on replay.topics)."""
     from bag_helpers import RATE_HZ, records, write_segments
 
     from tail_beam_sim.ros.replay_node import ReplayNode
