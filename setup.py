@@ -17,7 +17,10 @@ ROS_WHEELS = [
 setup(
     name=PACKAGE,
     version="0.1.0",
-    description="Emulated instrumented tail beam of a top-coal-caving support, with coal-gangue identification",
+    description=(
+        "Emulated instrumented tail beam of a top-coal-caving support, "
+        "with coal-gangue identification"
+    ),
     packages=find_packages(
         include=["tail_beam_sim", "tail_beam_sim.*", "tail_beam_id", "tail_beam_id.*"]
     ),
@@ -32,7 +35,13 @@ setup(
     extras_require={
         "ros": ROS_WHEELS,
         "plot": ["matplotlib>=3.7"],
-        "test": ["pytest>=8", "pytest-xdist>=3", "mcap>=1.1", "mcap-ros2-support>=0.5", "ruff>=0.6"],
+        "test": [
+            "pytest>=8",
+            "pytest-xdist>=3",
+            "mcap>=1.1",
+            "mcap-ros2-support>=0.5",
+            "ruff>=0.6",
+        ],
         "colcon": [
             "colcon-core",
             "colcon-ros",
