@@ -4,8 +4,8 @@ quietly.
 Importing a node's module (rclpy, numpy, scipy, the models) takes a second or more; a SIGINT
 left to Python's default there would end the process in a KeyboardInterrupt traceback from
 inside an import (SIGTERM: killed, status -15). This module imports nothing heavy, takes both
-signals first, and only then imports the node: a signal before the node spins exits with status 0 and
-no output; from :func:`tail_beam_sim.ros.spin.run_node` on, the node stops as usual.
+signals first, and only then imports the node: a signal before the node spins exits with status
+0 and no output; from :func:`tail_beam_sim.ros.spin.run_node` on, the node stops as usual.
 """
 
 from __future__ import annotations

@@ -106,7 +106,8 @@ def test_accelerometer_bolted_upside_down_gives_the_same_label(params):
     """A tail-beam accelerometer mounted upside down reads -g and mirrored pulses (the models read
     a pulse's polarity). The identifier reads its mounting from gravity, labels as with it the
     right way up, and says so in ``vibration_mount``. A piezoelectric (AC-coupled) one sees no
-    gravity: its sign is read from the IMU beside it once the beam moves, right way up or upside down."""
+    gravity: its sign is read from the IMU beside it once the beam moves, right way up or upside
+    down."""
     result = impact(params, material="sandstone", radius_m=0.04, seed=5)
     vibration = result.vibration
     assert vibration.count, "the shipped layout has the accelerometer"
