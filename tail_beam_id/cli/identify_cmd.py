@@ -127,9 +127,11 @@ def report_reading(data: BagSensors, verb: str, runs: int = 1, bag: str | None =
             file=sys.stderr,
         )
     for name, (log_s, back_s) in data.time_jumps.items():
+        moved = f"go back {back_s:.3f} s" if back_s > 0 else f"jump ahead {-back_s:.3f} s"
         print(
-            f"{verb}: {data.namespace} {name}: stamps go back {back_s:.3f} s at log time {log_s:.3f} s (a restarted simulator or "
-            f"a looped replay): {runs} runs, each taken alone as id_node starts afresh there",
+            f"{verb}: {data.namespace} {name}: stamps {moved} at log time {log_s:.3f} s (a "
+            f"restarted simulator, a looped replay or a new clock): {runs} runs, each taken "
+            "alone as id_node starts afresh there",
             file=sys.stderr,
         )
 

@@ -4,6 +4,7 @@ them: in chunks of stamp time, each topic in order, the rebound when its stamp i
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -34,9 +35,11 @@ def replay(
     vib_stamps = vibration.sample_stamps_s() if vibration is not None and vibration.count else None
     # The span of every continuous stream, the accelerometer's too: one that starts earlier, runs
     # on after the others or is alone must not lose its samples outside theirs.
-    spans = [s.stamp_s for s in (pressure, imu) if s is not None and s.stamp_s.size]
-    if vib_stamps is not None and vib_stamps.size:
+    spans = [s.stamp_s for s in (pressure, imu) if s is not None]
+    if vib_stamps is not None:
         spans.append(vib_stamps)
+    spans = [stamps[np.isfinite(stamps)] for stamps in spans]  # a stamp not finite: refused
+    spans = [stamps for stamps in spans if stamps.size]
     starts = [float(np.min(stamps)) for stamps in spans]
     ends = [float(np.max(stamps)) for stamps in spans]
     labels: list[Label] = []
@@ -44,44 +47,101 @@ def replay(
         for rebound in rebounds:
             identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
         return identifier.flush()
-    pending = sorted(rebounds, key=lambda r: r.stamp_s)
     first, last = min(starts), max(ends)
-    count = int((last - first) / chunk_s) + 2
-    # Chunk edges by multiplication, so consecutive chunks share one float edge exactly: no
-    # sample is delivered twice or lost between them.
-    edges = first + chunk_s * np.arange(count + 1)
-    # Each stream cut at the chunk edges once (searchsorted on the sorted stamps): a per-chunk
-    # mask over the whole stream would cost samples x chunks on a long recording.
-    every = max(1, int(count * PROGRESS_STEP))
-    p_cut = np.searchsorted(pressure.stamp_s, edges) if pressure is not None else None
-    i_cut = np.searchsorted(imu.stamp_s, edges) if imu is not None else None
-    v_cut = np.searchsorted(vib_stamps, edges) if vib_stamps is not None else None
-    for k, high in enumerate(edges[1:]):
-        if p_cut is not None and p_cut[k + 1] > p_cut[k]:
-            take = slice(p_cut[k], p_cut[k + 1])
-            identifier.add_pressure(pressure.stamp_s[take], pressure.pressure_pa[take])
-        if i_cut is not None and i_cut[k + 1] > i_cut[k]:
-            take = slice(i_cut[k], i_cut[k + 1])
-            identifier.add_imu(
-                imu.stamp_s[take],
-                imu.angular_velocity_radps[take],
-                imu.linear_acceleration_mps2[take],
-            )
-        if v_cut is not None and v_cut[k + 1] > v_cut[k]:
-            take = slice(v_cut[k], v_cut[k + 1])
-            identifier.add_vibration(vib_stamps[take], vibration.accel_mps2[take].astype(float))
+    # The chunks cover the streams' span; a rebound after it (or not finite) is given at the end.
+    end_edge = first + chunk_s * (int((last - first) / chunk_s) + 2)
+    pending = sorted(
+        (r for r in rebounds if math.isfinite(r.stamp_s) and r.stamp_s < end_edge),
+        key=lambda r: r.stamp_s,
+    )
+    after = [r for r in rebounds if not (math.isfinite(r.stamp_s) and r.stamp_s < end_edge)]
+    streams = [
+        (pressure.stamp_s, _deliver_pressure(identifier, pressure))
+        if pressure is not None
+        else None,
+        (imu.stamp_s, _deliver_imu(identifier, imu)) if imu is not None else None,
+        (vib_stamps, _deliver_vibration(identifier, vib_stamps, vibration))
+        if vib_stamps is not None
+        else None,
+    ]
+    streams = [s for s in streams if s is not None]
+    done = [0] * len(streams)  # per stream, the samples delivered
+    limit = [int(np.searchsorted(stamps, end_edge)) for stamps, _ in streams]
+    step = max(chunk_s, PROGRESS_STEP * (last - first))
+    reported = -math.inf
+    k = 0  # the chunk [edge(k), edge(k + 1)), edge(k) = first + chunk_s * k
+    while True:
+        # A chunk that holds nothing changes nothing: go straight to the one holding the next
+        # sample or rebound, so a stamp far ahead (a clock gone wrong, a new time base) costs
+        # no walk across the stretch before it.
+        upcoming = [
+            float(stamps[done[n]]) for n, (stamps, _) in enumerate(streams) if done[n] < limit[n]
+        ]
+        if pending:
+            upcoming.append(pending[0].stamp_s)
+        if not upcoming:
+            break
+        k = _chunk_of(min(upcoming), first, chunk_s, k)
+        high = first + chunk_s * (k + 1)
+        for n, (stamps, deliver) in enumerate(streams):
+            end = min(limit[n], int(np.searchsorted(stamps, high)))
+            if end > done[n]:
+                deliver(done[n], end)
+                done[n] = end
         while pending and pending[0].stamp_s < high:
             rebound = pending.pop(0)
             identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
         labels += identifier.poll()
-        if progress is not None and k % every == 0:
+        if progress is not None and high - reported >= step:
             progress(min(high, last) - first, last - first)
-    for rebound in pending:
+            reported = high
+        k += 1
+    for rebound in after:
         identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
     labels += identifier.flush()
     if progress is not None:
         progress(last - first, last - first)
     return labels
+
+
+def _chunk_of(stamp_s: float, first_s: float, chunk_s: float, at_least: int) -> int:
+    """The chunk ``k`` (not before ``at_least``) whose edges ``first_s + chunk_s * k`` and
+    ``... * (k + 1)`` hold ``stamp_s``, by the same float product that cuts the chunks."""
+    if not math.isfinite(stamp_s):
+        return at_least
+    k = max(at_least, int((stamp_s - first_s) // chunk_s))
+    while k > at_least and first_s + chunk_s * k > stamp_s:
+        k -= 1
+    while first_s + chunk_s * (k + 1) <= stamp_s:
+        k += 1
+    return k
+
+
+def _deliver_pressure(identifier: StreamIdentifier, stream: PressureStream) -> Callable:
+    def deliver(start: int, end: int) -> None:
+        identifier.add_pressure(stream.stamp_s[start:end], stream.pressure_pa[start:end])
+
+    return deliver
+
+
+def _deliver_imu(identifier: StreamIdentifier, stream: ImuStream) -> Callable:
+    def deliver(start: int, end: int) -> None:
+        identifier.add_imu(
+            stream.stamp_s[start:end],
+            stream.angular_velocity_radps[start:end],
+            stream.linear_acceleration_mps2[start:end],
+        )
+
+    return deliver
+
+
+def _deliver_vibration(
+    identifier: StreamIdentifier, stamps: np.ndarray, blocks: VibrationBlocks
+) -> Callable:
+    def deliver(start: int, end: int) -> None:
+        identifier.add_vibration(stamps[start:end], blocks.accel_mps2[start:end].astype(float))
+
+    return deliver
 
 
 PROGRESS_STEP = 0.02  # replay reports its progress about every this fraction of the stream

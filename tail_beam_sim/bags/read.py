@@ -410,9 +410,10 @@ class _Sorter:
     * a continuous stream (jack pressure, IMU, vibration) whose stamps go back by more than
       TIME_JUMP_S starts its next run (a restarted simulator, a looped replay);
     * a message of a continuous stream stamped more than TIME_JUMP_S ahead of its own stream
-      and of the others (a clock gone wrong) is held: taken once another stream reaches it (a
-      new time base every stream moved to), set aside when its stream goes on before it or the
-      recording ends without another stream reaching it (a stream alone is taken as it is);
+      and of the others (a clock gone wrong) is held: taken once another stream reaches it
+      (when that one jumped there too, every stream moved to a new time base: the next run, as
+      id_node starts a new epoch), set aside when its stream goes on before it or the recording
+      ends without another stream reaching it (a stream alone takes it as its next run);
     * an event (rebound, truth, label) goes to the newest run, and is set aside when it is
       stamped before that run's first continuous sample: a recorder started late receives
       transient-local events of impacts from before its recording;
@@ -429,9 +430,11 @@ class _Sorter:
         self.run_of: dict[str, int] = {}  # per continuous topic, the run its messages go to
         self.held: dict[str, list[tuple[float, Any]]] = {}  # per topic: (stamp, decoded) ahead
         self.events: list[list[tuple[str, float | None, Any]]] = [[]]  # per run, in order
+        self.log_s = 0.0  # log time of the latest message, s
 
     def add(self, raw: RawMessage, msg: Any) -> None:
         """One decoded message, in recorded order."""
+        self.log_s = raw.log_time_ns * 1e-9
         if raw.topic in CONTINUOUS_TOPICS:
             decoded = self._decode(raw.topic, msg)
             if decoded is not None:
@@ -465,6 +468,7 @@ class _Sorter:
 
     def _continuous(self, raw: RawMessage, stamp: float, decoded: Any) -> None:
         topic = raw.topic
+        log_s = raw.log_time_ns * 1e-9
         held = self.held.get(topic)
         if held:
             if stamp >= held[0][0] - TIME_JUMP_S:
@@ -472,17 +476,49 @@ class _Sorter:
                 return
             self._set_aside_held(topic)  # its stream went on before it: a stamp gone wrong
         latest = self.latest.get(topic, -math.inf)
+        taken = max(self.latest.values(), default=-math.inf)
+        new_base = False
         if stamp < latest - TIME_JUMP_S:
-            self.jumps.setdefault(topic, (raw.log_time_ns * 1e-9, latest - stamp))
-            self.run_of[topic] = self.run_of.get(topic, 0) + 1
+            self._next_run(topic, log_s, latest - stamp)
             self.latest[topic] = stamp
-            if self.run_of[topic] == len(self.runs):
-                self.runs.append(_Run())
-                self.events.append([])
         elif stamp > max(latest, self._reach(topic)) + TIME_JUMP_S:
             self.held[topic] = [(stamp, decoded)]
             return
+        elif latest > -math.inf and stamp > taken + TIME_JUMP_S:
+            # Ahead of everything taken, and another stream holds messages there: every
+            # stream moved to a new time base (id_node starts a new epoch).
+            self._next_run(topic, log_s, latest - stamp)
+            new_base = True
+        elif stamp > latest + TIME_JUMP_S and self._newest_run(topic) > self.run_of.get(topic, 0):
+            # Jumped ahead to where the others went on in a new time base: it goes there too.
+            self._next_run(topic, log_s, latest - stamp, self._newest_run(topic))
         self._take(topic, stamp, decoded)
+        # What another stream holds ahead is taken once this one reaches it.
+        for name, other in list(self.held.items()):
+            if name != topic and stamp >= other[0][0] - TIME_JUMP_S:
+                self._release(name, log_s, new_base)
+
+    def _newest_run(self, topic: str) -> int:
+        """The newest run the other continuous streams have reached."""
+        return max((r for name, r in self.run_of.items() if name != topic), default=0)
+
+    def _next_run(self, topic: str, log_s: float, back_s: float, to: int | None = None) -> None:
+        """``topic``'s messages from here on go to its next run (a new time base), or to run
+        ``to``."""
+        self.jumps.setdefault(topic, (log_s, back_s))
+        self.run_of[topic] = self.run_of.get(topic, 0) + 1 if to is None else to
+        if self.run_of[topic] == len(self.runs):
+            self.runs.append(_Run())
+            self.events.append([])
+
+    def _release(self, topic: str, log_s: float, new_base: bool) -> None:
+        """Take what ``topic`` held ahead (in its next run when it is a new time base)."""
+        held = self.held.pop(topic)
+        latest = self.latest.get(topic, -math.inf)
+        if new_base and latest > -math.inf:
+            self._next_run(topic, log_s, latest - held[0][0])
+        for item in held:
+            self._take(topic, *item)
 
     def _reach(self, topic: str) -> float:
         """The newest stamp the other continuous streams have taken or hold (-inf: none)."""
@@ -498,12 +534,6 @@ class _Sorter:
             topics.IMU: run.imu,
             topics.VIBRATION: run.vibration,
         }[topic].append(decoded)
-        # What another stream holds ahead is taken once this one reaches it.
-        for name, held in list(self.held.items()):
-            if name != topic and held and stamp >= held[0][0] - TIME_JUMP_S:
-                del self.held[name]
-                for item in held:
-                    self._take(name, *item)
 
     def _set_aside_held(self, topic: str) -> None:
         held = self.held.pop(topic, [])
@@ -520,12 +550,10 @@ class _Sorter:
         stream alone is taken as it is); the events go to their runs, those stamped before
         their run's first continuous sample set aside."""
         for topic in list(self.held):
-            others = any(name != topic for name in self.latest)
-            if others:
+            if any(name != topic for name in self.latest):
                 self._set_aside_held(topic)
-            else:
-                for item in self.held.pop(topic):
-                    self._take(topic, *item)
+            else:  # a stream alone: its own new time base
+                self._release(topic, self.log_s, True)
         for run, events in zip(self.runs, self.events):
             stamps = [min(r[0] for r in run.pressure)] if run.pressure else []
             stamps += [min(r[0] for r in run.imu)] if run.imu else []

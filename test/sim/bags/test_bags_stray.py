@@ -131,3 +131,100 @@ def test_events_from_before_a_late_recorder_started_are_set_aside_not_a_new_run(
     said = [line for line in result.stderr.splitlines() if "set aside" in line]
     assert {line.split(": ")[1] for line in said} >= {"/ rebound_velocity", "/ impact_truth"}
     assert "50 message(s)" in said[0], said
+
+
+def one_shifted(records, topic: str, shift_s: float, nth: int = 20) -> tuple:
+    """The ``nth`` record of ``topic`` stamped ``shift_s`` later, logged where it was."""
+    record = [r for r in records if r[0] == topic][nth]
+    (_, _, data), log_ns = shifted([record], shift_s)[0], record[1]
+    return topic, log_ns + 1, data
+
+
+@pytest.mark.parametrize(
+    "topic, shift_s",
+    [
+        (topics.JACK_PRESSURE, 1e5),
+        (topics.VIBRATION, 1e6),
+        (topics.IMU, 2.0**31 - 102.0),
+    ],
+    ids=["pressure+1e5s", "vibration+1e6s", "imu-at-2^31s"],
+)
+def test_one_message_stamped_far_ahead_is_set_aside_in_bounded_time(
+    tmp_path, coal_records, clean_labels, topic, shift_s
+):
+    """One message stamped far ahead among the recording's (a clock gone wrong): set aside and
+    counted as id_node does, identify ends well within 60 s (it walked 10 ms chunks across the
+    whole span: minutes to hours, or numpy failed to allocate 1.24 TiB) with the clean labels."""
+    stray = one_shifted(coal_records, topic, shift_s)
+    bag = write(tmp_path / "bag", sorted(coal_records + [stray], key=lambda r: r[1]))
+    started = time.monotonic()
+    result = run("identify", str(bag), "--no-calibrate", timeout_s=60)
+    assert time.monotonic() - started < 60
+    assert kept(labels_of(result)) == clean_labels
+    said = [line for line in result.stderr.splitlines() if "set aside" in line]
+    assert len(said) == 1 and topic in said[0] and "ahead" in said[0], result.stderr
+
+
+def test_epoch_stamped_data_after_sim_time_data_is_a_new_run_in_bounded_time(
+    tmp_path, coal_records, clean_labels
+):
+    """The same support recorded on, stamped by the epoch clock (1.7e9 s) after sim-time data:
+    every stream jumps ahead, a new time base, each run taken alone in bounded time (numpy
+    failed to allocate the chunk edges across 1.7e9 s); both impacts labelled coal, once."""
+    epoch = shifted(coal_records, 1.7e9)
+    bag = write(tmp_path / "bag", coal_records + epoch)
+    started = time.monotonic()
+    result = run("identify", str(bag), "--no-calibrate", timeout_s=60)
+    assert time.monotonic() - started < 60
+    labels = kept(labels_of(result))
+    assert labels[0] == clean_labels[0] and [label for _, label in labels] == ["coal", "coal"]
+    assert labels[1][0] - labels[0][0] == pytest.approx(1.7e9, abs=1e-3)
+    assert "jump ahead" in result.stderr and "2 runs" in result.stderr, result.stderr
+
+
+def test_replay_goes_straight_across_an_empty_stretch(params):
+    """replay() given two impacts 1e6 s apart on every stream: it goes from the last chunk with
+    data to the next, not through the 1e8 empty chunks between (hours, and chunk edges past
+    memory), and labels both impacts as each alone."""
+    import dataclasses
+
+    import numpy as np
+
+    from tail_beam_id.stream.identifier import StreamIdentifier
+    from tail_beam_id.stream.replay import replay
+    from tail_beam_sim.physics.sensors import VibrationBlocks
+
+    gap = 1e6
+    r = impact(params, material="coal", radius_m=0.025, seed=7)
+    pressure = dataclasses.replace(
+        r.pressure,
+        stamp_s=np.concatenate([r.pressure.stamp_s, r.pressure.stamp_s + gap]),
+        pressure_pa=np.concatenate([r.pressure.pressure_pa] * 2),
+    )
+    imu = dataclasses.replace(
+        r.imu,
+        stamp_s=np.concatenate([r.imu.stamp_s, r.imu.stamp_s + gap]),
+        angular_velocity_radps=np.concatenate([r.imu.angular_velocity_radps] * 2),
+        linear_acceleration_mps2=np.concatenate([r.imu.linear_acceleration_mps2] * 2),
+    )
+    v = r.vibration
+    later = dataclasses.replace(
+        v, first_index=v.first_index + int(round(gap / v.period_s)), stamp_s=v.stamp_s + gap
+    )
+    rebounds = [r.rebound, dataclasses.replace(r.rebound, stamp_s=r.rebound.stamp_s + gap)]
+    identifier = StreamIdentifier("statistical", params["identification"], params)
+    started = time.monotonic()
+    labels = replay(
+        identifier, pressure, imu, rebounds, vibration=VibrationBlocks.concatenate([v, later])
+    )
+    assert time.monotonic() - started < 30
+    alone = replay(
+        StreamIdentifier("statistical", params["identification"], params),
+        r.pressure,
+        r.imu,
+        [r.rebound],
+        vibration=v,
+    )
+    assert [label.material for label in labels] == ["coal", "coal"]
+    assert labels[0].impact_stamp_s == alone[0].impact_stamp_s
+    assert labels[1].impact_stamp_s == pytest.approx(alone[0].impact_stamp_s + gap, abs=1e-6)
