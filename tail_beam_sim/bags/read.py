@@ -398,6 +398,7 @@ def _read(
         reader.add(raw, TYPESTORE.deserialize_cdr(raw.data, raw.msgtype))
     reader.finish()
     for run in reader.runs:
+        run.vibration = _sift_vibration(run.vibration, reader.aside)
         _check_index(run.vibration)
     partial = (Path(path) / PARTIAL_DIR).is_dir() and any((Path(path) / PARTIAL_DIR).iterdir())
     return reader.runs, reader.chosen, reader.jumps, partial, reader.aside
@@ -618,6 +619,92 @@ def _first_of_each_stamp(rows: np.ndarray) -> tuple[np.ndarray, int]:
     return (rows, 0) if keep.all() else (rows[keep], int((~keep).sum()))
 
 
+PERIOD_RTOL = 1e-6  # sample periods this close (relative) are one period (float rounding)
+MAX_ODD_SHARE = 0.25  # more blocks than this at odds with the stream: the stream is inconsistent
+
+
+def _sift_vibration(
+    decoded: list[tuple[int, float, np.ndarray, float, float]], aside: SetAside
+) -> list[tuple[int, float, np.ndarray, float, float]]:
+    """One run's vibration blocks without the few that are at odds with the stream, each set
+    aside and counted: a block of another sample period than the stream's (within PERIOD_RTOL
+    relative it is the same one), and of two blocks whose running indices overlap while their
+    stamps set them apart (:meth:`VibrationBlocks.index_conflict`: a stale or repeated block
+    sent again at a later stamp, a block claiming its predecessor's index) the one whose stamp
+    agrees less with its neighbours' index and stamp. When more than MAX_ODD_SHARE of the
+    blocks are at odds (two accelerometers on one topic, a publisher whose index words do not
+    count samples) nothing is set aside: the stream is refused as a whole by the checks after."""
+    if len(decoded) < 2:
+        return decoded
+    periods = np.array([d[3] for d in decoded])
+    values, counts = np.unique(periods, return_counts=True)
+    weight = [counts[np.abs(values - v) <= PERIOD_RTOL * v].sum() for v in values]
+    period = float(values[int(np.argmax(weight))])
+    same = np.abs(periods - period) <= PERIOD_RTOL * period
+    if (~same).sum() > MAX_ODD_SHARE * len(decoded):
+        return decoded
+    if not same.all():
+        aside.add(
+            topics.VIBRATION,
+            f"sample period other than the stream's {period:g} s",
+            int((~same).sum()),
+        )
+        # Within PERIOD_RTOL the blocks take the stream's period.
+        decoded = [(d[0], d[1], d[2], period, d[4]) for d, ok in zip(decoded, same) if ok]
+    else:
+        decoded = [(d[0], d[1], d[2], period, d[4]) for d in decoded]
+    dropped = 0
+    for _ in range(8):  # rounds: a block set aside may uncover another conflict
+        blocks = _vibration_blocks(decoded, in_order=False)
+        odd = _odd_blocks(blocks)
+        if not odd:
+            break
+        if dropped + len(odd) > MAX_ODD_SHARE * len(decoded):
+            return decoded
+        dropped += len(odd)
+        decoded = [d for k, d in enumerate(decoded) if k not in odd]
+    if dropped:
+        aside.add(
+            topics.VIBRATION,
+            "running index taken by another block at another stamp (a stale or repeated block)",
+            dropped,
+        )
+    return decoded
+
+
+def _odd_blocks(blocks: VibrationBlocks) -> set[int]:
+    """Positions of the blocks to set aside: of each pair whose running indices overlap while
+    their stamps are further apart than the indices say (as index_conflict finds them), the one
+    whose offset (stamp less index times period) is further from its stamp neighbours'."""
+    order = np.lexsort((blocks.stamp_s, blocks.first_index))
+    first, length = blocks.first_index[order], blocks.lengths[order]
+    stamp, period = blocks.stamp_s[order], blocks.period_s
+    overlap = first[1:] < first[:-1] + length[:-1]
+    off = np.abs(np.diff(stamp) - np.diff(first) * period) > 0.5 * length[:-1] * period
+    pairs = np.flatnonzero(overlap & off)
+    if not pairs.size:
+        return set()
+    offset = blocks.stamp_s - blocks.first_index * period
+    by_stamp = np.argsort(blocks.stamp_s, kind="stable")
+    rank = np.empty_like(by_stamp)
+    rank[by_stamp] = np.arange(by_stamp.size)
+    odd: set[int] = set()
+    for p in pairs:
+        a, b = int(order[p]), int(order[p + 1])
+        if a in odd or b in odd:
+            continue
+
+        def deviation(k: int) -> float:
+            near = by_stamp[max(0, rank[k] - 4) : rank[k] + 5]
+            near = [n for n in near if n not in (a, b)]
+            if not near:
+                return 0.0
+            return float(abs(offset[k] - np.median(offset[near])))
+
+        odd.add(a if deviation(a) > deviation(b) else b)
+    return odd
+
+
 def _check_index(decoded: list[tuple[int, float, np.ndarray, float, float]]) -> None:
     """InputError naming the index fields when one run's blocks give overlapping running
     indices to samples their stamps set apart (:meth:`VibrationBlocks.index_conflict`): taken
@@ -644,7 +731,7 @@ def _vibration_blocks(
     if not decoded:
         return VibrationBlocks.empty()
     periods = sorted({d[3] for d in decoded})
-    if len(periods) > 1:
+    if periods[-1] - periods[0] > PERIOD_RTOL * periods[0]:
         raise InputError(
             "vibration.time_increment",
             periods[:3],

@@ -36,7 +36,8 @@ def run_info(args: argparse.Namespace) -> int:
     rate and the samples missing from the running index; the recorder's loss counts."""
     counts: dict[str, list] = {}
     spans: dict[str, IndexSpan] = {}
-    periods: dict[str, float] = {}
+    periods: dict[str, dict[float, int]] = {}  # per vibration topic: blocks per period
+    blockless: dict[str, int] = {}  # per vibration topic: messages carrying no block
     first = last = None
     for raw in raw_messages(args.bag, namespace=ANY_NAMESPACE, any_type=True):
         name = raw.full_topic or raw.topic
@@ -45,11 +46,16 @@ def run_info(args: argparse.Namespace) -> int:
         first = raw.log_time_ns if first is None else min(first, raw.log_time_ns)
         last = raw.log_time_ns if last is None else max(last, raw.log_time_ns)
         if raw.topic == topics.VIBRATION and raw.msgtype == topics.MSG_TYPES[topics.VIBRATION]:
-            index, _, samples, period_s, _ = vibration_fields(
-                TYPESTORE.deserialize_cdr(raw.data, raw.msgtype)
-            )
+            try:
+                index, _, samples, period_s, _ = vibration_fields(
+                    TYPESTORE.deserialize_cdr(raw.data, raw.msgtype)
+                )
+            except InputError:  # a message carrying no block: counted, the rest listed
+                blockless[name] = blockless.get(name, 0) + 1
+                continue
             spans.setdefault(name, IndexSpan()).add(index, samples.size)
-            periods[name] = period_s
+            periods.setdefault(name, {}).setdefault(period_s, 0)
+            periods[name][period_s] += 1
     print(
         f"bag {args.bag}: {sum(c[1] for c in counts.values())} messages, log time {first * 1e-9:.3f} .. {last * 1e-9:.3f} s"
     )
@@ -58,10 +64,16 @@ def run_info(args: argparse.Namespace) -> int:
         line = f"  {topic:<{width}} {msgtype:<32} {count:>8}"
         if topic in spans:
             span = spans[topic]
-            rate = 1.0 / periods[topic] if periods[topic] > 0 else float("nan")
-            line += (
-                f"  ({span.samples} samples at {rate:.0f} Hz, {span.lost_samples} samples lost)"
-            )
+            period = max(periods[topic], key=periods[topic].get)  # the most blocks'
+            line += f"  ({span.samples} samples at {1.0 / period:.0f} Hz"
+            line += f", {span.lost_samples} samples lost"
+            if len(periods[topic]) > 1:
+                line += (
+                    f", {sum(periods[topic].values()) - periods[topic][period]} at another rate"
+                )
+            line += ")"
+        if topic in blockless:
+            line += f"  ({blockless[topic]} carrying no block)"
         print(line)
     custom = _custom_data(Path(args.bag))
     lost = {k: v for k, v in custom.items() if k.startswith("tail_beam.")}

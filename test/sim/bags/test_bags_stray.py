@@ -228,3 +228,60 @@ def test_replay_goes_straight_across_an_empty_stretch(params):
     assert [label.material for label in labels] == ["coal", "coal"]
     assert labels[0].impact_stamp_s == alone[0].impact_stamp_s
     assert labels[1].impact_stamp_s == pytest.approx(alone[0].impact_stamp_s + gap, abs=1e-6)
+
+
+def vibration_variant(coal_records, case: str) -> list:
+    """The coal recording with one vibration message spoiled as ``case`` says."""
+    records = list(coal_records)
+    at = [k for k, r in enumerate(records) if r[0] == topics.VIBRATION]
+    decode = lambda k: bagio.TYPESTORE.deserialize_cdr(
+        records[k][2], topics.MSG_TYPES[topics.VIBRATION]
+    )  # noqa: E731
+    encode = lambda msg: bytes(
+        bagio.TYPESTORE.serialize_cdr(msg, topics.MSG_TYPES[topics.VIBRATION])
+    )  # noqa: E731
+    if case == "malformed":
+        msg = decode(at[3])
+        msg.angle_min = float("nan")
+        records[at[3]] = (topics.VIBRATION, records[at[3]][1], encode(msg))
+    elif case == "stale":  # block 2 sent again, stamped when block 8 was
+        msg, later = decode(at[2]), decode(at[8])
+        msg.header.stamp = later.header.stamp
+        records.insert(at[8] + 1, (topics.VIBRATION, records[at[8]][1] + 1, encode(msg)))
+    elif case == "duplicate-index":  # block 5 claims block 4's running index
+        msg, before = decode(at[5]), decode(at[4])
+        msg.angle_min, msg.angle_max = before.angle_min, before.angle_max
+        records[at[5]] = (topics.VIBRATION, records[at[5]][1], encode(msg))
+    elif case == "other-period":
+        msg = decode(at[6])
+        msg.time_increment *= 2.0
+        records[at[6]] = (topics.VIBRATION, records[at[6]][1], encode(msg))
+    elif case == "period-rounding":
+        for k in at[::2]:
+            msg = decode(k)
+            msg.time_increment *= 1.0 + 1e-7
+            records[k] = (topics.VIBRATION, records[k][1], encode(msg))
+    return records
+
+
+@pytest.mark.parametrize(
+    "case", ["malformed", "stale", "duplicate-index", "other-period", "period-rounding"]
+)
+def test_one_bad_vibration_message_costs_that_message_not_the_recording(
+    tmp_path, coal_records, clean_labels, case
+):
+    """One malformed, stale, duplicate-index or other-period vibration message: set aside,
+    counted and named; identify (the clean labels), calibrate and bag info read the rest, exit
+    0 (they refused the whole recording, exit 2). Periods within 1e-6 relative are one period:
+    nothing is set aside."""
+    bag = write(tmp_path / "bag", vibration_variant(coal_records, case))
+    data = read_sensors(bag)
+    assert sum(data.set_aside.values()) == (0 if case == "period-rounding" else 1), data.set_aside
+    result = run("identify", str(bag), "--no-calibrate")
+    assert kept(labels_of(result)) == clean_labels
+    said = [line for line in result.stderr.splitlines() if "set aside" in line]
+    assert len(said) == (0 if case == "period-rounding" else 1), result.stderr
+    assert all("vibration" in line for line in said)
+    for verb in (["calibrate", str(bag)], ["bag", "info", str(bag)]):
+        other = run(*verb)
+        assert other.returncode == 0 and "Traceback" not in other.stderr, other.stderr[-2000:]
