@@ -72,7 +72,7 @@ FAMILIES: tuple[Family, ...] = (
         "rtol 1e-11, speed as a ratio to Radau rtol 1e-8 in the same run; batch throughput",
         "tail-beam bench --full --no-tiers --out {out}",
         "tail-beam bench --no-tiers --out {out}",
-        4.0,
+        1.5,
         {"bench_solvers.png": "bench_solvers.png"},
     ),
     Family(
@@ -82,7 +82,7 @@ FAMILIES: tuple[Family, ...] = (
         "modal) against a modal Radau reference",
         "tail-beam bench --full --structure modal --batch-impacts 0 --out {out}",
         "tail-beam bench --structure modal --batch-impacts 0 --out {out}",
-        5.0,
+        2.0,
         {"bench_tiers.png": "bench_tiers.png", "bench_solvers.png": "bench_solvers_modal.png"},
     ),
     Family(
@@ -92,7 +92,7 @@ FAMILIES: tuple[Family, ...] = (
         "foreign supports (foreign, foreign_paper): accuracy with 95 % intervals, latency",
         "tail-beam evaluate --windows-ms 6,24 --out {out} --plot",
         "tail-beam evaluate --count 40 --noise 1 --windows-ms 6,24 --out {out} --plot",
-        25.0,
+        10.0,
         {
             "accuracy_vs_latency.png": "identification_accuracy_vs_latency.png",
             "accuracy_vs_size.png": "identification_accuracy_vs_size.png",
@@ -107,7 +107,7 @@ FAMILIES: tuple[Family, ...] = (
         "change them, identified self-calibrated; accuracy and confident wrong labels",
         "python test/bench/bench_robustness.py",
         "python test/bench/bench_robustness.py --supports 3",
-        3.0,
+        4.0,
     ),
     Family(
         "hysteresis",
@@ -116,7 +116,7 @@ FAMILIES: tuple[Family, ...] = (
         "supports of that law with and without it",
         "python test/bench/bench_hysteresis.py --varied 1000 --supports 10",
         "python test/bench/bench_hysteresis.py --varied 300 --supports 3",
-        8.0,
+        3.0,
     ),
     Family(
         "unseen_law",
@@ -125,7 +125,7 @@ FAMILIES: tuple[Family, ...] = (
         "supports of that law",
         "python test/bench/bench_unseen_law.py",
         "python test/bench/bench_unseen_law.py --varied 400 --stream 100 --supports 3",
-        4.0,
+        3.0,
     ),
     Family(
         "contact",
@@ -160,7 +160,7 @@ FAMILIES: tuple[Family, ...] = (
         "real-time ratio, loss, CPU, bag size, live labels",
         "python test/bench/bench_vibration.py --rates 25600 51200 --duration 20",
         "python test/bench/bench_vibration.py --rates 25600 --duration 10",
-        3.0,
+        2.0,
     ),
     Family(
         "nodes",
@@ -169,7 +169,7 @@ FAMILIES: tuple[Family, ...] = (
         "recorder throughput",
         "python test/bench/bench_nodes.py",
         "python test/bench/bench_nodes.py --rates 2000 5000 --duration 4 --repeats 1",
-        4.0,
+        3.0,
     ),
     Family(
         "soak",
@@ -401,7 +401,7 @@ def index(outcomes: Sequence[Outcome], results: Path, quick: bool) -> str:
         "",
         f"The full run takes about {total:.0f} minutes on a 2-core machine (an estimate from each "
         "family's sizing; the last column gives the time each page's run took), `--quick` about "
-        "a quarter of that; the node families need ROS 2. It also rewrites the charts in docs/.",
+        "15 minutes; the node families need ROS 2. It also rewrites the charts in docs/.",
         "",
         "| page | what it measures | last run |",
         "| --- | --- | --- |",
