@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from tail_beam_id.cli.evaluate_cmd import BEST_TARGETS_HEADING
 from tail_beam_id.stream.label import Label
 from tail_beam_id.study.evaluation import summarise, wilson
 from tail_beam_id.study.runs import Record
@@ -147,7 +148,7 @@ def test_evaluate_command_prints_figures_and_targets(capsys, tmp_path):
     )
     out = capsys.readouterr().out
     assert code == 0
-    assert "paper" in out and "targets (issue 4)" in out
+    assert "paper" in out and BEST_TARGETS_HEADING in out and "(issue" not in out
     assert (tmp_path / "summary.json").is_file()
     assert not math.isnan(
         float(out.split("compute per impact, worst group median ")[1].split(" ms")[0])
@@ -251,7 +252,7 @@ def test_evaluate_compares_foreign_supports_with_the_nominal_one_at_the_same_set
     out = capsys.readouterr().out
     assert code == 0
     assert "foreign   nominal/x1/nominal" in out and "foreign   drawn/nominal" in out
-    targets = out.split("targets (issue 4):")[1].splitlines()
+    targets = out.split(BEST_TARGETS_HEADING)[1].splitlines()
     line = next(x for x in targets if x.strip().startswith("foreign nominal/x1/nominal threshold"))
     assert "vs stream nominal/x1" in line and "within 5:" in line
     assert "vs stream" not in next(
@@ -261,7 +262,7 @@ def test_evaluate_compares_foreign_supports_with_the_nominal_one_at_the_same_set
 
 def test_evaluate_scores_the_paper_scene_on_every_foreign_support(capsys):
     """`--sets foreign_paper`: the paper scene on the foreign supports, with a target line that
-    names the worst support and counts the supports below 99.5 % (issue 9: every support)."""
+    names the worst support and counts the supports below 99.5 % (the target is every support)."""
     code = main(
         [
             "evaluate",
