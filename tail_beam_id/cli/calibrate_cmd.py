@@ -23,7 +23,9 @@ from tail_beam_sim.errors import InputError, open_output_file, require_output_fi
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "calibrate",
-        help="learn a support profile (jack gain, IMU gain and mounting, ringing, noise) from a bag",
+        help=(
+            "learn a support profile (jack gain, IMU gain and mounting, ringing, noise) from a bag"
+        ),
     )
     parser.add_argument(
         "bag", help="rosbag2 bag of the support: jack_pressure and imu, with some impacts"
@@ -54,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
     data = max(runs, key=lambda run: run.pressure_stamp_s.size + run.imu_stamp_s.size)
     if len(runs) > 1:
         print(
-            f"calibrate: {data.namespace} calibrated on run {runs.index(data) + 1} of {len(runs)}, the longest",
+            f"calibrate: {data.namespace} calibrated on run {runs.index(data) + 1} of "
+            f"{len(runs)}, the longest",
             file=sys.stderr,
         )
     profile = profile_of(data, params)
@@ -77,14 +80,17 @@ def run(args: argparse.Namespace) -> int:
     c = profile
     if not c.calibrated:
         print(
-            "calibrate: no clear sway of the beam in the jack pressure (too few impacts, or too short): "
+            "calibrate: no clear sway of the beam in the jack pressure (too few impacts, or too "
+            "short): "
             f"the profile holds the noise, mounting and camera frame only ({c.describe_camera()})",
             file=sys.stderr,
         )
     else:
         print(
-            f"calibrate: sway {c.rigid_mode_frequency_hz:.2f} Hz, {c.impacts_used} impacts for the IMU gain, "
-            f"mount sign {c.imu_mount_sign}, {c.describe_modes()}, {c.describe_camera()}, {c.describe_hysteresis()}",
+            f"calibrate: sway {c.rigid_mode_frequency_hz:.2f} Hz, {c.impacts_used} impacts for "
+            "the IMU gain, "
+            f"mount sign {c.imu_mount_sign}, {c.describe_modes()}, {c.describe_camera()}, "
+            f"{c.describe_hysteresis()}",
             file=sys.stderr,
         )
     return 0

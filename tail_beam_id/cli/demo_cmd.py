@@ -72,7 +72,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 @dataclass
 class Scoreboard:
-    """Impacts (truths) and labels as they arrive, paired by :func:`tail_beam_id.stream.label.match`
+    """Impacts (truths) and labels as they arrive, paired by
+    :func:`tail_beam_id.stream.label.match`
     within ``tolerance_s`` (s); prints progress."""
 
     count: int
@@ -111,7 +112,8 @@ class Scoreboard:
         self.add(kind, item)
 
     def matching(self) -> Matching:
-        """The truths and labels so far, paired one to one (the pairing may change as more arrive)."""
+        """The truths and labels so far, paired one to one (the pairing may change as more
+        arrive)."""
         return match(self.truths, self.labels, self.tolerance_s)
 
     def label_of(self, matching: Matching, truth: int) -> Label | None:
@@ -132,7 +134,8 @@ class Scoreboard:
             if label is not None:
                 self.shown.add(id(label))
             print(
-                f"[{index:>3}/{self.count}] {truth['contact_start_stamp']:8.3f} s  {impact_text(truth):<44} -> {label_text(truth, label)}",
+                f"[{index:>3}/{self.count}] {truth['contact_start_stamp']:8.3f} s  "
+                f"{impact_text(truth):<44} -> {label_text(truth, label)}",
                 flush=True,
             )
         extra = set(matching.extra)
@@ -141,7 +144,8 @@ class Scoreboard:
             if id(label) not in self.shown and late and number in extra:
                 self.shown.add(id(label))
                 print(
-                    f"          {label.impact_stamp_s:8.3f} s  {'(no impact here)':<44} -> {label.material} ({label.confidence:.2f}): false detection",
+                    f"          {label.impact_stamp_s:8.3f} s  {'(no impact here)':<44} -> "
+                    f"{label.material} ({label.confidence:.2f}): false detection",
                     flush=True,
                 )
 
@@ -163,7 +167,8 @@ class Scoreboard:
                 for name, r in rows.items()
             ),
             f"false detections (labels with no impact): {extra}",
-            f"accuracy: {correct}/{total} = {100.0 * correct / max(total, 1):.1f} % (an impact without a label counts as wrong)",
+            f"accuracy: {correct}/{total} = {100.0 * correct / max(total, 1):.1f} % (an impact "
+            "without a label counts as wrong)",
         ]
         return "\n".join(lines)
 
@@ -171,7 +176,8 @@ class Scoreboard:
 def parse_message(
     text: str, fields: Mapping[str, type | tuple[type, ...]]
 ) -> dict[str, Any] | None:
-    """The JSON object in ``text`` if it has every field with its type (finite numbers), else None."""
+    """The JSON object in ``text`` if it has every field with its type (finite numbers), else
+    None."""
     try:
         item = json.loads(text)
     except (ValueError, RecursionError):
@@ -189,7 +195,8 @@ def parse_message(
 
 def impact_text(truth: Mapping[str, Any]) -> str:
     return (
-        f"{truth['material']:<9} R {truth['radius_m'] * 1e3:3.0f} mm, {truth.get('drop_height_m') or 0:.1f} m, "
+        f"{truth['material']:<9} R {truth['radius_m'] * 1e3:3.0f} mm, "
+        f"{truth.get('drop_height_m') or 0:.1f} m, "
         f"at {truth['position_m']:.2f} m"
     )
 
@@ -257,7 +264,8 @@ def run(args: argparse.Namespace) -> int:
             },
         )
         print(
-            f"simulating {args.count} particles (seed {args.seed}, realtime factor {args.realtime_factor:g}); "
+            f"simulating {args.count} particles (seed {args.seed}, realtime factor "
+            f"{args.realtime_factor:g}); "
             f"identifying with {identifier.identifier.method.name}; recording to {bag}",
             flush=True,
         )
@@ -279,13 +287,16 @@ def run(args: argparse.Namespace) -> int:
     v = recorder.vibration
     sim_s = sim.stream.time_s
     print(
-        f"vibration: {v.samples} samples in {v.blocks} blocks recorded, {v.samples / max(sim_s, 1e-9):,.0f} samples per s over "
-        f"{sim_s:.1f} s of simulation ({wall_s:.1f} s wall, start-up included); lost: recorder {v.lost_samples} samples, identifier {identifier.vibration_lost_samples} samples "
+        f"vibration: {v.samples} samples in {v.blocks} blocks recorded, "
+        f"{v.samples / max(sim_s, 1e-9):,.0f} samples per s over "
+        f"{sim_s:.1f} s of simulation ({wall_s:.1f} s wall, start-up included); lost: recorder "
+        f"{v.lost_samples} samples, identifier {identifier.vibration_lost_samples} samples "
         f"and {identifier.vibration_late_blocks} late blocks"
     )
     print(f"bag: {bag} ({recorder.writer.message_count} messages, {args.storage})")
     print(f"  offline: tail-beam identify {bag}")
     print(
-        f'  replay:  bag_replay --ros-args -p replay.bag_path:={bag} -p "replay.topics:=[jack_pressure, imu, vibration, rebound_velocity]"'
+        f"  replay:  bag_replay --ros-args -p replay.bag_path:={bag} -p "
+        '"replay.topics:=[jack_pressure, imu, vibration, rebound_velocity]"'
     )
     return 0

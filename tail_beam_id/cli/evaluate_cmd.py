@@ -64,7 +64,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--rates",
         default=None,
         help="sensor settings, comma-separated (default: config: shipped,nominal; shipped has the "
-        "tail-beam accelerometer, nominal, mid and fast the IMU alone); the foreign set records its "
+        "tail-beam accelerometer, nominal, mid and fast the IMU alone); the foreign set records "
+        "its "
         "supports with each of these and with sensors drawn with each support (setting drawn)",
     )
     parser.add_argument(
@@ -78,8 +79,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--profiles",
         default="nominal,self-calibrated",
-        help="foreign set: how the identifier knows each support: nominal (config/), self-calibrated "
-        "(tail-beam calibrate on its own stream), true (the drawn support itself: the ceiling)",
+        help=(
+            "foreign set: how the identifier knows each support: nominal (config/), "
+            "self-calibrated "
+            "(tail-beam calibrate on its own stream), true (the drawn support itself: the ceiling)"
+        ),
     )
     parser.add_argument("--tier", default=None, help="simulation tier (default: config, modal)")
     parser.add_argument(
@@ -155,7 +159,8 @@ def run(args: argparse.Namespace) -> int:
         )
     items = summaries(records, ev["size_bins_m"])
     print(
-        f"{count} impacts per set, {len(chosen)} settings, tier {args.tier or ev['tier']}, {time.monotonic() - started:.0f} s"
+        f"{count} impacts per set, {len(chosen)} settings, tier {args.tier or ev['tier']}, "
+        f"{time.monotonic() - started:.0f} s"
     )
     print(format_table(items))
     print("\nconfusion (nominal noise):")
@@ -204,9 +209,10 @@ AFTER_END_TARGET_MS = 20.0  # a label at most this long after the contact's end,
 def shipped_targets(
     records: Sequence[Record], items: Sequence[Summary], window_s: float
 ) -> list[str]:
-    """Issue 10's targets, per stream setting at nominal noise and method (configured window):
-    accuracy over every size and over radius >= 50 mm with extra labels counted against it
-    (correct / (impacts + extra labels)), and the data latency from the contact's end."""
+    """The shipped settings' targets, per stream setting at nominal noise and method
+    (configured window): accuracy over every size and over radius >= 50 mm with extra labels
+    counted against it (correct / (impacts + extra labels)), and the data latency from the
+    contact's end."""
     lines = []
     for s in items:
         if (
@@ -234,15 +240,19 @@ def shipped_targets(
                 continue
             ci = wilson(hits, total)
             parts.append(
-                f"{label} {100 * hits / total:.1f}% (CI {100 * ci[0]:.1f}-{100 * ci[1]:.1f}, n {len(group_)}, "
-                f"missed {sum(1 for r in group_ if r.label is None)}, extra {extras}) -> >= {100 * target:g}%: "
+                f"{label} {100 * hits / total:.1f}% (CI {100 * ci[0]:.1f}-{100 * ci[1]:.1f}, n "
+                f"{len(group_)}, "
+                f"missed {sum(1 for r in group_ if r.label is None)}, extra {extras}) -> >= "
+                f"{100 * target:g}%: "
                 f"{'met' if hits / total >= target else 'NOT met'}"
             )
         after = s.extra.get("data_latency_after_contact_end_ms", {})
         if after and not math.isnan(after.get("max", math.nan)):
             parts.append(
-                f"data after contact end median {after['median']:.1f} / p95 {after['p95']:.1f} / max {after['max']:.1f} ms "
-                f"-> <= {AFTER_END_TARGET_MS:g} ms: {'met' if after['max'] <= AFTER_END_TARGET_MS else 'NOT met'}"
+                f"data after contact end median {after['median']:.1f} / p95 {after['p95']:.1f} / "
+                f"max {after['max']:.1f} ms "
+                f"-> <= {AFTER_END_TARGET_MS:g} ms: "
+                f"{'met' if after['max'] <= AFTER_END_TARGET_MS else 'NOT met'}"
             )
         lines.append(f"stream {s.setting} {s.method}: " + "; ".join(parts))
     return lines
@@ -265,10 +275,14 @@ def foreign_paper_line(s: Summary, records: Sequence[Record]) -> str:
     worst = min(shares, key=lambda k: (shares[k], k))
     below = sum(1 for v in shares.values() if v < PAPER_TARGET)
     return (
-        f"paper scene on foreign supports {s.setting} {s.method}: {100 * s.accuracy:.1f}% (CI {100 * s.accuracy_ci[0]:.1f}-"
-        f"{100 * s.accuracy_ci[1]:.1f}, n {s.n}); worst support #{worst} {right[worst]}/{total[worst]}; {below} of {len(shares)} "
-        f"supports below {100 * PAPER_TARGET:g}% -> target >= {100 * PAPER_TARGET:g}% on every support: "
-        f"{'met' if below == 0 else 'NOT met'}; wrong at >= 0.9 {s.extra['confident_wrong']}, ECE {s.extra['ece']:.3f}"
+        f"paper scene on foreign supports {s.setting} {s.method}: {100 * s.accuracy:.1f}% (CI "
+        f"{100 * s.accuracy_ci[0]:.1f}-"
+        f"{100 * s.accuracy_ci[1]:.1f}, n {s.n}); worst support #{worst} "
+        f"{right[worst]}/{total[worst]}; {below} of {len(shares)} "
+        f"supports below {100 * PAPER_TARGET:g}% -> target >= {100 * PAPER_TARGET:g}% on every "
+        "support: "
+        f"{'met' if below == 0 else 'NOT met'}; wrong at >= 0.9 {s.extra['confident_wrong']}, ECE "
+        f"{s.extra['ece']:.3f}"
     )
 
 
@@ -293,13 +307,15 @@ def targets(records: Sequence[Record], items: Sequence[Summary]) -> list[str]:
         paper = best("paper", setting)
         if paper:
             lines.append(
-                f"paper {setting}: best {paper[0]} {100 * paper[1]:.1f}% (CI {100 * paper[2][0]:.1f}-{100 * paper[2][1]:.1f}, n {paper[3]}) "
+                f"paper {setting}: best {paper[0]} {100 * paper[1]:.1f}% (CI "
+                f"{100 * paper[2][0]:.1f}-{100 * paper[2][1]:.1f}, n {paper[3]}) "
                 f"-> target >= 99.5%: {'met' if paper[1] >= 0.995 else 'NOT met'}"
             )
         stream = best("stream", setting, 0.05)
         if stream:
             lines.append(
-                f"stream {setting}, radius >= 50 mm: best {stream[0]} {100 * stream[1]:.1f}% (CI {100 * stream[2][0]:.1f}-{100 * stream[2][1]:.1f}, n {stream[3]}) "
+                f"stream {setting}, radius >= 50 mm: best {stream[0]} {100 * stream[1]:.1f}% (CI "
+                f"{100 * stream[2][0]:.1f}-{100 * stream[2][1]:.1f}, n {stream[3]}) "
                 f"-> target >= 95%: {'met' if stream[1] >= 0.95 else 'NOT met'}"
             )
         for s in items:
@@ -318,8 +334,10 @@ def targets(records: Sequence[Record], items: Sequence[Summary]) -> list[str]:
                 if twin:
                     gap = 100 * (s.accuracy - twin.accuracy)
                     lines.append(
-                        f"mismatch {setting} {s.method} {1e3 * s.window_s:g} ms: {100 * twin.accuracy:.1f}% vs stream {100 * s.accuracy:.1f}% "
-                        f"({gap:+.1f} points) -> within 3 points: {'met' if gap <= 3.0 else 'NOT met'}"
+                        f"mismatch {setting} {s.method} {1e3 * s.window_s:g} ms: "
+                        f"{100 * twin.accuracy:.1f}% vs stream {100 * s.accuracy:.1f}% "
+                        f"({gap:+.1f} points) -> within 3 points: "
+                        f"{'met' if gap <= 3.0 else 'NOT met'}"
                     )
     for s in items:
         if s.scene_set == "foreign_paper":
@@ -344,22 +362,32 @@ def targets(records: Sequence[Record], items: Sequence[Summary]) -> list[str]:
             gap = ""
             if twin is not None:
                 points = 100 * (s.accuracy - twin.accuracy)
-                gap = f" ({points:+.1f} points vs stream {twin.setting} {100 * twin.accuracy:.1f}% -> within 5: {'met' if points >= -5.0 else 'NOT met'})"
+                gap = (
+                    f" ({points:+.1f} points vs stream {twin.setting} "
+                    f"{100 * twin.accuracy:.1f}% -> within 5: "
+                    f"{'met' if points >= -5.0 else 'NOT met'})"
+                )
             lines.append(
-                f"foreign {s.setting} {s.method} {1e3 * s.window_s:g} ms: {100 * s.accuracy:.1f}% (CI {100 * s.accuracy_ci[0]:.1f}-{100 * s.accuracy_ci[1]:.1f}, n {s.n})"
-                f"{gap}; extra labels {s.false_labels} ({100 * s.false_labels / s.n:.1f}%, target <= 1%); "
-                f"wrong at >= 0.9 {s.extra['confident_wrong']} ({100 * s.extra['confident_wrong'] / s.n:.1f}%, target <= 1%; "
-                f"{s.extra['confident_wrong_if_calibrated']:.1f} if those labels' confidences were exact); "
+                f"foreign {s.setting} {s.method} {1e3 * s.window_s:g} ms: {100 * s.accuracy:.1f}% "
+                f"(CI {100 * s.accuracy_ci[0]:.1f}-{100 * s.accuracy_ci[1]:.1f}, n {s.n})"
+                f"{gap}; extra labels {s.false_labels} ({100 * s.false_labels / s.n:.1f}%, target "
+                "<= 1%); "
+                f"wrong at >= 0.9 {s.extra['confident_wrong']} "
+                f"({100 * s.extra['confident_wrong'] / s.n:.1f}%, target <= 1%; "
+                f"{s.extra['confident_wrong_if_calibrated']:.1f} if those labels' confidences "
+                "were exact); "
                 f"ECE {s.extra['ece']:.3f} (target <= 0.05)"
             )
     compute = [s.compute_ms["median"] for s in items if not math.isnan(s.compute_ms["median"])]
     latency = [s.data_latency_ms["max"] for s in items if not math.isnan(s.data_latency_ms["max"])]
     if compute:
         lines.append(
-            f"compute per impact, worst group median {max(compute):.2f} ms -> target < 5 ms: {'met' if max(compute) < 5.0 else 'NOT met'}"
+            f"compute per impact, worst group median {max(compute):.2f} ms -> target < 5 ms: "
+            f"{'met' if max(compute) < 5.0 else 'NOT met'}"
         )
     if latency:
         lines.append(
-            f"label after contact (data latency), worst case {max(latency):.1f} ms -> target <= 50 ms: {'met' if max(latency) <= 50.0 else 'NOT met'}"
+            f"label after contact (data latency), worst case {max(latency):.1f} ms -> target <= "
+            f"50 ms: {'met' if max(latency) <= 50.0 else 'NOT met'}"
         )
     return lines

@@ -34,7 +34,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "bag",
-        help="rosbag2 bag directory holding the support's jack_pressure, imu, vibration and/or rebound_velocity",
+        help=(
+            "rosbag2 bag directory holding the support's jack_pressure, imu, vibration and/or "
+            "rebound_velocity"
+        ),
     )
     parser.add_argument(
         "--method",
@@ -85,7 +88,8 @@ def identify_bag(
                 # Self-calibration is a refinement: a recording it cannot read is still identified,
                 # on the configured support, and the reason is said.
                 print(
-                    f"identify: {data.namespace} self-calibration failed ({type(exc).__name__}: {exc}); identified on the "
+                    f"identify: {data.namespace} self-calibration failed ({type(exc).__name__}: "
+                    f"{exc}); identified on the "
                     "configured support (labels say calibrated: false)",
                     file=sys.stderr,
                 )
@@ -98,7 +102,7 @@ def identify_bag(
 
 def check_settings(params: dict[str, Any], method: str | None = None) -> None:
     """Refuse bad identification settings (method, model, detection, sensor_timing, ...) by
-    name before a bag is read: identify and calibrate said so only after their pass over it."""
+    name before a bag is read, not after a pass over it."""
     StreamIdentifier(method, params=params.get("identification"), model_params=params)
 
 
@@ -112,13 +116,15 @@ def report_reading(data: BagSensors, verb: str, runs: int = 1, bag: str | None =
         print(f"{verb}: {note}", file=sys.stderr)
     if data.vibration_gaps:
         print(
-            f"{verb}: {data.namespace} vibration: {len(data.vibration_gaps)} gap(s), {data.vibration_lost_samples} samples lost "
+            f"{verb}: {data.namespace} vibration: {len(data.vibration_gaps)} gap(s), "
+            f"{data.vibration_lost_samples} samples lost "
             f"(first missing index {data.vibration_gaps[0][0]})",
             file=sys.stderr,
         )
     for name, n in data.repeated_samples.items():
         print(
-            f"{verb}: {data.namespace} {name}: {n} sample(s) at a stamp already read left out (the first kept)",
+            f"{verb}: {data.namespace} {name}: {n} sample(s) at a stamp already read left out "
+            "(the first kept)",
             file=sys.stderr,
         )
     for what, n in data.set_aside.items():
@@ -140,7 +146,8 @@ def describe_profile(profile: SupportProfile) -> str:
     """One line on what self-calibration measured (or that it kept config/)."""
     if not profile.calibrated:
         return (
-            "self-calibration: no clear sway of the beam in the jack pressure (too few impacts, or too short); "
+            "self-calibration: no clear sway of the beam in the jack pressure (too few impacts, "
+            "or too short); "
             "identified on the configured support (labels say calibrated: false)"
         )
     gain = (
@@ -149,8 +156,11 @@ def describe_profile(profile: SupportProfile) -> str:
         else "IMU gain not measured"
     )
     return (
-        f"self-calibration: sway {profile.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus {profile.oil_bulk_modulus_pa:.3g} Pa, "
-        f"{gain}, {profile.describe_modes()}, {profile.describe_camera()}, {profile.describe_hysteresis()} (labels say calibrated: true; --no-calibrate for id_node's uncalibrated labels)"
+        f"self-calibration: sway {profile.rigid_mode_frequency_hz:.2f} Hz, oil bulk modulus "
+        f"{profile.oil_bulk_modulus_pa:.3g} Pa, "
+        f"{gain}, {profile.describe_modes()}, {profile.describe_camera()}, "
+        f"{profile.describe_hysteresis()} (labels say calibrated: true; --no-calibrate for "
+        "id_node's uncalibrated labels)"
     )
 
 
@@ -180,12 +190,14 @@ def identify_sensors(
     refused = {name: n for name, n in identifier.refused_samples.items() if n}
     for name, n in refused.items():
         print(
-            f"identify: {data.namespace} {name}: {n} sample(s) with a non-finite stamp or value left out",
+            f"identify: {data.namespace} {name}: {n} sample(s) with a non-finite stamp or value "
+            "left out",
             file=sys.stderr,
         )
     if identifier.refused_rebounds:
         print(
-            f"identify: {data.namespace} rebound_velocity: {identifier.refused_rebounds} message(s) with a non-finite "
+            f"identify: {data.namespace} rebound_velocity: {identifier.refused_rebounds} "
+            "message(s) with a non-finite "
             "stamp or velocity left out",
             file=sys.stderr,
         )
@@ -236,7 +248,8 @@ class ProgressLine:
         if not self.enabled or total_s < self.MIN_PROGRESS_S:
             return
         self.stream.write(
-            f"\r{self.what}: {done_s:.0f} of {total_s:.0f} s of data ({100.0 * done_s / total_s:.0f} %)"
+            f"\r{self.what}: {done_s:.0f} of {total_s:.0f} s of data "
+            f"({100.0 * done_s / total_s:.0f} %)"
         )
         self.stream.flush()
         self.shown = True

@@ -1,3 +1,4 @@
-"""rosbag2 bags: records to write, reading with explicit errors, segmented writing and repair (no ROS)."""
+"""rosbag2 bags: records to write, reading with explicit errors, segmented writing and repair (no
+ROS)."""
 
 __all__ = ["records", "read", "write"]

@@ -35,7 +35,8 @@ IDENTIFY_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION, topics.RE
 CONTINUOUS_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION)
 # Where an event's JSON says when it happened.
 EVENT_STAMPS = {topics.IMPACT_TRUTH: "contact_start_stamp", topics.LABEL: "impact_stamp"}
-TIME_JUMP_S = 1.0  # stamps back by more than this on a stream: a new time base (id_node.time_jump_s's default)
+# Stamps back by more than this on a stream: a new time base (id_node.time_jump_s's default)
+TIME_JUMP_S = 1.0
 _REPAIR_HINT = "run `tail-beam bag repair PATH` to recover what was written"
 
 
@@ -55,8 +56,10 @@ def open_segments_note(path: str | os.PathLike[str]) -> str | None:
     if not count:
         return None
     return (
-        f"{path}: {count} segment(s) in {PARTIAL_DIR} not read (its recorder is still writing it, or was killed): "
-        f"their messages are left out; after a killed recorder, run `tail-beam bag repair {path}` to salvage them"
+        f"{path}: {count} segment(s) in {PARTIAL_DIR} not read (its recorder is still writing it, "
+        "or was killed): "
+        f"their messages are left out; after a killed recorder, run `tail-beam bag repair {path}` "
+        "to salvage them"
     )
 
 
@@ -221,7 +224,8 @@ def raw_messages(
         ) from None
     # What the closed segments lack may lie in segments a killed recorder left open: say so.
     unread = (
-        f"; {PARTIAL_DIR} holds segment(s) a recorder left open, which are not read: {_REPAIR_HINT}"
+        f"; {PARTIAL_DIR} holds segment(s) a recorder left open, which are not read: "
+        f"{_REPAIR_HINT}"
         if open_segments_note(bag)
         else ""
     )
@@ -246,7 +250,8 @@ def raw_messages(
                 raise InputError(
                     "bag",
                     str(bag),
-                    f"lacks messages on topic '{name}' ({topics.MSG_TYPES.get(name, '?')}); it has: {has}{unread}",
+                    f"lacks messages on topic '{name}' ({topics.MSG_TYPES.get(name, '?')}); it "
+                    f"has: {has}{unread}",
                 )
         any_of = tuple(any_of)
         if any_of and not set(any_of) & set(filled):
@@ -262,7 +267,8 @@ def raw_messages(
             raise InputError(
                 "bag",
                 str(bag),
-                f"holds no messages on {', '.join(sorted(names)) or 'no topic'}; it has: {has}{unread}",
+                f"holds no messages on {', '.join(sorted(names)) or 'no topic'}; it has: "
+                f"{has}{unread}",
             )
         foreign = [
             c
@@ -277,7 +283,8 @@ def raw_messages(
                 "bag",
                 str(bag),
                 f"records topic '{c.topic}' as {c.msgtype}, not the contract's "
-                f"{topics.MSG_TYPES[contract_name(c.topic)]} (docs/interface.md): not a bag of this suite's topics",
+                f"{topics.MSG_TYPES[contract_name(c.topic)]} (docs/interface.md): not a bag of "
+                "this suite's topics",
             )
         listed = {id(c): c.msgcount for c in connections}
         read = dict.fromkeys(listed, 0)
@@ -300,7 +307,8 @@ def raw_messages(
             raise InputError(
                 "bag",
                 str(bag),
-                f"is truncated: {short} of the messages its metadata lists are missing; {_REPAIR_HINT}",
+                f"is truncated: {short} of the messages its metadata lists are missing; "
+                f"{_REPAIR_HINT}",
             )
     finally:
         try:
@@ -716,7 +724,8 @@ def _check_index(decoded: list[tuple[int, float, np.ndarray, float, float]]) -> 
         raise InputError(
             "vibration.angle_min/angle_max",
             f"running index {i} at stamp {t:.6f} s and {j} at {u:.6f} s",
-            "must be the running sample index: each block's is the one before it plus that block's sample "
+            "must be the running sample index: each block's is the one before it plus that "
+            "block's sample "
             "count (docs/interface.md)",
         )
 

@@ -106,8 +106,10 @@ def imu_msgs(
 
 
 def vibration_msgs(blocks: VibrationBlocks) -> Iterator[BagRecord]:
-    """vibration messages, one per block of a :class:`tail_beam_sim.physics.sensors.VibrationBlocks`
-    (sensor_msgs/LaserScan as docs/interface.md lays it out; log time = the first sample's stamp)."""
+    """vibration messages, one per block of a
+    :class:`tail_beam_sim.physics.sensors.VibrationBlocks`
+    (sensor_msgs/LaserScan as docs/interface.md lays it out; log time = the first sample's
+    stamp)."""
     edges = blocks.offsets()
     period = float(blocks.period_s)
     empty = np.empty(0, dtype=np.float32)

@@ -107,7 +107,8 @@ class SegmentedBagWriter:
         return bool(self.max_size_bytes) and self.segment_size_bytes() >= self.max_size_bytes
 
     def segment_size_bytes(self) -> int:
-        """Size of the open file: on disk plus the pending chunk (mcap), or the payload written (sqlite3)."""
+        """Size of the open file: on disk plus the pending chunk (mcap), or the payload
+        written (sqlite3)."""
         storage = getattr(self._writer, "storage", None)
         bio, chunk = getattr(storage, "bio", None), getattr(storage, "chunk", None)
         if bio is not None and chunk is not None:
@@ -115,7 +116,8 @@ class SegmentedBagWriter:
         return self._segment_payload_bytes
 
     def set_custom_data(self, key: str, value: str) -> None:
-        """A ``custom_data`` entry of the bag's metadata.yaml (written at the next segment close)."""
+        """A ``custom_data`` entry of the bag's metadata.yaml (written at the next segment
+        close)."""
         self._custom_data[key] = value
 
     def _open_segment(self) -> None:
@@ -300,7 +302,8 @@ def repair(bag_path: str | os.PathLike[str]) -> RepairReport:
     and a storage file the metadata does not list are rewritten with their complete messages
     (mcap: every complete chunk; sqlite3: every committed row); ``metadata.yaml`` is rebuilt
     from what is there. A damaged original is renamed ``*.damaged``, never deleted; an open
-    segment is removed once its messages are rewritten. Symbolic links anywhere in the bag are reported and left alone: repair
+    segment is removed once its messages are rewritten. Symbolic links anywhere in the bag are
+    reported and left alone: repair
     never reads, deletes or writes through one. Whether the result reads is for the caller to
     check (``tail_beam_sim.bags.read``).
     """
@@ -391,7 +394,8 @@ def _read_info(bag: Path) -> dict[str, Any] | None:
         files = info["files"]
         [t["topic_metadata"]["name"] for t in info["topics_with_message_count"]]
         [f["path"] for f in files]
-    except Exception:  # noqa: BLE001 - a damaged metadata file is rebuilt, whatever is wrong with it
+    # A damaged metadata file is rebuilt, whatever is wrong with it.
+    except Exception:  # noqa: BLE001
         return None
     return info
 
@@ -455,7 +459,8 @@ def _read_mcap(path: Path) -> tuple[list[Salvaged], bool]:
                     records.append((topic, msgtype, record.log_time, bytes(record.data)))
                 elif isinstance(record, Footer):
                     ended = True
-        except Exception:  # noqa: BLE001 - the file ends mid-record or is damaged: what came before is kept
+        # The file ends mid-record or is damaged: what came before is kept.
+        except Exception:  # noqa: BLE001
             return records, False
     return records, ended
 

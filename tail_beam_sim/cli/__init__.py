@@ -76,7 +76,10 @@ def build_parser() -> argparse.ArgumentParser:
     """The full ``tail-beam`` parser with every installed subcommand."""
     parser = OneLineParser(
         prog="tail-beam",
-        description="tail_beam tools: simulate, sweep, identify, evaluate, bench offline; send impacts to a running sim_node",
+        description=(
+            "tail_beam tools: simulate, sweep, identify, evaluate, bench offline; send "
+            "impacts to a running sim_node"
+        ),
     )
     sub = parser.add_subparsers(
         dest="command", required=True, parser_class=OneLineParser, metavar="COMMAND"
@@ -85,7 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
     if not verbs:
         parser.exit(
             2,
-            f"tail-beam: error: no verbs installed in entry-point group {VERB_GROUP!r}: reinstall the package (pip install -e .)\n",
+            f"tail-beam: error: no verbs installed in entry-point group {VERB_GROUP!r}: reinstall "
+            "the package (pip install -e .)\n",
         )
     rank = {name: i for i, name in enumerate(PREFERRED_ORDER)}
     for name in sorted(verbs, key=lambda n: (rank.get(n, len(rank)), n)):
@@ -144,7 +148,8 @@ def _run(argv: Sequence[str] | None) -> int:
             return EXIT_OUTPUT_FAILED
     except (KeyboardInterrupt, Exception) as exc:
         # Another error is an interruption too when a Ctrl-C came: it landed inside an extension
-        # module's initialisation, which turned it into one (rclpy's ImportError: initialization failed).
+        # module's initialisation, which turned it into one (rclpy's ImportError:
+        # initialization failed).
         if not isinstance(exc, KeyboardInterrupt) and not _Interrupt.received:
             raise
         print(f"tail-beam{' ' + command if command else ''}: interrupted", file=sys.stderr)
@@ -159,7 +164,8 @@ class _Interrupt:
 
     @classmethod
     def install(cls) -> Any:
-        """Take SIGINT (main thread only: signal handlers belong to it); the handler it replaced."""
+        """Take SIGINT (main thread only: signal handlers belong to it); the handler it
+        replaced."""
         cls.received = False
         if threading.current_thread() is threading.main_thread():
             return signal.signal(signal.SIGINT, cls._handle)

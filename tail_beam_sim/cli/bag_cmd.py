@@ -57,7 +57,8 @@ def run_info(args: argparse.Namespace) -> int:
             periods.setdefault(name, {}).setdefault(period_s, 0)
             periods[name][period_s] += 1
     print(
-        f"bag {args.bag}: {sum(c[1] for c in counts.values())} messages, log time {first * 1e-9:.3f} .. {last * 1e-9:.3f} s"
+        f"bag {args.bag}: {sum(c[1] for c in counts.values())} messages, log time "
+        f"{first * 1e-9:.3f} .. {last * 1e-9:.3f} s"
     )
     width = max(18, *(len(t) for t in counts))
     for topic, (msgtype, count) in sorted(counts.items()):
@@ -106,11 +107,13 @@ def run_repair(args: argparse.Namespace) -> int:
         count = sum(1 for _ in raw_messages(args.bag, any_type=True))
     except InputError as exc:
         print(
-            f"tail-beam bag: error: could not repair {args.bag} ({report.summary()}): {exc.allowed}",
+            f"tail-beam bag: error: could not repair {args.bag} ({report.summary()}): "
+            f"{exc.allowed}",
             file=sys.stderr,
         )
         return 2
     print(
-        f"bag {args.bag}: {report.summary()}; metadata.yaml rewritten; the bag reads: {count} messages"
+        f"bag {args.bag}: {report.summary()}; metadata.yaml rewritten; the bag reads: {count} "
+        "messages"
     )
     return 0

@@ -39,7 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--repeats",
         type=int,
-        help="at least this many timed runs per setting after a warm-up, more for fast ones (default 3, 5 with --full)",
+        help=(
+            "at least this many timed runs per setting after a warm-up, more for fast ones "
+            "(default 3, 5 with --full)"
+        ),
     )
     parser.add_argument(
         "--min-time-s",
@@ -173,9 +176,13 @@ def print_report(
 ) -> None:
     scene = report["scene"]
     print(
-        f"{scene['material']} R = {scene['radius_m'] * 1e3:g} mm at {scene['impact_speed_mps']:.3f} m/s, {scene['position_m']:g} m from the hinge; "
-        f"{report['structure']} structure; median of >= {report['repeats']} runs (fast settings: {report['min_time_s']:g} s of runs); errors against Radau rtol {report['reference_rtol']:g} "
-        f"(its own error bound {report['reference_error_bound']:.1e}); Radau rtol 1e-8 took {report['radau_1e-8_median_s'] * 1e3:.1f} ms"
+        f"{scene['material']} R = {scene['radius_m'] * 1e3:g} mm at "
+        f"{scene['impact_speed_mps']:.3f} m/s, {scene['position_m']:g} m from the hinge; "
+        f"{report['structure']} structure; median of >= {report['repeats']} runs (fast settings: "
+        f"{report['min_time_s']:g} s of runs); errors against Radau rtol "
+        f"{report['reference_rtol']:g} "
+        f"(its own error bound {report['reference_error_bound']:.1e}); Radau rtol 1e-8 took "
+        f"{report['radau_1e-8_median_s'] * 1e3:.1f} ms"
     )
     print(_table(rows))
     hybrid = next((r for r in rows if (r.name, r.setting) == ("hybrid", "default")), None)
@@ -183,24 +190,30 @@ def print_report(
         speedup = 1.0 / hybrid.ratio
         ok = speedup >= TARGET_SPEEDUP and bench.worst_target_error(hybrid) <= TARGET_ERROR
         print(
-            f"default solver (hybrid): {speedup:.0f} x faster than Radau rtol 1e-8, rebound error {hybrid.errors['rebound']:.1e}, "
-            f"peak jack pressure change error {hybrid.errors['peak_pressure']:.1e} (targets: >= {TARGET_SPEEDUP:g} x, <= {TARGET_ERROR:g}): "
+            f"default solver (hybrid): {speedup:.0f} x faster than Radau rtol 1e-8, rebound error "
+            f"{hybrid.errors['rebound']:.1e}, "
+            f"peak jack pressure change error {hybrid.errors['peak_pressure']:.1e} (targets: >= "
+            f"{TARGET_SPEEDUP:g} x, <= {TARGET_ERROR:g}): "
             f"{'met' if ok else 'NOT met'}"
         )
     if tier_rows:
         print(
-            f"\ntiers (default solver each) against the modal structure by Radau rtol 1e-10 (bound {report['tier_reference_error_bound']:.1e}):"
+            "\ntiers (default solver each) against the modal structure by Radau rtol 1e-10 "
+            f"(bound {report['tier_reference_error_bound']:.1e}):"
         )
         print(_table(tier_rows))
     if "batch" in report:
         b = report["batch"]
         print(
-            f"\nbatch path (one core): summaries {b['rigid_summaries_per_s']:,.0f} impacts/s rigid, {b['modal_summaries_per_s']:,.0f} modal; "
-            f"full 0.05 s noisy streams {b['rigid_streams_per_s']:,.0f} impacts/s rigid, {b['modal_streams_per_s']:,.0f} modal"
+            f"\nbatch path (one core): summaries {b['rigid_summaries_per_s']:,.0f} impacts/s "
+            f"rigid, {b['modal_summaries_per_s']:,.0f} modal; "
+            f"full 0.05 s noisy streams {b['rigid_streams_per_s']:,.0f} impacts/s rigid, "
+            f"{b['modal_streams_per_s']:,.0f} modal"
         )
     rt = report["real_time"]
     print(
-        f"real-time factor, one impact's 0.05 s of sensor streams at the default rates: rigid {rt['rigid_real_time_factor']:.0f} x, modal {rt['modal_real_time_factor']:.0f} x"
+        "real-time factor, one impact's 0.05 s of sensor streams at the default rates: rigid "
+        f"{rt['rigid_real_time_factor']:.0f} x, modal {rt['modal_real_time_factor']:.0f} x"
     )
     for chart in report.get("charts", []):
         print(f"wrote {chart}")
@@ -214,7 +227,8 @@ def _table(rows: list[bench.Row]) -> str:
     lines = [header]
     for r in sorted(rows, key=lambda r: r.median_s):
         lines.append(
-            f"{'*' if r.pareto else ' '} {r.name:8} {r.setting:28} {r.median_s * 1e3:10.3f} {r.spread:6.0%} {r.ratio:9.2e} "
+            f"{'*' if r.pareto else ' '} {r.name:8} {r.setting:28} {r.median_s * 1e3:10.3f} "
+            f"{r.spread:6.0%} {r.ratio:9.2e} "
             + " ".join(f"{r.errors[m]:13.2e}" for m in bench.METRICS)
         )
     return "\n".join(lines)

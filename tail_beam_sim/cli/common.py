@@ -18,7 +18,9 @@ def add_config_option(parser: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         metavar="YAML",
-        help="ROS 2 parameter file overriding the shipped config/ defaults (repeatable; later wins)",
+        help=(
+            "ROS 2 parameter file overriding the shipped config/ defaults (repeatable; later wins)"
+        ),
     )
 
 

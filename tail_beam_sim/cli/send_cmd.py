@@ -43,8 +43,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "send",
         help="send impact commands to a running sim_node, reliably (one, or a YAML list)",
-        description="Send one impact command (the options) or a YAML list (--file) to a running sim_node: "
-        "validated first, sent once the simulator is discovered and settled, acknowledged before exiting.",
+        description=(
+            "Send one impact command (the options) or a YAML list (--file) to a running "
+            "sim_node: "
+            "validated first, sent once the simulator is discovered and settled, acknowledged "
+            "before exiting."
+        ),
     )
     parser.add_argument(
         "--file",
@@ -66,7 +70,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--impact-id",
-        help="the command's impact_id (default: the simulator makes one; with --wait-truth, this client does)",
+        help=(
+            "the command's impact_id (default: the simulator makes one; with --wait-truth, this "
+            "client does)"
+        ),
     )
     parser.add_argument(
         "--namespace",
@@ -80,7 +87,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--wait-truth",
         action="store_true",
-        help="wait for each command's impact_truth, print it (one JSON object per line) and report refusals",
+        help=(
+            "wait for each command's impact_truth, print it (one JSON object per line) and "
+            "report refusals"
+        ),
     )
     parser.add_argument(
         "--truth-timeout-s",
@@ -247,12 +257,14 @@ def run(args: argparse.Namespace) -> int:
         if outcome.missing:
             ids = ", ".join(shorten(i) for i in outcome.missing)
             parts.append(
-                f"no impact_truth for {len(outcome.missing)} of {len(commands)} command(s) within {truth_timeout_s:g} s "
+                f"no impact_truth for {len(outcome.missing)} of {len(commands)} command(s) within "
+                f"{truth_timeout_s:g} s "
                 f"of the last answer from {where}: impact_id {ids}"
             )
         if outcome.refused:
             parts.append(
-                f"{len(outcome.refused)} of {len(commands)} refused: impact_id {', '.join(shorten(i) for i in outcome.refused)}"
+                f"{len(outcome.refused)} of {len(commands)} refused: impact_id "
+                f"{', '.join(shorten(i) for i in outcome.refused)}"
             )
         print(f"tail-beam send: error: {'; '.join(parts)}", file=sys.stderr)
         return EXIT_TIMEOUT if outcome.missing else EXIT_REFUSED

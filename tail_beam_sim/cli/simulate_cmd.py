@@ -98,14 +98,20 @@ def format_summary(s: dict) -> str:
     """A short human-readable report of one impact."""
     height = f"dropped {s['drop_height_m']:g} m, " if s["drop_height_m"] is not None else ""
     lines = [
-        f"{s['material']} sphere R = {s['radius_m'] * 1e3:g} mm ({s['mass_kg'] * 1e3:.1f} g), {height}"
-        f"impact {s['impact_speed_mps']:.3f} m/s at {s['position_m']:g} m from the hinge ({s['contact_model']} contact, {s['solver']} solver)",
-        f"  rebound              {s['rebound_speed_mps']:.3f} m/s   (restitution {s['restitution']:.4f})",
-        f"  contact              {s['contact_duration_s'] * 1e6:.1f} µs, peak force {s['peak_contact_force_n'] / 1e3:.2f} kN, {s['n_contacts']} contact(s)",
+        f"{s['material']} sphere R = {s['radius_m'] * 1e3:g} mm ({s['mass_kg'] * 1e3:.1f} g), "
+        f"{height}"
+        f"impact {s['impact_speed_mps']:.3f} m/s at {s['position_m']:g} m from the hinge "
+        f"({s['contact_model']} contact, {s['solver']} solver)",
+        f"  rebound              {s['rebound_speed_mps']:.3f} m/s   (restitution "
+        f"{s['restitution']:.4f})",
+        f"  contact              {s['contact_duration_s'] * 1e6:.1f} µs, peak force "
+        f"{s['peak_contact_force_n'] / 1e3:.2f} kN, {s['n_contacts']} contact(s)",
         f"  jack pressure swing  {s['peak_jack_pressure_change_pa'] / 1e3:.2f} kPa above setting",
         f"  beam rate            {s['peak_beam_angular_velocity_radps'] * 1e3:.3f} mrad/s peak",
-        f"  IMU dynamic accel    {s['peak_imu_dynamic_accel_mps2']:.2f} m/s^2 peak (instantaneous)",
-        f"  fidelity             {s['tier']} tier, {s['solver']} solver, estimated relative error {s['error_estimate']:.2g}",
+        f"  IMU dynamic accel    {s['peak_imu_dynamic_accel_mps2']:.2f} m/s^2 peak "
+        "(instantaneous)",
+        f"  fidelity             {s['tier']} tier, {s['solver']} solver, estimated relative error "
+        f"{s['error_estimate']:.2g}",
     ]
     if "check" in s:
         check = s["check"]

@@ -98,13 +98,19 @@ def run(args: argparse.Namespace) -> int:
     tiers = sorted({r["tier"] for r in rows})
     one_tier = len(tiers) == 1
     print(f"# {'tier ' + tiers[0] if one_tier else 'tiers per row'} (--tier {tier}), noise-free")
-    header = f"{args.parameter:>16} {'v0 m/s':>8} {'v1 m/s':>8} {'e':>7} {'t_c us':>7} {'F kN':>8} {'dp kPa':>8} {'w mrad/s':>9} {'a m/s2':>8} {'n':>3}"
+    header = (
+        f"{args.parameter:>16} {'v0 m/s':>8} {'v1 m/s':>8} {'e':>7} {'t_c us':>7} "
+        f"{'F kN':>8} {'dp kPa':>8} {'w mrad/s':>9} {'a m/s2':>8} {'n':>3}"
+    )
     print(header + ("" if one_tier else f" {'tier':>8}"))
     for r in rows:
         print(
-            f"{r[args.parameter]!s:>16} {r['impact_speed_mps']:8.3f} {r['rebound_speed_mps']:8.3f} {r['restitution']:7.4f} "
-            f"{r['contact_duration_s'] * 1e6:7.1f} {r['peak_contact_force_n'] / 1e3:8.2f} {r['peak_jack_pressure_change_pa'] / 1e3:8.2f} "
-            f"{r['peak_beam_angular_velocity_radps'] * 1e3:9.4f} {r['peak_imu_dynamic_accel_mps2']:8.2f} {r['n_contacts']:3d}"
+            f"{r[args.parameter]!s:>16} {r['impact_speed_mps']:8.3f} "
+            f"{r['rebound_speed_mps']:8.3f} {r['restitution']:7.4f} "
+            f"{r['contact_duration_s'] * 1e6:7.1f} {r['peak_contact_force_n'] / 1e3:8.2f} "
+            f"{r['peak_jack_pressure_change_pa'] / 1e3:8.2f} "
+            f"{r['peak_beam_angular_velocity_radps'] * 1e3:9.4f} "
+            f"{r['peak_imu_dynamic_accel_mps2']:8.2f} {r['n_contacts']:3d}"
             + ("" if one_tier else f" {r['tier']:>8}")
         )
     return 0

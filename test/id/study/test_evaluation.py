@@ -49,7 +49,8 @@ def test_wilson_interval_matches_the_textbook_values():
 
 
 def test_missed_impacts_count_as_wrong_and_classes_weigh_equally():
-    """A missed impact counts as wrong, balanced accuracy weighs coal and gangue equally, and the confusion, size bins and data latency add up by hand."""
+    """A missed impact counts as wrong, balanced accuracy weighs coal and gangue equally, and
+    the confusion, size bins and data latency add up by hand."""
     records = [
         record(True, "coal"),
         record(True, "coal"),
@@ -96,7 +97,8 @@ def test_confident_wrong_labels_are_set_against_what_their_confidences_promise()
 
 
 def test_logistic_fit_finds_the_boundary_and_temperature_undoes_overconfidence():
-    """The logistic fit recovers a known slope and offset, and temperature scaling finds a fivefold overconfidence."""
+    """The logistic fit recovers a known slope and offset, and temperature scaling finds a
+    fivefold overconfidence."""
     rng = np.random.default_rng(0)
     x = rng.normal(0.0, 1.0, (2000, 1))
     p = 1.0 / (1.0 + np.exp(-(2.0 * x[:, 0] - 1.0)))
@@ -128,7 +130,8 @@ def test_size_temperature_finds_overconfidence_that_grows_as_impacts_get_smaller
 
 
 def test_evaluate_command_prints_figures_and_targets(capsys, tmp_path):
-    """`tail-beam evaluate` prints the set, the targets and a finite compute time, and writes summary.json."""
+    """`tail-beam evaluate` prints the set, the targets and a finite compute time, and writes
+    summary.json."""
     code = main(
         [
             "evaluate",
@@ -171,7 +174,8 @@ def test_evaluate_rejects_bad_options_in_one_line(capsys, argv, field):
 
 
 def test_evaluate_plot_defaults_to_out_evaluate(tmp_path, monkeypatch, capsys):
-    """--plot without --out writes summary.json and the charts under out/evaluate of the working directory (ignored by git)."""
+    """--plot without --out writes summary.json and the charts under out/evaluate of the
+    working directory (ignored by git)."""
     pytest.importorskip("matplotlib")
     monkeypatch.chdir(tmp_path)
     assert (

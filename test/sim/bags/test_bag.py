@@ -24,7 +24,8 @@ TAIL_BEAM = str(Path(sys.executable).parent / "tail-beam")  # the installed cons
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_segments_make_one_bag_that_any_reader_reads_whole(tmp_path, storage):
-    """Three closed segments read as one bag, by rosbags' AnyReader and our reader: every message once, in order, with the contract's topic types."""
+    """Three closed segments read as one bag, by rosbags' AnyReader and our reader: every
+    message once, in order, with the contract's topic types."""
     data = records(300)
     write_segments(tmp_path / "bag", [data[:200], data[200:450], data[450:]], storage)
     assert not (tmp_path / "bag" / PARTIAL_DIR).exists()
@@ -39,7 +40,8 @@ def test_segments_make_one_bag_that_any_reader_reads_whole(tmp_path, storage):
 
 
 def test_an_independent_mcap_reader_decodes_every_segment(tmp_path):
-    """The mcap library's own reader, not rosbags, decodes every pressure value across both segments."""
+    """The mcap library's own reader, not rosbags, decodes every pressure value across both
+    segments."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
@@ -57,10 +59,11 @@ def test_an_independent_mcap_reader_decodes_every_segment(tmp_path):
 
 
 def test_a_killed_writer_leaves_the_closed_segments_readable_and_repair_adds_the_rest(tmp_path):
-    """A writer that dies mid-segment leaves its closed segments readable (flagged partial); repair adds what the open one salvaged, keeping the rest as it was."""
+    """A writer that dies mid-segment leaves its closed segments readable (flagged partial);
+    repair adds what the open one salvaged, keeping the rest as it was."""
     data = records(2000)
     bag = tmp_path / "bag"
-    writer = write_segments(bag, [data[:1000], data[1000:2000], data[2000:]], close=False)
+    write_segments(bag, [data[:1000], data[1000:2000], data[2000:]], close=False)
     # The process dies here, with the third segment open (whatever rosbags has flushed of it).
     closed = read_sensors(bag, required=(topics.JACK_PRESSURE,))
     assert closed.partial
@@ -73,7 +76,8 @@ def test_a_killed_writer_leaves_the_closed_segments_readable_and_repair_adds_the
 
 
 def test_repair_rebuilds_a_bag_whose_metadata_is_missing(tmp_path):
-    """A bag without metadata.yaml is refused with a hint to repair; repair rebuilds it and every message reads back."""
+    """A bag without metadata.yaml is refused with a hint to repair; repair rebuilds it and
+    every message reads back."""
     data = records(100)
     write_segments(tmp_path / "bag", [data])
     (tmp_path / "bag" / "metadata.yaml").unlink()
@@ -109,7 +113,8 @@ def pressure_only_bag(path):
     ],
 )
 def test_a_bad_bag_is_one_clear_error(tmp_path, make, message):
-    """Each kind of bad bag is an InputError on field 'bag' saying what is wrong, and `tail-beam identify` on it exits 2 with that one line."""
+    """Each kind of bad bag is an InputError on field 'bag' saying what is wrong, and
+    `tail-beam identify` on it exits 2 with that one line."""
     path = tmp_path / "bag"
     if make is not None:
         make(path)
@@ -145,7 +150,8 @@ def test_bag_info_lists_topics_and_counts(tmp_path):
 def test_a_pressure_only_bag_lacks_a_topic_for_read_sensors_but_is_identified(tmp_path):
     """read_sensors' default asks for the three sensor topics and names the one missing; `tail-beam
     identify` asks for any sensor topic (id_node labels a support with the jack transducer only),
-    so it reads the pressure-only bag: exit 0, no traceback, any label decided from the pressure."""
+    so it reads the pressure-only bag: exit 0, no traceback, any label decided from the
+    pressure."""
     pressure_only_bag(tmp_path / "bag")
     with pytest.raises(InputError, match="lacks messages on topic 'imu'"):
         read_sensors(tmp_path / "bag")

@@ -48,7 +48,8 @@ def sandstone_records(params):
 
 
 def write(path: Path, records, namespace: str = "/") -> Path:
-    """The records as a bag of the support ``namespace`` (every contract topic listed, as the recorder does)."""
+    """The records as a bag of the support ``namespace`` (every contract topic listed, as the
+    recorder does)."""
     name = {topic: topics.qualified(namespace, topic) for topic in topics.MSG_TYPES}
     writer = SegmentedBagWriter(path, msg_types={name[t]: m for t, m in topics.MSG_TYPES.items()})
     for topic, ns, data in sorted(records, key=lambda r: r[1]):
@@ -62,8 +63,7 @@ def test_a_bag_holding_every_sample_twice_is_identified_and_calibrated(
 ):
     """Every pressure and IMU message recorded twice (two recorders on one topic): identify and
     calibrate go on, exit 0, say on stderr how many repeated samples they left out, and the
-    labels are those of the plain bag. (Was: ZeroDivisionError from the IMU's sample period
-    read as 0, a traceback out of both.)"""
+    labels are those of the plain bag."""
     plain = write(tmp_path / "plain", sandstone_records)
     twice = sandstone_records + [
         r for r in sandstone_records if r[0] in (topics.JACK_PRESSURE, topics.IMU)
@@ -72,8 +72,8 @@ def test_a_bag_holding_every_sample_twice_is_identified_and_calibrated(
     expected = labels_of(run("identify", "--no-calibrate", str(plain)))
     result = run("identify", "--no-calibrate", str(doubled))
     got = labels_of(result)
-    assert [(l["impact_stamp"], l["label"], l["confidence"]) for l in got] == [
-        (l["impact_stamp"], l["label"], l["confidence"]) for l in expected
+    assert [(x["impact_stamp"], x["label"], x["confidence"]) for x in got] == [
+        (x["impact_stamp"], x["label"], x["confidence"]) for x in expected
     ]
     assert "imu: " in result.stderr and "at a stamp already read left out" in result.stderr
     calibrated = run("calibrate", str(doubled))
@@ -92,19 +92,18 @@ def test_a_bag_holding_every_sample_twice_is_identified_and_calibrated(
 )
 def test_a_support_without_some_sensors_is_identified(tmp_path, sandstone_records, kept, signals):
     """A bag without the camera, or with only the accelerometer and the camera, is labelled
-    from what it has, as id_node labels that support live (the label's signals say which).
-    (Was: refused, 'lacks messages on topic rebound_velocity' / 'jack_pressure'.)"""
+    from what it has, as id_node labels that support live (the label's signals say which)."""
     bag = write(
         tmp_path / "bag", [r for r in sandstone_records if r[0] in kept + (topics.IMPACT_TRUTH,)]
     )
     labels = labels_of(run("identify", str(bag)))
-    assert [l["signals"] for l in labels] == [signals]
+    assert [x["signals"] for x in labels] == [signals]
     assert labels[0]["label"] == "gangue"
 
 
 def test_calibrate_needs_no_camera(tmp_path, sandstone_records):
     """calibrate reads the jack pressure and the IMU only: a bag without rebound_velocity is
-    calibrated. (Was: refused for lacking rebound_velocity, which calibration never reads.)"""
+    calibrated."""
     bag = write(
         tmp_path / "bag", [r for r in sandstone_records if r[0] != topics.REBOUND_VELOCITY]
     )
@@ -116,8 +115,7 @@ def test_calibrate_needs_no_camera(tmp_path, sandstone_records):
 def test_a_bag_without_any_sensor_names_what_it_has(tmp_path, sandstone_records):
     """A bag with the truth only (every contract topic listed, none of the sensors with a
     message): one line, exit 2, naming the sensor topics wanted and only the topics that hold
-    messages. (Was: 'lacks messages on topic jack_pressure; it has: ..., jack_pressure, ...',
-    listing empty connections as present.)"""
+    messages (a connection without messages is not listed as present)."""
     bag = write(tmp_path / "bag", [r for r in sandstone_records if r[0] == topics.IMPACT_TRUTH])
     for verb in ("identify", "calibrate"):
         result = run(verb, str(bag))
@@ -131,8 +129,7 @@ def test_a_bag_without_any_sensor_names_what_it_has(tmp_path, sandstone_records)
 
 
 def test_calibrate_chooses_one_support_of_several(tmp_path, sandstone_records):
-    """A bag of two supports: calibrate, like identify, asks for --namespace and takes it.
-    (Was: its error said 'choose one with --namespace', an option calibrate did not have.)"""
+    """A bag of two supports: calibrate, like identify, asks for --namespace and takes it."""
     bag = tmp_path / "bag"
     names = {
         f"{ns}/{t}": m
@@ -157,10 +154,9 @@ def test_calibrate_chooses_one_support_of_several(tmp_path, sandstone_records):
 def test_a_new_time_base_in_the_bag_is_said_and_each_run_taken_alone(tmp_path, sandstone_records):
     """A bag holding two runs whose stamps both start at 0 (a simulator restarted while the
     recorder ran on): identify and calibrate say so on stderr, naming the topic, how far its
-    stamps went back and the log time where they did (was: the runs merged by stamp without a
-    word), and take each run alone, as id_node starts afresh at a time jump: the sandstone
-    impact of each run is labelled once, gangue, at its own stamp (merged, the two runs'
-    samples interleaved into one stream); calibrate says which run it used."""
+    stamps went back and the log time where they did, and take each run alone, as id_node
+    starts afresh at a time jump: the sandstone impact of each run is labelled once, gangue, at
+    its own stamp; calibrate says which run it used."""
 
     def later(records, shift_s):
         """The records with every header stamp and log time ``shift_s`` later."""
@@ -203,7 +199,8 @@ def test_a_new_time_base_in_the_bag_is_said_and_each_run_taken_alone(tmp_path, s
 
 
 def _reindexed(records, index_of_block):
-    """The records with each vibration block's index words set to ``index_of_block(k)`` (block k)."""
+    """The records with each vibration block's index words set to ``index_of_block(k)`` (block
+    k)."""
     out, k = [], 0
     for topic, ns, data in records:
         if topic == topics.VIBRATION:
@@ -225,9 +222,9 @@ def test_a_bag_whose_block_index_does_not_count_samples_is_refused_by_name(
 ):
     """A recorder or simulator that does not count samples in the blocks' index words (every
     block index 0, or the block's number): identify and calibrate refuse the bag in one line
-    naming the index fields (was: all blocks but one dropped as repeats and the labels decided
-    on the IMU alone, without a word); the same blocks rightly indexed, and every block recorded
-    twice, read as they are."""
+    naming the index fields (taken as they are, all blocks but one would be dropped as
+    repeats); the same blocks rightly indexed, and every block recorded twice, read as they
+    are."""
     bad = write(tmp_path / "bad", _reindexed(sandstone_records, index_of_block))
     for command in ("identify", "calibrate"):
         result = run(command, str(bad))

@@ -45,7 +45,8 @@ def assert_one_line_error(result: subprocess.CompletedProcess, *needles: str) ->
 
 
 def flushed_bag(path: Path, storage: str, flushes: int = 10, per_flush: int = 150) -> int:
-    """A one-file bag written in ``flushes`` on-disk steps (mcap: one chunk each); returns the count."""
+    """A one-file bag written in ``flushes`` on-disk steps (mcap: one chunk each); returns the
+    count."""
     data = records(flushes * per_flush)
     writer = SegmentedBagWriter(path, storage)
     for index, (topic, ns, raw) in enumerate(data):
@@ -67,13 +68,15 @@ def cut(bag: Path, size: int) -> None:
 
 
 def sampled_offsets(size: int, count: int = 45) -> list[int]:
-    """Offsets spread over the whole file, and its edges (empty, the 8-byte magic, one byte short)."""
+    """Offsets spread over the whole file, and its edges (empty, the 8-byte magic, one byte
+    short)."""
     return sorted({0, 1, 8, 9, 64, size - 8, size - 1, *range(0, size, max(1, size // count))})
 
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_a_bag_cut_anywhere_reads_whole_or_is_one_clear_error(tmp_path, storage):
-    """A storage file cut at any sampled offset gives every message or an InputError, never another exception or fewer messages."""
+    """A storage file cut at any sampled offset gives every message or an InputError, never
+    another exception or fewer messages."""
     source = tmp_path / "source"
     total = flushed_bag(source, storage)
     data = storage_file(source).read_bytes()
@@ -101,7 +104,8 @@ def test_a_bag_cut_anywhere_reads_whole_or_is_one_clear_error(tmp_path, storage)
 
 @pytest.mark.parametrize("storage, size", [("mcap", 8), ("mcap", None), ("sqlite3", None)])
 def test_identify_and_bag_info_on_a_cut_bag_say_one_line_and_exit_2(tmp_path, storage, size):
-    """tail-beam identify and bag info on a file cut to its magic or in the middle: one line, exit 2 (was: TypeError, exit 1)."""
+    """tail-beam identify and bag info on a file cut to its magic or in the middle: one line,
+    exit 2."""
     bag = tmp_path / "bag"
     flushed_bag(bag, storage)
     cut(bag, size if size is not None else storage_file(bag).stat().st_size // 2)
@@ -130,21 +134,24 @@ def foreign_bag(path: Path) -> None:
         (lambda bag: (flushed_bag(bag, "mcap"), cut(bag, 8)), "bag repair"),
         (
             foreign_bag,
-            "holds no messages on imu, jack_pressure, rebound_velocity, vibration; it has: chatter",
+            "holds no messages on imu, jack_pressure, rebound_velocity, vibration; "
+            "it has: chatter",
         ),
         (lambda bag: bag.symlink_to(bag.parent / "nowhere"), "dangling symbolic link"),
     ],
     ids=["cut-to-magic", "no-contract-topic", "dangling-link"],
 )
 def test_bag_replay_on_a_bad_bag_exits_with_one_line(tmp_path, make, needle):
-    """bag_replay on a bag cut to its magic, without a contract topic (was: KeyError), or a dangling link: one line, exit 2."""
+    """bag_replay on a bag cut to its magic, without a contract topic, or a
+    dangling link: one line, exit 2."""
     bag = tmp_path / "bag"
     make(bag)
     assert_one_line_error(run("bag_replay", "--ros-args", "-p", f"replay.bag_path:={bag}"), needle)
 
 
 def test_a_bag_of_foreign_topics_is_refused_by_name_not_read_as_all(tmp_path):
-    """An empty selection of topics is refused, where the reader would have read it as 'every topic'."""
+    """An empty selection of topics is refused, where the reader would have read it as 'every
+    topic'."""
     foreign_bag(tmp_path / "bag")
     with pytest.raises(InputError, match="holds no messages on imu; it has: chatter"):
         next(raw_messages(tmp_path / "bag", [topics.IMU]))
@@ -152,7 +159,8 @@ def test_a_bag_of_foreign_topics_is_refused_by_name_not_read_as_all(tmp_path):
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_repair_of_a_cut_bag_gives_a_bag_that_reads_or_says_it_could_not(tmp_path, storage):
-    """bag repair on a closed file cut short: the complete part reads back in order, or exit 2 'could not repair'; never a bag that does not read."""
+    """bag repair on a closed file cut short: the complete part reads back in order, or exit 2
+    'could not repair'; never a bag that does not read."""
     source = tmp_path / "source"
     total = flushed_bag(source, storage)
     size = storage_file(source).stat().st_size
@@ -202,7 +210,8 @@ def snapshot(root: Path) -> dict[str, bytes]:
 
 @pytest.mark.parametrize("plant", [".partial", ".partial/segment", "file", "metadata.yaml.tmp"])
 def test_bag_repair_never_follows_or_deletes_through_a_link(tmp_path, plant):
-    """Links planted in a bag (.partial, a segment, a storage file, the metadata's temp file) are left alone; the outside folder is untouched (was: .partial link deleted it)."""
+    """Links planted in a bag (.partial, a segment, a storage file, the metadata's temp file)
+    are left alone; the outside folder is untouched."""
     outside = tmp_path / "outside"
     before = outside_tree(outside)
     bag = tmp_path / "bag"
@@ -243,7 +252,8 @@ def test_bag_repair_refuses_a_bag_that_is_a_link(tmp_path):
 
 
 def test_simulate_refuses_to_write_through_links(tmp_path):
-    """simulate --plot onto a link and --bag onto a dangling or live link: one line, exit 2, target untouched (was: overwritten, traceback)."""
+    """simulate --plot onto a link and --bag onto a dangling or live link: one line, exit 2,
+    target untouched."""
     target = tmp_path / "target.png"
     target.write_bytes(b"keep me")
     (tmp_path / "figure.png").symlink_to(target)
@@ -264,7 +274,7 @@ def test_simulate_refuses_to_write_through_links(tmp_path):
 
 
 def test_identify_and_demo_on_dangling_links_say_one_line(tmp_path):
-    """A dangling link as the bag to read or to create: one line, exit 2 (was: traceback)."""
+    """A dangling link as the bag to read or to create: one line, exit 2."""
     link = tmp_path / "bag"
     link.symlink_to(tmp_path / "nowhere")
     assert_one_line_error(run("tail-beam", "identify", str(link)), "dangling symbolic link")
@@ -275,7 +285,8 @@ def test_identify_and_demo_on_dangling_links_say_one_line(tmp_path):
 
 @pytest.mark.ros
 def test_recorder_on_a_dangling_link_exits_with_one_line(tmp_path):
-    """bag_recorder with recorder.bag_path a dangling link: one line, exit 2, nothing created at the link's target (was: traceback)."""
+    """bag_recorder with recorder.bag_path a dangling link: one line, exit 2, nothing created
+    at the link's target."""
     link = tmp_path / "bag"
     link.symlink_to(tmp_path / "nowhere")
     result = run("bag_recorder", "--ros-args", "-p", f"recorder.bag_path:={link}")
@@ -298,7 +309,8 @@ def test_evaluate_refuses_a_linked_summary_before_the_work(tmp_path):
 
 
 def test_a_chart_is_never_written_through_a_link(tmp_path):
-    """save_figure (simulate, evaluate and bench charts) refuses a link, and the target keeps its bytes."""
+    """save_figure (simulate, evaluate and bench charts) refuses a link, and the target keeps
+    its bytes."""
     from tail_beam_sim.plotting import pyplot, save_figure
 
     target = tmp_path / "target.png"
@@ -323,7 +335,8 @@ class _Planted:
 
 
 def test_a_tampered_training_cache_runs_no_code(tmp_path):
-    """python -m tail_beam_id.study.training --cache on a planted pickle: refused with one line, the planted code never runs."""
+    """python -m tail_beam_id.study.training --cache on a planted pickle: refused with one
+    line, the planted code never runs."""
     marker = tmp_path / "marker"
     cache = tmp_path / "cache.json"
     cache.write_bytes(pickle.dumps(_Planted(marker)))
@@ -407,10 +420,9 @@ def test_json_topics_holding_anything_read_as_unparsed_and_identify_goes_on(tmp_
 
 
 def test_bag_repair_of_metadata_whose_storage_is_no_name_repairs_from_the_files(tmp_path):
-    """A metadata.yaml whose storage_identifier is a list (``[1, 2]``): `bag repair` tested it
-    against its table of storages and raised TypeError (unhashable type: 'list'), a traceback
-    with exit 1, where bag info and identify name the bad metadata. It now tells the storage
-    from the files, as for a bag without metadata, and the repaired bag reads."""
+    """A metadata.yaml whose storage_identifier is a list (``[1, 2]``): `bag repair` tells the
+    storage from the files, as for a bag without metadata, and the repaired bag reads; no
+    traceback."""
     bag = tmp_path / "bag"
     write_segments(bag, [records(50)])
     meta = bag / "metadata.yaml"
@@ -427,9 +439,8 @@ def test_bag_repair_of_metadata_whose_storage_is_no_name_repairs_from_the_files(
 @pytest.mark.ros
 def test_a_killed_recorders_open_segment_is_said_by_every_reader(tmp_path):
     """bag info, identify and bag_replay on a bag whose recorder was killed read the closed
-    segments and say on stderr that the open one (.partial) is left out and how to salvage it
-    (they reported the closed segments alone as the whole bag, without a word); after repair
-    nothing is said."""
+    segments and say on stderr that the open one (.partial) is left out and how to salvage it;
+    after repair nothing is said."""
     data = records(600)
     bag = tmp_path / "bag"
     write_segments(
@@ -472,9 +483,9 @@ def test_a_killed_recorders_open_segment_is_said_by_every_reader(tmp_path):
 @pytest.mark.ros
 def test_a_recorder_killed_before_its_first_segment_closed_is_not_called_empty(tmp_path):
     """A recorder killed within its first segment leaves metadata.yaml with no messages and the
-    open segment in .partial: bag info, identify and bag_replay said 'holds no messages' and no
-    more (a user would throw away a salvageable bag); now the one line says .partial holds
-    segments not read and to run bag repair, which recovers them."""
+    open segment in .partial: bag info, identify and bag_replay say in one line that it holds
+    no messages, that .partial holds segments not read and to run bag repair, which recovers
+    them."""
     bag = tmp_path / "bag"
     writer = write_segments(bag, [records(300)], close=False)
     writer.flush()
@@ -511,8 +522,8 @@ def contract_bag_with_a_foreign_type(path: Path, topic: str, msgtype: str, msg) 
 )
 def test_a_contract_topic_recorded_with_another_type_is_refused_by_name(tmp_path, topic, msgtype):
     """identify, calibrate and bag_replay on a bag holding /rebound_velocity as a String or
-    /label as an Imu: one line naming the topic and both types, exit 2 (was: AttributeError
-    traceback, exit 1); bag info still lists it."""
+    /label as an Imu: one line naming the topic and both types, exit 2; bag info still
+    lists it."""
     bag = tmp_path / "bag"
     msg = (
         TYPESTORE.types[msgtype](data="hi")

@@ -30,8 +30,8 @@ def test_a_ctrl_c_while_tail_beam_loads_is_130_and_one_line(verb):
 
 def test_a_ctrl_c_that_an_extension_turns_into_an_import_error_is_still_130(tmp_path):
     """A Ctrl-C landing while a C extension initialises comes back as ``ImportError:
-    initialization failed`` with the KeyboardInterrupt as its cause (pybind11, rclpy; seen once
-    in the suite as a traceback and status 1): reproduced here by a parser builder that takes
+    initialization failed`` with the KeyboardInterrupt as its cause (pybind11, rclpy):
+    reproduced here by a parser builder that takes
     the signal and raises so. Still 130 and one line."""
     script = tmp_path / "run.py"
     script.write_text(

@@ -48,7 +48,8 @@ def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
 
 
 def test_json_summary_has_the_documented_keys(capsys):
-    """`simulate --json` prints one object with every documented key, and its restitution is rebound over impact speed."""
+    """`simulate --json` prints one object with every documented key, and its restitution is
+    rebound over impact speed."""
     code, out, _ = run_cli(
         capsys,
         "simulate",
@@ -97,7 +98,8 @@ def _read_bag(path: Path) -> dict[str, list]:
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_bag_reads_back_with_contract_topics_types_units_and_stamps(tmp_path, capsys, storage):
-    """A simulated bag reads back with the contract's topics and types, pressure in Pa at 2 kHz stamps, IMU per REP 145, one rebound and a truth agreeing with the summary."""
+    """A simulated bag reads back with the contract's topics and types, pressure in Pa at 2 kHz
+    stamps, IMU per REP 145, one rebound and a truth agreeing with the summary."""
     bag = tmp_path / "impact"
     code, out, _ = run_cli(
         capsys,
@@ -192,7 +194,8 @@ BAD_INPUT = [
 
 @pytest.mark.parametrize(("argv", "field", "allowed"), BAD_INPUT)
 def test_bad_input_exits_2_with_one_line_naming_field_and_range(capsys, argv, field, allowed):
-    """Each bad option exits 2 with one stderr line naming the field and its allowed range, no traceback."""
+    """Each bad option exits 2 with one stderr line naming the field and its allowed range, no
+    traceback."""
     code, _, err = run_cli(capsys, "simulate", *argv)
     assert code == 2
     lines = err.strip().splitlines()
@@ -201,7 +204,8 @@ def test_bad_input_exits_2_with_one_line_naming_field_and_range(capsys, argv, fi
 
 
 def test_missing_height_and_speed_is_an_error(tmp_path, capsys):
-    """A config whose scene gives neither drop_height_m nor impact_speed_mps: exactly one is required."""
+    """A config whose scene gives neither drop_height_m nor impact_speed_mps: exactly one is
+    required."""
     config = tmp_path / "no_height.yaml"
     config.write_text("/**:\n  ros__parameters:\n    scene:\n      drop_height_m: null\n")
     code, _, err = run_cli(capsys, "simulate", "--config", str(config))

@@ -18,7 +18,8 @@ def sweep_rows(capsys, *argv: str) -> list[dict]:
 
 
 def test_json_swept_values_are_numbers(capsys):
-    """`sweep --json` writes the swept value as the number it is (as in impact_cmd), not as the text it was typed as."""
+    """`sweep --json` writes the swept value as the number it is (as in impact_cmd), not as the
+    text it was typed as."""
     rows = sweep_rows(capsys, "drop_height_m", "2.0", "3.5", "4")
     assert [r["drop_height_m"] for r in rows] == [2.0, 3.5, 4.0]
     assert all(type(r["drop_height_m"]) is float for r in rows)
@@ -30,7 +31,9 @@ def test_json_swept_values_are_numbers(capsys):
 
 @pytest.mark.parametrize("tier", ["modal", "rigid", None])
 def test_row_equals_simulate_with_the_same_settings(capsys, tier):
-    """A sweep row (--tier modal, rigid, or the default) is the very result `tail-beam simulate` gives for the same impact and tier: the README's worked example and its 3.5 m row agree."""
+    """A sweep row (--tier modal, rigid, or the default) is the very result `tail-beam
+    simulate` gives for the same impact and tier: the README's worked example and its 3.5 m row
+    agree."""
     option = ["--tier", tier] if tier else []
     (row,) = sweep_rows(
         capsys,
@@ -68,7 +71,8 @@ def test_row_equals_simulate_with_the_same_settings(capsys, tier):
 
 
 def test_tier_changes_the_model_and_the_table_says_which(capsys):
-    """The rigid beam misses the bending modes the modal tier sees in the IMU, and the table's header names the tier used."""
+    """The rigid beam misses the bending modes the modal tier sees in the IMU, and the table's
+    header names the tier used."""
     (modal,) = sweep_rows(capsys, "position_m", "1.0", "--tier", "modal")
     (rigid,) = sweep_rows(capsys, "position_m", "1.0", "--tier", "rigid")
     assert rigid["tier"] == "rigid" and modal["tier"] == "modal"
@@ -87,7 +91,8 @@ def test_tier_changes_the_model_and_the_table_says_which(capsys):
     ],
 )
 def test_bad_input_exits_2_with_one_line_naming_it(capsys, argv, field):
-    """A tier that does not exist, or a swept value that is not a number in range, exits 2 with one line naming it; nothing is printed on stdout."""
+    """A tier that does not exist, or a swept value that is not a number in range, exits 2 with
+    one line naming it; nothing is printed on stdout."""
     code, out, err = run_cli(capsys, "sweep", *argv)
     assert code == 2
     assert out == ""
