@@ -156,7 +156,12 @@ class Field:
                 raise InputError(dotted, value, self.allowed())
             if not all(_is_number(x) for x in value):
                 raise InputError(dotted, value, self.allowed())
-            return [float(x) for x in value]
+            return [
+                require_range(
+                    f"{dotted}[{k}]", x, low, high, low_open=self.low_open, unit=self.unit
+                )
+                for k, x in enumerate(value)
+            ]
         if kind == "strs":
             if isinstance(value, str) or not isinstance(value, Sequence):
                 raise InputError(dotted, value, self.allowed())
@@ -167,7 +172,10 @@ class Field:
 
     def range_text(self) -> str:
         """The allowed values as the reference page shows them (bounds by name where named)."""
-        if self.kind in ("bool", "str", "floats", "strs", "mapping"):
+        bounded = self.low is not None or self.high is not None
+        if self.kind in ("bool", "str", "strs", "mapping") or (
+            self.kind == "floats" and not bounded
+        ):
             return {
                 "bool": "true, false",
                 "floats": "list of numbers",
@@ -185,6 +193,8 @@ class Field:
             text = f"{opening}{low}, {high}{closing}"
             if self.kind == "pair":
                 text = f"[low, high] in {text}"
+            elif self.kind == "floats":
+                text = f"list of numbers in {text}"
         if self.off is not None:
             text += f", or {self.off:g} ({self.off_meaning})"
         return text
@@ -366,8 +376,12 @@ SUPPORT = Section(
         number("gravity_mps2", "Gravitational acceleration.", "m/s^2", 0.0, 100.0),
         positive("beam_length_m", "Tail beam length from the hinge to its tip.", "m", high=20.0),
         positive("beam_mass_kg", "Mass of the tail beam.", "kg"),
-        positive(
-            "beam_inertia_about_hinge_kgm2", "Beam's moment of inertia about the hinge.", "kg m^2"
+        number(
+            "beam_inertia_about_hinge_kgm2",
+            "Beam's moment of inertia about the hinge.",
+            "kg m^2",
+            1.0,
+            1e6,
         ),
         text("plate_material", "Material of the impact plate (a materials entry)."),
         positive("plate_thickness_m", "Impact plate thickness.", "m", high=1.0),

@@ -48,7 +48,7 @@ from tail_beam_id.ros.arrival import ID_NODE, GateConfig, GatedIdentifier
 from tail_beam_id.signals.contact_fit import CONTACT_FIT
 from tail_beam_id.signals.imu_detection import DETECTION
 from tail_beam_id.signals.timing import SENSOR_TIMING
-from tail_beam_id.stream.config import EVALUATION, IDENTIFICATION
+from tail_beam_id.stream.config import EVALUATION, IDENTIFICATION, PROFILE
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label
 from tail_beam_sim import topics
@@ -81,6 +81,7 @@ PARAMETER_SECTIONS = (
     ID_NODE_TOP,
     ID_NODE,
     IDENTIFICATION,
+    PROFILE,
     SENSOR_TIMING,
     CONTACT_FIT,
     DETECTION,

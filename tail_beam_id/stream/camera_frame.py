@@ -9,23 +9,21 @@ ended, so the rebound windows, the late-rebound rule and the delay feature all a
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
 from tail_beam_id.signals.camera import FramePeriod, may_be_slower
-from tail_beam_sim.errors import require_range
+from tail_beam_id.stream.config import check_profile
+from tail_beam_sim.spec import SENSORS
 
 
 def configured_frame_period_s(merged: Mapping[str, Any]) -> float | None:
     """The camera's frame period the parameters give (``sensors.camera_frame_rate_hz``), s;
     None when they give none."""
-    rate = (merged.get("sensors") or {}).get("camera_frame_rate_hz")
-    if rate is None:
+    sensors = merged.get("sensors") or {}
+    if sensors.get("camera_frame_rate_hz") is None:
         return None
-    return 1.0 / require_range(
-        "sensors.camera_frame_rate_hz", rate, 0.0, 1e6, low_open=True, unit="Hz"
-    )
+    return 1.0 / SENSORS.check(sensors, only=["camera_frame_rate_hz"])["camera_frame_rate_hz"]
 
 
 def profile_frame_period_s(merged: Mapping[str, Any]) -> float | None:
@@ -33,10 +31,8 @@ def profile_frame_period_s(merged: Mapping[str, Any]) -> float | None:
     (its profile's ``calibration.camera_frame_rate_hz``), or None. Unlike
     ``sensors.camera_frame_rate_hz`` it is a measurement, not a setting (config/'s 5 kHz is
     every support's)."""
-    rate = (merged.get("calibration") or {}).get("camera_frame_rate_hz")
-    if not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0.0:
-        return None
-    return 1.0 / float(rate)
+    rate = check_profile(merged).get("camera_frame_rate_hz")
+    return None if rate is None else 1.0 / rate
 
 
 class CameraFrame:

@@ -11,7 +11,7 @@ from tail_beam_id.signals.contact_fit import ContactFitConfig
 from tail_beam_id.signals.imu_detection import DetectionConfig
 from tail_beam_id.signals.timing import TimingConfig
 from tail_beam_sim.errors import InputError, require_section
-from tail_beam_sim.spec import Section, choice, flag, integer, number, of_kind, positive
+from tail_beam_sim.spec import Field, Section, choice, flag, integer, number, of_kind, positive
 
 _WINDOW = dict(unit="s", high=10.0)
 
@@ -121,6 +121,90 @@ EVALUATION = Section(
 )
 
 
+# The support profile ``tail-beam calibrate`` writes (tail_beam_id.calibration.offline
+# .SupportProfile); every field may be absent (not measurable on that recording). Checked where
+# it is read, so that a hand-edited profile is refused by name rather than taken as measured.
+PROFILE = Section(
+    "calibration",
+    "A support profile measured on the support's own recording (`tail-beam calibrate --out`).",
+    (
+        number("duration_s", "Recording the profile was read from.", "s", 0.0, default=None),
+        integer("impacts_used", "Impacts the profile rests on.", 0, default=None),
+        number(
+            "imu_mount_sign",
+            "IMU mounting: +1 right way up, -1 upside down.",
+            "",
+            -1.0,
+            1.0,
+            default=None,
+        ),
+        positive(
+            "rigid_mode_frequency_hz",
+            "The beam's sway on the jack.",
+            "Hz",
+            high=1000.0,
+            default=None,
+        ),
+        number("oil_bulk_modulus_pa", "Oil bulk modulus read.", "Pa", 1e7, 1e11, default=None),
+        number(
+            "beam_inertia_about_hinge_kgm2",
+            "Beam inertia read.",
+            "kg m^2",
+            1.0,
+            1e6,
+            default=None,
+        ),
+        number(
+            "imu_gain_spread", "Robust relative spread of the IMU gains.", "", 0.0, default=None
+        ),
+        number("pressure_noise_pa", "Jack pressure noise RMS.", "Pa", 0.0, default=None),
+        number("imu_accel_noise_mps2", "IMU acceleration noise RMS.", "m/s^2", 0.0, default=None),
+        integer(
+            "delay_checked_impacts", "Impacts whose camera delay was checked.", 0, default=None
+        ),
+        integer(
+            "delay_unusual_impacts",
+            "Of those, unusual ones.",
+            0,
+            high="delay_checked_impacts",
+            default=None,
+        ),
+        Field(
+            "ringing_modes_hz",
+            "Bending modes read from the ringing.",
+            "floats",
+            "Hz",
+            1.0,
+            1e5,
+            default=None,
+        ),
+        Field(
+            "ringing_damping_ratios", "Their damping ratios.", "floats", "", 0.0, 1.0, default=None
+        ),
+        number(
+            "camera_frame_rate_hz",
+            "Camera frame rate read from the rebound stamps.",
+            "Hz",
+            1.0,
+            1e6,
+            default=None,
+        ),
+        of_kind("floats", "hysteresis_weights", "Weight of each hysteresis bin.", default=None),
+        integer("hysteresis_impacts", "Impacts the hysteresis rests on.", 0, default=None),
+        of_kind("floats", "hysteresis_bin_edges", "Bins the weights are of.", default=None),
+    ),
+)
+
+
+def check_profile(merged: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``calibration`` section of ``merged`` validated field by field ({} when absent)."""
+    section = merged.get("calibration")
+    if section is None:
+        return {}
+    given = {k: v for k, v in require_section("calibration", section).items() if v is not None}
+    return {k: v for k, v in PROFILE.check(given).items() if v is not None}
+
+
 @dataclass(frozen=True)
 class IdentifierConfig:
     """The ``identification`` parameter section, validated (times in s of stamp time)."""
@@ -175,4 +259,4 @@ class IdentifierConfig:
         )
 
 
-__all__ = ["IdentifierConfig"]
+__all__ = ["PROFILE", "IdentifierConfig", "check_profile"]

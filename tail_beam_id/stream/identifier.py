@@ -51,20 +51,19 @@ from tail_beam_id.stream.association import ImpactAssociation
 from tail_beam_id.stream.buffers import Series
 from tail_beam_id.stream.camera_frame import CameraFrame
 from tail_beam_id.stream.channels import Outages, SensorChannels
-from tail_beam_id.stream.config import IdentifierConfig
+from tail_beam_id.stream.config import IdentifierConfig, check_profile
 from tail_beam_id.stream.decision import ImpactDecider, profile_says_timing_suspect
 from tail_beam_id.stream.detection import ImpactFinder
 from tail_beam_id.stream.label import Label
 from tail_beam_id.stream.readiness import Readiness
 from tail_beam_id.stream.retention import DataRetention
 from tail_beam_sim.config import load_parameters
-from tail_beam_sim.errors import require_section
 
 
 def _measured_on_this_support(merged: Mapping[str, Any]) -> bool:
     """The support parameters are a profile measured on this support (tail-beam calibrate)
     rather than the nominal config/: the methods then use their calibrated models."""
-    return bool((merged.get("calibration") or {}).get("rigid_mode_frequency_hz"))
+    return check_profile(merged).get("rigid_mode_frequency_hz") is not None
 
 
 class StreamIdentifier:
@@ -93,9 +92,9 @@ class StreamIdentifier:
         self.config = IdentifierConfig.from_params(section)
         merged = dict(model_params)
         merged["identification"] = section
-        # A profile's section (tail-beam calibrate), read by the methods and here: anything but
-        # a mapping in its place is refused by name.
-        require_section("calibration", merged.get("calibration"))
+        # A profile's section (tail-beam calibrate), read by the methods and here: refused by
+        # name unless each of its fields is a plausible measurement.
+        check_profile(merged)
         if prebuilt is not None and prebuilt.name == self.config.method:
             built = prebuilt
         else:

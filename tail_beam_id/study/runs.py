@@ -18,6 +18,13 @@ from tail_beam_id.study.dataset import (
     simulate_set,
     support_streams,
 )
+from tail_beam_sim.physics.scene import Scene
+
+
+def true_profile_section(params: Mapping[str, Any]) -> dict[str, float]:
+    """The profile section a perfect calibration of the support in ``params`` would give: its
+    true sway frequency, which marks the parameters as measured on that support."""
+    return {"rigid_mode_frequency_hz": Scene.from_params(params).support.rigid_mode_frequency_hz}
 
 
 @dataclass
@@ -93,7 +100,7 @@ def run_set(
         model_params = params
         if true_profile and impact.support is not None:
             model_params = impact.support.apply(params)
-            model_params["calibration"] = {"rigid_mode_frequency_hz": "known"}
+            model_params["calibration"] = true_profile_section(model_params)
         for key, result, vibration in _feeds(impact.results, without_vibration_too):
             truth = result.truth()
             for method in methods:
@@ -246,7 +253,10 @@ def foreign_records(
     for profile in profiles:
         model_params: Mapping[str, Any] = params
         if profile == "true":
-            model_params = {**recorded.params, "calibration": {"rigid_mode_frequency_hz": "known"}}
+            model_params = {
+                **recorded.params,
+                "calibration": true_profile_section(recorded.params),
+            }
         elif profile == "self-calibrated":
             v = recorded.vibration
             found = calibrate(

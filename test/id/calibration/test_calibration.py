@@ -26,6 +26,7 @@ from tail_beam_id.stream.label import Label
 from tail_beam_id.stream.replay import replay
 from tail_beam_id.study.dataset import support_streams
 from tail_beam_sim.bags.records import imu_msgs, pressure_msgs, rebound_msg, write_bag
+from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.fidelity import TIERS, FidelitySettings, structure_for
 from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.support import Support
@@ -566,3 +567,60 @@ def test_an_implausible_imu_gain_keeps_the_configured_beam_and_its_oil(params, r
     assert profile.oil_bulk_modulus_pa == pytest.approx(
         bulk_modulus_for(params, profile.rigid_mode_frequency_hz), rel=1e-12
     )
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "allowed"),
+    [
+        ("rigid_mode_frequency_hz", float("nan"), r"must be in \(0, 1000\] Hz"),
+        ("rigid_mode_frequency_hz", "abc", r"must be in \(0, 1000\] Hz"),
+        ("rigid_mode_frequency_hz", [39.0, 40.0], r"must be in \(0, 1000\] Hz"),
+        ("camera_frame_rate_hz", 1e-300, r"must be in \[1, 1e\+06\] Hz"),
+        ("beam_inertia_about_hinge_kgm2", 1e-300, r"must be in \[1, 1e\+06\] kg m\^2"),
+        ("ringing_modes_hz", [float("nan")], "must be a list of finite numbers"),
+        ("delay_unusual_impacts", 12, r"must be an integer in \[0, 10\]"),
+    ],
+)
+def test_a_hand_edited_profile_with_an_implausible_field_is_refused_by_name(
+    params, field, value, allowed
+):
+    """A profile field that no measurement gives (NaN, text, a list, a rate of 1e-300, more
+    unusual delays than checked ones) is refused naming the field and its range, instead of
+    marking the labels calibrated or dividing by it."""
+    profile = {"rigid_mode_frequency_hz": 39.3, "delay_checked_impacts": 10, field: value}
+    with pytest.raises(InputError, match=rf"calibration\.{field} = .*: {allowed}"):
+        StreamIdentifier(
+            "statistical",
+            params=params["identification"],
+            model_params={**params, "calibration": profile},
+        )
+
+
+@pytest.mark.parametrize(
+    ("section", "field"),
+    [
+        ("support", "beam_inertia_about_hinge_kgm2"),
+        ("sensors", "camera_frame_rate_hz"),
+    ],
+)
+def test_a_vanishing_support_or_camera_setting_is_refused_by_name(params, section, field):
+    """A beam inertia or camera frame rate of 1e-300 in the parameters (a profile merged into
+    them, or a hand-edited file) is refused naming the field, not taken as a real support."""
+    broken = {**params, section: {**params[section], field: 1e-300}}
+    with pytest.raises(InputError, match=rf"{section}\.{field} = 1e-300: must be in \[1, "):
+        StreamIdentifier("statistical", params=params["identification"], model_params=broken)
+
+
+def test_a_measured_profile_still_marks_the_labels_calibrated(params):
+    """The check refuses only the implausible: a profile as tail-beam calibrate writes it (a
+    sway frequency, a camera rate) is taken, and the identifier says it is calibrated."""
+    profile = {"rigid_mode_frequency_hz": 39.3, "camera_frame_rate_hz": 5000.0}
+    identifier = StreamIdentifier(
+        "statistical",
+        params=params["identification"],
+        model_params={**params, "calibration": profile},
+    )
+    assert identifier.calibrated
+    assert not StreamIdentifier(
+        "statistical", params=params["identification"], model_params=params
+    ).calibrated
