@@ -14,9 +14,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from tail_beam_sim.config import default_config_dir
+from tail_beam_sim.config import default_config_dir, read_yaml_file
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.materials import Material
 from tail_beam_sim.physics.scene import Impact
@@ -96,14 +95,7 @@ def read_scenario_file(
     """
     if not path:
         raise InputError(field, path, "must name a YAML file of impacts")
-    try:
-        data = yaml.safe_load(resolve_scenario_file(path).read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(field, str(path), f"must be a readable file ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        raise InputError(
-            field, str(path), f"must be valid YAML ({str(exc).splitlines()[0]})"
-        ) from None
+    data = read_yaml_file(resolve_scenario_file(path), field)
     if isinstance(data, Mapping):
         data = data.get("impacts")
     if not isinstance(data, list):

@@ -7,7 +7,11 @@ import pytest
 from tail_beam_sim.config import deep_merge, default_config_dir, load_parameters
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.materials import material_table
-from tail_beam_sim.physics.scenario import generate_caving_stream, load_scenario
+from tail_beam_sim.physics.scenario import (
+    generate_caving_stream,
+    load_scenario,
+    read_scenario_file,
+)
 from tail_beam_sim.physics.support import Support
 
 
@@ -110,3 +114,19 @@ def test_generator_needs_both_classes_when_mixing(node_params):
     }
     with pytest.raises(InputError, match="gangue"):
         generate_caving_stream({**node_params["scenario"], "gangue_fraction": 0.5}, materials)
+
+
+def test_a_hostile_scenario_file_is_refused_by_name(tmp_path):
+    """A scenario file whose anchors multiply (a billion laughs) or that is binary junk is
+    refused naming scenario.file, without expanding it, as tail-beam send's files are."""
+    laughs = ["a: &a [x, x, x, x, x, x, x, x, x, x]"]
+    for level in range(1, 9):
+        previous = chr(ord("a") + level - 1)
+        name = chr(ord("a") + level)
+        laughs.append(f"{name}: &{name} [" + ", ".join(f"*{previous}" for _ in range(10)) + "]")
+    hostile = {"laughs.yaml": "\n".join(laughs) + "\n", "junk.yaml": b"\xff\xfe\x00junk"}
+    for name, content in hostile.items():
+        path = tmp_path / name
+        path.write_bytes(content if isinstance(content, bytes) else content.encode())
+        with pytest.raises(InputError, match="scenario.file"):
+            read_scenario_file(str(path))
