@@ -80,20 +80,17 @@ class SupportProfile:
     imu_accel_noise_mps2: float | None
     # Impacts of the pass whose delay from onset to camera stamp the statistical method checked,
     # and those it found unusual (tail_beam_id.signals.timing: too many, and the sensors' clocks
-    # may be
-    # offset; the identifier then caps the labels that use the delay from the first one on).
+    # may be offset; the identifier then caps the labels that use the delay from the first one on).
     delay_checked_impacts: int | None = None
     delay_unusual_impacts: int | None = None
     # The bending modes the impacts set ringing (tail_beam_id.calibration.modes), ascending: Hz and
-    # damping
-    # ratio; None when none could be measured (too few impacts, or the channel too slow).
+    # damping ratio; None when none could be measured (too few impacts, or the channel too slow).
     ringing_modes_hz: list[float] | None = None
     ringing_damping_ratios: list[float] | None = None
     # The camera's frame rate read from the grid of every rebound stamp, Hz; None without a grid.
     camera_frame_rate_hz: float | None = None
     # The weight of each hysteresis bin of the statistical model (tail_beam_id.methods.hysteresis)
-    # and
-    # the impacts they rest on; None when too few impacts had every signal.
+    # and the impacts they rest on; None when too few impacts had every signal.
     hysteresis_weights: list[float] | None = None
     hysteresis_impacts: int | None = None
     hysteresis_bin_edges: list[float] | None = None  # the bins the weights are of (the model's)

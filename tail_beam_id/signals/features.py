@@ -204,10 +204,10 @@ def impact_features(
         features["imu_period_s"] = pulse.period_s
         if contact is not None:
             # The contact's duration (the best-fitting pulse's) from the pulse and the ringing
-            # (tail_beam_id.signals.contact_fit;
-            # a channel too slow to show it gives its sample period). Without it (a fast channel's
-            # samples cut short) the acceleration features are not all there, and the models decide
-            # without them (methods.statistical.signals_of).
+            # (tail_beam_id.signals.contact_fit; a channel too slow to show it gives its sample
+            # period). Without it (a fast channel's samples cut short) the acceleration features
+            # are not all there, and the models decide without them
+            # (methods.statistical.signals_of).
             features["contact_duration_s"] = contact.duration_s
         estimates.append(
             (moment, max(impulse.sigma_mps, impulse.ring_mps) * model.imu_moment_per_velocity)

@@ -79,8 +79,8 @@ def run_set(
     are fed wherever the setting (or drawn support) has one, as id_node feeds them. With
     ``true_profile`` an impact on a drawn support is identified knowing that support (a perfect
     calibration: what the calibrated models are trained on). With ``without_vibration_too`` an
-    impact whose
-    result has the accelerometer is also identified without it (setting ``<key>/no-vibration``:
+    impact whose result has the accelerometer is also identified without it (setting
+    ``<key>/no-vibration``:
     the same impact at a site with the IMU alone; training uses it)."""
     tolerance_s = match_tolerance_s(params["identification"])
     built: dict[str, Any] = {}

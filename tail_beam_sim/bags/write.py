@@ -303,9 +303,8 @@ def repair(bag_path: str | os.PathLike[str]) -> RepairReport:
     (mcap: every complete chunk; sqlite3: every committed row); ``metadata.yaml`` is rebuilt
     from what is there. A damaged original is renamed ``*.damaged``, never deleted; an open
     segment is removed once its messages are rewritten. Symbolic links anywhere in the bag are
-    reported and left alone: repair
-    never reads, deletes or writes through one. Whether the result reads is for the caller to
-    check (``tail_beam_sim.bags.read``).
+    reported and left alone: repair never reads, deletes or writes through one. Whether the result
+    reads is for the caller to check (``tail_beam_sim.bags.read``).
     """
     bag = Path(bag_path)
     if bag.is_symlink():

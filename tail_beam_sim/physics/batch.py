@@ -195,9 +195,9 @@ def contacts(
 class PositionTable:
     """What depends on the impact position only, tabulated along the plate and interpolated:
     contact shape (m per unit q) and compliance at the contact point (1/kg, the inverse of its
-    effective mass); on demand, the
-    peak jack pressure change (Pa) and a bound on the plate's later speed (m/s), both per unit
-    impulse (N s), the peak read off a fine time grid over the window."""
+    effective mass); on demand, the peak jack pressure change (Pa) and a bound on the plate's later
+    speed (m/s), both per unit impulse (N s), the peak read off a fine time grid over the
+    window."""
 
     def __init__(
         self, structure: LinearStructure, position_m: np.ndarray, window_s: float = 0.05

@@ -163,9 +163,8 @@ def simulate(
     """Simulate one impact of ``scene`` and sample its sensors (reproducible by seed).
 
     ``tier`` picks the model (``tail_beam_sim.physics.fidelity``: impulse, rigid (default: the
-    study's
-    model), modal, brittle, or auto: the cheapest that meets ``needs``); ``settings`` holds the
-    bending modes and defaults (default: config/); ``solver`` the method (default: the tier's).
+    study's model), modal, brittle, or auto: the cheapest that meets ``needs``); ``settings`` holds
+    the bending modes and defaults (default: config/); ``solver`` the method (default: the tier's).
     The summary reports ``tier``, ``solver`` and ``error_estimate`` (relative, of the model and
     the solver together); ``check=True`` also simulates the next tier up and adds the measured
     differences as ``check``. ``vibration=False``: a site without the tail-beam accelerometer

@@ -323,8 +323,7 @@ def run_node(
     status 2, as do arguments rcl refuses (a --params-file that is no YAML or missing, a trailing
     ``-p``) and any other failure to build the node from its parameters (a model that cannot take
     a value: the line names the parameters set); SIGINT and SIGTERM end it with status 0; a node
-    that sets ``exit_status`` (a replay
-    that met a damaged bag) exits with it.
+    that sets ``exit_status`` (a replay that met a damaged bag) exits with it.
     """
     if isinstance(usage, str):
         usage = NodeUsage(usage, (make.__doc__ or "").strip().split("\n\n")[0])

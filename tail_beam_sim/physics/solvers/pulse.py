@@ -155,8 +155,7 @@ class Pulse:
     """A contact pulse in physical units, blended from the table rows ``row`` and ``row + 1``
     with weight ``weight``: its scalars at once (duration s, relative separation speed m/s, peak
     force N, refined between samples by a parabola, largest penetration m) and its samples on
-    demand (times
-    from contact start s, relative penetration m and its rate m/s, force N)."""
+    demand (times from contact start s, relative penetration m and its rate m/s, force N)."""
 
     def __init__(
         self, row: int, weight: float, length_m: float, approach_mps: float, hertz_stiffness: float

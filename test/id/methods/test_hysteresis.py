@@ -1,6 +1,5 @@
 """The support's contact hysteresis read from a recording (tail_beam_id.methods.hysteresis): the
-latent's
-definition, the bins' weights from a recording's impacts (mix-invariant, unsure when the
+latent's definition, the bins' weights from a recording's impacts (mix-invariant, unsure when the
 impacts cannot tell), and the profile's weights checked by name."""
 
 from __future__ import annotations

@@ -1,6 +1,5 @@
 """The camera's frame period read from its rebound stamps (tail_beam_id.signals.camera), and what
-the
-statistical method does with a camera slower than its training's."""
+the statistical method does with a camera slower than its training's."""
 
 from __future__ import annotations
 
@@ -110,8 +109,8 @@ def test_a_decision_uses_only_the_stamps_up_to_its_rebound():
 @pytest.fixture(scope="module")
 def slow_camera_stream(params):
     """Ten impacts of 25-90 mm coal and mudstone 0.3-0.45 s apart on the nominal support, its
-    camera
-    at 1 kHz (lagging the contact's end by up to 1 ms, five times the shipped camera's frame)."""
+    camera at 1 kHz (lagging the contact's end by up to 1 ms, five times the shipped camera's
+    frame)."""
     varied = copy.deepcopy(params)
     varied["sensors"]["camera_frame_rate_hz"] = 1000.0
     radii = np.geomspace(0.025, 0.09, 10)
@@ -244,10 +243,10 @@ def test_with_an_imu_too_slow_to_read_the_contact_a_slow_cameras_delay_is_averag
     """The same 1 kHz camera beside a 2 kHz IMU alone: the contact's duration is not read from
     the pulse (it says the sample period), so the delay is all the impact says of it, and the
     decision is averaged over the lags the camera may have added rather than made without the
-    delay. Moving the
-    stamp within the frame moves the decision; each average lies within the decisions at the
-    lags it averages, which never exceed the delay itself (a longer lag would leave a contact
-    of no duration); and no timing check is made of a delay that cannot show a clock offset."""
+    delay. Moving the stamp within the frame moves the decision; each average lies within the
+    decisions at the lags it averages, which never exceed the delay itself (a longer lag would
+    leave a contact of no duration); and no timing check is made of a delay that cannot show a
+    clock offset."""
     chunk = slow_camera_stream
     labels = replay(
         StreamIdentifier("statistical", params["identification"], params),

@@ -1,7 +1,6 @@
 """The contact's duration read from the acceleration pulse (tail_beam_id.signals.contact_fit):
-against a
-synthetic pulse of known duration through known modes, against the Hertz contact the simulator
-integrates, on two different supports, and on a channel too slow to show it."""
+against a synthetic pulse of known duration through known modes, against the Hertz contact the
+simulator integrates, on two different supports, and on a channel too slow to show it."""
 
 from __future__ import annotations
 

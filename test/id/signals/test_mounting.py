@@ -1,6 +1,5 @@
 """Which way up the tail-beam accelerometer is bolted (tail_beam_id.signals.mounting): from
-gravity, or,
-for a piezoelectric (AC-coupled) sensor that sees none, from the IMU beside it."""
+gravity, or, for a piezoelectric (AC-coupled) sensor that sees none, from the IMU beside it."""
 
 from __future__ import annotations
 

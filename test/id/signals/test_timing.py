@@ -1,6 +1,5 @@
 """A recording whose sensor clocks are offset (tail_beam_id.signals.timing): one impact cannot show
-it,
-a recording can; its labels that use the delay from onset to camera stamp are then decided
+it, a recording can; its labels that use the delay from onset to camera stamp are then decided
 without the delay and capped."""
 
 from __future__ import annotations

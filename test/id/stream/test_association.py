@@ -1,6 +1,6 @@
 """Impact association (tail_beam_id.stream.association): which rebound is an impact's, what
-overlaps it,
-when the camera has said all it will. Expected values follow from the configured windows."""
+overlaps it, when the camera has said all it will. Expected values follow from the configured
+windows."""
 
 from __future__ import annotations
 

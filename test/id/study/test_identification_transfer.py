@@ -278,8 +278,7 @@ def test_training_supports_draw_a_hysteresis_scale_without_moving_any_other_draw
 
 def test_drawn_supports_have_the_accelerometer_at_the_configured_share(params):
     """About vibration_share of drawn supports have the accelerometer (rate in range, noise scaled
-    as
-    the others'), the rest none; drawn from its own generator, it leaves every other draw as it
+    as the others'), the rest none; drawn from its own generator, it leaves every other draw as it
     was."""
     ranges = support_ranges(evaluation_params(params), "training")
     draws = [
@@ -442,8 +441,8 @@ def test_a_camera_known_to_be_fast_gives_no_late_rebounds(params):
     window is another impact's, or a slow IMU's onset came early: a 500 Hz IMU alone (below the
     supported 1 kHz) places onsets 3-5 ms early, and the pulse claiming the rebound late kept
     that onset, so its label would miss its impact. From the 4th rebound on no rebound is taken
-    late, and
-    these two supports' impacts are all found (extra labels remain: README, Known limitations)."""
+    late, and these two supports' impacts are all found (extra labels remain: README, Known
+    limitations)."""
     from dataclasses import replace
 
     from tail_beam_id.stream.identifier import StreamIdentifier

@@ -30,8 +30,8 @@ def test_impact_speed_is_free_fall_speed(default_scene):
 
 def test_jack_stiffness_matches_hand_calculation(default_scene):
     """K_Q = beta_eff S / L with the thin wall's hoop compliance in series (docs/physics.md),
-    worked by hand
-    for the nominal jack: bore 160 mm, column 0.20 m, wall 20 mm, E 206 GPa, beta 1.95 GPa."""
+    worked by hand for the nominal jack: bore 160 mm, column 0.20 m, wall 20 mm, E 206 GPa, beta
+    1.95 GPa."""
     beta_eff = 1.0 / (1.0 / 1.95e9 + 0.160 / (0.020 * 206e9))
     k_hand = beta_eff * math.pi * 0.080**2 / 0.20
     support = default_scene.support
@@ -127,9 +127,8 @@ def _delivered_restitution(law: str, e: float) -> float:
 @pytest.mark.parametrize("e", REQUESTED_E)
 def test_default_law_delivers_requested_restitution(e):
     """The default law delivers e within 2 % over 0.3-0.9 (full simulation on a rigid
-    wall;
-    the law's chi comes from a separate dimensionless integration, so this checks one against the
-    other)."""
+    wall; the law's chi comes from a separate dimensionless integration, so this checks one against
+    the other)."""
     scene = Scene.from_params(_heavy_stiff_support_params(), {"impact_speed_mps": 5.0})
     assert scene.contact_model == "calibrated"
     assert _delivered_restitution("calibrated", e) == pytest.approx(e, rel=0.02)
@@ -137,8 +136,7 @@ def test_default_law_delivers_requested_restitution(e):
 
 def test_lankarani_nikravesh_underdissipates_at_low_restitution():
     """L-N's chi = 3(1-e^2)/4 is derived for e near 1: at e = 0.3 it returns far more energy than
-    asked
-    (published: Flores et al. 2011, fig. 7), while it is close at e = 0.9."""
+    asked (published: Flores et al. 2011, fig. 7), while it is close at e = 0.9."""
     low = _delivered_restitution("lankarani_nikravesh", 0.3)
     high = _delivered_restitution("lankarani_nikravesh", 0.9)
     calibrated = _delivered_restitution("calibrated", 0.3)
@@ -157,9 +155,8 @@ def test_published_laws_are_selectable_and_dissipate(law):
 
 def test_angular_impulse_about_hinge_equals_particle_momentum_change(params):
     """Angular momentum about the hinge: over one short contact the beam gains I_C dphi' = x m
-    (v_in + v_out)
-    (the jack's moment during 0.2 ms is negligible next to the impulse). No gravity, to isolate the
-    contact."""
+    (v_in + v_out) (the jack's moment during 0.2 ms is negligible next to the impulse). No gravity,
+    to isolate the contact."""
     deep = deep_merge(load_parameters(), {"support": {"gravity_mps2": 0.0}})
     for position in (0.3, 1.0, 1.5):
         scene = Scene.from_params(deep, {"position_m": position, "impact_speed_mps": 8.0})

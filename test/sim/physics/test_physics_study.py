@@ -14,9 +14,8 @@ STUDY_SPEEDS_MPS = {2.0: 6.261, 2.5: 7.000, 3.0: 7.668, 3.5: 8.368, 4.0: 8.854}
 
 def test_study_contact_speeds_from_heights_and_commanded_speed():
     """With the study's g = 9.8 (set through the config), the model turns the study's heights into
-    its
-    contact speeds, except 3.5 m (8.283, not the study's 8.368): that one must be commanded as a
-    speed."""
+    its contact speeds, except 3.5 m (8.283, not the study's 8.368): that one must be commanded as
+    a speed."""
     params = deep_merge(load_parameters(), {"support": {"gravity_mps2": 9.8}})
     for height, speed in STUDY_SPEEDS_MPS.items():
         scene = Scene.from_params(params, {"drop_height_m": height})

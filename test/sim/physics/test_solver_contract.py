@@ -21,8 +21,7 @@ from tail_beam_sim.physics.solvers import SOLVERS, SolverError, Trajectory, solv
 from tail_beam_sim.physics.solvers.problem import FreeSegment
 
 # Flores et al.'s law asks chi = 8 (1 - e) / (5 e) = 52 for e = 0.03: past the pulse table (chi <=
-# 40),
-# which the impulse solver cannot go beyond.
+# 40), which the impulse solver cannot go beyond.
 OUT_OF_RANGE = {"contact_model": "flores", "restitution": 0.03}
 
 

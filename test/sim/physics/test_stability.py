@@ -123,8 +123,8 @@ def test_default_solver_at_the_extremes_agrees_with_radau(params, overrides):
 
 def test_chain_of_re_contacts_until_the_particle_settles(params):
     """Half a millimetre near the tip (the floor for commands, 1 mm, lowered here): the particle
-    bounces seven times and comes to rest on the
-    plate; every contact's start and speeds agree with Radau."""
+    bounces seven times and comes to rest on the plate; every contact's start and speeds agree with
+    Radau."""
     tiny = {
         **params,
         "support": {**params["support"], "drop_height_min_m": 1e-4},

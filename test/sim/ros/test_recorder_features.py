@@ -108,9 +108,8 @@ def test_zstd_chunk_compression_is_on_by_default_and_the_file_stays_plain_mcap(t
 @pytest.mark.ros
 def test_recorder_writes_fully_qualified_names_counts_no_loss_and_splits(tmp_path):
     """sim_node and bag_recorder in /support_07: the bag holds /support_07/<topic>, split into
-    files
-    of at most 0.4 s of log time, zstd chunks, the independent mcap reader decodes every file, the
-    vibration indices run without a gap and the recorder's count of lost samples is 0."""
+    files of at most 0.4 s of log time, zstd chunks, the independent mcap reader decodes every
+    file, the vibration indices run without a gap and the recorder's count of lost samples is 0."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
     from rclpy.parameter import Parameter

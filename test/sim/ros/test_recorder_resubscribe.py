@@ -21,10 +21,9 @@ pytestmark = [pytest.mark.ros]
 
 def test_an_event_of_a_replaced_subscription_does_not_end_the_recorder(tmp_path):
     """Deterministically: the recorder subscribes label transient-local (a publisher offering it,
-    as id_node's, is there); a foreign volatile
-    publisher appears and the executor is not spun for 1 s (the incompatible-QoS event is queued);
-    the recorder re-subscribes volatile; spinning on must not raise, and a label published
-    afterwards is in the bag."""
+    as id_node's, is there); a foreign volatile publisher appears and the executor is not spun for
+    1 s (the incompatible-QoS event is queued); the recorder re-subscribes volatile; spinning on
+    must not raise, and a label published afterwards is in the bag."""
     from tail_beam_sim.bags.read import raw_messages
     from tail_beam_sim.ros import messages as ros_messages
     from tail_beam_sim.ros.recorder_node import RecorderNode

@@ -1,7 +1,6 @@
 """The soak of test/bench/soak_nodes.py, short: sim_node, id_node and bag_recorder as processes on
-50
-generated impacts at ``realtime_factor:=0``; the bag reads and holds every impact once, each with
-its label, and its live labels are the offline ones."""
+50 generated impacts at ``realtime_factor:=0``; the bag reads and holds every impact once, each
+with its label, and its live labels are the offline ones."""
 
 from __future__ import annotations
 
