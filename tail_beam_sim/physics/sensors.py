@@ -109,12 +109,17 @@ def specific_force_z(trajectory: Trajectory, samples: Samples) -> np.ndarray:
 
 
 def imu_samples(
-    trajectory: Trajectory, t_s: np.ndarray, period_s: float
+    trajectory: Trajectory,
+    t_s: np.ndarray,
+    period_s: float,
+    states: tuple[Samples, Samples] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Noise-free IMU readings averaged over (t - period, t]: gyro (T x 3), accel (T x 3)."""
+    """Noise-free IMU readings averaged over (t - period, t]: gyro (T x 3), accel (T x 3).
+
+    ``states``: the trajectory already sampled at ``t_s`` and ``t_s - period_s`` (one pass
+    for every sensor, :meth:`Trajectory.sample_many`); sampled here when None."""
     structure = trajectory.problem.structure
-    now = trajectory.sample(t_s)
-    before = trajectory.sample(t_s - period_s)
+    now, before = states or trajectory.sample_many([t_s, t_s - period_s])
     slope, imu = structure.imu_slope_shape, structure.imu_shape
     angle = slope @ now.q
     gyro = np.zeros((t_s.size, 3))
@@ -200,23 +205,37 @@ class SensorSuite:
         self._camera_rng = np.random.default_rng(camera)
 
     def pressure(
-        self, trajectory: Trajectory, stamp_s: np.ndarray, contact_stamp_s: float
+        self,
+        trajectory: Trajectory,
+        stamp_s: np.ndarray,
+        contact_stamp_s: float,
+        state: Samples | None = None,
     ) -> PressureStream:
-        """Pressure samples at absolute stamps; the trajectory's t = 0 is ``contact_stamp_s``."""
+        """Pressure samples at absolute stamps; the trajectory's t = 0 is ``contact_stamp_s``
+        (``state``: the trajectory already sampled at ``stamp_s - contact_stamp_s``)."""
         noise = self.noise
-        state = trajectory.sample(stamp_s - contact_stamp_s)
+        if state is None:
+            state = trajectory.sample(stamp_s - contact_stamp_s)
         clean = trajectory.problem.structure.pressure_pa(state.q, state.qd)
         noisy = noise.pressure(clean, self._pressure_rng.standard_normal(stamp_s.size))
         return PressureStream(stamp_s, noisy, noise.pressure_pa**2)
 
     def imu(
-        self, trajectory: Trajectory, stamp_s: np.ndarray, contact_stamp_s: float
+        self,
+        trajectory: Trajectory,
+        stamp_s: np.ndarray,
+        contact_stamp_s: float,
+        states: tuple[Samples, Samples] | None = None,
     ) -> ImuStream:
         """IMU samples at absolute stamps (on the rate's grid), each averaged over its sample
-        period, or behind the IMU's low-pass filter (``imu_antialias_order`` >= 1)."""
+        period, or behind the IMU's low-pass filter (``imu_antialias_order`` >= 1).
+        ``states``: the trajectory already sampled at the stamps and one period before them
+        (:meth:`imu_times`)."""
         noise = self.noise
         spec = self.spec
-        gyro, accel = imu_samples(trajectory, stamp_s - contact_stamp_s, 1.0 / spec.imu_rate_hz)
+        gyro, accel = imu_samples(
+            trajectory, stamp_s - contact_stamp_s, 1.0 / spec.imu_rate_hz, states
+        )
         if spec.imu_antialias_order > 0:
             dense_period = 1.0 / (spec.imu_oversample * spec.imu_rate_hz)
             index = np.rint(stamp_s * spec.imu_rate_hz).astype(np.int64)
@@ -227,15 +246,41 @@ class SensorSuite:
         accel = noise.accel(accel, self._imu_rng.standard_normal(accel.shape))
         return ImuStream(stamp_s, gyro, accel, noise.gyro_radps**2, noise.accel_mps2**2)
 
+    def imu_times(self, stamp_s: np.ndarray, contact_stamp_s: float) -> list[np.ndarray]:
+        """The trajectory's times :meth:`imu` reads at stamps ``stamp_s`` (s): the stamps and
+        one sample period before them (each reading is the mean over that period)."""
+        now = stamp_s - contact_stamp_s
+        return [now, now - 1.0 / self.spec.imu_rate_hz]
+
+    def vibration_times(self, end_s: float, contact_stamp_s: float) -> np.ndarray:
+        """The trajectory's times :meth:`vibration` reads (s): the accelerometer's dense
+        (oversampled) instants from stamp 0 to ``end_s``, and one dense period before the
+        first. Each dense value is the mean over the period before its instant, which the
+        instant before bounds: one evaluation per instant serves as both ends."""
+        dense_rate = self.spec.vibration_oversample * self.spec.vibration_rate_hz
+        count = math.floor(end_s * dense_rate + 1e-9) + 1
+        return np.arange(-1, count) / dense_rate - contact_stamp_s
+
     def vibration(
-        self, trajectory: Trajectory, end_s: float, contact_stamp_s: float
+        self,
+        trajectory: Trajectory,
+        end_s: float,
+        contact_stamp_s: float,
+        dense_states: Samples | None = None,
     ) -> VibrationBlocks:
         """The accelerometer's complete blocks from stamp 0 to ``end_s`` (the trajectory's t = 0
-        is ``contact_stamp_s``): dense response, anti-alias filter, noise, clipping."""
+        is ``contact_stamp_s``): dense response, anti-alias filter, noise, clipping.
+        ``dense_states``: the trajectory already sampled at :meth:`vibration_times`."""
         spec = self.spec
         dense_rate = spec.vibration_oversample * spec.vibration_rate_hz
-        stamps = np.arange(math.floor(end_s * dense_rate + 1e-9) + 1) / dense_rate
-        dense = mean_specific_force_z(trajectory, stamps - contact_stamp_s, 1.0 / dense_rate)
+        if dense_states is None:
+            dense_states = trajectory.sample(self.vibration_times(end_s, contact_stamp_s))
+        dense = mean_specific_force_z(
+            trajectory,
+            dense_states.t_s[1:],
+            1.0 / dense_rate,
+            (dense_states.take(slice(1, None)), dense_states.take(slice(None, -1))),
+        )
         aa = AntiAliasFilter(
             spec.vibration_rate_hz,
             spec.vibration_antialias_order,
@@ -262,13 +307,17 @@ class SensorSuite:
         return Rebound(stamp, measured, true)
 
 
-def mean_specific_force_z(trajectory: Trajectory, t_s: np.ndarray, period_s: float) -> np.ndarray:
+def mean_specific_force_z(
+    trajectory: Trajectory,
+    t_s: np.ndarray,
+    period_s: float,
+    states: tuple[Samples, Samples] | None = None,
+) -> np.ndarray:
     """Noise-free specific force along the plate normal at the IMU's place, each value the exact
     mean over (t - period, t] (from the velocity change), m/s^2; ``t_s`` in the trajectory's
-    time."""
+    time. ``states``: the trajectory already sampled at ``t_s`` and at the period's starts."""
     structure = trajectory.problem.structure
-    now = trajectory.sample(t_s)
-    before = trajectory.sample(t_s - period_s)
+    now, before = states or trajectory.sample_many([t_s, t_s - period_s])
     angle = structure.imu_slope_shape @ now.q
     return (
         structure.gravity_mps2 * np.cos(angle)

@@ -40,7 +40,7 @@ from tail_beam_sim.physics.sensors import (
     sample_grid,
     specific_force_z,
 )
-from tail_beam_sim.physics.solvers import ImpactProblem, Trajectory, solve
+from tail_beam_sim.physics.solvers import ImpactProblem, Samples, Trajectory, solve
 from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
 from tail_beam_sim.physics.support import Support
 
@@ -50,6 +50,7 @@ __all__ = [
     "build_problem",
     "crushing_contact",
     "histories",
+    "history_times",
     "sense",
     "simulate",
     "summarise",
@@ -124,16 +125,26 @@ def summarise(
     }
 
 
-def histories(scene: Scene, trajectory: Trajectory) -> dict[str, np.ndarray]:
-    """Noise-free response histories from -pre_contact_s to window_s, time from first contact."""
+def history_times(scene: Scene, trajectory: Trajectory) -> np.ndarray:
+    """The instants of the histories, s from first contact: HISTORY_RATE_HZ from
+    -pre_contact_s to window_s, plus every step of each contact (so peaks are not missed)."""
     uniform = np.arange(
         -scene.pre_contact_s, scene.window_s + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ
     )
     contact_times = np.concatenate(
         [np.empty(0)] + [seg.t_s for seg in trajectory.segments if hasattr(seg, "force_n")]
     )
-    times = np.unique(np.concatenate([uniform, contact_times[contact_times <= scene.window_s]]))
-    state = trajectory.sample(times)
+    return np.unique(np.concatenate([uniform, contact_times[contact_times <= scene.window_s]]))
+
+
+def histories(
+    scene: Scene, trajectory: Trajectory, state: Samples | None = None
+) -> dict[str, np.ndarray]:
+    """Noise-free response histories from -pre_contact_s to window_s, time from first contact
+    (``state``: the trajectory already sampled at :func:`history_times`)."""
+    if state is None:
+        state = trajectory.sample(history_times(scene, trajectory))
+    times = state.t_s
     structure = trajectory.problem.structure
     return {
         "time_s": times,
@@ -224,19 +235,28 @@ def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> Simul
     slowest = min(spec.pressure_rate_hz, spec.imu_rate_hz)
     contact_stamp = scene.pre_contact_s + float(phase_rng.uniform(0.0, 1.0 / slowest))
     end = contact_stamp + scene.window_s
-    history = histories(scene, trajectory)
+    pressure_stamps = sample_grid(0.0, end, spec.pressure_rate_hz)
+    imu_stamps = sample_grid(0.0, end, spec.imu_rate_hz)
+    # Every sensor's instants sampled in one pass (the histories', the pressure's, the IMU's and
+    # the period before each, the accelerometer's dense instants), each sensor reading its part.
+    parts = [
+        history_times(scene, trajectory),
+        pressure_stamps - contact_stamp,
+        *suite.imu_times(imu_stamps, contact_stamp),
+        *([suite.vibration_times(end, contact_stamp)] if vibration else []),
+    ]
+    states = trajectory.sample_many(parts)
+    history = histories(scene, trajectory, states[0])
     return SimulationResult(
         scene=scene,
         trajectory=trajectory,
         contact_stamp_s=contact_stamp,
         history=history,
-        pressure=suite.pressure(
-            trajectory, sample_grid(0.0, end, spec.pressure_rate_hz), contact_stamp
-        ),
-        imu=suite.imu(trajectory, sample_grid(0.0, end, spec.imu_rate_hz), contact_stamp),
+        pressure=suite.pressure(trajectory, pressure_stamps, contact_stamp, states[1]),
+        imu=suite.imu(trajectory, imu_stamps, contact_stamp, (states[2], states[3])),
         rebound=suite.rebound(trajectory, contact_stamp),
         summary=summarise(scene, trajectory, history),
-        vibration=suite.vibration(trajectory, end, contact_stamp)
+        vibration=suite.vibration(trajectory, end, contact_stamp, states[4])
         if vibration
         else VibrationBlocks.empty(),
     )
