@@ -10,6 +10,12 @@ the first ``learn_s`` of stamp time the node hands its identifier. Until then la
 node stays on config/. The work (a replay of the learned window) runs in a worker thread, so
 that the node keeps taking messages meanwhile.
 
+A profile is taken only when the sway it read is clear as ``tail-beam calibrate`` judges it
+(a spectral peak standing MIN_PEAK_RATIO above the band, resolved, one the support's oil column
+can give) and was rung by the impacts of the window: at least MIN_IMPACTS impacts identified
+in it. A steady tone in the jack pressure with nothing striking the beam is no sway.
+:meth:`OnlineCalibration.restart` (a new time base) forgets what was learned.
+
 Pure: no ROS. :class:`tail_beam_id.ros.arrival.GatedIdentifier` records into it what it releases.
 """
 
@@ -22,7 +28,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tail_beam_id.calibration.offline import SupportProfile, calibrate, with_profile
+from tail_beam_id.calibration.offline import (
+    MIN_IMPACTS,
+    SupportProfile,
+    calibrate,
+    with_profile,
+)
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
 
 if TYPE_CHECKING:
@@ -38,6 +49,7 @@ class Calibrated:
     profile: SupportProfile
     model_params: dict[str, Any] | None
     method: Method | None  # rebuilt when the method depends on the support (physics), else None
+    impacts: int = 0  # impacts the calibration pass identified in the learned window
 
 
 class OnlineCalibration:
@@ -62,6 +74,19 @@ class OnlineCalibration:
         self._last_s = -np.inf
         self._future: Future[Calibrated] | None = None
         self._pool: ThreadPoolExecutor | None = None
+
+    def restart(self) -> None:
+        """A new time base: forget what was recorded or learned and learn again from its first
+        ``learn_s`` (a calibration still computing is abandoned)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=False)
+        self.state = "learning"
+        self.result = None
+        self._pressure, self._imu, self._rebounds = [], [], []
+        self._first_s = None
+        self._last_s = -np.inf
+        self._future = None
+        self._pool = None
 
     def record(self, release: Release) -> None:
         """Keep what the identifier was just given, while learning."""
@@ -116,9 +141,11 @@ class OnlineCalibration:
             p = self.result.profile
             if self.result.model_params is None:
                 return (
-                    "calibration: no clear sway of the beam in the jack pressure (too few "
-                    "impacts?); "
-                    "staying on the configured support (labels say calibrated: false)"
+                    "calibration: no clear sway of the beam in the jack pressure rung by "
+                    f"impacts (sway {_hz(p.rigid_mode_frequency_hz)}, oil column "
+                    f"{'found' if p.oil_bulk_modulus_pa else 'none'}, {self.result.impacts} "
+                    f"impacts of the {MIN_IMPACTS} needed); staying on the configured support "
+                    "(labels say calibrated: false)"
                 )
             gain = (
                 f"{p.impacts_used} impacts for the IMU gain"
@@ -156,13 +183,17 @@ class OnlineCalibration:
         from tail_beam_id.stream.identifier import StreamIdentifier
         from tail_beam_id.stream.replay import replay
 
+        impacts = [0]  # what the last calibration pass identified
+
         def identify(model_params: Mapping[str, Any]) -> list[Label]:
-            return replay(
+            labels = replay(
                 StreamIdentifier("statistical", model_params["identification"], model_params),
                 pressure,
                 imu,
                 rebounds,
             )
+            impacts[0] = len(labels)
+            return labels
 
         profile = calibrate(
             self.params,
@@ -170,12 +201,21 @@ class OnlineCalibration:
             (imu.stamp_s, imu.linear_acceleration_mps2[:, 2]),
             identify,
         )
-        if not profile.calibrated:
-            return Calibrated(profile, None, None)
+        clear = (
+            profile.calibrated
+            and profile.oil_bulk_modulus_pa is not None
+            and impacts[0] >= MIN_IMPACTS
+        )
+        if not clear:
+            return Calibrated(profile, None, None, impacts[0])
         merged = with_profile(self.params, profile)
         # The physics method holds the support; the statistical one, the support's hysteresis.
         rebuild = self.method_name == "physics" or (
             self.method_name == "statistical" and profile.hysteresis_weights is not None
         )
         method = build_method(self.method_name, merged) if rebuild else None
-        return Calibrated(profile, merged, method)
+        return Calibrated(profile, merged, method, impacts[0])
+
+
+def _hz(frequency_hz: float | None) -> str:
+    return "none" if frequency_hz is None else f"{frequency_hz:.2f} Hz"

@@ -22,19 +22,30 @@ is held aside and counted: accepted once the others reach it, dropped when its s
 on in the old time base (a clock gone wrong once), or the start of a new epoch when every
 stream that still talks jumped ahead.
 
+Vibration blocks of more than one source on the topic (a second publisher, a stray block
+stamped far ahead with a huge running index, a block of another sample period):
+:class:`GatedIdentifier` takes the blocks whose stamps agree with their running index and the
+stream in use (:class:`BlockTrack`), and sets the others aside by track, counted and noted. A
+track other than the one in use is taken only once the one in use has sent nothing for
+``stream_idle_s`` while that track went on (a restarted or replaced source); a track stamped
+more than ``time_jump_s`` behind is then a new time base. A stray block thus costs that block,
+never the stream in use, and an interleaved second stream never restarts the time base.
+
 Pure numpy, no ROS: the node and the tests drive the same class.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from tail_beam_id.stream.release import Release, feed
+from tail_beam_sim.bags.read import PERIOD_RTOL
 from tail_beam_sim.physics.sensors import BlockSequencer, VibrationBlocks
 from tail_beam_sim.spec import QOS_DEPTH, Section, number, positive
 
@@ -45,6 +56,7 @@ if TYPE_CHECKING:
 
 CONTINUOUS = ("jack_pressure", "imu", "vibration")
 MAX_ASIDE_SAMPLES = 2_000_000  # samples held aside as "ahead of the others" (bounded memory)
+MAX_OTHER_TRACKS = 4  # vibration block streams followed besides the one in use (blocks)
 
 
 ID_NODE = Section(
@@ -248,15 +260,24 @@ class ArrivalGate:
             and now_s - stream.last_arrival_s <= self.config.stream_idle_s
         )
 
-    def forward_jump(self, now_s: float) -> bool:
+    def forward_jump(
+        self, now_s: float, held_elsewhere: Mapping[str, float] | None = None
+    ) -> bool:
         """Every stream still talking sends only samples far ahead of what was accepted: the
         time base moved forward (then :meth:`take_aside` gives them to the next epoch). A lone
-        stamp gone wrong is not a jump: its stream goes on in the old time base."""
+        stamp gone wrong is not a jump: its stream goes on in the old time base.
+        ``held_elsewhere``: stream name -> wall clock (s) at which the caller began holding that
+        stream's samples far ahead (the vibration blocks it keeps by track)."""
+        held = held_elsewhere or {}
         talking = [
-            s for s in self.streams.values() if now_s - s.last_seen_s <= self.config.stream_idle_s
+            (n, s)
+            for n, s in self.streams.items()
+            if now_s - s.last_seen_s <= self.config.stream_idle_s
         ]
         return bool(talking) and all(
-            s.aside and s.last_arrival_s < s.aside[0].arrival_s for s in talking
+            (s.aside and s.last_arrival_s < s.aside[0].arrival_s)
+            or (n in held and s.last_arrival_s < held[n])
+            for n, s in talking
         )
 
     def take_aside(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -316,6 +337,47 @@ class ArrivalGate:
 Streams = dict[str, tuple[np.ndarray, np.ndarray]]  # stream name -> (stamp_s (T,), values (T, k))
 
 
+@dataclass
+class BlockTrack:
+    """One source's run of vibration blocks: stamps that agree with the running index.
+
+    ``next_index`` and ``next_stamp_s`` (s) are where the run's next block is expected,
+    ``period_s`` its sample period (s), ``last_arrival_s`` the wall clock (s) of its last block;
+    a track other than the one in use holds its blocks (``held``) until it is taken or dropped.
+    """
+
+    next_index: int
+    next_stamp_s: float
+    period_s: float
+    first_arrival_s: float
+    last_arrival_s: float
+    blocks: int = 0
+    held: list[VibrationBlocks] = field(default_factory=list)
+    held_samples: int = 0  # samples in ``held``
+
+    def same_period(self, period_s: float) -> bool:
+        """Periods within PERIOD_RTOL relative are one period (as the bag reader takes them)."""
+        return abs(period_s - self.period_s) <= PERIOD_RTOL * self.period_s
+
+    def continues(self, first: int, length: int, stamp_s: float, period_s: float, jump_s: float):
+        """The block (first index, sample count, stamp s, period s) belongs to this run: its
+        period is the run's, its stamp within ``jump_s`` of the run's next and where its index
+        puts it (half a block either way, as the bag reader's index check). A block behind the
+        run's index whose stamp is near the run's belongs to it too (a late or repeated block,
+        or an index that does not count samples: the sequencer refuses it, counted)."""
+        if not self.same_period(period_s) or abs(stamp_s - self.next_stamp_s) > jump_s:
+            return False
+        implied = self.next_stamp_s + (first - self.next_index) * self.period_s
+        return first < self.next_index or abs(stamp_s - implied) <= 0.5 * length * self.period_s
+
+    def extend(self, first: int, length: int, stamp_s: float, now_s: float) -> None:
+        if first + length > self.next_index:
+            self.next_index = first + length
+            self.next_stamp_s = stamp_s + length * self.period_s
+        self.last_arrival_s = now_s
+        self.blocks += 1
+
+
 class GatedIdentifier:
     """A :class:`StreamIdentifier` behind an :class:`ArrivalGate`, across time jumps: what
     ``id_node`` runs each tick, free of ROS so that tests drive it the same way.
@@ -346,6 +408,13 @@ class GatedIdentifier:
         self.identifier = new_identifier(None)
         self.gate = ArrivalGate(config)
         self.sequencer = BlockSequencer()
+        self.vibration_track: BlockTrack | None = None  # the block stream in use
+        self.other_tracks: list[BlockTrack] = []  # other block streams, held apart
+        # Vibration blocks set aside as not the stream in use, by reason (not given back when
+        # their track is taken after all: that is a new source, counted in ``taken_over``).
+        self.stray_blocks: dict[str, int] = {}
+        self.taken_over = 0  # times another block stream replaced the one in use
+        self.empty_labels = 0  # labels the identifier gave that rest on no signal (dropped)
         self.time_jumps = 0
         self.notes: list[str] = []
         self._counts_before = (0, 0, 0, 0)
@@ -383,17 +452,15 @@ class GatedIdentifier:
             cut = self.gate.add(name, stamps, values, arrived_s) if stamps.size else None
             if cut is not None:
                 later[name] = (stamps[cut:], values[cut:])
-        vib_cut = self.gate.backward_jump("vibration", blocks.stamp_s) if blocks.count else None
-        old_blocks = blocks.select(
-            np.arange(blocks.count) < (blocks.count if vib_cut is None else vib_cut)
-        )
-        self._admit_blocks(old_blocks, arrived_s)
+        self._admit_blocks(self._sort_blocks(blocks, arrived_s), arrived_s)
         stale_s = self.gate.released_s - self.gate.config.time_jump_s
-        if (
-            later or vib_cut is not None
-        ):  # stamps went back: decide the old time base, start afresh
-            name = next(iter(later), "vibration")
-            back_to = later[name][0][0] if name in later else blocks.stamp_s[vib_cut]
+        back = self._track_back(arrived_s)
+        if later or back is not None:  # stamps went back: decide the old time base, start afresh
+            if later:
+                name = next(iter(later))
+                back_to = float(later[name][0][0])
+            else:
+                name, back_to = "vibration", back.held[0].stamp_s[0]  # type: ignore[union-attr]
             from_s = self.gate.streams[name].latest_s
             for stamp, velocity in rebounds:
                 if stamp >= stale_s:
@@ -405,16 +472,13 @@ class GatedIdentifier:
             )
             for name, (stamps, values) in later.items():
                 self.gate.add(name, stamps, values, arrived_s)
-            self._admit_blocks(
-                blocks.select(
-                    np.arange(blocks.count) >= (blocks.count if vib_cut is None else vib_cut)
-                ),
-                arrived_s,
-            )
+            self._take_track(back, arrived_s)
             rebounds = [r for r in rebounds if r[0] < stale_s]
+        else:
+            self._follow_other_track(arrived_s)
         for stamp, velocity in rebounds:
             self.gate.add_rebound(stamp, velocity, arrived_s)
-        if self.gate.forward_jump(arrived_s):
+        if self.gate.forward_jump(arrived_s, self._held_ahead(arrived_s)):
             aside = self.gate.take_aside()
             labels += self._restart(
                 arrived_s,
@@ -423,8 +487,137 @@ class GatedIdentifier:
             )
             for name, (stamps, values) in aside.items():
                 self.gate.add(name, stamps, values, arrived_s)
+            self._take_track(None, arrived_s)
         self._note_counts()
         return labels
+
+    # ---- vibration block streams ---------------------------------------------------------
+    def _sort_blocks(self, blocks: VibrationBlocks, now_s: float) -> VibrationBlocks:
+        """The blocks (in arrival order) of the stream in use, at its period; the others are
+        set aside on the track they continue (a new one if none), counted by reason and noted.
+        The first block of all starts the stream in use."""
+        if not blocks.count:
+            return blocks
+        jump_s = self.gate.config.time_jump_s
+        self.gate.streams["vibration"].last_seen_s = now_s
+        keep = np.zeros(blocks.count, dtype=bool)
+        apart: dict[str, int] = {}
+        for b in range(blocks.count):
+            first, length = int(blocks.first_index[b]), int(blocks.lengths[b])
+            stamp, period = float(blocks.stamp_s[b]), blocks.period_s
+            main = self.vibration_track
+            if main is None:
+                main = self.vibration_track = BlockTrack(first, stamp, period, now_s, now_s)
+            if main.continues(first, length, stamp, period, jump_s):
+                main.extend(first, length, stamp, now_s)
+                keep[b] = True
+                continue
+            if main.same_period(period):
+                why = "not the stream in use (index and stamp of another source)"
+            else:
+                why = f"sample period {period:g} s, not the stream's {main.period_s:g} s"
+            apart[why] = apart.get(why, 0) + 1
+            self._hold_apart(blocks.select(np.arange(blocks.count) == b), now_s)
+        if apart:
+            for why, n in apart.items():
+                self.stray_blocks[why] = self.stray_blocks.get(why, 0) + n
+            main = self.vibration_track
+            said = "; ".join(f"{n} {why}" for why, n in apart.items())
+            self.notes.append(
+                f"vibration: {sum(apart.values())} block(s) set aside: {said} (the stream in "
+                f"use is at index {main.next_index}, stamp {main.next_stamp_s:.6f} s); "
+                f"{sum(self.stray_blocks.values())} set aside in all"
+            )
+        taken = blocks.select(keep)
+        return dataclasses.replace(taken, period_s=self.vibration_track.period_s)
+
+    def _hold_apart(self, block: VibrationBlocks, now_s: float) -> None:
+        """One block not of the stream in use onto the other track it continues (bounded)."""
+        first, length = int(block.first_index[0]), int(block.lengths[0])
+        stamp, period = float(block.stamp_s[0]), block.period_s
+        jump_s = self.gate.config.time_jump_s
+        track = next(
+            (t for t in self.other_tracks if t.continues(first, length, stamp, period, jump_s)),
+            None,
+        )
+        if track is None:
+            if len(self.other_tracks) >= MAX_OTHER_TRACKS:
+                self.other_tracks.remove(min(self.other_tracks, key=lambda t: t.last_arrival_s))
+            track = BlockTrack(first, stamp, period, now_s, now_s)
+            self.other_tracks.append(track)
+        track.extend(first, length, stamp, now_s)
+        track.held.append(block)
+        track.held_samples += block.sample_count
+        while track.held_samples > MAX_ASIDE_SAMPLES // MAX_OTHER_TRACKS:
+            track.held_samples -= track.held.pop(0).sample_count
+
+    def _successor(self, now_s: float) -> BlockTrack | None:
+        """The other track to take, once the stream in use has sent nothing for stream_idle_s
+        (wall) while it went on: the one of most blocks among those still talking."""
+        idle_s = self.gate.config.stream_idle_s
+        self.other_tracks = [
+            t for t in self.other_tracks if now_s - t.last_arrival_s <= 2.0 * idle_s
+        ]
+        main = self.vibration_track
+        if main is None or now_s - main.last_arrival_s <= idle_s:
+            return None
+        talking = [
+            t
+            for t in self.other_tracks
+            if t.held and t.blocks >= 2 and now_s - t.last_arrival_s <= idle_s
+        ]
+        return max(talking, key=lambda t: t.blocks, default=None)
+
+    def _track_back(self, now_s: float) -> BlockTrack | None:
+        """The successor track when it is stamped more than time_jump_s behind the stream in
+        use (a new time base), else None."""
+        track = self._successor(now_s)
+        main = self.vibration_track
+        if track is None or main is None:
+            return None
+        jump_s = self.gate.config.time_jump_s
+        return track if track.held[0].stamp_s[0] < main.next_stamp_s - jump_s else None
+
+    def _follow_other_track(self, now_s: float) -> None:
+        """Take the successor track in the same time base (a replaced source: its index
+        followed afresh)."""
+        track = self._successor(now_s)
+        if track is not None:
+            self.sequencer.restart()
+            self.vibration_track = None
+            self._take_track(track, now_s)
+
+    def _held_ahead(self, now_s: float) -> dict[str, float]:
+        """{"vibration": wall clock s its first block held far ahead arrived} when another
+        track is stamped more than time_jump_s ahead of the stream in use, else {}."""
+        main = self.vibration_track
+        if main is None:
+            return {}
+        jump_s = self.gate.config.time_jump_s
+        ahead = [
+            t.first_arrival_s
+            for t in self.other_tracks
+            if t.held and t.held[0].stamp_s[0] > main.next_stamp_s + jump_s
+        ]
+        return {"vibration": min(ahead)} if ahead else {}
+
+    def _take_track(self, track: BlockTrack | None, now_s: float) -> None:
+        """After a restart (the stream in use forgotten): the blocks of ``track`` (None: of the
+        other track nearest the new time base, the most blocks when there is nothing to compare
+        with) become the stream in use."""
+        if track is None:
+            candidates = [t for t in self.other_tracks if t.held]
+            if not candidates:
+                return
+            reference = self.gate._reference_s("vibration", now_s)
+            if math.isfinite(reference):
+                track = min(candidates, key=lambda t: abs(t.held[0].stamp_s[0] - reference))
+            else:
+                track = max(candidates, key=lambda t: t.blocks)
+        self.other_tracks.remove(track)
+        self.taken_over += 1
+        for block in track.held:
+            self._admit_blocks(self._sort_blocks(block, now_s), now_s)
 
     def decide(self, now_s: float, end_of_data: bool = False) -> list[Label]:
         """Release what has been held ``reorder_s`` by wall clock ``now_s`` to the identifier; the
@@ -461,28 +654,28 @@ class GatedIdentifier:
         self._counts_before = self.count_totals()
         self._refused_before += sum(self.identifier.refused_samples.values())
         self.identifier = self._new_identifier(self.identifier.method)
-        if self._profile is not None:  # the same support: keep its profile
-            self.identifier.recalibrate(*self._profile)
+        if self.calibration is not None:
+            # A new time base may be another support (a restarted simulator with another
+            # scene, a replayed recording): what was learned is dropped and learned afresh.
+            learned = self._profile is not None or self.calibration.state != "learning"
+            self._profile = None
+            self.calibration.restart()
+            if learned:
+                self.notes.append(
+                    "calibration: a new time base; the learned profile dropped, learning again "
+                    f"from its first {self.calibration.learn_s:g} s (labels say calibrated: "
+                    "false until then)"
+                )
         self.gate = ArrivalGate(self.gate.config)
         self.sequencer.restart()
+        self.vibration_track = None
         return labels
 
     def _admit_blocks(self, blocks: VibrationBlocks, now_s: float) -> None:
-        """Vibration blocks into running-index order (gaps and late blocks noted), then the
-        gate."""
+        """Vibration blocks of the stream in use into running-index order (gaps and late blocks
+        noted), then the gate."""
         if not blocks.count:
             return
-        behind = (
-            self.sequencer.next_index is not None
-            and blocks.first_index[0] < self.sequencer.next_index
-        )
-        if (
-            behind
-            and blocks.stamp_s[0]
-            > self.gate.streams["vibration"].latest_s + self.gate.config.time_jump_s
-        ):
-            # the index began again with the clock ahead: a restarted source
-            self.sequencer.restart()
         report = self.sequencer.push(blocks)
         if report.gaps:
             missing = sum(n for _, n in report.gaps)
@@ -534,6 +727,14 @@ class GatedIdentifier:
         labels = self.identifier.poll()
         if everything:
             labels += self.identifier.flush()
+        empty = [label for label in labels if not label.signals]
+        if empty:  # a label must rest on some signal; published from nothing it would mislead
+            self.empty_labels += len(empty)
+            self.notes.append(
+                f"identification: {len(empty)} label(s) resting on no signal dropped; "
+                f"{self.empty_labels} in all"
+            )
+            labels = [label for label in labels if label.signals]
         return labels
 
     def count_totals(self) -> tuple[int, int, int, int]:

@@ -23,13 +23,18 @@ The ``vibration`` blocks are decoded with numpy and kept in running-index order 
 logged with the count of samples missing; a block that comes after a later one was handed on
 is refused and counted (``vibration_lost_samples``, ``vibration_late_blocks``), and so is one
 whose index is behind while its stamp is not, logged as an index that does not count the
-samples (``vibration_misindexed_blocks``).
+samples (``vibration_misindexed_blocks``). Blocks of another source on the topic (a stray
+block stamped far ahead, a second publisher's interleaved stream, a block of another sample
+period) are set aside and counted (``vibration_stray_blocks``), never let move the stream in
+use (tail_beam_id.ros.arrival). Warnings of one kind are said at most every WARN_EVERY_S: the
+first at once, then the latest with the count held back.
 """
 
 from __future__ import annotations
 
 import bisect
 import math
+import re
 import sys
 import time
 
@@ -63,6 +68,7 @@ from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
 from tail_beam_sim.spec import Section, text
 
 MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
+WARN_EVERY_S = 5.0  # wall s between two warnings of one kind (the first at once, then a count)
 WAKE_MARGIN_S = (
     2e-4  # the wake runs this long after the hold has passed, s (a timer may fire a little early)
 )
@@ -114,6 +120,33 @@ class Inbox:
             messages[k:],
             times[-1] if k < len(times) else -math.inf,
         )
+
+
+class Warnings:
+    """Warnings of one kind (the text with its numbers left out) said at most once every
+    WARN_EVERY_S of wall time: the first at once, then the latest with how many were held back,
+    so that a flood of refused messages costs a line every few seconds, not a line each."""
+
+    def __init__(self, say) -> None:
+        self._say = say  # callable taking one line
+        self._last_s: dict[str, float] = {}  # kind -> wall s it was last said
+        self._held: dict[str, tuple[int, str]] = {}  # kind -> (held back, the latest text)
+
+    def warn(self, line: str, now_s: float) -> None:
+        kind = re.sub(r"\d+(\.\d+)?(e[-+]?\d+)?", "#", line)[:60]
+        if now_s - self._last_s.get(kind, -math.inf) >= WARN_EVERY_S:
+            self._last_s[kind] = now_s
+            self._say(line)
+        else:
+            self._held[kind] = (self._held.get(kind, (0, ""))[0] + 1, line)
+
+    def flush(self, now_s: float) -> None:
+        """Say what was held back of each kind whose period has passed."""
+        for kind, (n, line) in list(self._held.items()):
+            if now_s - self._last_s[kind] >= WARN_EVERY_S:
+                del self._held[kind]
+                self._last_s[kind] = now_s
+                self._say(f"{line} [{n} warning(s) of this kind in the last {WARN_EVERY_S:g} s]")
 
 
 class IdNode(Node):
@@ -180,6 +213,7 @@ class IdNode(Node):
         self.published = 0
         # vibration messages that carried no block (their index, period or range out of range)
         self.refused_blocks = 0
+        self.warnings = Warnings(self.get_logger().warning)
         sensor_qos = ros_messages.stream_qos(depth)
         event_qos = ros_messages.EVENT_QOS
         self._label_pub = self.create_publisher(
@@ -287,6 +321,12 @@ class IdNode(Node):
         return self.gated.sequencer.misindexed_blocks
 
     @property
+    def vibration_stray_blocks(self) -> int:
+        """Blocks set aside as not the vibration stream in use (another source, another
+        sample period)."""
+        return sum(self.gated.stray_blocks.values())
+
+    @property
     def identifier(self) -> StreamIdentifier:
         return self.gated.identifier
 
@@ -301,19 +341,30 @@ class IdNode(Node):
             stamps, gyro, accel = ros_messages.imu_arrays(part[topics.IMU])
             arrivals[topics.IMU] = (stamps, np.hstack([gyro, accel]))
         refused: list[str] = []
-        blocks = ros_messages.vibration_blocks(part[topics.VIBRATION], refused)
+        # One decoding per sample period, the most common first: a message of another period
+        # is then a block the gated identifier sets aside, not a cause to refuse the others.
+        by_period: dict[float, list[LaserScan]] = {}
+        for m in part[topics.VIBRATION]:
+            by_period.setdefault(m.time_increment, []).append(m)
+        groups = sorted(by_period.values(), key=len, reverse=True)
+        decoded = [ros_messages.vibration_blocks(g, refused) for g in groups]
         if refused:
             self.refused_blocks += len(refused)
             reasons = list(dict.fromkeys(refused))  # each distinct reason once
             shown = "; ".join(reasons[:MAX_REASONS]) + (
                 f"; and {len(reasons) - MAX_REASONS} more" if len(reasons) > MAX_REASONS else ""
             )
-            self.get_logger().warning(
+            self.warnings.warn(
                 f"vibration: {len(refused)} message(s) refused: {shown} ({self.refused_blocks} "
-                "refused in all)"
+                "refused in all)",
+                time.monotonic(),
             )
         rebounds = [ros_messages.rebound_values(m) for m in part[topics.REBOUND_VELOCITY]]
-        return self.gated.admit(arrived_s, arrivals, blocks, rebounds)
+        first = decoded[0] if decoded else ros_messages.vibration_blocks([])
+        labels = self.gated.admit(arrived_s, arrivals, first, rebounds)
+        for blocks in decoded[1:]:
+            labels += self.gated.admit(arrived_s, {}, blocks, [])
+        return labels
 
     def _tick(self) -> None:
         """Hand the gated identifier what arrived, in two batches (held long enough by now, and
@@ -341,8 +392,9 @@ class IdNode(Node):
         if idle:
             self._unflushed = False
         for note in self.gated.notes:
-            self.get_logger().warning(note)
+            self.warnings.warn(note, now)
         self.gated.notes.clear()
+        self.warnings.flush(now)
         timing = self.identifier.timing
         if timing.suspect and timing is not self._timing_said:
             self._timing_said = timing  # once per identifier (a new time base starts a new one)

@@ -16,6 +16,13 @@ message and lose most of them), mcap chunks zstd-compressed (``compression``), a
 of messages lost, reported on exit and kept in the bag's metadata (``custom_data``): the
 vibration samples missing from the running index, and the middleware's message-lost events.
 
+Samples are counted missing only within one consistent block stream (stamps that agree with
+the running index, one sample period): a block of another source on the topic (stamped far
+ahead with a huge index, a second publisher's interleaved stream) or of another sample period
+is recorded, counted apart and warned of (the first, then every WARN_EVERY_BLOCKS-th), never
+counted as samples lost. Another stream replaces the one followed only once that one has sent
+nothing for SWITCH_AFTER_S while the other went on (a restarted or replaced source).
+
 Like rosbag2, it subscribes to the event topics (rebound_velocity, impact_truth, label) with
 the durability their publishers offer: transient-local when every publisher offers it (the
 suite's nodes do), so that the events published before the recorder matched them are in the
@@ -41,7 +48,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import LaserScan
 
 from tail_beam_sim import topics
-from tail_beam_sim.bags.read import TIME_JUMP_S
+from tail_beam_sim.bags.read import PERIOD_RTOL, TIME_JUMP_S
 from tail_beam_sim.bags.records import COMPRESSIONS
 from tail_beam_sim.bags.write import SegmentedBagWriter
 from tail_beam_sim.errors import InputError
@@ -65,6 +72,40 @@ RECENT_EVENTS = 1000  # events per topic remembered, so that one delivered twice
 REDELIVERY_S = (
     2.0  # after re-subscribing, how long an event already written is taken for a repeat, s (wall)
 )
+
+
+SWITCH_AFTER_S = 0.5  # wall s the followed block stream must be silent before another replaces it
+WARN_EVERY_BLOCKS = 1000  # a warning of one kind on the first block and every this many after
+
+
+class _Track:
+    """A block stream as the recorder follows it: where its next block is expected (running
+    index, stamp s), its sample period (s), the wall clock (s) of its last block, its span."""
+
+    def __init__(self, index: int, stamp_s: float, period_s: float, now_s: float) -> None:
+        self.next_index, self.next_stamp_s, self.period_s = index, stamp_s, period_s
+        self.last_arrival_s = now_s
+        self.blocks = 0
+        self.span = IndexSpan()
+
+    def same_period(self, period_s: float) -> bool:
+        return abs(period_s - self.period_s) <= PERIOD_RTOL * self.period_s
+
+    def continues(self, index: int, length: int, stamp_s: float, period_s: float) -> bool:
+        """Same period, stamp within TIME_JUMP_S of the next expected, and where the index puts
+        it (half a block either way; a block behind the index is the stream's late, repeated or
+        misindexed block)."""
+        if not self.same_period(period_s) or abs(stamp_s - self.next_stamp_s) > TIME_JUMP_S:
+            return False
+        implied = self.next_stamp_s + (index - self.next_index) * self.period_s
+        return index < self.next_index or abs(stamp_s - implied) <= 0.5 * length * self.period_s
+
+    def extend(self, index: int, length: int, stamp_s: float, now_s: float) -> None:
+        if index + length > self.next_index:
+            self.next_index, self.next_stamp_s = index + length, stamp_s + length * self.period_s
+        self.last_arrival_s = now_s
+        self.blocks += 1
+        self.span.add(index, length)
 
 
 OUTPUT_DIR = Path("out")  # where commands put what they write by default (ignored by git)
@@ -114,7 +155,12 @@ class RecorderNode(Node):
                 exc.allowed,
             ) from None
         self.bag_path = self.writer.path
-        self.vibration = IndexSpan()
+        self.vibration = IndexSpan()  # the block stream followed
+        self._followed: _Track | None = None
+        self._other: _Track | None = None  # the latest other block stream, not counted
+        self._lost_before = 0  # samples missing from block streams followed before this one
+        self.stray_blocks = 0  # blocks recorded of another source (not counted as lost)
+        self.other_period_blocks = 0  # blocks recorded of another sample period (not counted)
         self._sequence = (
             BlockSequencer()
         )  # the blocks in index order, for an index that does not count samples
@@ -228,8 +274,53 @@ class RecorderNode(Node):
                         f"({self.refused_blocks} so far)"
                     )
                 return
-            self.vibration.add(index, length)
-            self._check_index(msg, index)
+            if self._follow(msg, index, length):
+                self._check_index(msg, index)
+
+    def _follow(self, msg: LaserScan, index: int, length: int) -> bool:
+        """Count the block in the stream followed (True), or apart as another source's or
+        another period's (False, warned of; module docstring)."""
+        period = msg.time_increment
+        if not (math.isfinite(period) and period > 0.0):
+            self.vibration.add(index, length)  # no period to compare: `identify` names it
+            return False
+        stamp, now = ros_messages.stamp_s(msg.header.stamp), time.monotonic()
+        followed = self._followed
+        if followed is None:
+            followed = self._followed = _Track(index, stamp, period, now)
+            followed.span = self.vibration
+        if followed.continues(index, length, stamp, period):
+            followed.extend(index, length, stamp, now)
+            return True
+        other = self._other
+        if other is None or not other.continues(index, length, stamp, period):
+            other = self._other = _Track(index, stamp, period, now)
+        other.extend(index, length, stamp, now)
+        if other.blocks >= 2 and now - followed.last_arrival_s >= SWITCH_AFTER_S:
+            # the stream followed ended and this one went on: a restarted or replaced source
+            self._lost_before += self.vibration.lost_samples
+            self._followed, self._other, self.vibration = other, None, other.span
+            self._sequence.restart()
+            return True
+        if followed.same_period(period):
+            self.stray_blocks += 1
+            n, what = self.stray_blocks, (
+                f"running index {index} at stamp {stamp:.6f} s is not the stream recorded "
+                f"(next index {followed.next_index} at {followed.next_stamp_s:.6f} s): another "
+                "source's block"
+            )
+        else:
+            self.other_period_blocks += 1
+            n, what = self.other_period_blocks, (
+                f"sample period {period:g} s (time_increment) is not the stream's "
+                f"{followed.period_s:g} s: reading this bag sets it aside"
+            )
+        if n == 1 or n % WARN_EVERY_BLOCKS == 0:
+            self.get_logger().warning(
+                f"vibration: the block stamped {stamp:.6f} s: {what}; recorded, not counted as "
+                f"samples lost ({n} such blocks so far)"
+            )
+        return False
 
     def _check_index(self, msg: LaserScan, index: int) -> None:
         """Warn when the block's index is behind the stream's while its stamp is not (a publisher
@@ -241,8 +332,6 @@ class RecorderNode(Node):
             return  # no block's period: `tail-beam identify` names it when it reads the bag
         stamp = ros_messages.stamp_s(msg.header.stamp)
         sequence = self._sequence
-        if sequence.next_stamp_s is not None and stamp < sequence.next_stamp_s - TIME_JUMP_S:
-            sequence.restart()
         samples = np.frombuffer(msg.ranges, dtype=np.float32)
         block = VibrationBlocks(
             np.array([index], dtype=np.int64),
@@ -270,6 +359,11 @@ class RecorderNode(Node):
         not."""
         return self._sequence.misindexed_blocks
 
+    @property
+    def vibration_lost_samples(self) -> int:
+        """Samples missing from the running index of the block streams followed."""
+        return self._lost_before + self.vibration.lost_samples
+
     def _on_lost(self, info: QoSMessageLostInfo) -> None:
         self.lost_events += info.total_count_change
 
@@ -278,14 +372,15 @@ class RecorderNode(Node):
         events."""
         v = self.vibration
         return (
-            f"vibration {v.samples} samples in {v.blocks} blocks, {v.lost_samples} samples lost "
-            "(index gaps); "
-            f"{self.lost_events} messages lost (middleware events)"
+            f"vibration {v.samples} samples in {v.blocks} blocks, {self.vibration_lost_samples} "
+            "samples lost (index gaps); "
+            f"{self.stray_blocks + self.other_period_blocks} blocks of another source or "
+            f"period not counted; {self.lost_events} messages lost (middleware events)"
         )
 
     def close(self) -> None:
         """Close the bag (every message received so far is in it), with the loss counts."""
-        self.writer.set_custom_data(LOST_KEYS[0], str(self.vibration.lost_samples))
+        self.writer.set_custom_data(LOST_KEYS[0], str(self.vibration_lost_samples))
         self.writer.set_custom_data(LOST_KEYS[1], str(self.lost_events))
         self.writer.close()
         print(
