@@ -55,7 +55,7 @@ from tail_beam_id.signals.imu_detection import DETECTION
 from tail_beam_id.signals.timing import SENSOR_TIMING
 from tail_beam_id.stream.config import EVALUATION, IDENTIFICATION, PROFILE
 from tail_beam_id.stream.identifier import StreamIdentifier
-from tail_beam_id.stream.label import Label
+from tail_beam_id.stream.label import Label, Revisions, match_tolerance_s
 from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.ros.params import (
@@ -67,6 +67,13 @@ from tail_beam_sim.ros.params import (
 from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
 from tail_beam_sim.spec import Section, text
 
+# An impact found but not decided this long (wall clock, s) after it was first seen pending is
+# logged and counted (``undecided_impacts``): a stream it waits for is late or gone.
+UNDECIDED_AFTER_S = 2.0
+# Data arriving this much later than the earliest delivery seen in the time base (wall clock
+# minus stamp, s) is id_node behind real time: warned at most every LAG_WARN_PERIOD_S.
+LAG_WARN_S = 0.25
+LAG_WARN_PERIOD_S = 5.0
 MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
 WARN_EVERY_S = 5.0  # wall s between two warnings of one kind (the first at once, then a count)
 WAKE_MARGIN_S = (
@@ -211,6 +218,16 @@ class IdNode(Node):
             topics.REBOUND_VELOCITY: 0,
         }
         self.published = 0
+        # One impact, one label (tail_beam_id.stream.label.Revisions): later decisions for an
+        # impact already labelled go out as revisions of it.
+        self.revisions = Revisions(match_tolerance_s(params["identification"]))
+        self.undecided_impacts = 0  # impacts pending longer than UNDECIDED_AFTER_S
+        self._pending_since: dict[float, float] = {}  # pending impact onset -> first seen, wall s
+        self._overdue: set[float] = set()  # onsets already reported as undecided
+        self.lag_s = 0.0  # how far behind real time the data arrives now, s
+        self.max_lag_s = 0.0
+        self._lag_base_s = math.inf  # least (arrival wall clock - stamp) of this time base, s
+        self._lag_warned_s = -math.inf
         # vibration messages that carried no block (their index, period or range out of range)
         self.refused_blocks = 0
         self.warnings = Warnings(self.get_logger().warning)
@@ -382,11 +399,17 @@ class IdNode(Node):
         jumps = self.gated.time_jumps
         for part, batch_s in zip(parts, arrived_s):
             if batch_s > -math.inf:
+                before = self.gated.time_jumps
                 labels += self._admit(part, batch_s)
+                if self.gated.time_jumps != before:  # those labels were the old time base's
+                    self._publish(labels)
+                    labels = []
+                    self.revisions.restart()
         if (
             self.gated.time_jumps != jumps
         ):  # a new time base: the stamps seen so far say nothing of it
             self._newest.clear()
+            self._lag_base_s = math.inf
         idle = self._unflushed and now - self._last_arrival_s > self.flush_after_idle_s
         self._publish(labels + self.gated.decide(now, end_of_data=idle))
         if idle:
@@ -399,15 +422,58 @@ class IdNode(Node):
         if timing.suspect and timing is not self._timing_said:
             self._timing_said = timing  # once per identifier (a new time base starts a new one)
             self.get_logger().warning(f"sensor timing: {timing.describe()}")
+        self._watch_pending(now)
+        self._watch_lag(now)
         self._due_s = self.gated.next_horizon_s()
         self._arm_wake()
 
+    def _watch_pending(self, now: float) -> None:
+        """Log and count each impact still undecided UNDECIDED_AFTER_S after it was found."""
+        onsets = {impact.onset_s for impact in self.identifier.impacts.pending}
+        for onset in onsets - self._pending_since.keys():
+            self._pending_since[onset] = now
+        for onset in list(self._pending_since):
+            if onset not in onsets:
+                del self._pending_since[onset]
+                self._overdue.discard(onset)
+            elif onset not in self._overdue and now - self._pending_since[onset] > (
+                UNDECIDED_AFTER_S
+            ):
+                self._overdue.add(onset)
+                self.undecided_impacts += 1
+                waits = self.gated.next_horizon_s()
+                self.get_logger().warning(
+                    f"impact at {onset:.4f} s found but not decided {UNDECIDED_AFTER_S:g} s later "
+                    f"(waiting for data up to {waits:.4f} s on every live stream); "
+                    f"{self.undecided_impacts} impact(s) not decided in time in all"
+                )
+
+    def _watch_lag(self, now: float) -> None:
+        """How much later than the earliest delivery of this time base the newest data arrived
+        (wall clock minus stamp: a slow publisher, a held-up middleware or this node's own
+        backlog); a warning at most every LAG_WARN_PERIOD_S while it exceeds LAG_WARN_S."""
+        offsets = [arrived - stamp for stamp, arrived in self._newest.values()]
+        if not offsets:
+            return
+        self._lag_base_s = min(self._lag_base_s, min(offsets))
+        self.lag_s = max(offsets) - self._lag_base_s
+        self.max_lag_s = max(self.max_lag_s, self.lag_s)
+        fresh = max(arrived for _, arrived in self._newest.values()) > self._lag_warned_s
+        if fresh and self.lag_s > LAG_WARN_S and now - self._lag_warned_s >= LAG_WARN_PERIOD_S:
+            self._lag_warned_s = now
+            self.get_logger().warning(
+                f"behind real time by {self.lag_s:.3f} s (data arrives that much later than the "
+                f"earliest delivery seen; at most {self.max_lag_s:.3f} s so far)"
+            )
+
     def _publish(self, labels: list[Label]) -> None:
-        for label in labels:
+        for decided in labels:
+            label = self.revisions.admit(decided)
             self._label_pub.publish(String(data=label.to_json()))
             self.published += 1
+            what = "impact" if label.revises is None else "revised: impact"
             self.get_logger().info(
-                f"impact at {label.impact_stamp_s:.4f} s: {label.material} "
+                f"{what} at {label.impact_stamp_s:.4f} s: {label.material} "
                 f"({label.confidence:.2f}, {label.method}, "
                 f"signals {', '.join(label.signals)})"
             )

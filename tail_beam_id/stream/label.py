@@ -10,11 +10,21 @@ pair one to one, closest pair first: of all truth-label pairs within the toleran
 paired, then the closest of those left, and so on (ties: earlier truth, then earlier label). An
 impact left without a label is missed; a label left without an impact is an extra (false)
 detection.
+
+One impact, one label (:class:`Revisions`, which id_node and ``tail-beam identify`` both run on
+the identifier's labels in the order it decides them): a decision for an impact that already has
+a label (its impact stamp within ``match_tolerance_s`` of that label's) is published as a
+revision, never as a new impact: the first label's ``impact_stamp``, and ``revises`` set to it.
+A revision is the identifier's later word on the impact (typically from more streams than the
+first, when a stream came late); a consumer that keeps one answer per impact takes the newest,
+and scoring counts revisions apart (:func:`firsts`), so that they are neither extra detections nor
+a second chance.
 """
 
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import json
 import math
 from collections.abc import Mapping, Sequence
@@ -52,6 +62,7 @@ JSON_KEYS = frozenset(
         "imu_mount",
         "vibration_mount",
         "outside_training",
+        "revises",
     }
 )
 
@@ -90,6 +101,7 @@ class Label:
         None  # "inverted" when the tail-beam accelerometer read -g (corrected)
     )
     outside_training: tuple[str, ...] = ()
+    revises: float | None = None  # a revision: the impact stamp of the impact's first label, s
     extra: Mapping[str, Any] = field(
         default_factory=dict
     )  # keys of another identifier's label, kept as they came
@@ -124,8 +136,9 @@ class Label:
             "imu_mount": self.imu_mount,
             "vibration_mount": self.vibration_mount,
             "outside_training": list(self.outside_training),
+            "revises": self.revises,
         }
-        out.update({k: v for k, v in optional.items() if v})
+        out.update({k: v for k, v in optional.items() if v or (k == "revises" and v is not None)})
         out.update({k: v for k, v in self.extra.items() if k not in out})
         return out
 
@@ -170,6 +183,7 @@ class Label:
             imu_mount=_mount(obj, "imu_mount", where),
             vibration_mount=_mount(obj, "vibration_mount", where),
             outside_training=_strings(obj, "outside_training", where),
+            revises=_optional_number(obj, "revises", where),
             extra={k: v for k, v in obj.items() if k not in JSON_KEYS},
         )
 
@@ -348,4 +362,59 @@ def make_label(
         imu_mount="inverted" if imu_inverted else None,
         vibration_mount="inverted" if vibration_inverted else None,
         outside_training=tuple(decision.outside_training),
+    )
+
+
+MAX_REMEMBERED = 10_000  # first labels a Revisions keeps to compare later decisions with
+
+
+class Revisions:
+    """The one-label rule (module docstring): turns each decision after the first for the same
+    impact (impact stamps within ``tolerance_s``, s, of a first label's; the closest) into a
+    revision of it. Give it every label in the order the identifier decided them; start it
+    afresh (:meth:`restart`) where the identifier does, at a new time base, whose stamps say
+    nothing of the old one's impacts."""
+
+    def __init__(self, tolerance_s: float) -> None:
+        self.tolerance_s = tolerance_s
+        self._firsts: list[float] = []  # impact stamps of first labels, sorted, s
+        self.revisions = 0  # revisions given so far
+        self.changed = 0  # of them, those whose material differs from the first label's
+        self._material: dict[float, str] = {}
+
+    def restart(self) -> None:
+        self._firsts.clear()
+        self._material.clear()
+
+    def first_of(self, stamp_s: float) -> float | None:
+        """The first label's impact stamp this one is of, s, or None: a new impact."""
+        k = bisect.bisect_left(self._firsts, stamp_s)
+        near = [
+            self._firsts[i]
+            for i in (k - 1, k)
+            if 0 <= i < len(self._firsts) and abs(self._firsts[i] - stamp_s) <= self.tolerance_s
+        ]
+        return min(near, key=lambda s: abs(s - stamp_s)) if near else None
+
+    def admit(self, label: Label) -> Label:
+        """``label`` as it is to be published: as it is for a new impact, else a revision."""
+        first = self.first_of(label.impact_stamp_s)
+        if first is None:
+            bisect.insort(self._firsts, label.impact_stamp_s)
+            self._material[label.impact_stamp_s] = label.material
+            if len(self._firsts) > MAX_REMEMBERED:  # the oldest impact is long decided
+                oldest = self._firsts.pop(0)
+                self._material.pop(oldest, None)
+            return label
+        self.revisions += 1
+        self.changed += self._material.get(first) != label.material
+        return dataclasses.replace(label, impact_stamp_s=first, revises=first)
+
+
+def firsts(labels: Sequence[Label]) -> tuple[list[Label], list[Label]]:
+    """(first labels, revisions) of a sequence of published labels: what scoring pairs with
+    impacts, and what it counts apart."""
+    return (
+        [label for label in labels if label.revises is None],
+        [label for label in labels if label.revises is not None],
     )
