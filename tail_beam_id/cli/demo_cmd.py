@@ -80,6 +80,9 @@ class Scoreboard:
     tolerance_s: float
     truths: list[dict[str, Any]] = field(default_factory=list)
     labels: list[Label] = field(default_factory=list)
+    # later decisions for an impact already labelled (docs/interface.md, ``revises``): counted
+    # apart, never paired with an impact
+    revisions: list[Label] = field(default_factory=list)
     arrived: dict[int, float] = field(default_factory=dict)  # id(obj) -> wall s of arrival
     shown: set[int] = field(default_factory=set)
     skipped: dict[str, int] = field(default_factory=dict)  # topic -> messages that were not ours
@@ -108,6 +111,9 @@ class Scoreboard:
                     f"(another publisher on the topic?): {text[:60]!r}",
                     flush=True,
                 )
+            return
+        if isinstance(item, Label) and item.revises is not None:
+            self.revisions.append(item)
             return
         self.add(kind, item)
 
@@ -167,6 +173,8 @@ class Scoreboard:
                 for name, r in rows.items()
             ),
             f"false detections (labels with no impact): {extra}",
+            f"revisions (later decisions for an impact already labelled, not scored): "
+            f"{len(self.revisions)}",
             f"accuracy: {correct}/{total} = {100.0 * correct / max(total, 1):.1f} % (an impact "
             "without a label counts as wrong)",
         ]
@@ -209,7 +217,7 @@ def label_text(truth: Mapping[str, Any], label: Label | None) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tail_beam_id.ros.id_node import IdNode
+    from tail_beam_id.ros.id_node import UNDECIDED_AFTER_S, IdNode
     from tail_beam_sim import topics
     from tail_beam_sim.ros.recorder_node import RecorderNode, default_bag_path
     from tail_beam_sim.ros.sim_node import SimNode
@@ -292,6 +300,11 @@ def run(args: argparse.Namespace) -> int:
         f"{sim_s:.1f} s of simulation ({wall_s:.1f} s wall, start-up included); lost: recorder "
         f"{v.lost_samples} samples, identifier {identifier.vibration_lost_samples} samples "
         f"and {identifier.vibration_late_blocks} late blocks"
+    )
+    print(
+        f"identifier: {identifier.undecided_impacts} impact(s) not decided within "
+        f"{UNDECIDED_AFTER_S:g} s of being found; at most {identifier.max_lag_s:.3f} s behind "
+        "real time"
     )
     print(f"bag: {bag} ({recorder.writer.message_count} messages, {args.storage})")
     print(f"  offline: tail-beam identify {bag}")

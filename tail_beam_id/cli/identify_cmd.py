@@ -20,7 +20,7 @@ from tail_beam_id.calibration.offline import SupportProfile, with_profile
 from tail_beam_id.calibration.offline import calibrate as calibrate_support
 from tail_beam_id.methods import available_methods
 from tail_beam_id.stream.identifier import StreamIdentifier
-from tail_beam_id.stream.label import Label
+from tail_beam_id.stream.label import Label, Revisions, match_tolerance_s
 from tail_beam_id.stream.replay import replay
 from tail_beam_sim.bags.read import IDENTIFY_TOPICS, BagSensors, open_segments_note, read_runs
 from tail_beam_sim.cli.common import add_config_option
@@ -185,6 +185,16 @@ def identify_sensors(
     line = ProgressLine(sys.stderr, f"identify: {data.namespace} {phase}")
     labels = replay(identifier, pressure, imu, rebounds, vibration=vibration, progress=line.update)
     line.close()
+    # One impact, one label, as id_node publishes them (tail_beam_id.stream.label.Revisions).
+    rule = Revisions(match_tolerance_s(params["identification"]))
+    labels = [rule.admit(label) for label in labels]
+    if report and rule.revisions:
+        print(
+            f"identify: {data.namespace} {rule.revisions} revision(s): later decisions for an "
+            f"impact already labelled, printed with \"revises\" ({rule.changed} changed the "
+            "material)",
+            file=sys.stderr,
+        )
     if not report:
         return sorted(labels, key=lambda label: label.impact_stamp_s)
     refused = {name: n for name, n in identifier.refused_samples.items() if n}

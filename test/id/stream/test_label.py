@@ -216,3 +216,29 @@ def test_a_label_that_is_not_one_is_refused_naming_the_field(text, field):
     assert str(error.value).startswith(f"{field} = ")
     if "NaN" in text or "Infinity" in text:
         assert "not strict JSON" in str(error.value)
+
+
+def test_a_later_decision_for_a_labelled_impact_is_a_revision_never_a_new_impact():
+    """Revisions: a decision from all streams after one from partial streams for the same
+    impact (within match_tolerance_s) goes out with the first label's stamp and ``revises``;
+    a decision beyond the tolerance is a new impact; restart forgets the old time base."""
+    from tail_beam_id.stream.label import Revisions, firsts
+
+    rule = Revisions(0.005)
+    partial = Label(2.0, "coal", 0.6, "statistical", signals=("vibration",))
+    full = Label(
+        2.003, "gangue", 0.9, "statistical",
+        signals=("jack_pressure", "imu", "vibration", "rebound_velocity"),
+    )
+    other = Label(2.3, "coal", 0.9, "statistical")
+    out = [rule.admit(label) for label in (partial, full, other)]
+    assert out[0] == partial
+    assert out[1].impact_stamp_s == 2.0 and out[1].revises == 2.0
+    assert out[1].material == "gangue" and out[1].signals == full.signals
+    assert out[2] == other
+    assert (rule.revisions, rule.changed) == (1, 1)
+    again = Label.from_json(out[1].to_json())
+    assert again.revises == 2.0 and "revises" not in again.extra
+    assert firsts(out) == ([out[0], out[2]], [out[1]])
+    rule.restart()
+    assert rule.admit(full).revises is None
