@@ -251,7 +251,9 @@ def model_errors(scene: Scene, needs: Needs, modes: Sequence[BendingMode]) -> di
     rigid_step = rebound_step if needs.outputs & {"rebound", "contact"} else 0.0
     if waveform and modes:
         rigid_step = max(
-            rigid_step, SAMPLED_MARGIN * _sampled_difference(scene, rigid, modal, waveform)
+            rigid_step,
+            SAMPLED_MARGIN
+            * _sampled_difference(scene, (rigid, shape_rigid), (modal, shape_modal), waveform),
         )
     return {
         "impulse": impulse_step + rigid_step,
@@ -262,41 +264,26 @@ def model_errors(scene: Scene, needs: Needs, modes: Sequence[BendingMode]) -> di
 
 
 def _sampled_difference(
-    scene: Scene, rigid: LinearStructure, modal: LinearStructure, outputs: set[str]
+    scene: Scene,
+    rigid: tuple[LinearStructure, np.ndarray],
+    modal: tuple[LinearStructure, np.ndarray],
+    outputs: set[str],
 ) -> float:
     """Relative L2 difference of the two structures' impulse responses as the sensors sample them,
-    the worst over where the impulse falls within a sample period (PHASES, evaluated together)."""
-    spec, x = scene.sensors, scene.impact.position_m
+    the worst over where the impulse falls within a sample period (PHASES, evaluated together).
+
+    Each response is linear in the contact shape b(x) (the unit impulse starts the structure at
+    q' = M^-1 b), so it is the product of the structure's sampled responses to each coordinate's
+    unit load (:func:`unit_responses`, cached per structure and sensor setting) with b (each
+    structure comes with its contact shape at the impact's position)."""
+    spec = scene.sensors
     worst = 0.0
-    for output in outputs:
+    for output in sorted(outputs):
         rate = spec.pressure_rate_hz if output == "pressure" else spec.imu_rate_hz
-        count = int(scene.window_s * rate)
-        times = (
-            (np.arange(1, count + 1)[None, :] - np.array(PHASES)[:, None]) / rate
-        ).ravel()  # (phases x samples)
-        signals = []
-        for structure in (rigid, modal):
-            qd0 = structure.inv_mass @ structure.contact_shape(x)
-            zero = np.zeros(structure.size)
-            q, qd = structure.propagate(zero, qd0, times)
-            if output == "pressure":
-                signals.append(structure.pressure_pa(q, qd) - structure.setting_pressure_pa)
-            else:
-                early = times < 1.0 / rate  # the beam is at rest before the impulse
-                before_q, before_qd = structure.propagate(
-                    zero, qd0, np.maximum(times - 1.0 / rate, 0.0)
-                )
-                before_q[:, early], before_qd[:, early] = 0.0, 0.0
-                signals.append(
-                    np.stack(
-                        [
-                            structure.imu_shape @ (qd - before_qd),
-                            structure.imu_slope_shape @ (q - before_q),
-                        ]
-                    )
-                    * rate
-                )
-        lower, upper = (signal.reshape(-1, len(PHASES), count) for signal in signals)
+        lower, upper = (
+            unit_responses(structure, output, rate, scene.window_s) @ shape
+            for structure, shape in (rigid, modal)
+        )  # (channels, phases, samples)
         reference = np.sqrt((upper**2).sum(axis=(0, 2)))
         difference = np.sqrt(((upper - lower) ** 2).sum(axis=(0, 2)))
         worst = max(
@@ -310,6 +297,61 @@ def _sampled_difference(
             ),
         )
     return worst
+
+
+_UNIT_RESPONSES: dict[tuple[int, str, float, float], tuple[LinearStructure, np.ndarray]] = {}
+UNIT_RESPONSE_CACHE_SIZE = 64
+
+
+def unit_responses(
+    structure: LinearStructure, output: str, rate_hz: float, window_s: float
+) -> np.ndarray:
+    """(channels, phases, samples, n): ``output`` of ``structure`` as its sensor samples it at
+    ``rate_hz`` over ``window_s``, after a unit impulse on each generalised coordinate falling
+    at each of PHASES within a sample period. Pressure: the change from the setting pressure,
+    Pa per N s, point samples; IMU: the period-averaged specific force along z (m/s^2 per N s)
+    and pitch rate (rad/s per N s). Depends on the structure and the sensor setting only, not
+    on the impact, so it is computed once per (structure, output, rate, window)."""
+    key = (id(structure), output, float(rate_hz), float(window_s))
+    cached = _UNIT_RESPONSES.get(key)
+    if cached is not None and cached[0] is structure:
+        return cached[1]
+    count = int(window_s * rate_hz)
+    times = (
+        (np.arange(1, count + 1)[None, :] - np.array(PHASES)[:, None]) / rate_hz
+    ).ravel()  # (phases x samples)
+    n = structure.size
+    zero = np.zeros(n)
+    columns = []
+    for j in range(n):
+        qd0 = structure.inv_mass[:, j]  # M^-1 e_j: the velocity a unit impulse on q_j gives
+        q, qd = structure.propagate(zero, qd0, times)
+        if output == "pressure":
+            signal = (
+                structure.jack_stiffness_npm * (structure.jack_shape @ q)
+                + structure.jack_damping_nspm * (structure.jack_shape @ qd)
+            )[None, :] / structure.piston_area_m2
+        else:
+            early = times < 1.0 / rate_hz  # the beam is at rest before the impulse
+            before_q, before_qd = structure.propagate(
+                zero, qd0, np.maximum(times - 1.0 / rate_hz, 0.0)
+            )
+            before_q[:, early], before_qd[:, early] = 0.0, 0.0
+            signal = (
+                np.stack(
+                    [
+                        structure.imu_shape @ (qd - before_qd),
+                        structure.imu_slope_shape @ (q - before_q),
+                    ]
+                )
+                * rate_hz
+            )
+        columns.append(signal.reshape(signal.shape[0], len(PHASES), count))
+    responses = np.stack(columns, axis=-1)
+    if len(_UNIT_RESPONSES) >= UNIT_RESPONSE_CACHE_SIZE:
+        _UNIT_RESPONSES.clear()
+    _UNIT_RESPONSES[key] = (structure, responses)  # holding it keeps its id from being reused
+    return responses
 
 
 def next_tier_up(name: str) -> str | None:
