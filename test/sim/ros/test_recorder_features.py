@@ -108,8 +108,9 @@ def test_zstd_chunk_compression_is_on_by_default_and_the_file_stays_plain_mcap(t
 @pytest.mark.ros
 def test_recorder_writes_fully_qualified_names_counts_no_loss_and_splits(tmp_path):
     """sim_node and bag_recorder in /support_07: the bag holds /support_07/<topic>, split into
-    files of at most 0.4 s of log time, zstd chunks, the independent mcap reader decodes every
-    file, the vibration indices run without a gap and the recorder's count of lost samples is 0."""
+    files of at most 1 s of log time (the least split allowed), zstd chunks, the independent
+    mcap reader decodes every file, the vibration indices run without a gap and the recorder's
+    count of lost samples is 0."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
     from rclpy.parameter import Parameter
@@ -126,7 +127,7 @@ def test_recorder_writes_fully_qualified_names_counts_no_loss_and_splits(tmp_pat
             namespace=NS,
             parameter_overrides=[
                 Parameter("recorder.bag_path", value=str(bag)),
-                Parameter("recorder.max_bag_duration_s", value=0.4),
+                Parameter("recorder.max_bag_duration_s", value=1.0),
             ],
         )
         sim = SimNode(
@@ -136,7 +137,7 @@ def test_recorder_writes_fully_qualified_names_counts_no_loss_and_splits(tmp_pat
                 Parameter("sim_node.realtime_factor", value=1.0),
                 Parameter("sim_node.wait_for_subscribers", value=1),
                 Parameter("sim_node.subscriber_settle_s", value=0.3),
-                Parameter("sim_node.exit_after_idle_s", value=1.2),
+                Parameter("sim_node.exit_after_idle_s", value=3.2),
             ],
         )
         executor.add_node(recorder)
@@ -144,7 +145,7 @@ def test_recorder_writes_fully_qualified_names_counts_no_loss_and_splits(tmp_pat
         assert spin_until(executor, lambda: sim.finished.done(), timeout_s=60)
         sim.close()
         assert spin_until(
-            executor, lambda: recorder.vibration.blocks >= int(1.2 * 200) - 2, timeout_s=20
+            executor, lambda: recorder.vibration.blocks >= int(3.2 * 200) - 2, timeout_s=20
         )
         recorder.close()
     assert recorder.vibration.lost_samples == 0
