@@ -2,7 +2,8 @@
 
 Prints a table (median time, spread, ratio to Radau at rtol 1e-8, relative errors against a
 converged Radau reference, Pareto front marked ``*``), the tiers against the richest model,
-the batch path's throughput and the real-time factor; writes log-log PNG charts of time
+the batch path's throughput, the real-time factor and ``simulate()`` as a whole (every sensor
+on) against Radau, stage by stage; writes log-log PNG charts of time
 against error with the Pareto front. The default run takes about a minute; ``--full`` adds
 finer steps, looser and tighter tolerances and more repeats.
 """
@@ -23,6 +24,7 @@ from tail_beam_sim.physics.simulate import build_problem
 
 TARGET_SPEEDUP = 1000.0
 TARGET_ERROR = 0.01
+TARGET_SIMULATE_SPEEDUP = 100.0  # the whole simulate(), every sensor on, over Radau rtol 1e-8
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -78,6 +80,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="out/bench",
         metavar="DIR",
         help="directory of the PNG charts (default out/bench)",
+    )
+    parser.add_argument(
+        "--no-simulate",
+        action="store_true",
+        help="skip timing simulate() as a whole (every sensor) against Radau",
     )
     parser.add_argument("--no-plot", action="store_true", help="do not write charts")
     parser.add_argument(
@@ -162,6 +169,9 @@ def run(args: argparse.Namespace) -> int:
         )
     progress("real-time factor")
     report["real_time"] = bench.real_time_factor(scene, settings, repeats, args.min_time_s)
+    if not args.no_simulate:
+        progress("simulate() with every sensor against Radau rtol 1e-8")
+        report["simulate"] = bench.simulate_speed(scene, settings, repeats, args.min_time_s)
     if not args.no_plot:
         report["charts"] = [str(p) for p in write_charts(Path(args.out), rows, tier_rows)]
     if args.json:
@@ -215,8 +225,29 @@ def print_report(
         "real-time factor, one impact's 0.05 s of sensor streams at the default rates: rigid "
         f"{rt['rigid_real_time_factor']:.0f} x, modal {rt['modal_real_time_factor']:.0f} x"
     )
+    if "simulate" in report:
+        print_simulate(report["simulate"])
     for chart in report.get("charts", []):
         print(f"wrote {chart}")
+
+
+def print_simulate(figures: dict[str, Any]) -> None:
+    """The simulate() section: speed-ups over Radau, rebound error, per-stage medians."""
+    ok = (
+        figures["speedup"] >= TARGET_SIMULATE_SPEEDUP and figures["rebound_error"] <= TARGET_ERROR
+    )
+    print(
+        f"\nsimulate() (default tier, every sensor of the layout): {figures['speedup']:.0f} x "
+        f"faster than Radau rtol 1e-8 on the same impact "
+        f"({figures['speedup_no_vibration']:.0f} x without the accelerometer), rebound error "
+        f"{figures['rebound_error']:.1e} (targets: >= {TARGET_SIMULATE_SPEEDUP:g} x with every "
+        f"sensor, <= {TARGET_ERROR:g}): {'met' if ok else 'NOT met'}"
+    )
+    stages = ("plan", "solve", "sensors", "sensors_no_vibration", "simulate", "radau")
+    print(
+        "  medians, ms: "
+        + ", ".join(f"{name} {figures[f'{name}_median_s'] * 1e3:.3f}" for name in stages)
+    )
 
 
 def _table(rows: list[bench.Row]) -> str:

@@ -9,6 +9,9 @@ relative, against a reference solved by Radau at ``REFERENCE_RTOL`` and checked 
 * rebound speed, peak contact force, peak jack pressure change (the pressure sampled at 20 kHz
   plus every step of each contact, the same for every solver);
 * the IMU waveform: the period-averaged accelerometer at the IMU rate over the window, relative L2.
+
+:func:`simulate_speed` times the whole of ``simulate()`` (plan, solve, every sensor of the
+layout, summary) against Radau at rtol 1e-8 solving the same impact, per stage.
 """
 
 from __future__ import annotations
@@ -22,10 +25,17 @@ from typing import Any
 import numpy as np
 
 from tail_beam_sim.physics import batch as batch_path
-from tail_beam_sim.physics.fidelity import TIERS, FidelitySettings, structure_for
+from tail_beam_sim.physics.fidelity import (
+    DEFAULT_TIER,
+    TIERS,
+    FidelitySettings,
+    get_tier,
+    plan,
+    structure_for,
+)
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.sensors import SensorSuite, imu_samples, sample_grid
-from tail_beam_sim.physics.simulate import HISTORY_RATE_HZ, build_problem
+from tail_beam_sim.physics.simulate import HISTORY_RATE_HZ, build_problem, sense, simulate
 from tail_beam_sim.physics.solvers import ImpactProblem, Trajectory, solve
 
 REFERENCE_RTOL = 1e-11
@@ -340,3 +350,59 @@ def real_time_factor(
         times, _ = timed(one_impact, repeats, min_time_s)
         out[f"{name}_real_time_factor"] = scene.window_s / statistics.median(times)
     return out
+
+
+def simulate_speed(
+    scene: Scene,
+    settings: FidelitySettings,
+    repeats: int,
+    min_time_s: float = MIN_TIMED_S,
+    tier: str = DEFAULT_TIER,
+) -> dict[str, float]:
+    """``simulate(scene)`` at ``tier`` with every sensor of the scene's layout, and without the
+    accelerometer, against scipy's Radau at rtol 1e-8 solving the same impact on the same
+    structure: medians (s) and speed-ups (Radau's time over simulate's, timed in alternating
+    rounds so that a busy machine slows both alike), each stage's median (plan, solve, sensors
+    with and without the accelerometer, s) and simulate's rebound error against the converged
+    Radau reference (relative)."""
+    chosen = plan(scene, tier, settings.needs, settings)
+    problem = build_problem(
+        scene.support,
+        scene.impact,
+        scene.contact_model,
+        scene.window_s,
+        structure=structure_for(get_tier(tier), scene.support, settings.modes),
+    )
+    reference = solve(problem, "Radau", rtol=REFERENCE_RTOL)
+    trajectory = solve(problem, chosen.solver, **chosen.solver_options)
+    calls: dict[str, Callable[[], Any]] = {
+        "radau": lambda: solve(problem, BASELINE[0], **BASELINE[1]),
+        "simulate": lambda: simulate(scene, tier=tier, settings=settings),
+        "simulate_no_vibration": lambda: simulate(
+            scene, tier=tier, settings=settings, vibration=False
+        ),
+        "plan": lambda: plan(scene, tier, settings.needs, settings),
+        "solve": lambda: solve(problem, chosen.solver, **chosen.solver_options),
+        "sensors": lambda: sense(scene, trajectory, True),
+        "sensors_no_vibration": lambda: sense(scene, trajectory, False),
+    }
+    times: dict[str, list[float]] = {name: [] for name in calls}
+    result = simulate(scene, tier=tier, settings=settings)
+    rounds = 0
+    while rounds < repeats or (sum(times["radau"]) < min_time_s and rounds < MAX_RUNS):
+        for name, call in calls.items():
+            # the fast calls repeated within a round, so that each round weighs them alike
+            for _ in range(1 if name == "radau" else 5):
+                start = time.perf_counter()
+                call()
+                times[name].append(time.perf_counter() - start)
+        rounds += 1
+    medians = {name: statistics.median(values) for name, values in times.items()}
+    rebound = abs(result.trajectory.rebound_velocity_mps - reference.rebound_velocity_mps)
+    return {
+        **{f"{name}_median_s": value for name, value in medians.items()},
+        "speedup": medians["radau"] / medians["simulate"],
+        "speedup_no_vibration": medians["radau"] / medians["simulate_no_vibration"],
+        "rebound_error": rebound / abs(reference.rebound_velocity_mps),
+        "rounds": rounds,
+    }

@@ -195,14 +195,18 @@ class SensorSuite:
     def __init__(self, spec: SensorSpec, seed: int | None = None) -> None:
         self.spec = spec
         self.noise = SensorNoise.of(spec)
-        children = np.random.SeedSequence(spec.seed if seed is None else seed).spawn(
-            5
-        )  # [3] is simulate()'s contact phase
+        children = np.random.SeedSequence(spec.seed if seed is None else seed).spawn(5)
         pressure, imu, camera, vibration = children[0], children[1], children[2], children[4]
+        self._phase_seed = children[3]
         self._vibration_rng = np.random.default_rng(vibration)
         self._pressure_rng = np.random.default_rng(pressure)
         self._imu_rng = np.random.default_rng(imu)
         self._camera_rng = np.random.default_rng(camera)
+
+    def phase_rng(self) -> np.random.Generator:
+        """The generator of simulate()'s contact phase (the seed's fourth child, which no
+        sensor's noise uses)."""
+        return np.random.default_rng(self._phase_seed)
 
     def pressure(
         self,

@@ -231,7 +231,7 @@ def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> Simul
     """
     spec = scene.sensors
     suite = SensorSuite(spec)
-    phase_rng = np.random.default_rng(np.random.SeedSequence(spec.seed).spawn(4)[3])
+    phase_rng = suite.phase_rng()
     slowest = min(spec.pressure_rate_hz, spec.imu_rate_hz)
     contact_stamp = scene.pre_contact_s + float(phase_rng.uniform(0.0, 1.0 / slowest))
     end = contact_stamp + scene.window_s

@@ -201,18 +201,20 @@ class Trajectory:
             zd_mps=np.zeros(times.size),
         )
         starts = np.array([seg.start_s for seg in self.segments])
-        which = np.clip(
-            np.searchsorted(starts, times, side="right") - 1, 0, len(self.segments) - 1
-        )
+        # at most the last segment's index; times before the first segment's start are
+        # evaluated on it
+        which = np.maximum(np.searchsorted(starts, times, side="right") - 1, 0)
         # Each segment's times as one index array (a slice when the times are in order): a
         # boolean mask per segment would cost a pass over every time for every segment.
-        ordered = times.size < 2 or bool(np.all(which[1:] >= which[:-1]))
+        ordered = times.size < 2 or bool((which[1:] >= which[:-1]).all())
         order = None if ordered else np.argsort(which, kind="stable")
         edges = np.searchsorted(
             which if order is None else which[order], np.arange(len(self.segments) + 1)
-        )
-        for index in np.flatnonzero(np.diff(edges)):
-            lo, hi = int(edges[index]), int(edges[index + 1])
+        ).tolist()
+        for index in range(len(self.segments)):
+            lo, hi = edges[index], edges[index + 1]
+            if lo == hi:
+                continue
             where = slice(lo, hi) if order is None else order[lo:hi]
             segment = self.segments[index]
             if isinstance(segment, FreeSegment):
@@ -220,7 +222,7 @@ class Trajectory:
             elif isinstance(segment, OdeSegment):
                 self._sample_ode(segment, times[where], out, where)
             else:
-                self._sample_contact(segment, times[where], out, where, self._zdd(index))
+                self._sample_contact(segment, times[where], out, where, self._stacks(index))
         return out
 
     def sample_many(self, parts: Sequence[np.ndarray]) -> list[Samples]:
@@ -233,18 +235,24 @@ class Trajectory:
         union = self.sample(np.concatenate(arrays) if arrays else np.empty(0))
         return [union.take(slice(int(lo), int(hi))) for lo, hi in zip(edges[:-1], edges[1:])]
 
-    def _zdd(self, index: int) -> np.ndarray:
-        """The particle's acceleration at the steps of contact segment ``index`` (m/s^2, the
-        slope of its velocity, for the Hermite interpolation of the velocity), computed once per
-        segment: the sensors sample a trajectory several times."""
-        cache = self.__dict__.setdefault("_zdd_cache", {})
+    def _stacks(self, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What contact segment ``index`` is interpolated from, stacked so that one Hermite
+        evaluation serves every state: the values [q; q'; z; z'] (2n + 2, steps), their slopes
+        [q'; q''; z'; z''] (the particle's acceleration z'' from its velocity's gradient, m/s^2)
+        and the steps' lengths (s). Built once per segment: the sensors sample a trajectory
+        several times, and the stream once per chunk."""
+        cache = self.__dict__.setdefault("_contact_stacks", {})
         segment = self.segments[index]
         known = cache.get(index)
         if known is not None and known[0] is segment:
             return known[1]
-        zdd = np.gradient(segment.zd_mps, segment.t_s) if segment.t_s.size > 1 else np.zeros(1)
-        cache[index] = (segment, zdd)
-        return zdd
+        t = segment.t_s
+        zdd = np.gradient(segment.zd_mps, t) if t.size > 1 else np.zeros(1)
+        values = np.vstack([segment.q, segment.qd, segment.z_m, segment.zd_mps])
+        slopes = np.vstack([segment.qd, segment.qdd, segment.zd_mps, zdd])
+        stacks = (values, slopes, np.diff(t) if t.size > 1 else np.zeros(1))
+        cache[index] = (segment, stacks)
+        return stacks
 
     def _sample_free(
         self, seg: FreeSegment, times: np.ndarray, out: Samples, mask: slice | np.ndarray
@@ -253,8 +261,9 @@ class Trajectory:
         dt = times - seg.anchor_s
         q, qd = structure.propagate(seg.q, seg.qd, dt)
         out.q[:, mask], out.qd[:, mask] = q, qd
-        out.qdd[:, mask] = structure.acceleration(
-            q, qd, np.zeros(times.size), self.problem.contact_shape
+        # no contact force: q'' = -M^-1 (C q' + K q) (structure.acceleration without the force)
+        out.qdd[:, mask] = -(
+            structure.inv_mass @ (structure.damping @ qd + structure.stiffness @ q)
         )
         g = self.problem.gravity_mps2
         out.z_m[mask] = seg.z_m + seg.zd_mps * dt - 0.5 * g * dt * dt
@@ -278,25 +287,25 @@ class Trajectory:
         times: np.ndarray,
         out: Samples,
         mask: slice | np.ndarray,
-        zdd: np.ndarray,
+        stacks: tuple[np.ndarray, np.ndarray, np.ndarray],
     ) -> None:
-        k = np.clip(np.searchsorted(seg.t_s, times, side="right") - 1, 0, seg.t_s.size - 2)
-        h = seg.t_s[k + 1] - seg.t_s[k]
-        s = np.where(h > 0, (times - seg.t_s[k]) / np.where(h > 0, h, 1.0), 0.0)
+        """Cubic Hermite through the steps of ``seg`` (values and slopes: :meth:`_stacks`),
+        linear for q'' and the force."""
+        values, slopes, steps = stacks
+        t = seg.t_s
+        k = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.size - 2)
+        h = steps[k] if t.size > 1 else np.zeros(times.size)
+        s = np.where(h > 0, (times - t[k]) / np.where(h > 0, h, 1.0), 0.0)
         h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
         h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-
-        def hermite(y: np.ndarray, dy: np.ndarray) -> np.ndarray:
-            return (
-                h00 * y[..., k]
-                + h10 * h * dy[..., k]
-                + h01 * y[..., k + 1]
-                + h11 * h * dy[..., k + 1]
-            )
-
-        out.q[:, mask] = hermite(seg.q, seg.qd)
-        out.qd[:, mask] = hermite(seg.qd, seg.qdd)
+        y = (
+            h00 * values[:, k]
+            + h10 * h * slopes[:, k]
+            + h01 * values[:, k + 1]
+            + h11 * h * slopes[:, k + 1]
+        )
+        n = out.q.shape[0]
+        out.q[:, mask], out.qd[:, mask] = y[:n], y[n : 2 * n]
+        out.z_m[mask], out.zd_mps[mask] = y[2 * n], y[2 * n + 1]
         out.qdd[:, mask] = seg.qdd[:, k] * (1 - s) + seg.qdd[:, k + 1] * s
         out.force_n[mask] = seg.force_n[k] * (1 - s) + seg.force_n[k + 1] * s
-        out.z_m[mask] = hermite(seg.z_m, seg.zd_mps)
-        out.zd_mps[mask] = hermite(seg.zd_mps, zdd)
