@@ -23,7 +23,7 @@ from tail_beam_sim.config import section
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.fidelity import FidelitySettings
 from tail_beam_sim.physics.scene import Scene
-from tail_beam_sim.physics.simulate import SimulationResult, simulate
+from tail_beam_sim.physics.simulate import SimulationResult, simulate, simulate_many
 from tail_beam_sim.physics.stream import StreamSimulator
 
 # Evaluation scene sets. ``foreign`` records drawn supports as continuous streams of stream-scene
@@ -219,8 +219,8 @@ def simulate_set(
         varied = copy.deepcopy(dict(params))
         for name, factor in scale.items():
             varied["support"][name] = float(params["support"][name]) * factor
-        results = {}
         noise_seed = int(noise_seeds[index].generate_state(1)[0])
+        scenes = []
         for setting in chosen:
             varied["sensors"] = {**params["sensors"], **setting.sensors(), "seed": noise_seed}
             scene = Scene.from_params(
@@ -232,10 +232,17 @@ def simulate_set(
                     "window_s": ev["window_s"],
                 },
             )
-            scene = replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor))
-            results[setting.key] = simulate(
-                scene, tier=tier, settings=fidelity, vibration=setting.has_vibration
-            )
+            scenes.append(replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor)))
+        # One impact at every setting: the settings differ in their sensors only, so the impact
+        # is solved once and each setting's sensors sample that motion (simulate_many gives what
+        # simulate gives for each).
+        outcomes = simulate_many(
+            scenes,
+            tier=tier,
+            settings=fidelity,
+            vibration=[setting.has_vibration for setting in chosen],
+        )
+        results = {setting.key: result for setting, result in zip(chosen, outcomes)}
         yield LabelledImpact(index, command, scale, law, results)
 
 

@@ -233,9 +233,7 @@ def print_report(
 
 def print_simulate(figures: dict[str, Any]) -> None:
     """The simulate() section: speed-ups over Radau, rebound error, per-stage medians."""
-    ok = (
-        figures["speedup"] >= TARGET_SIMULATE_SPEEDUP and figures["rebound_error"] <= TARGET_ERROR
-    )
+    ok = figures["speedup"] >= TARGET_SIMULATE_SPEEDUP and figures["rebound_error"] <= TARGET_ERROR
     print(
         f"\nsimulate() (default tier, every sensor of the layout): {figures['speedup']:.0f} x "
         f"faster than Radau rtol 1e-8 on the same impact "

@@ -14,6 +14,7 @@ them) and a summary.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -29,6 +30,7 @@ from tail_beam_sim.physics.fidelity import (
     DEFAULT_TIER,
     FidelitySettings,
     Needs,
+    Plan,
     plan,
     shipped_settings,
 )
@@ -53,6 +55,7 @@ __all__ = [
     "history_times",
     "sense",
     "simulate",
+    "simulate_many",
     "summarise",
 ]
 
@@ -179,11 +182,73 @@ def simulate(
     The summary reports ``tier``, ``solver`` and ``error_estimate`` (relative, of the model and
     the solver together); ``check=True`` also simulates the next tier up and adds the measured
     differences as ``check``. ``vibration=False``: a site without the tail-beam accelerometer
-    (no blocks; the other streams are the same, and the accelerometer model, three quarters of
-    a single impact's time at 25.6 kHz, is not run).
+    (no blocks; the other streams are the same, and the accelerometer model, the costliest
+    sensor at 25.6 kHz, is not run).
     """
     settings = settings or shipped_settings()
     needs = needs or settings.needs
+    chosen, problem, method, options = _prepare(scene, tier, needs, settings, solver)
+    trajectory = solve(problem, method, **{**options, **solver_options})
+    result = _finish(scene, chosen, trajectory, vibration)
+    if check and chosen.check_against is not None:
+        reference = simulate(scene, tier=chosen.check_against, needs=needs, settings=settings)
+        result.summary["check"] = {
+            "against": chosen.check_against,
+            **compare(result, reference, needs.outputs),
+        }
+    return result
+
+
+def simulate_many(
+    scenes: Iterable[Scene],
+    *,
+    tier: str = DEFAULT_TIER,
+    needs: Needs | None = None,
+    settings: FidelitySettings | None = None,
+    vibration: bool | Sequence[bool] = True,
+) -> list[SimulationResult]:
+    """Full sensor streams of many scenes: the same results as
+    ``[simulate(s, tier=tier, needs=needs, settings=settings, vibration=v) for s in scenes]``
+    (``vibration``: one flag for all, or one per scene), with each distinct impact solved once.
+
+    Scenes that differ only in their sensors (rates, noise, seed: what a data set varies to
+    train and evaluate across sensor settings) share one trajectory, since the motion does not
+    depend on how it is measured; each scene still gets its own plan (its error estimate and an
+    automatic tier depend on its sample rates: scenes share a trajectory only when their plans
+    agree on the model and solver) and its own streams.
+    """
+    settings = settings or shipped_settings()
+    needs = needs or settings.needs
+    scenes = list(scenes)
+    flags = [vibration] * len(scenes) if isinstance(vibration, bool) else list(vibration)
+    if len(flags) != len(scenes):
+        raise ValueError(f"{len(flags)} vibration flags for {len(scenes)} scenes")
+    solved: dict[tuple[Any, ...], Trajectory] = {}
+    results = []
+    for scene, with_vibration in zip(scenes, flags):
+        chosen, problem, method, options = _prepare(scene, tier, needs, settings, None)
+        key = (
+            scene.support,
+            scene.impact,
+            scene.contact_model,
+            scene.window_s,
+            chosen.tier.name,
+            id(chosen.structure),
+            method,
+            tuple(sorted(options.items())),
+        )
+        trajectory = solved.get(key)
+        if trajectory is None:
+            trajectory = solved[key] = solve(problem, method, **options)
+        results.append(_finish(scene, chosen, trajectory, with_vibration))
+    return results
+
+
+def _prepare(
+    scene: Scene, tier: str, needs: Needs, settings: FidelitySettings, solver: str | None
+) -> tuple[Plan, ImpactProblem, str, dict[str, Any]]:
+    """The plan of ``scene``, its impact problem, the solver and the plan's options for it
+    (none when ``solver`` is another than the tier's)."""
     chosen = plan(scene, tier, needs, settings)
     crushing = (
         crushing_contact(scene.support, scene.impact, settings.crushing_confinement_factor)
@@ -198,12 +263,14 @@ def simulate(
         structure=chosen.structure,
         crushing=crushing,
     )
-    options = (
-        {**chosen.solver_options, **solver_options}
-        if solver in (None, chosen.solver)
-        else solver_options
-    )
-    trajectory = solve(problem, solver or chosen.solver, **options)
+    options = chosen.solver_options if solver in (None, chosen.solver) else {}
+    return chosen, problem, solver or chosen.solver, dict(options)
+
+
+def _finish(
+    scene: Scene, chosen: Plan, trajectory: Trajectory, vibration: bool
+) -> SimulationResult:
+    """The sensors of ``trajectory`` and the summary's tier and error estimate."""
     result = sense(scene, trajectory, vibration)
     # The solver's own estimate is a field of every trajectory (contract:
     # tail_beam_sim.physics.solvers).
@@ -212,12 +279,6 @@ def simulate(
     result.summary["error_estimate"] = (
         max(chosen.model_error, own) if math.isfinite(own) else math.nan
     )
-    if check and chosen.check_against is not None:
-        reference = simulate(scene, tier=chosen.check_against, needs=needs, settings=settings)
-        result.summary["check"] = {
-            "against": chosen.check_against,
-            **compare(result, reference, needs.outputs),
-        }
     return result
 
 
