@@ -86,6 +86,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="skip timing simulate() as a whole (every sensor) against Radau",
     )
+    parser.add_argument(
+        "--simulate-impacts",
+        type=int,
+        default=40,
+        help=(
+            "distinct impacts in the simulate_many throughput run (full streams, every sensor); "
+            "0 skips it"
+        ),
+    )
     parser.add_argument("--no-plot", action="store_true", help="do not write charts")
     parser.add_argument(
         "--json",
@@ -101,6 +110,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--repeats", repeats, "must be >= 1")
     if args.batch_impacts < 0:
         raise InputError("--batch-impacts", args.batch_impacts, "must be >= 0")
+    if args.simulate_impacts < 0:
+        raise InputError("--simulate-impacts", args.simulate_impacts, "must be >= 0")
     scene = scene_from_args(args)
     _, _, settings = fidelity_from_args(
         argparse.Namespace(config=args.config, outputs=None, tolerance=None, tier=None)
@@ -172,6 +183,11 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_simulate:
         progress("simulate() with every sensor against Radau rtol 1e-8")
         report["simulate"] = bench.simulate_speed(scene, settings, repeats, args.min_time_s)
+        if args.simulate_impacts:
+            progress(f"simulate_many, {args.simulate_impacts} impacts")
+            report["simulate"]["many"] = bench.simulate_throughput(
+                scene, settings, args.simulate_impacts, repeats, min_time_s=args.min_time_s
+            )
     if not args.no_plot:
         report["charts"] = [str(p) for p in write_charts(Path(args.out), rows, tier_rows)]
     if args.json:
@@ -246,6 +262,14 @@ def print_simulate(figures: dict[str, Any]) -> None:
         "  medians, ms: "
         + ", ".join(f"{name} {figures[f'{name}_median_s'] * 1e3:.3f}" for name in stages)
     )
+    if "many" in figures:
+        many = figures["many"]
+        print(
+            f"simulate_many (one process, full streams, every sensor): "
+            f"{many['impacts_per_s']:,.0f} distinct impacts/s; each impact at "
+            f"{many['sensor_settings']} sensor settings (solved once): "
+            f"{many['results_per_s_at_settings']:,.0f} results/s"
+        )
 
 
 def _table(rows: list[bench.Row]) -> str:

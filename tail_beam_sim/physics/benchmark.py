@@ -11,7 +11,9 @@ relative, against a reference solved by Radau at ``REFERENCE_RTOL`` and checked 
 * the IMU waveform: the period-averaged accelerometer at the IMU rate over the window, relative L2.
 
 :func:`simulate_speed` times the whole of ``simulate()`` (plan, solve, every sensor of the
-layout, summary) against Radau at rtol 1e-8 solving the same impact, per stage.
+layout, summary) against Radau at rtol 1e-8 solving the same impact, per stage;
+:func:`simulate_throughput` the full streams of many impacts per second through
+``simulate_many``.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from __future__ import annotations
 import statistics
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -35,7 +37,13 @@ from tail_beam_sim.physics.fidelity import (
 )
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.sensors import SensorSuite, imu_samples, sample_grid
-from tail_beam_sim.physics.simulate import HISTORY_RATE_HZ, build_problem, sense, simulate
+from tail_beam_sim.physics.simulate import (
+    HISTORY_RATE_HZ,
+    build_problem,
+    sense,
+    simulate,
+    simulate_many,
+)
 from tail_beam_sim.physics.solvers import ImpactProblem, Trajectory, solve
 
 REFERENCE_RTOL = 1e-11
@@ -406,3 +414,52 @@ def simulate_speed(
         "rebound_error": rebound / abs(reference.rebound_velocity_mps),
         "rounds": rounds,
     }
+
+
+def simulate_throughput(
+    scene: Scene,
+    settings: FidelitySettings,
+    impacts: int,
+    repeats: int,
+    seed: int = 0,
+    min_time_s: float = MIN_TIMED_S,
+    sensor_settings: int = 3,
+) -> dict[str, float]:
+    """Impacts per second (one process) of ``simulate_many`` at the default tier, every sensor of
+    the scene's layout on: ``impacts`` distinct impacts (coal and gangue, radii 25-100 mm, drop
+    heights 0.5-4 m, positions over the impact zone), and the same impacts each at
+    ``sensor_settings`` sensor settings (noise and seed varied, as a data set varies them;
+    results per second)."""
+    rng = np.random.default_rng(seed)
+    names = [n for n, m in scene.materials.items() if m.material_class != "structure"]
+    support = scene.support
+    drawn = []
+    for _ in range(impacts):
+        height = float(rng.uniform(0.5, 4.0))
+        material = scene.materials[str(rng.choice(names))]
+        drawn.append(
+            scene.with_impact(
+                material=material,
+                restitution=material.restitution,
+                radius_m=float(rng.uniform(0.025, 0.1)),
+                drop_height_m=height,
+                impact_speed_mps=float(np.sqrt(2 * support.gravity_mps2 * height)),
+                position_m=float(
+                    rng.uniform(support.impact_zone_min_m, support.impact_zone_max_m)
+                ),
+            )
+        )
+    drawn = [replace(s, sensors=replace(s.sensors, seed=k)) for k, s in enumerate(drawn)]
+    varied = [
+        replace(s, sensors=replace(s.sensors.scaled_noise(1.0 + j), seed=s.sensors.seed + j))
+        for s in drawn
+        for j in range(sensor_settings)
+    ]
+    out = {}
+    times, _ = timed(lambda: simulate_many(drawn, settings=settings), repeats, min_time_s)
+    out["impacts_per_s"] = impacts / statistics.median(times)
+    times, _ = timed(lambda: simulate_many(varied, settings=settings), repeats, min_time_s)
+    out["results_per_s_at_settings"] = len(varied) / statistics.median(times)
+    out["sensor_settings"] = sensor_settings
+    out["impacts"] = impacts
+    return out

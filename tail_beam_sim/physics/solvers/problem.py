@@ -190,8 +190,25 @@ class Trajectory:
     def sample(self, t_s: np.ndarray) -> Samples:
         """Evaluate the state at times ``t_s`` (any order, any range)."""
         times = np.atleast_1d(np.asarray(t_s, dtype=float))
+        starts = np.array([seg.start_s for seg in self.segments])
+        # at most the last segment's index; times before the first segment's start are
+        # evaluated on it
+        which = np.maximum(np.searchsorted(starts, times, side="right") - 1, 0)
+        # Each segment's times as one contiguous run: times out of segment order (several sets
+        # of times asked at once) are grouped by segment, evaluated in runs and put back in
+        # their order once per array at the end, not once per segment.
+        if times.size < 2 or bool((which[1:] >= which[:-1]).all()):
+            return self._sample_grouped(times, which)
+        order = np.argsort(which, kind="stable")
+        grouped = self._sample_grouped(times[order], which[order])
+        out = self._empty_samples(times)
+        for name in ("q", "qd", "qdd", "force_n", "z_m", "zd_mps"):
+            getattr(out, name)[..., order] = getattr(grouped, name)
+        return out
+
+    def _empty_samples(self, times: np.ndarray) -> Samples:
         n = self.problem.structure.size
-        out = Samples(
+        return Samples(
             t_s=times,
             q=np.zeros((n, times.size)),
             qd=np.zeros((n, times.size)),
@@ -200,22 +217,16 @@ class Trajectory:
             z_m=np.zeros(times.size),
             zd_mps=np.zeros(times.size),
         )
-        starts = np.array([seg.start_s for seg in self.segments])
-        # at most the last segment's index; times before the first segment's start are
-        # evaluated on it
-        which = np.maximum(np.searchsorted(starts, times, side="right") - 1, 0)
-        # Each segment's times as one index array (a slice when the times are in order): a
-        # boolean mask per segment would cost a pass over every time for every segment.
-        ordered = times.size < 2 or bool((which[1:] >= which[:-1]).all())
-        order = None if ordered else np.argsort(which, kind="stable")
-        edges = np.searchsorted(
-            which if order is None else which[order], np.arange(len(self.segments) + 1)
-        ).tolist()
+
+    def _sample_grouped(self, times: np.ndarray, which: np.ndarray) -> Samples:
+        """The states at ``times`` whose segment indices ``which`` do not decrease."""
+        out = self._empty_samples(times)
+        edges = np.searchsorted(which, np.arange(len(self.segments) + 1)).tolist()
         for index in range(len(self.segments)):
             lo, hi = edges[index], edges[index + 1]
             if lo == hi:
                 continue
-            where = slice(lo, hi) if order is None else order[lo:hi]
+            where = slice(lo, hi)
             segment = self.segments[index]
             if isinstance(segment, FreeSegment):
                 self._sample_free(segment, times[where], out, where)
@@ -254,24 +265,20 @@ class Trajectory:
         cache[index] = (segment, stacks)
         return stacks
 
-    def _sample_free(
-        self, seg: FreeSegment, times: np.ndarray, out: Samples, mask: slice | np.ndarray
-    ) -> None:
+    def _sample_free(self, seg: FreeSegment, times: np.ndarray, out: Samples, mask: slice) -> None:
         structure = self.problem.structure
         dt = times - seg.anchor_s
         q, qd = structure.propagate(seg.q, seg.qd, dt)
         out.q[:, mask], out.qd[:, mask] = q, qd
-        # no contact force: q'' = -M^-1 (C q' + K q) (structure.acceleration without the force)
-        out.qdd[:, mask] = -(
-            structure.inv_mass @ (structure.damping @ qd + structure.stiffness @ q)
-        )
+        # no contact force: q'' = -M^-1 (C q' + K q), each time's value independent of how many
+        # are asked at once (as propagate's)
+        internal = _columnwise(structure.damping, qd) + _columnwise(structure.stiffness, q)
+        out.qdd[:, mask] = -_columnwise(structure.inv_mass, internal)
         g = self.problem.gravity_mps2
         out.z_m[mask] = seg.z_m + seg.zd_mps * dt - 0.5 * g * dt * dt
         out.zd_mps[mask] = seg.zd_mps - g * dt
 
-    def _sample_ode(
-        self, seg: OdeSegment, times: np.ndarray, out: Samples, mask: slice | np.ndarray
-    ) -> None:
+    def _sample_ode(self, seg: OdeSegment, times: np.ndarray, out: Samples, mask: slice) -> None:
         n = self.problem.structure.size
         states = seg.dense(np.clip(times, seg.t_s[0], seg.t_s[-1]))
         q, qd = states[:n], states[n : 2 * n]
@@ -286,7 +293,7 @@ class Trajectory:
         seg: ContactSegment,
         times: np.ndarray,
         out: Samples,
-        mask: slice | np.ndarray,
+        mask: slice,
         stacks: tuple[np.ndarray, np.ndarray, np.ndarray],
     ) -> None:
         """Cubic Hermite through the steps of ``seg`` (values and slopes: :meth:`_stacks`),
@@ -309,3 +316,13 @@ class Trajectory:
         out.z_m[mask], out.zd_mps[mask] = y[2 * n], y[2 * n + 1]
         out.qdd[:, mask] = seg.qdd[:, k] * (1 - s) + seg.qdd[:, k + 1] * s
         out.force_n[mask] = seg.force_n[k] * (1 - s) + seg.force_n[k + 1] * s
+
+
+def _columnwise(matrix: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``matrix @ values`` (values (n, T)) summed term by term in a fixed order, so that each
+    column's result does not depend on the other columns: a BLAS product (or einsum) takes
+    other code paths, rounding differently, for one column than for many."""
+    out = matrix[:, :1] * values[0]
+    for j in range(1, matrix.shape[1]):
+        out = out + matrix[:, j : j + 1] * values[j]
+    return out

@@ -11,7 +11,8 @@ from tail_beam_sim.physics.benchmark import Row, mark_pareto
 
 def test_bench_prints_figures_marks_the_front_and_writes_charts(tmp_path, capsys):
     """`tail-beam bench --json` reports every solver against Radau, both ends of the Pareto
-    front on it, the hybrid within 1 %, and writes PNG charts."""
+    front on it, the hybrid within 1 %, simulate() as a whole against Radau (its rebound within
+    1 %, every stage timed) and simulate_many's throughput, and writes PNG charts."""
     code = main(
         [
             "bench",
@@ -25,6 +26,8 @@ def test_bench_prints_figures_marks_the_front_and_writes_charts(tmp_path, capsys
             "0",
             "--batch-impacts",
             "2000",
+            "--simulate-impacts",
+            "3",
             "--no-tiers",
             "--out",
             str(tmp_path),
@@ -53,6 +56,14 @@ def test_bench_prints_figures_marks_the_front_and_writes_charts(tmp_path, capsys
         report["batch"]["rigid_summaries_per_s"] > 0
         and report["real_time"]["modal_real_time_factor"] > 0
     )
+    whole = report["simulate"]
+    assert whole["rebound_error"] < 0.01
+    assert whole["speedup"] > 0 and whole["speedup_no_vibration"] > 0
+    assert all(
+        whole[f"{stage}_median_s"] > 0
+        for stage in ("plan", "solve", "sensors", "sensors_no_vibration", "simulate", "radau")
+    )
+    assert whole["many"]["impacts"] == 3 and whole["many"]["impacts_per_s"] > 0
     for chart in report["charts"]:
         assert open(chart, "rb").read(8) == b"\x89PNG\r\n\x1a\n"
 
