@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -68,20 +69,18 @@ def test_beam_jack_mode_frequency_from_free_vibration(params):
     assert support.rigid_mode_damping_ratio < 0.01
 
 
-def _heavy_stiff_support_params(gravity_mps2: float = 0.0) -> dict:
-    """A support so heavy and stiff that the plate is a rigid wall for a 25 mm sphere."""
-    params = load_parameters()
-    deep_merge(
-        params,
-        {
-            "support": {
-                "beam_inertia_about_hinge_kgm2": 1e12,
-                "gravity_mps2": gravity_mps2,
-                "oil_bulk_modulus_pa": 1e14,
-            }
-        },
+def _rigid_wall_scene(overrides: dict, params: dict | None = None) -> Scene:
+    """A scene (``overrides`` of scene.*) on a support so heavy and stiff, and without gravity,
+    that the plate is a rigid wall for a 25 mm sphere: an inertia past the bounds a support's
+    parameters are validated against, so set on the built support."""
+    scene = Scene.from_params(params or load_parameters(), overrides)
+    wall = replace(
+        scene.support,
+        beam_inertia_about_hinge_kgm2=1e12,
+        gravity_mps2=0.0,
+        oil_bulk_modulus_pa=1e14,
     )
-    return params
+    return replace(scene, support=wall)
 
 
 @pytest.mark.parametrize("material", ["coal", "marble"])
@@ -89,9 +88,8 @@ def test_elastic_hertz_impact_matches_closed_form(material):
     """Elastic Hertz impact on a rigid wall (Johnson, Contact Mechanics, 11.2): delta* =
     (15 m v^2 / 16 E* R^0.5)^(2/5), F* = 4/3 E* R^0.5 delta*^1.5, t_c = 2 delta*/v
     int_0^1 du / sqrt(1 - u^2.5); the rebound equals the impact speed (no loss, no gravity)."""
-    scene = Scene.from_params(
-        _heavy_stiff_support_params(),
-        {"material": material, "contact_model": "hertz", "impact_speed_mps": 8.0},
+    scene = _rigid_wall_scene(
+        {"material": material, "contact_model": "hertz", "impact_speed_mps": 8.0}
     )
     steel = scene.support.plate
     particle = scene.impact.material
@@ -117,10 +115,7 @@ REQUESTED_E = [0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
 
 
 def _delivered_restitution(law: str, e: float) -> float:
-    scene = Scene.from_params(
-        _heavy_stiff_support_params(),
-        {"contact_model": law, "restitution": e, "impact_speed_mps": 5.0},
-    )
+    scene = _rigid_wall_scene({"contact_model": law, "restitution": e, "impact_speed_mps": 5.0})
     return simulate(scene).summary["restitution"]
 
 
@@ -129,7 +124,7 @@ def test_default_law_delivers_requested_restitution(e):
     """The default law delivers e within 2 % over 0.3-0.9 (full simulation on a rigid
     wall; the law's chi comes from a separate dimensionless integration, so this checks one against
     the other)."""
-    scene = Scene.from_params(_heavy_stiff_support_params(), {"impact_speed_mps": 5.0})
+    scene = _rigid_wall_scene({"impact_speed_mps": 5.0})
     assert scene.contact_model == "calibrated"
     assert _delivered_restitution("calibrated", e) == pytest.approx(e, rel=0.02)
 
@@ -177,11 +172,9 @@ def test_the_supports_contact_damping_scale_multiplies_the_laws_hysteresis(scale
     hysteresis, a slower rebound."""
     from tail_beam_sim.physics.contact import damping_factor, delivered_restitution
 
-    params = deep_merge(
-        _heavy_stiff_support_params(), {"support": {"contact_damping_scale": scale}}
-    )
-    scene = Scene.from_params(
-        params, {"contact_model": "hunt_crossley", "restitution": 0.35, "impact_speed_mps": 5.0}
+    params = deep_merge(load_parameters(), {"support": {"contact_damping_scale": scale}})
+    scene = _rigid_wall_scene(
+        {"contact_model": "hunt_crossley", "restitution": 0.35, "impact_speed_mps": 5.0}, params
     )
     delivered = simulate(scene).summary["restitution"]
     assert delivered == pytest.approx(

@@ -217,3 +217,18 @@ def test_model_errors_depend_on_the_impact_position_through_the_cache(params):
     near = model_errors(_scene(params, position_m=0.45), settings.needs, settings.modes)
     far = model_errors(_scene(params, position_m=1.35), settings.needs, settings.modes)
     assert near["rigid"] != far["rigid"] and near["rigid"] > 0 and far["rigid"] > 0
+
+
+def test_contact_gradient_is_numpys_bit_for_bit():
+    """The contact segments' particle acceleration (problem._gradient) equals np.gradient bit
+    for bit, on uniform steps, on uneven ones and on a single step."""
+    from tail_beam_sim.physics.solvers.problem import _gradient
+
+    rng = np.random.default_rng(0)
+    for t in (
+        np.arange(40) * 3e-6 + 1e-3,
+        np.cumsum(rng.uniform(1e-6, 5e-6, 40)),
+        np.array([0.0, 2e-6]),
+    ):
+        values = rng.normal(size=t.size)
+        assert np.array_equal(_gradient(values, np.diff(t)), np.gradient(values, t))
