@@ -378,10 +378,9 @@ SUPPORT = Section(
         positive("beam_mass_kg", "Mass of the tail beam.", "kg"),
         number(
             "beam_inertia_about_hinge_kgm2",
-            "Beam's moment of inertia about the hinge.",
+            "Beam's moment of inertia about the hinge (a rigid wall: very large).",
             "kg m^2",
             1.0,
-            1e6,
         ),
         text("plate_material", "Material of the impact plate (a materials entry)."),
         positive("plate_thickness_m", "Impact plate thickness.", "m", high=1.0),
