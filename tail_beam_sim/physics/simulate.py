@@ -183,7 +183,7 @@ def simulate(
     the solver together); ``check=True`` also simulates the next tier up and adds the measured
     differences as ``check``. ``vibration=False``: a site without the tail-beam accelerometer
     (no blocks; the other streams are the same, and the accelerometer model, the costliest
-    sensor at 25.6 kHz, is not run).
+    sensor, is not run).
     """
     settings = settings or shipped_settings()
     needs = needs or settings.needs

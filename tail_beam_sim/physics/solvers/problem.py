@@ -239,8 +239,9 @@ class Trajectory:
     def sample_many(self, parts: Sequence[np.ndarray]) -> list[Samples]:
         """Evaluate the state at several sets of times in one pass: the same values as
         ``[self.sample(t) for t in parts]`` (each time's state does not depend on the others
-        asked with it), at the cost of one call: the sensors of one impact ask for a few
-        thousand times in half a dozen sets, and the per-call work is most of the cost."""
+        asked with it), at the cost of one call: the sensors of one impact ask for thousands
+        of instants in several sets, and the work per call weighs as much as the work per
+        instant."""
         arrays = [np.atleast_1d(np.asarray(t, dtype=float)) for t in parts]
         edges = np.cumsum([0] + [a.size for a in arrays])
         union = self.sample(np.concatenate(arrays) if arrays else np.empty(0))
