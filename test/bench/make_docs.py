@@ -112,6 +112,29 @@ FAMILIES: tuple[Family, ...] = (
         },
     ),
     Family(
+        "headline",
+        "Headline: the statistical method on the shipped support",
+        "the default method on the nominal support's paper, stream and mismatch sets at the "
+        "shipped layout and without the accelerometer (README's headline table)",
+        "tail-beam evaluate --sets paper,stream,mismatch --count 600 --noise 1 "
+        "--rates shipped,nominal --methods statistical",
+        "tail-beam evaluate --sets paper,stream,mismatch --count 100 --noise 1 "
+        "--rates shipped,nominal --methods statistical",
+        8.0,
+    ),
+    Family(
+        "headline_foreign",
+        "Headline: the statistical method on supports it never saw",
+        "the default method on drawn foreign supports (stream and paper scenes) at the shipped "
+        "layout, uncalibrated and self-calibrated from each support's own recording "
+        "(README's headline table)",
+        "tail-beam evaluate --sets foreign,foreign_paper --count 600 --noise 1 --rates shipped "
+        "--methods statistical --profiles nominal,self-calibrated",
+        "tail-beam evaluate --sets foreign,foreign_paper --count 100 --noise 1 --rates shipped "
+        "--methods statistical --profiles nominal,self-calibrated",
+        12.0,
+    ),
+    Family(
         "robustness",
         "Robustness: sensors that differ from the simulator's",
         "the foreign set's recordings changed as another sensor, DAQ or simulator would "
