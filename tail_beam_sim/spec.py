@@ -625,7 +625,7 @@ STREAM = Section(
 )
 
 QOS_DEPTH = integer(
-    "qos_depth", "Best-effort history depth of the sensor topics, messages (0 = keep all).", 0, MAX_QOS_DEPTH
+    "qos_depth", "History depth of the stream topics, messages (0 = keep all).", 0, MAX_QOS_DEPTH
 )
 WAIT_FOR_SUBSCRIBERS = integer(
     "wait_for_subscribers", "Subscribers each stream waits for before publishing.", 0, 1000
