@@ -17,10 +17,8 @@ from rclpy.task import Future
 from std_msgs.msg import String
 
 from tail_beam_id.stream.label import Label
-from tail_beam_sim.ros import messages as ros_messages
 
 RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
-SENSOR = ros_messages.sensor_qos(10000)  # what the sensor topics' writers offer (best effort)
 
 
 @contextmanager
@@ -40,8 +38,7 @@ def ros_context() -> Iterator[tuple[rclpy.Context, EventsExecutor]]:
 
 
 class Probe(Node):
-    """Records every message of the given topics (the sensor topics best effort, as their
-    writers offer them, the others reliable) and publishes impact commands."""
+    """Records every message of the given topics and publishes impact commands."""
 
     def __init__(
         self,
@@ -54,10 +51,7 @@ class Probe(Node):
         self.messages: dict[str, list[Any]] = {topic: [] for topic in topics}
         for topic, msg_type in topics.items():
             self.create_subscription(
-                msg_type,
-                topic,
-                lambda msg, t=topic: self.messages[t].append(msg),
-                SENSOR if topic in ros_messages.SENSOR_TOPICS else RELIABLE,
+                msg_type, topic, lambda msg, t=topic: self.messages[t].append(msg), RELIABLE
             )
         self.command_pub = self.create_publisher(String, "impact_cmd", RELIABLE)
 

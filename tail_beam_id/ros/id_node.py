@@ -26,13 +26,8 @@ whose index is behind while its stamp is not, logged as an index that does not c
 samples (``vibration_misindexed_blocks``). Blocks of another source on the topic (a stray
 block stamped far ahead, a second publisher's interleaved stream, a block of another sample
 period) are set aside and counted (``vibration_stray_blocks``), never let move the stream in
-use (tail_beam_id.ros.arrival). The sensor topics are subscribed best effort, as their writers
-offer them (tail_beam_sim.ros.messages.sensor_qos): what this node cannot take in time is lost
-to it alone, never held up for the others, and counted: vibration samples by the index, and
-jack_pressure and imu messages by the middleware's message-lost events
-(``pressure_lost_messages``, ``imu_lost_messages``), warned of and said on exit. Warnings of one
-kind are said at most every WARN_EVERY_S: the first at once, then the latest with the count held
-back.
+use (tail_beam_id.ros.arrival). Warnings of one kind are said at most every WARN_EVERY_S: the
+first at once, then the latest with the count held back.
 """
 
 from __future__ import annotations
@@ -45,7 +40,6 @@ import time
 
 import numpy as np
 from geometry_msgs.msg import TwistStamped
-from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.node import Node
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
@@ -237,28 +231,15 @@ class IdNode(Node):
         # vibration messages that carried no block (their index, period or range out of range)
         self.refused_blocks = 0
         self.warnings = Warnings(self.get_logger().warning)
-        # Sensor topics best effort (ros_messages.sensor_qos, what their writers offer); the
-        # messages the middleware reports lost on them are counted (module docstring).
-        sensor_qos = ros_messages.sensor_qos(depth)
+        sensor_qos = ros_messages.stream_qos(depth)
         event_qos = ros_messages.EVENT_QOS
-        self.lost_messages = {topics.JACK_PRESSURE: 0, topics.IMU: 0}
         self._label_pub = self.create_publisher(
             String, topics.LABEL, ros_messages.EVENT_PUBLISHER_QOS
         )
         self.create_subscription(
-            FluidPressure,
-            topics.JACK_PRESSURE,
-            self._on_pressure,
-            sensor_qos,
-            event_callbacks=self._lost_callbacks(topics.JACK_PRESSURE),
+            FluidPressure, topics.JACK_PRESSURE, self._on_pressure, sensor_qos
         )
-        self.create_subscription(
-            Imu,
-            topics.IMU,
-            self._on_imu,
-            sensor_qos,
-            event_callbacks=self._lost_callbacks(topics.IMU),
-        )
+        self.create_subscription(Imu, topics.IMU, self._on_imu, sensor_qos)
         self.create_subscription(LaserScan, topics.VIBRATION, self._on_vibration, sensor_qos)
         self.create_subscription(
             TwistStamped, topics.REBOUND_VELOCITY, self._on_rebound, event_qos
@@ -287,41 +268,6 @@ class IdNode(Node):
                 f"calibration: learning the support from the first {learn_s:g} s of data "
                 "(labels say calibrated: false until then)"
             )
-
-    def _lost_callbacks(self, topic: str) -> SubscriptionEventCallbacks:
-        def on_lost(info: QoSMessageLostInfo) -> None:
-            before = self.lost_messages[topic]
-            self.lost_messages[topic] = ros_messages.event_total(before, info)
-            self.warnings.warn(
-                f"{topic}: {self.lost_messages[topic] - before} message(s) lost (middleware); "
-                f"{self.lost_messages[topic]} lost in all",
-                time.monotonic(),
-            )
-
-        return SubscriptionEventCallbacks(message_lost=on_lost)
-
-    @property
-    def pressure_lost_messages(self) -> int:
-        """jack_pressure messages the middleware reported lost (message-lost events)."""
-        return self.lost_messages[topics.JACK_PRESSURE]
-
-    @property
-    def imu_lost_messages(self) -> int:
-        """imu messages the middleware reported lost (message-lost events)."""
-        return self.lost_messages[topics.IMU]
-
-    def loss_report(self) -> str:
-        """One line: what was lost of each sensor stream."""
-        return (
-            f"lost {self.pressure_lost_messages} jack_pressure messages, "
-            f"{self.imu_lost_messages} imu messages (middleware events), "
-            f"{self.vibration_lost_samples} vibration samples (index gaps), "
-            f"{self.vibration_late_blocks} late vibration blocks"
-        )
-
-    def close(self) -> None:
-        """Say on the way out what was lost of the sensor streams."""
-        print(f"id_node: {self.published} labels published; {self.loss_report()}", file=sys.stderr)
 
     def _arrived(self, topic: str, message: object, last_stamp_s: float | None = None) -> None:
         """Keep a message with its arrival time; for a continuous topic (``last_stamp_s``: its

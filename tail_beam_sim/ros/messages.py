@@ -11,14 +11,12 @@ from __future__ import annotations
 import array
 import importlib
 import json
-import time
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TwistStamped
-from rclpy.event_handler import PublisherEventCallbacks, QoSOfferedIncompatibleQoSInfo
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
@@ -48,68 +46,12 @@ EVENT_TOPICS = (topics.REBOUND_VELOCITY, topics.IMPACT_TRUTH, topics.LABEL)
 COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 
 
-SENSOR_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION)
-INCOMPATIBLE_WARN_EVERY_S = 10.0  # wall s between two incompatible-QoS warnings of one writer
-
-
-def sensor_qos(depth: int) -> QoSProfile:
-    """QoS of the per-sample sensor topics (SENSOR_TOPICS), for their writers and readers alike:
-    best effort and volatile, as ROS sensor drivers publish (``qos_profile_sensor_data``), so
-    that a slow reader loses only its own samples instead of holding the writer up (reliable
-    flow control) and delaying every other reader. ``depth`` is the keep-last history, deep so
-    that a reader busy for a moment still finds what came meanwhile; 0 keeps all."""
+def stream_qos(depth: int) -> QoSProfile:
+    """Reliable QoS of a sensor stream; ``depth`` 0 keeps all, so that a slow subscriber slows
+    the publisher down (reliable flow control) instead of losing samples."""
     if depth == 0:
-        return QoSProfile(
-            history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.BEST_EFFORT
-        )
-    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.BEST_EFFORT)
-
-
-class IncompatibleReaders:
-    """A sensor writer's incompatible-QoS event callbacks: a reader that asks for reliable
-    delivery gets nothing from a best-effort writer, which is said once, then at most every
-    INCOMPATIBLE_WARN_EVERY_S with the count, never once per event (a client retrying would
-    flood the log)."""
-
-    def __init__(self, logger: Any, topic: str) -> None:
-        self._logger = logger
-        self._topic = topic
-        self.count = 0
-        self._said = 0
-        self._said_s = -float("inf")
-
-    def callbacks(self) -> PublisherEventCallbacks:
-        return PublisherEventCallbacks(incompatible_qos=self._on_incompatible)
-
-    def _on_incompatible(self, info: QoSOfferedIncompatibleQoSInfo) -> None:
-        self.count = event_total(self.count, info)
-        now = time.monotonic()
-        if now - self._said_s < INCOMPATIBLE_WARN_EVERY_S:
-            return
-        self._said_s, new = now, self.count - self._said
-        self._said = self.count
-        self._logger.warning(
-            f"{self._topic}: {new} reader(s) asked for QoS this best-effort sensor writer does "
-            f"not offer ({self.count} in all); they get no data: subscribe best effort "
-            "(qos_profile_sensor_data-like, docs/nodes.md)"
-        )
-
-
-def event_total(before: int, info: Any) -> int:
-    """A status event's running count of one entity, from the count before and the event's
-    ``total_count`` and ``total_count_change``: whichever says more, and at least one more than
-    before, since an event says something happened (the Fast DDS of the pip wheels can report a
-    change of 0)."""
-    return max(before + max(int(info.total_count_change), 1), int(info.total_count))
-
-
-def sensor_publisher(node: Any, msg_type: type, topic: str, depth: int) -> Any:
-    """A sensor topic's writer (:func:`sensor_qos`) whose incompatible readers are warned of
-    rate-limited (:class:`IncompatibleReaders`)."""
-    watch = IncompatibleReaders(node.get_logger(), topic)
-    return node.create_publisher(
-        msg_type, topic, sensor_qos(depth), event_callbacks=watch.callbacks()
-    )
+        return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def message_class(msgtype: str) -> type:

@@ -13,9 +13,8 @@ would rewrite the log times) are refused.
 Like ``ros2 bag record``: a new file every ``max_bag_duration_s`` of log time (at least 1 s) or
 ``max_bag_size_bytes`` (at least 1 MiB; 0 = never: a smaller split would write a file per
 message and lose most of them), mcap chunks zstd-compressed (``compression``), and a count
-of messages lost, reported on exit and kept in the bag's metadata (``custom_data``, LOST_KEYS):
-the vibration samples missing from the running index, and the middleware's message-lost events
-(all, and those of jack_pressure and imu).
+of messages lost, reported on exit and kept in the bag's metadata (``custom_data``): the
+vibration samples missing from the running index, and the middleware's message-lost events.
 
 Samples are counted missing only within one consistent block stream (stamps that agree with
 the running index, one sample period): a block of another source on the topic (stamped far
@@ -23,11 +22,6 @@ ahead with a huge index, a second publisher's interleaved stream) or of another 
 is recorded, counted apart and warned of (the first, then every WARN_EVERY_BLOCKS-th), never
 counted as samples lost. Another stream replaces the one followed only once that one has sent
 nothing for SWITCH_AFTER_S while the other went on (a restarted or replaced source).
-
-The sensor topics (jack_pressure, imu, vibration) are subscribed best effort with a
-``qos_depth`` history (tail_beam_sim.ros.messages.sensor_qos): that matches the suite's
-best-effort writers and a foreign reliable publisher alike, and a recorder that falls behind
-loses only its own samples, counted, instead of slowing the publisher for every other reader.
 
 Like rosbag2, it subscribes to the event topics (rebound_velocity, impact_truth, label) with
 the durability their publishers offer: transient-local when every publisher offers it (the
@@ -72,9 +66,7 @@ from tail_beam_sim.spec import RECORDER
 LOST_KEYS = (
     "tail_beam.vibration_lost_samples",
     "tail_beam.messages_lost_events",
-    "tail_beam.jack_pressure_lost_messages",
-    "tail_beam.imu_lost_messages",
-)  # bag metadata custom_data: index gaps, all message-lost events, those of each sensor topic
+)  # bag metadata custom_data
 DISCOVERY_PERIOD_S = 0.1  # how often the event topics' publishers are looked at, s
 RECENT_EVENTS = 1000  # events per topic remembered, so that one delivered twice is written once
 REDELIVERY_S = (
@@ -172,12 +164,11 @@ class RecorderNode(Node):
         self._sequence = (
             BlockSequencer()
         )  # the blocks in index order, for an index that does not count samples
-        self.lost_events = 0  # message-lost events of every topic
-        self.lost_messages = {topic: 0 for topic in topics.MSG_TYPES}  # the same per topic
+        self.lost_events = 0
         self.refused_blocks = (
             0  # vibration messages without a readable block index (recorded, not counted)
         )
-        self.qos = ros_messages.sensor_qos(depth)
+        self.qos = ros_messages.stream_qos(depth)
         self._events: dict[str, tuple[object, tuple[DurabilityPolicy, ReliabilityPolicy]]] = {}
         self._recent: dict[str, OrderedDict[bytes, None]] = {
             topic: OrderedDict() for topic in ros_messages.EVENT_TOPICS
@@ -185,15 +176,8 @@ class RecorderNode(Node):
         self._resubscribed: dict[
             str, float
         ] = {}  # event topic -> when it was last re-subscribed (monotonic s)
-        # Sensor topics best effort (module docstring); the event topics start reliable and
-        # follow their publishers (_follow_event_publishers).
-        reliable = QoSProfile(
-            history=self.qos.history, depth=self.qos.depth, reliability=ReliabilityPolicy.RELIABLE
-        )
         for topic in topics.MSG_TYPES:
-            subscription = self._subscribe(
-                topic, self.qos if topic in ros_messages.SENSOR_TOPICS else reliable
-            )
+            subscription = self._subscribe(topic, self.qos)
             if topic in ros_messages.EVENT_TOPICS:
                 self._events[topic] = (
                     subscription,
@@ -221,9 +205,7 @@ class RecorderNode(Node):
             lambda data, t=topic: self._write(t, data),
             qos,
             raw=True,
-            event_callbacks=SubscriptionEventCallbacks(
-                message_lost=lambda info, t=topic: self._on_lost(t, info)
-            ),
+            event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_lost),
         )
 
     def _follow_event_publishers(self) -> None:
@@ -382,10 +364,8 @@ class RecorderNode(Node):
         """Samples missing from the running index of the block streams followed."""
         return self._lost_before + self.vibration.lost_samples
 
-    def _on_lost(self, topic: str, info: QoSMessageLostInfo) -> None:
-        before = self.lost_messages[topic]
-        self.lost_messages[topic] = ros_messages.event_total(before, info)
-        self.lost_events += self.lost_messages[topic] - before
+    def _on_lost(self, info: QoSMessageLostInfo) -> None:
+        self.lost_events += info.total_count_change
 
     def loss_report(self) -> str:
         """One line: vibration samples and blocks recorded, samples missing, message-lost
@@ -395,17 +375,13 @@ class RecorderNode(Node):
             f"vibration {v.samples} samples in {v.blocks} blocks, {self.vibration_lost_samples} "
             "samples lost (index gaps); "
             f"{self.stray_blocks + self.other_period_blocks} blocks of another source or "
-            f"period not counted; {self.lost_events} messages lost (middleware events: "
-            f"jack_pressure {self.lost_messages[topics.JACK_PRESSURE]}, "
-            f"imu {self.lost_messages[topics.IMU]})"
+            f"period not counted; {self.lost_events} messages lost (middleware events)"
         )
 
     def close(self) -> None:
         """Close the bag (every message received so far is in it), with the loss counts."""
         self.writer.set_custom_data(LOST_KEYS[0], str(self.vibration_lost_samples))
         self.writer.set_custom_data(LOST_KEYS[1], str(self.lost_events))
-        self.writer.set_custom_data(LOST_KEYS[2], str(self.lost_messages[topics.JACK_PRESSURE]))
-        self.writer.set_custom_data(LOST_KEYS[3], str(self.lost_messages[topics.IMU]))
         self.writer.close()
         print(
             f"bag_recorder: closed {self.bag_path}: {self.writer.message_count} messages; "

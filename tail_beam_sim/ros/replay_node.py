@@ -25,7 +25,6 @@ import time
 from collections.abc import Iterator
 
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
@@ -95,20 +94,10 @@ class ReplayNode(Node):
                 "needs messages on replay.topics that span some log time after start_offset_s; "
                 "these are all at one instant, so every pass would start again at once",
             )
-        # The sensor topics as sim_node publishes them (best effort, ros_messages.sensor_qos);
-        # the events reliable, with the same history.
-        event_qos = QoSProfile(
-            history=HistoryPolicy.KEEP_ALL if depth == 0 else HistoryPolicy.KEEP_LAST,
-            depth=depth,
-            reliability=ReliabilityPolicy.RELIABLE,
-        )
+        qos = ros_messages.stream_qos(depth)
         self._pubs = {
-            topic: ros_messages.sensor_publisher(
-                self, ros_messages.message_class(topics.MSG_TYPES[topic]), topic, depth
-            )
-            if topic in ros_messages.SENSOR_TOPICS
-            else self.create_publisher(
-                ros_messages.message_class(topics.MSG_TYPES[topic]), topic, event_qos
+            topic: self.create_publisher(
+                ros_messages.message_class(topics.MSG_TYPES[topic]), topic, qos
             )
             for topic in chosen
         }

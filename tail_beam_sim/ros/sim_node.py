@@ -127,15 +127,11 @@ class SimNode(Node):
         self._feed_horizon_s = self.stream.params.command_lead_s + 2.0 * self.max_chunk_s
         self.commands = CommandCounts()
         self.finished = Future()
+        sensor_qos = ros_messages.stream_qos(depth)
         event_qos = ros_messages.EVENT_PUBLISHER_QOS
-        # Best effort (ros_messages.sensor_qos): a slow reader cannot hold the simulator up.
-        self._pressure_pub = ros_messages.sensor_publisher(
-            self, FluidPressure, topics.JACK_PRESSURE, depth
-        )
-        self._imu_pub = ros_messages.sensor_publisher(self, Imu, topics.IMU, depth)
-        self._vibration_pub = ros_messages.sensor_publisher(
-            self, LaserScan, topics.VIBRATION, depth
-        )
+        self._pressure_pub = self.create_publisher(FluidPressure, topics.JACK_PRESSURE, sensor_qos)
+        self._imu_pub = self.create_publisher(Imu, topics.IMU, sensor_qos)
+        self._vibration_pub = self.create_publisher(LaserScan, topics.VIBRATION, sensor_qos)
         self._rebound_pub = self.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, event_qos)
         self._gate = SubscriberGate(
             (self._pressure_pub, self._imu_pub, self._vibration_pub, self._rebound_pub),

@@ -107,7 +107,7 @@ def test_a_label_comes_when_its_data_is_in_not_on_the_next_periodic_tick(params,
         qos = {topics.REBOUND_VELOCITY: ros_messages.EVENT_QOS}
         pubs = {
             topic: feeder.create_publisher(
-                kind, topic, qos.get(topic, ros_messages.sensor_qos(10000))
+                kind, topic, qos.get(topic, ros_messages.stream_qos(10000))
             )
             for topic, kind in types.items()
         }
