@@ -106,3 +106,40 @@ def spin_for(executor: EventsExecutor, duration_s: float) -> None:
     deadline = time.monotonic() + duration_s
     while time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.02)
+
+
+@contextmanager
+def feeding_vibration(bag, intruder: bool = False) -> Iterator[tuple]:
+    """id_node and bag_recorder under /feed, a client publishing vibration to both (its /rosout
+    subscribed) and, with ``intruder``, a second node publishing vibration too: (executor,
+    id_node, recorder, client, publisher, intruder's publisher or None), once all match."""
+    from rcl_interfaces.msg import Log
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import LaserScan
+
+    from tail_beam_id.ros.id_node import IdNode
+    from tail_beam_sim import topics
+    from tail_beam_sim.ros.recorder_node import RecorderNode
+
+    with ros_context() as (context, executor):
+        ident = IdNode(
+            context=context,
+            namespace="/feed",
+            parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)],
+        )
+        recorder = RecorderNode(
+            context=context,
+            namespace="/feed",
+            parameter_overrides=[Parameter("recorder.bag_path", value=str(bag))],
+        )
+        feeder = Probe(context, {"/rosout": Log}, namespace="/feed", name="feeder")
+        pubs = [feeder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)]
+        nodes = [ident, recorder, feeder]
+        if intruder:
+            other = Probe(context, {}, namespace="/feed", name="intruder")
+            pubs.append(other.create_publisher(LaserScan, topics.VIBRATION, RELIABLE))
+            nodes.append(other)
+        for node in nodes:
+            executor.add_node(node)
+        assert spin_until(executor, lambda: all(p.get_subscription_count() >= 2 for p in pubs))
+        yield executor, ident, recorder, feeder, pubs[0], (pubs[1] if intruder else None)

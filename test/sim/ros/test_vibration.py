@@ -4,12 +4,10 @@ per support, and sim_node/id_node over the real middleware."""
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -461,54 +459,17 @@ def test_id_node_reports_a_dropped_block_and_refuses_a_late_one():
         assert ident.received[topics.VIBRATION] == 4 and ident.vibration_lost_samples == 128
 
 
-@contextlib.contextmanager
-def feeding_id_node_and_recorder(bag: Path) -> Iterator[tuple]:
-    """id_node and bag_recorder under /feed, and a client publishing vibration to both (its
-    /rosout subscribed): (executor, id_node, recorder, client, publisher), once both match."""
-    from rcl_interfaces.msg import Log
-    from rclpy.parameter import Parameter
-    from rosprobe import RELIABLE, Probe, ros_context, spin_until
-    from sensor_msgs.msg import LaserScan
-
-    from tail_beam_id.ros.id_node import IdNode
-    from tail_beam_sim.ros.recorder_node import RecorderNode
-
-    with ros_context() as (context, executor):
-        ident = IdNode(
-            context=context,
-            namespace="/feed",
-            parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)],
-        )
-        recorder = RecorderNode(
-            context=context,
-            namespace="/feed",
-            parameter_overrides=[Parameter("recorder.bag_path", value=str(bag))],
-        )
-        feeder = Probe(context, {"/rosout": Log}, namespace="/feed", name="feeder")
-        pub = feeder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
-        for node in (ident, recorder, feeder):
-            executor.add_node(node)
-        assert spin_until(executor, lambda: pub.get_subscription_count() >= 2)
-        yield executor, ident, recorder, feeder, pub
-
-
 @pytest.mark.ros
 def test_id_node_and_the_recorder_say_when_a_publishers_index_does_not_count_samples(tmp_path):
     """A client whose blocks all carry index 0 while their stamps go on: id_node uses the first,
     refuses the others as misindexed (not late) and logs that the index must count samples; the
     recorder records them all and warns at once (not an hour later, when the bag is read);
     reading the bag is refused, naming the index words."""
-    from rosprobe import spin_until
+    from rosprobe import feeding_vibration, spin_until
 
     from tail_beam_sim.ros import messages as ros_messages
 
-    with feeding_id_node_and_recorder(tmp_path / "bag") as (
-        executor,
-        ident,
-        recorder,
-        feeder,
-        pub,
-    ):
+    with feeding_vibration(tmp_path / "bag") as (executor, ident, recorder, feeder, pub, _):
         for msg in ros_messages.vibration_messages(
             blocks_stamped([0, 0, 0], n=128, rate_hz=25600.0)
         ):
@@ -543,7 +504,7 @@ def test_vibration_messages_that_carry_no_block_are_set_aside_by_name_and_the_re
     with a line naming the field and keeps identifying the good blocks (the refused one's samples
     are a gap); the recorder records them all and goes on; reading that bag sets those messages
     aside, counted by reason, reads the two good blocks, and `tail-beam bag info` exits 0."""
-    from rosprobe import spin_for, spin_until
+    from rosprobe import feeding_vibration, spin_for, spin_until
 
     from tail_beam_sim.ros import messages as ros_messages
 
@@ -561,13 +522,7 @@ def test_vibration_messages_that_carry_no_block_are_set_aside_by_name_and_the_re
     for (field, value), msg in zip(spoilers, good[1:-1]):
         setattr(msg, field, value)
         bad.append(msg)
-    with feeding_id_node_and_recorder(tmp_path / "bag") as (
-        executor,
-        ident,
-        recorder,
-        feeder,
-        pub,
-    ):
+    with feeding_vibration(tmp_path / "bag") as (executor, ident, recorder, feeder, pub, _):
         for msg in good:
             pub.publish(msg)
         assert spin_until(
@@ -606,35 +561,15 @@ def test_an_empty_vibration_block_is_refused_by_name_and_hides_no_samples(tmp_pa
     it and warns; reading the bag sets that message aside, counted under the field, and reads
     the three real blocks with no sample lost (the empty one never takes the real one's
     index)."""
-    from rcl_interfaces.msg import Log
-    from rclpy.parameter import Parameter
-    from rosprobe import RELIABLE, Probe, ros_context, spin_for, spin_until
-    from sensor_msgs.msg import LaserScan
+    from rosprobe import feeding_vibration, spin_for, spin_until
 
-    from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.ros import messages as ros_messages
-    from tail_beam_sim.ros.recorder_node import RecorderNode
 
     good = ros_messages.vibration_messages(blocks_of([0, 128, 256], n=128, rate_hz=25600.0))
     empty = ros_messages.vibration_messages(blocks_of([128], n=128, rate_hz=25600.0))[0]
     empty.ranges = []
     empty.scan_time = 0.0
-    with ros_context() as (context, executor):
-        ident = IdNode(
-            context=context,
-            namespace="/feed",
-            parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)],
-        )
-        recorder = RecorderNode(
-            context=context,
-            namespace="/feed",
-            parameter_overrides=[Parameter("recorder.bag_path", value=str(tmp_path / "bag"))],
-        )
-        feeder = Probe(context, {"/rosout": Log}, namespace="/feed", name="feeder")
-        pub = feeder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
-        for node in (ident, recorder, feeder):
-            executor.add_node(node)
-        assert spin_until(executor, lambda: pub.get_subscription_count() >= 2)
+    with feeding_vibration(tmp_path / "bag") as (executor, ident, recorder, feeder, pub, _):
         for msg in (good[0], empty, good[1], good[2]):
             pub.publish(msg)
         assert spin_until(

@@ -4,10 +4,7 @@ recorder's lost-sample count or a restart of the time base; warnings are rate-li
 
 from __future__ import annotations
 
-import contextlib
 import math
-from collections.abc import Iterator
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -42,47 +39,8 @@ def real(k0: int, count: int) -> list:
     return ros_messages.vibration_messages(blocks(first, first / RATE_HZ))
 
 
-@contextlib.contextmanager
-def feeding(bag: Path) -> Iterator[tuple]:
-    """id_node and bag_recorder under /feed, an honest publisher and an intruder publishing
-    vibration (the honest one's node has /rosout subscribed): (executor, id_node, recorder,
-    honest node, honest publisher, intruder publisher), once all match."""
-    from rcl_interfaces.msg import Log
-    from rclpy.parameter import Parameter
-    from rosprobe import RELIABLE, Probe, ros_context, spin_until
-    from sensor_msgs.msg import LaserScan
-
-    from tail_beam_id.ros.id_node import IdNode
-    from tail_beam_sim.ros.recorder_node import RecorderNode
-
-    with ros_context() as (context, executor):
-        ident = IdNode(
-            context=context,
-            namespace="/feed",
-            parameter_overrides=[Parameter("id_node.poll_period_s", value=0.02)],
-        )
-        recorder = RecorderNode(
-            context=context,
-            namespace="/feed",
-            parameter_overrides=[Parameter("recorder.bag_path", value=str(bag))],
-        )
-        honest = Probe(context, {"/rosout": Log}, namespace="/feed", name="honest")
-        intruder = Probe(context, {}, namespace="/feed", name="intruder")
-        pub = honest.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
-        stray = intruder.create_publisher(LaserScan, topics.VIBRATION, RELIABLE)
-        for node in (ident, recorder, honest, intruder):
-            executor.add_node(node)
-        assert spin_until(
-            executor,
-            lambda: pub.get_subscription_count() >= 2 and stray.get_subscription_count() >= 2,
-        )
-        yield executor, ident, recorder, honest, pub, stray
-
-
 def warnings_of(honest, node: str, words: str) -> list[str]:
-    return [
-        x.msg for x in honest.messages["/rosout"] if x.name.endswith(node) and words in x.msg
-    ]
+    return [x.msg for x in honest.messages["/rosout"] if x.name.endswith(node) and words in x.msg]
 
 
 def test_stray_blocks_far_ahead_with_a_huge_index_cost_only_themselves(tmp_path):
@@ -90,14 +48,21 @@ def test_stray_blocks_far_ahead_with_a_huge_index_cost_only_themselves(tmp_path)
     block (400 of them among 200): id_node takes every honest sample (none refused as late or
     misindexed, none lost), sets the 400 aside by count and says so in at most a few lines;
     the recorder counts no sample lost and 400 blocks of another source."""
-    from rosprobe import spin_for, spin_until
+    from rosprobe import feeding_vibration, spin_for, spin_until
 
     from tail_beam_sim.ros import messages as ros_messages
 
     honest_blocks = real(0, 200)
     huge = 10**12 + np.arange(400) * N
     strays = ros_messages.vibration_messages(blocks(huge, huge / RATE_HZ))
-    with feeding(tmp_path / "bag") as (executor, ident, recorder, honest, pub, stray):
+    with feeding_vibration(tmp_path / "bag", intruder=True) as (
+        executor,
+        ident,
+        recorder,
+        honest,
+        pub,
+        stray,
+    ):
         for k, msg in enumerate(honest_blocks):
             pub.publish(msg)
             stray.publish(strays[2 * k])
@@ -124,7 +89,7 @@ def test_a_second_publishers_interleaved_stream_never_restarts_the_time_base(tmp
     aside and warns in a few lines; no label is published (nothing struck)."""
     import time
 
-    from rosprobe import spin_for, spin_until
+    from rosprobe import feeding_vibration, spin_for, spin_until
 
     from tail_beam_sim.ros import messages as ros_messages
 
@@ -132,7 +97,14 @@ def test_a_second_publishers_interleaved_stream_never_restarts_the_time_base(tmp
     index = np.arange(1000) * 10 * N
     stamps = time.time() + np.arange(1000) * N / RATE_HZ
     strays = ros_messages.vibration_messages(blocks(index, stamps))
-    with feeding(tmp_path / "bag") as (executor, ident, recorder, honest, pub, stray):
+    with feeding_vibration(tmp_path / "bag", intruder=True) as (
+        executor,
+        ident,
+        recorder,
+        honest,
+        pub,
+        stray,
+    ):
         pub.publish(honest_blocks[0])
         assert spin_until(executor, lambda: ident.gated.sequencer.accepted_samples == N)
         for k, msg in enumerate(honest_blocks[1:]):
@@ -154,12 +126,19 @@ def test_a_lone_block_of_another_sample_period_is_set_aside_live(tmp_path):
     """One block claiming 12.8 kHz, alone in its batch between honest 25.6 kHz blocks: id_node
     sets it aside (counted under its period, named in a warning) and the honest stream goes
     on with no gap; the recorder records it and warns that reading the bag sets it aside."""
-    from rosprobe import spin_for, spin_until
+    from rosprobe import feeding_vibration, spin_for, spin_until
 
     honest_blocks = real(0, 4)
     odd = real(2, 1)[0]
     odd.time_increment = 1.0 / 12800.0
-    with feeding(tmp_path / "bag") as (executor, ident, recorder, honest, pub, stray):
+    with feeding_vibration(tmp_path / "bag", intruder=True) as (
+        executor,
+        ident,
+        recorder,
+        honest,
+        pub,
+        stray,
+    ):
         for msg in honest_blocks[:2]:
             pub.publish(msg)
         assert spin_until(executor, lambda: ident.gated.sequencer.accepted_samples == 2 * N)
@@ -182,12 +161,19 @@ def test_id_node_rate_limits_its_warnings_on_refused_messages(tmp_path):
     """300 vibration messages that carry no block (index word NaN), in batches over 1.5 s:
     every one refused and counted, in at most two warning lines (the first at once, then a
     count every few seconds), not a line per batch."""
-    from rosprobe import spin_for, spin_until
+    from rosprobe import feeding_vibration, spin_for, spin_until
 
     garbage = real(0, 300)
     for msg in garbage:
         msg.angle_min = math.nan
-    with feeding(tmp_path / "bag") as (executor, ident, recorder, honest, pub, stray):
+    with feeding_vibration(tmp_path / "bag", intruder=True) as (
+        executor,
+        ident,
+        recorder,
+        honest,
+        pub,
+        stray,
+    ):
         for k in range(0, 300, 10):
             for msg in garbage[k : k + 10]:
                 stray.publish(msg)
