@@ -14,13 +14,14 @@ from typing import Any
 
 from tail_beam_id.signals.camera import FramePeriod, may_be_slower
 from tail_beam_id.stream.config import check_profile
+from tail_beam_sim.errors import require_section
 from tail_beam_sim.spec import SENSORS
 
 
 def configured_frame_period_s(merged: Mapping[str, Any]) -> float | None:
     """The camera's frame period the parameters give (``sensors.camera_frame_rate_hz``), s;
     None when they give none."""
-    sensors = merged.get("sensors") or {}
+    sensors = require_section("sensors", merged.get("sensors") or {})
     if sensors.get("camera_frame_rate_hz") is None:
         return None
     return 1.0 / SENSORS.check(sensors, only=["camera_frame_rate_hz"])["camera_frame_rate_hz"]

@@ -624,3 +624,12 @@ def test_a_measured_profile_still_marks_the_labels_calibrated(params):
     assert not StreamIdentifier(
         "statistical", params=params["identification"], model_params=params
     ).calibrated
+
+
+def test_a_sensors_section_given_as_one_value_is_refused_by_name(params):
+    """``sensors: 5`` in a parameter file is refused naming the section, not an AttributeError
+    where the identifier reads the camera's configured frame rate."""
+    with pytest.raises(InputError, match="sensors = 5: must be a parameter section"):
+        StreamIdentifier(
+            "statistical", params=params["identification"], model_params={**params, "sensors": 5}
+        )
