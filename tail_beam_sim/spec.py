@@ -823,7 +823,7 @@ FACE = Section(
 
 CAVING = Section(
     "caving",
-    "The windows' closing rules and the offline caving study (tail_beam_id.caving).",
+    "The windows' closing rules and the offline caving study (docs/caving.md).",
     (
         positive("fixed_time_s", "fixed_time: drawing time per window.", "s", high=1e4),
         number(
