@@ -87,7 +87,7 @@ class Progress:
 
 
 def _pct(value: float) -> str:
-    return f"{100 * min(max(value, 0.0), 1.0):5.1f}"
+    return f"{100 * max(value, 0.0):5.1f}"  # above 100: coal of the undrawn margins drawn too
 
 
 def table(summaries: list[Summary]) -> str:
@@ -125,6 +125,7 @@ def run(args: argparse.Namespace) -> int:
     first = face.seed if args.seed is None else require_int("--seed", args.seed, 0)
     rules = None if args.rules is None else _names(args.rules, "--rules")
     sources = _names(args.sources, "--sources", SOURCES)
+    chart = _chart_path(args.chart) if args.chart else None  # refused before the runs
     progress = Progress(sys.stderr)
     start = time.perf_counter()
     try:
@@ -151,8 +152,8 @@ def run(args: argparse.Namespace) -> int:
             f"caving: {timed_out} window(s) ran to face.max_window_s without closing",
             file=sys.stderr,
         )
-    if args.chart:
-        path = write_chart(summaries, _chart_path(args.chart))
+    if chart is not None:
+        path = write_chart(summaries, chart)
         print(f"chart: {path}")
     return 0
 

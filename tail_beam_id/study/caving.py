@@ -104,7 +104,7 @@ def wilson(gangue: int, total: int, z: float = WILSON_Z) -> tuple[float, float]:
     denominator = 1.0 + z * z / total
     centre = (p + z * z / (2 * total)) / denominator
     half = z * math.sqrt(p * (1 - p) / total + z * z / (4 * total * total)) / denominator
-    return max(0.0, centre - half), min(1.0, centre + half)
+    return min(max(0.0, centre - half), p), max(min(1.0, centre + half), p)
 
 
 class WindowFeed:

@@ -165,7 +165,9 @@ def test_the_oracle_closes_on_the_true_share_only():
 
 def test_rule_parameters_out_of_range_are_named():
     """Each refusal names the caving field and its range."""
-    with pytest.raises(InputError, match=r"caving\.fixed_time_s = -1\.0: must be in \(0, 10000\] s"):
+    with pytest.raises(
+        InputError, match=r"caving\.fixed_time_s = -1\.0: must be in \(0, 10000\] s"
+    ):
         FixedTime(-1.0)
     with pytest.raises(InputError, match=r"caving\.last_labels = 0: must be an integer in"):
         ShareOfLastLabels(0.2, 0)

@@ -35,6 +35,8 @@ def test_wilson_interval_of_a_share():
     assert low == 0.0 and high == pytest.approx(3.8415 / 13.8415, rel=1e-4)
     low, high = wilson(5, 10)
     assert low + high == pytest.approx(1.0) and high == pytest.approx(0.7634, abs=1e-4)
+    for total in range(1, 200):  # the share itself always lies inside, rounding and all
+        assert wilson(total, total)[1] == 1.0 and wilson(0, total)[0] == 0.0
 
 
 def test_the_study_oracle_closes_where_the_drawing_model_closes():
