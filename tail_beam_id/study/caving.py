@@ -335,7 +335,9 @@ def write_chart(summaries: Sequence[Summary], path: str | Path, title: str = "")
         )
     name, recovery, gangue = FIELD_TRIAL
     ax.plot(100 * gangue, 100 * recovery, "X", color="red", markersize=12, label=name)
-    ax.axhspan(75, 90, color="0.92", zorder=0, label="published range, 10-12 m seams")
+    ax.fill_between(
+        [3.0, 5.0], 75.0, 90.0, color="0.9", zorder=0, label="published range, 10-12 m seams"
+    )
     ax.set_xlabel("gangue content of the drawn mass, %")
     ax.set_ylabel("top-coal recovery, %")
     ax.set_title(
