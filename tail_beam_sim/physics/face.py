@@ -134,6 +134,18 @@ class WindowRecord:
             share[0] = share[1] if self.cells[0].material == GANGUE else 0.0
         return np.array(mass), np.array(share)
 
+    def flow_parameters(self, window_kg: float, mass_rate_kgps: float) -> dict[str, Any]:
+        """The window's flow as the one-opening flow simulation's parameters take it: its
+        share curve (``share_drawn_mass_kg``, ``share_gangue``) and mass rate
+        (``rate_kind: mass``, ``mass_rate_kgps``), plain lists and numbers."""
+        mass, share = self.share_curve(window_kg)
+        return {
+            "rate_kind": "mass",
+            "mass_rate_kgps": float(mass_rate_kgps),
+            "share_drawn_mass_kg": mass.tolist(),
+            "share_gangue": share.tolist(),
+        }
+
 
 class ShareMeter:
     """The instantaneous gangue share by mass: the share among the last ``window_kg`` drawn

@@ -121,6 +121,9 @@ def test_a_window_gives_the_flow_its_share_curve():
     assert np.all((share >= 0.0) & (share <= 1.0))
     assert share[0] == 0.0 and share.max() >= 0.5  # the level that closed it
     assert mass[-1] == pytest.approx(record.mass_kg())
+    flow = record.flow_parameters(300.0, 300.0)
+    assert flow["share_drawn_mass_kg"] == mass.tolist() and flow["share_gangue"] == share.tolist()
+    assert (flow["rate_kind"], flow["mass_rate_kgps"]) == ("mass", 300.0)
 
 
 def test_the_shipped_face_lands_on_the_tashan_trial():
@@ -149,3 +152,20 @@ def test_bad_face_parameters_are_named():
         shipped(sequence="random")
     with pytest.raises(InputError, match=r"opening"):
         Face(shipped()).draw(9)
+
+
+@pytest.mark.parametrize("q", [0.3, 2.0 / 3.0, 1.0])
+def test_the_void_spreads_as_a_random_walk_of_variance_q_per_row(q):
+    """The draw body's width: after n rows the climbing void's column has spread with variance
+    n q cells^2 (the gangue cell it leaves at the top of fresh coal shows where it got to)."""
+    rows, columns, centre = 21, 61, 30
+    rng = np.random.default_rng(3)
+    ends = []
+    for _ in range(3000):
+        grid = VoidGrid(columns, rows, 1, q)
+        grid.draw(centre, rng.random(grid.rows))
+        ends.append(int(np.flatnonzero(grid.as_array()[rows - 1] == GANGUE)[0]) - centre)
+    ends = np.array(ends)
+    steps = rows - 1
+    assert abs(ends.mean()) < 4 * np.sqrt(steps * q / ends.size)
+    assert ends.var() == pytest.approx(steps * q, rel=0.08)
