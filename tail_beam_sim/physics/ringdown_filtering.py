@@ -65,15 +65,24 @@ def filtered_ringdown(
     eigenvalues, vectors, inverse = structure._eigen
     n = structure.size
     modal = inverse @ np.concatenate([q0, qd0])
-    keep, _, _, weight = structure._half_spectrum
+    keep, sigma, omega, weight = structure._half_spectrum
     lam = eigenvalues[keep]
     amplitude = vectors[:, keep] * (weight * modal[keep])  # (2n, k), complex
     angle_weight = structure.imu_slope_shape @ amplitude[:n]  # rad per unit exponential
     velocity_weight = structure.imu_shape @ amplitude[n:]  # m/s per unit exponential
     # the dense input's term: -(qd(t) - qd(t - T)) / T at the IMU, then through the filter
     gain = response(sos, np.exp(lam * dense_period_s))
-    dynamic_weight = -velocity_weight * (1.0 - np.exp(-lam * dense_period_s)) / dense_period_s
-    growth = np.exp(np.multiply.outer(lam, np.asarray(t_s, dtype=float) - anchor_s))
-    angle = (angle_weight @ growth).real
-    dynamic = ((gain * dynamic_weight) @ growth).real
+    dynamic_weight = gain * (
+        -velocity_weight * (1.0 - np.exp(-lam * dense_period_s)) / dense_period_s
+    )
+    # Re(w exp(lambda t)) = exp(sigma t) (Re w cos(omega t) - Im w sin(omega t)), in real
+    # arithmetic: a complex exp costs several real ones
+    dt = np.asarray(t_s, dtype=float) - anchor_s
+    angle = np.zeros(dt.shape)
+    dynamic = np.zeros(dt.shape)
+    for k in range(lam.size):
+        growth = np.exp(sigma[k] * dt)
+        cos, sin = growth * np.cos(omega[k] * dt), growth * np.sin(omega[k] * dt)
+        angle += angle_weight[k].real * cos - angle_weight[k].imag * sin
+        dynamic += dynamic_weight[k].real * cos - dynamic_weight[k].imag * sin
     return structure.gravity_mps2 * np.cos(angle) + dynamic
