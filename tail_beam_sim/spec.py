@@ -707,6 +707,7 @@ SCENARIO = Section(
     file="sim_node.yaml",
 )
 
+FLOW_CONTACT_METHODS = ("pulse", "auto", "rk4")  # the hybrid solver's contact option
 FLOW_RATE_KINDS = ("lumps", "mass")  # flow.rate_kind: lumps per second or kilograms per second
 MAX_FLOW_LUMPS_PER_S = 1000.0  # the densest flow the simulator takes, lumps/s
 MAX_FLOW_MASS_RATE_KGPS = 5000.0  # the largest mass rate it takes, kg/s
@@ -816,6 +817,13 @@ FLOW = Section(
         ),
         integer(
             "seed", "Seed of the lumps (rate, sizes, materials, heights, positions).", 0, default=0
+        ),
+        choice(
+            "contact",
+            "How the hybrid solver takes each lump's contact: pulse (the pre-integrated pulse "
+            "always), auto (integrated when the pulse's error estimate is large), rk4.",
+            FLOW_CONTACT_METHODS,
+            default="pulse",
         ),
         number(
             "open_at_s",

@@ -166,6 +166,8 @@ class FlowRun:
         self.flow = FlowParams.from_params(
             section(params, "flow"), self.sim.materials, self.sim.support, share
         )
+        if self.sim.solver == "hybrid":
+            self.sim.solver_options = {"contact": self.flow.contact}
         self.source = LumpSource(self.flow, self.sim.materials, seed, id_prefix)
         self.tally = ShareTally(self.flow.interval_s, self.flow.onset_delay_s)
         self.lumps_submitted = 0

@@ -57,6 +57,7 @@ class FlowParams:
     interval_s: float
     onset_delay_s: float
     seed: int
+    contact: str
     open_at_s: float
     duration_s: float
 

@@ -29,16 +29,18 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from tail_beam_sim.physics.result import impact_truth
 from tail_beam_sim.physics.scene import Impact, Scene
-from tail_beam_sim.physics.simulate import build_problem, histories, summarise
+from tail_beam_sim.physics.simulate import build_problem
 from tail_beam_sim.physics.solvers import ImpactProblem, Samples, Trajectory, solve
 from tail_beam_sim.physics.solvers.problem import _columnwise
 from tail_beam_sim.physics.stream import (
     CarriedTrajectory,
+    Chunk,
     ScheduledImpact,
     StreamSimulator,
     _relative,
@@ -128,6 +130,11 @@ class FlowSimulator(StreamSimulator):
         super().__init__(*args, **kwargs)
         self._rest_problem = rest_trajectory(self.structure, self.support.gravity_mps2).problem
         self._latest_stamp_s = -math.inf
+        self.solver_options: dict[str, object] = {}  # passed to the solver of every contact
+        # A sensor value is a mean over the period before its instant, read from the epoch of
+        # the instant: a contact is folded this long after it ends (two IMU periods, s), so no
+        # period reaching back into a contact is read from an epoch that folded it.
+        self._lookback_s = 2.0 / self.sensors.imu_rate_hz
 
     @property
     def earliest_contact_s(self) -> float:
@@ -135,29 +142,58 @@ class FlowSimulator(StreamSimulator):
         produced plus the command lead, nor before the latest contact stamp."""
         return max(self._time_s + self.params.command_lead_s, self._latest_stamp_s)
 
-    def _solve(self, impact: Impact, stamp_s: float) -> ScheduledImpact:
-        """Solve ``impact`` at ``stamp_s`` from the beam's velocity as the earlier contacts
-        leave it, and start the epoch it opens."""
-        epoch = self._epochs[-1]
+    def advance(self, until_s: float) -> Chunk:
+        """Fold the contacts that end by ``until_s``, then produce the span as the stream
+        does."""
+        self._fold_until(until_s)
+        return super().advance(until_s)
+
+    def _fold_until(self, stamp_s: float) -> None:
+        """Start an epoch where each active contact has ended (plus the sensors' look-back, at
+        or before ``stamp_s``), with that contact folded into the aggregate free state: epochs
+        then sample each contribution over little more than its contact."""
+        while True:
+            epoch = self._epochs[-1]
+            active = getattr(epoch, "active", [])
+            ended = [c for c in active if c.until_s + self._lookback_s <= stamp_s]
+            if not ended:
+                return
+            first = min(ended, key=lambda c: c.until_s)
+            start = max(first.until_s + self._lookback_s, self._epoch_starts[-1])
+            remaining = [c for c in active if c is not first]
+            q, qd = self._aggregate_at(epoch, start, remaining)
+            self._epoch_starts.append(start)
+            self._epochs.append(FlowEpoch(self._rest_problem, start, q, qd, remaining))
+
+    def _aggregate_at(
+        self, epoch: FlowEpoch | Trajectory, stamp_s: float, keep: Sequence[Contribution]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The beam's state at ``stamp_s`` less the contributions ``keep`` (which stay
+        active)."""
         total = epoch.sample(_relative(np.array([stamp_s]), self._epoch_starts[-1]))
         q, qd = total.q[:, 0].copy(), total.qd[:, 0].copy()
-        active = [c for c in getattr(epoch, "active", []) if c.until_s > stamp_s]
-        for contribution in active:
+        for contribution in keep:
             part = contribution.sample(np.array([stamp_s]))
             q -= part.q[:, 0]
             qd -= part.qd[:, 0]
+        return q, qd
+
+    def _solve(self, impact: Impact, stamp_s: float) -> ScheduledImpact:
+        """Solve ``impact`` at ``stamp_s`` from the beam's velocity as the earlier contacts
+        leave it, and start the epoch it opens."""
+        self._fold_until(stamp_s)
+        epoch = self._epochs[-1]
+        total = epoch.sample(_relative(np.array([stamp_s]), self._epoch_starts[-1]))
+        qd0 = total.qd[:, 0].copy()
+        active = list(getattr(epoch, "active", []))
+        q, qd = self._aggregate_at(epoch, stamp_s, active)
         problem = build_problem(
-            self.support,
-            impact,
-            self.contact_model,
-            self.window_s,
-            self.structure,
-            qd0=total.qd[:, 0],
+            self.support, impact, self.contact_model, self.window_s, self.structure, qd0=qd0
         )
-        trajectory = solve(problem, self.solver)
+        trajectory = solve(problem, self.solver, **self.solver_options)
         separation = trajectory.final_separation_s
         until = stamp_s + (separation if math.isfinite(separation) else self.window_s)
-        contribution = Contribution(stamp_s, trajectory, total.qd[:, 0].copy(), until)
+        contribution = Contribution(stamp_s, trajectory, qd0, until)
         self._epoch_starts.append(stamp_s)
         self._epochs.append(FlowEpoch(self._rest_problem, stamp_s, q, qd, [*active, contribution]))
         self._latest_stamp_s = stamp_s
@@ -171,11 +207,33 @@ class FlowSimulator(StreamSimulator):
             self.window_s,
             0.0,
         )
-        summary = summarise(scene, trajectory, histories(scene, trajectory))
         return ScheduledImpact(
             impact,
             stamp_s,
             CarriedTrajectory.carry(trajectory, np.zeros(self.structure.size)),
             rebound,
-            impact_truth(scene, trajectory, stamp_s, rebound.stamp_s, summary),
+            impact_truth(
+                scene, trajectory, stamp_s, rebound.stamp_s, contact_summary(scene, trajectory)
+            ),
         )
+
+
+def contact_summary(scene: Scene, trajectory: Trajectory) -> dict[str, Any]:
+    """The noise-free figures of one lump's contact (the keys of
+    :func:`~tail_beam_sim.physics.simulate.summarise` that belong to the lump alone). The
+    sensors' peaks are left out: in a flow they are not one lump's."""
+    impact = scene.impact
+    rebound = max(trajectory.rebound_velocity_mps, 0.0)
+    return {
+        "mass_kg": impact.mass_kg,
+        "drop_height_m": impact.drop_height_m,
+        "rebound_speed_mps": rebound,
+        "restitution": rebound / impact.impact_speed_mps,
+        "contact_duration_s": trajectory.contacts[0].duration_s,
+        "peak_contact_force_n": max(c.peak_force_n for c in trajectory.contacts),
+        "n_contacts": len(trajectory.contacts),
+        "particle_at_rest": trajectory.particle_at_rest,
+        "contact_model": scene.contact_model,
+        "solver": trajectory.solver,
+        "window_s": scene.window_s,
+    }
