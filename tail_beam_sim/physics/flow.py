@@ -29,6 +29,7 @@ from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.lumps import FlowParams, Lump, LumpSource, WindowStateError
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, VibrationBlocks
 from tail_beam_sim.physics.share_curve import ShareCurve
+from tail_beam_sim.physics.solvers import SolverError
 from tail_beam_sim.physics.stream import Chunk
 from tail_beam_sim.physics.superpose import FlowSimulator
 
@@ -87,25 +88,25 @@ class ShareTally:
     """Counts the lumps per interval of ``interval_s`` (k * interval_s .. (k+1) * interval_s)
     and reports each interval once the clock has passed its end."""
 
-    def __init__(self, interval_s: float, onset_delay_s: float) -> None:
+    def __init__(
+        self, interval_s: float, onset_delay_s: float, windows: list[tuple[float, float]]
+    ) -> None:
+        """``windows``: the (opened, closed) stamps of the window, s (read as they change)."""
         self.interval_s = interval_s
         self.onset_delay_s = onset_delay_s
+        self._windows = windows
         self._bins: dict[int, list[float]] = {}  # k -> [lumps, gangue lumps, mass, gangue mass]
         self._next_k: int | None = None  # the first interval not yet reported
         self._drawn_kg = 0.0
-        self._spans: list[tuple[float, float]] = []  # when the flow reaches the beam, s
 
     def _index(self, stamp_s: float) -> int:
         return math.floor(stamp_s / self.interval_s + 1e-9)
 
-    def opened(self, stamp_s: float) -> None:
-        self._spans.append((stamp_s, math.inf))
-        if self._next_k is None:
-            self._next_k = self._index(stamp_s)
-
-    def closed(self, stamp_s: float) -> None:
-        if self._spans:
-            self._spans[-1] = (self._spans[-1][0], stamp_s + self.onset_delay_s)
+    def _flowing(self, start_s: float, end_s: float) -> bool:
+        """Whether lumps may reach the beam in [start_s, end_s): a window was open from
+        ``onset_delay_s`` before it to its end."""
+        delay = self.onset_delay_s
+        return any(a + delay < end_s and b + delay > start_s for a, b in self._windows)
 
     def add(self, stamp_s: float, mass_kg: float, is_gangue: bool) -> None:
         """One lump struck at ``stamp_s``."""
@@ -122,6 +123,8 @@ class ShareTally:
     def report(self, until_s: float) -> list[ShareInterval]:
         """Every interval ending at or before ``until_s`` not reported yet (those with no lump
         and no flow left out)."""
+        if self._next_k is None and self._windows:
+            self._next_k = self._index(self._windows[0][0])
         if self._next_k is None:
             return []
         out = []
@@ -130,8 +133,7 @@ class ShareTally:
             start, end = k * self.interval_s, (k + 1) * self.interval_s
             lumps, gangue, mass, gangue_mass = self._bins.pop(k, [0, 0, 0.0, 0.0])
             self._drawn_kg += mass
-            flowing = any(a < end and b > start for a, b in self._spans)
-            if lumps or flowing:
+            if lumps or self._flowing(start, end):
                 out.append(
                     ShareInterval(start, end, lumps, gangue, mass, gangue_mass, self._drawn_kg)
                 )
@@ -169,8 +171,9 @@ class FlowRun:
         if self.sim.solver == "hybrid":
             self.sim.solver_options = {"contact": self.flow.contact}
         self.source = LumpSource(self.flow, self.sim.materials, seed, id_prefix)
-        self.tally = ShareTally(self.flow.interval_s, self.flow.onset_delay_s)
+        self.tally = ShareTally(self.flow.interval_s, self.flow.onset_delay_s, self.source.windows)
         self.lumps_submitted = 0
+        self.skipped: list[tuple[Lump, str]] = []  # lumps the simulator refused, with why
 
     @property
     def time_s(self) -> float:
@@ -187,21 +190,20 @@ class FlowRun:
         if action not in WINDOW_ACTIONS:
             raise InputError("window_cmd.action", action, "must be open or close")
         stamp = self.sim.time_s if stamp_s is None else float(stamp_s)
-        if action == "open":
-            self.source.open(stamp)
-            self.tally.opened(self.source.windows[-1][0])
-        else:
-            self.source.close(stamp)
-            self.tally.closed(self.source.windows[-1][1])
-        return stamp
+        return self.source.open(stamp) if action == "open" else self.source.close(stamp)
 
     def feed(self, until_s: float) -> list[Lump]:
         """Submit every lump striking at or before ``until_s`` to the simulator."""
-        lumps = self.source.take_until(until_s)
-        for lump in lumps:
-            scheduled = self.sim.submit(lump.command(), lump.contact_stamp_s)
+        lumps = []
+        for lump in self.source.take_until(until_s):
+            try:
+                scheduled = self.sim.submit(lump.command(), lump.contact_stamp_s)
+            except (InputError, SolverError) as exc:  # an impact_id taken, a failed solve
+                self.skipped.append((lump, str(exc)))
+                continue
             scheduled.truth["drawn_mass_kg"] = lump.drawn_mass_kg
             self.tally.add(scheduled.contact_stamp_s, lump.mass_kg, lump.is_gangue)
+            lumps.append(lump)
         self.lumps_submitted += len(lumps)
         return lumps
 
@@ -258,23 +260,24 @@ def simulate_flow(
         opening = max(run.flow.open_at_s, 0.0)
         closing = opening + run.flow.duration_s if run.flow.duration_s > 0 else math.inf
         windows = [(opening, closing)]
-    events = sorted(
-        [(float(a), "open") for a, _ in windows] + [(float(b), "close") for _, b in windows],
-        key=lambda e: (e[0], e[1] == "open"),
-    )
-    events = [e for e in events if math.isfinite(e[0])]
-    pressure, imu, vibration, rebounds, truths, shares, lumps = [], [], [], [], [], [], []
     done_events: list[tuple[float, str]] = []
+    for k, (opening, closing) in enumerate(windows):
+        after = 0.0 if not done_events else done_events[-1][0]
+        after = math.inf if done_events and done_events[-1][1] == "open" else after
+        if not (math.isfinite(opening) and opening >= after and closing > opening):
+            raise InputError(
+                f"windows[{k}]",
+                (opening, closing),
+                f"must be (open s, close s) with {after:g} <= open < close: windows in order, "
+                "not overlapping",
+            )
+        done_events.append((run.command("open", opening), "open"))
+        if math.isfinite(closing):
+            done_events.append((run.command("close", closing), "close"))
+    pressure, imu, vibration, rebounds, truths, shares, lumps = [], [], [], [], [], [], []
     t = 0.0
     while t < duration_s:
         step_end = min(t + step_s, duration_s)
-        while events and events[0][0] <= step_end:
-            stamp, action = events.pop(0)
-            if stamp > run.time_s:
-                part = run.advance(stamp)
-                _collect(part, pressure, imu, vibration, rebounds, truths, shares, lumps)
-            run.command(action, stamp)
-            done_events.append((stamp, action))
         part = run.advance(step_end)
         _collect(part, pressure, imu, vibration, rebounds, truths, shares, lumps)
         t = step_end
@@ -299,7 +302,7 @@ def simulate_flow(
         truths=truths,
         shares=shares,
         lumps=lumps,
-        windows=done_events,
+        windows=[e for e in done_events if e[0] <= duration_s],
         duration_s=float(duration_s),
         params={**dict(section(params, "flow")), **({"seed": seed} if seed is not None else {})},
     )

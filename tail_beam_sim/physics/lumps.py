@@ -154,9 +154,9 @@ class LumpSource:
         self._gangue = [materials[name] for name in params.gangue_materials]
         self._gangue_density = float(np.mean([m.density_kgpm3 for m in self._gangue]))
         self._rng = np.random.default_rng(params.seed if seed is None else seed)
-        self._open_since: float | None = None
-        self._next_release_s = math.inf  # the next lump's release, s (inf: none while closed)
-        self._released_until_s = -math.inf  # releases before this are drawn
+        self.windows: list[tuple[float, float]] = []  # (opened, closed) s; closed inf while open
+        self._span = 0  # the window the release process is in
+        self._next_release_s: float | None = None  # None: the window's opening
         self.drawn_mass_kg = 0.0
         self.count = 0
         sigma, (lo, hi) = params.radius_log_sigma, params.radius_m
@@ -169,45 +169,58 @@ class LumpSource:
             if sigma > 0
             else (0.0, 1.0)
         )
-        self.windows: list[tuple[float, float]] = []  # (opened, closed) s; closed inf while open
 
     @property
     def is_open(self) -> bool:
-        return self._open_since is not None
+        """Whether the window is open (its last command was open)."""
+        return bool(self.windows) and self.windows[-1][1] == math.inf
 
-    def open(self, stamp_s: float) -> None:
-        """Open the window at ``stamp_s``: lumps are released from then on.
-        WindowStateError if it is open already."""
+    def open(self, stamp_s: float) -> float:
+        """Open the window at ``stamp_s`` (not before the last closing): lumps are released from
+        then on. Returns the stamp; WindowStateError if it is open already."""
         if self.is_open:
             raise WindowStateError(
                 "window_cmd.action", "open", "refused: the window is already open"
             )
-        stamp = max(float(stamp_s), self._released_until_s)
-        self._open_since = stamp
-        self._next_release_s = stamp
+        stamp = max(float(stamp_s), self.windows[-1][1] if self.windows else -math.inf)
         self.windows.append((stamp, math.inf))
+        return stamp
 
-    def close(self, stamp_s: float) -> None:
-        """Close the window at ``stamp_s``: no lump is released from then on (those already
-        falling still land). WindowStateError if it is closed already."""
+    def close(self, stamp_s: float) -> float:
+        """Close the window at ``stamp_s`` (not before its opening): no lump is released from
+        then on; those already falling still land. Returns the stamp; WindowStateError if it is
+        closed already."""
         if not self.is_open:
             raise WindowStateError(
                 "window_cmd.action", "close", "refused: the window is already closed"
             )
-        stamp = max(float(stamp_s), self._open_since or 0.0)
-        self._open_since = None
-        self._next_release_s = math.inf
-        self.windows[-1] = (self.windows[-1][0], stamp)
+        opened = self.windows[-1][0]
+        stamp = max(float(stamp_s), opened)
+        self.windows[-1] = (opened, stamp)
+        return stamp
+
+    @property
+    def exhausted(self) -> bool:
+        """No lump will be released unless the window opens again."""
+        return self._span >= len(self.windows)
 
     def take_until(self, until_s: float) -> list[Lump]:
         """Every lump not yet taken that strikes the beam at or before ``until_s``."""
         latest_release = until_s - self.params.onset_delay_s
         lumps = []
-        while self._next_release_s <= latest_release:
-            lump, gap = self._draw(self._next_release_s)
+        while self._span < len(self.windows):
+            opened, closed = self.windows[self._span]
+            release = opened if self._next_release_s is None else self._next_release_s
+            if release >= closed:
+                self._span += 1
+                self._next_release_s = None
+                continue
+            if release > latest_release:
+                self._next_release_s = release
+                break
+            lump, gap = self._draw(release)
             lumps.append(lump)
-            self._released_until_s = self._next_release_s
-            self._next_release_s += gap
+            self._next_release_s = release + gap
         return lumps
 
     def _draw(self, release_s: float) -> tuple[Lump, float]:
