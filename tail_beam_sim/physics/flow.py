@@ -17,6 +17,7 @@ flow reaches the beam (from a window's opening to its closing plus ``onset_delay
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -43,6 +44,7 @@ __all__ = [
     "ShareInterval",
     "ShareTally",
     "WindowStateError",
+    "parse_window_command",
     "simulate_flow",
 ]
 
@@ -326,3 +328,32 @@ def _collect(
     truths.extend(chunk.truths)
     shares.extend(part.shares)
     lumps.extend(part.lumps)
+
+
+MAX_WINDOW_CMD_CHARS = 1024  # a window command is about 20 characters
+
+
+def parse_window_command(text: str) -> str:
+    """The action of one ``window_cmd`` text: a JSON object ``{"action": "open" | "close"}``.
+    InputError naming ``window_cmd`` (not a JSON object, too long, other fields) or
+    ``window_cmd.action``."""
+    if len(text) > MAX_WINDOW_CMD_CHARS:
+        raise InputError(
+            "window_cmd", text, f"must be at most {MAX_WINDOW_CMD_CHARS} characters of JSON"
+        )
+    try:
+        value = json.loads(text)
+    except (json.JSONDecodeError, RecursionError, ValueError) as exc:
+        reason = f"{exc.msg} at char {exc.pos}" if isinstance(exc, json.JSONDecodeError) else ""
+        raise InputError(
+            "window_cmd", text, f'must be JSON {{"action": "open" | "close"}} ({reason or exc})'
+        ) from None
+    if not isinstance(value, dict):
+        raise InputError("window_cmd", text, 'must be a JSON object {"action": "open" | "close"}')
+    extra = sorted(set(value) - {"action"})
+    if extra:
+        raise InputError("window_cmd", text, f"unknown field(s) {', '.join(extra)}: only action")
+    action = value.get("action")
+    if action not in WINDOW_ACTIONS:
+        raise InputError("window_cmd.action", action, "must be open or close")
+    return action
