@@ -331,3 +331,29 @@ def test_windows_out_of_order_are_refused_by_name():
         with pytest.raises(InputError) as error:
             simulate_flow(params(**FAST_RISE), 1.0, windows=windows)
         assert error.value.field.startswith("windows[")
+
+
+def test_a_face_windows_flow_parameters_drive_the_flow():
+    """The face model's window (tail_beam_sim.physics.face) hands its share curve and mass rate
+    as flow parameters: they pass the flow's checks, and the lumps' gangue mass share follows
+    the curve (pure coal before its first gangue)."""
+    from tail_beam_sim.physics.face import (
+        Face,
+        FaceParams,
+        Visit,
+        close_at_true_share,
+        draw_window,
+        load_face_parameters,
+    )
+
+    face = Face(FaceParams.from_params(load_face_parameters()).with_changes(cell_size_m=0.25))
+    window = draw_window(face, Visit(4, 0, None), close_at_true_share(0.5, 300.0)())
+    flow = flow_params(**window.flow_parameters(300.0, 300.0))
+    assert flow.rate_kind == "mass" and flow.mass_rate_kgps == 300.0
+    seconds = window.mass_kg() / flow.mass_rate_kgps  # the whole window's draw
+    lumps = lumps_of(flow, 0.0, seconds)
+    # the curve is 0 up to the point before its first gangue share (linear from there)
+    first_gangue = flow.share.drawn_mass_kg[np.argmax(flow.share.share > 0) - 1]
+    early = [lump for lump in lumps if lump.drawn_mass_kg < first_gangue]
+    assert early and not any(lump.is_gangue for lump in early)
+    assert any(lump.is_gangue for lump in lumps)
