@@ -1,21 +1,19 @@
 """The gangue share of a caving flow over a sliding interval: how much of what strikes the tail
-beam is rock, read from the labels where the impacts can be told apart and from the beam's
-vibration statistics where they cannot (docs/gangue_share.md).
+beam is rock, read from the impacts' labels (docs/gangue_share.md).
 
 Basis: the share by count, the fraction of the lumps striking in the interval that are gangue.
 
 * Separable impacts (few of the interval's labels overlap another impact): the share is the
-  fraction of labels that say gangue, with its Wilson 95 % interval (``basis_method: labels``).
-* Dense flow (responses overlap: per-impact labels fall to chance): the share is a linear
-  model of the acceleration channel's statistics per frame, averaged over the interval: the
-  energy in octave-like bands, the kurtosis and the spectral centroid (gangue is stiffer, its
-  contacts are shorter and excite higher bands), trained on simulated flows across drawn
-  supports (``tail_beam_id/models/gangue_share.json``); its 95 % interval is the share plus or
-  minus 1.96 held-out residual standard deviations (``basis_method: vibration``).
+  fraction of labels that say gangue, with its Wilson 95 % interval (``method: labels``).
+* Dense flow (responses overlap and per-impact labels are often wrong): the share is the
+  mixture proportion that makes the labels' scores (their logits of gangue) likeliest, given
+  how coal and gangue impacts score in that regime, learnt on simulated flows at 5-200 lumps/s
+  on the nominal and on drawn supports (``tail_beam_id/models/gangue_share.json``); its 95 %
+  interval is the profile-likelihood one (``method: mixture``). A label that is wrong at
+  random then costs precision, not bias.
 
-Everything here depends on stamps and sample values only: frames are fixed on the stamp grid
-(``k frame_s``), intervals end on the grid ``k hop_s``, so live (id_node) and offline (tail-beam
-identify) give the same shares.
+An interval ends on the grid ``k hop_s`` of stamp time and rests on the labels whose impact
+stamp lies in it: live (id_node) and offline (tail-beam identify) give the same shares.
 """
 
 from __future__ import annotations
@@ -23,7 +21,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -36,9 +34,9 @@ from tail_beam_sim.spec import Section, integer, number, positive
 BASIS = "count"  # the share is the fraction of lumps that are gangue, by number
 Z_95 = 1.959963984540054  # two-sided 95 % normal quantile
 MODEL_PATH = Path(__file__).resolve().parent.parent / "models" / "gangue_share.json"
-# Band edges of the frame statistics, Hz; each band is kept below 0.45 x the channel's rate.
-BAND_EDGES_HZ = (100.0, 400.0, 1000.0, 2500.0, 5000.0, 11000.0)
-MIN_CENTROID_HZ = 100.0  # the spectral centroid leaves out the beam's sway below this, Hz
+SCORE_LIMIT = 12.0  # label scores (logits of gangue) are clipped to +-this
+SHARE_GRID = 1000  # the mixture estimate's share grid: steps from 0 to 1
+CHI2_95_1DOF = 3.841458820694124  # 95 % quantile of chi-square with one degree of freedom
 
 GANGUE_SHARE = Section(
     "identification.gangue_share",
@@ -46,13 +44,6 @@ GANGUE_SHARE = Section(
     (
         positive("interval_s", "Length of each interval.", "s", high=60.0, default=1.0),
         positive("hop_s", "A new interval ends every this long.", "s", high=60.0, default=0.5),
-        positive(
-            "frame_s",
-            "Vibration statistics are read per frame of this length.",
-            "s",
-            high=1.0,
-            default=0.1,
-        ),
         positive(
             "settle_s",
             "An interval is published once every live stream is this far past its end and no "
@@ -63,7 +54,7 @@ GANGUE_SHARE = Section(
         ),
         number(
             "max_overlap_fraction",
-            "Above this fraction of overlapping labels the vibration model decides, not labels.",
+            "Above this fraction of overlapping labels the mixture estimate decides.",
             "",
             0.0,
             1.0,
@@ -71,18 +62,10 @@ GANGUE_SHARE = Section(
         ),
         integer(
             "min_labels",
-            "Fewer labels in an interval: the vibration model decides.",
+            "Fewer labels in an interval: the mixture estimate decides.",
             0,
             1000,
             default=1,
-        ),
-        number(
-            "min_frame_fill",
-            "A frame with fewer than this fraction of its expected samples is left out.",
-            "",
-            0.0,
-            1.0,
-            default=0.5,
         ),
     ),
 )
@@ -94,23 +77,20 @@ class ShareConfig:
 
     interval_s: float = 1.0
     hop_s: float = 0.5
-    frame_s: float = 0.1
     settle_s: float = 0.1
     max_overlap_fraction: float = 0.25
     min_labels: int = 1
-    min_frame_fill: float = 0.5
 
     @classmethod
     def from_params(cls, section: Mapping[str, Any] | None) -> ShareConfig:
         checked = cls(**GANGUE_SHARE.check(section or {}))
-        for name in ("interval_s", "hop_s"):
-            steps = getattr(checked, name) / checked.frame_s
-            if abs(steps - round(steps)) > 1e-9:
-                raise InputError(
-                    f"identification.gangue_share.{name}",
-                    getattr(checked, name),
-                    f"must be a whole number of frame_s ({checked.frame_s:g} s)",
-                )
+        if checked.hop_s > checked.interval_s:
+            raise InputError(
+                "identification.gangue_share.hop_s",
+                checked.hop_s,
+                f"must be at most interval_s ({checked.interval_s:g} s): every impact in one "
+                "interval at least",
+            )
         return checked
 
 
@@ -197,147 +177,106 @@ class GangueShare:
             raise InputError("gangue_share", str(text)[:60], f"a field of the wrong type ({exc})")
 
 
-def frame_statistics(accel_mps2: np.ndarray, rate_hz: float) -> np.ndarray:
-    """The statistics of one frame of the acceleration channel (samples m/s^2 at ``rate_hz``):
-    log10 of the share of the energy above MIN_CENTROID_HZ in each band of BAND_EDGES_HZ below
-    0.45 x the rate (bands beyond it: -6), log10 of the spectral centroid (Hz) above
-    MIN_CENTROID_HZ, log10 of the kurtosis, log10 of the rms above MIN_CENTROID_HZ (m/s^2)."""
-    x = np.asarray(accel_mps2, dtype=float)
-    if x.size < 8 or not rate_hz > 0.0:
-        raise InputError("frame", x.size, "must hold at least 8 samples at a positive rate")
-    x = x - x.mean()
-    spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2
-    freqs = np.fft.rfftfreq(x.size, 1.0 / rate_hz)
-    above = freqs >= MIN_CENTROID_HZ
-    total = float(spectrum[above].sum()) + 1e-30
-    bands = []
-    for low, high in zip(BAND_EDGES_HZ[:-1], BAND_EDGES_HZ[1:]):
-        if low >= 0.45 * rate_hz:
-            bands.append(-6.0)
-            continue
-        inside = (freqs >= low) & (freqs < min(high, 0.45 * rate_hz))
-        bands.append(math.log10(float(spectrum[inside].sum()) / total + 1e-6))
-    centroid = float((freqs[above] * spectrum[above]).sum()) / total
-    centred = x - x.mean()
-    var = float(np.mean(centred**2)) + 1e-30
-    kurtosis = float(np.mean(centred**4)) / var**2
-    rms = math.sqrt(total / max(1.0, float(np.sum(np.hanning(x.size) ** 2))) / x.size * 2.0)
-    return np.array(
-        [*bands, math.log10(max(centroid, 1.0)), math.log10(kurtosis), math.log10(rms + 1e-9)]
-    )
+def label_score(label: Label) -> float:
+    """How gangue-like a label's impact is: the method's logit of gangue (its ``logit``
+    estimate, which no confidence cap has touched), else the logit of the probability its
+    material and confidence state; clipped to the score range."""
+    logit = label.features.get("logit") if label.features else None
+    if logit is not None and math.isfinite(float(logit)):
+        value = -float(logit)  # the methods' logit is of coal
+    else:
+        p = label.confidence if label.material == "gangue" else 1.0 - label.confidence
+        p = min(max(p, 1e-6), 1.0 - 1e-6)
+        value = math.log(p / (1.0 - p))
+    return float(np.clip(value, -SCORE_LIMIT, SCORE_LIMIT))
 
 
-@dataclass
-class FrameAccumulator:
-    """Samples of the acceleration channel gathered into frames ``[k frame_s, (k+1) frame_s)``
-    of stamp time; a frame's statistics are taken once a later sample has come (or at the end
-    of the data), from the samples it holds, when they fill at least ``min_fill`` of it."""
-
-    frame_s: float
-    min_fill: float
-    channel: str
-    frames: dict[int, np.ndarray] = field(default_factory=dict)  # k -> statistics
-    _k: int | None = None
-    _stamps: list[np.ndarray] = field(default_factory=list)
-    _values: list[np.ndarray] = field(default_factory=list)
-
-    def add(self, stamp_s: np.ndarray, accel_mps2: np.ndarray) -> None:
-        """Samples in stamp order (s, m/s^2); non-finite ones are left out."""
-        t = np.asarray(stamp_s, dtype=float).ravel()
-        v = np.asarray(accel_mps2, dtype=float).ravel()
-        ok = np.isfinite(t) & np.isfinite(v)
-        t, v = t[ok], v[ok]
-        if not t.size:
-            return
-        ks = np.floor(t / self.frame_s + 1e-9).astype(np.int64)
-        start = 0
-        while start < t.size:
-            k = int(ks[start])
-            end = start + int(np.searchsorted(ks[start:], k, side="right"))
-            if self._k is not None and k != self._k:
-                self.close()
-            if self._k is None or k >= self._k:
-                self._k = k
-                self._stamps.append(t[start:end])
-                self._values.append(v[start:end])
-            start = end
-
-    def close(self) -> None:
-        """Take the statistics of the frame being gathered (end of data, or a later sample)."""
-        if self._k is None:
-            return
-        t = np.concatenate(self._stamps)
-        v = np.concatenate(self._values)
-        k, self._k, self._stamps, self._values = self._k, None, [], []
-        if t.size < 8:
-            return
-        period = float(np.median(np.diff(t)))
-        if not period > 0.0:
-            return
-        if t.size < self.min_fill * self.frame_s / period:
-            return
-        self.frames[k] = frame_statistics(v, 1.0 / period)
-
-    def newest_frame(self) -> int | None:
-        """The frame being gathered (its statistics are not taken yet)."""
-        return self._k
+def regime_of(label: Label) -> str:
+    """The group of labels whose scores share one distribution: by the acceleration channel the
+    label rested on (the accelerometer, else the IMU or nothing) and by whether its impact
+    overlapped another."""
+    channel = "vibration" if "vibration" in label.signals else "imu"
+    return f"{channel}/{'overlap' if label.overlap else 'alone'}"
 
 
 @dataclass(frozen=True)
-class ShareModel:
-    """The vibration model of one acceleration channel: share = clip(w . z + b, 0, 1) with z
-    the interval's mean frame statistics standardised (``mean``, ``scale``), its residual
-    standard deviation on held-out flows."""
+class ScoreModel:
+    """The distribution of :func:`label_score` for coal and for gangue impacts in each
+    :func:`regime_of`, learnt on simulated flows (histogram densities over ``edges``, per unit
+    score), what turns a dense flow's labels into a share however often each is wrong."""
 
-    channel: str
-    mean: np.ndarray
-    scale: np.ndarray
-    weights: np.ndarray
-    bias: float
-    residual_sd: float
+    edges: np.ndarray
+    densities: dict[str, tuple[np.ndarray, np.ndarray]]  # regime -> (coal, gangue)
 
-    def predict(self, stats: np.ndarray) -> float:
-        z = (np.asarray(stats, dtype=float) - self.mean) / self.scale
-        return float(np.clip(z @ self.weights + self.bias, 0.0, 1.0))
+    def likelihoods(self, scores: np.ndarray, regimes: Sequence[str]) -> np.ndarray | None:
+        """(n, 2) densities of each score under coal and gangue; None if a regime is unknown."""
+        out = np.empty((len(regimes), 2))
+        bins = np.clip(
+            np.searchsorted(self.edges, scores, side="right") - 1, 0, self.edges.size - 2
+        )
+        for i, (b, regime) in enumerate(zip(bins, regimes)):
+            if regime not in self.densities:
+                return None
+            coal, gangue = self.densities[regime]
+            out[i] = coal[b], gangue[b]
+        return out
 
     def as_dict(self) -> dict[str, Any]:
         return {
-            "mean": self.mean.tolist(),
-            "scale": self.scale.tolist(),
-            "weights": self.weights.tolist(),
-            "bias": self.bias,
-            "residual_sd": self.residual_sd,
+            "edges": self.edges.tolist(),
+            "densities": {
+                r: {"coal": c.tolist(), "gangue": g.tolist()}
+                for r, (c, g) in sorted(self.densities.items())
+            },
         }
 
     @classmethod
-    def from_dict(cls, channel: str, data: Mapping[str, Any]) -> ShareModel:
-        model = cls(
-            channel,
-            np.asarray(data["mean"], dtype=float),
-            np.asarray(data["scale"], dtype=float),
-            np.asarray(data["weights"], dtype=float),
-            float(data["bias"]),
-            float(data["residual_sd"]),
-        )
-        if not model.mean.shape == model.scale.shape == model.weights.shape:
-            raise InputError(f"gangue_share model {channel}", model.mean.shape, "shapes differ")
-        return model
+    def from_dict(cls, data: Mapping[str, Any]) -> ScoreModel:
+        edges = np.asarray(data["edges"], dtype=float)
+        densities = {}
+        for regime, entry in data["densities"].items():
+            coal = np.asarray(entry["coal"], dtype=float)
+            gangue = np.asarray(entry["gangue"], dtype=float)
+            if coal.shape != (edges.size - 1,) or gangue.shape != coal.shape:
+                raise InputError(f"gangue_share model {regime}", coal.shape, "one value per bin")
+            if (coal <= 0).any() or (gangue <= 0).any():
+                raise InputError(f"gangue_share model {regime}", "densities", "must be > 0")
+            densities[regime] = (coal, gangue)
+        return cls(edges, densities)
 
 
-def load_share_models(path: str | Path | None = None) -> dict[str, ShareModel]:
-    """The vibration models by channel (``vibration``, ``imu``); {} when the file is absent."""
+def load_score_model(path: str | Path | None = None) -> ScoreModel | None:
+    """The shipped score model (``models/gangue_share.json``), or the one at ``path``; None when
+    there is none."""
     where = Path(path) if path is not None else MODEL_PATH
     if not where.exists():
-        return {}
-    data = json.loads(where.read_text())
-    return {name: ShareModel.from_dict(name, entry) for name, entry in data["channels"].items()}
+        return None
+    try:
+        return ScoreModel.from_dict(json.loads(where.read_text()))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(
+            "gangue_share model",
+            str(where),
+            f"is no score model ({type(exc).__name__}: {exc}); rebuild it with "
+            "python -m tail_beam_id.study.share_training",
+        ) from None
 
 
-def interval_statistics(frames: Mapping[int, np.ndarray], first: int, count: int) -> np.ndarray:
-    """The mean statistics of frames ``first .. first + count - 1`` that were taken (empty when
-    none was)."""
-    taken = [frames[k] for k in range(first, first + count) if k in frames]
-    return np.mean(taken, axis=0) if taken else np.zeros(0)
+def mixture_share(likelihoods: np.ndarray) -> tuple[float, float, float, float]:
+    """The gangue share by count that makes the labels' scores likeliest (each score drawn from
+    the coal density with probability 1 - share, the gangue one with the share), on a grid of
+    SHARE_GRID steps: (share, its 95 % profile-likelihood interval low and high, the standard
+    error from the curvature at the optimum)."""
+    grid = np.linspace(0.0, 1.0, SHARE_GRID + 1)
+    coal, gangue = likelihoods[:, 0:1], likelihoods[:, 1:2]
+    loglik = np.log((1.0 - grid) * coal + grid * gangue).sum(axis=0)
+    best = int(np.argmax(loglik))
+    inside = grid[loglik >= loglik[best] - 0.5 * CHI2_95_1DOF]
+    p = float(grid[best])
+    mix = (1.0 - p) * coal[:, 0] + p * gangue[:, 0]
+    information = float(np.sum(((gangue[:, 0] - coal[:, 0]) / mix) ** 2))
+    se = 1.0 / math.sqrt(information) if information > 0 else math.inf
+    return p, float(inside.min()), float(inside.max()), min(se, 1.0)
 
 
 def estimate_share(
@@ -345,55 +284,32 @@ def estimate_share(
     start_s: float,
     end_s: float,
     config: ShareConfig,
-    stats: np.ndarray | None = None,
-    model: ShareModel | None = None,
+    model: ScoreModel | None = None,
 ) -> GangueShare:
-    """The share over [start_s, end_s) from the labels whose impact lies in it and, when they
-    are too few or overlap too much, from the interval's vibration statistics (``stats``)
-    through ``model``."""
+    """The share over [start_s, end_s) from the labels whose impact lies in it: the fraction
+    labelled gangue while they are separable (few overlap), else the mixture estimate of their
+    scores through ``model`` (:func:`mixture_share`)."""
     if not end_s > start_s:
         raise InputError("end_stamp_s", end_s, f"must be after start_stamp_s ({start_s})")
     inside = [lab for lab in labels if start_s <= lab.impact_stamp_s < end_s]
     n = len(inside)
+    if n == 0:
+        return GangueShare(start_s, end_s, None, 0.0, 1.0, None, 0, 0, 0, "none", ())
     k = sum(lab.material == "gangue" for lab in inside)
     overlapping = sum(bool(lab.overlap) for lab in inside)
-    label_signals = tuple(sorted({s for lab in inside for s in lab.signals}))
-    separable = n >= max(1, config.min_labels) and overlapping <= config.max_overlap_fraction * n
-    usable_model = model is not None and stats is not None and stats.size == model.mean.size
-    if separable or (not usable_model and n):
+    signals = tuple(sorted({s for lab in inside for s in lab.signals}))
+    separable = n >= config.min_labels and overlapping <= config.max_overlap_fraction * n
+    likelihoods = None
+    if not separable and model is not None:
+        scores = np.array([label_score(lab) for lab in inside])
+        likelihoods = model.likelihoods(scores, [regime_of(lab) for lab in inside])
+    if likelihoods is None:
         low, high = wilson_interval(k, n)
         p = k / n
-        return GangueShare(
-            start_s,
-            end_s,
-            p,
-            low,
-            high,
-            math.sqrt(p * (1 - p) / n),
-            n,
-            k,
-            overlapping,
-            "labels",
-            label_signals,
-        )
-    if usable_model:
-        assert model is not None and stats is not None
-        p = model.predict(stats)
-        half = Z_95 * model.residual_sd
-        return GangueShare(
-            start_s,
-            end_s,
-            p,
-            max(0.0, p - half),
-            min(1.0, p + half),
-            model.residual_sd,
-            n,
-            k,
-            overlapping,
-            "vibration",
-            (model.channel,),
-        )
-    return GangueShare(start_s, end_s, None, 0.0, 1.0, None, 0, 0, 0, "none", ())
+        se = math.sqrt(p * (1 - p) / n)
+        return GangueShare(start_s, end_s, p, low, high, se, n, k, overlapping, "labels", signals)
+    p, low, high, se = mixture_share(likelihoods)
+    return GangueShare(start_s, end_s, p, low, high, se, n, k, overlapping, "mixture", signals)
 
 
 def interval_ends(first_s: float, last_s: float, config: ShareConfig) -> list[float]:

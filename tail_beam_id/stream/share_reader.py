@@ -3,17 +3,15 @@
 interval once the interval is settled.
 
 An interval ``[end - interval_s, end)`` is settled when every live continuous stream has passed
-``end + settle_s`` and no impact found before ``end`` waits for its decision (or at the end of
+``end + settle_s`` and no impact found before ``end`` waits for its decision (or, at the end of
 the data, for every interval the data covers). Its estimate rests on the labels of the impacts
-in it and the acceleration channel's frames in it (the accelerometer's when it delivered any of
-them, else the IMU's): both depend on stamps and samples only, so id_node (fed by its arrival
-gate) and tail-beam identify (fed by replay) publish the same shares.
+in it, which depend on stamps and samples only, so id_node (fed by its arrival gate) and
+tail-beam identify (fed by replay) publish the same shares.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -21,53 +19,45 @@ import numpy as np
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label
 from tail_beam_id.stream.share import (
-    FrameAccumulator,
     GangueShare,
+    ScoreModel,
     ShareConfig,
-    ShareModel,
     estimate_share,
     interval_ends,
-    interval_statistics,
-    load_share_models,
+    load_score_model,
 )
+
+_SHIPPED = object()  # share_model not given: the shipped models/gangue_share.json
 
 
 class SharingIdentifier(StreamIdentifier):
     """Labels each impact (as :class:`StreamIdentifier`) and reads the flow's gangue share;
     :meth:`take_shares` hands out the intervals settled so far, in stamp order."""
 
-    def __init__(
-        self,
-        *args: Any,
-        share_models: Mapping[str, ShareModel] | None = None,
-        **kwargs: Any,
-    ) -> None:
-        """Arguments as :class:`StreamIdentifier`; ``share_models``: the vibration models by
-        channel (None: the shipped ``models/gangue_share.json``)."""
+    def __init__(self, *args: Any, share_model: Any = _SHIPPED, **kwargs: Any) -> None:
+        """Arguments as :class:`StreamIdentifier`; ``share_model``: the
+        :class:`~tail_beam_id.stream.share.ScoreModel` for dense flows (None: labels only;
+        default: the shipped one)."""
         super().__init__(*args, **kwargs)
         params = kwargs.get("params")
-        section = (params or {}).get("gangue_share") if params is not None else None
-        self.share_config = ShareConfig.from_params(section)
-        self.share_models = dict(load_share_models() if share_models is None else share_models)
-        cfg = self.share_config
-        self._frames = {
-            "vibration": FrameAccumulator(cfg.frame_s, cfg.min_frame_fill, "vibration"),
-            "imu": FrameAccumulator(cfg.frame_s, cfg.min_frame_fill, "imu"),
-        }
+        self.share_config = ShareConfig.from_params((params or {}).get("gangue_share"))
+        self.share_model: ScoreModel | None = (
+            load_score_model() if share_model is _SHIPPED else share_model
+        )
         self._labels: list[Label] = []
         self._first_s = math.inf
         self._emitted_end_s = -math.inf
         self._settled: list[GangueShare] = []
 
     # ---- input -------------------------------------------------------------------------------
-    def _first(self, stamp_s: np.ndarray) -> None:
-        stamps = np.asarray(stamp_s, dtype=float)
+    def _first(self, stamp_s: Any) -> None:
+        stamps = np.atleast_1d(np.asarray(stamp_s, dtype=float))
         finite = stamps[np.isfinite(stamps)]
         if finite.size:
             self._first_s = min(self._first_s, float(finite.min()))
 
     def add_pressure(self, stamp_s: np.ndarray, pressure_pa: np.ndarray) -> None:
-        self._first(np.atleast_1d(stamp_s))
+        self._first(stamp_s)
         super().add_pressure(stamp_s, pressure_pa)
 
     def add_imu(
@@ -76,19 +66,11 @@ class SharingIdentifier(StreamIdentifier):
         angular_velocity_radps: np.ndarray,
         linear_acceleration_mps2: np.ndarray,
     ) -> None:
-        stamps = np.atleast_1d(np.asarray(stamp_s, dtype=float))
-        self._first(stamps)
-        accel = np.asarray(linear_acceleration_mps2, dtype=float).reshape(-1, 3)
-        if accel.shape[0] == stamps.size:
-            self._frames["imu"].add(stamps, accel[:, 2])
+        self._first(stamp_s)
         super().add_imu(stamp_s, angular_velocity_radps, linear_acceleration_mps2)
 
     def add_vibration(self, stamp_s: np.ndarray, accel_mps2: np.ndarray) -> None:
-        stamps = np.atleast_1d(np.asarray(stamp_s, dtype=float))
-        self._first(stamps)
-        values = np.atleast_1d(np.asarray(accel_mps2, dtype=float)).ravel()
-        if values.size == stamps.size:
-            self._frames["vibration"].add(stamps, values)
+        self._first(stamp_s)
         super().add_vibration(stamp_s, accel_mps2)
 
     # ---- output ------------------------------------------------------------------------------
@@ -101,8 +83,6 @@ class SharingIdentifier(StreamIdentifier):
     def flush(self) -> list[Label]:
         labels = super().flush()
         self._labels += labels
-        for frames in self._frames.values():
-            frames.close()
         self._settle(self.channels.newest_s())
         return labels
 
@@ -127,24 +107,9 @@ class SharingIdentifier(StreamIdentifier):
             if end <= self._emitted_end_s + 1e-9:
                 continue
             start = end - cfg.interval_s
-            first = round(start / cfg.frame_s)
-            count = round(cfg.interval_s / cfg.frame_s)
-            stats, model = np.zeros(0), None
-            for channel in ("vibration", "imu"):
-                stats = interval_statistics(self._frames[channel].frames, first, count)
-                if stats.size:
-                    model = self.share_models.get(channel)
-                    break
-            self._settled.append(estimate_share(self._labels, start, end, cfg, stats, model))
+            self._settled.append(estimate_share(self._labels, start, end, cfg, self.share_model))
             self._emitted_end_s = end
-        self._forget(self._emitted_end_s + cfg.hop_s - cfg.interval_s)
-
-    def _forget(self, oldest_s: float) -> None:
-        """Drop labels and frames no later interval can need (before ``oldest_s``, s)."""
-        if not math.isfinite(oldest_s):
-            return
-        self._labels = [lab for lab in self._labels if lab.impact_stamp_s >= oldest_s - 1e-9]
-        oldest_k = math.floor(oldest_s / self.share_config.frame_s + 1e-9)
-        for frames in self._frames.values():
-            for k in [k for k in frames.frames if k < oldest_k]:
-                del frames.frames[k]
+        # Labels no later interval can hold.
+        oldest_s = self._emitted_end_s + cfg.hop_s - cfg.interval_s
+        if math.isfinite(oldest_s):
+            self._labels = [lab for lab in self._labels if lab.impact_stamp_s >= oldest_s - 1e-9]
