@@ -61,8 +61,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--flow-rates",
-        default="5,20,50,100,200",
-        help="flow set: lumps per second, comma-separated (default 5,20,50,100,200)",
+        default="3.3,5,20,50,100,200",
+        help="flow set: lumps per second, comma-separated (default 3.3,5,20,50,100,200; 3.3: "
+        "one lump per 0.3 s)",
     )
     parser.add_argument(
         "--flow-foreign",
@@ -74,8 +75,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--flow-duration-s",
         type=float,
         default=12.0,
-        help="flow set: each flow's length, s; pure coal for the first half, the share then "
-        "rising to 1/2 over 2 s (default 12)",
+        help="flow set: each flow's length, s; pure coal for about the first half, the share "
+        "by mass then rising to 0.7 over about 2 s (default 12)",
     )
     parser.add_argument(
         "--flow-coal-s",
@@ -247,7 +248,7 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
         raise InputError("--flow-foreign", args.flow_foreign, "must be >= 0")
     duration = require_range("--flow-duration-s", args.flow_duration_s, 2.0, 600.0)
     coal = require_range("--flow-coal-s", args.flow_coal_s, 1.0, 600.0)
-    scene = FlowScene(duration, duration / 2.0, 2.0, 0.5, coal)
+    scene = FlowScene(duration, duration / 2.0, 2.0, 0.7, coal)
     method = args.methods.split(",")[0] if args.methods else None
     if method is not None:
         _names(method, available_methods(), "--methods")
@@ -259,8 +260,8 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
     cases = list(run_flow_set(params, rates, args.flow_foreign, scene, method=method))
     print(
         f"flow: {len(rates)} rates x {1 + args.flow_foreign} supports x 2 layouts, "
-        f"{duration:g} s flows (pure coal to {duration / 2:g} s, then the share rising to 1/2 "
-        f"over 2 s) and {coal:g} s of pure coal each, method "
+        f"{duration:g} s flows (pure coal to about {duration / 2:g} s, then the share by mass "
+        f"rising to 0.7 over about 2 s) and {coal:g} s of pure coal each, method "
         f"{method or params['identification']['method']}, {time.monotonic() - started:.0f} s"
     )
     print(format_flow_table(cases))

@@ -104,7 +104,9 @@ def wilson_interval(successes: int, total: int, z: float = Z_95) -> tuple[float,
     denom = 1.0 + z * z / total
     centre = (p + z * z / (2 * total)) / denom
     half = z * math.sqrt(p * (1 - p) / total + z * z / (4 * total * total)) / denom
-    return max(0.0, centre - half), min(1.0, centre + half)
+    low = 0.0 if successes == 0 else max(0.0, centre - half)  # exact ends: no rounding residue
+    high = 1.0 if successes == total else min(1.0, centre + half)
+    return low, high
 
 
 @dataclass(frozen=True)

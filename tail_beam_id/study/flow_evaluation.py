@@ -1,17 +1,18 @@
-"""The ``flow`` scene set of ``tail-beam evaluate``: the gangue share read from simulated caving
-flows (:mod:`tail_beam_id.study.flow`) against the truth, on the nominal support and on supports
-drawn from the foreign ranges, at flow rates from sparse to dense, with the shipped layout and
-with the IMU alone.
+"""The ``flow`` scene set of ``tail-beam evaluate``: the gangue share read from the suite's
+drawing-opening flows (:func:`tail_beam_sim.physics.flow.simulate_flow`, config/flow.yaml)
+against the truth, on the nominal support and on supports drawn from the foreign ranges, at
+flow rates from sparse to dense, with the shipped layout and with the IMU alone.
 
-Each case is one flow (pure coal until ``boundary_s``, the share then rising linearly to
-``final_share`` over ``ramp_s``) and one pure-coal flow of ``coal_s``, both identified as
-``tail-beam identify`` does (a :class:`SharingIdentifier` on the replayed streams). Figures:
+Each case is one flow (pure coal until about ``boundary_s``, the share by mass then rising to
+``final_share_by_mass`` over about ``ramp_s``) and one pure-coal flow of ``coal_s``, both
+identified as ``tail-beam identify --no-calibrate`` does (a :class:`SharingIdentifier` on the
+replayed streams). Figures:
 
 * the share's mean absolute error per interval (the estimate against the share by count of the
   lumps that struck in it; intervals where none struck or nothing was estimated are left out);
 * the detection delay at 1/5 and 1/3: when the estimate first reaches the level (at or after the
-  boundary) minus when the true interval share first does, s (the interval ends; nan when the
-  truth never reaches it, inf when the estimate never does);
+  first gangue lump) minus when the true interval share first does, s (the interval ends; nan
+  when the truth never reaches it, inf when the estimate never does);
 * false crossings: intervals of the pure-coal flow whose estimate reaches 1/5;
 * per-impact accuracy (Wilson 95 %) of the labels, extra and missed labels counting as wrong.
 """
@@ -31,7 +32,7 @@ from tail_beam_id.stream.share import GangueShare
 from tail_beam_id.stream.share_reader import SharingIdentifier
 from tail_beam_id.study.dataset import evaluation_params
 from tail_beam_id.study.evaluation import wilson
-from tail_beam_id.study.flow import FlowRecording, ShareCurve, record_flow, true_shares
+from tail_beam_id.study.flow import FlowRecording, record_sim_flow, true_shares
 from tail_beam_id.study.supports import SupportDraw, draw_support, support_ranges
 
 FLOW_SEED = 46001  # the flow set's seed (training flows use share_training.TRAINING_SEED + n)
@@ -42,17 +43,14 @@ SENSOR_RATES = ("pressure_rate_hz", "imu_rate_hz", "camera_frame_rate_hz")
 
 @dataclass(frozen=True)
 class FlowScene:
-    """The flow every case runs: its length and share curve (s, share 0..1) and the pure-coal
-    flow's length (s)."""
+    """The flow every case runs: its length, when the boundary arrives and how long the share
+    by mass takes to rise to ``final_share_by_mass`` (s), and the pure-coal flow's length (s)."""
 
     duration_s: float = 12.0
     boundary_s: float = 6.0
     ramp_s: float = 2.0
-    final_share: float = 0.5
+    final_share_by_mass: float = 0.7
     coal_s: float = 12.0
-
-    def curve(self) -> ShareCurve:
-        return ShareCurve(self.boundary_s, self.ramp_s, self.final_share)
 
 
 @dataclass
@@ -151,7 +149,9 @@ def score_case(
         if share.share is not None and n:
             case.errors.append(abs(share.share - true))
     case.series = [(s.end_stamp_s, t, s.share) for s, (t, _) in zip(shares, truth)]
-    boundary = recording.open_s + recording.curve.boundary_s
+    # The boundary arrives with the first gangue lump.
+    gangue_at = recording.lump_stamps_s()[recording.gangue()]
+    boundary = float(gangue_at.min()) if gangue_at.size else math.inf
     for level in LEVELS:
         true_at = first_reaching(ends, [t for t, _ in truth], level, boundary)
         seen_at = first_reaching(ends, [s.share for s in shares], level, boundary)
@@ -190,12 +190,17 @@ def run_flow_set(
     for s_index, (name, draw) in enumerate(flow_supports(params, foreign, seed)):
         for r_index, rate in enumerate(rates_per_s):
             case_seed = seed + 100 * s_index + r_index
-            flow = record_flow(
-                params, rate, scene.duration_s, scene.curve(), case_seed, support=draw
+            flow = record_sim_flow(
+                params,
+                rate,
+                scene.duration_s,
+                scene.boundary_s,
+                scene.ramp_s,
+                scene.final_share_by_mass,
+                case_seed,
+                draw,
             )
-            coal = record_flow(
-                params, rate, scene.coal_s, ShareCurve(0.0, 0.0, 0.0), case_seed + 50, support=draw
-            )
+            coal = record_sim_flow(params, rate, scene.coal_s, 0.0, 0.0, 0.0, case_seed + 50, draw)
             for layout in layouts:
                 case = FlowCase(name, layout, float(rate))
                 labels, shares = identify_flow(flow, layout, method)
