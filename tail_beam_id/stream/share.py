@@ -194,11 +194,10 @@ def label_score(label: Label) -> float:
 
 
 def regime_of(label: Label) -> str:
-    """The group of labels whose scores share one distribution: by the acceleration channel the
-    label rested on (the accelerometer, else the IMU or nothing) and by whether its impact
-    overlapped another."""
-    channel = "vibration" if "vibration" in label.signals else "imu"
-    return f"{channel}/{'overlap' if label.overlap else 'alone'}"
+    """The group of labels whose scores share one distribution: the signals the label rested on
+    (which network decided it) and whether its impact overlapped another, e.g.
+    ``jack_pressure+rebound_velocity/overlap``."""
+    return f"{'+'.join(sorted(label.signals))}/{'overlap' if label.overlap else 'alone'}"
 
 
 @dataclass(frozen=True)

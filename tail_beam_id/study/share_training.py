@@ -1,7 +1,8 @@
-"""Training the gangue-share score model (``tail_beam_id/models/gangue_share.json``): simulated
-flows at 5-200 lumps/s with random share curves, every other one on the nominal support and the
-rest on supports drawn from the training ranges, each identified with the shipped layout and
-with the IMU alone; each label paired with its lump (the suite's matching rule) gives one score
+"""Training the gangue-share score model (``tail_beam_id/models/gangue_share.json``): flows of
+the suite's flow simulator (:func:`tail_beam_id.study.flow.record_sim_flow`) at 5-200 lumps/s
+with random share curves, every other one on the nominal support and the rest on supports drawn
+from the training ranges, each identified with the shipped layout and with the IMU alone. Each
+label paired with its lump (the suite's matching rule) gives one score
 (:func:`tail_beam_id.stream.share.label_score`) of a coal or a gangue lump in its regime
 (:func:`~tail_beam_id.stream.share.regime_of`); the model is their histogram densities.
 
@@ -26,7 +27,7 @@ from tail_beam_id.stream.label import Label, match_stamps, match_tolerance_s
 from tail_beam_id.stream.replay import replay
 from tail_beam_id.stream.share import MODEL_PATH, SCORE_LIMIT, label_score, regime_of
 from tail_beam_id.study.dataset import evaluation_params
-from tail_beam_id.study.flow import FlowRecording, ShareCurve, record_flow
+from tail_beam_id.study.flow import FlowRecording, record_sim_flow
 from tail_beam_id.study.supports import draw_support, support_ranges
 from tail_beam_sim.config import load_parameters
 
@@ -34,6 +35,7 @@ TRAINING_SEED = 7700  # training flows: this + n (the evaluation's flows lie far
 RATES_PER_S = (5.0, 20.0, 50.0, 100.0, 200.0)  # lumps/s the training flows cycle through
 SCORE_BINS = 24  # histogram bins over [-SCORE_LIMIT, SCORE_LIMIT]
 PRIOR_COUNT = 0.5  # added to every bin: no score is impossible under either material
+MIN_LABELS = 40  # a regime with fewer coal or gangue labels is left out (its labels counted)
 
 
 def training_flows(
@@ -48,17 +50,17 @@ def training_flows(
     out = []
     for n in range(flows):
         rate = float(RATES_PER_S[(n // 2) % len(RATES_PER_S)])
-        curve = ShareCurve(
-            float(rng.uniform(0.0, 0.5 * duration_s)),
-            float(rng.uniform(0.0, 0.3 * duration_s)),
-            float(rng.uniform(0.2, 1.0)),
-        )
+        boundary = float(rng.uniform(0.0, 0.5 * duration_s))
+        ramp = float(rng.uniform(0.0, 0.3 * duration_s))
+        final = float(rng.uniform(0.3, 1.0))
         support = None
         if n % 2:
             support = draw_support(ranges, rng, rng).with_sensors(
                 rates, float(params["sensors"]["vibration_rate_hz"]), 1.0
             )
-        out.append(record_flow(params, rate, duration_s, curve, seed + n, support=support))
+        out.append(
+            record_sim_flow(params, rate, duration_s, boundary, ramp, final, seed + n, support)
+        )
         print(f"share_training: flow {n + 1}/{flows} at {rate:g} lumps/s", file=sys.stderr)
     return out
 
@@ -100,6 +102,10 @@ def fit_densities(rows: Sequence[tuple[str, float, bool]]) -> dict[str, Any]:
     width = np.diff(edges)
     densities: dict[str, Any] = {}
     for regime in sorted({r for r, _, _ in rows}):
+        if min(sum(r == regime and g == want for r, _, g in rows) for want in (False, True)) < (
+            MIN_LABELS
+        ):
+            continue
         entry: dict[str, Any] = {}
         for name, is_gangue in (("coal", False), ("gangue", True)):
             scores = np.array([s for r, s, g in rows if r == regime and g == is_gangue])

@@ -21,6 +21,8 @@ COUNT = 10  # impacts of the generated caving stream (about 3.5 s of data)
 
 
 def test_id_node_publishes_the_gangue_share_that_identify_gives_offline(tmp_path):
+    """id_node's gangue_share messages on a live sim_node stream equal tail-beam identify's shares
+    of the recorded bag."""
     from tail_beam_id.ros.id_node import IdNode
     from tail_beam_sim.ros.recorder_node import RecorderNode
     from tail_beam_sim.ros.sim_node import SimNode

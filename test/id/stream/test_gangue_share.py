@@ -29,6 +29,7 @@ def label(stamp_s: float, material: str, overlap: bool = False) -> Label:
 
 
 def test_all_coal_gives_zero_with_an_interval_holding_zero():
+    """All-coal labels give a share of 0, a Wilson interval from 0 to z^2 / (n + z^2), by count."""
     labels = [label(0.1 * k, "coal") for k in range(12)]
     share = estimate_share(labels, 0.0, 1.0, CONFIG)
     assert share.share == 0.0 and share.low == 0.0
@@ -39,6 +40,8 @@ def test_all_coal_gives_zero_with_an_interval_holding_zero():
 
 
 def test_a_known_mix_gives_the_binomial_share_and_its_wilson_interval():
+    """3 gangue labels of 10 give 0.3, the textbook Wilson interval 0.108-0.603 and the binomial
+    standard error."""
     materials = ["gangue"] * 3 + ["coal"] * 7
     labels = [label(0.05 + 0.09 * k, m) for k, m in enumerate(materials)]
     share = estimate_share(labels, 0.0, 1.0, CONFIG)
@@ -50,6 +53,8 @@ def test_a_known_mix_gives_the_binomial_share_and_its_wilson_interval():
 
 
 def test_wilson_interval_limits():
+    """The Wilson interval of nothing is [0, 1], of 50/100 symmetric; more successes than trials
+    are refused."""
     assert wilson_interval(0, 0) == (0.0, 1.0)
     low, high = wilson_interval(50, 100)
     assert low == pytest.approx(1 - high) and low == pytest.approx(0.4038, abs=5e-4)
@@ -80,6 +85,8 @@ def scored(stamp_s: float, gangue_like: bool) -> Label:
 
 
 def test_dense_labels_with_a_perfect_score_give_the_count_share():
+    """Overlapping labels whose scores separate the materials perfectly: the mixture estimate is
+    the count share with the binomial standard error."""
     labels = [scored(0.01 * k, k % 10 < 3) for k in range(100)]
     share = estimate_share(labels, 0.0, 1.0, CONFIG, two_bin_model())
     assert share.basis_method == "mixture" and share.share == pytest.approx(0.3, abs=1e-9)
@@ -102,18 +109,23 @@ def test_a_classifier_wrong_a_fifth_of_the_time_still_gives_the_true_share():
 
 
 def test_all_coal_in_a_dense_flow_gives_an_interval_holding_zero():
+    """Pure coal with a tenth of the scores gangue-like, as the model expects: the mixture estimate
+    is about 0 and its interval starts at 0."""
     labels = [scored(0.01 * k, k % 10 == 0) for k in range(100)]  # 10 % wrongly gangue-like
     share = estimate_share(labels, 0.0, 1.0, CONFIG, two_bin_model(wrong=0.1))
     assert share.share == pytest.approx(0.0, abs=0.02) and share.low == 0.0
 
 
 def test_labels_of_a_regime_the_model_does_not_know_are_counted():
+    """Labels of a regime the score model lacks fall back to the count."""
     labels = [scored(0.01 * k, k % 2 == 0) for k in range(10)]
     share = estimate_share(labels, 0.0, 1.0, CONFIG, two_bin_model("imu/overlap"))
     assert share.basis_method == "labels" and share.share == pytest.approx(0.5)
 
 
 def test_the_score_uses_the_uncapped_logit_else_the_confidence():
+    """The score is minus the method's logit of coal, else the logit of the stated probability of
+    gangue."""
     assert label_score(scored(0.0, True)) == 3.0
     plain = Label(0.0, "gangue", 0.8, "threshold")
     assert label_score(plain) == pytest.approx(math.log(4.0))
@@ -121,12 +133,14 @@ def test_the_score_uses_the_uncapped_logit_else_the_confidence():
 
 
 def test_no_labels_and_no_model_say_nothing():
+    """An interval without labels gives a null share over [0, 1] and reads back from JSON."""
     share = estimate_share([], 0.0, 1.0, CONFIG)
     assert share.share is None and (share.low, share.high) == (0.0, 1.0)
     assert GangueShare.from_json(share.to_json()) == share
 
 
 def test_the_message_reads_back_and_a_bad_one_is_refused_by_name():
+    """A share's JSON reads back equal; a missing field or a share above 1 is refused by name."""
     share = estimate_share([label(0.5, "gangue")], 0.0, 1.0, CONFIG)
     assert GangueShare.from_json(share.to_json()) == share
     with pytest.raises(InputError, match="gangue_share.lumps"):
@@ -143,6 +157,8 @@ def test_the_message_reads_back_and_a_bad_one_is_refused_by_name():
 
 
 def test_bad_settings_and_intervals_are_refused_by_name():
+    """A hop longer than the interval, a negative interval and an empty interval are refused by
+    name."""
     with pytest.raises(InputError, match="identification.gangue_share.hop_s"):
         ShareConfig.from_params({"hop_s": 2.0, "interval_s": 1.0})
     with pytest.raises(InputError, match="identification.gangue_share.interval_s"):
@@ -152,5 +168,6 @@ def test_bad_settings_and_intervals_are_refused_by_name():
 
 
 def test_interval_ends_lie_on_the_grid_within_the_data():
+    """Interval ends lie on the hop grid, each interval wholly within the data."""
     assert interval_ends(0.03, 2.6, CONFIG) == [1.5, 2.0, 2.5]
     assert interval_ends(0.0, 0.9, CONFIG) == []

@@ -21,6 +21,8 @@ def share(end_s: float, value: float | None) -> GangueShare:
 
 
 def test_crossings_and_false_alarms_are_read_from_the_interval_ends():
+    """Crossings are the first interval end reaching the level after a stamp; pure-coal intervals
+    reaching 1/5 count as false."""
     ends = [1.0, 1.5, 2.0, 2.5]
     assert first_reaching(ends, [0.0, 0.3, 0.1, 0.5], 0.2, 0.0) == 1.5
     assert first_reaching(ends, [0.0, 0.3, 0.1, 0.5], 0.2, 1.8) == 2.5
@@ -49,6 +51,8 @@ def test_a_sparse_pure_coal_flow_reads_near_zero_with_intervals_holding_it():
 
 @pytest.mark.slow
 def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
+    """`tail-beam evaluate --sets flow` runs every support and layout, prints the targets and
+    writes flow.json with finite figures."""
     code = main(
         [
             "evaluate",
@@ -87,6 +91,7 @@ def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
     ],
 )
 def test_bad_flow_options_are_refused_in_one_line(capsys, argv, field):
+    """Each bad flow option exits 2 with one line naming it."""
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and field in err
