@@ -58,8 +58,10 @@ def _free_acceleration(structure: LinearStructure, q: np.ndarray, qd: np.ndarray
 
 @dataclass(frozen=True)
 class Contribution:
-    """One contact's share of the beam's motion: its trajectory (solved from velocity ``qd0``
-    at ``stamp_s``) minus the free response of ``qd0``; a free response after ``until_s``."""
+    """One contact: its trajectory, solved from velocity ``qd0`` (zero displacement) at
+    ``stamp_s``; its particle has left the plate for the last time at ``until_s``. Its share of
+    the beam's motion is the trajectory minus the free response of ``qd0``: the response to its
+    own force from rest."""
 
     stamp_s: float
     trajectory: Trajectory
@@ -67,20 +69,16 @@ class Contribution:
     until_s: float
 
     def sample(self, stamp_s: np.ndarray) -> Samples:
-        """The contribution at absolute stamps (s): q, qd, qdd, and the contact force (N)."""
-        structure = self.trajectory.problem.structure
-        t = stamp_s - self.stamp_s
-        own = self.trajectory.sample(t)
-        q, qd = structure.propagate(np.zeros_like(self.qd0), self.qd0, t)
-        own.q = own.q - q
-        own.qd = own.qd - qd
-        own.qdd = own.qdd - _free_acceleration(structure, q, qd)
-        return own
+        """The trajectory at absolute stamps (s): q, qd, qdd, and the contact force (N)."""
+        return self.trajectory.sample(stamp_s - self.stamp_s)
 
 
 class FlowEpoch:
-    """The beam's motion from one contact stamp to the next: the aggregate free state at the
-    epoch's start propagated exactly, plus the contributions still in contact. Samples like a
+    """The beam's motion from one contact stamp (or end) to the next: a free state at the
+    epoch's start propagated exactly plus the trajectories of the contacts still active. The
+    free state is the aggregate of the contacts folded before, less the free responses that the
+    active trajectories carry (each started from the beam's velocity, not from rest): one
+    propagation per sample instead of one per active contact. Samples like a
     :class:`Trajectory` (times from the epoch's start), which is all the sensor stages ask."""
 
     def __init__(
@@ -90,18 +88,48 @@ class FlowEpoch:
         q: np.ndarray,
         qd: np.ndarray,
         active: Sequence[Contribution],
+        previous: FlowEpoch | Trajectory | None = None,
+        previous_start_s: float = -math.inf,
     ) -> None:
         self.problem = problem
         self.start_s = start_s
         self.q = q
         self.qd = qd
         self.active = list(active)
+        # The epoch before (starting at previous_start_s): a sensor's value is a mean over the
+        # period before its instant, and a period reaching back before this epoch is read there.
+        self.previous = previous
+        self.previous_start_s = previous_start_s
 
     def sample(self, t_s: np.ndarray) -> Samples:
         """The beam's state at times ``t_s`` from the epoch's start (the particle fields hold
-        zeros; ``force_n`` is the sum of the contact forces, N)."""
-        structure = self.problem.structure
+        zeros; ``force_n`` is the sum of the contact forces, N); times before the start are
+        the previous epoch's."""
         times = np.atleast_1d(np.asarray(t_s, dtype=float))
+        before = times < 0.0
+        if self.previous is None or not before.any():
+            return self._sample_own(times)
+        shift = self.start_s - (
+            self.previous_start_s if math.isfinite(self.previous_start_s) else 0
+        )
+        early = self.previous.sample(times[before] + shift)
+        late = self._sample_own(times[~before])
+        out = Samples(
+            times,
+            np.empty((self.q.size, times.size)),
+            np.empty((self.q.size, times.size)),
+            np.empty((self.q.size, times.size)),
+            np.empty(times.size),
+            np.zeros(times.size),
+            np.zeros(times.size),
+        )
+        for part, where in ((early, before), (late, ~before)):
+            out.q[:, where], out.qd[:, where], out.qdd[:, where] = part.q, part.qd, part.qdd
+            out.force_n[where] = part.force_n
+        return out
+
+    def _sample_own(self, times: np.ndarray) -> Samples:
+        structure = self.problem.structure
         q, qd = structure.propagate(self.q, self.qd, times)
         qdd = _free_acceleration(structure, q, qd)
         force = np.zeros(times.size)
@@ -131,10 +159,6 @@ class FlowSimulator(StreamSimulator):
         self._rest_problem = rest_trajectory(self.structure, self.support.gravity_mps2).problem
         self._latest_stamp_s = -math.inf
         self.solver_options: dict[str, object] = {}  # passed to the solver of every contact
-        # A sensor value is a mean over the period before its instant, read from the epoch of
-        # the instant: a contact is folded this long after it ends (two IMU periods, s), so no
-        # period reaching back into a contact is read from an epoch that folded it.
-        self._lookback_s = 2.0 / self.sensors.imu_rate_hz
 
     @property
     def earliest_contact_s(self) -> float:
@@ -149,27 +173,40 @@ class FlowSimulator(StreamSimulator):
         return super().advance(until_s)
 
     def _fold_until(self, stamp_s: float) -> None:
-        """Start an epoch where each active contact has ended (plus the sensors' look-back, at
-        or before ``stamp_s``), with that contact folded into the aggregate free state: epochs
-        then sample each contribution over little more than its contact."""
+        """Start an epoch where each active contact has ended (at or before ``stamp_s``), with
+        that contact folded into the free state: epochs then sample each contact's trajectory
+        over its contact only."""
         while True:
             epoch = self._epochs[-1]
             active = getattr(epoch, "active", [])
-            ended = [c for c in active if c.until_s + self._lookback_s <= stamp_s]
+            ended = [c for c in active if c.until_s <= stamp_s]
             if not ended:
                 return
             first = min(ended, key=lambda c: c.until_s)
-            start = max(first.until_s + self._lookback_s, self._epoch_starts[-1])
+            start = max(first.until_s, self._epoch_starts[-1])
             remaining = [c for c in active if c is not first]
             q, qd = self._aggregate_at(epoch, start, remaining)
-            self._epoch_starts.append(start)
-            self._epochs.append(FlowEpoch(self._rest_problem, start, q, qd, remaining))
+            self._push_epoch(FlowEpoch(self._rest_problem, start, q, qd, remaining))
+
+    def _push_epoch(self, epoch: FlowEpoch) -> None:
+        """Append ``epoch``, linked to the one before it."""
+        epoch.previous, epoch.previous_start_s = self._epochs[-1], self._epoch_starts[-1]
+        self._epoch_starts.append(epoch.start_s)
+        self._epochs.append(epoch)
+
+    def _prune(self) -> None:
+        """Forget the epochs no future sample can fall in, and the first kept epoch's link to
+        them (no period reaches back past it any more): memory stays bounded."""
+        super()._prune()
+        first = self._epochs[0]
+        if isinstance(first, FlowEpoch):
+            first.previous = None
 
     def _aggregate_at(
         self, epoch: FlowEpoch | Trajectory, stamp_s: float, keep: Sequence[Contribution]
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The beam's state at ``stamp_s`` less the contributions ``keep`` (which stay
-        active)."""
+        """The free state of an epoch starting at ``stamp_s`` whose active contacts are
+        ``keep``: the beam's state there less their trajectories' states."""
         total = epoch.sample(_relative(np.array([stamp_s]), self._epoch_starts[-1]))
         q, qd = total.q[:, 0].copy(), total.qd[:, 0].copy()
         for contribution in keep:
@@ -187,6 +224,7 @@ class FlowSimulator(StreamSimulator):
         qd0 = total.qd[:, 0].copy()
         active = list(getattr(epoch, "active", []))
         q, qd = self._aggregate_at(epoch, stamp_s, active)
+        qd = qd - qd0  # the new trajectory starts from (0, qd0): its free part leaves the base
         problem = build_problem(
             self.support, impact, self.contact_model, self.window_s, self.structure, qd0=qd0
         )
@@ -194,8 +232,7 @@ class FlowSimulator(StreamSimulator):
         separation = trajectory.final_separation_s
         until = stamp_s + (separation if math.isfinite(separation) else self.window_s)
         contribution = Contribution(stamp_s, trajectory, qd0, until)
-        self._epoch_starts.append(stamp_s)
-        self._epochs.append(FlowEpoch(self._rest_problem, stamp_s, q, qd, [*active, contribution]))
+        self._push_epoch(FlowEpoch(self._rest_problem, stamp_s, q, qd, [*active, contribution]))
         self._latest_stamp_s = stamp_s
         rebound = self._suite.rebound(trajectory, stamp_s)
         scene = Scene(
