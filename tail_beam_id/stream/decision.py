@@ -17,6 +17,7 @@ from dataclasses import replace
 from typing import Any
 
 from tail_beam_id.methods import Decision, Method
+from tail_beam_id.methods.inputs import IMPACT_X, IMPACT_Y, POINT_USED
 from tail_beam_id.signals.contact_fit import clipped_near, fit_contact
 from tail_beam_id.signals.features import (
     VIBRATION_CHANNEL,
@@ -39,7 +40,7 @@ from tail_beam_id.stream.association import ImpactAssociation, PendingImpact
 from tail_beam_id.stream.camera_frame import CameraFrame
 from tail_beam_id.stream.channels import SensorChannels
 from tail_beam_id.stream.config import IdentifierConfig
-from tail_beam_id.stream.impact_point import IMPACT_X, IMPACT_Y, ImpactPoints
+from tail_beam_id.stream.impact_point import ImpactPoints
 from tail_beam_id.stream.label import Label, make_label
 
 UNUSUAL_DELAY_PROBABILITY = 0.5  # above it, the delay check counts an impact's delay unusual
@@ -199,6 +200,8 @@ class ImpactDecider:
                 for s in signals
                 if ("imu" if s in ("imu", "vibration") else s) in decision.signals
             ]
+        if decision.estimates.get(POINT_USED) and IMPACT_X in features:
+            signals.append("impact_point")
         confidence = decision.confidence
         if overlap:
             confidence = min(confidence, cfg.overlap_confidence_cap)

@@ -18,14 +18,12 @@ from collections.abc import Callable
 
 import numpy as np
 
+from tail_beam_id.methods.inputs import IMPACT_X, IMPACT_Y
 from tail_beam_sim import topics
 from tail_beam_sim.errors import InputError
 
 STAMP_MATCH_S = 1e-6  # a point and a rebound stamped this close (s) are of one impact
 NO_REBOUND = "no rebound at its stamp"  # why an unpaired point is set aside
-# The label's features a point adds (the along and across coordinates on the plate, m).
-IMPACT_X = "impact_x_m"
-IMPACT_Y = "impact_y_m"
 
 
 class ImpactPoints:
