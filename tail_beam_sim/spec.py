@@ -384,6 +384,13 @@ SUPPORT = Section(
         ),
         text("plate_material", "Material of the impact plate (a materials entry)."),
         positive("plate_thickness_m", "Impact plate thickness.", "m", high=1.0),
+        positive(
+            "plate_width_m",
+            "Impact plate width across the beam (impact_point.point.y within +-half).",
+            "m",
+            high=20.0,
+            default=1.5,
+        ),
         number(
             "contact_damping_scale",
             "Factor on the contact law's hysteresis (1 = as published).",
@@ -524,6 +531,19 @@ SENSORS = Section(
             default=0.4,
         ),
         integer("vibration_oversample", "Beam response computed per sample.", 2, 32, default=4),
+        flag(
+            "camera_reports_impact_point",
+            "The rebound camera also publishes where the particle struck (impact_point).",
+            default=False,
+        ),
+        number(
+            "impact_point_noise_m",
+            "Impact point noise RMS, per coordinate on the plate.",
+            "m",
+            0.0,
+            1.0,
+            default=0.01,
+        ),
     ),
     file="sensors.yaml",
 )

@@ -11,6 +11,7 @@ JACK_PRESSURE = "jack_pressure"
 IMU = "imu"
 VIBRATION = "vibration"
 REBOUND_VELOCITY = "rebound_velocity"
+IMPACT_POINT = "impact_point"
 IMPACT_TRUTH = "impact_truth"
 LABEL = "label"
 WINDOW_CMD = "window_cmd"  # drawing-window commands (scenario.source flow)
@@ -22,11 +23,17 @@ MSG_TYPES: dict[str, str] = {
     IMU: "sensor_msgs/msg/Imu",
     VIBRATION: "sensor_msgs/msg/LaserScan",
     REBOUND_VELOCITY: "geometry_msgs/msg/TwistStamped",
+    IMPACT_POINT: "geometry_msgs/msg/PointStamped",
     IMPACT_TRUTH: "std_msgs/msg/String",
     LABEL: "std_msgs/msg/String",
     WINDOW_CMD: "std_msgs/msg/String",
     GANGUE_SHARE_TRUTH: "std_msgs/msg/String",
 }
+
+
+# Topics a support publishes only when its sensors say so (sensors.camera_reports_impact_point): a
+# bag written offline gets their connection only when it holds their messages.
+OPTIONAL_TOPICS = (IMPACT_POINT,)
 
 
 def qualified(namespace: str, name: str) -> str:
@@ -127,6 +134,41 @@ def block_header(
     period, range_mps2 = block_period_s(time_increment), block_range_mps2(range_max)
     block_samples(samples)
     return index, period, range_mps2
+
+
+IMPACT_POINT_Z_TOLERANCE_M = 1e-9  # |point.z| above this is not the plate's surface, m
+
+
+def impact_point_xy(
+    frame_id: str, x_m: float, y_m: float, z_m: float, length_m: float, width_m: float
+) -> tuple[float, float]:
+    """An impact_point message's (along, across) position on the plate, m: the one reading of
+    the topic and of bags. InputError naming the field for a message that is no point on the
+    plate of ``length_m`` (from the hinge) by ``width_m`` (centred on the beam's axis): another
+    frame than ``tail_beam_plate``, a coordinate not finite, z other than 0, x outside
+    [0, length_m] or |y| above width_m / 2."""
+    if frame_id != FRAME_PLATE:
+        raise InputError(
+            "impact_point.header.frame_id", frame_id, f"must be {FRAME_PLATE!r} (the plate frame)"
+        )
+    for name, value in (("x", x_m), ("y", y_m), ("z", z_m)):
+        if not math.isfinite(float(value)):
+            raise InputError(f"impact_point.point.{name}", value, "must be a finite number, m")
+    if abs(float(z_m)) > IMPACT_POINT_Z_TOLERANCE_M:
+        raise InputError("impact_point.point.z", z_m, "must be 0 m (the plate's surface)")
+    if not 0.0 <= float(x_m) <= length_m:
+        raise InputError(
+            "impact_point.point.x",
+            x_m,
+            f"must be in [0, {length_m:g}] m (on the plate, from the hinge)",
+        )
+    if abs(float(y_m)) > 0.5 * width_m:
+        raise InputError(
+            "impact_point.point.y",
+            y_m,
+            f"must be in [{-0.5 * width_m:g}, {0.5 * width_m:g}] m (on the plate, across it)",
+        )
+    return float(x_m), float(y_m)
 
 
 def stamp_ns(stamp_s: float) -> int:

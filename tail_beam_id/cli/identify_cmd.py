@@ -197,7 +197,15 @@ def identify_sensors(
     rebounds = [Rebound(stamp, velocity, velocity) for stamp, velocity in data.rebounds]
     vibration = data.vibration if data.vibration.count else None
     line = ProgressLine(sys.stderr, f"identify: {data.namespace} {phase}")
-    labels = replay(identifier, pressure, imu, rebounds, vibration=vibration, progress=line.update)
+    labels = replay(
+        identifier,
+        pressure,
+        imu,
+        rebounds,
+        vibration=vibration,
+        progress=line.update,
+        points=data.points,
+    )
     line.close()
     if shares is not None:
         shares += identifier.take_shares()
@@ -225,6 +233,11 @@ def identify_sensors(
             f"identify: {data.namespace} rebound_velocity: {identifier.refused_rebounds} "
             "message(s) with a non-finite "
             "stamp or velocity left out",
+            file=sys.stderr,
+        )
+    for reason, n in identifier.refused_points.items():
+        print(
+            f"identify: {data.namespace} impact_point: {n} message(s) set aside: {reason}",
             file=sys.stderr,
         )
     if identifier.timing.suspect:

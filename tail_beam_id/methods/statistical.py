@@ -47,7 +47,7 @@ import numpy as np
 
 from tail_beam_id.methods.base import Decision, cap_confidence, sigmoid
 from tail_beam_id.methods.hysteresis import applied_shift, hysteresis_shift, joint_inputs
-from tail_beam_id.methods.inputs import base_vector
+from tail_beam_id.methods.inputs import IMPACT_X, POINT_USED, base_vector
 from tail_beam_id.signals.timing import DELAY_UNTRUSTED, UNUSUAL
 from tail_beam_sim.errors import InputError, require_section
 from tail_beam_sim.spec import Section, integer, number, of_kind, positive
@@ -78,6 +78,11 @@ FULL_KEY = "+".join(
 # The key suffix of a model fitted without the rebound delay, for a camera slower than any the
 # training drew: its lag (up to a frame) then swamps the contact duration the delay carries.
 WITHOUT_DELAY = "~without_delay"
+# The key suffix of a model fitted with where the particle struck as well (the camera's
+# impact point, ``impact_x_m``): used only for an impact that has one, and only where such a
+# model was trained; every other impact is decided by the models without it, as before.
+WITH_POINT = "~with_point"
+POINT_FEATURES: tuple[tuple[str, float | None], ...] = ((IMPACT_X, 0.05),)
 LAG_ROWS = 16  # lags a camera slower than the training's is averaged over
 # a camera frame this many times the reference (or slowest) frame or longer counts as slower
 SLOWER = 1.05
@@ -285,7 +290,59 @@ class StatisticalMethod:
 
     def decide(self, features: Mapping[str, float]) -> Decision:
         """P(coal) from the model of the signals there are; on a calibrated support (a measured
-        profile: ``support_calibrated``) from the models trained on calibrated features."""
+        profile: ``support_calibrated``) from the models trained on calibrated features. An
+        impact with its impact point is decided by the model trained with it when there is one
+        (:meth:`_with_point`); its other estimates are the decision's without the point."""
+        without, key, single = self._decide_without_point(features)
+        if single and WITHOUT_DELAY not in key:
+            return self._with_point(features, without, key) or without
+        return without
+
+    def _with_point(
+        self, features: Mapping[str, float], without: Decision, key: str
+    ) -> Decision | None:
+        """The decision of the model fitted with the impact point (``WITH_POINT``) for an impact
+        that has one, decided without it by the model of ``key`` (one row, the delay kept);
+        None when the impact has no point or no such model was trained. It keeps the decision's
+        delay check and signals, and the hysteresis shift the support's profile reads, taken as
+        far as it makes the label less sure or turns it."""
+        if not all(name in features for name, _ in POINT_FEATURES):
+            return None
+        family = (
+            self.calibrated_subsets
+            if features.get("support_calibrated") and self.calibrated_subsets
+            else self.subsets
+        )
+        model = family.get(key + WITH_POINT)
+        if model is None:
+            return None
+        names = [(n, f) for n, f in model["features"]]
+        x = base_vector(features, names)
+        low, high = (np.array(v) for v in model["envelope"])
+        outside = tuple(
+            name for (name, _), v, lo, hi in zip(names, x, low, high) if not lo <= v <= hi
+        )
+        clipped = np.clip(x, low, high)
+        z = (clipped - np.array(model["mean"])) / np.array(model["scale"])
+        logit = float(network_logit(model, z[None, :])[0]) / temperature_of(model, clipped)
+        estimates = dict(without.estimates)
+        estimates["logit_without_point"] = estimates.get("logit", 0.0)
+        said = estimates.get("hysteresis_shift_read")
+        if said is not None:
+            shift = applied_shift(logit, said)
+            estimates["hysteresis_shift"] = shift
+            logit += shift
+        estimates["logit"] = logit
+        estimates[POINT_USED] = 1.0
+        p_coal = sigmoid(logit)
+        outside = tuple(dict.fromkeys((*without.outside_training, *outside)))
+        if outside:
+            p_coal = cap_confidence(p_coal, self.outside_confidence_cap)
+        return Decision(p_coal, estimates, outside, without.signals)
+
+    def _decide_without_point(self, features: Mapping[str, float]) -> tuple[Decision, str, bool]:
+        """P(coal) from the model of the signals there are, the impact point left aside; with
+        the key of the model that decided and whether it read one row (no lag averaging)."""
         family = (
             self.calibrated_subsets
             if features.get("support_calibrated") and self.calibrated_subsets
@@ -299,7 +356,7 @@ class StatisticalMethod:
             key += WITHOUT_DELAY
         model = family.get(key)
         if model is None:
-            return Decision(0.5, {}, signals=())
+            return Decision(0.5, {}, signals=()), key, False
         names = [(n, f) for n, f in model["features"]]
         rows = self._lag_rows(features, names)
         low, high = (np.array(v) for v in model["envelope"])
@@ -348,7 +405,7 @@ class StatisticalMethod:
             estimates.update(
                 delay_check(model, names, z[len(rows) // 2], float(features["imu_period_s"]))
             )
-        return Decision(p_coal, estimates, outside, signals)
+        return Decision(p_coal, estimates, outside, signals), key, len(rows) == 1
 
     def _camera_too_slow_for_the_delay(self, features: Mapping[str, float]) -> bool:
         """Whether to decide without the delay: the impact's camera frame is longer than any the

@@ -56,6 +56,8 @@ if TYPE_CHECKING:
 
 CONTINUOUS = ("jack_pressure", "imu", "vibration")
 MAX_ASIDE_SAMPLES = 2_000_000  # samples held aside as "ahead of the others" (bounded memory)
+MAX_POINT_REASONS = 5  # reasons for refused impact points named in one note
+POINT_OUT_OF_TIME = "stamped out of the streams' time (more than time_jump_s behind or ahead)"
 MAX_OTHER_TRACKS = 4  # vibration block streams followed besides the one in use (blocks)
 
 
@@ -138,6 +140,8 @@ class Counts:
     # rebound not finite, or stamped more than time_jump_s behind the watermark or ahead of the
     # streams
     refused_rebounds: int = 0
+    # impact points stamped more than time_jump_s behind the watermark or ahead of the streams
+    refused_points: int = 0
 
 
 class ArrivalGate:
@@ -147,6 +151,7 @@ class ArrivalGate:
         self.config = config
         self.streams = {name: _Stream() for name in CONTINUOUS}
         self.rebounds: list[tuple[float, float, np.ndarray]] = []  # (arrival_s, stamp_s, velocity)
+        self.points: list[tuple[float, str, np.ndarray]] = []  # (stamp_s, frame_id, point m)
         self.released_s = -math.inf  # the watermark last released
         self.first_arrival_s = math.inf  # wall clock of the first sample
         self.counts = Counts()
@@ -247,6 +252,18 @@ class ArrivalGate:
             return
         self.rebounds.append((now_s, float(stamp_s), np.asarray(velocity_mps, dtype=float)))
 
+    def add_point(self, stamp_s: float, frame_id: str, point_m: np.ndarray, now_s: float) -> None:
+        """One impact point that arrived at wall clock ``now_s``, held until the streams reach
+        its stamp; refused (counted) when stamped more than ``time_jump_s`` behind what was
+        released or ahead of the live streams. Its contents are the identifier's to check."""
+        if math.isfinite(stamp_s):
+            behind = stamp_s < self.released_s - self.config.time_jump_s
+            ahead = stamp_s > self._reference_s("", now_s) + self.config.time_jump_s
+            if behind or ahead:
+                self.counts.refused_points += 1
+                return
+        self.points.append((float(stamp_s), frame_id, np.asarray(point_m, dtype=float)))
+
     def _reference_s(self, name: str, now_s: float) -> float:
         """Newest stamp of the other live streams (inf when there are none to compare with)."""
         others = [
@@ -329,9 +346,11 @@ class ArrivalGate:
                 out[name] = (np.concatenate(taken_t), np.concatenate(taken_v))
         due = sorted((r for r in self.rebounds if r[1] <= limit), key=lambda r: r[1])
         self.rebounds = [r for r in self.rebounds if r[1] > limit]
+        points = sorted((p for p in self.points if not p[0] > limit), key=lambda p: p[0])
+        self.points = [p for p in self.points if p[0] > limit]
         if limit > self.released_s:
             self.released_s = limit
-        return Release(out, [(stamp, velocity) for _, stamp, velocity in due])
+        return Release(out, [(stamp, velocity) for _, stamp, velocity in due], points)
 
 
 Streams = dict[str, tuple[np.ndarray, np.ndarray]]  # stream name -> (stamp_s (T,), values (T, k))
@@ -421,6 +440,10 @@ class GatedIdentifier:
         self._counts_noted = (0, 0, 0, 0)
         self._refused_before = 0  # non-finite samples refused by the identifiers of earlier epochs
         self._refused_noted = 0  # the total already noted
+        # impact_point messages the identifiers of earlier epochs refused or set aside, by reason
+        self._points_before: dict[str, int] = {}
+        self._points_noted = 0  # the total already noted
+        self._gate_points_before = 0  # points the gates of earlier epochs refused
 
     def tick(
         self,
@@ -429,11 +452,12 @@ class GatedIdentifier:
         blocks: VibrationBlocks,
         rebounds: Sequence[tuple[float, np.ndarray]],
         end_of_data: bool = False,
+        points: Sequence[tuple[float, str, np.ndarray]] = (),
     ) -> list[Label]:
         """Admit what arrived (all of it at wall clock ``now_s``); the labels of what is now
         decided (with ``end_of_data``, of everything pending): :meth:`admit` then
         :meth:`decide`."""
-        labels = self.admit(now_s, arrivals, blocks, rebounds)
+        labels = self.admit(now_s, arrivals, blocks, rebounds, points)
         return labels + self.decide(now_s, end_of_data)
 
     def admit(
@@ -442,10 +466,12 @@ class GatedIdentifier:
         arrivals: Streams,
         blocks: VibrationBlocks,
         rebounds: Sequence[tuple[float, np.ndarray]],
+        points: Sequence[tuple[float, str, np.ndarray]] = (),
     ) -> list[Label]:
         """Admit what arrived, the newest of it at wall clock ``arrived_s`` (its hold of
-        ``reorder_s`` counts from then). Returns the labels decided by a time jump it found (what
-        was pending in the old time base), else none: :meth:`decide` gives the rest."""
+        ``reorder_s`` counts from then); ``points``: impact points, (stamp s, frame_id, (x, y,
+        z) m). Returns the labels decided by a time jump it found (what was pending in the old
+        time base), else none: :meth:`decide` gives the rest."""
         labels: list[Label] = []
         later: Streams = {}  # what belongs to a new time base
         for name, (stamps, values) in arrivals.items():
@@ -465,6 +491,9 @@ class GatedIdentifier:
             for stamp, velocity in rebounds:
                 if stamp >= stale_s:
                     self.gate.add_rebound(stamp, velocity, arrived_s)
+            for stamp, frame_id, point in points:
+                if stamp >= stale_s:
+                    self.gate.add_point(stamp, frame_id, point, arrived_s)
             labels += self._restart(
                 arrived_s,
                 f"{name} stamps went back from {from_s:.4f} s to {back_to:.4f} s "
@@ -474,10 +503,13 @@ class GatedIdentifier:
                 self.gate.add(name, stamps, values, arrived_s)
             self._take_track(back, arrived_s)
             rebounds = [r for r in rebounds if r[0] < stale_s]
+            points = [p for p in points if p[0] < stale_s]
         else:
             self._follow_other_track(arrived_s)
         for stamp, velocity in rebounds:
             self.gate.add_rebound(stamp, velocity, arrived_s)
+        for stamp, frame_id, point in points:
+            self.gate.add_point(stamp, frame_id, point, arrived_s)
         if self.gate.forward_jump(arrived_s, self._held_ahead(arrived_s)):
             aside = self.gate.take_aside()
             labels += self._restart(
@@ -653,6 +685,8 @@ class GatedIdentifier:
         self.time_jumps += 1
         self._counts_before = self.count_totals()
         self._refused_before += sum(self.identifier.refused_samples.values())
+        for reason, n in self.identifier.refused_points.items():
+            self._points_before[reason] = self._points_before.get(reason, 0) + n
         self.identifier = self._new_identifier(self.identifier.method)
         if self.calibration is not None:
             # A new time base may be another support (a restarted simulator with another
@@ -666,6 +700,7 @@ class GatedIdentifier:
                     f"from its first {self.calibration.learn_s:g} s (labels say calibrated: "
                     "false until then)"
                 )
+        self._gate_points_before += self.gate.counts.refused_points
         self.gate = ArrivalGate(self.gate.config)
         self.sequencer.restart()
         self.vibration_track = None
@@ -727,6 +762,7 @@ class GatedIdentifier:
         labels = self.identifier.poll()
         if everything:
             labels += self.identifier.flush()
+        self._note_points()
         empty = [label for label in labels if not label.signals]
         if empty:  # a label must rest on some signal; published from nothing it would mislead
             self.empty_labels += len(empty)
@@ -736,6 +772,38 @@ class GatedIdentifier:
             )
             labels = [label for label in labels if label.signals]
         return labels
+
+    @property
+    def refused_points(self) -> dict[str, int]:
+        """impact_point messages refused or set aside by the identifiers of every epoch, by
+        reason (``field = value: what is allowed``, or no rebound at its stamp), and by the
+        gate (stamped out of the streams' time)."""
+        totals = dict(self._points_before)
+        for reason, n in self.identifier.refused_points.items():
+            totals[reason] = totals.get(reason, 0) + n
+        if self.gate_refused_points:
+            totals[POINT_OUT_OF_TIME] = self.gate_refused_points
+        return totals
+
+    @property
+    def gate_refused_points(self) -> int:
+        return self.gate.counts.refused_points + self._gate_points_before
+
+    def _note_points(self) -> None:
+        """Note the impact_point messages refused or set aside since the last note, by reason
+        (at most MAX_POINT_REASONS named)."""
+        totals = self.refused_points
+        total = sum(totals.values())
+        if total <= self._points_noted:
+            return
+        self._points_noted = total
+        reasons = sorted(totals.items(), key=lambda item: -item[1])
+        shown = "; ".join(f"{n} {reason}" for reason, n in reasons[:MAX_POINT_REASONS])
+        more = len(reasons) - MAX_POINT_REASONS
+        self.notes.append(
+            f"impact_point: {total} message(s) refused or set aside in all: {shown}"
+            + (f"; and {more} more reason(s)" if more > 0 else "")
+        )
 
     def count_totals(self) -> tuple[int, int, int, int]:
         """What the gates of every epoch refused or set aside: repeated samples, samples ahead,

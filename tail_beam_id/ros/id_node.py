@@ -1,8 +1,9 @@
 """``id_node``: a ROS 2 node over :class:`tail_beam_id.stream.identifier.StreamIdentifier`.
 
-Subscribes to ``jack_pressure``, ``imu``, ``vibration`` and ``rebound_velocity`` (never
-``impact_truth``), buffers what arrives, and every ``poll_period_s`` puts it in stamp order
-through an :class:`tail_beam_id.ros.arrival.ArrivalGate`, hands the identifier what every live
+Subscribes to ``jack_pressure``, ``imu``, ``vibration``, ``rebound_velocity`` and, when the
+camera reports it, ``impact_point`` (never ``impact_truth``), buffers what arrives, and every
+``poll_period_s`` puts it in stamp order through an
+:class:`tail_beam_id.ros.arrival.ArrivalGate`, hands the identifier what every live
 stream has passed, and publishes its labels on ``label``. The identifier thus sees the streams
 as ``tail-beam identify`` sees them in a bag, whatever order and pace the middleware delivers
 them in: live and offline labels agree. When no sensor message has come for
@@ -43,7 +44,7 @@ import sys
 import time
 
 import numpy as np
-from geometry_msgs.msg import TwistStamped
+from geometry_msgs.msg import PointStamped, TwistStamped
 from rclpy.node import Node
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
@@ -209,6 +210,7 @@ class IdNode(Node):
                 topics.IMU,
                 topics.VIBRATION,
                 topics.REBOUND_VELOCITY,
+                topics.IMPACT_POINT,
             )
         }
         # Continuous topic -> (newest stamp arrived, its wall-clock arrival), s: the wake's test.
@@ -230,6 +232,7 @@ class IdNode(Node):
             topics.IMU: 0,
             topics.VIBRATION: 0,
             topics.REBOUND_VELOCITY: 0,
+            topics.IMPACT_POINT: 0,
         }
         self.published = 0
         # One impact, one label (tail_beam_id.stream.label.Revisions): later decisions for an
@@ -262,6 +265,7 @@ class IdNode(Node):
         self.create_subscription(
             TwistStamped, topics.REBOUND_VELOCITY, self._on_rebound, event_qos
         )
+        self.create_subscription(PointStamped, topics.IMPACT_POINT, self._on_point, event_qos)
         self._foreign = ForeignTypeWatch(
             self, {topic: topics.MSG_TYPES[topic] for topic in self._inbox}
         )
@@ -342,6 +346,14 @@ class IdNode(Node):
     def _on_rebound(self, msg: TwistStamped) -> None:
         self._arrived(topics.REBOUND_VELOCITY, msg)
 
+    def _on_point(self, msg: PointStamped) -> None:
+        self._arrived(topics.IMPACT_POINT, msg)
+
+    @property
+    def refused_points(self) -> dict[str, int]:
+        """impact_point messages refused or set aside, by reason (every epoch's)."""
+        return self.gated.refused_points
+
     @property
     def vibration_lost_samples(self) -> int:
         return self.gated.sequencer.lost_samples
@@ -395,8 +407,9 @@ class IdNode(Node):
                 time.monotonic(),
             )
         rebounds = [ros_messages.rebound_values(m) for m in part[topics.REBOUND_VELOCITY]]
+        points = [ros_messages.point_values(m) for m in part[topics.IMPACT_POINT]]
         first = decoded[0] if decoded else ros_messages.vibration_blocks([])
-        labels = self.gated.admit(arrived_s, arrivals, first, rebounds)
+        labels = self.gated.admit(arrived_s, arrivals, first, rebounds, points)
         for blocks in decoded[1:]:
             labels += self.gated.admit(arrived_s, {}, blocks, [])
         return labels

@@ -17,6 +17,7 @@ from dataclasses import replace
 from typing import Any
 
 from tail_beam_id.methods import Decision, Method
+from tail_beam_id.methods.inputs import IMPACT_X, IMPACT_Y, POINT_USED
 from tail_beam_id.signals.contact_fit import clipped_near, fit_contact
 from tail_beam_id.signals.features import (
     VIBRATION_CHANNEL,
@@ -39,6 +40,7 @@ from tail_beam_id.stream.association import ImpactAssociation, PendingImpact
 from tail_beam_id.stream.camera_frame import CameraFrame
 from tail_beam_id.stream.channels import SensorChannels
 from tail_beam_id.stream.config import IdentifierConfig
+from tail_beam_id.stream.impact_point import ImpactPoints
 from tail_beam_id.stream.label import Label, make_label
 
 UNUSUAL_DELAY_PROBABILITY = 0.5  # above it, the delay check counts an impact's delay unusual
@@ -87,6 +89,8 @@ class ImpactDecider:
         self.acceleration = acceleration
         self.association = association
         self.camera = camera
+        # Where the camera saw the particles strike (topic impact_point), when it reports it.
+        self.points: ImpactPoints | None = None
 
     def decide(self, impact: PendingImpact) -> Label | None:
         """The label of ``impact``, now that its data are in; None when it is taken for the
@@ -173,6 +177,10 @@ class ImpactDecider:
                 features["rebound_late"] = 1.0
             if frame_period_s is not None:
                 features["camera_frame_period_s"] = frame_period_s
+        if impact.rebound is not None and self.points is not None:
+            point = self.points.point_of(impact.rebound[0])
+            if point is not None:
+                features[IMPACT_X], features[IMPACT_Y] = point
         if impulse is not None and impact.channel == "vibration":
             # The imu_* features came from the accelerometer (anti-alias filtered point samples,
             # not the IMU's period means): the physics method keeps a lag model of its own for it.
@@ -192,6 +200,8 @@ class ImpactDecider:
                 for s in signals
                 if ("imu" if s in ("imu", "vibration") else s) in decision.signals
             ]
+        if decision.estimates.get(POINT_USED) and IMPACT_X in features:
+            signals.append("impact_point")
         confidence = decision.confidence
         if overlap:
             confidence = min(confidence, cfg.overlap_confidence_cap)

@@ -26,6 +26,8 @@ it stopped. The vibration stream is a continuous stream for liveness and timeout
 * :mod:`~tail_beam_id.stream.camera_frame`: the camera's frame period;
 * :mod:`~tail_beam_id.stream.detection`: finding impacts (pulses, rebounds, pressure steps);
 * :mod:`~tail_beam_id.stream.association`: which rebound and neighbours belong to an impact;
+* :mod:`~tail_beam_id.stream.impact_point`: where the camera saw the particle strike, paired
+  with its rebound;
 * :mod:`~tail_beam_id.stream.readiness`: when an impact's data are all in;
 * :mod:`~tail_beam_id.stream.decision`: deciding an impact with the method and labelling it
   (:class:`~tail_beam_id.stream.label.Label`);
@@ -54,9 +56,11 @@ from tail_beam_id.stream.channels import Outages, SensorChannels
 from tail_beam_id.stream.config import IdentifierConfig, check_profile
 from tail_beam_id.stream.decision import ImpactDecider, profile_says_timing_suspect
 from tail_beam_id.stream.detection import ImpactFinder
+from tail_beam_id.stream.impact_point import ImpactPoints
 from tail_beam_id.stream.label import Label
 from tail_beam_id.stream.readiness import Readiness
 from tail_beam_id.stream.retention import DataRetention
+from tail_beam_sim import topics
 from tail_beam_sim.config import load_parameters
 
 
@@ -125,6 +129,15 @@ class StreamIdentifier:
             self.camera_frame,
         )
         self.retention = DataRetention(self.config, self.channels, self.finder, self.impacts)
+        # Where the camera saw the particles strike, checked against the plate of the support
+        # as known at the time (a profile may change it).
+        self.points = ImpactPoints(self._plate_m, self.config.camera_timeout_s)
+        self.decider.points = self.points
+
+    def _plate_m(self) -> tuple[float, float]:
+        """The plate's (length from the hinge, width), m."""
+        support = self.decider.model.support
+        return support.beam_length_m, support.plate_width_m
 
     def recalibrate(self, model_params: Mapping[str, Any], method: Method | None = None) -> None:
         """Decide from here on with a support profile measured on this support (``model_params``:
@@ -172,9 +185,21 @@ class StreamIdentifier:
         """One rebound: the camera's stamp (s) and the particle's velocity (3,) in the plate frame
         (:meth:`ImpactAssociation.add_rebound`: a non-finite one is left out and counted)."""
         refused_before = self.impacts.refused_rebounds
+        taken_before = len(self.impacts.rebounds)
         self.impacts.add_rebound(stamp_s, velocity_mps)
         if self.impacts.refused_rebounds == refused_before:
             self.camera_frame.add_rebound(float(stamp_s))
+        if len(self.impacts.rebounds) > taken_before:
+            self.points.add_rebound(float(stamp_s))
+
+    def add_impact_point(
+        self, stamp_s: float, point_m: np.ndarray, frame_id: str = topics.FRAME_PLATE
+    ) -> str | None:
+        """Where the camera saw a particle strike: its stamp (s, its rebound's), (x, y, z) on the
+        plate, m, and frame (:class:`ImpactPoints`). Returns why it was refused (counted in
+        ``refused_points``), or None: it is then its rebound's impact's ``impact_x_m`` and
+        ``impact_y_m``."""
+        return self.points.add(float(stamp_s), point_m, frame_id)
 
     # ---- output ------------------------------------------------------------------------------
     def poll(self) -> list[Label]:
@@ -207,6 +232,11 @@ class StreamIdentifier:
             if label is not None:
                 labels.append(label)
         self.retention.trim()
+        if final:
+            self.points.flush()
+        else:
+            self.points.expire(self.channels.newest_s())
+        self.points.forget_before(self.retention.forgotten_before_s)
         return labels
 
     # ---- the parts' state, as callers read it ------------------------------------------------
@@ -214,6 +244,11 @@ class StreamIdentifier:
     def refused_rebounds(self) -> int:
         """Rebounds with a non-finite stamp or velocity, left out."""
         return self.impacts.refused_rebounds
+
+    @property
+    def refused_points(self) -> dict[str, int]:
+        """impact_point messages refused or set aside, by reason."""
+        return self.points.refused
 
     @property
     def refused_samples(self) -> dict[str, int]:

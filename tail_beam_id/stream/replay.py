@@ -12,7 +12,17 @@ import numpy as np
 
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label
-from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, VibrationBlocks
+from tail_beam_sim.physics.sensors import (
+    ImpactPoint,
+    ImuStream,
+    PressureStream,
+    Rebound,
+    VibrationBlocks,
+)
+from tail_beam_sim.topics import FRAME_PLATE
+
+# One impact point as replay takes it: (stamp s, frame_id, (x, y, z) on the plate, m).
+Point = tuple[float, str, np.ndarray]
 
 
 def replay(
@@ -23,8 +33,11 @@ def replay(
     chunk_s: float = 0.01,
     vibration: VibrationBlocks | None = None,
     progress: Callable[[float, float], None] | None = None,
+    points: Sequence[Point] = (),
 ) -> list[Label]:
     """Every label the identifier gives for these streams (polled per chunk, then flushed).
+    ``points``: where the camera saw the particles strike, (stamp s, frame_id, (x, y, z) m),
+    each given with the chunk of its stamp, after the rebounds.
 
     A stream passed as None is absent (a sensor gone); ``chunk_s`` is the stamp-time span of
     each delivery. ``vibration`` (blocks in index order) goes to ``identifier.add_vibration``
@@ -46,6 +59,8 @@ def replay(
     if not starts:
         for rebound in rebounds:
             identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
+        for stamp, frame_id, point in points:
+            identifier.add_impact_point(stamp, point, frame_id)
         return identifier.flush()
     first, last = min(starts), max(ends)
     # The chunks cover the streams' span; a rebound after it (or not finite) is given at the end.
@@ -55,6 +70,10 @@ def replay(
         key=lambda r: r.stamp_s,
     )
     after = [r for r in rebounds if not (math.isfinite(r.stamp_s) and r.stamp_s < end_edge)]
+    pending_points = sorted(
+        (p for p in points if math.isfinite(p[0]) and p[0] < end_edge), key=lambda p: p[0]
+    )
+    points_after = [p for p in points if not (math.isfinite(p[0]) and p[0] < end_edge)]
     streams = [
         (pressure.stamp_s, _deliver_pressure(identifier, pressure))
         if pressure is not None
@@ -79,6 +98,8 @@ def replay(
         ]
         if pending:
             upcoming.append(pending[0].stamp_s)
+        if pending_points:
+            upcoming.append(pending_points[0][0])
         if not upcoming:
             break
         k = _chunk_of(min(upcoming), first, chunk_s, k)
@@ -91,6 +112,9 @@ def replay(
         while pending and pending[0].stamp_s < high:
             rebound = pending.pop(0)
             identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
+        while pending_points and pending_points[0][0] < high:
+            stamp, frame_id, point = pending_points.pop(0)
+            identifier.add_impact_point(stamp, point, frame_id)
         labels += identifier.poll()
         if progress is not None and high - reported >= step:
             progress(min(high, last) - first, last - first)
@@ -98,6 +122,8 @@ def replay(
         k += 1
     for rebound in after:
         identifier.add_rebound(rebound.stamp_s, rebound.velocity_mps)
+    for stamp, frame_id, point in points_after:
+        identifier.add_impact_point(stamp, point, frame_id)
     labels += identifier.flush()
     if progress is not None:
         progress(last - first, last - first)
@@ -142,6 +168,11 @@ def _deliver_vibration(
         identifier.add_vibration(stamps[start:end], blocks.accel_mps2[start:end].astype(float))
 
     return deliver
+
+
+def point_tuples(points: Sequence[ImpactPoint]) -> list[Point]:
+    """Simulated impact points as :func:`replay` takes them (in the plate frame)."""
+    return [(p.stamp_s, FRAME_PLATE, p.point_m) for p in points]
 
 
 PROGRESS_STEP = 0.02  # replay reports its progress about every this fraction of the stream

@@ -36,6 +36,8 @@ class DataRetention:
         self.channels = channels
         self.finder = finder
         self.association = association
+        # Everything stamped before this (s) was let go at the last trim.
+        self.forgotten_before_s = -math.inf
 
     def keep_s(self) -> float:
         """How far before the oldest needed stamp data are kept, s."""
@@ -59,5 +61,6 @@ class DataRetention:
             )
             - keep_s
         )
+        self.forgotten_before_s = max(self.forgotten_before_s, oldest_needed_s)
         channels.forget_before(oldest_needed_s, keep_s)
         self.association.forget_before(oldest_needed_s)

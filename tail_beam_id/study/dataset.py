@@ -11,6 +11,7 @@ runs feed them to the identifier, as id_node does); one without it has no blocks
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -295,6 +296,8 @@ class SupportStream:
     vibration: Any = (
         None  # the accelerometer's blocks (VibrationBlocks); None when the support has none
     )
+    # where the camera saw each particle strike (ImpactPoint), when it reports it
+    points: list[Any] = dataclasses.field(default_factory=list)
 
 
 def support_streams(
@@ -353,4 +356,5 @@ def support_streams(
             [r for _, r in chunk.rebounds],
             [t for _, t in chunk.truths],
             chunk.vibration if draw.vibration_rate_hz > 0.0 else None,
+            [p for _, p in chunk.points],
         )

@@ -10,7 +10,7 @@ from typing import Any
 
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label, match, match_tolerance_s
-from tail_beam_id.stream.replay import replay
+from tail_beam_id.stream.replay import point_tuples, replay
 from tail_beam_id.study.dataset import (
     FOREIGN_SCENES,
     Setting,
@@ -120,6 +120,7 @@ def run_set(
                         result.imu,
                         [result.rebound],
                         vibration=vibration,
+                        points=point_tuples([result.point] if result.point is not None else []),
                     )
                     wall = time.perf_counter() - started
                     matching = match([truth], labels, tolerance_s)
@@ -247,6 +248,7 @@ def foreign_records(
             recorded.imu,
             recorded.rebounds,
             vibration=recorded.vibration,
+            points=point_tuples(recorded.points),
         )
         return labels, time.perf_counter() - started
 

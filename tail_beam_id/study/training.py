@@ -15,6 +15,7 @@ the paper scene's impacts on drawn supports, which the stream's drawn restitutio
 from __future__ import annotations
 
 import argparse
+import copy
 import dataclasses
 import json
 import math
@@ -32,9 +33,12 @@ from tail_beam_id.methods.hysteresis import (
     joint_probabilities,
     latent_bin,
 )
+from tail_beam_id.methods.inputs import IMPACT_X
 from tail_beam_id.methods.statistical import (
     HYSTERESIS,
+    POINT_FEATURES,
     SIGNAL_ORDER,
+    WITH_POINT,
     WITHOUT_DELAY,
     base_vector,
     delay_design,
@@ -414,6 +418,46 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
     return subsets
 
 
+def train_point_models(records: Sequence[Record], seed: int) -> dict[str, dict[str, Any]]:
+    """The statistical method's models fitted with the impact point as well (``WITH_POINT``),
+    for both families (as :func:`train_statistical` splits the records): one per subset of
+    signals with the camera's rebound (a point comes with it), from the records whose labels
+    carry ``impact_x_m``. They join the shipped models without changing any of them: an impact
+    without a point is decided exactly as before."""
+    return {
+        "subsets": point_family([r for r in records if not r.calibrated], seed),
+        "calibrated_subsets": point_family(
+            [r for r in records if r.calibrated or r.scene_set not in DRAWN_SETS], seed
+        ),
+    }
+
+
+def point_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
+    """One ``WITH_POINT`` network per subset of signals holding the rebound, on the inputs of
+    the subset's model plus ``POINT_FEATURES``, held out and calibrated as :func:`train_family`
+    does."""
+    rng = np.random.default_rng(seed)
+    impacts = sorted({(r.scene_set, r.index) for r in records})
+    chosen = rng.choice(
+        len(impacts), size=max(1, int(len(impacts) * HOLDOUT_FRACTION)), replace=False
+    )
+    held = {impacts[i] for i in chosen}
+    subsets: dict[str, Any] = {}
+    for mask in range(1, 2 ** len(SIGNAL_ORDER)):
+        signals = tuple(s for i, s in enumerate(SIGNAL_ORDER) if mask >> i & 1)
+        if "rebound_velocity" not in signals:
+            continue
+        usable = [
+            r
+            for r in records
+            if set(signals) <= set(signals_of(r.label.features)) and IMPACT_X in r.label.features
+        ]
+        if len(usable) >= 50:
+            names = feature_list(signals) + list(POINT_FEATURES)
+            subsets[subset_key(signals) + WITH_POINT] = fit_subset(usable, names, held)
+    return subsets
+
+
 DELAY_CHECK_PERCENTILES = (0.5, 99.5)  # the band of the training residuals a delay is usual in
 DELAY_CHECK_MIN_RECORDS = 50  # records an IMU-period band needs for its residual band
 DELAY_CHECK_RIDGE = 1e-3  # ridge penalty of the delay regression (per record)
@@ -683,11 +727,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         default=None,
         help="JSON file keeping the simulated training records (reused if present)",
     )
+    parser.add_argument(
+        "--point-models",
+        action="store_true",
+        help="only fit the statistical models that read the impact point and add them to the "
+        "shipped statistical.json (every other model kept as it is)",
+    )
     args = parser.parse_args(argv)
     params = load_parameters()
     seed = int(evaluation_params(params)["training_seed"])
     if {seed, seed + 1, seed + 2, seed + 3} & set(evaluation_params(params)["seeds"].values()):
         raise SystemExit("training_seed must differ from every evaluation seed")
+    if args.point_models:
+        return add_point_models(params, args, seed)
     paper_count = max(args.count // 4, 60)
     varied_count = args.varied_count
     varied_paper_count = (
@@ -748,6 +800,55 @@ def main(argv: Sequence[str] | None = None) -> int:
         path = MODELS_DIR / f"{name}.json"
         path.write_text(json.dumps(model, indent=1) + "\n", encoding="utf-8")
         print(f"wrote {path} ({path.stat().st_size} bytes)")
+    return 0
+
+
+def add_point_models(params: Mapping[str, Any], args: argparse.Namespace, seed: int) -> int:
+    """Simulate the training impacts with the camera reporting the impact point (the same sets
+    and seeds as the shipped models' training, so the same impacts), fit the ``WITH_POINT``
+    models on them and add them to the shipped statistical.json, leaving every other model as
+    it is."""
+    pointed = copy.deepcopy(dict(params))
+    pointed["sensors"]["camera_reports_impact_point"] = True
+    cache = Path(args.cache) if args.cache else None
+    varied_paper_count = (
+        args.varied_count // 5 if args.varied_paper_count is None else args.varied_paper_count
+    )
+    if cache is not None and cache.is_file():
+        records, paper = load_cache(cache)
+    else:
+        records = collect(pointed, "stream", args.count, seed, args.tier)
+        for scene_set, count, offset in (
+            ("varied", args.varied_count, 2),
+            ("varied_paper", varied_paper_count, 3),
+        ):
+            for true_profile in (False, True):
+                records += collect(
+                    pointed, scene_set, count, seed + offset, args.tier, true_profile
+                )
+        paper = collect(pointed, "paper", max(args.count // 4, 60), seed + 1, args.tier)
+        if cache is not None:
+            save_cache(cache, records, paper)
+    records = records + paper
+    path = MODELS_DIR / "statistical.json"
+    model = json.loads(path.read_text(encoding="utf-8"))
+    for family, fitted in train_point_models(records, seed).items():
+        kept = {k: v for k, v in model[family].items() if not k.endswith(WITH_POINT)}
+        model[family] = {**kept, **fitted}
+    model["point_provenance"] = {
+        "training_seed": seed,
+        "impacts": args.count,
+        "varied_impacts": args.varied_count,
+        "varied_seed": seed + 2,
+        "varied_paper_impacts": varied_paper_count,
+        "varied_paper_seed": seed + 3,
+        "paper_seed": seed + 1,
+        "records": len(records),
+        "with_point": sum(1 for r in records if IMPACT_X in r.label.features),
+        "scene_set": "stream+varied+varied_paper+paper",
+    }
+    path.write_text(json.dumps(model, indent=1) + "\n", encoding="utf-8")
+    print(f"wrote {path} ({path.stat().st_size} bytes): the impact point's models added")
     return 0
 
 

@@ -147,6 +147,10 @@ class BagSensors:
     # Messages set aside (not read) by "topic: why", with their count: one message that cannot be
     # taken costs that message, not the recording.
     set_aside: dict[str, int] = field(default_factory=dict)
+    # impact_point messages as recorded, in stamp order: (stamp s, frame_id, point (3,) m). Not
+    # checked here (whether a point lies on the plate depends on the support): the identifier
+    # refuses what is no point on its plate, by name.
+    points: list[tuple[float, str, np.ndarray]] = field(default_factory=list)
 
     @property
     def vibration_lost_samples(self) -> int:
@@ -355,6 +359,7 @@ class _Run:
             topics.GANGUE_SHARE_TRUTH: [],
         }
     )
+    points: list[tuple[float, str, np.ndarray]] = field(default_factory=list)
 
     def merged(self, other: _Run) -> _Run:
         return _Run(
@@ -363,6 +368,7 @@ class _Run:
             self.vibration + other.vibration,
             self.rebounds + other.rebounds,
             {k: v + other.json_topics[k] for k, v in self.json_topics.items()},
+            self.points + other.points,
         )
 
 
@@ -434,9 +440,9 @@ class _Sorter:
       (when that one jumped there too, every stream moved to a new time base: the next run, as
       id_node starts a new epoch), set aside when its stream goes on before it or the recording
       ends without another stream reaching it (a stream alone takes it as its next run);
-    * an event (rebound, truth, label) goes to the newest run, and is set aside when it is
-      stamped before that run's first continuous sample: a recorder started late receives
-      transient-local events of impacts from before its recording;
+    * an event (rebound, impact point, truth, label) goes to the newest run, and is set aside
+      when it is stamped before that run's first continuous sample: a recorder started late
+      receives transient-local events of impacts from before its recording;
     * a message that cannot be taken at all (a vibration message carrying no block, JSON with
       an integer past the digit limit) is set aside.
     """
@@ -465,6 +471,11 @@ class _Sorter:
             v = msg.twist.linear
             event = (_stamp(msg), np.array([v.x, v.y, v.z]))
             self.events[newest].append((raw.topic, event[0], event))
+            return
+        if raw.topic == topics.IMPACT_POINT:
+            p = msg.point
+            point = (_stamp(msg), str(msg.header.frame_id), np.array([p.x, p.y, p.z]))
+            self.events[newest].append((raw.topic, point[0], point))
             return
         value = _json(msg.data)
         if value is None:
@@ -588,6 +599,8 @@ class _Sorter:
                     )
                 elif topic == topics.REBOUND_VELOCITY:
                     run.rebounds.append(value)
+                elif topic == topics.IMPACT_POINT:
+                    run.points.append(value)
                 else:
                     run.json_topics[topic].append(value)
 
@@ -626,6 +639,7 @@ def _assemble(
         repeated,
         dict(jumps),
         dict(aside.counts),
+        sorted(run.points, key=lambda p: p[0]),
     )
 
 

@@ -52,6 +52,8 @@ _TwistStamped = _T["geometry_msgs/msg/TwistStamped"]
 _Twist = _T["geometry_msgs/msg/Twist"]
 _Vector3 = _T["geometry_msgs/msg/Vector3"]
 _Quaternion = _T["geometry_msgs/msg/Quaternion"]
+_PointStamped = _T["geometry_msgs/msg/PointStamped"]
+_Point = _T["geometry_msgs/msg/Point"]
 
 BagRecord = tuple[str, int, Any]  # (topic, log time ns, rosbags message)
 
@@ -152,6 +154,15 @@ def rebound_msg(stamp_s: float, velocity_mps: np.ndarray) -> BagRecord:
     return topics.REBOUND_VELOCITY, topics.stamp_ns(stamp_s), msg
 
 
+def point_msg(stamp_s: float, point_m: np.ndarray) -> BagRecord:
+    """The impact_point message of one impact (plate frame, m; stamped as its rebound)."""
+    p = [float(x) for x in point_m]
+    msg = _PointStamped(
+        header=header(stamp_s, topics.FRAME_PLATE), point=_Point(x=p[0], y=p[1], z=p[2])
+    )
+    return topics.IMPACT_POINT, topics.stamp_ns(stamp_s), msg
+
+
 def write_bag(
     path: str | Path,
     records: Iterable[BagRecord],
@@ -162,13 +173,15 @@ def write_bag(
     """Write ``records`` (any order) to a new rosbag2 bag at ``path``; returns the count.
 
     Every contract topic gets a connection, even one with no message, so that a reader
-    finds the full set of topics with their types. Topics are stored fully qualified in
-    ``namespace`` (``/imu``), as rosbag2 stores them.
+    finds the full set of topics with their types; an optional one (``topics.OPTIONAL_TOPICS``:
+    ``impact_point``) only when ``records`` hold its messages. Topics are stored fully
+    qualified in ``namespace`` (``/imu``), as rosbag2 stores them.
     """
     if not isinstance(storage, str) or storage not in STORAGES:
         raise InputError("storage", storage, f"must be one of {', '.join(STORAGES)}")
     bag_path = require_new_path("bag", path)
     ordered = sorted(records, key=lambda r: r[1])
+    present = {r[0] for r in ordered}
     writer = open_writer(bag_path, storage, compression)
     try:
         writer.open()
@@ -182,6 +195,7 @@ def write_bag(
                 topics.qualified(namespace, topic), msgtype, typestore=TYPESTORE
             )
             for topic, msgtype in topics.MSG_TYPES.items()
+            if topic not in topics.OPTIONAL_TOPICS or topic in present
         }
         for topic, time_ns, msg in ordered:
             writer.write(
@@ -195,7 +209,8 @@ def write_bag(
 
 
 def result_records(result: Any, command: dict[str, Any] | None = None) -> list[BagRecord]:
-    """All bag records of one simulated impact: command, sensor streams, rebound, truth.
+    """All bag records of one simulated impact: command, sensor streams, rebound (and impact
+    point, when the camera reports it), truth.
 
     ``result`` is a :class:`tail_beam_sim.physics.simulate.SimulationResult`; ``command`` the
     ``impact_cmd`` JSON that asked for it (logged at the start of the recording).
@@ -220,6 +235,8 @@ def result_records(result: Any, command: dict[str, Any] | None = None) -> list[B
     )
     records.extend(vibration_msgs(result.vibration))
     records.append(rebound_msg(result.rebound.stamp_s, result.rebound.velocity_mps))
+    if getattr(result, "point", None) is not None:
+        records.append(point_msg(result.point.stamp_s, result.point.point_m))
     end_stamp = result.contact_stamp_s + result.scene.window_s
     records.append((topics.IMPACT_TRUTH, topics.stamp_ns(end_stamp), string_msg(result.truth())))
     return records

@@ -10,7 +10,13 @@ from typing import Any
 import numpy as np
 
 from tail_beam_sim.physics.scene import Scene
-from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, VibrationBlocks
+from tail_beam_sim.physics.sensors import (
+    ImpactPoint,
+    ImuStream,
+    PressureStream,
+    Rebound,
+    VibrationBlocks,
+)
 from tail_beam_sim.physics.solvers import Trajectory
 
 # Summary keys the truth already carries under their own names (from the impact itself).
@@ -65,6 +71,8 @@ class SimulationResult:
     vibration: VibrationBlocks = field(
         default_factory=lambda: VibrationBlocks.empty()
     )  # the accelerometer's blocks
+    # Where the camera saw the particle strike (sensors.camera_reports_impact_point), else None.
+    point: ImpactPoint | None = None
 
     def truth(self) -> dict[str, Any]:
         """The ``impact_truth`` JSON object of this impact (contract: docs/interface.md)."""

@@ -195,6 +195,10 @@ class SensorSpec:
     imu_antialias_order: int = 0
     imu_antialias_cutoff_fraction: float = 0.25
     imu_oversample: int = 4
+    # The rebound camera also reports where the particle struck (topic ``impact_point``), each
+    # coordinate with Gaussian noise of this RMS, m.
+    camera_reports_impact_point: bool = False
+    impact_point_noise_m: float = 0.01
 
     @property
     def vibration_noise_mps2(self) -> float:
@@ -218,6 +222,7 @@ class SensorSpec:
             imu_gyro_noise_radps=self.imu_gyro_noise_radps * factor,
             camera_velocity_noise_mps=self.camera_velocity_noise_mps * factor,
             camera_velocity_noise_fraction=self.camera_velocity_noise_fraction * factor,
+            impact_point_noise_m=self.impact_point_noise_m * factor,
         )
 
     @classmethod

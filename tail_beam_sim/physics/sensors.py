@@ -8,6 +8,10 @@
   impulse, not as a spike caught by chance.
 * Camera: the particle's velocity as it last leaves the plate, stamped at the first frame
   at or after separation.
+* Camera, impact point (when the camera reports it): where the particle struck, on the plate
+  (x from the hinge, y across from the beam's axis, z 0), m, with Gaussian noise per
+  coordinate, stamped as the same impact's rebound. The beam is modelled as a line, so a
+  particle strikes on its axis: the true y is 0.
 * Tail-beam accelerometer (``vibration``): specific force along the plate normal at the IMU's
   place, m/s^2, sampled at 1-100 kHz behind an anti-alias filter: the beam's response is
   computed ``oversample`` times per sample (each dense value the exact mean over its dense
@@ -67,6 +71,16 @@ class Rebound:
     stamp_s: float
     velocity_mps: np.ndarray  # (x along the beam, y, z along the outward normal)
     true_velocity_mps: np.ndarray
+
+
+@dataclass
+class ImpactPoint:
+    """The camera's view of where the particle struck: stamp (s, its rebound's) and the point on
+    the plate (x from the hinge, y across from the beam's axis, z 0), m."""
+
+    stamp_s: float
+    point_m: np.ndarray  # (x, y, z), measured
+    true_point_m: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -196,8 +210,11 @@ class SensorSuite:
     def __init__(self, spec: SensorSpec, seed: int | None = None) -> None:
         self.spec = spec
         self.noise = SensorNoise.of(spec)
-        children = np.random.SeedSequence(spec.seed if seed is None else seed).spawn(5)
+        children = np.random.SeedSequence(spec.seed if seed is None else seed).spawn(6)
         pressure, imu, camera, vibration = children[0], children[1], children[2], children[4]
+        # The impact point's noise has a child of its own (the sixth): turning the point on
+        # changes no other sensor's readings.
+        self._point_rng = np.random.default_rng(children[5])
         self._phase_seed = children[3]
         self._vibration_rng = np.random.default_rng(vibration)
         self._pressure_rng = np.random.default_rng(pressure)
@@ -354,6 +371,21 @@ class SensorSuite:
             math.ceil(separation * spec.camera_frame_rate_hz - 1e-9) / spec.camera_frame_rate_hz
         )
         return Rebound(stamp, measured, true)
+
+    def impact_point(
+        self, position_m: float, rebound: Rebound, length_m: float, width_m: float
+    ) -> ImpactPoint:
+        """The camera's view of where the particle struck ``position_m`` (m from the hinge, on
+        the beam's axis), stamped as its ``rebound``: a point on the plate of ``length_m`` by
+        ``width_m`` (the camera sees the plate, so a reading is never off it)."""
+        true = np.array([float(position_m), 0.0, 0.0])
+        sigma = self.spec.impact_point_noise_m
+        noisy = true + self._point_rng.normal(0.0, sigma, 3) * np.array([1.0, 1.0, 0.0])
+        half = 0.5 * width_m
+        measured = np.array(
+            [min(max(noisy[0], 0.0), length_m), min(max(noisy[1], -half), half), 0.0]
+        )
+        return ImpactPoint(rebound.stamp_s, measured, true)
 
 
 def mean_specific_force_z(

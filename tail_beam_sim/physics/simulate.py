@@ -308,6 +308,17 @@ def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> Simul
     ]
     states = trajectory.sample_many(parts)
     history = histories(scene, trajectory, states[0])
+    rebound = suite.rebound(trajectory, contact_stamp)
+    point = (
+        suite.impact_point(
+            scene.impact.position_m,
+            rebound,
+            scene.support.beam_length_m,
+            scene.support.plate_width_m,
+        )
+        if spec.camera_reports_impact_point
+        else None
+    )
     return SimulationResult(
         scene=scene,
         trajectory=trajectory,
@@ -315,11 +326,12 @@ def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> Simul
         history=history,
         pressure=suite.pressure(trajectory, pressure_stamps, contact_stamp, states[1]),
         imu=suite.imu(trajectory, imu_stamps, contact_stamp, (states[2], states[3])),
-        rebound=suite.rebound(trajectory, contact_stamp),
+        rebound=rebound,
         summary=summarise(scene, trajectory, history),
         vibration=suite.vibration(trajectory, end, contact_stamp, states[4])
         if vibration
         else VibrationBlocks.empty(),
+        point=point,
     )
 
 

@@ -41,6 +41,7 @@ from tail_beam_sim.physics.result import impact_truth
 from tail_beam_sim.physics.scene import Impact, Scene, SensorSpec
 from tail_beam_sim.physics.sensors import (
     AntiAliasFilter,
+    ImpactPoint,
     ImuLowPass,
     ImuStream,
     PressureStream,
@@ -187,6 +188,8 @@ class ScheduledImpact:
     trajectory: CarriedTrajectory
     rebound: Rebound
     truth: dict[str, Any]
+    # Where the camera saw it strike (sensors.camera_reports_impact_point), else None.
+    point: ImpactPoint | None = None
 
     @property
     def impact_id(self) -> str:
@@ -217,6 +220,9 @@ class Chunk:
         tuple[float, dict[str, Any]]
     ]  # (stamp s, impact_truth JSON object), in stamp order
     started: list[ScheduledImpact]  # impacts whose contact stamp fell in the span
+    # (impact_id, impact point) stamped in the span, in stamp order: each with its rebound's
+    # stamp (sensors.camera_reports_impact_point; empty otherwise)
+    points: list[tuple[str, ImpactPoint]] = field(default_factory=list)
 
 
 class StreamSimulator:
@@ -361,6 +367,16 @@ class StreamSimulator:
         self._epoch_starts.append(stamp_s)
         self._epochs.append(trajectory)
         rebound = self._suite.rebound(trajectory, stamp_s)
+        point = (
+            self._suite.impact_point(
+                impact.position_m,
+                rebound,
+                self.support.beam_length_m,
+                self.support.plate_width_m,
+            )
+            if self.sensors.camera_reports_impact_point
+            else None
+        )
         scene = Scene(
             self.support,
             impact,
@@ -377,6 +393,7 @@ class StreamSimulator:
             trajectory,
             rebound,
             impact_truth(scene, trajectory, stamp_s, rebound.stamp_s, summary),
+            point,
         )
 
     def advance(self, until_s: float) -> Chunk:
@@ -406,13 +423,19 @@ class StreamSimulator:
             if start < s.truth_stamp_s <= until
         ]
         rebounds.sort(key=lambda r: r[1].stamp_s)
+        points = [
+            (s.impact_id, s.point)
+            for s in self._pending_events
+            if s.point is not None and start < s.point.stamp_s <= until
+        ]
+        points.sort(key=lambda p: p[1].stamp_s)
         truths.sort(key=lambda t: t[0])
         self._pending_events = [
             s for s in self._pending_events if max(s.rebound.stamp_s, s.truth_stamp_s) > until
         ]
         self._time_s = until
         self._prune()
-        return Chunk(start, until, pressure, imu, vibration, rebounds, truths, started)
+        return Chunk(start, until, pressure, imu, vibration, rebounds, truths, started, points)
 
     @staticmethod
     def _grid(first_index: int, until_s: float, rate_hz: float) -> np.ndarray:

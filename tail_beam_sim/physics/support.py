@@ -46,6 +46,9 @@ class Support:
     # published): how much more or less than the law says a particle's contact with this
     # support's wear plate dissipates (config/support.yaml).
     contact_damping_scale: float = 1.0
+    # Width of the impact plate across the beam, m: where the camera may see a particle strike
+    # (impact_point.point.y within +- half of it).
+    plate_width_m: float = 1.5
 
     @property
     def piston_area_m2(self) -> float:

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Quaternion, TwistStamped, Vector3
+from geometry_msgs.msg import PointStamped, Quaternion, TwistStamped, Vector3
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
@@ -24,7 +24,13 @@ from std_msgs.msg import Header, String
 
 from tail_beam_sim import topics
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, VibrationBlocks
+from tail_beam_sim.physics.sensors import (
+    ImpactPoint,
+    ImuStream,
+    PressureStream,
+    Rebound,
+    VibrationBlocks,
+)
 
 NO_ORIENTATION = [-1.0] + [0.0] * 8  # REP 145: element 0 = -1, the estimate is not provided
 
@@ -39,7 +45,7 @@ EVENT_QOS = QoSProfile(
 EVENT_PUBLISHER_QOS = QoSProfile(
     depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
-EVENT_TOPICS = (topics.REBOUND_VELOCITY, topics.IMPACT_TRUTH, topics.LABEL)
+EVENT_TOPICS = (topics.REBOUND_VELOCITY, topics.IMPACT_POINT, topics.IMPACT_TRUTH, topics.LABEL)
 # impact_cmd as sim_node reads it: keep-all, so that a burst waits in the reader's history
 # (reliable
 # flow control slows the client) instead of keep-last overwriting what the node has not taken yet.
@@ -230,6 +236,19 @@ def rebound_message(rebound: Rebound) -> TwistStamped:
     v = [float(x) for x in rebound.velocity_mps]
     msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z = v
     return msg
+
+
+def point_message(point: ImpactPoint) -> PointStamped:
+    """impact_point: where the particle struck, m, plate frame, stamped as its rebound."""
+    msg = PointStamped(header=header(point.stamp_s, topics.FRAME_PLATE))
+    msg.point.x, msg.point.y, msg.point.z = [float(x) for x in point.point_m]
+    return msg
+
+
+def point_values(msg: PointStamped) -> tuple[float, str, np.ndarray]:
+    """impact_point back to (stamp_s, frame_id, point_m (3,)), unchecked."""
+    p = msg.point
+    return stamp_s(msg.header.stamp), msg.header.frame_id, np.array([p.x, p.y, p.z])
 
 
 def string_message(payload: dict[str, Any]) -> String:

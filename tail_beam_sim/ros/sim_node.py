@@ -2,7 +2,8 @@
 
 Takes impacts on ``impact_cmd`` (and a start-up scenario), publishes ``jack_pressure``,
 ``imu`` and ``vibration`` (the accelerometer's blocks) as continuous streams, ``rebound_velocity``
-and ``impact_truth`` once per impact, and ``/clock`` on request. A timer advances simulation time
+(and ``impact_point``, when ``sensors.camera_reports_impact_point``) and ``impact_truth`` once per
+impact, and ``/clock`` on request. A timer advances simulation time
 by the wall-clock time elapsed times ``realtime_factor`` (0: as fast as possible), at most
 ``max_chunk_s`` per tick: a short stall is caught up; when it falls more than ``max_lag_s`` behind
 it runs slower than real time from there on. It never skips a sample.
@@ -30,7 +31,7 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-from geometry_msgs.msg import TwistStamped
+from geometry_msgs.msg import PointStamped, TwistStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -149,6 +150,12 @@ class SimNode(Node):
         self._imu_pub = self.create_publisher(Imu, topics.IMU, sensor_qos)
         self._vibration_pub = self.create_publisher(LaserScan, topics.VIBRATION, sensor_qos)
         self._rebound_pub = self.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, event_qos)
+        # impact_point only when the camera reports it: the shipped layout has no such topic.
+        self._point_pub = (
+            self.create_publisher(PointStamped, topics.IMPACT_POINT, event_qos)
+            if self.stream.sensors.camera_reports_impact_point
+            else None
+        )
         self._gate = SubscriberGate(
             (self._pressure_pub, self._imu_pub, self._vibration_pub, self._rebound_pub),
             wait_for,
@@ -370,6 +377,7 @@ class SimNode(Node):
                 self._rebound_pub,
                 self._truth_pub,
                 self._share_pub,
+                *([self._point_pub] if self._point_pub is not None else []),
             ),
         )
 
@@ -403,6 +411,9 @@ class SimNode(Node):
             backlog.publish(*outgoing[index])
         for _, rebound in chunk.rebounds:
             backlog.publish(self._rebound_pub, ros_messages.rebound_message(rebound))
+        if self._point_pub is not None:
+            for _, point in chunk.points:
+                backlog.publish(self._point_pub, ros_messages.point_message(point))
         for _, truth in chunk.truths:
             backlog.publish(self._truth_pub, ros_messages.string_message(truth))
         for share in shares:

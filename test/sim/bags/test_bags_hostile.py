@@ -134,7 +134,8 @@ def foreign_bag(path: Path) -> None:
         (lambda bag: (flushed_bag(bag, "mcap"), cut(bag, 8)), "bag repair"),
         (
             foreign_bag,
-            "holds no messages on imu, jack_pressure, rebound_velocity, vibration; "
+            "holds no messages on impact_point, imu, jack_pressure, rebound_velocity, "
+            "vibration; "
             "it has: chatter",
         ),
         (lambda bag: bag.symlink_to(bag.parent / "nowhere"), "dangling symbolic link"),
