@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -150,6 +150,35 @@ class SupportDraw:
             + f"{self.contact_model}"
             + (f" x{v['contact_damping_scale']:.2f}" if "contact_damping_scale" in v else "")
         )
+
+
+def tabulated_modes(
+    modes: Mapping[str, Any], table: Sequence[tuple[float, float]], damping_ratio: float = 0.02
+) -> dict[str, Any]:
+    """A ``modes`` parameter section with the bending modes of ``table`` ((frequency Hz, modal
+    mass kg) each, lowest first): the k-th takes the k-th shape of ``modes`` (cycling when
+    there are fewer) and no mass coupling with the rigid rotation, so that each mode rings at
+    its own frequency (a support measured mode by mode, as a modal test reports it)."""
+    names = sorted(
+        (k for k in modes if k.startswith("bending_")), key=lambda k: int(k.split("_")[1])
+    )
+    if not names:
+        raise InputError("modes", None, "needs at least one bending_N mode for its shape")
+    section: dict[str, Any] = {
+        "count": len(table),
+        "stations_m": list(modes["stations_m"]),
+    }
+    for k, (frequency_hz, mass_kg) in enumerate(table):
+        shape = modes[names[k % len(names)]]
+        section[f"bending_{k + 1}"] = {
+            "frequency_hz": float(frequency_hz),
+            "damping_ratio": float(damping_ratio),
+            "modal_mass_kg": float(mass_kg),
+            "rigid_coupling_kgm": 0.0,
+            "shape": list(shape["shape"]),
+            "slope_radpm": list(shape["slope_radpm"]),
+        }
+    return section
 
 
 def support_ranges(evaluation: Mapping[str, Any], which: str) -> Mapping[str, Any]:
