@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_id.signals.contact_force import ForceReading, read_force
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.spec import Section, integer, number, positive
 
@@ -154,6 +155,9 @@ class ContactFit:
     duration_s: float
     start_s: float
     mode_frequencies_hz: tuple[float, ...]
+    # The force history read through the same poles (tail_beam_id.signals.contact_force); None
+    # on a channel too slow for a ring-down, or when no force could be read.
+    force: ForceReading | None = None
 
 
 def ringing_poles(
@@ -373,13 +377,28 @@ def fit_contact(
         config.early_ring_start_s,
         start + config.ring_after_contact_factor * duration + config.ring_after_contact_s,
     )
+    used = poles
     if early_s < config.ring_start_s - period_s:
         sooner = ring_down(early_s)
         if sooner.size >= config.min_ring_samples:
-            early = ringing_poles(
+            used = ringing_poles(
                 accel[sooner], period_s, config.max_modes, noise, config.min_mode_frequency_hz
             )
-            duration, start = _search(t, y, sway, early, period_s, config)
+            duration, start = _search(t, y, sway, used, period_s, config)
+    force = read_force(
+        t,
+        y,
+        sway,
+        poles,
+        period_s,
+        start,
+        duration,
+        noise,
+        config.max_duration_s,
+    )
     return ContactFit(
-        duration, onset_s + start, tuple(float(p.imag / (2.0 * math.pi)) for p in poles)
-    )  # the late ring-down's
+        duration,
+        onset_s + start,
+        tuple(float(p.imag / (2.0 * math.pi)) for p in poles),  # the late ring-down's
+        force,
+    )

@@ -26,6 +26,7 @@ SIGNALS = ("jack_pressure", "imu", "rebound_velocity")
 # Feature flag (1.0 when present) of an impact whose acceleration features (the imu_* names, the
 # rebound delay) came from the tail-beam accelerometer's ``vibration`` stream, not the IMU.
 VIBRATION_CHANNEL = "vibration_channel"
+FORCE_DURATION = "contact_force_duration_s"  # the contact force's duration above 5 % of its peak
 
 
 @dataclass(frozen=True)
@@ -209,6 +210,13 @@ def impact_features(
             # are not all there, and the models decide without them
             # (methods.statistical.signals_of).
             features["contact_duration_s"] = contact.duration_s
+            if contact.force is not None:
+                # The force history read through the ringing (signals.contact_force): where it
+                # ends, how soon it peaks, how well the model held (x the noise RMS).
+                features[FORCE_DURATION] = contact.force.duration_s
+                features["contact_force_rise_s"] = contact.force.rise_s
+                features["contact_force_chi"] = contact.force.chi
+                features["contact_force_residual"] = contact.force.residual_noise_ratio
         estimates.append(
             (moment, max(impulse.sigma_mps, impulse.ring_mps) * model.imu_moment_per_velocity)
         )
