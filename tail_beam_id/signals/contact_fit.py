@@ -95,6 +95,38 @@ CONTACT_FIT = Section(
             default=150.0,
         ),
         number(
+            "long_contact_half_periods",
+            "A force read this many half periods of the slowest mode long: duration unreliable.",
+            "",
+            0.1,
+            10.0,
+            default=1.0,
+        ),
+        number(
+            "poor_fit_unexplained",
+            "A force fit leaving more of the pulse's power than this: duration unreliable.",
+            "",
+            0.0,
+            1.0,
+            default=0.02,
+        ),
+        number(
+            "poor_fit_noise_ratio",
+            "... and a residual RMS above this many noise RMS.",
+            "",
+            0.0,
+            1000.0,
+            default=3.0,
+        ),
+        number(
+            "unreliable_confidence_cap",
+            "Most confidence of a label whose duration is unreliable.",
+            "",
+            0.5,
+            1.0,
+            default=0.7,
+        ),
+        number(
             "max_fit_rate_hz",
             "A faster channel is decimated to at most this.",
             "Hz",
@@ -128,6 +160,10 @@ class ContactFitConfig:
     max_fit_rate_hz: float = (
         51200.0  # a faster channel is read every k-th sample, at most this rate (cost)
     )
+    long_contact_half_periods: float = 1.0  # a force this many half periods long: unreliable
+    poor_fit_unexplained: float = 0.02  # a force fit leaving this share of the power: unreliable
+    poor_fit_noise_ratio: float = 3.0  # ... with a residual above this many noise RMS
+    unreliable_confidence_cap: float = 0.7  # the most confidence such a label may carry
 
     @classmethod
     def from_params(cls, section: Mapping[str, Any] | None) -> ContactFitConfig:
@@ -268,6 +304,33 @@ def _search(
         duration * np.exp(np.linspace(-step, step, 9)),
         start + np.arange(-2, 3) * period_s / 6.0,
     )
+
+
+LONG_CONTACT = "contact_longer_than_mode"  # what a capped label lists in outside_training
+POOR_FIT = "contact_fit_poor"
+
+
+def unreliable(fit: ContactFit | None, config: ContactFitConfig) -> tuple[str, ...]:
+    """Why the half-sine's duration (feature contact_duration_s) cannot be trusted, if it
+    cannot: the force read through the ringing lasts ``long_contact_half_periods`` half
+    periods of the slowest mode read from the ring-down or more (the mode's response then
+    overlaps the pulse, and the half-sine that fits best depends on the support:
+    LONG_CONTACT), or the force fit leaves more than ``poor_fit_unexplained`` of the pulse's
+    power and ``poor_fit_noise_ratio`` x the noise unexplained (the support or the contact is
+    unlike the model: POOR_FIT). Empty when reliable or nothing was read."""
+    if fit is None or fit.force is None:
+        return ()
+    reasons = []
+    if fit.mode_frequencies_hz:
+        half_period_s = 0.5 / min(fit.mode_frequencies_hz)
+        if fit.force.duration_s >= config.long_contact_half_periods * half_period_s:
+            reasons.append(LONG_CONTACT)
+    if (
+        fit.force.unexplained > config.poor_fit_unexplained
+        and fit.force.residual_noise_ratio > config.poor_fit_noise_ratio
+    ):
+        reasons.append(POOR_FIT)
+    return tuple(reasons)
 
 
 def _unbroken(where: np.ndarray, stamp_s: np.ndarray, period_s: float) -> np.ndarray:

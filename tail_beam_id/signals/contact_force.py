@@ -71,6 +71,8 @@ class ForceReading:
     exponent: float
     chi: float
     residual_noise_ratio: float
+    half_sine_s: float  # the half-sine that matches this force best on a rigid support, s
+    unexplained: float  # the share of the pulse's power (the sway taken out) the fit leaves
 
 
 @dataclass(frozen=True)
@@ -264,4 +266,6 @@ def read_force(
         exponent=s.exponent,
         chi=s.chi,
         residual_noise_ratio=rms / max(noise, 1e-12),
+        half_sine_s=s.half_sine * duration,
+        unexplained=max(float(y @ y) - score, 0.0) / max(float(y @ y), 1e-300),
     )

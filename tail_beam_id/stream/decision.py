@@ -17,7 +17,7 @@ from dataclasses import replace
 from typing import Any
 
 from tail_beam_id.methods import Decision, Method
-from tail_beam_id.signals.contact_fit import clipped_near, fit_contact
+from tail_beam_id.signals.contact_fit import clipped_near, fit_contact, unreliable
 from tail_beam_id.signals.features import (
     VIBRATION_CHANNEL,
     BeamModel,
@@ -195,6 +195,13 @@ class ImpactDecider:
         confidence = decision.confidence
         if overlap:
             confidence = min(confidence, cfg.overlap_confidence_cap)
+        doubtful = unreliable(contact, cfg.contact_fit)
+        used = decision.signals is None or "imu" in decision.signals
+        if doubtful and used and "contact_duration_s" in features:
+            # The decision read the contact's duration, and the pulse says it is not to be
+            # trusted (a contact as long as a mode's half period, a fit that did not hold).
+            confidence = min(confidence, cfg.contact_fit.unreliable_confidence_cap)
+            decision = replace(decision, outside_training=(*decision.outside_training, *doubtful))
         if timing_suspect:
             confidence = min(confidence, cfg.timing.confidence_cap)
             decision = replace(

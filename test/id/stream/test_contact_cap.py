@@ -1,0 +1,63 @@
+"""A label whose contact duration cannot be trusted is capped and says why
+(tail_beam_id.signals.contact_fit.unreliable, applied by tail_beam_id.stream.decision)."""
+
+from __future__ import annotations
+
+import copy
+
+from id_helpers import impact
+
+from tail_beam_id.signals.contact_fit import LONG_CONTACT, POOR_FIT, ContactFitConfig
+from tail_beam_id.stream.identifier import StreamIdentifier
+from tail_beam_id.stream.replay import replay
+from tail_beam_id.study.supports import tabulated_modes
+
+MODES = ((600.0, 300.0), (1200.0, 300.0))  # the second 2x the first; half period 833 us
+
+
+def _label(params, radius_m: float, section: dict | None = None):
+    """The one label of a coal particle of ``radius_m`` dropped 1.5 m at 1.0 m on a support
+    with MODES, identified knowing the support, the accelerometer fed."""
+    support = copy.deepcopy(params)
+    support["modes"] = tabulated_modes(params["modes"], MODES)
+    support["calibration"] = {"rigid_mode_frequency_hz": 40.0}
+    result = impact(support, material="coal", radius_m=radius_m, drop_height_m=1.5, position_m=1.0)
+    identification = {**params["identification"], **(section or {})}
+    labels = replay(
+        StreamIdentifier("statistical", identification, support),
+        result.pressure,
+        result.imu,
+        [result.rebound],
+        vibration=result.vibration,
+    )
+    assert len(labels) == 1
+    return labels[0]
+
+
+def test_a_contact_longer_than_half_the_slowest_mode_period_is_capped_with_its_reason(params):
+    """A 100 mm coal's contact (about 0.9 ms of force) outlasts half a period of the 600 Hz
+    mode (833 us): its label is capped at unreliable_confidence_cap and lists
+    contact_longer_than_mode; a 50 mm coal's (about 0.43 ms) is not."""
+    cap = ContactFitConfig().unreliable_confidence_cap
+    long = _label(params, 0.1)
+    assert long.features["contact_force_duration_s"] > 0.5 / MODES[0][0]
+    assert LONG_CONTACT in long.outside_training
+    assert long.confidence <= cap
+    short = _label(params, 0.05)
+    assert short.features["contact_force_duration_s"] < 0.5 / MODES[0][0]
+    assert LONG_CONTACT not in short.outside_training
+    assert short.confidence > cap
+
+
+def test_a_poor_fit_is_capped_with_its_reason(params):
+    """With the poor-fit thresholds at zero every fit is poor: the 50 mm coal's label is then
+    capped and lists contact_fit_poor (and only that)."""
+    contact_fit = {
+        **params["identification"]["contact_fit"],
+        "poor_fit_unexplained": 0.0,
+        "poor_fit_noise_ratio": 0.0,
+    }
+    label = _label(params, 0.05, {"contact_fit": contact_fit})
+    assert POOR_FIT in label.outside_training
+    assert LONG_CONTACT not in label.outside_training
+    assert label.confidence <= contact_fit["unreliable_confidence_cap"]
