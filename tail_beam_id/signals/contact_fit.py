@@ -321,8 +321,10 @@ def unreliable(fit: ContactFit | None, config: ContactFitConfig) -> tuple[str, .
     if fit is None or fit.force is None:
         return ()
     reasons = []
-    if fit.mode_frequencies_hz:
-        half_period_s = 0.5 / min(fit.mode_frequencies_hz)
+    # A pole the ring-down read without oscillation (a pure decay: 0 Hz) is no mode.
+    ringing = [f for f in fit.mode_frequencies_hz if f >= config.min_mode_frequency_hz]
+    if ringing:
+        half_period_s = 0.5 / min(ringing)
         if fit.force.duration_s >= config.long_contact_half_periods * half_period_s:
             reasons.append(LONG_CONTACT)
     if (

@@ -7,7 +7,14 @@ import copy
 
 from id_helpers import impact
 
-from tail_beam_id.signals.contact_fit import LONG_CONTACT, POOR_FIT, ContactFitConfig
+from tail_beam_id.signals.contact_fit import (
+    LONG_CONTACT,
+    POOR_FIT,
+    ContactFit,
+    ContactFitConfig,
+    unreliable,
+)
+from tail_beam_id.signals.contact_force import ForceReading
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import replay
 from tail_beam_id.study.supports import tabulated_modes
@@ -61,3 +68,21 @@ def test_a_poor_fit_is_capped_with_its_reason(params):
     assert POOR_FIT in label.outside_training
     assert LONG_CONTACT not in label.outside_training
     assert label.confidence <= contact_fit["unreliable_confidence_cap"]
+
+
+def test_a_pole_without_oscillation_is_no_mode():
+    """A ring-down pole read as a pure decay (0 Hz) does not make every contact long (and does
+    not divide by zero); a 600 Hz mode beside it does make a 1 ms force long."""
+    force = ForceReading(
+        duration_s=1e-3,
+        start_s=0.0,
+        rise_s=3e-4,
+        exponent=1.5,
+        chi=1.0,
+        residual_noise_ratio=1.0,
+        half_sine_s=7e-4,
+        unexplained=0.001,
+    )
+    config = ContactFitConfig()
+    assert unreliable(ContactFit(7e-4, 0.0, (0.0,), force), config) == ()
+    assert unreliable(ContactFit(7e-4, 0.0, (0.0, 600.0), force), config) == (LONG_CONTACT,)
