@@ -99,8 +99,8 @@ CONTACT_FIT = Section(
             "A force read this many half periods of the slowest mode long: duration unreliable.",
             "",
             0.1,
-            10.0,
-            default=1.0,
+            100.0,
+            default=5.0,
         ),
         number(
             "poor_fit_unexplained",
@@ -108,7 +108,7 @@ CONTACT_FIT = Section(
             "",
             0.0,
             1.0,
-            default=0.02,
+            default=0.25,
         ),
         number(
             "poor_fit_noise_ratio",
@@ -160,8 +160,8 @@ class ContactFitConfig:
     max_fit_rate_hz: float = (
         51200.0  # a faster channel is read every k-th sample, at most this rate (cost)
     )
-    long_contact_half_periods: float = 1.0  # a force this many half periods long: unreliable
-    poor_fit_unexplained: float = 0.02  # a force fit leaving this share of the power: unreliable
+    long_contact_half_periods: float = 5.0  # a force this many half periods long: unreliable
+    poor_fit_unexplained: float = 0.25  # a force fit leaving this share of the power: unreliable
     poor_fit_noise_ratio: float = 3.0  # ... with a residual above this many noise RMS
     unreliable_confidence_cap: float = 0.7  # the most confidence such a label may carry
 
@@ -310,6 +310,16 @@ LONG_CONTACT = "contact_longer_than_mode"  # what a capped label lists in outsid
 POOR_FIT = "contact_fit_poor"
 
 
+def half_periods(fit: ContactFit | None, config: ContactFitConfig) -> float | None:
+    """How many half periods of the slowest mode the ring-down shows the force read through the
+    ringing lasts (a 0 Hz pole, a pure decay, is no mode); None when no force or no mode was
+    read."""
+    if fit is None or fit.force is None:
+        return None
+    ringing = [f for f in fit.mode_frequencies_hz if f >= config.min_mode_frequency_hz]
+    return 2.0 * fit.force.duration_s * min(ringing) if ringing else None
+
+
 def unreliable(fit: ContactFit | None, config: ContactFitConfig) -> tuple[str, ...]:
     """Why the half-sine's duration (feature contact_duration_s) cannot be trusted, if it
     cannot: the force read through the ringing lasts ``long_contact_half_periods`` half
@@ -321,12 +331,9 @@ def unreliable(fit: ContactFit | None, config: ContactFitConfig) -> tuple[str, .
     if fit is None or fit.force is None:
         return ()
     reasons = []
-    # A pole the ring-down read without oscillation (a pure decay: 0 Hz) is no mode.
-    ringing = [f for f in fit.mode_frequencies_hz if f >= config.min_mode_frequency_hz]
-    if ringing:
-        half_period_s = 0.5 / min(ringing)
-        if fit.force.duration_s >= config.long_contact_half_periods * half_period_s:
-            reasons.append(LONG_CONTACT)
+    long = half_periods(fit, config)
+    if long is not None and long >= config.long_contact_half_periods:
+        reasons.append(LONG_CONTACT)
     if (
         fit.force.unexplained > config.poor_fit_unexplained
         and fit.force.residual_noise_ratio > config.poor_fit_noise_ratio
@@ -376,12 +383,15 @@ def fit_contact(
     period_s: float,
     noise: float,
     config: ContactFitConfig,
+    with_force: bool = True,
 ) -> ContactFit | None:
     """The contact's half-sine duration from the samples (stamps in s, acceleration along the
-    plate normal in m/s^2) around a pulse whose onset is ``onset_s``. A channel too slow for a
-    ring-down of ``min_ring_samples`` gives its sample period (the contact fell within one
-    sample; ``mode_frequencies_hz`` empty); None when a fast channel's samples do not cover the
-    window (the stream ended) or are not finite: then nothing is known of the duration."""
+    plate normal in m/s^2) around a pulse whose onset is ``onset_s``, and (``with_force``) the
+    force's shape read through the same poles (:mod:`tail_beam_id.signals.contact_force`). A
+    channel too slow for a ring-down of ``min_ring_samples`` gives its sample period (the
+    contact fell within one sample; ``mode_frequencies_hz`` empty); None when a fast channel's
+    samples do not cover the window (the stream ended) or are not finite: then nothing is known
+    of the duration."""
     span_s = config.ring_end_s - config.ring_start_s
     if span_s / period_s < config.min_ring_samples:
         return ContactFit(period_s, onset_s, ())
@@ -450,16 +460,10 @@ def fit_contact(
                 accel[sooner], period_s, config.max_modes, noise, config.min_mode_frequency_hz
             )
             duration, start = _search(t, y, sway, used, period_s, config)
-    force = read_force(
-        t,
-        y,
-        sway,
-        poles,
-        period_s,
-        start,
-        duration,
-        noise,
-        config.max_duration_s,
+    force = (
+        read_force(t, y, sway, poles, period_s, start, duration, noise, config.max_duration_s)
+        if with_force
+        else None
     )
     return ContactFit(
         duration,

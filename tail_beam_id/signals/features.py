@@ -189,8 +189,11 @@ def impact_features(
     pressure: PressureFit | None,
     rebound: tuple[float, np.ndarray] | None,
     contact: ContactFit | None = None,
+    contact_half_periods: float | None = None,
 ) -> dict[str, float]:
-    """The feature dict of one impact from whatever signals there are (missing ones absent)."""
+    """The feature dict of one impact from whatever signals there are (missing ones absent);
+    ``contact_half_periods``: how many half periods of the slowest mode the contact force lasts
+    (:func:`tail_beam_id.signals.contact_fit.half_periods`)."""
     features: dict[str, float] = {}
     estimates = []
     if pulse is not None and impulse is not None:
@@ -217,6 +220,9 @@ def impact_features(
                 features["contact_force_rise_s"] = contact.force.rise_s
                 features["contact_force_chi"] = contact.force.chi
                 features["contact_force_residual"] = contact.force.residual_noise_ratio
+                features["contact_force_unexplained"] = contact.force.unexplained
+                if contact_half_periods is not None:
+                    features["contact_force_half_periods"] = contact_half_periods
         estimates.append(
             (moment, max(impulse.sigma_mps, impulse.ring_mps) * model.imu_moment_per_velocity)
         )

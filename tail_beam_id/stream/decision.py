@@ -17,7 +17,7 @@ from dataclasses import replace
 from typing import Any
 
 from tail_beam_id.methods import Decision, Method
-from tail_beam_id.signals.contact_fit import clipped_near, fit_contact, unreliable
+from tail_beam_id.signals.contact_fit import clipped_near, fit_contact, half_periods, unreliable
 from tail_beam_id.signals.features import (
     VIBRATION_CHANNEL,
     BeamModel,
@@ -150,7 +150,15 @@ class ImpactDecider:
             )
             if clipped_near(series.stamp_s, values, impact.pulse.onset_s, cfg.contact_fit):
                 saturated.append(impact.channel)
-        features = impact_features(self.model, impact.pulse, impulse, fit, impact.rebound, contact)
+        features = impact_features(
+            self.model,
+            impact.pulse,
+            impulse,
+            fit,
+            impact.rebound,
+            contact,
+            half_periods(contact, cfg.contact_fit),
+        )
         signals = []
         if fit is not None and not fit.saturated:
             signals.append("jack_pressure")

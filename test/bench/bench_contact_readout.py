@@ -4,8 +4,10 @@ the 10-90 % spread) of the features ``contact_duration_s`` (the best half-sine,
 tail_beam_id.signals.contact_fit) and ``contact_force_duration_s`` (the force history
 deconvolved through the ringing, tail_beam_id.signals.contact_force; absent before it
 existed), over 25-100 mm coal and gangue of the stream scene, at the shipped sensors (25.6 kHz
-accelerometer), the true support's profile known, and the whole identification's cost per
-impact (the label's latency_ms: median). Prints a table, asserts nothing.
+accelerometer), the true support's profile known; the whole identification's cost per impact
+(the label's latency_ms: median), and the contact fit's with and without the force read-out
+(each impact's samples fitted both ways, alternately, the least of three runs each; medians
+over the impacts). Prints two tables, asserts nothing.
 
     python test/bench/bench_contact_readout.py              # 40 impacts per support, ~20 s
     python test/bench/bench_contact_readout.py --count 100
@@ -26,6 +28,7 @@ from __future__ import annotations
 import argparse
 import copy
 import sys
+import time
 
 import numpy as np
 
@@ -66,6 +69,7 @@ def spread(ratios: list[float]) -> str:
 
 
 def main() -> int:
+    from tail_beam_id.signals.contact_fit import ContactFitConfig, fit_contact
     from tail_beam_id.stream.identifier import StreamIdentifier
     from tail_beam_id.stream.replay import replay
     from tail_beam_id.study.dataset import settings, simulate_set
@@ -86,6 +90,8 @@ def main() -> int:
         "| compute ms/impact |"
     )
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    config = ContactFitConfig.from_params(params["identification"]["contact_fit"])
+    costs: dict[str, list[tuple[float, float]]] = {}
     for name, table in SUPPORTS.items():
         varied = support_params(params, table)
         varied["calibration"] = true_profile_section(varied)
@@ -110,6 +116,9 @@ def main() -> int:
                     near[0] if near else None,
                 )
             )
+            costs.setdefault(name, []).append(
+                fit_cost(result.vibration, start, config, fit_contact)
+            )
         cost = np.median([x.latency_ms for _, _, x in rows if x is not None])
         labelled = sum(x is not None for _, _, x in rows)
         for feature in FEATURES:
@@ -126,7 +135,28 @@ def main() -> int:
                 + f" | {len(read)}/{labelled} of {len(rows)} | {cost:.2f} |",
                 flush=True,
             )
+    print(
+        "\n| support | contact fit, half-sine only (ms) | with the force read-out (ms) | ratio |"
+    )
+    print("| --- | --- | --- | --- |")
+    for name, pairs in costs.items():
+        without, with_force = (float(np.median(x)) for x in zip(*pairs))
+        print(f"| {name} | {without:.2f} | {with_force:.2f} | {with_force / without:.2f} |")
     return 0
+
+
+def fit_cost(blocks, onset_s: float, config, fit_contact) -> tuple[float, float]:
+    """(ms without, ms with the force read-out) of the contact fit of one impact's samples:
+    the least of three alternating runs each."""
+    stamps, samples = blocks.sample_stamps_s(), blocks.accel_mps2.astype(float)
+    period, noise = blocks.period_s, float(np.sqrt(blocks.noise_variance))
+    best = [np.inf, np.inf]
+    for _ in range(3):
+        for k, with_force in enumerate((False, True)):
+            started = time.perf_counter()
+            fit_contact(stamps, samples, onset_s, period, noise, config, with_force=with_force)
+            best[k] = min(best[k], time.perf_counter() - started)
+    return best[0] * 1e3, best[1] * 1e3
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 
+import pytest
 from id_helpers import impact
 
 from tail_beam_id.signals.contact_fit import (
@@ -19,7 +20,7 @@ from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import replay
 from tail_beam_id.study.supports import tabulated_modes
 
-MODES = ((600.0, 300.0), (1200.0, 300.0))  # the second 2x the first; half period 833 us
+MODES = ((3000.0, 300.0),)  # one stiff mode: half period 167 us
 
 
 def _label(params, radius_m: float, section: dict | None = None):
@@ -41,19 +42,24 @@ def _label(params, radius_m: float, section: dict | None = None):
     return labels[0]
 
 
-def test_a_contact_longer_than_half_the_slowest_mode_period_is_capped_with_its_reason(params):
-    """A 100 mm coal's contact (about 0.9 ms of force) outlasts half a period of the 600 Hz
-    mode (833 us): its label is capped at unreliable_confidence_cap and lists
-    contact_longer_than_mode; a 50 mm coal's (about 0.43 ms) is not."""
-    cap = ContactFitConfig().unreliable_confidence_cap
+def test_a_contact_longer_than_the_training_saw_is_capped_with_its_reason(params):
+    """A 100 mm coal's contact (about 0.9 ms of force) lasts more than long_contact_half_periods
+    (5) half periods of the 3 kHz mode (167 us each; the feature says how many, from the
+    duration and the mode read): its label is capped at unreliable_confidence_cap and lists
+    contact_longer_than_mode; a 50 mm coal's (about 0.43 ms, 2.6 half periods) is not."""
+    config = ContactFitConfig()
     long = _label(params, 0.1)
-    assert long.features["contact_force_duration_s"] > 0.5 / MODES[0][0]
+    half_periods = long.features["contact_force_half_periods"]
+    assert half_periods == pytest.approx(
+        2.0 * long.features["contact_force_duration_s"] * MODES[0][0], rel=0.05
+    )
+    assert half_periods >= config.long_contact_half_periods
     assert LONG_CONTACT in long.outside_training
-    assert long.confidence <= cap
+    assert long.confidence <= config.unreliable_confidence_cap
     short = _label(params, 0.05)
-    assert short.features["contact_force_duration_s"] < 0.5 / MODES[0][0]
+    assert short.features["contact_force_half_periods"] < config.long_contact_half_periods
     assert LONG_CONTACT not in short.outside_training
-    assert short.confidence > cap
+    assert short.confidence > config.unreliable_confidence_cap
 
 
 def test_a_poor_fit_is_capped_with_its_reason(params):
@@ -72,7 +78,7 @@ def test_a_poor_fit_is_capped_with_its_reason(params):
 
 def test_a_pole_without_oscillation_is_no_mode():
     """A ring-down pole read as a pure decay (0 Hz) does not make every contact long (and does
-    not divide by zero); a 600 Hz mode beside it does make a 1 ms force long."""
+    not divide by zero); a 3 kHz mode beside it makes a 1 ms force 6 half periods long."""
     force = ForceReading(
         duration_s=1e-3,
         start_s=0.0,
@@ -85,4 +91,4 @@ def test_a_pole_without_oscillation_is_no_mode():
     )
     config = ContactFitConfig()
     assert unreliable(ContactFit(7e-4, 0.0, (0.0,), force), config) == ()
-    assert unreliable(ContactFit(7e-4, 0.0, (0.0, 600.0), force), config) == (LONG_CONTACT,)
+    assert unreliable(ContactFit(7e-4, 0.0, (0.0, 3000.0), force), config) == (LONG_CONTACT,)
