@@ -386,7 +386,8 @@ def foreign_paper_line(s: Summary, records: Sequence[Record]) -> str:
     worst = min(shares, key=lambda k: (shares[k], k))
     below = sum(1 for v in shares.values() if v < PAPER_TARGET)
     return (
-        f"paper scene on foreign supports {s.setting} {s.method}: {100 * s.accuracy:.1f}% (CI "
+        f"paper scene on {s.scene_set} supports {s.setting} {s.method}: "
+        f"{100 * s.accuracy:.1f}% (CI "
         f"{100 * s.accuracy_ci[0]:.1f}-"
         f"{100 * s.accuracy_ci[1]:.1f}, n {s.n}); worst support #{worst} "
         f"{right[worst]}/{total[worst]}; {below} of {len(shares)} "
@@ -451,7 +452,7 @@ def targets(records: Sequence[Record], items: Sequence[Summary]) -> list[str]:
                         f"{'met' if gap <= 3.0 else 'NOT met'}"
                     )
     for s in items:
-        if s.scene_set == "foreign_paper":
+        if s.scene_set in FOREIGN_SCENES and FOREIGN_SCENES[s.scene_set] == "paper":
             lines.append(
                 foreign_paper_line(s, groups[(s.scene_set, s.setting, s.method, s.window_s)])
             )
@@ -479,7 +480,8 @@ def targets(records: Sequence[Record], items: Sequence[Summary]) -> list[str]:
                     f"{'met' if points >= -5.0 else 'NOT met'})"
                 )
             lines.append(
-                f"foreign {s.setting} {s.method} {1e3 * s.window_s:g} ms: {100 * s.accuracy:.1f}% "
+                f"{s.scene_set} {s.setting} {s.method} {1e3 * s.window_s:g} ms: "
+                f"{100 * s.accuracy:.1f}% "
                 f"(CI {100 * s.accuracy_ci[0]:.1f}-{100 * s.accuracy_ci[1]:.1f}, n {s.n})"
                 f"{gap}; extra labels {s.false_labels} ({100 * s.false_labels / s.n:.1f}%, target "
                 "<= 1%); "

@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_id.signals.contact_force import ForceReading, read_force
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.spec import Section, integer, number, positive
 
@@ -94,6 +95,38 @@ CONTACT_FIT = Section(
             default=150.0,
         ),
         number(
+            "long_contact_half_periods",
+            "A force read this many half periods of the slowest mode long: duration unreliable.",
+            "",
+            0.1,
+            100.0,
+            default=5.0,
+        ),
+        number(
+            "poor_fit_unexplained",
+            "A force fit leaving more of the pulse's power than this: duration unreliable.",
+            "",
+            0.0,
+            1.0,
+            default=0.25,
+        ),
+        number(
+            "poor_fit_noise_ratio",
+            "... and a residual RMS above this many noise RMS.",
+            "",
+            0.0,
+            1000.0,
+            default=3.0,
+        ),
+        number(
+            "unreliable_confidence_cap",
+            "Most confidence of a label whose duration is unreliable.",
+            "",
+            0.5,
+            1.0,
+            default=0.7,
+        ),
+        number(
             "max_fit_rate_hz",
             "A faster channel is decimated to at most this.",
             "Hz",
@@ -127,6 +160,10 @@ class ContactFitConfig:
     max_fit_rate_hz: float = (
         51200.0  # a faster channel is read every k-th sample, at most this rate (cost)
     )
+    long_contact_half_periods: float = 5.0  # a force this many half periods long: unreliable
+    poor_fit_unexplained: float = 0.25  # a force fit leaving this share of the power: unreliable
+    poor_fit_noise_ratio: float = 3.0  # ... with a residual above this many noise RMS
+    unreliable_confidence_cap: float = 0.7  # the most confidence such a label may carry
 
     @classmethod
     def from_params(cls, section: Mapping[str, Any] | None) -> ContactFitConfig:
@@ -154,6 +191,9 @@ class ContactFit:
     duration_s: float
     start_s: float
     mode_frequencies_hz: tuple[float, ...]
+    # The force history read through the same poles (tail_beam_id.signals.contact_force); None
+    # on a channel too slow for a ring-down, or when no force could be read.
+    force: ForceReading | None = None
 
 
 def ringing_poles(
@@ -266,6 +306,42 @@ def _search(
     )
 
 
+LONG_CONTACT = "contact_longer_than_mode"  # what a capped label lists in outside_training
+POOR_FIT = "contact_fit_poor"
+
+
+def half_periods(fit: ContactFit | None, config: ContactFitConfig) -> float | None:
+    """How many half periods of the slowest mode the ring-down shows the force read through the
+    ringing lasts (a 0 Hz pole, a pure decay, is no mode); None when no force or no mode was
+    read."""
+    if fit is None or fit.force is None:
+        return None
+    ringing = [f for f in fit.mode_frequencies_hz if f >= config.min_mode_frequency_hz]
+    return 2.0 * fit.force.duration_s * min(ringing) if ringing else None
+
+
+def unreliable(fit: ContactFit | None, config: ContactFitConfig) -> tuple[str, ...]:
+    """Why the half-sine's duration (feature contact_duration_s) cannot be trusted, if it
+    cannot: the force read through the ringing lasts ``long_contact_half_periods`` half
+    periods of the slowest mode read from the ring-down or more (the mode's response then
+    overlaps the pulse, and the half-sine that fits best depends on the support:
+    LONG_CONTACT), or the force fit leaves more than ``poor_fit_unexplained`` of the pulse's
+    power and ``poor_fit_noise_ratio`` x the noise unexplained (the support or the contact is
+    unlike the model: POOR_FIT). Empty when reliable or nothing was read."""
+    if fit is None or fit.force is None:
+        return ()
+    reasons = []
+    long = half_periods(fit, config)
+    if long is not None and long >= config.long_contact_half_periods:
+        reasons.append(LONG_CONTACT)
+    if (
+        fit.force.unexplained > config.poor_fit_unexplained
+        and fit.force.residual_noise_ratio > config.poor_fit_noise_ratio
+    ):
+        reasons.append(POOR_FIT)
+    return tuple(reasons)
+
+
 def _unbroken(where: np.ndarray, stamp_s: np.ndarray, period_s: float) -> np.ndarray:
     """The longest run of ``where`` whose stamps step by one ``period_s``: the matrix pencil
     needs evenly spaced samples, and a sample left out (not finite, lost with its block) would
@@ -307,12 +383,15 @@ def fit_contact(
     period_s: float,
     noise: float,
     config: ContactFitConfig,
+    with_force: bool = True,
 ) -> ContactFit | None:
     """The contact's half-sine duration from the samples (stamps in s, acceleration along the
-    plate normal in m/s^2) around a pulse whose onset is ``onset_s``. A channel too slow for a
-    ring-down of ``min_ring_samples`` gives its sample period (the contact fell within one
-    sample; ``mode_frequencies_hz`` empty); None when a fast channel's samples do not cover the
-    window (the stream ended) or are not finite: then nothing is known of the duration."""
+    plate normal in m/s^2) around a pulse whose onset is ``onset_s``, and (``with_force``) the
+    force's shape read through the same poles (:mod:`tail_beam_id.signals.contact_force`). A
+    channel too slow for a ring-down of ``min_ring_samples`` gives its sample period (the
+    contact fell within one sample; ``mode_frequencies_hz`` empty); None when a fast channel's
+    samples do not cover the window (the stream ended) or are not finite: then nothing is known
+    of the duration."""
     span_s = config.ring_end_s - config.ring_start_s
     if span_s / period_s < config.min_ring_samples:
         return ContactFit(period_s, onset_s, ())
@@ -373,13 +452,22 @@ def fit_contact(
         config.early_ring_start_s,
         start + config.ring_after_contact_factor * duration + config.ring_after_contact_s,
     )
+    used = poles
     if early_s < config.ring_start_s - period_s:
         sooner = ring_down(early_s)
         if sooner.size >= config.min_ring_samples:
-            early = ringing_poles(
+            used = ringing_poles(
                 accel[sooner], period_s, config.max_modes, noise, config.min_mode_frequency_hz
             )
-            duration, start = _search(t, y, sway, early, period_s, config)
+            duration, start = _search(t, y, sway, used, period_s, config)
+    force = (
+        read_force(t, y, sway, poles, period_s, start, duration, noise, config.max_duration_s)
+        if with_force
+        else None
+    )
     return ContactFit(
-        duration, onset_s + start, tuple(float(p.imag / (2.0 * math.pi)) for p in poles)
-    )  # the late ring-down's
+        duration,
+        onset_s + start,
+        tuple(float(p.imag / (2.0 * math.pi)) for p in poles),  # the late ring-down's
+        force,
+    )

@@ -26,6 +26,7 @@ SIGNALS = ("jack_pressure", "imu", "rebound_velocity")
 # Feature flag (1.0 when present) of an impact whose acceleration features (the imu_* names, the
 # rebound delay) came from the tail-beam accelerometer's ``vibration`` stream, not the IMU.
 VIBRATION_CHANNEL = "vibration_channel"
+FORCE_DURATION = "contact_force_duration_s"  # the contact force's duration above 5 % of its peak
 
 
 @dataclass(frozen=True)
@@ -188,8 +189,11 @@ def impact_features(
     pressure: PressureFit | None,
     rebound: tuple[float, np.ndarray] | None,
     contact: ContactFit | None = None,
+    contact_half_periods: float | None = None,
 ) -> dict[str, float]:
-    """The feature dict of one impact from whatever signals there are (missing ones absent)."""
+    """The feature dict of one impact from whatever signals there are (missing ones absent);
+    ``contact_half_periods``: how many half periods of the slowest mode the contact force lasts
+    (:func:`tail_beam_id.signals.contact_fit.half_periods`)."""
     features: dict[str, float] = {}
     estimates = []
     if pulse is not None and impulse is not None:
@@ -209,6 +213,16 @@ def impact_features(
             # are not all there, and the models decide without them
             # (methods.statistical.signals_of).
             features["contact_duration_s"] = contact.duration_s
+            if contact.force is not None:
+                # The force history read through the ringing (signals.contact_force): where it
+                # ends, how soon it peaks, how well the model held (x the noise RMS).
+                features[FORCE_DURATION] = contact.force.duration_s
+                features["contact_force_rise_s"] = contact.force.rise_s
+                features["contact_force_chi"] = contact.force.chi
+                features["contact_force_residual"] = contact.force.residual_noise_ratio
+                features["contact_force_unexplained"] = contact.force.unexplained
+                if contact_half_periods is not None:
+                    features["contact_force_half_periods"] = contact_half_periods
         estimates.append(
             (moment, max(impulse.sigma_mps, impulse.ring_mps) * model.imu_moment_per_velocity)
         )

@@ -18,7 +18,7 @@ from typing import Any
 
 from tail_beam_id.methods import Decision, Method
 from tail_beam_id.methods.inputs import IMPACT_X, IMPACT_Y, POINT_USED
-from tail_beam_id.signals.contact_fit import clipped_near, fit_contact
+from tail_beam_id.signals.contact_fit import clipped_near, fit_contact, half_periods, unreliable
 from tail_beam_id.signals.features import (
     VIBRATION_CHANNEL,
     BeamModel,
@@ -154,7 +154,15 @@ class ImpactDecider:
             )
             if clipped_near(series.stamp_s, values, impact.pulse.onset_s, cfg.contact_fit):
                 saturated.append(impact.channel)
-        features = impact_features(self.model, impact.pulse, impulse, fit, impact.rebound, contact)
+        features = impact_features(
+            self.model,
+            impact.pulse,
+            impulse,
+            fit,
+            impact.rebound,
+            contact,
+            half_periods(contact, cfg.contact_fit),
+        )
         signals = []
         if fit is not None and not fit.saturated:
             signals.append("jack_pressure")
@@ -205,6 +213,13 @@ class ImpactDecider:
         confidence = decision.confidence
         if overlap:
             confidence = min(confidence, cfg.overlap_confidence_cap)
+        doubtful = unreliable(contact, cfg.contact_fit)
+        used = decision.signals is None or "imu" in decision.signals
+        if doubtful and used and "contact_duration_s" in features:
+            # The decision read the contact's duration, and the pulse says it is not to be
+            # trusted (a contact as long as a mode's half period, a fit that did not hold).
+            confidence = min(confidence, cfg.contact_fit.unreliable_confidence_cap)
+            decision = replace(decision, outside_training=(*decision.outside_training, *doubtful))
         if timing_suspect:
             confidence = min(confidence, cfg.timing.confidence_cap)
             decision = replace(

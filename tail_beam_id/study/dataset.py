@@ -30,9 +30,30 @@ from tail_beam_sim.physics.stream import StreamSimulator
 # Evaluation scene sets. ``foreign`` records drawn supports as continuous streams of stream-scene
 # impacts, ``foreign_paper`` the same supports with the paper scene's (support_streams;
 # tail_beam_id.study.runs.run_foreign evaluates them), the others are single impacts.
-SCENE_SETS = ("paper", "stream", "mismatch", "foreign", "foreign_paper")
-# Foreign sets -> the scene whose impacts strike their supports.
-FOREIGN_SCENES = {"foreign": "stream", "foreign_paper": "paper"}
+SCENE_SETS = (
+    "paper",
+    "stream",
+    "mismatch",
+    "foreign",
+    "foreign_paper",
+    "structures",
+    "structures_paper",
+)
+# Foreign sets -> the scene whose impacts strike their supports, and the ranges they are drawn
+# from (identification.evaluation.supports): ``structures`` draws each support's bending modes
+# from a beam of its own (tail_beam_id.study.supports.draw_structure).
+FOREIGN_SCENES = {
+    "foreign": "stream",
+    "foreign_paper": "paper",
+    "structures": "stream",
+    "structures_paper": "paper",
+}
+FOREIGN_RANGES = {
+    "foreign": "foreign",
+    "foreign_paper": "foreign",
+    "structures": "structures",
+    "structures_paper": "structures",
+}
 # Training scene sets whose every impact strikes its own drawn support, with its own sensor
 # rates and noise (tail_beam_id.study.supports), from these ranges; DRAWN_SCENES: the scene whose
 # impacts strike them (varied_paper: the paper scene's, which the stream's ranges hold only as
@@ -322,7 +343,7 @@ def support_streams(
     vibration_rng = np.random.default_rng(np.random.SeedSequence([seed, 4]))
     gap_s = float(ev["stream_gap_s"])
     for index in range(supports):
-        draw = draw_support(ranges, rng, vibration_rng)
+        draw = draw_support(ranges, rng, vibration_rng, params["modes"])
         if setting is not None:
             draw = draw.with_sensors(
                 setting.rates_hz, setting.vibration_rate_hz, setting.noise_factor

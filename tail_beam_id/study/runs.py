@@ -12,6 +12,7 @@ from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label, match, match_tolerance_s
 from tail_beam_id.stream.replay import point_tuples, replay
 from tail_beam_id.study.dataset import (
+    FOREIGN_RANGES,
     FOREIGN_SCENES,
     Setting,
     SupportStream,
@@ -200,6 +201,7 @@ def run_foreign(
             supports,
             impacts_per_support,
             seed,
+            which=FOREIGN_RANGES[scene_set],
             tier=tier,
             setting=setting,
             scene=FOREIGN_SCENES[scene_set],

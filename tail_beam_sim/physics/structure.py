@@ -347,15 +347,39 @@ def euler_bernoulli_modes(
     mass_per_length_kgpm: float,
     count: int,
     elements: int,
+    element_stiffness_scale: Sequence[float] | None = None,
+    element_mass_scale: Sequence[float] | None = None,
+    tip_mass_kg: float = 0.0,
 ) -> list[dict[str, Any]]:
-    """Bending modes of a uniform Euler-Bernoulli beam held (w = 0) at ``held_at_m``, free
-    elsewhere.
+    """Bending modes of an Euler-Bernoulli beam held (w = 0) at ``held_at_m``, free elsewhere:
+    uniform, or with each element's bending stiffness and mass per length scaled by
+    ``element_stiffness_scale`` and ``element_mass_scale`` (one factor per element: a beam of
+    other sections along it, ribs, a wear plate) and a point mass ``tip_mass_kg`` (kg) at the
+    free end.
 
     Finite elements with cubic Hermite shapes and consistent mass. Returns, per mode,
     frequency_hz, modal_mass_kg, rigid_coupling_kgm and shape / slope_radpm at the nodes
     (``stations_m``), the shape normalised to a peak displacement of +1. Every held point
     must fall on a node.
     """
+    stiffness_scale = (
+        np.ones(elements)
+        if element_stiffness_scale is None
+        else np.asarray(element_stiffness_scale, dtype=float)
+    )
+    mass_scale = (
+        np.ones(elements)
+        if element_mass_scale is None
+        else np.asarray(element_mass_scale, dtype=float)
+    )
+    for name, scale in (
+        ("modes.element_stiffness_scale", stiffness_scale),
+        ("modes.element_mass_scale", mass_scale),
+    ):
+        if scale.shape != (elements,) or not np.all(scale > 0.0):
+            raise InputError(name, scale.size, f"must be {elements} factors > 0 (one per element)")
+    if not tip_mass_kg >= 0.0:
+        raise InputError("modes.tip_mass_kg", tip_mass_kg, "must be >= 0 kg")
     h = length_m / elements
     stations = np.linspace(0.0, length_m, elements + 1)
     ndof = 2 * (elements + 1)
@@ -388,8 +412,9 @@ def euler_bernoulli_modes(
     mass = np.zeros((ndof, ndof))
     for e in range(elements):
         dofs = slice(2 * e, 2 * e + 4)
-        stiffness[dofs, dofs] += k_el
-        mass[dofs, dofs] += m_el
+        stiffness[dofs, dofs] += stiffness_scale[e] * k_el
+        mass[dofs, dofs] += mass_scale[e] * m_el
+    mass[2 * elements, 2 * elements] += tip_mass_kg
     held = []
     for x in held_at_m:
         node = int(round(x / h))

@@ -139,3 +139,32 @@ def test_mode_table_errors_name_the_field(params):
     bad = deep_merge(load_parameters(), {"modes": {"bending_1": {"frequency_hz": -3.0}}})
     with pytest.raises(InputError, match="modes.bending_1.frequency_hz"):
         load_bending_modes(bad)
+
+
+def test_sections_scale_the_modes_as_a_uniform_beam_would():
+    """Every element's bending stiffness x4 doubles each frequency and leaves the shapes; mass
+    per length x4 halves it and multiplies the modal masses and couplings by 4 (a uniform beam:
+    omega ~ sqrt(EI / m)); a tip mass lowers the first mode."""
+    from tail_beam_sim.physics.structure import euler_bernoulli_modes
+
+    base = dict(
+        length_m=1.6,
+        held_at_m=[0.0, 0.7],
+        bending_stiffness_nm2=4.13e8,
+        mass_per_length_kgpm=805.664,
+        count=2,
+        elements=32,
+    )
+    plain = euler_bernoulli_modes(**base)
+    stiff = euler_bernoulli_modes(**base, element_stiffness_scale=[4.0] * 32)
+    heavy = euler_bernoulli_modes(**base, element_mass_scale=[4.0] * 32)
+    tipped = euler_bernoulli_modes(**base, tip_mass_kg=100.0)
+    for p, s, h in zip(plain, stiff, heavy):
+        assert s["frequency_hz"] == pytest.approx(2.0 * p["frequency_hz"], rel=1e-9)
+        assert s["shape"] == pytest.approx(p["shape"], abs=1e-9)
+        assert h["frequency_hz"] == pytest.approx(0.5 * p["frequency_hz"], rel=1e-9)
+        assert h["modal_mass_kg"] == pytest.approx(4.0 * p["modal_mass_kg"], rel=1e-9)
+        assert h["rigid_coupling_kgm"] == pytest.approx(4.0 * p["rigid_coupling_kgm"], rel=1e-9)
+    assert tipped[0]["frequency_hz"] < plain[0]["frequency_hz"]
+    with pytest.raises(InputError):
+        euler_bernoulli_modes(**base, element_stiffness_scale=[1.0] * 31)

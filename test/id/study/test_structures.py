@@ -1,0 +1,69 @@
+"""Supports drawn by structure (tail_beam_id.study.supports.draw_structure, the ``structures``
+scene set): bending modes derived from a beam of their own, within the configured ranges."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tail_beam_id.study.dataset import evaluation_params
+from tail_beam_id.study.supports import draw_support, support_ranges
+from tail_beam_sim.physics.fidelity import FidelitySettings, get_tier, structure_for
+from tail_beam_sim.physics.scene import Scene
+
+
+def test_drawn_structures_keep_to_their_ranges_and_build(params):
+    """Thirty structures of the structures set's ranges: the first mode (held at the jack pin)
+    at the drawn frequency, inside 80-4000 Hz, its modal mass inside 100-1000 kg, the second
+    mode 2-8 x the first, 1-4 modes all below 5 kHz but the first, the IMU within 0.5-1.55 m;
+    each builds a coupled structure (positive mass matrix) with the nominal jack lever arm, and
+    their second/first ratios and modal masses spread across the ranges (not one table
+    rescaled)."""
+    ranges = support_ranges(evaluation_params(params), "structures")
+    rng = np.random.default_rng(3)
+    nominal = Scene.from_params(params).support
+    ratios, masses = [], []
+    for _ in range(30):
+        draw = draw_support(ranges, rng, np.random.default_rng(4), params["modes"])
+        v = draw.values
+        frequencies = draw.mode_frequencies_hz
+        assert 1 <= len(frequencies) <= 4
+        assert frequencies[0] == pytest.approx(v["bending_1_frequency_hz"])
+        assert 80.0 <= frequencies[0] <= 4000.0
+        assert all(f < 5000.0 for f in frequencies[1:])
+        assert 0.5 <= v["imu_from_hinge_m"] <= 1.55
+        varied = draw.apply(params)
+        modes = varied["modes"]
+        first = modes["bending_1"]
+        assert 100.0 <= first["modal_mass_kg"] <= 1000.0
+        masses.append(first["modal_mass_kg"])
+        if len(frequencies) > 1:
+            ratio = frequencies[1] / frequencies[0]
+            assert 2.0 - 1e-9 <= ratio <= 8.0 + 1e-9
+            ratios.append(ratio)
+        scene = Scene.from_params(varied)
+        assert scene.support.jack_lever_arm_m == pytest.approx(nominal.jack_lever_arm_m)
+        structure = structure_for(
+            get_tier("modal"), scene.support, FidelitySettings.from_params(varied).modes
+        )
+        assert np.linalg.eigvalsh(structure.mass).min() > 0.0
+    assert min(ratios) < 4.0 and max(ratios) > 6.0
+    assert min(masses) < 250.0 and max(masses) > 600.0
+
+
+def test_a_structure_draw_is_repeatable_and_leaves_the_foreign_draws_alone(params):
+    """The same seed draws the same structure; the foreign set's ranges (no structure) draw
+    every support as before."""
+    ev = evaluation_params(params)
+    ranges = support_ranges(ev, "structures")
+    a = draw_support(ranges, np.random.default_rng(8), None, params["modes"])
+    b = draw_support(ranges, np.random.default_rng(8), None, params["modes"])
+    assert a.values == b.values
+    foreign = support_ranges(ev, "foreign")
+    with_modes = draw_support(foreign, np.random.default_rng(8), None, params["modes"])
+    without = draw_support(foreign, np.random.default_rng(8))
+    assert with_modes.values == without.values
+    assert not any(k.startswith("structure_") for k in without.values)
+    assert math.isfinite(a.values["structure_held_at_m"])
