@@ -127,11 +127,17 @@ class SimNode(Node):
         self._feed_horizon_s = self.stream.params.command_lead_s + 2.0 * self.max_chunk_s
         self.commands = CommandCounts()
         self.finished = Future()
-        sensor_qos = ros_messages.stream_qos(depth)
         event_qos = ros_messages.EVENT_PUBLISHER_QOS
-        self._pressure_pub = self.create_publisher(FluidPressure, topics.JACK_PRESSURE, sensor_qos)
-        self._imu_pub = self.create_publisher(Imu, topics.IMU, sensor_qos)
-        self._vibration_pub = self.create_publisher(LaserScan, topics.VIBRATION, sensor_qos)
+        # Paced: best effort, a slow reader loses only its own samples; as fast as possible:
+        # reliable, the readers set the pace and lose nothing (ros_messages.sensor_writer_qos).
+        lossless = self.realtime_factor == 0.0
+        self._pressure_pub = ros_messages.sensor_publisher(
+            self, FluidPressure, topics.JACK_PRESSURE, depth, lossless
+        )
+        self._imu_pub = ros_messages.sensor_publisher(self, Imu, topics.IMU, depth, lossless)
+        self._vibration_pub = ros_messages.sensor_publisher(
+            self, LaserScan, topics.VIBRATION, depth, lossless
+        )
         self._rebound_pub = self.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, event_qos)
         self._gate = SubscriberGate(
             (self._pressure_pub, self._imu_pub, self._vibration_pub, self._rebound_pub),
