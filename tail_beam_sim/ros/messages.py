@@ -11,14 +11,12 @@ from __future__ import annotations
 import array
 import importlib
 import json
-import time
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TwistStamped
-from rclpy.event_handler import PublisherEventCallbacks, QoSOfferedIncompatibleQoSInfo
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
@@ -57,7 +55,6 @@ def stream_qos(depth: int) -> QoSProfile:
 
 
 SENSOR_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION)
-INCOMPATIBLE_WARN_EVERY_S = 10.0  # wall s between two incompatible-QoS warnings of one writer
 
 
 def sensor_writer_qos(depth: int, lossless: bool) -> QoSProfile:
@@ -84,51 +81,9 @@ def sensor_reader_qos(depth: int, reliable: bool) -> QoSProfile:
     return QoSProfile(depth=depth, reliability=reliability)
 
 
-class IncompatibleReaders:
-    """A best-effort sensor writer's incompatible-QoS event callbacks: a reader that asks for
-    reliable delivery gets nothing from it, which is said once, then at most every
-    INCOMPATIBLE_WARN_EVERY_S with the count, never once per event."""
-
-    def __init__(self, logger: Any, topic: str) -> None:
-        self._logger = logger
-        self._topic = topic
-        self.count = 0
-        self._said = 0
-        self._said_s = -float("inf")
-
-    def callbacks(self) -> PublisherEventCallbacks:
-        return PublisherEventCallbacks(incompatible_qos=self._on_incompatible)
-
-    def _on_incompatible(self, info: QoSOfferedIncompatibleQoSInfo) -> None:
-        self.count = event_total(self.count, info)
-        now = time.monotonic()
-        if now - self._said_s < INCOMPATIBLE_WARN_EVERY_S:
-            return
-        self._said_s, new = now, self.count - self._said
-        self._said = self.count
-        self._logger.warning(
-            f"{self._topic}: {new} reader(s) asked for reliable delivery, which this best-effort "
-            f"sensor writer does not offer ({self.count} in all); such a reader gets no data "
-            "until it subscribes best effort (qos_profile_sensor_data-like; id_node and "
-            "bag_recorder do so by themselves: docs/nodes.md)"
-        )
-
-
-def event_total(before: int, info: Any) -> int:
-    """A status event's running count of one entity, from the count before and the event's
-    ``total_count`` and ``total_count_change``: whichever says more, and at least one more than
-    before (the Fast DDS of the pip wheels can report a change of 0)."""
-    return max(before + max(int(info.total_count_change), 1), int(info.total_count))
-
-
 def sensor_publisher(node: Any, msg_type: type, topic: str, depth: int, lossless: bool) -> Any:
-    """A sensor topic's writer (:func:`sensor_writer_qos`); when best effort, its incompatible
-    (reliable) readers are warned of rate-limited (:class:`IncompatibleReaders`)."""
-    qos = sensor_writer_qos(depth, lossless)
-    if lossless:
-        return node.create_publisher(msg_type, topic, qos)
-    watch = IncompatibleReaders(node.get_logger(), topic)
-    return node.create_publisher(msg_type, topic, qos, event_callbacks=watch.callbacks())
+    """A sensor topic's writer, with :func:`sensor_writer_qos`."""
+    return node.create_publisher(msg_type, topic, sensor_writer_qos(depth, lossless))
 
 
 def message_class(msgtype: str) -> type:

@@ -219,7 +219,10 @@ class RecorderNode(Node):
             lambda data, t=topic: self._write(t, data),
             qos,
             raw=True,
-            event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_lost),
+            # a publisher of the other QoS is followed (re-subscribing), not warned of by rclpy
+            event_callbacks=SubscriptionEventCallbacks(
+                message_lost=self._on_lost, incompatible_qos=lambda _info: None
+            ),
         )
 
     def _follow_event_publishers(self) -> None:
@@ -331,22 +334,16 @@ class RecorderNode(Node):
             return True
         if followed.same_period(period):
             self.stray_blocks += 1
-            n, what = (
-                self.stray_blocks,
-                (
-                    f"running index {index} at stamp {stamp:.6f} s is not the stream recorded "
-                    f"(next index {followed.next_index} at {followed.next_stamp_s:.6f} s): another "
-                    "source's block"
-                ),
+            n, what = self.stray_blocks, (
+                f"running index {index} at stamp {stamp:.6f} s is not the stream recorded "
+                f"(next index {followed.next_index} at {followed.next_stamp_s:.6f} s): another "
+                "source's block"
             )
         else:
             self.other_period_blocks += 1
-            n, what = (
-                self.other_period_blocks,
-                (
-                    f"sample period {period:g} s (time_increment) is not the stream's "
-                    f"{followed.period_s:g} s: reading this bag sets it aside"
-                ),
+            n, what = self.other_period_blocks, (
+                f"sample period {period:g} s (time_increment) is not the stream's "
+                f"{followed.period_s:g} s: reading this bag sets it aside"
             )
         if n == 1 or n % WARN_EVERY_BLOCKS == 0:
             self.get_logger().warning(

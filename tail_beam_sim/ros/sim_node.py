@@ -39,6 +39,7 @@ from tail_beam_sim.physics.scenario import PlannedImpact, load_scenario
 from tail_beam_sim.physics.solvers import SolverError
 from tail_beam_sim.physics.stream import Chunk, QueueFull, StreamSimulator
 from tail_beam_sim.ros import messages as ros_messages
+from tail_beam_sim.ros.follow_qos import ReliableReaderWatch
 from tail_beam_sim.ros.params import config_defaults, declare_and_read
 from tail_beam_sim.ros.spin import (
     ACK_TIMEOUT_S,
@@ -139,6 +140,8 @@ class SimNode(Node):
             self, LaserScan, topics.VIBRATION, depth, lossless
         )
         self._rebound_pub = self.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, event_qos)
+        if not lossless:  # a reliable reader would get nothing: say so
+            ReliableReaderWatch(self, ros_messages.SENSOR_TOPICS)
         self._gate = SubscriberGate(
             (self._pressure_pub, self._imu_pub, self._vibration_pub, self._rebound_pub),
             wait_for,
