@@ -17,6 +17,8 @@ from rclpy.task import Future
 from std_msgs.msg import String
 
 from tail_beam_id.stream.label import Label
+from tail_beam_sim.ros import messages as ros_messages
+from tail_beam_sim.ros.follow_qos import FollowingSubscription, follow_publishers
 
 RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -49,10 +51,14 @@ class Probe(Node):
     ) -> None:
         super().__init__(name, namespace=namespace, context=context)
         self.messages: dict[str, list[Any]] = {topic: [] for topic in topics}
+        following = []
         for topic, msg_type in topics.items():
-            self.create_subscription(
-                msg_type, topic, lambda msg, t=topic: self.messages[t].append(msg), RELIABLE
-            )
+            record = lambda msg, t=topic: self.messages[t].append(msg)  # noqa: E731
+            if topic in ros_messages.SENSOR_TOPICS:  # with the reliability their writers offer
+                following.append(FollowingSubscription(self, msg_type, topic, record, 10000))
+            else:
+                self.create_subscription(msg_type, topic, record, RELIABLE)
+        follow_publishers(self, following)
         self.command_pub = self.create_publisher(String, "impact_cmd", RELIABLE)
 
     def send(self, command: dict[str, Any] | str) -> None:

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -397,6 +398,9 @@ class BlockTrack:
         self.blocks += 1
 
 
+GAPS_KEPT = 1000  # vibration gaps remembered for checking labels against, count
+
+
 class GatedIdentifier:
     """A :class:`StreamIdentifier` behind an :class:`ArrivalGate`, across time jumps: what
     ``id_node`` runs each tick, free of ROS so that tests drive it the same way.
@@ -435,6 +439,9 @@ class GatedIdentifier:
         self.taken_over = 0  # times another block stream replaced the one in use
         self.empty_labels = 0  # labels the identifier gave that rest on no signal (dropped)
         self.time_jumps = 0
+        # The latest vibration gaps: (stamp where samples went missing, stamp where they resume,
+        # samples missing), s; what id_node checks a label's data window against.
+        self.vibration_gaps: deque[tuple[float, float, int]] = deque(maxlen=GAPS_KEPT)
         self.notes: list[str] = []
         self._counts_before = (0, 0, 0, 0)
         self._counts_noted = (0, 0, 0, 0)
@@ -713,6 +720,12 @@ class GatedIdentifier:
             return
         report = self.sequencer.push(blocks)
         if report.gaps:
+            accepted = report.accepted
+            resumes = dict(zip(accepted.first_index.tolist(), accepted.stamp_s.tolist()))
+            for first_missing, n in report.gaps:
+                after_s = resumes.get(first_missing + n)
+                if after_s is not None:
+                    self.vibration_gaps.append((after_s - n * accepted.period_s, after_s, n))
             missing = sum(n for _, n in report.gaps)
             self.notes.append(
                 f"vibration: {len(report.gaps)} gap(s), {missing} samples lost (first missing "

@@ -31,13 +31,25 @@ whose index is behind while its stamp is not, logged as an index that does not c
 samples (``vibration_misindexed_blocks``). Blocks of another source on the topic (a stray
 block stamped far ahead, a second publisher's interleaved stream, a block of another sample
 period) are set aside and counted (``vibration_stray_blocks``), never let move the stream in
-use (tail_beam_id.ros.arrival). Warnings of one kind are said at most every WARN_EVERY_S: the
-first at once, then the latest with the count held back.
+use (tail_beam_id.ros.arrival).
+
+The sensor topics are subscribed with the reliability their publishers offer
+(tail_beam_sim.ros.follow_qos): best effort from a paced sim_node, whose slow readers cannot
+hold it or the other readers up, reliable from an as-fast-as-possible one. What this node loses
+is counted from the data itself, whatever the middleware says (a reader's overflowing history is
+reported by no DDS event): pressure and IMU samples missing from their stamp grid
+(tail_beam_sim.ros.grid_gaps; ``lost_samples``) and vibration samples missing from the running
+index. Each gap is warned of (rate-limited), and a label whose data window (``window_s`` either
+side of its impact stamp) holds a gap says so: ``gaps``, samples missing per stream, and a
+warning; it is still published, since an impact left unlabelled would be worse than one
+labelled from data with a hole that the label names. Warnings of one kind are said at most
+every WARN_EVERY_S: the first at once, then the latest with the count held back.
 """
 
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import math
 import re
 import sys
@@ -65,6 +77,8 @@ from tail_beam_id.stream.share import GANGUE_SHARE
 from tail_beam_id.stream.share_reader import SharingIdentifier
 from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
+from tail_beam_sim.ros.follow_qos import FollowingSubscription, follow_publishers
+from tail_beam_sim.ros.grid_gaps import GridGaps
 from tail_beam_sim.ros.params import (
     ALL_PARAMETERS,
     config_defaults,
@@ -82,6 +96,7 @@ UNDECIDED_AFTER_S = 2.0
 LAG_WARN_S = 0.25
 LAG_WARN_PERIOD_S = 5.0
 MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
+GAPS_KEPT = 1000  # pressure and IMU gaps remembered for checking labels against, count
 WARN_EVERY_S = 5.0  # wall s between two warnings of one kind (the first at once, then a count)
 GANGUE_SHARE_TOPIC = "gangue_share"  # std_msgs/String JSON (docs/gangue_share.md)
 WAKE_MARGIN_S = (
@@ -248,7 +263,6 @@ class IdNode(Node):
         # vibration messages that carried no block (their index, period or range out of range)
         self.refused_blocks = 0
         self.warnings = Warnings(self.get_logger().warning)
-        sensor_qos = ros_messages.stream_qos(depth)
         event_qos = ros_messages.EVENT_QOS
         self._label_pub = self.create_publisher(
             String, topics.LABEL, ros_messages.EVENT_PUBLISHER_QOS
@@ -257,11 +271,20 @@ class IdNode(Node):
         self._share_pub = self.create_publisher(
             String, GANGUE_SHARE_TOPIC, ros_messages.EVENT_PUBLISHER_QOS
         )
-        self.create_subscription(
-            FluidPressure, topics.JACK_PRESSURE, self._on_pressure, sensor_qos
-        )
-        self.create_subscription(Imu, topics.IMU, self._on_imu, sensor_qos)
-        self.create_subscription(LaserScan, topics.VIBRATION, self._on_vibration, sensor_qos)
+        # Sensor topics with their publishers' reliability; losses counted from the data.
+        self.grid_gaps = {topics.JACK_PRESSURE: GridGaps(), topics.IMU: GridGaps()}
+        self._gaps: list[tuple[str, float, float, int]] = []  # (stream, from s, to s, missing)
+        self._gap_window_s = float(params["identification"]["window_s"])
+        self.gapped_labels = 0  # labels whose data window holds a gap
+        self.sensor_subscriptions = [
+            FollowingSubscription(self, kind, topic, callback, depth)
+            for kind, topic, callback in (
+                (FluidPressure, topics.JACK_PRESSURE, self._on_pressure),
+                (Imu, topics.IMU, self._on_imu),
+                (LaserScan, topics.VIBRATION, self._on_vibration),
+            )
+        ]
+        follow_publishers(self, self.sensor_subscriptions)
         self.create_subscription(
             TwistStamped, topics.REBOUND_VELOCITY, self._on_rebound, event_qos
         )
@@ -354,6 +377,52 @@ class IdNode(Node):
         """impact_point messages refused or set aside, by reason (every epoch's)."""
         return self.gated.refused_points
 
+    def _count_gaps(self, topic: str, stamps: np.ndarray) -> None:
+        """Count and remember the samples missing from ``topic``'s stamp grid."""
+        grid = self.grid_gaps[topic]
+        gaps = grid.add(stamps.tolist())
+        if not gaps:
+            return
+        self._gaps.extend((topic, a, b, n) for a, b, n in gaps)
+        del self._gaps[:-GAPS_KEPT]
+        self.warnings.warn(
+            f"{topic}: {sum(n for *_, n in gaps)} sample(s) missing from the stamp grid "
+            f"(first after {gaps[0][0]:.4f} s); {grid.lost_samples} lost in all",
+            time.monotonic(),
+        )
+
+    @property
+    def lost_samples(self) -> dict[str, int]:
+        """Samples this node lost, per sensor stream: pressure and IMU from their stamp grid,
+        vibration from the running index."""
+        return {
+            topics.JACK_PRESSURE: self.grid_gaps[topics.JACK_PRESSURE].lost_samples,
+            topics.IMU: self.grid_gaps[topics.IMU].lost_samples,
+            topics.VIBRATION: self.vibration_lost_samples,
+        }
+
+    def loss_report(self) -> str:
+        """One line: what this node lost of each sensor stream, and the labels it concerned."""
+        lost = ", ".join(f"{topic} {n}" for topic, n in self.lost_samples.items())
+        return (
+            f"samples lost: {lost}; {self.gapped_labels} label(s) from data with a gap; "
+            f"{self.undecided_impacts} impact(s) not decided in time"
+        )
+
+    def close(self) -> None:
+        """Say on the way out what was lost of the sensor streams."""
+        print(f"id_node: {self.published} labels published; {self.loss_report()}", file=sys.stderr)
+
+    def _gaps_near(self, stamp_s: float) -> dict[str, int]:
+        """Samples missing per stream within ``window_s`` of ``stamp_s``."""
+        near: dict[str, int] = {}
+        lo, hi = stamp_s - self._gap_window_s, stamp_s + self._gap_window_s
+        vibration = [(topics.VIBRATION, a, b, n) for a, b, n in self.gated.vibration_gaps]
+        for topic, a, b, n in self._gaps + vibration:
+            if a < hi and b > lo:
+                near[topic] = near.get(topic, 0) + n
+        return near
+
     @property
     def vibration_lost_samples(self) -> int:
         return self.gated.sequencer.lost_samples
@@ -384,9 +453,11 @@ class IdNode(Node):
         if part[topics.JACK_PRESSURE]:
             stamps, pressure = ros_messages.pressure_arrays(part[topics.JACK_PRESSURE])
             arrivals[topics.JACK_PRESSURE] = (stamps, pressure.reshape(-1, 1))
+            self._count_gaps(topics.JACK_PRESSURE, stamps)
         if part[topics.IMU]:
             stamps, gyro, accel = ros_messages.imu_arrays(part[topics.IMU])
             arrivals[topics.IMU] = (stamps, np.hstack([gyro, accel]))
+            self._count_gaps(topics.IMU, stamps)
         refused: list[str] = []
         # One decoding per sample period, the most common first: a message of another period
         # is then a block the gated identifier sets aside, not a cause to refuse the others.
@@ -440,6 +511,7 @@ class IdNode(Node):
             self.gated.time_jumps != jumps
         ):  # a new time base: the stamps seen so far say nothing of it
             self._newest.clear()
+            self._gaps.clear()
             self._lag_base_s = math.inf
         idle = self._unflushed and now - self._last_arrival_s > self.flush_after_idle_s
         self._publish(labels + self.gated.decide(now, end_of_data=idle))
@@ -501,6 +573,14 @@ class IdNode(Node):
     def _publish(self, labels: list[Label]) -> None:
         for decided in labels:
             label = self.revisions.admit(decided)
+            gaps = self._gaps_near(label.impact_stamp_s)
+            if gaps:
+                self.gapped_labels += 1
+                label = dataclasses.replace(label, extra={**label.extra, "gaps": gaps})
+                self.get_logger().warning(
+                    f"impact at {label.impact_stamp_s:.4f} s labelled from data with a gap "
+                    f"(samples missing: {gaps}); {self.gapped_labels} such label(s) in all"
+                )
             self._label_pub.publish(String(data=label.to_json()))
             self.published += 1
             what = "impact" if label.revises is None else "revised: impact"

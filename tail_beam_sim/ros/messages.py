@@ -60,6 +60,38 @@ def stream_qos(depth: int) -> QoSProfile:
     return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
 
 
+SENSOR_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION)
+
+
+def sensor_writer_qos(depth: int, lossless: bool) -> QoSProfile:
+    """QoS of a sensor topic's writer (SENSOR_TOPICS). Paced (``lossless`` False): best effort,
+    as ROS sensor drivers publish (``qos_profile_sensor_data``), so that a slow reader loses
+    only its own samples instead of holding the writer and every other reader up (reliable flow
+    control). As fast as possible (``lossless``): reliable (:func:`stream_qos`), so that the
+    writer waits for its readers and none loses a sample. ``depth`` 0 keeps all."""
+    if lossless:
+        return stream_qos(depth)
+    if depth == 0:
+        return QoSProfile(
+            history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.BEST_EFFORT
+        )
+    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.BEST_EFFORT)
+
+
+def sensor_reader_qos(depth: int, reliable: bool) -> QoSProfile:
+    """QoS of a sensor topic's reader: reliable only against writers that all offer it (a
+    reliable reader never matches a best-effort writer); ``depth`` 0 keeps all."""
+    reliability = ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT
+    if depth == 0:
+        return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=reliability)
+    return QoSProfile(depth=depth, reliability=reliability)
+
+
+def sensor_publisher(node: Any, msg_type: type, topic: str, depth: int, lossless: bool) -> Any:
+    """A sensor topic's writer, with :func:`sensor_writer_qos`."""
+    return node.create_publisher(msg_type, topic, sensor_writer_qos(depth, lossless))
+
+
 def message_class(msgtype: str) -> type:
     """The rclpy class of a ``pkg/msg/Name`` type."""
     package, _, name = msgtype.split("/")

@@ -13,8 +13,15 @@ would rewrite the log times) are refused.
 Like ``ros2 bag record``: a new file every ``max_bag_duration_s`` of log time (at least 1 s) or
 ``max_bag_size_bytes`` (at least 1 MiB; 0 = never: a smaller split would write a file per
 message and lose most of them), mcap chunks zstd-compressed (``compression``), and a count
-of messages lost, reported on exit and kept in the bag's metadata (``custom_data``): the
-vibration samples missing from the running index, and the middleware's message-lost events.
+of messages lost, reported on exit and kept in the bag's metadata (``custom_data``,
+LOST_KEYS): the vibration samples missing from the running index, the jack_pressure and imu
+samples missing from their stamp grid (tail_beam_sim.ros.grid_gaps: a reader's overflowing
+history is reported by no middleware event), and the middleware's message-lost events.
+
+The sensor topics (jack_pressure, imu, vibration) are subscribed with the reliability their
+publishers offer (tail_beam_sim.ros.follow_qos): best effort from a paced sim_node, whose slow
+readers cannot hold it up; reliable from an as-fast-as-possible one or a replay, whose flow
+control then keeps the recorder from losing anything.
 
 Samples are counted missing only within one consistent block stream (stamps that agree with
 the running index, one sample period): a block of another source on the topic (stamped far
@@ -54,6 +61,7 @@ from tail_beam_sim.bags.write import SegmentedBagWriter
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.sensors import BlockSequencer, IndexSpan, VibrationBlocks
 from tail_beam_sim.ros import messages as ros_messages
+from tail_beam_sim.ros.grid_gaps import GridGaps, cdr_stamp_s
 from tail_beam_sim.ros.params import (
     ALL_PARAMETERS,
     config_defaults,
@@ -66,7 +74,9 @@ from tail_beam_sim.spec import RECORDER
 LOST_KEYS = (
     "tail_beam.vibration_lost_samples",
     "tail_beam.messages_lost_events",
-)  # bag metadata custom_data
+    "tail_beam.jack_pressure_lost_samples",
+    "tail_beam.imu_lost_samples",
+)  # bag metadata custom_data: index gaps, message-lost events, stamp-grid gaps
 DISCOVERY_PERIOD_S = 0.1  # how often the event topics' publishers are looked at, s
 RECENT_EVENTS = 1000  # events per topic remembered, so that one delivered twice is written once
 REDELIVERY_S = (
@@ -176,9 +186,13 @@ class RecorderNode(Node):
         self._resubscribed: dict[
             str, float
         ] = {}  # event topic -> when it was last re-subscribed (monotonic s)
+        # Samples missing from the pressure and IMU stamp grids (module docstring).
+        self.grid_gaps = {topics.JACK_PRESSURE: GridGaps(), topics.IMU: GridGaps()}
         for topic in topics.MSG_TYPES:
+            # Reliable first; the event and sensor topics then follow their publishers
+            # (tail_beam_sim.ros.follow_qos says why a sensor topic starts reliable).
             subscription = self._subscribe(topic, self.qos)
-            if topic in ros_messages.EVENT_TOPICS:
+            if topic in ros_messages.EVENT_TOPICS or topic in ros_messages.SENSOR_TOPICS:
                 self._events[topic] = (
                     subscription,
                     (DurabilityPolicy.VOLATILE, ReliabilityPolicy.RELIABLE),
@@ -205,19 +219,25 @@ class RecorderNode(Node):
             lambda data, t=topic: self._write(t, data),
             qos,
             raw=True,
-            event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_lost),
+            # a publisher of the other QoS is followed (re-subscribing), not warned of by rclpy
+            event_callbacks=SubscriptionEventCallbacks(
+                message_lost=self._on_lost, incompatible_qos=lambda _info: None
+            ),
         )
 
     def _follow_event_publishers(self) -> None:
         """Subscribe to each event topic with the durability and reliability all its publishers
-        offer (module docstring), re-subscribing when they change."""
-        for topic in ros_messages.EVENT_TOPICS:
+        offer, and to each sensor topic with their reliability (module docstring),
+        re-subscribing when they change."""
+        for topic in self._events:
             offered = [
                 info.qos_profile for info in self.get_publishers_info_by_topic(self.names[topic])
             ]
             if not offered:
                 continue
-            durable = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+            durable = topic in ros_messages.EVENT_TOPICS and all(
+                q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered
+            )
             reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
             wanted = (
                 DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
@@ -260,6 +280,16 @@ class RecorderNode(Node):
             if len(recent) > RECENT_EVENTS:
                 recent.popitem(last=False)
         self.writer.write(self.names[topic], self.get_clock().now().nanoseconds, data)
+        grid = self.grid_gaps.get(topic)
+        if grid is not None:
+            stamp = cdr_stamp_s(data)
+            if stamp is not None and grid.add((stamp,)):
+                if grid.gap_count == 1 or grid.gap_count % WARN_EVERY_BLOCKS == 0:
+                    self.get_logger().warning(
+                        f"{topic}: samples missing from the stamp grid: {grid.lost_samples} "
+                        f"lost in {grid.gap_count} gap(s) so far"
+                    )
+            return
         if topic == topics.VIBRATION:
             msg = deserialize_message(data, LaserScan)
             try:
@@ -370,18 +400,22 @@ class RecorderNode(Node):
     def loss_report(self) -> str:
         """One line: vibration samples and blocks recorded, samples missing, message-lost
         events."""
-        v = self.vibration
+        v, grid = self.vibration, self.grid_gaps
         return (
             f"vibration {v.samples} samples in {v.blocks} blocks, {self.vibration_lost_samples} "
             "samples lost (index gaps); "
             f"{self.stray_blocks + self.other_period_blocks} blocks of another source or "
-            f"period not counted; {self.lost_events} messages lost (middleware events)"
+            f"period not counted; jack_pressure {grid[topics.JACK_PRESSURE].lost_samples}, "
+            f"imu {grid[topics.IMU].lost_samples} samples lost (stamp-grid gaps); "
+            f"{self.lost_events} messages lost (middleware events)"
         )
 
     def close(self) -> None:
         """Close the bag (every message received so far is in it), with the loss counts."""
         self.writer.set_custom_data(LOST_KEYS[0], str(self.vibration_lost_samples))
         self.writer.set_custom_data(LOST_KEYS[1], str(self.lost_events))
+        for key, topic in zip(LOST_KEYS[2:], (topics.JACK_PRESSURE, topics.IMU)):
+            self.writer.set_custom_data(key, str(self.grid_gaps[topic].lost_samples))
         self.writer.close()
         print(
             f"bag_recorder: closed {self.bag_path}: {self.writer.message_count} messages; "

@@ -49,6 +49,7 @@ from tail_beam_sim.physics.solvers import SolverError
 from tail_beam_sim.physics.stream import Chunk, QueueFull, StreamSimulator
 from tail_beam_sim.physics.superpose import FlowSimulator
 from tail_beam_sim.ros import messages as ros_messages
+from tail_beam_sim.ros.follow_qos import ReliableReaderWatch
 from tail_beam_sim.ros.params import config_defaults, declare_and_read
 from tail_beam_sim.ros.spin import (
     ACK_TIMEOUT_S,
@@ -144,11 +145,17 @@ class SimNode(Node):
         self._feed_horizon_s = self.stream.params.command_lead_s + 2.0 * self.max_chunk_s
         self.commands = CommandCounts()
         self.finished = Future()
-        sensor_qos = ros_messages.stream_qos(depth)
         event_qos = ros_messages.EVENT_PUBLISHER_QOS
-        self._pressure_pub = self.create_publisher(FluidPressure, topics.JACK_PRESSURE, sensor_qos)
-        self._imu_pub = self.create_publisher(Imu, topics.IMU, sensor_qos)
-        self._vibration_pub = self.create_publisher(LaserScan, topics.VIBRATION, sensor_qos)
+        # Paced: best effort, a slow reader loses only its own samples; as fast as possible:
+        # reliable, the readers set the pace and lose nothing (ros_messages.sensor_writer_qos).
+        lossless = self.realtime_factor == 0.0
+        self._pressure_pub = ros_messages.sensor_publisher(
+            self, FluidPressure, topics.JACK_PRESSURE, depth, lossless
+        )
+        self._imu_pub = ros_messages.sensor_publisher(self, Imu, topics.IMU, depth, lossless)
+        self._vibration_pub = ros_messages.sensor_publisher(
+            self, LaserScan, topics.VIBRATION, depth, lossless
+        )
         self._rebound_pub = self.create_publisher(TwistStamped, topics.REBOUND_VELOCITY, event_qos)
         # impact_point only when the camera reports it: the shipped layout has no such topic.
         self._point_pub = (
@@ -156,6 +163,8 @@ class SimNode(Node):
             if self.stream.sensors.camera_reports_impact_point
             else None
         )
+        if not lossless:  # a reliable reader would get nothing: say so
+            ReliableReaderWatch(self, ros_messages.SENSOR_TOPICS)
         self._gate = SubscriberGate(
             (self._pressure_pub, self._imu_pub, self._vibration_pub, self._rebound_pub),
             wait_for,
