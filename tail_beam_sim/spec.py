@@ -364,7 +364,7 @@ CONTACT_LAWS = (
 )
 TIER_NAMES = ("impulse", "rigid", "modal", "brittle")
 FIDELITY_OUTPUTS = ("rebound", "contact", "pressure", "imu")
-SCENARIO_SOURCES = ("none", "file", "generated")
+SCENARIO_SOURCES = ("none", "file", "generated", "flow")
 MAX_GENERATED = 100_000  # most impacts a generated scenario may hold (memory, start-up time)
 MAX_QOS_DEPTH = 1_000_000  # deepest history a subscription or publisher may keep, messages
 MIB = 2**20
@@ -666,7 +666,8 @@ SIM_NODE = Section(
 
 SCENARIO = Section(
     "scenario",
-    "sim_node's start-up impacts: none, a file, or a generated caving stream.",
+    "sim_node's start-up impacts: none, a file, a generated caving stream, or a drawing "
+    "opening's flow (section flow, opened and closed on window_cmd).",
     (
         choice("source", "Where the impacts come from.", SCENARIO_SOURCES, default="none"),
         text("file", "Scenario file (source file).", default=""),
@@ -704,6 +705,147 @@ SCENARIO = Section(
         integer("seed", "Seed of the generated stream.", 0, default=0),
     ),
     file="sim_node.yaml",
+)
+
+FLOW_CONTACT_METHODS = ("pulse", "auto", "rk4")  # the hybrid solver's contact option
+FLOW_RATE_KINDS = ("lumps", "mass")  # flow.rate_kind: lumps per second or kilograms per second
+MAX_FLOW_LUMPS_PER_S = 1000.0  # the densest flow the simulator takes, lumps/s
+MAX_FLOW_MASS_RATE_KGPS = 5000.0  # the largest mass rate it takes, kg/s
+FLOW = Section(
+    "flow",
+    "A drawing opening's flow of coal and gangue lumps (scenario.source flow; "
+    "tail_beam_sim.physics.flow, docs/flow.md).",
+    (
+        choice(
+            "rate_kind",
+            "What sets the arrival rate: lumps (lumps_per_s) or mass (mass_rate_kgps).",
+            FLOW_RATE_KINDS,
+            default="lumps",
+        ),
+        positive(
+            "lumps_per_s",
+            "Mean lumps striking the beam per second (rate_kind lumps; Poisson arrivals).",
+            "lumps/s",
+            high=MAX_FLOW_LUMPS_PER_S,
+            default=50.0,
+        ),
+        positive(
+            "mass_rate_kgps",
+            "Mean mass striking the beam per second (rate_kind mass).",
+            "kg/s",
+            high=MAX_FLOW_MASS_RATE_KGPS,
+            default=100.0,
+        ),
+        positive(
+            "radius_median_m",
+            "Median lump radius of the log-normal size distribution.",
+            "m",
+            high="particle_radius_max_m",
+            default=0.04,
+        ),
+        number(
+            "radius_log_sigma",
+            "Log-normal spread of the radius (standard deviation of ln radius; 0: one size).",
+            "",
+            0.0,
+            2.0,
+            default=0.4,
+        ),
+        of_kind(
+            "pair",
+            "radius_m",
+            "Radius range the distribution is truncated to.",
+            unit="m",
+            low="particle_radius_min_m",
+            high="particle_radius_max_m",
+            default=[0.015, 0.12],
+        ),
+        of_kind(
+            "pair",
+            "drop_height_m",
+            "Drop height range (opening above the beam), drawn uniformly.",
+            unit="m",
+            low=0.0,
+            high="drop_height_max_m",
+            low_open=True,
+            default=[1.0, 3.0],
+        ),
+        of_kind(
+            "pair",
+            "position_m",
+            "Strike positions from the hinge (the opening's footprint), drawn uniformly.",
+            unit="m",
+            low=0.0,
+            high="impact_zone_max_m",
+            low_open=True,
+            default=[0.3, 1.3],
+        ),
+        text("coal_material", "Material of the coal lumps.", default="coal"),
+        of_kind(
+            "strs",
+            "gangue_materials",
+            "Materials of the gangue lumps, drawn uniformly.",
+            default=["mudstone", "sandstone"],
+        ),
+        of_kind(
+            "floats",
+            "share_drawn_mass_kg",
+            "Share curve: drawn mass since the window first opened, strictly increasing.",
+            unit="kg",
+            low=0.0,
+            default=[0.0, 10000.0],
+        ),
+        of_kind(
+            "floats",
+            "share_gangue",
+            "Share curve: gangue share by mass of the flow at each drawn mass (linear between, "
+            "held beyond the ends).",
+            low=0.0,
+            high=1.0,
+            default=[0.0, 0.0],
+        ),
+        positive(
+            "interval_s", "Length of a gangue_share_truth interval.", "s", high=60.0, default=1.0
+        ),
+        number(
+            "onset_delay_s",
+            "Time from the window opening to the first lump's fall reaching the beam.",
+            "s",
+            0.0,
+            10.0,
+            default=0.5,
+        ),
+        integer(
+            "seed", "Seed of the lumps (rate, sizes, materials, heights, positions).", 0, default=0
+        ),
+        choice(
+            "contact",
+            "How the hybrid solver takes each lump's contact: pulse (the pre-integrated pulse "
+            "always), auto (integrated when the pulse's error estimate is large), rk4.",
+            FLOW_CONTACT_METHODS,
+            default="pulse",
+        ),
+        number(
+            "open_at_s",
+            "Simulation time the window opens at start-up (sim_node, tail-beam simulate --flow).",
+            "s",
+            0.0,
+            1e6,
+            off=-1.0,
+            off_meaning="stays closed until window_cmd opens it",
+            default=-1.0,
+        ),
+        positive(
+            "duration_s",
+            "Simulation time a start-up opening stays open (then closes).",
+            "s",
+            high=1e6,
+            off=0.0,
+            off_meaning="open until window_cmd closes it",
+            default=0.0,
+        ),
+    ),
+    file="flow.yaml",
 )
 
 RECORDER = Section(
@@ -920,6 +1062,7 @@ PARAMETER_SECTIONS: tuple[Section, ...] = (
     STREAM,
     SIM_NODE,
     SCENARIO,
+    FLOW,
     RECORDER,
     REPLAY,
     SEND,

@@ -13,6 +13,8 @@ VIBRATION = "vibration"
 REBOUND_VELOCITY = "rebound_velocity"
 IMPACT_TRUTH = "impact_truth"
 LABEL = "label"
+WINDOW_CMD = "window_cmd"  # drawing-window commands (scenario.source flow)
+GANGUE_SHARE_TRUTH = "gangue_share_truth"  # true gangue share per interval of a flow
 
 MSG_TYPES: dict[str, str] = {
     IMPACT_CMD: "std_msgs/msg/String",
@@ -22,6 +24,8 @@ MSG_TYPES: dict[str, str] = {
     REBOUND_VELOCITY: "geometry_msgs/msg/TwistStamped",
     IMPACT_TRUTH: "std_msgs/msg/String",
     LABEL: "std_msgs/msg/String",
+    WINDOW_CMD: "std_msgs/msg/String",
+    GANGUE_SHARE_TRUTH: "std_msgs/msg/String",
 }
 
 

@@ -54,7 +54,35 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="accuracy and latency of the identification methods on simulated scene sets",
     )
     parser.add_argument(
-        "--sets", default=",".join(SCENE_SETS), help="scene sets, comma-separated (default: all)"
+        "--sets",
+        default=",".join(SCENE_SETS),
+        help="scene sets, comma-separated (default: every per-impact set; `flow` adds the "
+        "gangue share read from caving flows, docs/gangue_share.md)",
+    )
+    parser.add_argument(
+        "--flow-rates",
+        default="3.3,5,20,50,100,200",
+        help="flow set: lumps per second, comma-separated (default 3.3,5,20,50,100,200; 3.3: "
+        "one lump per 0.3 s)",
+    )
+    parser.add_argument(
+        "--flow-foreign",
+        type=int,
+        default=2,
+        help="flow set: supports drawn from the foreign ranges besides the nominal (default 2)",
+    )
+    parser.add_argument(
+        "--flow-duration-s",
+        type=float,
+        default=12.0,
+        help="flow set: each flow's length, s; pure coal for about the first half, the share "
+        "by mass then rising to 0.7 over about 2 s (default 12)",
+    )
+    parser.add_argument(
+        "--flow-coal-s",
+        type=float,
+        default=12.0,
+        help="flow set: the pure-coal flow's length per case, s (false crossings; default 12)",
     )
     parser.add_argument("--methods", default=None, help="methods, comma-separated (default: all)")
     parser.add_argument(
@@ -99,7 +127,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     params = load_parameters(args.config)
     ev = evaluation_params(params)
-    sets = _names(args.sets, SCENE_SETS, "--sets")
+    sets = _names(args.sets, (*SCENE_SETS, FLOW_SET), "--sets")
+    if FLOW_SET in sets:
+        run_flow(args, params)
+        sets = [s for s in sets if s != FLOW_SET]
+        if not sets:
+            return 0
     methods = (
         _names(args.methods, available_methods(), "--methods")
         if args.methods
@@ -193,6 +226,77 @@ def run(args: argparse.Namespace) -> int:
             for path in write_all(items, out, float(params["identification"]["window_s"])):
                 print(f"wrote {path}")
     return 0
+
+
+FLOW_SET = "flow"  # the gangue share of caving flows (tail_beam_id.study.flow_evaluation)
+FLOW_MAE_TARGET = 0.05  # share's mean absolute error per 1 s interval
+FLOW_DELAY_TARGET_S = 2.0  # the estimate crosses 1/5 within this of the truth, s
+
+
+def run_flow(args: argparse.Namespace, params: dict) -> None:
+    """The flow scene set: print its table and targets; with --out, flow.json (and with --plot
+    the chart)."""
+    from tail_beam_id.study.flow_evaluation import (
+        LEVELS,
+        FlowScene,
+        format_flow_table,
+        run_flow_set,
+    )
+
+    rates = _numbers(args.flow_rates, "--flow-rates", 0.0, 400.0)
+    if args.flow_foreign < 0:
+        raise InputError("--flow-foreign", args.flow_foreign, "must be >= 0")
+    duration = require_range("--flow-duration-s", args.flow_duration_s, 2.0, 600.0)
+    coal = require_range("--flow-coal-s", args.flow_coal_s, 1.0, 600.0)
+    scene = FlowScene(duration, duration / 2.0, 2.0, 0.7, coal)
+    method = args.methods.split(",")[0] if args.methods else None
+    if method is not None:
+        _names(method, available_methods(), "--methods")
+    if args.plot and not args.out:
+        args.out = DEFAULT_OUT
+    if args.out:
+        require_output_file("--out", Path(args.out) / "flow.json")
+    started = time.monotonic()
+    cases = list(run_flow_set(params, rates, args.flow_foreign, scene, method=method))
+    print(
+        f"flow: {len(rates)} rates x {1 + args.flow_foreign} supports x 2 layouts, "
+        f"{duration:g} s flows (pure coal to about {duration / 2:g} s, then the share by mass "
+        f"rising to 0.7 over about 2 s) and {coal:g} s of pure coal each, method "
+        f"{method or params['identification']['method']}, {time.monotonic() - started:.0f} s"
+    )
+    print(format_flow_table(cases))
+    print("\ntargets (flow; shipped layout):")
+    shipped = [c for c in cases if c.layout == "shipped"]
+    within = [c for c in shipped if 5.0 <= c.rate_per_s <= 200.0]
+    worst = max((c.mae for c in within), default=math.nan)
+    print(
+        f"  share MAE <= {100 * FLOW_MAE_TARGET:g} points per interval at 5-200 lumps/s: worst "
+        f"{100 * worst:.1f} points: {'met' if worst <= FLOW_MAE_TARGET else 'NOT met'}"
+    )
+    delays = [c.delays_s[LEVELS[0]] for c in shipped if not math.isnan(c.delays_s[LEVELS[0]])]
+    late = [d for d in delays if d > FLOW_DELAY_TARGET_S]
+    print(
+        f"  crossing 1/5 within {FLOW_DELAY_TARGET_S:g} s of the truth: {len(delays) - len(late)}"
+        f" of {len(delays)} cases whose truth reached it: {'met' if not late else 'NOT met'}"
+    )
+    false = sum(c.false_crossings for c in shipped)
+    coal_s = sum(c.coal_intervals for c in shipped) * params["identification"].get(
+        "gangue_share", {}
+    ).get("hop_s", 0.5)
+    print(
+        f"  no crossing of 1/5 in pure coal: {false} interval(s) crossing in {coal_s:g} s: "
+        f"{'met' if false == 0 else 'NOT met'}"
+    )
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        with open_output_file("--out", out / "flow.json") as stream:
+            stream.write((json.dumps([c.as_dict() for c in cases], indent=1) + "\n").encode())
+        print(f"wrote {out / 'flow.json'}")
+        if args.plot:
+            from tail_beam_id.study.flow_charts import flow_chart
+
+            print(f"wrote {flow_chart(cases, out / 'flow_share.png')}")
 
 
 BEST_TARGETS_HEADING = "targets (accuracy of the best method and window per scene set):"

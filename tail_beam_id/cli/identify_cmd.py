@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -22,9 +23,12 @@ from tail_beam_id.methods import available_methods
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label, Revisions, match_tolerance_s
 from tail_beam_id.stream.replay import replay
+from tail_beam_id.stream.share import GangueShare
+from tail_beam_id.stream.share_reader import SharingIdentifier
 from tail_beam_sim.bags.read import IDENTIFY_TOPICS, BagSensors, open_segments_note, read_runs
 from tail_beam_sim.cli.common import add_config_option
 from tail_beam_sim.config import load_parameters
+from tail_beam_sim.errors import open_output_file, require_output_file
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound
 
 
@@ -54,6 +58,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--namespace", help="the support to identify when the bag holds several, e.g. /support_07"
     )
+    parser.add_argument(
+        "--shares",
+        metavar="PATH",
+        help="also write the flow's gangue share per sliding interval to PATH, one JSON object "
+        "per line (the gangue_share messages id_node publishes; docs/gangue_share.md)",
+    )
     add_config_option(parser)
     parser.set_defaults(func=run)
 
@@ -64,6 +74,7 @@ def identify_bag(
     config: list[str] | None = None,
     calibrate: bool | None = None,
     namespace: str | None = None,
+    shares: list[GangueShare] | None = None,
 ) -> list[dict]:
     """Labels of every impact in ``bag`` (of the support ``namespace`` when it holds several),
     in impact_stamp order; with ``calibrate`` (default: ``identification.self_calibrate``), on
@@ -71,7 +82,8 @@ def identify_bag(
     do, as for id_node (the labels' ``signals`` say which were used). Gaps in the vibration's
     running index and repeated samples are reported on stderr. A bag holding several time bases
     (a restarted simulator) is identified run by run, as id_node starts afresh at each: the
-    labels of each run in turn, each run in impact_stamp order."""
+    labels of each run in turn, each run in impact_stamp order. ``shares``, when given, receives
+    the gangue share of every interval, as id_node publishes them."""
     params = load_parameters(config or [])
     check_settings(params, method)
     runs = read_runs(bag, required=(), namespace=namespace, any_of=IDENTIFY_TOPICS)
@@ -96,7 +108,7 @@ def identify_bag(
             else:
                 print(f"identify: {data.namespace} {describe_profile(profile)}", file=sys.stderr)
                 run_params = with_profile(params, profile)
-        labels += identify_sensors(data, run_params, method)
+        labels += identify_sensors(data, run_params, method, shares=shares)
     return labels
 
 
@@ -170,12 +182,14 @@ def identify_sensors(
     method: str | None = None,
     phase: str = "identifying",
     report: bool = True,
+    shares: list[GangueShare] | None = None,
 ) -> list[Label]:
     """Labels of the bag's sensor data under ``params``, in impact_stamp order; on a terminal,
     a progress line on stderr (``phase``) while a long recording is worked through. With
     ``report`` the samples and rebounds left out (not finite) are said on stderr: once per bag,
-    not again for self-calibration's pass over the same data."""
-    identifier = StreamIdentifier(method, params=params["identification"], model_params=params)
+    not again for self-calibration's pass over the same data. ``shares``, when given, receives
+    the flow's gangue share per interval (tail_beam_id.stream.share_reader)."""
+    identifier = SharingIdentifier(method, params=params["identification"], model_params=params)
     pressure = PressureStream(data.pressure_stamp_s, data.pressure_pa, 0.0)
     imu = ImuStream(
         data.imu_stamp_s, data.angular_velocity_radps, data.linear_acceleration_mps2, 0.0, 0.0
@@ -185,13 +199,15 @@ def identify_sensors(
     line = ProgressLine(sys.stderr, f"identify: {data.namespace} {phase}")
     labels = replay(identifier, pressure, imu, rebounds, vibration=vibration, progress=line.update)
     line.close()
+    if shares is not None:
+        shares += identifier.take_shares()
     # One impact, one label, as id_node publishes them (tail_beam_id.stream.label.Revisions).
     rule = Revisions(match_tolerance_s(params["identification"]))
     labels = [rule.admit(label) for label in labels]
     if report and rule.revisions:
         print(
             f"identify: {data.namespace} {rule.revisions} revision(s): later decisions for an "
-            f"impact already labelled, printed with \"revises\" ({rule.changed} changed the "
+            f'impact already labelled, printed with "revises" ({rule.changed} changed the '
             "material)",
             file=sys.stderr,
         )
@@ -271,7 +287,16 @@ class ProgressLine:
 
 
 def run(args: argparse.Namespace) -> int:
-    for label in identify_bag(args.bag, args.method, args.config, args.calibrate, args.namespace):
+    if args.shares:
+        require_output_file("--shares", Path(args.shares))
+    shares: list[GangueShare] = []
+    for label in identify_bag(
+        args.bag, args.method, args.config, args.calibrate, args.namespace, shares
+    ):
         print(label.to_json())
     sys.stdout.flush()
+    if args.shares:
+        with open_output_file("--shares", Path(args.shares)) as handle:
+            for share in shares:
+                handle.write((share.to_json() + "\n").encode())
     return 0

@@ -13,6 +13,10 @@ starts afresh; a lone message stamped far ahead is set aside and counted, never 
 streams. Spun by ``rclpy.experimental.EventsExecutor``, which keeps up with thousands of
 messages per second where the default executor loses some.
 
+The flow's gangue share per sliding interval goes out on ``gangue_share``
+(:mod:`tail_beam_id.stream.share_reader`): from the same data in the same order, so live and
+offline shares agree too.
+
 Each message is held ``reorder_s`` from its own arrival (wall clock), not from the tick that
 takes it. Besides the periodic tick, a one-shot wake runs a tick ``reorder_s`` after the data
 the next pending impact waits for (its onset plus its data window, on every stream) has
@@ -56,6 +60,8 @@ from tail_beam_id.signals.timing import SENSOR_TIMING
 from tail_beam_id.stream.config import EVALUATION, IDENTIFICATION, PROFILE
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label, Revisions, match_tolerance_s
+from tail_beam_id.stream.share import GANGUE_SHARE
+from tail_beam_id.stream.share_reader import SharingIdentifier
 from tail_beam_sim import topics
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.ros.params import (
@@ -76,6 +82,7 @@ LAG_WARN_S = 0.25
 LAG_WARN_PERIOD_S = 5.0
 MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
 WARN_EVERY_S = 5.0  # wall s between two warnings of one kind (the first at once, then a count)
+GANGUE_SHARE_TOPIC = "gangue_share"  # std_msgs/String JSON (docs/gangue_share.md)
 WAKE_MARGIN_S = (
     2e-4  # the wake runs this long after the hold has passed, s (a timer may fire a little early)
 )
@@ -99,6 +106,7 @@ PARAMETER_SECTIONS = (
     CONTACT_FIT,
     DETECTION,
     EVALUATION,
+    GANGUE_SHARE,
     STATISTICAL,
     HYSTERESIS,
     THRESHOLD,
@@ -177,9 +185,15 @@ class IdNode(Node):
         method = params.get("method") or None
 
         def new_identifier(trained: Method | None) -> StreamIdentifier:
-            return StreamIdentifier(
+            made = SharingIdentifier(
                 method, params=params["identification"], model_params=params, prebuilt=trained
             )
+            self._sharing.append(made)
+            return made
+
+        # The identifiers whose gangue shares are still to publish (a time jump starts a new
+        # one; the old one's last shares go out first).
+        self._sharing: list[SharingIdentifier] = []
 
         learn_s = checked["calibrate_online_s"]
         calibration = None
@@ -235,6 +249,10 @@ class IdNode(Node):
         event_qos = ros_messages.EVENT_QOS
         self._label_pub = self.create_publisher(
             String, topics.LABEL, ros_messages.EVENT_PUBLISHER_QOS
+        )
+        self.shares_published = 0
+        self._share_pub = self.create_publisher(
+            String, GANGUE_SHARE_TOPIC, ros_messages.EVENT_PUBLISHER_QOS
         )
         self.create_subscription(
             FluidPressure, topics.JACK_PRESSURE, self._on_pressure, sensor_qos
@@ -422,6 +440,7 @@ class IdNode(Node):
         if timing.suspect and timing is not self._timing_said:
             self._timing_said = timing  # once per identifier (a new time base starts a new one)
             self.get_logger().warning(f"sensor timing: {timing.describe()}")
+        self._publish_shares()
         self._watch_pending(now)
         self._watch_lag(now)
         self._due_s = self.gated.next_horizon_s()
@@ -477,6 +496,15 @@ class IdNode(Node):
                 f"({label.confidence:.2f}, {label.method}, "
                 f"signals {', '.join(label.signals)})"
             )
+
+    def _publish_shares(self) -> None:
+        """Publish the gangue share of every interval settled since the last tick."""
+        current = self.gated.identifier
+        for sharing in self._sharing:
+            for share in sharing.take_shares():
+                self._share_pub.publish(String(data=share.to_json()))
+                self.shares_published += 1
+        self._sharing = [s for s in self._sharing if s is current]
 
 
 def main(args: list[str] | None = None) -> int:

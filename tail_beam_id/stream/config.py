@@ -70,6 +70,7 @@ IDENTIFICATION = Section(
         "contact_fit",
         "detection",
         "evaluation",
+        "gangue_share",
         "statistical",
         "threshold",
         "physics",

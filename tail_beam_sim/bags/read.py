@@ -34,7 +34,12 @@ IDENTIFY_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION, topics.RE
 # The continuous streams: their stamps set a recording's time base (id_node's arrival gate).
 CONTINUOUS_TOPICS = (topics.JACK_PRESSURE, topics.IMU, topics.VIBRATION)
 # Where an event's JSON says when it happened.
-EVENT_STAMPS = {topics.IMPACT_TRUTH: "contact_start_stamp", topics.LABEL: "impact_stamp"}
+EVENT_STAMPS = {
+    topics.IMPACT_TRUTH: "contact_start_stamp",
+    topics.LABEL: "impact_stamp",
+    topics.GANGUE_SHARE_TRUTH: "end_stamp_s",
+    topics.WINDOW_CMD: "stamp_s",
+}
 # Stamps back by more than this on a stream: a new time base (id_node.time_jump_s's default)
 TIME_JUMP_S = 1.0
 _REPAIR_HINT = "run `tail-beam bag repair PATH` to recover what was written"
@@ -342,7 +347,13 @@ class _Run:
     vibration: list[tuple[int, float, np.ndarray, float, float]] = field(default_factory=list)
     rebounds: list[tuple[float, np.ndarray]] = field(default_factory=list)
     json_topics: dict[str, list[dict[str, Any]]] = field(
-        default_factory=lambda: {topics.LABEL: [], topics.IMPACT_TRUTH: [], topics.IMPACT_CMD: []}
+        default_factory=lambda: {
+            topics.LABEL: [],
+            topics.IMPACT_TRUTH: [],
+            topics.IMPACT_CMD: [],
+            topics.WINDOW_CMD: [],
+            topics.GANGUE_SHARE_TRUTH: [],
+        }
     )
 
     def merged(self, other: _Run) -> _Run:

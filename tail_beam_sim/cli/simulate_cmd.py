@@ -1,4 +1,6 @@
-"""``tail-beam simulate``: one impact, offline; summary, bag and figure on request."""
+"""``tail-beam simulate``: one impact, offline; summary, bag and figure on request. With
+``--flow SECONDS``: a drawing opening's flow of lumps instead (config/flow.yaml, docs/flow.md);
+summary per share interval, bag on request."""
 
 from __future__ import annotations
 
@@ -8,13 +10,16 @@ import math
 import sys
 
 from tail_beam_sim.bags import records as bagio
+from tail_beam_sim.bags.flow_bag import write_flow_bag
 from tail_beam_sim.cli.common import (
     add_fidelity_options,
     add_impact_options,
     fidelity_from_args,
     scene_from_args,
 )
-from tail_beam_sim.errors import require_new_path, require_output_file
+from tail_beam_sim.config import default_config_dir, load_parameters
+from tail_beam_sim.errors import InputError, require_new_path, require_output_file, require_range
+from tail_beam_sim.physics.flow import simulate_flow
 from tail_beam_sim.physics.simulate import simulate
 
 
@@ -43,6 +48,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="mcap chunk compression (default zstd; sqlite3 files are not compressed)",
     )
     parser.add_argument("--plot", metavar="PNG", help="write a figure of the response")
+    parser.add_argument(
+        "--flow",
+        metavar="SECONDS",
+        type=str,
+        help="simulate a drawing opening's flow for SECONDS of simulation time instead of one "
+        "impact (section flow of config/flow.yaml, overridden by --config; --seed sets the "
+        "lumps' seed; the window opens at flow.open_at_s, 0 if -1)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -50,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
     # Output paths first, before any work: a link there is refused, never written through.
     if args.bag:
         require_new_path("--bag", args.bag)
+    if args.flow is not None:
+        return run_flow(args)
     if args.plot:
         require_output_file("--plot", args.plot)
     scene = scene_from_args(args)
@@ -120,3 +135,67 @@ def format_summary(s: dict) -> str:
             + ", ".join(f"{k} {v:.2g}" for k, v in check.items() if k != "against")
         )
     return "\n".join(lines)
+
+
+# Options of one impact that a flow does not take (its lumps come from the flow section).
+_NOT_WITH_FLOW = (
+    "material",
+    "radius_m",
+    "drop_height_m",
+    "impact_speed_mps",
+    "position_m",
+    "restitution",
+    "plot",
+    "check",
+    "solver",
+    "outputs",
+    "tolerance",
+)
+
+
+def run_flow(args: argparse.Namespace) -> int:
+    """``--flow SECONDS``: simulate the flow, print one line per share interval (or one JSON
+    object), write the bag on request."""
+    duration = require_range("--flow", args.flow, 0.0, 3600.0, low_open=True, unit="s")
+    for name in _NOT_WITH_FLOW:
+        if getattr(args, name, None) not in (None, False):
+            option = "--" + name.replace("_", "-")
+            raise InputError(option, getattr(args, name), "is not taken with --flow")
+    config = default_config_dir()
+    params = load_parameters([config / "sim_node.yaml", config / "flow.yaml", *args.config])
+    if args.tier:
+        params["stream"]["tier"] = args.tier
+    for name, value in (("contact_model", args.contact_model), ("window_s", args.window_s)):
+        if value is not None:
+            params["scene"][name] = value
+    record = simulate_flow(params, duration, seed=args.seed)
+    if args.bag:
+        count = write_flow_bag(record, args.bag, args.storage, args.compression)
+        print(f"wrote {count} messages to {args.bag} ({args.storage})", file=sys.stderr)
+    lumps = record.lumps
+    mass = sum(lump.mass_kg for lump in lumps)
+    summary = {
+        "duration_s": record.duration_s,
+        "lumps": len(lumps),
+        "lumps_per_s": record.lumps_per_s,
+        "mass_kg": mass,
+        "gangue_lumps": sum(lump.is_gangue for lump in lumps),
+        "windows": [{"stamp_s": stamp, "action": action} for stamp, action in record.windows],
+        "shares": [share.to_json() for share in record.shares],
+    }
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    print(
+        f"flow of {len(lumps)} lumps over {record.duration_s:g} s ({record.lumps_per_s:.1f} "
+        f"lumps/s, {mass:.1f} kg, {summary['gangue_lumps']} gangue)"
+    )
+    print("  interval s        lumps  mass kg  gangue by mass  by count")
+    for share in record.shares:
+        by_mass = "-" if share.share_by_mass is None else f"{share.share_by_mass:.3f}"
+        by_count = "-" if share.share_by_count is None else f"{share.share_by_count:.3f}"
+        print(
+            f"  {share.start_stamp_s:7.2f}-{share.end_stamp_s:<7.2f} {share.lumps:6d} "
+            f"{share.mass_kg:8.1f}  {by_mass:>14}  {by_count:>8}"
+        )
+    return 0

@@ -1,5 +1,8 @@
 """Start-up scenarios of the simulator: a YAML list of impacts, or a generated caving stream.
 
+(A drawing opening's flow, ``source: flow``, is no list of impacts: its lumps are drawn as its
+window opens and closes, :mod:`tail_beam_sim.physics.flow`; here it plans none.)
+
 A scenario is a list of :class:`PlannedImpact`: an ``impact_cmd`` JSON object and, when the
 scenario fixes it, the contact stamp (s of simulation time) it asks for. Every impact is
 validated here, so a bad scenario fails at start-up with the field named.
@@ -41,7 +44,7 @@ def load_scenario(
     source = params.get("source", "none")
     if source not in SOURCES:
         raise InputError("scenario.source", source, f"must be one of {', '.join(SOURCES)}")
-    if source == "none":
+    if source in ("none", "flow"):
         return []
     if source == "file":
         planned = read_scenario_file(params.get("file", ""))

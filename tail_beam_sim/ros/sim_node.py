@@ -12,6 +12,13 @@ field and the allowed range, and a running count (:class:`CommandCounts`); the s
 keeps all messages (reliable, keep-all), so none is dropped unseen however fast they come. A
 start-up scenario is fed to the stream as its impacts fall due, never queued whole. Parameters
 are read once at start-up: changes at run time are refused with the reason.
+
+With ``scenario.source: flow`` it simulates a drawing opening's flow of lumps
+(:class:`tail_beam_sim.physics.flow.FlowRun`, section ``flow``): the window opens and closes on
+``window_cmd`` (or at start-up, ``flow.open_at_s``), each lump's truth goes out on
+``impact_truth`` and the true gangue share of each interval on ``gangue_share_truth``. A
+window command for a window already in that state, or one that is no command, is refused with a
+warning naming it.
 """
 
 from __future__ import annotations
@@ -35,9 +42,11 @@ from std_msgs.msg import String
 from tail_beam_sim import topics
 from tail_beam_sim.errors import InputError, shorten
 from tail_beam_sim.physics.command import parse_command
+from tail_beam_sim.physics.flow import FlowRun, ShareInterval, parse_window_command
 from tail_beam_sim.physics.scenario import PlannedImpact, load_scenario
 from tail_beam_sim.physics.solvers import SolverError
 from tail_beam_sim.physics.stream import Chunk, QueueFull, StreamSimulator
+from tail_beam_sim.physics.superpose import FlowSimulator
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.ros.params import config_defaults, declare_and_read
 from tail_beam_sim.ros.spin import (
@@ -59,13 +68,15 @@ USAGE = NodeUsage(
     summary="The simulated tail beam: takes impacts on impact_cmd (and a start-up scenario) "
     "and publishes "
     "jack_pressure, imu, rebound_velocity and impact_truth (docs/interface.md).",
-    config_files=("sim_node.yaml",),
+    config_files=("sim_node.yaml", "flow.yaml"),
     examples=(
         "sim_node                                                  # wait for impact_cmd (see "
         "tail-beam send)",
         "sim_node --ros-args -p scenario.source:=generated -p scenario.count:=40 -p "
         "sim_node.realtime_factor:=0",
         "sim_node --ros-args -p scenario.source:=file -p scenario.file:=impacts.yaml",
+        "sim_node --ros-args -p scenario.source:=flow -p flow.lumps_per_s:=200   # open it on "
+        "window_cmd",
         "sim_node --ros-args -r __ns:=/support_07 --params-file my.yaml",
     ),
 )
@@ -102,7 +113,9 @@ class SimNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__("tail_beam_sim", **kwargs)
-        params = declare_and_read(self, config_defaults(["sim_node.yaml"], with_physics=True))
+        params = declare_and_read(
+            self, config_defaults(["sim_node.yaml", "flow.yaml"], with_physics=True)
+        )
         node = params["sim_node"]
         checked = SIM_NODE.check(node)
         self.realtime_factor = checked["realtime_factor"]
@@ -113,15 +126,18 @@ class SimNode(Node):
         depth = checked["qos_depth"]
         wait_for = checked["wait_for_subscribers"]
         settle = checked["subscriber_settle_s"]
-        self.stream = StreamSimulator.from_params(params)
+        scenario_source = params["scenario"].get("source", "none")
+        self.flow = self._start_flow(params) if scenario_source == "flow" else None
+        self.stream = self.flow.sim if self.flow else StreamSimulator.from_params(params)
         # The scenario is validated whole now, and fed to the stream as its impacts fall due.
         self._planned: deque[PlannedImpact] = deque(
             load_scenario(params["scenario"], self.stream.materials, self.stream.support)
         )
-        scenario_source = params["scenario"].get("source", "none")
-        self.exit_after_idle_s = (
-            (SCENARIO_IDLE_S if scenario_source != "none" else 0.0) if idle == -1.0 else idle
-        )
+        auto_idle = SCENARIO_IDLE_S if scenario_source not in ("none", "flow") else 0.0
+        windows = self.flow.source.windows if self.flow is not None else []
+        if windows and math.isfinite(windows[-1][1]):
+            auto_idle = SCENARIO_IDLE_S  # a start-up window that closes: exit once it is done
+        self.exit_after_idle_s = auto_idle if idle == -1.0 else idle
         # A planned impact goes to the stream while its stamp is still ahead of what the next tick
         # can reach plus the command lead, so it strikes when planned however the node is paced.
         self._feed_horizon_s = self.stream.params.command_lead_s + 2.0 * self.max_chunk_s
@@ -139,6 +155,11 @@ class SimNode(Node):
             settle,
         )
         self._truth_pub = self.create_publisher(String, topics.IMPACT_TRUTH, event_qos)
+        self._share_pub = self.create_publisher(String, topics.GANGUE_SHARE_TRUTH, event_qos)
+        self.window_refusals = 0
+        self.create_subscription(
+            String, topics.WINDOW_CMD, self._on_window_command, ros_messages.COMMAND_QOS
+        )
         self._clock_pub = (
             self.create_publisher(Clock, "/clock", 10) if checked["publish_clock"] else None
         )
@@ -148,7 +169,7 @@ class SimNode(Node):
             String, topics.IMPACT_CMD, self._on_command, ros_messages.COMMAND_QOS
         )
         self._foreign = ForeignTypeWatch(
-            self, {topics.IMPACT_CMD: topics.MSG_TYPES[topics.IMPACT_CMD]}
+            self, {name: topics.MSG_TYPES[name] for name in (topics.IMPACT_CMD, topics.WINDOW_CMD)}
         )
         self._anchor: tuple[float, float] | None = None  # (wall s, simulation s) pacing origin
         self._last_activity_s = 0.0
@@ -227,6 +248,40 @@ class SimNode(Node):
             f"({self.stream.queued} queued)"
         )
 
+    def _start_flow(self, params: dict) -> FlowRun:
+        """The flow of ``scenario.source: flow``, its start-up window opened (and closed) as
+        ``flow.open_at_s`` / ``flow.duration_s`` say."""
+        flow = FlowRun(params, simulator=FlowSimulator.from_params(params))
+        if flow.flow.open_at_s >= 0.0:
+            flow.command("open", flow.flow.open_at_s)
+            if flow.flow.duration_s > 0.0:
+                flow.command("close", flow.flow.open_at_s + flow.flow.duration_s)
+        return flow
+
+    def _on_window_command(self, msg: String) -> None:
+        """One window_cmd: open or close the drawing window at the simulation time reached, or
+        log why not (the node keeps running)."""
+        try:
+            action = parse_window_command(msg.data)
+            if self.flow is None:
+                raise InputError(
+                    "window_cmd",
+                    msg.data,
+                    "refused: no drawing window here (sim_node runs scenario.source flow for one)",
+                )
+            stamp = self.flow.command(action)
+        except InputError as exc:
+            self.window_refusals += 1
+            self.get_logger().warning(
+                f"window_cmd refused: {exc} [{self.window_refusals} refused so far]"
+            )
+            return
+        self.get_logger().info(
+            f"window {'opened' if action == 'open' else 'closed'} at {stamp:.4f} s of simulation "
+            f"time ({self.flow.lumps_submitted} lumps so far, "
+            f"{self.flow.source.drawn_mass_kg:.0f} kg drawn)"
+        )
+
     def _feed_scenario(self, until_s: float) -> None:
         """Hand the stream the planned impacts due before ``until_s`` plus the feed horizon, s
         (one without a stamp is due at once), as long as the queue has room."""
@@ -273,12 +328,17 @@ class SimNode(Node):
             return
         target = self._target_time_s(time.monotonic())
         self._feed_scenario(target)
-        chunk = self.stream.advance(target)
-        self.publish(chunk)
+        if self.flow is not None:
+            part = self.flow.advance(target, lead_s=self._feed_horizon_s)
+            self.publish(part.chunk, part.shares)
+        else:
+            self.publish(self.stream.advance(target))
+        flow_done = self.flow is None or (not self.flow.is_open and self.flow.source.exhausted)
         if (
             self.exit_after_idle_s > 0.0
             and self.stream.queued == 0
             and not self._planned
+            and flow_done
             and not self.finished.done()
         ):
             if self.stream.time_s >= self._last_activity_s + self.exit_after_idle_s:
@@ -293,6 +353,11 @@ class SimNode(Node):
         self.get_logger().info(
             f"impact_cmd: {self.commands}; {len(self._planned)} scenario impact(s) not started"
         )
+        if self.flow is not None:
+            self.get_logger().info(
+                f"flow: {self.flow.lumps_submitted} lumps simulated, "
+                f"{len(self.flow.skipped)} skipped, {self.flow.source.drawn_mass_kg:.0f} kg drawn"
+            )
         deadline = time.monotonic() + ACK_TIMEOUT_S
         while self.context.ok() and not self._backlog.flush() and time.monotonic() < deadline:
             time.sleep(0.01)
@@ -304,13 +369,18 @@ class SimNode(Node):
                 self._vibration_pub,
                 self._rebound_pub,
                 self._truth_pub,
+                self._share_pub,
             ),
         )
 
-    def publish(self, chunk: Chunk) -> None:
-        """Publish one chunk: streams in stamp order, then its rebounds and truths."""
+    def publish(self, chunk: Chunk, shares: list[ShareInterval] | tuple = ()) -> None:
+        """Publish one chunk: streams in stamp order, then its rebounds and truths (and a flow's
+        share intervals). A flow's lumps are not logged one by one (hundreds a second): its
+        share intervals are."""
         for scheduled in chunk.started:
             self._last_activity_s = max(self._last_activity_s, scheduled.truth_stamp_s)
+            if self.flow is not None:
+                continue
             self.get_logger().info(
                 f"impact {scheduled.impact_id}: {scheduled.impact.material.name} R "
                 f"{scheduled.impact.radius_m * 1e3:.0f} mm "
@@ -335,6 +405,13 @@ class SimNode(Node):
             backlog.publish(self._rebound_pub, ros_messages.rebound_message(rebound))
         for _, truth in chunk.truths:
             backlog.publish(self._truth_pub, ros_messages.string_message(truth))
+        for share in shares:
+            backlog.publish(self._share_pub, ros_messages.string_message(share.to_json()))
+            by_mass = "-" if share.share_by_mass is None else f"{share.share_by_mass:.3f}"
+            self.get_logger().info(
+                f"gangue share [{share.start_stamp_s:g}, {share.end_stamp_s:g}) s: {by_mass} by "
+                f"mass, {share.lumps} lumps, {share.mass_kg:.1f} kg"
+            )
         if self._clock_pub is not None and math.isfinite(chunk.end_s):
             backlog.publish(self._clock_pub, ros_messages.clock_message(chunk.end_s))
         backlog.flush()

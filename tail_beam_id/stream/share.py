@@ -1,0 +1,322 @@
+"""The gangue share of a caving flow over a sliding interval: how much of what strikes the tail
+beam is rock, read from the impacts' labels (docs/gangue_share.md).
+
+Basis: the share by count, the fraction of the lumps striking in the interval that are gangue.
+
+* Separable impacts (few of the interval's labels overlap another impact): the share is the
+  fraction of labels that say gangue, with its Wilson 95 % interval (``method: labels``).
+* Dense flow (responses overlap and per-impact labels are often wrong): the share is the
+  mixture proportion that makes the labels' scores (their logits of gangue) likeliest, given
+  how coal and gangue impacts score in that regime, learnt on simulated flows at 5-200 lumps/s
+  on the nominal and on drawn supports (``tail_beam_id/models/gangue_share.json``); its 95 %
+  interval is the profile-likelihood one (``method: mixture``). A label that is wrong at
+  random then costs precision, not bias.
+
+An interval ends on the grid ``k hop_s`` of stamp time and rests on the labels whose impact
+stamp lies in it: live (id_node) and offline (tail-beam identify) give the same shares.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tail_beam_id.stream.label import Label
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.spec import Section, integer, number, positive
+
+BASIS = "count"  # the share is the fraction of lumps that are gangue, by number
+Z_95 = 1.959963984540054  # two-sided 95 % normal quantile
+MODEL_PATH = Path(__file__).resolve().parent.parent / "models" / "gangue_share.json"
+SCORE_LIMIT = 12.0  # label scores (logits of gangue) are clipped to +-this
+SHARE_GRID = 1000  # the mixture estimate's share grid: steps from 0 to 1
+CHI2_95_1DOF = 3.841458820694124  # 95 % quantile of chi-square with one degree of freedom
+
+GANGUE_SHARE = Section(
+    "identification.gangue_share",
+    "The gangue share of the flow over a sliding interval (topic gangue_share).",
+    (
+        positive("interval_s", "Length of each interval.", "s", high=60.0, default=1.0),
+        positive("hop_s", "A new interval ends every this long.", "s", high=60.0, default=0.5),
+        positive(
+            "settle_s",
+            "An interval is published once every live stream is this far past its end and no "
+            "impact before its end waits for a decision.",
+            "s",
+            high=10.0,
+            default=0.1,
+        ),
+        number(
+            "max_overlap_fraction",
+            "Above this fraction of overlapping labels the mixture estimate decides.",
+            "",
+            0.0,
+            1.0,
+            default=0.25,
+        ),
+        integer(
+            "min_labels",
+            "Fewer labels in an interval: the mixture estimate decides.",
+            0,
+            1000,
+            default=1,
+        ),
+    ),
+)
+
+
+@dataclass(frozen=True)
+class ShareConfig:
+    """The ``identification.gangue_share`` section, validated (times in s)."""
+
+    interval_s: float = 1.0
+    hop_s: float = 0.5
+    settle_s: float = 0.1
+    max_overlap_fraction: float = 0.25
+    min_labels: int = 1
+
+    @classmethod
+    def from_params(cls, section: Mapping[str, Any] | None) -> ShareConfig:
+        checked = cls(**GANGUE_SHARE.check(section or {}))
+        if checked.hop_s > checked.interval_s:
+            raise InputError(
+                "identification.gangue_share.hop_s",
+                checked.hop_s,
+                f"must be at most interval_s ({checked.interval_s:g} s): every impact in one "
+                "interval at least",
+            )
+        return checked
+
+
+def wilson_interval(successes: int, total: int, z: float = Z_95) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion (two-sided, ``z`` normal quantiles)."""
+    if total < 0 or not 0 <= successes <= total:
+        raise InputError("successes", successes, f"must be in [0, total = {total}]")
+    if total == 0:
+        return 0.0, 1.0
+    p = successes / total
+    denom = 1.0 + z * z / total
+    centre = (p + z * z / (2 * total)) / denom
+    half = z * math.sqrt(p * (1 - p) / total + z * z / (4 * total * total)) / denom
+    low = 0.0 if successes == 0 else max(0.0, centre - half)  # exact ends: no rounding residue
+    high = 1.0 if successes == total else min(1.0, centre + half)
+    return low, high
+
+
+@dataclass(frozen=True)
+class GangueShare:
+    """One interval's estimate: the share (0..1, None when nothing struck and the vibration
+    says nothing), its 95 % interval and standard error, on what it rests."""
+
+    start_stamp_s: float
+    end_stamp_s: float
+    share: float | None
+    low: float
+    high: float
+    standard_error: float | None
+    lumps: int  # labels (impacts identified) in the interval
+    gangue_lumps: int  # of those, labelled gangue
+    overlapping: int  # of those, overlapping another impact
+    basis_method: str  # labels | vibration | none
+    signals: tuple[str, ...]
+    basis: str = BASIS
+
+    def to_json(self) -> str:
+        return json.dumps(
+            {
+                "start_stamp_s": self.start_stamp_s,
+                "end_stamp_s": self.end_stamp_s,
+                "share": self.share,
+                "basis": self.basis,
+                "low": self.low,
+                "high": self.high,
+                "standard_error": self.standard_error,
+                "lumps": self.lumps,
+                "gangue_lumps": self.gangue_lumps,
+                "overlapping": self.overlapping,
+                "method": self.basis_method,
+                "signals": list(self.signals),
+            },
+            sort_keys=True,
+        )
+
+    @classmethod
+    def from_json(cls, text: str) -> GangueShare:
+        """Decode a ``gangue_share`` message; anything else raises InputError naming the field."""
+        try:
+            data = json.loads(text)
+        except (TypeError, ValueError) as exc:
+            raise InputError("gangue_share", str(text)[:60], f"must be JSON ({exc})") from None
+        if not isinstance(data, dict):
+            raise InputError("gangue_share", str(text)[:60], "must be a JSON object")
+        try:
+            share = data["share"]
+            if share is not None and not 0.0 <= float(share) <= 1.0:
+                raise InputError("gangue_share.share", share, "must be in [0, 1] or null")
+            return cls(
+                float(data["start_stamp_s"]),
+                float(data["end_stamp_s"]),
+                None if share is None else float(share),
+                float(data["low"]),
+                float(data["high"]),
+                None if data["standard_error"] is None else float(data["standard_error"]),
+                int(data["lumps"]),
+                int(data["gangue_lumps"]),
+                int(data["overlapping"]),
+                str(data["method"]),
+                tuple(str(s) for s in data["signals"]),
+                str(data["basis"]),
+            )
+        except KeyError as exc:
+            raise InputError(f"gangue_share.{exc.args[0]}", None, "missing") from None
+        except (TypeError, ValueError) as exc:
+            raise InputError("gangue_share", str(text)[:60], f"a field of the wrong type ({exc})")
+
+
+def label_score(label: Label) -> float:
+    """How gangue-like a label's impact is: the method's logit of gangue (its ``logit``
+    estimate, which no confidence cap has touched), else the logit of the probability its
+    material and confidence state; clipped to the score range."""
+    logit = label.features.get("logit") if label.features else None
+    if logit is not None and math.isfinite(float(logit)):
+        value = -float(logit)  # the methods' logit is of coal
+    else:
+        p = label.confidence if label.material == "gangue" else 1.0 - label.confidence
+        p = min(max(p, 1e-6), 1.0 - 1e-6)
+        value = math.log(p / (1.0 - p))
+    return float(np.clip(value, -SCORE_LIMIT, SCORE_LIMIT))
+
+
+def regime_of(label: Label) -> str:
+    """The group of labels whose scores share one distribution: the signals the label rested on
+    (which network decided it) and whether its impact overlapped another, e.g.
+    ``jack_pressure+rebound_velocity/overlap``."""
+    return f"{'+'.join(sorted(label.signals))}/{'overlap' if label.overlap else 'alone'}"
+
+
+@dataclass(frozen=True)
+class ScoreModel:
+    """The distribution of :func:`label_score` for coal and for gangue impacts in each
+    :func:`regime_of`, learnt on simulated flows (histogram densities over ``edges``, per unit
+    score), what turns a dense flow's labels into a share however often each is wrong."""
+
+    edges: np.ndarray
+    densities: dict[str, tuple[np.ndarray, np.ndarray]]  # regime -> (coal, gangue)
+
+    def likelihoods(self, scores: np.ndarray, regimes: Sequence[str]) -> np.ndarray | None:
+        """(n, 2) densities of each score under coal and gangue; None if a regime is unknown."""
+        out = np.empty((len(regimes), 2))
+        bins = np.clip(
+            np.searchsorted(self.edges, scores, side="right") - 1, 0, self.edges.size - 2
+        )
+        for i, (b, regime) in enumerate(zip(bins, regimes)):
+            if regime not in self.densities:
+                return None
+            coal, gangue = self.densities[regime]
+            out[i] = coal[b], gangue[b]
+        return out
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "edges": self.edges.tolist(),
+            "densities": {
+                r: {"coal": c.tolist(), "gangue": g.tolist()}
+                for r, (c, g) in sorted(self.densities.items())
+            },
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ScoreModel:
+        edges = np.asarray(data["edges"], dtype=float)
+        densities = {}
+        for regime, entry in data["densities"].items():
+            coal = np.asarray(entry["coal"], dtype=float)
+            gangue = np.asarray(entry["gangue"], dtype=float)
+            if coal.shape != (edges.size - 1,) or gangue.shape != coal.shape:
+                raise InputError(f"gangue_share model {regime}", coal.shape, "one value per bin")
+            if (coal <= 0).any() or (gangue <= 0).any():
+                raise InputError(f"gangue_share model {regime}", "densities", "must be > 0")
+            densities[regime] = (coal, gangue)
+        return cls(edges, densities)
+
+
+def load_score_model(path: str | Path | None = None) -> ScoreModel | None:
+    """The shipped score model (``models/gangue_share.json``), or the one at ``path``; None when
+    there is none."""
+    where = Path(path) if path is not None else MODEL_PATH
+    if not where.exists():
+        return None
+    try:
+        return ScoreModel.from_dict(json.loads(where.read_text()))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(
+            "gangue_share model",
+            str(where),
+            f"is no score model ({type(exc).__name__}: {exc}); rebuild it with "
+            "python -m tail_beam_id.study.share_training",
+        ) from None
+
+
+def mixture_share(likelihoods: np.ndarray) -> tuple[float, float, float, float]:
+    """The gangue share by count that makes the labels' scores likeliest (each score drawn from
+    the coal density with probability 1 - share, the gangue one with the share), on a grid of
+    SHARE_GRID steps: (share, its 95 % profile-likelihood interval low and high, the standard
+    error from the curvature at the optimum)."""
+    grid = np.linspace(0.0, 1.0, SHARE_GRID + 1)
+    coal, gangue = likelihoods[:, 0:1], likelihoods[:, 1:2]
+    loglik = np.log((1.0 - grid) * coal + grid * gangue).sum(axis=0)
+    best = int(np.argmax(loglik))
+    inside = grid[loglik >= loglik[best] - 0.5 * CHI2_95_1DOF]
+    p = float(grid[best])
+    mix = (1.0 - p) * coal[:, 0] + p * gangue[:, 0]
+    information = float(np.sum(((gangue[:, 0] - coal[:, 0]) / mix) ** 2))
+    se = 1.0 / math.sqrt(information) if information > 0 else math.inf
+    return p, float(inside.min()), float(inside.max()), min(se, 1.0)
+
+
+def estimate_share(
+    labels: Sequence[Label],
+    start_s: float,
+    end_s: float,
+    config: ShareConfig,
+    model: ScoreModel | None = None,
+) -> GangueShare:
+    """The share over [start_s, end_s) from the labels whose impact lies in it: the fraction
+    labelled gangue while they are separable (few overlap), else the mixture estimate of their
+    scores through ``model`` (:func:`mixture_share`)."""
+    if not end_s > start_s:
+        raise InputError("end_stamp_s", end_s, f"must be after start_stamp_s ({start_s})")
+    inside = [lab for lab in labels if start_s <= lab.impact_stamp_s < end_s]
+    n = len(inside)
+    if n == 0:
+        return GangueShare(start_s, end_s, None, 0.0, 1.0, None, 0, 0, 0, "none", ())
+    k = sum(lab.material == "gangue" for lab in inside)
+    overlapping = sum(bool(lab.overlap) for lab in inside)
+    signals = tuple(sorted({s for lab in inside for s in lab.signals}))
+    separable = n >= config.min_labels and overlapping <= config.max_overlap_fraction * n
+    likelihoods = None
+    if not separable and model is not None:
+        scores = np.array([label_score(lab) for lab in inside])
+        likelihoods = model.likelihoods(scores, [regime_of(lab) for lab in inside])
+    if likelihoods is None:
+        low, high = wilson_interval(k, n)
+        p = k / n
+        se = math.sqrt(p * (1 - p) / n)
+        return GangueShare(start_s, end_s, p, low, high, se, n, k, overlapping, "labels", signals)
+    p, low, high, se = mixture_share(likelihoods)
+    return GangueShare(start_s, end_s, p, low, high, se, n, k, overlapping, "mixture", signals)
+
+
+def interval_ends(first_s: float, last_s: float, config: ShareConfig) -> list[float]:
+    """Ends ``k hop_s`` of every interval that lies wholly in [first_s, last_s] (s)."""
+    if not (math.isfinite(first_s) and math.isfinite(last_s)):
+        return []
+    k0 = math.ceil((first_s + config.interval_s) / config.hop_s - 1e-9)
+    k1 = math.floor(last_s / config.hop_s + 1e-9)
+    return [k * config.hop_s for k in range(k0, k1 + 1)]

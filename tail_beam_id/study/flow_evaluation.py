@@ -1,0 +1,233 @@
+"""The ``flow`` scene set of ``tail-beam evaluate``: the gangue share read from the suite's
+drawing-opening flows (:func:`tail_beam_sim.physics.flow.simulate_flow`, config/flow.yaml)
+against the truth, on the nominal support and on supports drawn from the foreign ranges, at
+flow rates from sparse to dense, with the shipped layout and with the IMU alone.
+
+Each case is one flow (pure coal until about ``boundary_s``, the share by mass then rising to
+``final_share_by_mass`` over about ``ramp_s``) and one pure-coal flow of ``coal_s``, both
+identified as ``tail-beam identify --no-calibrate`` does (a :class:`SharingIdentifier` on the
+replayed streams). Figures:
+
+* the share's mean absolute error per interval (the estimate against the share by count of the
+  lumps that struck in it; intervals where none struck or nothing was estimated are left out);
+* the detection delay at 1/5 and 1/3: when the estimate first reaches the level (at or after the
+  first gangue lump) minus when the true interval share first does, s (the interval ends; nan
+  when the truth never reaches it, inf when the estimate never does);
+* false crossings: intervals of the pure-coal flow whose estimate reaches 1/5;
+* per-impact accuracy (Wilson 95 %) of the labels, extra and missed labels counting as wrong.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from tail_beam_id.stream.label import match_stamps, match_tolerance_s
+from tail_beam_id.stream.replay import replay
+from tail_beam_id.stream.share import GangueShare
+from tail_beam_id.stream.share_reader import SharingIdentifier
+from tail_beam_id.study.dataset import evaluation_params
+from tail_beam_id.study.evaluation import wilson
+from tail_beam_id.study.flow import FlowRecording, record_sim_flow, true_shares
+from tail_beam_id.study.supports import SupportDraw, draw_support, support_ranges
+
+FLOW_SEED = 46001  # the flow set's seed (training flows use share_training.TRAINING_SEED + n)
+LEVELS = (0.2, 1.0 / 3.0)  # the shares whose crossing is timed
+LAYOUTS = ("shipped", "imu")  # the shipped sensors; the same without the accelerometer
+SENSOR_RATES = ("pressure_rate_hz", "imu_rate_hz", "camera_frame_rate_hz")
+
+
+@dataclass(frozen=True)
+class FlowScene:
+    """The flow every case runs: its length, when the boundary arrives and how long the share
+    by mass takes to rise to ``final_share_by_mass`` (s), and the pure-coal flow's length (s)."""
+
+    duration_s: float = 12.0
+    boundary_s: float = 6.0
+    ramp_s: float = 2.0
+    final_share_by_mass: float = 0.7
+    coal_s: float = 12.0
+
+
+@dataclass
+class FlowCase:
+    """One support, layout and rate: what the share read-out gave against the truth."""
+
+    support: str
+    layout: str
+    rate_per_s: float
+    errors: list[float] = field(default_factory=list)  # |estimate - truth| per interval
+    delays_s: dict[float, float] = field(default_factory=dict)  # level -> delay, s (nan: none)
+    coal_intervals: int = 0
+    false_crossings: int = 0  # pure-coal intervals whose estimate reached 1/5
+    methods: dict[str, int] = field(default_factory=dict)  # interval basis -> count
+    correct: int = 0
+    impacts: int = 0  # lumps, plus labels matching none
+    series: list[tuple[float, float, float | None]] = field(default_factory=list)
+
+    @property
+    def mae(self) -> float:
+        return float(np.mean(self.errors)) if self.errors else math.nan
+
+    @property
+    def accuracy(self) -> float:
+        return self.correct / self.impacts if self.impacts else math.nan
+
+    def as_dict(self) -> dict[str, Any]:
+        low, high = wilson(self.correct, self.impacts) if self.impacts else (math.nan, math.nan)
+        return {
+            "support": self.support,
+            "layout": self.layout,
+            "rate_per_s": self.rate_per_s,
+            "mae": self.mae,
+            "intervals": len(self.errors),
+            "delay_s": {f"{level:.3f}": d for level, d in self.delays_s.items()},
+            "coal_intervals": self.coal_intervals,
+            "false_crossings": self.false_crossings,
+            "methods": self.methods,
+            "accuracy": self.accuracy,
+            "accuracy_ci": [low, high],
+            "impacts": self.impacts,
+        }
+
+
+def flow_supports(params: Mapping[str, Any], foreign: int, seed: int) -> list[tuple[str, Any]]:
+    """(name, SupportDraw or None for the nominal) of the nominal support and ``foreign``
+    supports drawn from the foreign ranges, with the shipped sensors."""
+    ranges = support_ranges(evaluation_params(params), "foreign")
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 5]))
+    rates = {k: float(params["sensors"][k]) for k in SENSOR_RATES}
+    out: list[tuple[str, Any]] = [("nominal", None)]
+    for n in range(foreign):
+        draw = draw_support(ranges, rng, rng).with_sensors(
+            rates, float(params["sensors"]["vibration_rate_hz"]), 1.0
+        )
+        out.append((f"foreign-{n + 1}", draw))
+    return out
+
+
+def identify_flow(
+    recording: FlowRecording, layout: str, method: str | None = None
+) -> tuple[list, list[GangueShare]]:
+    """Labels and shares of a recording read as tail-beam identify --no-calibrate reads a bag."""
+    params = recording.params
+    identifier = SharingIdentifier(method, params=params["identification"], model_params=params)
+    labels = replay(
+        identifier,
+        recording.pressure,
+        recording.imu,
+        recording.rebounds,
+        vibration=recording.vibration if layout == "shipped" else None,
+    )
+    return labels, identifier.take_shares()
+
+
+def first_reaching(
+    ends_s: Sequence[float], values: Sequence[float | None], level: float, after_s: float
+) -> float:
+    """The first interval end at or after ``after_s`` whose value reaches ``level`` (nan if
+    none), s."""
+    for end, value in zip(ends_s, values):
+        if end >= after_s and value is not None and not math.isnan(value) and value >= level:
+            return end
+    return math.nan
+
+
+def score_case(
+    case: FlowCase, recording: FlowRecording, labels: Sequence, shares: Sequence[GangueShare]
+) -> None:
+    """Fill ``case`` with one flow's figures."""
+    intervals = [(s.start_stamp_s, s.end_stamp_s) for s in shares]
+    truth = true_shares(recording, intervals)
+    ends = [s.end_stamp_s for s in shares]
+    for share, (true, n) in zip(shares, truth):
+        case.methods[share.basis_method] = case.methods.get(share.basis_method, 0) + 1
+        if share.share is not None and n:
+            case.errors.append(abs(share.share - true))
+    case.series = [(s.end_stamp_s, t, s.share) for s, (t, _) in zip(shares, truth)]
+    # The boundary arrives with the first gangue lump.
+    gangue_at = recording.lump_stamps_s()[recording.gangue()]
+    boundary = float(gangue_at.min()) if gangue_at.size else math.inf
+    for level in LEVELS:
+        true_at = first_reaching(ends, [t for t, _ in truth], level, boundary)
+        seen_at = first_reaching(ends, [s.share for s in shares], level, boundary)
+        # nan: the truth never reached the level; inf: the estimate never did while it did.
+        case.delays_s[level] = (
+            math.nan
+            if math.isnan(true_at)
+            else math.inf
+            if math.isnan(seen_at)
+            else seen_at - true_at
+        )
+    tolerance = match_tolerance_s(recording.params["identification"])
+    stamps = list(recording.lump_stamps_s())
+    matching = match_stamps(stamps, [lab.impact_stamp_s for lab in labels], tolerance)
+    gangue = recording.gangue()
+    case.correct += sum((labels[j].material == "gangue") == gangue[i] for i, j in matching.pairs)
+    case.impacts += len(stamps) + len(matching.extra)
+
+
+def score_coal(case: FlowCase, shares: Sequence[GangueShare]) -> None:
+    """Count the pure-coal flow's intervals and those whose estimate reached 1/5."""
+    case.coal_intervals += len(shares)
+    case.false_crossings += sum(s.share is not None and s.share >= LEVELS[0] for s in shares)
+
+
+def run_flow_set(
+    params: Mapping[str, Any],
+    rates_per_s: Sequence[float],
+    foreign: int,
+    scene: FlowScene = FlowScene(),
+    layouts: Sequence[str] = LAYOUTS,
+    seed: int = FLOW_SEED,
+    method: str | None = None,
+) -> Iterator[FlowCase]:
+    """Every case of the flow set, support by support, rate by rate, layout by layout."""
+    for s_index, (name, draw) in enumerate(flow_supports(params, foreign, seed)):
+        for r_index, rate in enumerate(rates_per_s):
+            case_seed = seed + 100 * s_index + r_index
+            flow = record_sim_flow(
+                params,
+                rate,
+                scene.duration_s,
+                scene.boundary_s,
+                scene.ramp_s,
+                scene.final_share_by_mass,
+                case_seed,
+                draw,
+            )
+            coal = record_sim_flow(params, rate, scene.coal_s, 0.0, 0.0, 0.0, case_seed + 50, draw)
+            for layout in layouts:
+                case = FlowCase(name, layout, float(rate))
+                labels, shares = identify_flow(flow, layout, method)
+                score_case(case, flow, labels, shares)
+                score_coal(case, identify_flow(coal, layout, method)[1])
+                yield case
+
+
+def describe_support(draw: SupportDraw | None) -> str:
+    return "config/" if draw is None else draw.describe()
+
+
+def format_flow_table(cases: Sequence[FlowCase]) -> str:
+    """One line per case: MAE, delays, false crossings, how the intervals were read, accuracy."""
+    lines = [
+        "support      layout   lumps/s  MAE pts (intervals)  delay 1/5 s  delay 1/3 s  "
+        "coal >= 1/5  intervals by   per-impact accuracy (95 %)"
+    ]
+    for c in cases:
+        low, high = wilson(c.correct, c.impacts) if c.impacts else (math.nan, math.nan)
+        how = ", ".join(f"{k} {v}" for k, v in sorted(c.methods.items()))
+        d1, d3 = (c.delays_s.get(level, math.nan) for level in LEVELS)
+        mae = f"{100 * c.mae:6.1f} ({len(c.errors):3d})"
+        coal = f"{c.false_crossings:3d}/{c.coal_intervals:<3d}"
+        accuracy = f"{100 * c.accuracy:5.1f} % ({100 * low:.1f}-{100 * high:.1f})"
+        lines.append(
+            f"{c.support:12s} {c.layout:8s} {c.rate_per_s:7g}  {mae}          {d1:6.1f}       "
+            f"{d3:6.1f}      {coal}   {how:13s}  {accuracy}"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,97 @@
+"""The flow scene set of `tail-beam evaluate` on a small size, its figures from a known case, and
+the gangue share of a simulated pure-coal flow."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from tail_beam_id.stream.label import Label
+from tail_beam_id.stream.share import GangueShare
+from tail_beam_id.study.flow import record_sim_flow
+from tail_beam_id.study.flow_evaluation import FlowCase, first_reaching, identify_flow, score_coal
+from tail_beam_sim.cli import main
+from tail_beam_sim.config import load_parameters
+
+
+def share(end_s: float, value: float | None) -> GangueShare:
+    return GangueShare(end_s - 1.0, end_s, value, 0.0, 1.0, None, 1, 0, 0, "labels", ())
+
+
+def test_crossings_and_false_alarms_are_read_from_the_interval_ends():
+    """Crossings are the first interval end reaching the level after a stamp; pure-coal intervals
+    reaching 1/5 count as false."""
+    ends = [1.0, 1.5, 2.0, 2.5]
+    assert first_reaching(ends, [0.0, 0.3, 0.1, 0.5], 0.2, 0.0) == 1.5
+    assert first_reaching(ends, [0.0, 0.3, 0.1, 0.5], 0.2, 1.8) == 2.5
+    assert math.isnan(first_reaching(ends, [None, 0.1, 0.1, 0.1], 0.2, 0.0))
+    case = FlowCase("nominal", "shipped", 5.0)
+    score_coal(case, [share(1.0, 0.0), share(1.5, 0.25), share(2.0, None)])
+    assert (case.coal_intervals, case.false_crossings) == (3, 1)
+
+
+def test_a_sparse_pure_coal_flow_reads_near_zero_with_intervals_holding_it():
+    """Pure coal at 3 lumps/s on the nominal support: almost every interval's interval holds
+    0, and the labels are mostly coal."""
+    params = load_parameters([])
+    recording = record_sim_flow(params, 3.0, 5.0, 0.0, 0.0, 0.0, seed=9001)
+    assert not any(t["label"] == "gangue" for t in recording.truths)
+    labels, shares = identify_flow(recording, "shipped")
+    assert len(shares) >= 6 and [s.end_stamp_s for s in shares] == sorted(
+        s.end_stamp_s for s in shares
+    )
+    rested = [s for s in shares if s.share is not None]
+    holding_zero = sum(s.low == 0.0 for s in rested)
+    assert holding_zero >= len(rested) - 1
+    coal = sum(isinstance(lab, Label) and lab.material == "coal" for lab in labels)
+    assert coal >= 0.8 * len(labels)
+
+
+@pytest.mark.slow
+def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
+    """`tail-beam evaluate --sets flow` runs every support and layout, prints the targets and
+    writes flow.json with finite figures."""
+    code = main(
+        [
+            "evaluate",
+            "--sets",
+            "flow",
+            "--flow-rates",
+            "5",
+            "--flow-foreign",
+            "1",
+            "--flow-duration-s",
+            "4",
+            "--flow-coal-s",
+            "2",
+            "--out",
+            str(tmp_path),
+        ]
+    )
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "targets (flow; shipped layout):" in out and "foreign-1" in out
+    cases = json.loads((tmp_path / "flow.json").read_text())
+    assert {(c["support"], c["layout"]) for c in cases} == {
+        (s, layout) for s in ("nominal", "foreign-1") for layout in ("shipped", "imu")
+    }
+    for case in cases:
+        assert case["intervals"] >= 3 and 0.0 <= case["mae"] <= 1.0
+        assert case["coal_intervals"] >= 1 and case["impacts"] >= 10
+
+
+@pytest.mark.parametrize(
+    ("argv", "field"),
+    [
+        (["evaluate", "--sets", "flow", "--flow-rates", "-5"], "--flow-rates"),
+        (["evaluate", "--sets", "flow", "--flow-duration-s", "0.5"], "--flow-duration-s"),
+        (["evaluate", "--sets", "flow", "--flow-foreign", "-1"], "--flow-foreign"),
+    ],
+)
+def test_bad_flow_options_are_refused_in_one_line(capsys, argv, field):
+    """Each bad flow option exits 2 with one line naming it."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and field in err
