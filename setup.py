@@ -60,6 +60,7 @@ setup(
             # Through start.py: a stop signal during the imports ends the process quietly.
             "sim_node = tail_beam_sim.ros.start:sim_node",
             "id_node = tail_beam_id.ros.start:id_node",
+            "caving_node = tail_beam_id.ros.start:caving_node",
             "bag_recorder = tail_beam_sim.ros.start:bag_recorder",
             "bag_replay = tail_beam_sim.ros.start:bag_replay",
             "tail-beam = tail_beam_sim.cli:main",

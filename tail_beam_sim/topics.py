@@ -16,6 +16,8 @@ IMPACT_TRUTH = "impact_truth"
 LABEL = "label"
 WINDOW_CMD = "window_cmd"  # drawing-window commands (scenario.source flow)
 GANGUE_SHARE_TRUTH = "gangue_share_truth"  # true gangue share per interval of a flow
+WINDOW_STATE = "window_state"  # a caving window opened or closed, and why (caving_node)
+CAVING_DECISION = "caving_decision"  # a closing rule's decision and what it rested on
 
 MSG_TYPES: dict[str, str] = {
     IMPACT_CMD: "std_msgs/msg/String",
@@ -28,6 +30,8 @@ MSG_TYPES: dict[str, str] = {
     LABEL: "std_msgs/msg/String",
     WINDOW_CMD: "std_msgs/msg/String",
     GANGUE_SHARE_TRUTH: "std_msgs/msg/String",
+    WINDOW_STATE: "std_msgs/msg/String",
+    CAVING_DECISION: "std_msgs/msg/String",
 }
 
 

@@ -2,4 +2,4 @@
 estimates, the truth) and the closing rules that turn them into a decision to close
 (docs/caving.md). Pure: no ROS, no clock of its own."""
 
-__all__ = ["events", "rules"]
+__all__ = ["controller", "events", "feed", "rules"]

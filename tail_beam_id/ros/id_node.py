@@ -62,6 +62,7 @@ from sensor_msgs.msg import FluidPressure, Imu, LaserScan
 from std_msgs.msg import String
 
 from tail_beam_id.calibration.online import OnlineCalibration
+from tail_beam_id.caving.controller import CAVING_NODE
 from tail_beam_id.methods import Method
 from tail_beam_id.methods.physics import PHYSICS
 from tail_beam_id.methods.statistical import HYSTERESIS, STATISTICAL
@@ -127,6 +128,7 @@ PARAMETER_SECTIONS = (
     HYSTERESIS,
     THRESHOLD,
     PHYSICS,
+    CAVING_NODE,
 )
 
 

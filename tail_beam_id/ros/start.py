@@ -1,4 +1,4 @@
-"""id_node's entry point: stop signals taken before the node's heavy imports
+"""id_node's and caving_node's entry points: stop signals taken before the node's heavy imports
 (:mod:`tail_beam_sim.ros.start`)."""
 
 from __future__ import annotations
@@ -8,3 +8,7 @@ from tail_beam_sim.ros.start import run
 
 def id_node() -> int:
     return run("tail_beam_id.ros.id_node")
+
+
+def caving_node() -> int:
+    return run("tail_beam_id.ros.caving_node")

@@ -39,6 +39,8 @@ EVENT_STAMPS = {
     topics.LABEL: "impact_stamp",
     topics.GANGUE_SHARE_TRUTH: "end_stamp_s",
     topics.WINDOW_CMD: "stamp_s",
+    topics.WINDOW_STATE: "stamp_s",
+    topics.CAVING_DECISION: "stamp_s",
 }
 # Stamps back by more than this on a stream: a new time base (id_node.time_jump_s's default)
 TIME_JUMP_S = 1.0
@@ -357,6 +359,8 @@ class _Run:
             topics.IMPACT_CMD: [],
             topics.WINDOW_CMD: [],
             topics.GANGUE_SHARE_TRUTH: [],
+            topics.WINDOW_STATE: [],
+            topics.CAVING_DECISION: [],
         }
     )
     points: list[tuple[float, str, np.ndarray]] = field(default_factory=list)

@@ -45,7 +45,14 @@ EVENT_QOS = QoSProfile(
 EVENT_PUBLISHER_QOS = QoSProfile(
     depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
-EVENT_TOPICS = (topics.REBOUND_VELOCITY, topics.IMPACT_POINT, topics.IMPACT_TRUTH, topics.LABEL)
+EVENT_TOPICS = (
+    topics.REBOUND_VELOCITY,
+    topics.IMPACT_POINT,
+    topics.IMPACT_TRUTH,
+    topics.LABEL,
+    topics.WINDOW_STATE,
+    topics.CAVING_DECISION,
+)
 # impact_cmd as sim_node reads it: keep-all, so that a burst waits in the reader's history
 # (reliable
 # flow control slows the client) instead of keep-last overwriting what the node has not taken yet.
