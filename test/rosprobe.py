@@ -19,6 +19,7 @@ from std_msgs.msg import String
 from tail_beam_id.stream.label import Label
 from tail_beam_sim.ros import messages as ros_messages
 from tail_beam_sim.ros.follow_qos import FollowingSubscription, follow_publishers
+from tail_beam_sim.ros.spin import spin_once
 
 RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -80,7 +81,7 @@ def spin_until(
     """Spin until ``condition()`` holds or the deadline passes; returns the condition."""
     deadline = time.monotonic() + timeout_s
     while not condition() and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.05)
+        spin_once(executor, 0.05)
     return condition()
 
 
@@ -111,7 +112,7 @@ def spin_for(executor: EventsExecutor, duration_s: float) -> None:
     """Spin for ``duration_s`` of wall time."""
     deadline = time.monotonic() + duration_s
     while time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.02)
+        spin_once(executor, 0.02)
 
 
 @contextmanager

@@ -27,6 +27,8 @@ def _stamps(n: int) -> np.ndarray:
 
 
 def test_imu_and_pressure_messages_equal_what_the_constructors_build():
+    """Every IMU and pressure message of a chunk, from stamp 0 to past 2^31 ns, equals the
+    message its constructor builds from the same values, serialised byte for byte."""
     stamps = _stamps(300)
     rng = np.random.default_rng(4)
     imu = ImuStream(
@@ -58,6 +60,8 @@ def test_imu_and_pressure_messages_equal_what_the_constructors_build():
 
 
 def test_a_built_message_is_refused_unless_every_field_is_given():
+    """A field left out or one too many is a ValueError naming the fields, not a message that
+    fails later when serialised."""
     with pytest.raises(ValueError, match="nanosec"):
         messages.assemble(Time, sec=1)
     with pytest.raises(ValueError, match="extra"):
