@@ -51,6 +51,7 @@ from tail_beam_sim.ros.params import (
     refuse_runtime_changes,
 )
 from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
+from tail_beam_sim.spec import CAVING
 
 WINDOW_STATES = ("waiting", "open", "closed")
 _CDR_STAMP = {0: struct.Struct(">iI"), 1: struct.Struct("<iI")}  # encapsulation byte 1: endian
@@ -109,6 +110,7 @@ class CavingNode(Node):
         )
         checked = CAVING_NODE.check(params.get("caving_node", {}))
         makers = rule_factories(params.get("caving", {}))
+        self.oracle_level = CAVING.check(params.get("caving", {}))["oracle_level"]
         rule = checked["rule"]
         if rule not in makers:
             raise InputError("caving_node.rule", rule, f"must be one of {', '.join(makers)}")
