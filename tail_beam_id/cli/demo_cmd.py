@@ -83,6 +83,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="YAML",
         help="with --face: a parameter file applied to every node (flow, caving, ...); repeatable",
     )
+    parser.add_argument(
+        "--check-offline",
+        action="store_true",
+        help="with --face: afterwards, identify each support's bag offline and feed the same rule "
+        "its labels: the decisions must be the live ones",
+    )
     parser.set_defaults(func=run)
 
 

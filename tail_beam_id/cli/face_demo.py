@@ -169,8 +169,53 @@ def run_face(args: argparse.Namespace) -> int:
             f"{sum(w.refused.values())} controller input(s) set aside"
         )
     print(f"wall time {wall_s:.1f} s; bags: {bag}/support_NNN")
+    if args.check_offline:
+        agree = check_offline(caving, bag, args.method)
+        if not agree:
+            return 1
     print(f"  offline: tail-beam identify {bag}/{namespaces[0].strip('/')}")
     return 0
+
+
+def check_offline(caving: Any, bag: Path, method: str | None) -> bool:
+    """Identify each support's bag as ``tail-beam identify --no-calibrate`` does, feed the rule
+    its labels, shares and share truths from the recorded opening, and say whether each
+    decision (stamp and reason) is the live one."""
+    from tail_beam_id.caving.feed import offline_decision
+    from tail_beam_id.cli.identify_cmd import identify_bag
+    from tail_beam_sim import topics
+    from tail_beam_sim.bags.read import read_sensors
+
+    agree = True
+    for w in caving.windows:
+        path = str(bag / w.namespace.strip("/"))
+        recorded = read_sensors(path, required=()).json_topics
+        opened = [s for s in recorded[topics.WINDOW_STATE] if s["state"] == "open"]
+        live = [d for d in caving.decisions if d["support"] == w.namespace]
+        if not opened or not live:
+            print(f"{w.namespace}: offline check: no recorded opening or no live decision")
+            agree = False
+            continue
+        shares: list = []
+        labels = identify_bag(path, method, calibrate=False, shares=shares)
+        decision = offline_decision(
+            caving.make_rule(),
+            opened[0]["stamp_s"],
+            labels,
+            shares,
+            recorded[topics.GANGUE_SHARE_TRUTH],
+        )
+        same = decision is not None and (decision.stamp_s, decision.reason) == (
+            live[0]["stamp_s"],
+            live[0]["reason"],
+        )
+        agree &= same
+        offline = "none" if decision is None else f"{decision.stamp_s:.4f} s: {decision.reason}"
+        print(
+            f"{w.namespace}: offline decision {offline}; live {live[0]['stamp_s']:.4f} s: "
+            f"{live[0]['reason']}: {'same' if same else 'DIFFERENT'}"
+        )
+    return agree
 
 
 def _say_states(caving: Any, said: int) -> int:

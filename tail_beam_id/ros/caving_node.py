@@ -115,7 +115,7 @@ class CavingNode(Node):
         if rule not in makers:
             raise InputError("caving_node.rule", rule, f"must be one of {', '.join(makers)}")
         self.rule_name = rule
-        self._make_rule = makers[rule]
+        self.make_rule = makers[rule]
         supports = list(checked["supports"]) or [""]
         for k, namespace in enumerate(supports):
             if namespace and not namespace.startswith("/"):
@@ -268,7 +268,7 @@ class CavingNode(Node):
             return
         w.publishers[topics.WINDOW_CMD].publish(String(data=json.dumps({"action": "open"})))
         w.state, w.opened_s = "open", w.clock_s
-        w.rule = self._make_rule()
+        w.rule = self.make_rule()
         w.rule.feed(Opened(w.opened_s))
         self._state(w, "open", w.opened_s, f"window {w.index + 1} of {len(self.windows)} opens")
 
