@@ -51,6 +51,7 @@ from tail_beam_sim.ros.params import (
     refuse_runtime_changes,
 )
 from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
+from tail_beam_sim.ros.usage import NodeUsage
 from tail_beam_sim.spec import CAVING
 
 WINDOW_STATES = ("waiting", "open", "closed")
@@ -299,9 +300,23 @@ class CavingNode(Node):
         self.get_logger().info(f"{w.name}: window {state} at {stamp_s:.3f} s: {why}")
 
 
+USAGE = NodeUsage(
+    executable="caving_node",
+    summary="The caving windows' controller: opens each support's window on window_cmd and "
+    "closes it when its closing rule decides on the support's label and gangue_share "
+    "(docs/caving.md).",
+    config_files=("caving_node.yaml",),
+    examples=(
+        "caving_node --ros-args -p caving_node.rule:=sprt            # the node's own namespace",
+        'caving_node --ros-args -p "caving_node.supports:=[/support_001, /support_002]"',
+        "caving_node --ros-args -p caving_node.rule:=oracle -p caving.oracle_level:=0.3",
+    ),
+)
+
+
 def main(args: list[str] | None = None) -> int:
     """Run caving_node until shut down."""
-    return run_node(CavingNode, "caving_node", args)
+    return run_node(CavingNode, USAGE, args)
 
 
 if __name__ == "__main__":
