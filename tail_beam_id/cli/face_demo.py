@@ -24,6 +24,7 @@ MAX_FACE_DEMO = 12  # supports one process runs live
 LAND_S = 1.5  # simulation s after a window's closing by which its last lumps have landed
 SETTLE_S = 2.0  # wall s the identifiers and recorders get after the last window closed
 ORACLE_LIMIT_S = 600.0  # the oracle's window is searched this long after its opening, s
+IDLE_S = 5.0  # wall s without data before id_node takes a stream for stopped (or data ended)
 
 
 def face_overrides(paths: list[str]) -> dict[str, Any]:
@@ -75,9 +76,12 @@ def run_face(args: argparse.Namespace) -> int:
                     )
                 )
             )
-            id_values = {"id_node.flush_after_idle_s": 0.5} | (
-                {"method": args.method} if args.method else {}
-            )
+            # Every node shares one process: a stream held up behind the others for a moment
+            # is late, not stopped (labels then wait for it, as offline).
+            id_values = {
+                "id_node.flush_after_idle_s": IDLE_S,
+                "id_node.stream_idle_s": IDLE_S,
+            } | ({"method": args.method} if args.method else {})
             identifiers.append(
                 group.add(IdNode(**common, parameter_overrides=overrides(id_values)))
             )
