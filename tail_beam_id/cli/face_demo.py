@@ -64,6 +64,10 @@ def run_face(args: argparse.Namespace) -> int:
     recorders: list[RecorderNode] = []
     identifiers: list[IdNode] = []
     try:
+        # The controller first: a rule or parameter it refuses stops the demo before any bag.
+        caving = group.add(
+            CavingNode(context=group.context, parameter_overrides=overrides(caving_values))
+        )
         for k, ns in enumerate(namespaces):
             common = {"context": group.context, "namespace": ns}
             recorders.append(
@@ -94,9 +98,6 @@ def run_face(args: argparse.Namespace) -> int:
                 "sim_node.wait_for_subscribers": 2,
             }
             sims.append(group.add(SimNode(**common, parameter_overrides=overrides(sim_values))))
-        caving = group.add(
-            CavingNode(context=group.context, parameter_overrides=overrides(caving_values))
-        )
         print(
             f"face: {count} supports {namespaces[0]} .. {namespaces[-1]}, drawn one after "
             f"another; closing rule {caving.rule_name}; identifying with "
