@@ -188,6 +188,7 @@ def check_offline(caving: Any, bag: Path, method: str | None) -> bool:
     decision (stamp and reason) is the live one."""
     from tail_beam_id.caving.feed import offline_decision
     from tail_beam_id.cli.identify_cmd import identify_bag
+    from tail_beam_id.stream.label import Label
     from tail_beam_sim import topics
     from tail_beam_sim.bags.read import read_sensors
 
@@ -210,15 +211,24 @@ def check_offline(caving: Any, bag: Path, method: str | None) -> bool:
             shares,
             recorded[topics.GANGUE_SHARE_TRUTH],
         )
-        same = decision is not None and (decision.stamp_s, decision.reason) == (
-            live[0]["stamp_s"],
-            live[0]["reason"],
+        # The same rule on the labels id_node published (as recorded): where this one agrees
+        # and the offline one does not, the live labels differed from the offline ones.
+        replayed = offline_decision(
+            caving.make_rule(),
+            opened[0]["stamp_s"],
+            [Label.from_dict(obj) for obj in recorded[topics.LABEL]],
+            [],
+            recorded[topics.GANGUE_SHARE_TRUTH],
         )
+        key = (live[0]["stamp_s"], live[0]["reason"])
+        same = decision is not None and (decision.stamp_s, decision.reason) == key
+        same_recorded = replayed is not None and (replayed.stamp_s, replayed.reason) == key
         agree &= same
         offline = "none" if decision is None else f"{decision.stamp_s:.4f} s: {decision.reason}"
         print(
             f"{w.namespace}: offline decision {offline}; live {live[0]['stamp_s']:.4f} s: "
-            f"{live[0]['reason']}: {'same' if same else 'DIFFERENT'}"
+            f"{live[0]['reason']}: {'same' if same else 'DIFFERENT'}; on the recorded live "
+            f"labels: {'same' if same_recorded else 'DIFFERENT'}"
         )
     return agree
 
