@@ -76,6 +76,7 @@ setup(
             "evaluate = tail_beam_id.cli.evaluate_cmd:register",
             "demo = tail_beam_id.cli.demo_cmd:register",
             "calibrate = tail_beam_id.cli.calibrate_cmd:register",
+            "caving = tail_beam_id.cli.caving_cmd:register",
         ],
     },
 )

@@ -911,6 +911,146 @@ SEND = Section(
     file="send.yaml",
 )
 
+# --- the face: top-coal drawing and the caving windows' closing rules ---------------------------
+
+DRAWING_SEQUENCES = ("single_round", "multi_round", "interval")
+MAX_FACE_SUPPORTS = 300  # supports a face may hold (the longest faces hold about 170)
+
+FACE = Section(
+    "face",
+    "The face's top-coal drawing (tail_beam_sim.physics.face, docs/caving.md).",
+    (
+        integer("supports", "Supports whose windows are drawn.", 1, MAX_FACE_SUPPORTS),
+        positive("support_width_m", "Width of one support along the face.", "m", high=5.0),
+        positive(
+            "cut_depth_m", "Web of one cut: the slice of top coal one round draws.", "m", high=10.0
+        ),
+        positive("top_coal_height_m", "Top coal above the openings.", "m", high=50.0),
+        positive("cell_size_m", "Side of the drawing model's cells.", "m", 0.01, 2.0),
+        number(
+            "lateral_step_probability",
+            "The climbing void's chance per cell row of stepping sideways (draw body width).",
+            "",
+            0.0,
+            1.0,
+        ),
+        integer("margin_supports", "Undrawn supports' widths of top coal beyond each end.", 0, 50),
+        positive("coal_density_kgpm3", "Bulk density of the broken top coal.", "kg/m^3"),
+        positive("gangue_density_kgpm3", "Bulk density of the caved gangue.", "kg/m^3"),
+        positive("mass_rate_kgps", "Mass drawn per second through an open window.", "kg/s"),
+        number("close_delay_s", "Time a window takes to close, still drawing.", "s", 0.0, 60.0),
+        positive(
+            "max_window_s", "Longest a window stays open if nothing closes it.", "s", high=1e4
+        ),
+        positive(
+            "share_window_kg", "Drawn mass the instantaneous gangue share is taken over.", "kg"
+        ),
+        choice("sequence", "Order of the windows within a group.", DRAWING_SEQUENCES),
+        integer("group_size", "Supports drawn as one group, groups one after another.", 1),
+        integer(
+            "rounds", "Rounds of a multi-round sequence (the last closes on the rule).", 1, 10
+        ),
+        number(
+            "round_draw_fraction",
+            "Share of a support's top coal mass each early round of multi_round draws.",
+            "",
+            0.0,
+            1.0,
+            low_open=True,
+        ),
+        integer("seed", "Seed of the void's steps and the opening's draw column.", 0),
+    ),
+    file="face.yaml",
+)
+
+CAVING = Section(
+    "caving",
+    "The windows' closing rules and the offline caving study (docs/caving.md).",
+    (
+        positive("fixed_time_s", "fixed_time: drawing time per window.", "s", high=1e4),
+        number(
+            "first_gangue_min_confidence",
+            "first_gangue: least confidence of the gangue label that closes.",
+            "",
+            0.0,
+            1.0,
+        ),
+        integer(
+            "last_labels", "share rules: labels the gangue share is counted over (K).", 1, 1000
+        ),
+        of_kind(
+            "floats",
+            "share_levels",
+            "share rules: one rule per level of the gangue share among the last K labels.",
+            low=0.0,
+            high=1.0,
+            low_open=True,
+        ),
+        number(
+            "sprt_share_low",
+            "sprt: gangue share of a window still on coal (H0).",
+            "",
+            0.0,
+            1.0,
+            low_open=True,
+        ),
+        number(
+            "sprt_share_high", "sprt: gangue share to close at (H1).", "", "sprt_share_low", 1.0
+        ),
+        number(
+            "sprt_alpha",
+            "sprt: chance of closing on coal (false alarm).",
+            "",
+            0.0,
+            0.5,
+            low_open=True,
+        ),
+        number(
+            "sprt_beta", "sprt: chance of missing the share (miss).", "", 0.0, 0.5, low_open=True
+        ),
+        number(
+            "estimate_level",
+            "share_estimate: level the gangue_share interval's lower bound crosses.",
+            "",
+            0.0,
+            1.0,
+            low_open=True,
+        ),
+        number(
+            "oracle_level",
+            "oracle: true instantaneous gangue share the window closes at.",
+            "",
+            0.0,
+            1.0,
+            low_open=True,
+        ),
+        integer("seeds", "Seeds of the study (intervals are over them).", 1, 1000),
+    ),
+    file="face.yaml",
+    sections=("labels",),
+)
+
+CAVING_LABELS = Section(
+    "caving.labels",
+    "A stand-in for the identifier in the caving study: labels drawn from the true lumps.",
+    (
+        positive(
+            "impacts_per_tonne", "Lumps striking the tail beam per tonne drawn.", "1/t", high=1e4
+        ),
+        number("accuracy", "Chance a lump's label is right.", "", 0.5, 1.0),
+        number("confidence_right", "Mean confidence of a right label.", "", 0.5, 1.0),
+        number("confidence_wrong", "Mean confidence of a wrong label.", "", 0.5, 1.0),
+        positive(
+            "confidence_concentration", "Beta concentration of the confidences.", "", high=1e4
+        ),
+        number("latency_s", "From a lump's impact to its label.", "s", 0.0, 60.0),
+        positive(
+            "share_interval_s", "Length of a gangue_share estimate's interval.", "s", high=600.0
+        ),
+    ),
+    file="face.yaml",
+)
+
 PARAMETER_SECTIONS: tuple[Section, ...] = (
     SUPPORT,
     MATERIAL,
@@ -926,6 +1066,9 @@ PARAMETER_SECTIONS: tuple[Section, ...] = (
     RECORDER,
     REPLAY,
     SEND,
+    FACE,
+    CAVING,
+    CAVING_LABELS,
 )
 NOT_PARAMETERS = ("impacts.yaml",)  # config/ files that hold a scene list, not parameters
 

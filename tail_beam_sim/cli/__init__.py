@@ -62,6 +62,7 @@ PREFERRED_ORDER = (
     "bag",
     "demo",
     "bench",
+    "caving",
 )
 
 

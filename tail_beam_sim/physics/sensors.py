@@ -35,8 +35,9 @@ from functools import lru_cache
 import numpy as np
 from scipy import signal
 
+from tail_beam_sim.physics.ringdown_filtering import filtered_ringdown, settle_steps
 from tail_beam_sim.physics.scene import SensorSpec
-from tail_beam_sim.physics.solvers.problem import Samples, Trajectory
+from tail_beam_sim.physics.solvers.problem import FreeSegment, Samples, Trajectory
 
 
 @dataclass
@@ -256,14 +257,41 @@ class SensorSuite:
         now = stamp_s - contact_stamp_s
         return [now, now - 1.0 / self.spec.imu_rate_hz]
 
-    def vibration_times(self, end_s: float, contact_stamp_s: float) -> np.ndarray:
+    def vibration_times(
+        self, end_s: float, contact_stamp_s: float, trajectory: Trajectory | None = None
+    ) -> np.ndarray:
         """The trajectory's times :meth:`vibration` reads (s): the accelerometer's dense
-        (oversampled) instants from stamp 0 to ``end_s``, and one dense period before the
-        first. Each dense value is the mean over the period before its instant, which the
-        instant before bounds: one evaluation per instant serves as both ends."""
+        (oversampled) instants from stamp 0, and one dense period before the first. Each dense
+        value is the mean over the period before its instant, which the instant before bounds:
+        one evaluation per instant serves as both ends. They run to ``end_s``, or, given the
+        ``trajectory``, only until its filtered ring-down takes over (:meth:`_ringdown_start`)."""
         dense_rate = self.spec.vibration_oversample * self.spec.vibration_rate_hz
         count = math.floor(end_s * dense_rate + 1e-9) + 1
+        if trajectory is not None:
+            count = min(count, self._ringdown_start(trajectory, contact_stamp_s, count))
         return np.arange(-1, count) / dense_rate - contact_stamp_s
+
+    def _ringdown_start(self, trajectory: Trajectory, contact_stamp_s: float, count: int) -> int:
+        """The first dense index (an output sample's) from which the accelerometer reads the
+        trajectory's last free segment through the filter's steady response
+        (:mod:`tail_beam_sim.physics.ringdown_filtering`), or ``count`` when none of the
+        ``count`` dense instants does (the last segment is not a free one, or starts too late)."""
+        last = trajectory.segments[-1] if trajectory.segments else None
+        if not isinstance(last, FreeSegment) or not math.isfinite(last.start_s):
+            return count
+        spec = self.spec
+        dense_rate = spec.vibration_oversample * spec.vibration_rate_hz
+        sos, _ = _butterworth(
+            spec.vibration_rate_hz,
+            spec.vibration_antialias_order,
+            spec.vibration_antialias_cutoff_fraction,
+            spec.vibration_oversample,
+        )
+        # each dense value spans (instant - period, instant]: free from this index on
+        free_from = math.ceil((contact_stamp_s + last.start_s) * dense_rate - 1e-9) + 1
+        steady = max(free_from, 0) + settle_steps(sos.tobytes())
+        first = -(-steady // spec.vibration_oversample) * spec.vibration_oversample
+        return min(first, count)
 
     def vibration(
         self,
@@ -277,8 +305,12 @@ class SensorSuite:
         ``dense_states``: the trajectory already sampled at :meth:`vibration_times`."""
         spec = self.spec
         dense_rate = spec.vibration_oversample * spec.vibration_rate_hz
+        count = math.floor(end_s * dense_rate + 1e-9) + 1
+        switch = self._ringdown_start(trajectory, contact_stamp_s, count)
         if dense_states is None:
-            dense_states = trajectory.sample(self.vibration_times(end_s, contact_stamp_s))
+            dense_states = trajectory.sample(
+                self.vibration_times(end_s, contact_stamp_s, trajectory)
+            )
         dense = mean_specific_force_z(
             trajectory,
             dense_states.t_s[1:],
@@ -291,7 +323,20 @@ class SensorSuite:
             spec.vibration_antialias_cutoff_fraction,
             spec.vibration_oversample,
         )
-        clean = aa(dense)[:: spec.vibration_oversample]
+        clean = aa(dense[:switch])[:: spec.vibration_oversample]
+        if switch < count:
+            last = trajectory.segments[-1]
+            outputs = np.arange(switch, count, spec.vibration_oversample) / dense_rate
+            ringdown = filtered_ringdown(
+                trajectory.problem.structure,
+                last.anchor_s,
+                last.q,
+                last.qd,
+                outputs - contact_stamp_s,
+                1.0 / dense_rate,
+                aa.sos,
+            )
+            clean = np.concatenate([clean, ringdown])
         noisy = clean + self._vibration_rng.normal(0.0, spec.vibration_noise_mps2, clean.size)
         blocks, _ = cut_blocks(
             np.clip(noisy, -spec.vibration_range_mps2, spec.vibration_range_mps2), 0, spec
@@ -340,6 +385,7 @@ class AntiAliasFilter:
     ) -> None:
         self.oversample = oversample
         self._sos, self._zi_unit = _butterworth(rate_hz, order, cutoff_fraction, oversample)
+        self.sos = self._sos
         self._zi: np.ndarray | None = None
 
     def __call__(self, dense: np.ndarray) -> np.ndarray:

@@ -304,7 +304,7 @@ def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> Simul
         history_times(scene, trajectory),
         pressure_stamps - contact_stamp,
         *suite.imu_times(imu_stamps, contact_stamp),
-        *([suite.vibration_times(end, contact_stamp)] if vibration else []),
+        *([suite.vibration_times(end, contact_stamp, trajectory)] if vibration else []),
     ]
     states = trajectory.sample_many(parts)
     history = histories(scene, trajectory, states[0])

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable
+from functools import lru_cache
 from typing import Any
 
 from tail_beam_sim.errors import InputError
@@ -74,6 +75,12 @@ SOLVERS: dict[str, Callable[..., Trajectory]] = {
 DEFAULT_SOLVER = "hybrid"
 
 
+@lru_cache(maxsize=None)
+def _signature(method: str) -> inspect.Signature:
+    """The registered solver's signature, read once: reading it costs as much as a fast solve."""
+    return inspect.signature(SOLVERS[method])
+
+
 def solve(problem: ImpactProblem, method: str = DEFAULT_SOLVER, **options: Any) -> Trajectory:
     """Solve ``problem`` with the solver registered as ``method``."""
     try:
@@ -81,7 +88,7 @@ def solve(problem: ImpactProblem, method: str = DEFAULT_SOLVER, **options: Any) 
     except KeyError:
         raise InputError("solver", method, f"must be one of {', '.join(SOLVERS)}") from None
     try:
-        inspect.signature(solver).bind(problem, **options)
+        _signature(method).bind(problem, **options)
     except TypeError as exc:
         raise InputError(
             "solver options", sorted(options), f"not all accepted by {method}: {exc}"

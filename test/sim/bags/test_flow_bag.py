@@ -29,6 +29,7 @@ def record():
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_flow_bag_round_trip(record, tmp_path, storage):
+    """A flow's bag reads back with its samples, truths, share intervals and window commands."""
     bag = tmp_path / "flow"
     count = write_flow_bag(record, bag, storage=storage, namespace="/support_03")
     back = read_sensors(bag)

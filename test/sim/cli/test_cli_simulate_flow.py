@@ -10,6 +10,7 @@ from tail_beam_sim.cli import main
 
 
 def test_simulate_flow_prints_share_intervals_and_writes_a_bag(tmp_path, capsys):
+    """`simulate --flow --json` prints the share intervals the bag it writes holds."""
     override = tmp_path / "fast.yaml"
     override.write_text(
         "/**:\n  ros__parameters:\n    flow:\n      lumps_per_s: 100.0\n"
@@ -27,6 +28,8 @@ def test_simulate_flow_prints_share_intervals_and_writes_a_bag(tmp_path, capsys)
 
 
 def test_simulate_flow_refuses_bad_input_by_name(tmp_path, capsys):
+    """`simulate --flow` refuses a bad duration, an impact option or a bad flow config by
+    name (exit 2)."""
     bad = tmp_path / "bad.yaml"
     bad.write_text("/**:\n  ros__parameters:\n    flow:\n      lumps_per_s: 5000.0\n")
     cases = [

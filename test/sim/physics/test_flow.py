@@ -47,6 +47,7 @@ def lumps_of(flow: FlowParams, open_s: float, close_s: float, seed: int = 3) -> 
 
 
 def test_share_curve_is_linear_between_points_and_held_beyond():
+    """The share curve interpolates linearly and holds its end values."""
     curve = ShareCurve.of([100.0, 300.0], [0.0, 0.5])
     assert curve.at(0.0) == 0.0
     assert curve.at(200.0) == pytest.approx(0.25)
@@ -67,6 +68,7 @@ def test_share_curve_is_linear_between_points_and_held_beyond():
     ],
 )
 def test_a_share_curve_that_is_not_a_share_is_refused_by_name(mass, share, field, words):
+    """A share outside [0, 1], unequal lengths, masses not increasing: refused naming the entry."""
     with pytest.raises(InputError) as error:
         ShareCurve.of(mass, share)
     assert error.value.field == field
@@ -98,6 +100,7 @@ def test_a_share_curve_that_is_not_a_share_is_refused_by_name(mass, share, field
     ],
 )
 def test_bad_flow_parameters_are_refused_naming_the_field(override, field):
+    """Rates, sizes, ranges and materials out of range are refused naming the flow field."""
     with pytest.raises(InputError) as error:
         flow_params(**override)
     assert error.value.field == field
@@ -105,6 +108,7 @@ def test_bad_flow_parameters_are_refused_naming_the_field(override, field):
 
 
 def test_shipped_flow_section_is_valid():
+    """config/flow.yaml passes its own checks and its curve rises from pure coal."""
     flow = flow_params()
     assert flow.share.at(0.0) == 0.0 and flow.share.at(1e9) > 0.5
 
@@ -153,6 +157,7 @@ def test_radius_follows_the_truncated_log_normal():
 
 
 def test_heights_and_positions_are_uniform_in_the_opening():
+    """Drop heights and strike positions stay in their ranges with the uniform mean."""
     flow = flow_params(lumps_per_s=500.0)
     lumps = lumps_of(flow, 0.0, 10.0)
     for name, (lo, hi) in (("drop_height_m", flow.drop_height_m), ("position_m", flow.position_m)):
@@ -201,6 +206,7 @@ def test_window_releases_lumps_only_while_open():
 
 
 def test_window_command_for_a_window_in_that_state_is_refused_by_name():
+    """Opening an open window, closing a closed one, an unknown action: refused by name."""
     run = FlowRun(params())
     with pytest.raises(WindowStateError) as error:
         run.command("close")
@@ -218,6 +224,8 @@ def test_window_command_for_a_window_in_that_state_is_refused_by_name():
 
 
 def test_share_tally_reports_each_ended_interval_once():
+    """Each interval is reported once after its end, with its counts; empty ones while lumps
+    may reach the beam with null shares."""
     windows = [(0.2, math.inf)]
     tally = ShareTally(1.0, 0.5, windows)
     tally.add(0.7, 2.0, False)
@@ -250,6 +258,7 @@ def record():
 
 
 def test_a_run_shows_pure_coal_then_the_boundary_and_the_share_rising(record):
+    """A run's share intervals start at pure coal and rise once the boundary arrives."""
     shares = [s.share_by_mass for s in record.shares]
     assert [s.start_stamp_s for s in record.shares] == [0.0, 1.0, 2.0, 3.0]
     assert shares[0] == 0.0
@@ -281,6 +290,7 @@ def test_share_truth_matches_the_lump_truths(record):
 
 
 def test_every_lump_gets_one_rebound_and_sensors_cover_the_run(record):
+    """One rebound per lump, and the sensor streams cover the whole run on their grids."""
     ids = [lump.impact_id for lump in record.lumps if lump.contact_stamp_s < 3.9]
     rebound_ids = [i for i, _ in record.rebounds]
     assert set(ids) <= set(rebound_ids) and len(rebound_ids) == len(set(rebound_ids))
@@ -308,6 +318,7 @@ def test_same_seed_same_record_whatever_the_step(record):
 
 
 def test_closed_window_brings_quiet_and_no_share_intervals():
+    """No lump strikes after a window closes (plus the fall), and no interval is reported after."""
     run = simulate_flow(params(**FAST_RISE), 3.0, seed=1, windows=[(0.5, 1.2)])
     assert all(lump.contact_stamp_s <= 1.2 + 0.1 for lump in run.lumps)
     assert [s.start_stamp_s for s in run.shares] == [0.0, 1.0]
@@ -315,7 +326,34 @@ def test_closed_window_brings_quiet_and_no_share_intervals():
 
 
 def test_windows_out_of_order_are_refused_by_name():
+    """Windows that overlap or run backwards are refused naming windows[k]."""
     for windows in ([(1.0, 0.5)], [(0.0, 2.0), (1.0, 3.0)], [(0.0, math.inf), (5.0, 6.0)]):
         with pytest.raises(InputError) as error:
             simulate_flow(params(**FAST_RISE), 1.0, windows=windows)
         assert error.value.field.startswith("windows[")
+
+
+def test_a_face_windows_flow_parameters_drive_the_flow():
+    """The face model's window (tail_beam_sim.physics.face) hands its share curve and mass rate
+    as flow parameters: they pass the flow's checks, and the lumps' gangue mass share follows
+    the curve (pure coal before its first gangue)."""
+    from tail_beam_sim.physics.face import (
+        Face,
+        FaceParams,
+        Visit,
+        close_at_true_share,
+        draw_window,
+        load_face_parameters,
+    )
+
+    face = Face(FaceParams.from_params(load_face_parameters()).with_changes(cell_size_m=0.25))
+    window = draw_window(face, Visit(4, 0, None), close_at_true_share(0.5, 300.0)())
+    flow = flow_params(**window.flow_parameters(300.0, 300.0))
+    assert flow.rate_kind == "mass" and flow.mass_rate_kgps == 300.0
+    seconds = window.mass_kg() / flow.mass_rate_kgps  # the whole window's draw
+    lumps = lumps_of(flow, 0.0, seconds)
+    # the curve is 0 up to the point before its first gangue share (linear from there)
+    first_gangue = flow.share.drawn_mass_kg[np.argmax(flow.share.share > 0) - 1]
+    early = [lump for lump in lumps if lump.drawn_mass_kg < first_gangue]
+    assert early and not any(lump.is_gangue for lump in early)
+    assert any(lump.is_gangue for lump in lumps)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from tail_beam_sim.config import default_config_dir, deep_merge, load_parameters
+from tail_beam_sim.config import deep_merge, default_config_dir, load_parameters
 from tail_beam_sim.physics.scene import Impact
 from tail_beam_sim.physics.simulate import build_problem
 from tail_beam_sim.physics.stream import StreamSimulator

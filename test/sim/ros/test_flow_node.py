@@ -36,6 +36,8 @@ def warnings(probe: Probe) -> list[str]:
 
 
 def test_flow_opened_and_closed_on_window_cmd_with_share_truth_recorded(tmp_path):
+    """sim_node's flow on window_cmd: refusals by name, share truth per interval matching the
+    lump truths, all recorded."""
     from tail_beam_sim.ros.recorder_node import RecorderNode
     from tail_beam_sim.ros.sim_node import SimNode
 

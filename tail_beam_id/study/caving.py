@@ -1,0 +1,348 @@
+"""The caving study: a face drawn once through its sequence for each closing rule, each rule
+fed by the true lumps or by labels, and the top-coal recovery and gangue content each gives.
+
+Two sources feed the rules:
+
+- ``truth``: every lump that strikes the tail beam with its true material, confidence 1, at
+  once; the ``gangue_share`` estimate is the true instantaneous share, its interval a point.
+- ``stand-in``: labels drawn from the true lumps by :class:`LabelModel`, a stated stand-in for
+  the simulated sensors and the identifier until they are wired in: each label right with
+  chance ``accuracy``, its confidence drawn from a Beta distribution (mean
+  ``confidence_right`` or ``confidence_wrong``), known ``latency_s`` after its impact; the
+  ``gangue_share`` estimate is the share of gangue labels over each ``share_interval_s``
+  with its Wilson 95 % interval.
+
+The oracle rule closes on the truth alone (:class:`~tail_beam_id.caving.events.TrueShare`),
+the same under both sources, and runs once. Every rule of a seed meets the same face (the
+drawing model's and the labels' random numbers are seeded alike), so rules differ by what
+they decide, not by the draw.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from tail_beam_id.caving.events import (
+    Event,
+    LabelEvent,
+    Opened,
+    ShareEstimate,
+    Tick,
+    TrueShare,
+)
+from tail_beam_id.caving.rules import Rule, rule_factories
+from tail_beam_sim.errors import InputError
+from tail_beam_sim.physics.drawing import GANGUE
+from tail_beam_sim.physics.face import (
+    DrawnCell,
+    Face,
+    FaceParams,
+    ShareMeter,
+    draw_window,
+    schedule,
+)
+from tail_beam_sim.spec import CAVING_LABELS
+
+__all__ = [
+    "FIELD_TRIAL",
+    "SOURCES",
+    "CavingRun",
+    "LabelModel",
+    "Summary",
+    "run_study",
+    "run_one",
+    "summarise",
+    "write_chart",
+]
+
+SOURCES = ("truth", "stand-in")
+# Tashan 8222 (12 m top coal, close at first gangue, groups of 9 supports): top coal drawn and
+# gangue content, fractions.
+FIELD_TRIAL = ("Tashan 8222 field trial", 0.8053, 0.0400)
+WILSON_Z = 1.959964  # 95 %
+
+
+@dataclass(frozen=True)
+class LabelModel:
+    """The stand-in identifier (``caving.labels``): lumps per tonne drawn that strike the beam
+    (1/t), chance a label is right, mean confidences of right and wrong labels, their Beta
+    concentration, latency (s) and the ``gangue_share`` estimate's interval (s)."""
+
+    impacts_per_tonne: float
+    accuracy: float
+    confidence_right: float
+    confidence_wrong: float
+    confidence_concentration: float
+    latency_s: float
+    share_interval_s: float
+
+    @classmethod
+    def from_params(cls, labels: Mapping[str, Any]) -> LabelModel:
+        return cls(**CAVING_LABELS.check(labels))
+
+    def confidence(self, rng: np.random.Generator, right: bool) -> float:
+        """A label's stated confidence, in [0.5, 1]: 0.5 + 0.5 Beta with the mean asked."""
+        mean = self.confidence_right if right else self.confidence_wrong
+        m = min(max((mean - 0.5) / 0.5, 1e-3), 1.0 - 1e-3)
+        k = self.confidence_concentration
+        return 0.5 + 0.5 * float(rng.beta(m * k, (1.0 - m) * k))
+
+
+def wilson(gangue: int, total: int, z: float = WILSON_Z) -> tuple[float, float]:
+    """Wilson score interval of a share ``gangue / total`` (total > 0)."""
+    p = gangue / total
+    denominator = 1.0 + z * z / total
+    centre = (p + z * z / (2 * total)) / denominator
+    half = z * math.sqrt(p * (1 - p) / total + z * z / (4 * total * total)) / denominator
+    return min(max(0.0, centre - half), p), max(min(1.0, centre + half), p)
+
+
+class WindowFeed:
+    """A window's controller in the study: asked after each drawn cell, it makes the lumps that
+    struck the beam, their labels (``source``) and share estimates, feeds the rule whatever has
+    become known by the cell's end, and says whether the rule decided."""
+
+    def __init__(
+        self,
+        rule: Rule,
+        source: str,
+        model: LabelModel,
+        rngs: tuple[np.random.Generator, np.random.Generator],
+        window_kg: float,
+        opened_s: float,
+    ) -> None:
+        self.rule, self.source, self.model = rule, source, model
+        self.lumps_rng, self.labels_rng = rngs  # the lumps alike under every source
+        self.meter = ShareMeter(window_kg)
+        self.opened_s = opened_s
+        self.pending: list[tuple[float, int, Event]] = []
+        self.order = itertools.count()
+        self.interval = 0  # the share estimate's interval being counted
+        self.counts = [0, 0]  # [labels, gangue labels] in it
+        self.decided = False
+        rule.feed(Opened(opened_s))
+
+    def _push(self, event: Event) -> None:
+        heapq.heappush(self.pending, (event.known_s, next(self.order), event))
+
+    def _estimates_until(self, stamp_s: float) -> None:
+        """Share estimates of the intervals that ended by ``stamp_s`` (stand-in source)."""
+        length = self.model.share_interval_s
+        while self.opened_s + (self.interval + 1) * length <= stamp_s:
+            end = self.opened_s + (self.interval + 1) * length
+            total, gangue = self.counts
+            if total:
+                low, high = wilson(gangue, total)
+                share = gangue / total
+                self._push(
+                    ShareEstimate(end, share, low, high, length, end + self.model.latency_s)
+                )
+            self.interval += 1
+            self.counts = [0, 0]
+
+    def __call__(self, cell: DrawnCell) -> bool:
+        share = self.meter.add(cell.material, cell.mass_kg)
+        material = "gangue" if cell.material == GANGUE else "coal"
+        lumps = self.lumps_rng.poisson(self.model.impacts_per_tonne * cell.mass_kg / 1000.0)
+        stamps = np.sort(self.lumps_rng.uniform(cell.start_s, cell.end_s, lumps))
+        for stamp in stamps.tolist():
+            if self.source == "truth":
+                self._push(LabelEvent(stamp, material, 1.0))
+                continue
+            self._estimates_until(stamp)
+            right = bool(self.labels_rng.random() < self.model.accuracy)
+            said = material if right else ("coal" if material == "gangue" else "gangue")
+            confidence = self.model.confidence(self.labels_rng, right)
+            self._push(LabelEvent(stamp, said, confidence, stamp + self.model.latency_s))
+            self.counts[0] += 1
+            self.counts[1] += said == "gangue"
+        if self.source == "truth":
+            self._push(ShareEstimate(cell.end_s, share, share, share, 0.0))
+        else:
+            self._estimates_until(cell.end_s)
+        self._push(TrueShare(cell.end_s, share))
+        self._push(Tick(cell.end_s))
+        while self.pending and self.pending[0][0] <= cell.end_s:
+            event = heapq.heappop(self.pending)[2]
+            if self.rule.feed(event) is not None:
+                self.decided = True
+        return self.decided
+
+
+@dataclass(frozen=True)
+class CavingRun:
+    """One rule, one source, one seed over the face: top-coal recovery and gangue content
+    (fractions), simulated drawing time (s), wall time (s), windows that ran to max_window_s."""
+
+    rule: str
+    source: str
+    seed: int
+    recovery: float
+    gangue_content: float
+    drawing_s: float
+    wall_s: float
+    timed_out: int
+
+
+def run_one(
+    face_params: FaceParams,
+    make_rule: Callable[[], Rule],
+    rule: str,
+    source: str,
+    model: LabelModel,
+    seed: int,
+) -> CavingRun:
+    """Draw the face once with ``make_rule`` closing every window, fed by ``source``."""
+    if source not in SOURCES:
+        raise InputError("source", source, f"must be one of {', '.join(SOURCES)}")
+    start = time.perf_counter()
+    params = face_params.with_changes(seed=seed)
+    face = Face(params)
+    rngs = (np.random.default_rng([seed, 1]), np.random.default_rng([seed, 2]))
+    timed_out = 0
+    for visit in schedule(params):
+        feed = WindowFeed(make_rule(), source, model, rngs, params.share_window_kg, face.clock_s)
+        timed_out += draw_window(face, visit, feed).timed_out
+    return CavingRun(
+        rule,
+        source,
+        seed,
+        face.recovery(),
+        face.gangue_content(),
+        face.clock_s,
+        time.perf_counter() - start,
+        timed_out,
+    )
+
+
+def run_study(
+    face_params: FaceParams,
+    caving: Mapping[str, Any],
+    seeds: Iterable[int],
+    rules: Sequence[str] | None = None,
+    sources: Sequence[str] = SOURCES,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[CavingRun]:
+    """Every rule (``rules``: a subset by name) under every source for every seed; the oracle
+    under the truth only. ``progress(done, total)`` after each run."""
+    makers = rule_factories(caving)
+    model = LabelModel.from_params(caving.get("labels") or {})
+    chosen = list(makers) if rules is None else list(rules)
+    for name in chosen:
+        if name not in makers:
+            raise InputError("rules", name, f"must be among {', '.join(makers)}")
+    plan = [
+        (name, source, seed)
+        for seed in seeds
+        for name in chosen
+        for source in (("truth",) if name == "oracle" else sources)
+    ]
+    runs = []
+    for done, (name, source, seed) in enumerate(plan, 1):
+        runs.append(run_one(face_params, makers[name], name, source, model, seed))
+        if progress is not None:
+            progress(done, len(plan))
+    return runs
+
+
+@dataclass(frozen=True)
+class Summary:
+    """A rule under a source over the seeds: means and 95 % t-intervals of recovery and gangue
+    content (fractions), mean drawing time (s), total wall time (s)."""
+
+    rule: str
+    source: str
+    seeds: int
+    recovery: float
+    recovery_interval: tuple[float, float]
+    gangue_content: float
+    gangue_interval: tuple[float, float]
+    drawing_s: float
+    wall_s: float
+    timed_out: int
+
+
+def _interval(values: np.ndarray) -> tuple[float, float]:
+    mean = float(values.mean())
+    if values.size < 2:
+        return mean, mean
+    half = float(stats.t.ppf(0.975, values.size - 1) * values.std(ddof=1) / math.sqrt(values.size))
+    return mean - half, mean + half
+
+
+def summarise(runs: Sequence[CavingRun]) -> list[Summary]:
+    """Runs grouped by (rule, source), in the order they first appear."""
+    groups: dict[tuple[str, str], list[CavingRun]] = {}
+    for run in runs:
+        groups.setdefault((run.rule, run.source), []).append(run)
+    out = []
+    for (rule, source), group in groups.items():
+        recovery = np.array([r.recovery for r in group])
+        gangue = np.array([r.gangue_content for r in group])
+        out.append(
+            Summary(
+                rule,
+                source,
+                len(group),
+                float(recovery.mean()),
+                _interval(recovery),
+                float(gangue.mean()),
+                _interval(gangue),
+                float(np.mean([r.drawing_s for r in group])),
+                float(sum(r.wall_s for r in group)),
+                sum(r.timed_out for r in group),
+            )
+        )
+    return out
+
+
+def write_chart(summaries: Sequence[Summary], path: str | Path, title: str = "") -> Path:
+    """Top-coal recovery against gangue content, one point per rule and source with its
+    intervals over seeds; the oracle and the field trial marked."""
+    from tail_beam_sim.plotting import pyplot, save_figure
+
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 5.5))
+    markers = {"truth": "o", "stand-in": "s"}
+    rules = list(dict.fromkeys(s.rule for s in summaries if s.rule != "oracle"))
+    colours = {rule: plt.get_cmap("tab10")(k % 10) for k, rule in enumerate(rules)}
+    for s in summaries:
+        x, y = 100 * s.gangue_content, 100 * s.recovery
+        xerr = [[x - 100 * s.gangue_interval[0]], [100 * s.gangue_interval[1] - x]]
+        yerr = [[y - 100 * s.recovery_interval[0]], [100 * s.recovery_interval[1] - y]]
+        oracle = s.rule == "oracle"
+        ax.errorbar(
+            x,
+            y,
+            xerr=xerr,
+            yerr=yerr,
+            fmt="*" if oracle else markers.get(s.source, "o"),
+            markersize=14 if oracle else 7,
+            color="black" if oracle else colours[s.rule],
+            markerfacecolor="none" if s.source == "truth" and not oracle else None,
+            capsize=3,
+            label=f"{s.rule} ({s.source})" if not oracle else "oracle (truth)",
+        )
+    name, recovery, gangue = FIELD_TRIAL
+    ax.plot(100 * gangue, 100 * recovery, "X", color="red", markersize=12, label=name)
+    ax.fill_between(
+        [3.0, 5.0], 75.0, 90.0, color="0.9", zorder=0, label="published range, 10-12 m seams"
+    )
+    ax.set_xlabel("gangue content of the drawn mass, %")
+    ax.set_ylabel("top-coal recovery, %")
+    ax.set_title(
+        title or "Closing rules: top-coal recovery against gangue content (open: truth-fed)"
+    )
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right", ncol=2)
+    return save_figure(fig, path, 120, "--chart")

@@ -1,0 +1,153 @@
+"""The caving study: the oracle as the drawing model closes it, perfect labels as good as the
+truth, determinism by seed, the stand-in labels as stated, and `tail-beam caving`."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+
+import numpy as np
+import pytest
+
+from tail_beam_id.caving.rules import rule_factories
+from tail_beam_id.cli import caving_cmd
+from tail_beam_id.study.caving import LabelModel, run_one, run_study, summarise, wilson
+from tail_beam_sim.physics.face import (
+    FaceParams,
+    close_at_true_share,
+    load_face_parameters,
+    run_face,
+)
+
+
+def small_face(**changes) -> tuple[FaceParams, dict]:
+    """Three supports of the shipped face, coarse cells (fast), and the shipped caving section."""
+    params = load_face_parameters()
+    face = FaceParams.from_params(params).with_changes(
+        supports=3, group_size=3, cell_size_m=0.25, **changes
+    )
+    return face, params["caving"]
+
+
+def test_wilson_interval_of_a_share():
+    """0 of 10: [0, z^2 / (n + z^2)] = [0, 0.2775]; 5 of 10 is symmetric about 0.5."""
+    low, high = wilson(0, 10)
+    assert low == 0.0 and high == pytest.approx(3.8415 / 13.8415, rel=1e-4)
+    low, high = wilson(5, 10)
+    assert low + high == pytest.approx(1.0) and high == pytest.approx(0.7634, abs=1e-4)
+    for total in range(1, 200):  # the share itself always lies inside, rounding and all
+        assert wilson(total, total)[1] == 1.0 and wilson(0, total)[0] == 0.0
+
+
+def test_the_study_oracle_closes_where_the_drawing_model_closes():
+    """The oracle fed by the study's truth gives the recovery and gangue content of the
+    drawing model closed at the same true share: the study adds nothing to the draw."""
+    face, caving = small_face()
+    model = LabelModel.from_params(caving["labels"])
+    run = run_one(face, rule_factories(caving)["oracle"], "oracle", "truth", model, 4)
+    direct = run_face(
+        face.with_changes(seed=4),
+        close_at_true_share(caving["oracle_level"], face.share_window_kg),
+    )
+    assert run.recovery == direct.recovery and run.gangue_content == direct.gangue_content
+
+
+def test_perfect_prompt_labels_decide_as_the_truth_does():
+    """Labels always right with no latency give the rules that count labels the truth's result
+    (the SPRT weighs confidences, which the truth states as 1)."""
+    face, caving = small_face()
+    labels = dict(caving["labels"], accuracy=1.0, latency_s=0.0)
+    model = LabelModel.from_params(labels)
+    makers = rule_factories(caving)
+    for rule in ("first_gangue", "share_0.333", "share_0.2"):
+        truth = run_one(face, makers[rule], rule, "truth", model, 2)
+        stand_in = run_one(face, makers[rule], rule, "stand-in", model, 2)
+        assert (truth.recovery, truth.gangue_content) == (
+            stand_in.recovery,
+            stand_in.gangue_content,
+        )
+
+
+def test_wrong_labels_cost_first_gangue_its_coal():
+    """With 5 % wrong labels at tens of lumps a second, first gangue closes each window on a
+    wrong label within seconds: far less top coal than on the truth."""
+    face, caving = small_face()
+    runs = run_study(face, caving, [0], rules=["first_gangue"])
+    by_source = {r.source: r for r in runs}
+    assert by_source["stand-in"].recovery < 0.5 * by_source["truth"].recovery
+
+
+def test_the_study_is_deterministic_by_seed():
+    """The same seeds give the same runs (wall time aside); another seed another face."""
+    face, caving = small_face()
+
+    def strip(runs):
+        return [dataclasses.replace(r, wall_s=0.0) for r in runs]
+
+    a = run_study(face, caving, [0, 1], rules=["sprt", "oracle"])
+    b = run_study(face, caving, [0, 1], rules=["sprt", "oracle"])
+    assert strip(a) == strip(b)
+    assert a[0].recovery != a[3].recovery  # seed 0 against seed 1, sprt truth
+    summary = summarise(a)
+    assert [(s.rule, s.source, s.seeds) for s in summary] == [
+        ("sprt", "truth", 2),
+        ("sprt", "stand-in", 2),
+        ("oracle", "truth", 2),
+    ]
+
+
+def test_stand_in_confidences_have_the_stated_means():
+    """The Beta draws' means are confidence_right and confidence_wrong, all in [0.5, 1]."""
+    model = LabelModel.from_params(
+        dict(
+            load_face_parameters()["caving"]["labels"], confidence_right=0.9, confidence_wrong=0.7
+        )
+    )
+    rng = np.random.default_rng(0)
+    right = np.array([model.confidence(rng, True) for _ in range(4000)])
+    wrong = np.array([model.confidence(rng, False) for _ in range(4000)])
+    assert right.mean() == pytest.approx(0.9, abs=0.01)
+    assert wrong.mean() == pytest.approx(0.7, abs=0.01)
+    assert right.min() >= 0.5 and wrong.max() <= 1.0
+
+
+def parse(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="tail-beam")
+    caving_cmd.register(parser.add_subparsers(dest="command"))
+    return parser.parse_args(["caving", *argv])
+
+
+def test_the_caving_verb_prints_its_table_and_writes_its_chart(tmp_path, capsys):
+    """`tail-beam caving` on 3 supports: a row per rule and source with intervals, the field
+    trial, the speed over real time, and the chart's file."""
+    pytest.importorskip("matplotlib")
+    chart = tmp_path / "sub" / "chart.png"
+    args = parse(
+        [
+            "--supports",
+            "3",
+            "--seeds",
+            "2",
+            "--rules",
+            "first_gangue,oracle",
+            "--chart",
+            str(chart),
+        ]
+    )
+    assert caving_cmd.run(args) == 0
+    out = capsys.readouterr().out
+    assert "first_gangue    stand-in      2" in out and "oracle          truth         2" in out
+    assert "Tashan 8222 field trial: recovery 80.53 %, gangue content 4.00 %" in out
+    assert "x real time" in out and chart.stat().st_size > 0
+
+
+def test_the_caving_verb_names_bad_options():
+    """An unknown source or rule, or seeds out of range: InputError naming the option."""
+    from tail_beam_sim.errors import InputError
+
+    with pytest.raises(InputError, match="--sources = 'labels'"):
+        caving_cmd.run(parse(["--sources", "labels", "--chart", ""]))
+    with pytest.raises(InputError, match="rules = 'second_gangue'"):
+        caving_cmd.run(parse(["--rules", "second_gangue", "--chart", "", "--supports", "1"]))
+    with pytest.raises(InputError, match="--seeds = 0"):
+        caving_cmd.run(parse(["--seeds", "0", "--chart", ""]))
