@@ -17,7 +17,7 @@ other signals still tell the materials apart), capped, and say ``sensor_timing``
 ``outside_training``. (A share of 20 % from the 10th impact on tripped
 at its first look on 2 unusual of 10, which a foreign support's base rate gives often: 10 of 225
 foreign recordings with agreeing clocks were capped so, against 4 with the tail; README,
-Supports other than the shipped one.) """
+Supports other than the shipped one.)"""
 
 from __future__ import annotations
 

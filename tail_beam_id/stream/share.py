@@ -3,8 +3,9 @@ beam is rock, read from the impacts' labels (docs/gangue_share.md).
 
 Basis: the share by count, the fraction of the lumps striking in the interval that are gangue.
 
-* Separable impacts (few of the interval's labels overlap another impact): the share is the
-  fraction of labels that say gangue, with its Wilson 95 % interval (``method: labels``).
+* Separable impacts (a sparse flow: few labels per second, few of them overlapping another
+  impact): the share is the fraction of labels that say gangue, with its Wilson 95 % interval
+  (``method: labels``).
 * Dense flow (responses overlap and per-impact labels are often wrong): the share is the
   mixture proportion that makes the labels' scores (their logits of gangue) likeliest, given
   how coal and gangue impacts score in that regime, learnt on simulated flows at 5-200 lumps/s
@@ -35,6 +36,8 @@ BASIS = "count"  # the share is the fraction of lumps that are gangue, by number
 Z_95 = 1.959963984540054  # two-sided 95 % normal quantile
 MODEL_PATH = Path(__file__).resolve().parent.parent / "models" / "gangue_share.json"
 SCORE_LIMIT = 12.0  # label scores (logits of gangue) are clipped to +-this
+# Flow density classes of the score model: labels per second below, between and above these.
+RATE_CLASS_EDGES_PER_S = (15.0, 40.0, 80.0, 150.0)
 SHARE_GRID = 1000  # the mixture estimate's share grid: steps from 0 to 1
 CHI2_95_1DOF = 3.841458820694124  # 95 % quantile of chi-square with one degree of freedom
 
@@ -51,6 +54,13 @@ GANGUE_SHARE = Section(
             "s",
             high=10.0,
             default=0.1,
+        ),
+        positive(
+            "max_labels_per_s",
+            "Above this many labels per second of interval the mixture estimate decides.",
+            "1/s",
+            high=10000.0,
+            default=15.0,
         ),
         number(
             "max_overlap_fraction",
@@ -78,6 +88,7 @@ class ShareConfig:
     interval_s: float = 1.0
     hop_s: float = 0.5
     settle_s: float = 0.1
+    max_labels_per_s: float = 15.0
     max_overlap_fraction: float = 0.25
     min_labels: int = 1
 
@@ -193,11 +204,14 @@ def label_score(label: Label) -> float:
     return float(np.clip(value, -SCORE_LIMIT, SCORE_LIMIT))
 
 
-def regime_of(label: Label) -> str:
+def regime_of(label: Label, labels_per_s: float) -> str:
     """The group of labels whose scores share one distribution: the signals the label rested on
-    (which network decided it) and whether its impact overlapped another, e.g.
-    ``jack_pressure+rebound_velocity/overlap``."""
-    return f"{'+'.join(sorted(label.signals))}/{'overlap' if label.overlap else 'alone'}"
+    (which network decided it), whether its impact overlapped another, and how dense the flow
+    is (labels per second, in classes split at RATE_CLASS_EDGES_PER_S), e.g.
+    ``jack_pressure+rebound_velocity/overlap/2``."""
+    rate_class = int(np.searchsorted(RATE_CLASS_EDGES_PER_S, labels_per_s, side="right"))
+    overlap = "overlap" if label.overlap else "alone"
+    return f"{'+'.join(sorted(label.signals))}/{overlap}/{rate_class}"
 
 
 @dataclass(frozen=True)
@@ -299,11 +313,16 @@ def estimate_share(
     k = sum(lab.material == "gangue" for lab in inside)
     overlapping = sum(bool(lab.overlap) for lab in inside)
     signals = tuple(sorted({s for lab in inside for s in lab.signals}))
-    separable = n >= config.min_labels and overlapping <= config.max_overlap_fraction * n
+    separable = (
+        n >= config.min_labels
+        and n <= config.max_labels_per_s * (end_s - start_s)
+        and overlapping <= config.max_overlap_fraction * n
+    )
     likelihoods = None
     if not separable and model is not None:
         scores = np.array([label_score(lab) for lab in inside])
-        likelihoods = model.likelihoods(scores, [regime_of(lab) for lab in inside])
+        rate = n / (end_s - start_s)
+        likelihoods = model.likelihoods(scores, [regime_of(lab, rate) for lab in inside])
     if likelihoods is None:
         low, high = wilson_interval(k, n)
         p = k / n

@@ -18,6 +18,7 @@ import argparse
 import json
 import sys
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -25,7 +26,13 @@ import numpy as np
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label, match_stamps, match_tolerance_s
 from tail_beam_id.stream.replay import replay
-from tail_beam_id.stream.share import MODEL_PATH, SCORE_LIMIT, label_score, regime_of
+from tail_beam_id.stream.share import (
+    MODEL_PATH,
+    SCORE_LIMIT,
+    ShareConfig,
+    label_score,
+    regime_of,
+)
 from tail_beam_id.study.dataset import evaluation_params
 from tail_beam_id.study.flow import FlowRecording, record_sim_flow
 from tail_beam_id.study.supports import draw_support, support_ranges
@@ -35,6 +42,7 @@ TRAINING_SEED = 7700  # training flows: this + n (the evaluation's flows lie far
 RATES_PER_S = (5.0, 20.0, 50.0, 100.0, 200.0)  # lumps/s the training flows cycle through
 SCORE_BINS = 24  # histogram bins over [-SCORE_LIMIT, SCORE_LIMIT]
 PRIOR_COUNT = 0.5  # added to every bin: no score is impossible under either material
+DEFAULT_INTERVAL_S = ShareConfig().interval_s  # the local label rate is counted over this, s
 MIN_LABELS = 40  # a regime with fewer coal or gangue labels is left out (its labels counted)
 
 
@@ -81,17 +89,41 @@ def identify_flow(recording: FlowRecording, vibration: bool, method: str | None 
     )
 
 
-def scored_labels(
-    recording: FlowRecording, labels: Sequence[Label]
-) -> list[tuple[str, float, bool]]:
-    """(regime, score, is gangue) of every label paired with a lump."""
+def scored_labels(recording: FlowRecording, labels: Sequence[Label]) -> list[dict[str, Any]]:
+    """Every label paired with a lump: its signals, overlap, score, the lump's material (is it
+    gangue) and the labels per second around it (within half an interval either side)."""
     tolerance = match_tolerance_s(recording.params["identification"])
-    matching = match_stamps(
-        list(recording.lump_stamps_s()), [lab.impact_stamp_s for lab in labels], tolerance
-    )
+    stamps = np.array([lab.impact_stamp_s for lab in labels])
+    matching = match_stamps(list(recording.lump_stamps_s()), list(stamps), tolerance)
     gangue = recording.gangue()
+    half = 0.5 * DEFAULT_INTERVAL_S
+    rows = []
+    for i, j in matching.pairs:
+        around = np.count_nonzero((stamps >= stamps[j] - half) & (stamps < stamps[j] + half))
+        rows.append(
+            {
+                "signals": sorted(labels[j].signals),
+                "overlap": bool(labels[j].overlap),
+                "score": label_score(labels[j]),
+                "gangue": bool(gangue[i]),
+                "labels_per_s": around / DEFAULT_INTERVAL_S,
+            }
+        )
+    return rows
+
+
+def regime_rows(rows: Sequence[Mapping[str, Any]]) -> list[tuple[str, float, bool]]:
+    """(regime, score, is gangue) of each scored label."""
     return [
-        (regime_of(labels[j]), label_score(labels[j]), bool(gangue[i])) for i, j in matching.pairs
+        (
+            regime_of(
+                Label(0.0, "coal", 0.5, "", signals=tuple(r["signals"]), overlap=r["overlap"]),
+                r["labels_per_s"],
+            ),
+            float(r["score"]),
+            bool(r["gangue"]),
+        )
+        for r in rows
     ]
 
 
@@ -121,13 +153,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--flows", type=int, default=24)
     parser.add_argument("--duration-s", type=float, default=6.0)
     parser.add_argument("--out", default=str(MODEL_PATH))
+    parser.add_argument(
+        "--cache", help="JSON file keeping the scored labels: read when it exists (a refit)"
+    )
     args = parser.parse_args(argv)
     params = load_parameters([])
-    rows: list[tuple[str, float, bool]] = []
-    for recording in training_flows(params, args.flows, args.duration_s):
-        for vibration in (True, False):
-            rows += scored_labels(recording, identify_flow(recording, vibration))
-    model = fit_densities(rows)
+    if args.cache and Path(args.cache).exists():
+        rows = json.loads(Path(args.cache).read_text())
+    else:
+        rows = []
+        for recording in training_flows(params, args.flows, args.duration_s):
+            for vibration in (True, False):
+                rows += scored_labels(recording, identify_flow(recording, vibration))
+        if args.cache:
+            Path(args.cache).write_text(json.dumps(rows))
+    model = fit_densities(regime_rows(rows))
     model["training"] = {
         "flows": args.flows,
         "duration_s": args.duration_s,

@@ -18,10 +18,12 @@ the sum of its responses to each. :class:`FlowSimulator` is a
   (:class:`Contribution`). Once its particle has left the plate for the last time the
   contribution is a free response, and it is folded into one aggregate state that is
   propagated exactly (the structure's eigen-decomposition).
-* Each contact stamp starts an epoch (:class:`FlowEpoch`): the aggregate state at its start
-  propagated freely, plus the contributions still in contact. Sampling a time costs the free
-  propagation plus the few contributions active then, so a run costs in proportion to its
-  contacts plus its samples. The sensor stages are the stream simulator's, unchanged.
+* Each contact's start and end starts an epoch (:class:`FlowEpoch`): one free state at its
+  start propagated exactly, plus the trajectories of the contacts in progress. Sampling a time
+  costs the free propagation plus the few contacts in progress then, so a run costs in
+  proportion to its contacts plus its samples. A sensor value averaged over the period before
+  its instant reads the part of the period before its epoch from the epoch before. The sensor
+  stages are the stream simulator's, unchanged.
 """
 
 from __future__ import annotations

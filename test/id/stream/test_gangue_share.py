@@ -68,7 +68,8 @@ def two_bin_model(regime: str = "vibration/overlap", wrong: float = 0.0) -> Scor
     edges = np.array([-12.0, 0.0, 12.0])
     coal = np.array([1.0 - wrong, wrong]) / 12.0
     gangue = np.array([wrong, 1.0 - wrong]) / 12.0
-    return ScoreModel(edges, {regime: (np.maximum(coal, 1e-12), np.maximum(gangue, 1e-12))})
+    pair = (np.maximum(coal, 1e-12), np.maximum(gangue, 1e-12))
+    return ScoreModel(edges, {f"{regime}/{k}": pair for k in range(5)})
 
 
 def scored(stamp_s: float, gangue_like: bool) -> Label:
@@ -120,6 +121,8 @@ def test_labels_of_a_regime_the_model_does_not_know_are_counted():
     """Labels of a regime the score model lacks fall back to the count."""
     labels = [scored(0.01 * k, k % 2 == 0) for k in range(10)]
     share = estimate_share(labels, 0.0, 1.0, CONFIG, two_bin_model("imu/overlap"))
+    assert share.basis_method == "labels"
+    share = estimate_share(labels, 0.0, 1.0, CONFIG, two_bin_model("vibration/alone"))
     assert share.basis_method == "labels" and share.share == pytest.approx(0.5)
 
 
@@ -129,7 +132,8 @@ def test_the_score_uses_the_uncapped_logit_else_the_confidence():
     assert label_score(scored(0.0, True)) == 3.0
     plain = Label(0.0, "gangue", 0.8, "threshold")
     assert label_score(plain) == pytest.approx(math.log(4.0))
-    assert regime_of(plain) == "imu/alone"
+    assert regime_of(plain, 10.0) == "/alone/0"
+    assert regime_of(scored(0.0, True), 200.0) == "vibration/overlap/4"
 
 
 def test_no_labels_and_no_model_say_nothing():
