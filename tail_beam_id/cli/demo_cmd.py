@@ -67,6 +67,28 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--namespace", default="", help="run the support under this namespace, e.g. /support_07"
     )
+    parser.add_argument(
+        "--face",
+        type=int,
+        nargs="?",
+        const=3,
+        metavar="N",
+        help="instead: a group of N supports (default 3) drawn one after another under "
+        "/support_001 ..., their windows closed by one caving_node (docs/caving.md)",
+    )
+    parser.add_argument("--rule", help="with --face: the closing rule (default: caving_node.rule)")
+    parser.add_argument(
+        "--config",
+        action="append",
+        metavar="YAML",
+        help="with --face: a parameter file applied to every node (flow, caving, ...); repeatable",
+    )
+    parser.add_argument(
+        "--check-offline",
+        action="store_true",
+        help="with --face: afterwards, identify each support's bag offline and feed the same rule "
+        "its labels: the decisions must be the live ones",
+    )
     parser.set_defaults(func=run)
 
 
@@ -217,6 +239,10 @@ def label_text(truth: Mapping[str, Any], label: Label | None) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.face is not None:
+        from tail_beam_id.cli.face_demo import run_face
+
+        return run_face(args)
     from tail_beam_id.ros.id_node import UNDECIDED_AFTER_S, IdNode
     from tail_beam_sim import topics
     from tail_beam_sim.ros.recorder_node import RecorderNode, default_bag_path

@@ -51,6 +51,8 @@ from tail_beam_sim.ros.params import (
     refuse_runtime_changes,
 )
 from tail_beam_sim.ros.spin import ForeignTypeWatch, run_node
+from tail_beam_sim.ros.usage import NodeUsage
+from tail_beam_sim.spec import CAVING
 
 WINDOW_STATES = ("waiting", "open", "closed")
 _CDR_STAMP = {0: struct.Struct(">iI"), 1: struct.Struct("<iI")}  # encapsulation byte 1: endian
@@ -109,11 +111,12 @@ class CavingNode(Node):
         )
         checked = CAVING_NODE.check(params.get("caving_node", {}))
         makers = rule_factories(params.get("caving", {}))
+        self.oracle_level = CAVING.check(params.get("caving", {}))["oracle_level"]
         rule = checked["rule"]
         if rule not in makers:
             raise InputError("caving_node.rule", rule, f"must be one of {', '.join(makers)}")
         self.rule_name = rule
-        self._make_rule = makers[rule]
+        self.make_rule = makers[rule]
         supports = list(checked["supports"]) or [""]
         for k, namespace in enumerate(supports):
             if namespace and not namespace.startswith("/"):
@@ -266,7 +269,7 @@ class CavingNode(Node):
             return
         w.publishers[topics.WINDOW_CMD].publish(String(data=json.dumps({"action": "open"})))
         w.state, w.opened_s = "open", w.clock_s
-        w.rule = self._make_rule()
+        w.rule = self.make_rule()
         w.rule.feed(Opened(w.opened_s))
         self._state(w, "open", w.opened_s, f"window {w.index + 1} of {len(self.windows)} opens")
 
@@ -297,9 +300,23 @@ class CavingNode(Node):
         self.get_logger().info(f"{w.name}: window {state} at {stamp_s:.3f} s: {why}")
 
 
+USAGE = NodeUsage(
+    executable="caving_node",
+    summary="The caving windows' controller: opens each support's window on window_cmd and "
+    "closes it when its closing rule decides on the support's label and gangue_share "
+    "(docs/caving.md).",
+    config_files=("caving_node.yaml",),
+    examples=(
+        "caving_node --ros-args -p caving_node.rule:=sprt            # the node's own namespace",
+        'caving_node --ros-args -p "caving_node.supports:=[/support_001, /support_002]"',
+        "caving_node --ros-args -p caving_node.rule:=oracle -p caving.oracle_level:=0.3",
+    ),
+)
+
+
 def main(args: list[str] | None = None) -> int:
     """Run caving_node until shut down."""
-    return run_node(CavingNode, "caving_node", args)
+    return run_node(CavingNode, USAGE, args)
 
 
 if __name__ == "__main__":

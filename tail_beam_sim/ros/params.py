@@ -164,7 +164,14 @@ def require_kind(name: str, value: Any, default: Any) -> None:
         raise InputError(name, value, f"{kind} (its default: {shorten(default, 40)})")
 
 
-NODE_CONFIG_FILES = ("sim_node.yaml", "id_node.yaml", "recorder.yaml", "replay.yaml")
+NODE_CONFIG_FILES = (
+    "sim_node.yaml",
+    "id_node.yaml",
+    "recorder.yaml",
+    "replay.yaml",
+    "caving_node.yaml",
+    "face.yaml",
+)
 MAX_NAMED = 10  # most unused parameter names one log line lists
 
 

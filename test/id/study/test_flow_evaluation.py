@@ -95,3 +95,35 @@ def test_bad_flow_options_are_refused_in_one_line(capsys, argv, field):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and field in err
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="in a dense flow the identifier's overlap flag depends on how the streams were "
+    "chunked (one label of 131 here: overlap and a 0.6 cap in one chunking, neither in the "
+    "other), so live and offline labels, and the shares resting on them, can differ",
+)
+def test_a_dense_flows_shares_do_not_depend_on_how_the_streams_were_chunked():
+    """A 50 lumps/s flow replayed in 10 ms and in 3.7 ms chunks (as id_node's batches differ
+    from replay's) gives the same shares, the mixture estimate's among them."""
+    from tail_beam_id.stream.replay import replay
+    from tail_beam_id.stream.share_reader import SharingIdentifier
+
+    params = load_parameters([])
+    recording = record_sim_flow(params, 50.0, 3.0, 1.0, 1.0, 0.7, seed=9002)
+    runs = []
+    for chunk_s in (0.01, 0.0037):
+        identifier = SharingIdentifier(
+            None, params=recording.params["identification"], model_params=recording.params
+        )
+        replay(
+            identifier,
+            recording.pressure,
+            recording.imu,
+            recording.rebounds,
+            chunk_s=chunk_s,
+            vibration=recording.vibration,
+        )
+        runs.append([s.to_json() for s in identifier.take_shares()])
+    assert len(runs[0]) >= 3 and runs[0] == runs[1]
+    assert any('"method": "mixture"' in text for text in runs[0])
