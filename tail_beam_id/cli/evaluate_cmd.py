@@ -13,7 +13,13 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from tail_beam_id.methods import available_methods
-from tail_beam_id.study.dataset import FOREIGN_SCENES, SCENE_SETS, evaluation_params, settings
+from tail_beam_id.study.dataset import (
+    FOREIGN_RANGES,
+    FOREIGN_SCENES,
+    SCENE_SETS,
+    evaluation_params,
+    settings,
+)
 from tail_beam_id.study.evaluation import (
     Summary,
     format_confusion,
@@ -386,7 +392,7 @@ def foreign_paper_line(s: Summary, records: Sequence[Record]) -> str:
     worst = min(shares, key=lambda k: (shares[k], k))
     below = sum(1 for v in shares.values() if v < PAPER_TARGET)
     return (
-        f"paper scene on {s.scene_set} supports {s.setting} {s.method}: "
+        f"paper scene on {FOREIGN_RANGES[s.scene_set]} supports {s.setting} {s.method}: "
         f"{100 * s.accuracy:.1f}% (CI "
         f"{100 * s.accuracy_ci[0]:.1f}-"
         f"{100 * s.accuracy_ci[1]:.1f}, n {s.n}); worst support #{worst} "

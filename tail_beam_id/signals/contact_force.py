@@ -9,21 +9,26 @@ overlaps the pulse, and how much shorter than the contact the best half-sine com
 on the support. A fit over the forces a Hertz contact with hysteresis can make tells the end of
 the force wherever the modes lie.
 
-How: a sphere on a stiff plate with the force K d^1.5 (1 + chi d'/v0) moves, in time and
-penetration scaled by the contact's own scales, as d'' = -d^1.5 (1 + chi d') from d = 0,
-d' = 1: one force shape per hysteresis factor chi (chi 0 a symmetric pulse, chi 8 one that
-peaks within a third of its span and tails off), whatever the law (each law is a chi) and
-the particle (its mass, stiffness and speed set the scales). Each shape is tabulated once
+How: a sphere on a stiff plate with the force K d^n (1 + chi d'/v0) moves, in time and
+penetration scaled by the contact's own scales, as d'' = -d^n (1 + chi d') from d = 0, d' = 1:
+one force shape per exponent n (1.5 Hertz's sphere, 1 a linear contact: a plate that gives way
+under a heavy particle) and hysteresis factor chi (chi 0 a symmetric pulse, chi 8 one that
+peaks within a third of its span and tails off), whatever the law (each law is a chi) and the
+particle (its mass, stiffness and speed set the scales). Each shape is tabulated once
 (:func:`pulse_shapes`), its time scaled so that the force lasts one unit above ``END_FRACTION``
 of its peak. For every candidate (shape, duration, start), the acceleration is fitted by least
 squares with the force itself (the rigid beam's and the modes' instantaneous share), the force
 convolved with each ringing pole read from the ring-down (exactly, the force being piecewise
-linear between samples: a first-order recursion per pole, :func:`pole_responses`) and a
-quadratic for the beam's sway; the candidate with the least residual gives the duration (the
-force above ``END_FRACTION`` of its peak), the start, the rise to the peak and chi; the
-residual, in units of the channel's noise, says how well the model held.
+linear between samples: a recursion per pole, :func:`pole_responses`) and a quadratic for the
+beam's sway. A coarse grid of every shape, then every shape refined about its own best (the
+fit is sharp in all three: a shape a grid step off its duration explains less than a wrong
+shape aligned by chance); the candidate with the least residual gives the duration (the force
+above ``END_FRACTION`` of its peak), the start, the rise to the peak, the shape; the residual,
+in units of the channel's noise and as a share of the pulse's power, says how well the model
+held.
 
-Numpy / scipy only: every candidate solved at once, a millisecond or so per impact.
+Numpy / scipy only, every candidate of a grid solved at once; test/bench/bench_contact_readout.py
+times it against the half-sine fit.
 """
 
 from __future__ import annotations
@@ -37,9 +42,6 @@ from scipy.integrate import solve_ivp
 from scipy.signal import lfilter
 
 END_FRACTION = 0.05  # the force "ends" when it falls below this fraction of its peak
-# Hysteresis factors of the shapes tried: the laws' chi for restitution 0.1-1 (Lankarani-
-# Nikravesh 0-0.75, Hunt-Crossley 0-1.35, Gonthier 0-9.9, Flores 0-14) within the range that
-# changes the force's shape above END_FRACTION (beyond chi 8 it barely changes).
 # Hertz's exponent and the hysteresis factors of the shapes tried. 1.5: a sphere's contact, chi
 # the laws' for restitution 0.1-1 (Lankarani-Nikravesh 0-0.75, Hunt-Crossley 0-1.35, Gonthier
 # 0-9.9, Flores 0-14) within the range that changes the force above END_FRACTION (beyond chi 8
@@ -54,7 +56,6 @@ COARSE_DURATIONS = 10
 START_STEPS = np.array([-0.5, 0.5])  # coarse starts: the half-sine's + these x the period
 REFINE_DURATIONS = np.linspace(-0.5, 0.5, 3)  # refined: the best's x exp(these x coarse step)
 REFINE_STARTS = np.array([-1.0, 0.0, 1.0]) / 3.0  # ... and + these x the period
-REFINED_SHAPES = 19  # the shapes refined: those whose coarse best explained the most
 
 
 @dataclass(frozen=True)
@@ -223,11 +224,11 @@ def read_force(
     shapes = pulse_shapes()
     ratio = math.log(DURATION_FACTORS[1] / DURATION_FACTORS[0]) / (COARSE_DURATIONS - 1)
 
-    # Every shape, duration and start of the coarse grid; then the REFINED_SHAPES best shapes
-    # once more about their own best, durations half a coarse step and starts a quarter of a
-    # sample apart. The fit is sharp in all three (a shape a coarse step off its duration or
-    # half a sample off its start explains less than a wrong shape aligned by chance), so
-    # several shapes are refined, not only the coarse winner.
+    # Every shape, duration and start of the coarse grid; then every shape once more about its
+    # own best, durations half a coarse step and starts a third of a sample apart. The fit is
+    # sharp in all three (a shape a coarse step off its duration or half a sample off its start
+    # explains less than a wrong shape aligned by chance), so every shape is refined, not only
+    # the coarse winner.
     low, high = (duration_s * f for f in DURATION_FACTORS)
     high = max(min(high, max_duration_s), low)
     durations = np.exp(np.linspace(math.log(low), math.log(high), COARSE_DURATIONS))
@@ -239,15 +240,12 @@ def read_force(
     scores = _scores(
         index, y, sway, poles, period_s, node_t, shape.ravel(), duration.ravel(), start.ravel()
     ).reshape(count, -1)
+    rows = np.arange(count)
     best = np.argmax(scores, axis=1)
-    rows = np.argsort(scores[np.arange(count), best])[::-1][:REFINED_SHAPES]
-    best = best[rows]
     grid = np.meshgrid(rows, REFINE_DURATIONS * ratio, REFINE_STARTS * period_s, indexing="ij")
     shape = grid[0].ravel()
-    chosen = {int(r): k for k, r in enumerate(rows)}
-    which = np.array([chosen[int(r)] for r in shape])
-    duration = duration[rows, best][which] * np.exp(grid[1].ravel())
-    start = start[rows, best][which] + grid[2].ravel()
+    duration = duration[rows, best][shape] * np.exp(grid[1].ravel())
+    start = start[rows, best][shape] + grid[2].ravel()
     scores = _scores(index, y, sway, poles, period_s, node_t, shape, duration, start)
     k = int(np.argmax(scores))
     shape, duration, start, score = (

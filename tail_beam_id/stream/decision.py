@@ -19,6 +19,7 @@ from typing import Any
 from tail_beam_id.methods import Decision, Method
 from tail_beam_id.methods.inputs import IMPACT_X, IMPACT_Y, POINT_USED
 from tail_beam_id.signals.contact_fit import clipped_near, fit_contact, half_periods, unreliable
+from tail_beam_id.signals.contact_force import pulse_shapes
 from tail_beam_id.signals.features import (
     VIBRATION_CHANNEL,
     BeamModel,
@@ -91,6 +92,7 @@ class ImpactDecider:
         self.camera = camera
         # Where the camera saw the particles strike (topic impact_point), when it reports it.
         self.points: ImpactPoints | None = None
+        pulse_shapes()  # the force read-out's shapes tabulated now, not in the first decision
 
     def decide(self, impact: PendingImpact) -> Label | None:
         """The label of ``impact``, now that its data are in; None when it is taken for the

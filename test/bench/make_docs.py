@@ -164,11 +164,21 @@ FAMILIES: tuple[Family, ...] = (
     Family(
         "contact",
         "Contact duration: what reading it from the pulse buys",
-        "networks retrained without the contact duration, with it read from the pulse, and "
-        "with the true one",
+        "networks retrained without the contact duration, with it read from the pulse (the "
+        "half-sine or the force read-out), and with the true one",
         "python test/bench/bench_contact.py",
         "python test/bench/bench_contact.py --varied 400 --stream 150 --supports 3",
         3.0,
+    ),
+    Family(
+        "contact_readout",
+        "Contact read-out on supports unlike the shipped one",
+        "read / true contact duration of the half-sine and of the force read-out over 25-100 mm "
+        "particles on the nominal support and three with other mode spacings and masses; the "
+        "read-outs' cost",
+        "python test/bench/bench_contact_readout.py --count 100",
+        "python test/bench/bench_contact_readout.py --count 40",
+        2.0,
     ),
     Family(
         "oracle",

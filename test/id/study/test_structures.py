@@ -67,3 +67,41 @@ def test_a_structure_draw_is_repeatable_and_leaves_the_foreign_draws_alone(param
     assert with_modes.values == without.values
     assert not any(k.startswith("structure_") for k in without.values)
     assert math.isfinite(a.values["structure_held_at_m"])
+
+
+def test_evaluate_scores_the_structures_sets(capsys):
+    """`tail-beam evaluate --sets structures,structures_paper`: both sets are scored, each with
+    its target line (the paper scene's on every support)."""
+    import argparse
+
+    from tail_beam_id.cli import evaluate_cmd
+
+    parser = argparse.ArgumentParser()
+    evaluate_cmd.register(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(
+        [
+            "evaluate",
+            "--sets",
+            "structures,structures_paper",
+            "--count",
+            "2",
+            "--noise",
+            "1",
+            "--rates",
+            "nominal",
+            "--methods",
+            "threshold",
+            "--profiles",
+            "nominal",
+        ]
+    )
+    assert args.func(args) == 0
+    out = capsys.readouterr().out
+    assert "structures       nominal/x1/nominal" in out
+    assert "structures_paper nominal/x1/nominal" in out
+    lines = [x.strip() for x in out.splitlines()]
+    assert any(x.startswith("structures nominal/x1/nominal threshold") for x in lines)
+    assert any(
+        x.startswith("paper scene on structures supports nominal/x1/nominal threshold")
+        for x in lines
+    )
