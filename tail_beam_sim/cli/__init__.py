@@ -22,7 +22,6 @@ import signal
 import sys
 import threading
 from collections.abc import Sequence
-from importlib.metadata import entry_points
 from typing import Any
 
 from tail_beam_sim.errors import InputError
@@ -85,6 +84,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(
         dest="command", required=True, parser_class=OneLineParser, metavar="COMMAND"
     )
+    # imported here: importlib.metadata loads the email package, before main()'s Ctrl-C guard
+    from importlib.metadata import entry_points
+
     verbs = {ep.name: ep for ep in entry_points(group=VERB_GROUP)}
     if not verbs:
         parser.exit(
@@ -118,8 +120,14 @@ def _run(argv: Sequence[str] | None) -> int:
 
         args = build_parser().parse_args(argv)
         command = args.command
+        if _Interrupt.received:
+            # a Ctrl-C during the imports that an optional import's ``except ImportError`` took
+            # (an extension initialising turns it into an ImportError): honoured now
+            raise KeyboardInterrupt
         try:
             status = int(args.func(args) or 0)
+            if _Interrupt.received:  # taken on the way, as above: the run did not finish
+                raise KeyboardInterrupt
             sys.stdout.flush()  # what is still buffered fails here, not at exit
             return status
         except InputError as exc:
