@@ -48,6 +48,8 @@ def features(params):
 def test_without_the_point_the_decision_is_the_models_without_it(
     params, shipped_point_models, features
 ):
+    """With the point the decision is the point's model's, its logit without the point and its
+    delay check kept; without it, the model without the point's."""
     method = build_method("statistical", params)
     bare = {k: v for k, v in features.items() if k not in (IMPACT_X, IMPACT_Y)}
     without = method.decide(bare)

@@ -62,6 +62,8 @@ def chunk_records(chunk, extra_points=()) -> list:
 
 
 def test_points_round_trip_through_a_bag_and_only_when_recorded(tmp_path):
+    """Points read back from a bag as written (stamp, frame, coordinates); a bag without points
+    has no impact_point connection."""
     with_points, without = recording(True), recording(False)
     bagio.write_bag(tmp_path / "points", chunk_records(with_points))
     bagio.write_bag(tmp_path / "plain", chunk_records(without))
@@ -137,6 +139,8 @@ def hostile_points(chunk) -> dict[str, tuple]:
 
 
 def test_identify_refuses_each_hostile_point_by_name_and_labels_the_rest(tmp_path):
+    """`tail-beam identify` on a bag holding hostile points names each one's field on stderr,
+    exits 0 and labels the impacts as on the clean bag."""
     chunk = recording(False)
     hostile = hostile_points(chunk)
     bagio.write_bag(tmp_path / "clean", chunk_records(chunk))
