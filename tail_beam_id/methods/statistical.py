@@ -31,6 +31,13 @@ same rebound means coal on one support and mudstone on another, which no single 
 The shift moves the boundary; it never makes a label surer than the impact alone says
 (tail_beam_id.methods.hysteresis.applied_shift).
 
+Where the particle struck: an impact whose camera reported its impact point (``impact_x_m``)
+is decided by a twin of its signals' model fitted with the point as well (``WITH_POINT``),
+when one was trained (``python -m tail_beam_id.study.training --point-models``); the moment
+impulse is m v0 (1 + e) x, so knowing x separates what the impulse alone leaves open. Its
+delay check, signals and hysteresis reading are the model's without the point, which every
+impact without a point (or decided over a slow camera's lags, or without the delay) still gets.
+
 Why logarithms: the physics is a product of powers (moment impulse = m v0 (1 + e) x,
 contact duration ~ R (rho / E*)^0.4 v0^-0.2, rebound speed = e v0), so the material shows as a
 near-linear combination of the logs; the pairwise products let the model bend the boundary

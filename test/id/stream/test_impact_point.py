@@ -20,6 +20,7 @@ def points() -> ImpactPoints:
 
 @pytest.mark.parametrize("point_first", [True, False])
 def test_a_point_is_its_rebounds_whichever_comes_first(point_first):
+    """A point and a rebound of one stamp pair whichever comes first; the next frame's does not."""
     p = points()
     if point_first:
         assert p.add(1.0, np.array([0.7, 0.1, 0.0]), topics.FRAME_PLATE) is None
@@ -33,6 +34,7 @@ def test_a_point_is_its_rebounds_whichever_comes_first(point_first):
 
 
 def test_a_point_without_a_rebound_is_set_aside_once_the_streams_pass_it():
+    """A point with no rebound is kept for the camera timeout, then set aside and counted."""
     p = points()
     p.add(1.0, np.array([0.7, 0.0, 0.0]), topics.FRAME_PLATE)
     assert p.expire(1.02) == 0  # still within the camera timeout
@@ -57,6 +59,8 @@ def test_a_point_without_a_rebound_is_set_aside_once_the_streams_pass_it():
     ],
 )
 def test_what_is_no_point_on_the_plate_is_refused_by_name(xyz, frame, field):
+    """NaN, infinite, z not 0, off the plate's length or width, another frame: refused naming
+    the field, counted by field and rule."""
     p = points()
     p.add_rebound(1.0)
     why = p.add(1.0, np.array(xyz), frame)
@@ -67,6 +71,7 @@ def test_what_is_no_point_on_the_plate_is_refused_by_name(xyz, frame, field):
 
 
 def test_the_plate_edges_are_on_it_and_the_bounds_follow_the_support():
+    """The plate's edges are on it; a smaller plate refuses what the shipped one takes."""
     p = points()
     for x, y in ((0.0, 0.75), (1.6, -0.75)):
         assert p.add(float(x + 1), np.array([x, y, 0.0]), topics.FRAME_PLATE) is None
@@ -77,6 +82,7 @@ def test_the_plate_edges_are_on_it_and_the_bounds_follow_the_support():
 
 
 def test_a_flood_of_bad_values_is_a_few_counts():
+    """A thousand bad values of one field are one reason with its count (bounded memory)."""
     p = points()
     for k in range(1000):
         p.add(float(k), np.array([2.0 + k, 0.0, 0.0]), topics.FRAME_PLATE)

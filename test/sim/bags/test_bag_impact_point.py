@@ -62,6 +62,8 @@ def chunk_records(chunk, extra_points=()) -> list:
 
 
 def test_points_round_trip_through_a_bag_and_only_when_recorded(tmp_path):
+    """Points read back from a bag as written (stamp, frame, coordinates); a bag without points
+    has no impact_point connection."""
     with_points, without = recording(True), recording(False)
     bagio.write_bag(tmp_path / "points", chunk_records(with_points))
     bagio.write_bag(tmp_path / "plain", chunk_records(without))
@@ -80,13 +82,14 @@ def test_points_round_trip_through_a_bag_and_only_when_recorded(tmp_path):
 
 def test_identify_uses_the_point_when_present_and_labels_as_before_without(tmp_path):
     """Without the point the labels carry no impact_* feature; with it each label carries its
-    impact's point (within 5 sigma of where it struck), and nothing else changes: the methods
-    shipped decide without it."""
+    impact's point (within 5 sigma of where it struck), and a method that does not read it
+    (threshold) labels exactly as without; the statistical method says when it decided with
+    the point."""
     with_points, without = recording(True), recording(False)
     bagio.write_bag(tmp_path / "points", chunk_records(with_points))
     bagio.write_bag(tmp_path / "plain", chunk_records(without))
-    plain = identify_bag(str(tmp_path / "plain"), calibrate=False)
-    pointed = identify_bag(str(tmp_path / "points"), calibrate=False)
+    plain = identify_bag(str(tmp_path / "plain"), "threshold", calibrate=False)
+    pointed = identify_bag(str(tmp_path / "points"), "threshold", calibrate=False)
     assert len(plain) == len(pointed) == len(COMMANDS)
     for a, b, (_, command) in zip(plain, pointed, COMMANDS):
         assert "impact_x_m" not in a.features and "impact_y_m" not in a.features
@@ -99,6 +102,16 @@ def test_identify_uses_the_point_when_present_and_labels_as_before_without(tmp_p
         )
         rest = {k: v for k, v in b.features.items() if not k.startswith("impact_")}
         assert rest == a.features
+        assert a.signals == b.signals and "impact_point" not in b.signals
+    statistical = identify_bag(str(tmp_path / "points"), "statistical", calibrate=False)
+    plain = identify_bag(str(tmp_path / "plain"), "statistical", calibrate=False)
+    assert [lab.impact_stamp_s for lab in statistical] == [lab.impact_stamp_s for lab in plain]
+    for a, b in zip(plain, statistical):
+        assert "impact_point" not in a.signals
+        used = b.features.get("impact_point_used") == 1.0
+        assert ("impact_point" in b.signals) == used
+        if used:
+            assert b.features["logit_without_point"] == a.features["logit"]
 
 
 def hostile_points(chunk) -> dict[str, tuple]:
@@ -126,6 +139,8 @@ def hostile_points(chunk) -> dict[str, tuple]:
 
 
 def test_identify_refuses_each_hostile_point_by_name_and_labels_the_rest(tmp_path):
+    """`tail-beam identify` on a bag holding hostile points names each one's field on stderr,
+    exits 0 and labels the impacts as on the clean bag."""
     chunk = recording(False)
     hostile = hostile_points(chunk)
     bagio.write_bag(tmp_path / "clean", chunk_records(chunk))

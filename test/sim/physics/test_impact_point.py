@@ -36,6 +36,7 @@ def run_stream(points: bool):
 
 
 def test_default_layout_reports_no_point():
+    """The shipped layout has no impact-point camera: the stream simulates no point."""
     assert (
         SensorSpec.from_params(load_parameters()["sensors"]).camera_reports_impact_point is False
     )
@@ -96,6 +97,8 @@ def test_a_point_near_an_edge_is_never_read_off_the_plate():
 
 
 def test_offline_simulation_reports_the_point_only_when_asked():
+    """tail-beam simulate's path gives the point, stamped as its rebound, only when the camera
+    reports it; the other readings are the same either way."""
     params = load_parameters()
     plain = simulate(Scene.from_params(params))
     assert plain.point is None

@@ -52,6 +52,8 @@ def id_node(context):
 
 
 def test_sim_node_publishes_the_points_and_id_node_and_the_recording_use_them(tmp_path):
+    """sim_node publishes one point per impact, stamped as its rebound and within 5 sigma of the
+    truth; id_node's labels carry it; the recorder records it; identify on the bag agrees."""
     from tail_beam_sim.ros.recorder_node import RecorderNode
 
     with ros_context() as (context, executor):

@@ -1,0 +1,85 @@
+"""The statistical method and the impact point: an impact with a point is decided by the model
+fitted with it, keeping the delay check and signals; one without is decided as before; models
+trained before the point existed ignore it."""
+
+from __future__ import annotations
+
+import copy
+
+import pytest
+from id_helpers import impact
+
+from tail_beam_id.methods import build_method, load_model
+from tail_beam_id.methods.inputs import IMPACT_X, IMPACT_Y, POINT_USED
+from tail_beam_id.methods.statistical import FULL_KEY, WITH_POINT
+from tail_beam_id.stream.identifier import StreamIdentifier
+from tail_beam_id.stream.replay import point_tuples, replay
+
+
+@pytest.fixture(scope="module")
+def shipped_point_models():
+    model = load_model("statistical")
+    if FULL_KEY + WITH_POINT not in model["subsets"]:
+        pytest.skip("the shipped statistical model has no impact-point models")
+    return model
+
+
+@pytest.fixture(scope="module")
+def features(params):
+    """A sandstone impact's label features, with its impact point."""
+    pointed = copy.deepcopy(params)
+    pointed["sensors"]["camera_reports_impact_point"] = True
+    result = impact(
+        pointed, material="sandstone", radius_m=0.04, drop_height_m=2.5, position_m=0.9
+    )
+    identifier = StreamIdentifier("statistical", pointed["identification"], pointed)
+    (label,) = replay(
+        identifier,
+        result.pressure,
+        result.imu,
+        [result.rebound],
+        vibration=result.vibration,
+        points=point_tuples([result.point]),
+    )
+    assert "impact_point" in label.signals
+    return dict(label.features)
+
+
+def test_without_the_point_the_decision_is_the_models_without_it(
+    params, shipped_point_models, features
+):
+    """With the point the decision is the point's model's, its logit without the point and its
+    delay check kept; without it, the model without the point's."""
+    method = build_method("statistical", params)
+    bare = {k: v for k, v in features.items() if k not in (IMPACT_X, IMPACT_Y)}
+    without = method.decide(bare)
+    assert POINT_USED not in without.estimates
+    with_point = method.decide(features)
+    assert with_point.estimates[POINT_USED] == 1.0
+    assert with_point.estimates["logit_without_point"] == pytest.approx(without.estimates["logit"])
+    assert with_point.signals == without.signals
+    for kept in ("delay_residual", "delay_unusual"):
+        if kept in without.estimates:
+            assert with_point.estimates[kept] == without.estimates[kept]
+
+
+def test_a_family_without_point_models_ignores_the_point(params, shipped_point_models, features):
+    """Models trained before the point existed (no ~with_point entry) decide as they did."""
+    from tail_beam_id.methods.statistical import StatisticalMethod
+
+    stripped = {
+        family: {k: v for k, v in shipped_point_models[family].items() if WITH_POINT not in k}
+        for family in ("subsets", "calibrated_subsets")
+    }
+    method = StatisticalMethod.from_model({**shipped_point_models, **stripped}, params)
+    bare = {k: v for k, v in features.items() if k not in (IMPACT_X, IMPACT_Y)}
+    assert method.decide(features) == method.decide(bare)
+
+
+def test_the_points_model_reads_the_point(params, shipped_point_models, features):
+    """The same impact read as struck near the hinge or near the tip is decided otherwise: the
+    moment impulse it carries (m v0 (1 + e) x) means another momentum at another x."""
+    method = build_method("statistical", params)
+    near = method.decide({**features, IMPACT_X: 0.2}).p_coal
+    far = method.decide({**features, IMPACT_X: 1.4}).p_coal
+    assert abs(near - far) > 0.01
