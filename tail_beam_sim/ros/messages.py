@@ -90,7 +90,7 @@ def sensor_publisher(node: Any, msg_type: type, topic: str, depth: int, lossless
     qos = sensor_writer_qos(depth, lossless)
     if lossless:
         return node.create_publisher(msg_type, topic, qos)
-    quiet = PublisherEventCallbacks(incompatible_qos=lambda _info: None)
+    quiet = PublisherEventCallbacks(use_default_callbacks=False)
     return node.create_publisher(msg_type, topic, qos, event_callbacks=quiet)
 
 
