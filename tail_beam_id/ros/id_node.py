@@ -42,8 +42,10 @@ reported by no DDS event): pressure and IMU samples missing from their stamp gri
 index. Each gap is warned of (rate-limited), and a label whose data window (``window_s`` either
 side of its impact stamp) holds a gap says so: ``gaps``, samples missing per stream, and a
 warning; it is still published, since an impact left unlabelled would be worse than one
-labelled from data with a hole that the label names. Warnings of one kind are said at most
-every WARN_EVERY_S: the first at once, then the latest with the count held back.
+labelled from data with a hole that the label names. An impact found inside a vibration gap
+or within GAP_ONSET_S after one is not labelled but counted undecided and warned of: the jump
+where the accelerometer's samples resume can itself look like an onset. Warnings of one kind
+are said at most every WARN_EVERY_S: the first at once, then the latest with the count held back.
 """
 
 from __future__ import annotations
@@ -97,6 +99,8 @@ UNDECIDED_AFTER_S = 2.0
 LAG_WARN_S = 0.25
 LAG_WARN_PERIOD_S = 5.0
 MAX_REASONS = 5  # distinct reasons for refused vibration messages named in one log line
+# An impact found in a gap or this soon after one (its resuming samples) is not labelled, s.
+GAP_ONSET_S = 0.005
 GAPS_KEPT = 1000  # pressure and IMU gaps remembered for checking labels against, count
 WARN_EVERY_S = 5.0  # wall s between two warnings of one kind (the first at once, then a count)
 GANGUE_SHARE_TOPIC = "gangue_share"  # std_msgs/String JSON (docs/gangue_share.md)
@@ -278,6 +282,7 @@ class IdNode(Node):
         self._gaps: list[tuple[str, float, float, int]] = []  # (stream, from s, to s, missing)
         self._gap_window_s = float(params["identification"]["window_s"])
         self.gapped_labels = 0  # labels whose data window holds a gap
+        self.gap_onsets = 0  # impacts found at a gap, not labelled (counted undecided)
         self.sensor_subscriptions = [
             FollowingSubscription(self, kind, topic, callback, depth)
             for kind, topic, callback in (
@@ -407,7 +412,8 @@ class IdNode(Node):
         """One line: what this node lost of each sensor stream, and the labels it concerned."""
         lost = ", ".join(f"{topic} {n}" for topic, n in self.lost_samples.items())
         return (
-            f"samples lost: {lost}; {self.gapped_labels} label(s) from data with a gap; "
+            f"samples lost: {lost}; {self.gapped_labels} label(s) from data with a gap, "
+            f"{self.gap_onsets} impact(s) found at a gap not labelled; "
             f"{self.undecided_impacts} impact(s) not decided in time"
         )
 
@@ -572,8 +578,23 @@ class IdNode(Node):
                 f"earliest delivery seen; at most {self.max_lag_s:.3f} s so far)"
             )
 
+    def _at_a_gap(self, stamp_s: float) -> bool:
+        """Whether ``stamp_s`` falls in a gap of the vibration stream or within GAP_ONSET_S
+        after one: the jump where the accelerometer's samples resume can itself look like an
+        impact's onset (a lost pressure or IMU sample cannot make one)."""
+        return any(a <= stamp_s <= b + GAP_ONSET_S for a, b, _ in self.gated.vibration_gaps)
+
     def _publish(self, labels: list[Label]) -> None:
         for decided in labels:
+            if decided.revises is None and self._at_a_gap(decided.impact_stamp_s):
+                self.undecided_impacts += 1
+                self.gap_onsets += 1
+                self.get_logger().warning(
+                    f"impact at {decided.impact_stamp_s:.4f} s found where samples are missing: "
+                    "not labelled (its onset may be the gap itself); "
+                    f"{self.undecided_impacts} impact(s) not decided in time in all"
+                )
+                continue
             label = self.revisions.admit(decided)
             gaps = self._gaps_near(label.impact_stamp_s)
             if gaps:

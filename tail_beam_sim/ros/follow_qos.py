@@ -53,10 +53,12 @@ class FollowingSubscription:
         self.subscription = self._create()
 
     def _create(self) -> Any:
-        # A publisher of the other reliability is expected (this subscription follows it):
-        # rclpy's own incompatible-QoS warning is left out, the switch is logged instead.
+        # A publisher of the other reliability is expected (this subscription follows it): no
+        # incompatible-QoS event handler (rclpy's default one warns), the switch is logged
+        # instead. An event queued for a subscription destroyed by the switch would make
+        # EventsExecutor raise InvalidHandle (tail_beam_sim.ros.spin.spin_once).
         kwargs = {
-            "event_callbacks": SubscriptionEventCallbacks(incompatible_qos=lambda _info: None),
+            "event_callbacks": SubscriptionEventCallbacks(use_default_callbacks=False),
             **self._kwargs,
         }
         return self._node.create_subscription(

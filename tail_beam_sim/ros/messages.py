@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, Quaternion, TwistStamped, Vector3
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Imu, LaserScan
@@ -95,8 +96,15 @@ def sensor_reader_qos(depth: int, reliable: bool) -> QoSProfile:
 
 
 def sensor_publisher(node: Any, msg_type: type, topic: str, depth: int, lossless: bool) -> Any:
-    """A sensor topic's writer, with :func:`sensor_writer_qos`."""
-    return node.create_publisher(msg_type, topic, sensor_writer_qos(depth, lossless))
+    """A sensor topic's writer, with :func:`sensor_writer_qos`. A best-effort one leaves out
+    rclpy's incompatible-QoS warning, said for every reliable reader on every topic, even
+    those that switch to best effort at once (id_node, bag_recorder): the node warns of the
+    readers that stay reliable instead (tail_beam_sim.ros.follow_qos.ReliableReaderWatch)."""
+    qos = sensor_writer_qos(depth, lossless)
+    if lossless:
+        return node.create_publisher(msg_type, topic, qos)
+    quiet = PublisherEventCallbacks(use_default_callbacks=False)
+    return node.create_publisher(msg_type, topic, qos, event_callbacks=quiet)
 
 
 def message_class(msgtype: str) -> type:

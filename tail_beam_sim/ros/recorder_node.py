@@ -219,9 +219,10 @@ class RecorderNode(Node):
             lambda data, t=topic: self._write(t, data),
             qos,
             raw=True,
-            # a publisher of the other QoS is followed (re-subscribing), not warned of by rclpy
+            # a publisher of the other QoS is followed (re-subscribing), not warned of: no
+            # incompatible-QoS handler, whose event could outlive a replaced subscription
             event_callbacks=SubscriptionEventCallbacks(
-                message_lost=self._on_lost, incompatible_qos=lambda _info: None
+                message_lost=self._on_lost, use_default_callbacks=False
             ),
         )
 
