@@ -26,18 +26,40 @@ RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 
 @contextmanager
 def ros_context() -> Iterator[tuple[rclpy.Context, EventsExecutor]]:
-    """A fresh rclpy context and an EventsExecutor on it; everything is torn down after."""
+    """A fresh rclpy context and an EventsExecutor on it; everything is torn down after: every
+    node ever added to the executor is destroyed, those a test removed from it too. A node left
+    alive keeps its transient-local writers (impact_truth, rebound_velocity, label) in the
+    domain, and the next test's late-joining readers would receive its old events."""
     context = rclpy.Context()
     rclpy.init(context=context)
-    executor = EventsExecutor(context=context)
+    executor = _TrackingExecutor(context=context)
     try:
         yield context, executor
     finally:
-        nodes = list(executor.get_nodes())  # before shutdown, which forgets them
         executor.shutdown()
-        for node in nodes:
-            node.destroy_node()
+        for node in executor.ever_added:
+            try:
+                node.destroy_node()
+            except Exception:  # destroyed already by the test
+                pass
         rclpy.try_shutdown(context=context)
+
+
+class _TrackingExecutor:
+    """An EventsExecutor that remembers every node it was given (a wrapper: the executor is an
+    extension type)."""
+
+    def __init__(self, context: rclpy.Context) -> None:
+        self._executor = EventsExecutor(context=context)
+        self.ever_added: list[Node] = []
+
+    def add_node(self, node: Node) -> bool:
+        if node not in self.ever_added:
+            self.ever_added.append(node)
+        return self._executor.add_node(node)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._executor, name)
 
 
 class Probe(Node):
