@@ -4,9 +4,13 @@ sends commands, and spinning until a condition holds (with a deadline, never a t
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import rclpy
@@ -172,3 +176,46 @@ def feeding_vibration(bag, intruder: bool = False) -> Iterator[tuple]:
             executor.add_node(node)
         assert spin_until(executor, lambda: all(p.get_subscription_count() >= 2 for p in pubs))
         yield executor, ident, recorder, feeder, pubs[0], (pubs[1] if intruder else None)
+
+
+BIN = Path(sys.executable).parent  # the suite's executables
+
+
+class Processes:
+    """Starts executables with logs in a directory; stops whatever is left at the end."""
+
+    def __init__(self, log_dir: Path) -> None:
+        self.log_dir = log_dir
+        self.running: list[subprocess.Popen] = []
+        self.logs: dict[int, Path] = {}
+
+    def start(self, exe: str, *params: str, ns: str = "") -> subprocess.Popen:
+        """The suite's executable ``exe`` with ``-p`` ``params`` (and a namespace)."""
+        args = [str(BIN / exe), "--ros-args"] + [a for p in params for a in ("-p", p)]
+        if ns:
+            args += ["-r", f"__ns:={ns}"]
+        return self.command(f"{exe}{ns.replace('/', '_')}", args)
+
+    def command(self, name: str, args: list[str]) -> subprocess.Popen:
+        """Any command, its output logged under ``name``."""
+        path = self.log_dir / f"{name}_{len(self.running)}.log"
+        with path.open("w") as log:
+            proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
+        self.running.append(proc)
+        self.logs[proc.pid] = path
+        return proc
+
+    def log(self, proc: subprocess.Popen) -> str:
+        return self.logs[proc.pid].read_text()
+
+    def stop(
+        self, proc: subprocess.Popen, sig: int = signal.SIGINT, timeout_s: float = 30.0
+    ) -> int:
+        proc.send_signal(sig)
+        return proc.wait(timeout=timeout_s)
+
+    def close(self) -> None:
+        for proc in self.running:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()

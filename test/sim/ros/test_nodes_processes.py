@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rosprobe import Probe, ros_context, spin_for, spin_until
+from rosprobe import Probe, Processes, ros_context, spin_for, spin_until
 from std_msgs.msg import String
 
 from tail_beam_id.cli.identify_cmd import identify_bag
@@ -31,41 +31,6 @@ def method() -> str:
     """The configured identification method if registered, else the first registered one."""
     configured = load_parameters()["identification"]["method"]
     return configured if configured in available_methods() else available_methods()[0]
-
-
-class Processes:
-    """Starts executables with logs in a directory; stops whatever is left at the end."""
-
-    def __init__(self, log_dir: Path) -> None:
-        self.log_dir = log_dir
-        self.running: list[subprocess.Popen] = []
-        self.logs: dict[int, Path] = {}
-
-    def start(self, exe: str, *params: str, ns: str = "") -> subprocess.Popen:
-        args = [str(BIN / exe), "--ros-args"] + [a for p in params for a in ("-p", p)]
-        if ns:
-            args += ["-r", f"__ns:={ns}"]
-        path = self.log_dir / f"{exe}{ns.replace('/', '_')}_{len(self.running)}.log"
-        with path.open("w") as log:
-            proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
-        self.running.append(proc)
-        self.logs[proc.pid] = path
-        return proc
-
-    def log(self, proc: subprocess.Popen) -> str:
-        return self.logs[proc.pid].read_text()
-
-    def stop(
-        self, proc: subprocess.Popen, sig: int = signal.SIGINT, timeout_s: float = 20.0
-    ) -> int:
-        proc.send_signal(sig)
-        return proc.wait(timeout=timeout_s)
-
-    def close(self) -> None:
-        for proc in self.running:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
 
 
 @pytest.fixture

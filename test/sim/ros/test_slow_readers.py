@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import re
-import signal
 import subprocess
 import sys
 import time
@@ -14,7 +13,7 @@ from pathlib import Path
 
 import pytest
 from rosgraph_msgs.msg import Clock
-from rosprobe import Probe, ros_context, spin_for, spin_until
+from rosprobe import Probe, Processes, ros_context, spin_for, spin_until
 from std_msgs.msg import String
 
 from tail_beam_id.cli.identify_cmd import identify_bag
@@ -66,40 +65,6 @@ print(json.dumps(got), flush=True)
 BUSY_LOOP = "import time\nend = time.monotonic() + 120\nwhile time.monotonic() < end: pass"
 
 
-class Processes:
-    """Starts processes with logs in a directory; stops whatever is left at the end."""
-
-    def __init__(self, log_dir: Path) -> None:
-        self.log_dir = log_dir
-        self.running: list[subprocess.Popen] = []
-        self.logs: dict[int, Path] = {}
-
-    def start(self, name: str, args: list[str]) -> subprocess.Popen:
-        path = self.log_dir / f"{name}_{len(self.running)}.log"
-        with path.open("w") as log:
-            proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
-        self.running.append(proc)
-        self.logs[proc.pid] = path
-        return proc
-
-    def node(self, exe: str, *params: str) -> subprocess.Popen:
-        args = [str(BIN / exe), "--ros-args"] + [a for p in params for a in ("-p", p)]
-        return self.start(exe, args)
-
-    def log(self, proc: subprocess.Popen) -> str:
-        return self.logs[proc.pid].read_text()
-
-    def stop(self, proc: subprocess.Popen) -> int:
-        proc.send_signal(signal.SIGINT)
-        return proc.wait(timeout=30)
-
-    def close(self) -> None:
-        for proc in self.running:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-
-
 @pytest.fixture
 def procs(tmp_path):
     manager = Processes(tmp_path)
@@ -109,7 +74,7 @@ def procs(tmp_path):
 
 def simulator(procs: Processes, subscribers: int, impacts: int) -> subprocess.Popen:
     """sim_node in real time on ``impacts`` generated impacts, publishing /clock."""
-    return procs.node(
+    return procs.start(
         "sim_node",
         "scenario.source:=generated",
         f"scenario.count:={impacts}",
@@ -143,17 +108,15 @@ def test_a_slow_reader_holds_up_neither_the_simulator_nor_id_node(procs):
             100,
         )
         executor.add_node(probe)
-        ident = procs.node("id_node", "id_node.flush_after_idle_s:=0.5")
-        client = procs.start(
+        ident = procs.start("id_node", "id_node.flush_after_idle_s:=0.5")
+        client = procs.command(
             "slow_client", [sys.executable, "-c", SLOW_CLIENT, str(SLEEP_S), str(IMPACTS + 20)]
         )
         spin_for(executor, 2.0)  # id_node and the client are up before the simulator waits
         sim = simulator(procs, subscribers=1, impacts=IMPACTS)
         assert spin_until(executor, lambda: sim.poll() is not None, timeout_s=60), "sim_node"
         assert sim.returncode == 0, procs.log(sim)
-        spin_until(
-            executor, lambda: len(probe.messages[topics.LABEL]) >= IMPACTS, timeout_s=10
-        )
+        spin_until(executor, lambda: len(probe.messages[topics.LABEL]) >= IMPACTS, timeout_s=10)
         spin_for(executor, 1.5)  # a late revision or extra label would come now
     assert procs.stop(ident) == 0
     procs.stop(client)
@@ -186,9 +149,9 @@ def test_busy_cores_leave_no_impact_unsaid_and_live_labels_are_the_bags(procs, t
     id_node or the recorder lost would show as a gap, and would be counted)."""
     bag = tmp_path / "bag"
     for k in range(2):
-        procs.start(f"busy{k}", [sys.executable, "-c", BUSY_LOOP])
-    recorder = procs.node("bag_recorder", f"recorder.bag_path:={bag}")
-    ident = procs.node("id_node", "id_node.flush_after_idle_s:=0.5")
+        procs.command(f"busy{k}", [sys.executable, "-c", BUSY_LOOP])
+    recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}")
+    ident = procs.start("id_node", "id_node.flush_after_idle_s:=0.5")
     time.sleep(2.0)  # both are up before the simulator waits for its subscribers
     sim = simulator(procs, subscribers=2, impacts=BUSY_IMPACTS)
     assert sim.wait(timeout=90) == 0, procs.log(sim)
