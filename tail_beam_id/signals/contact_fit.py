@@ -36,7 +36,7 @@ import numpy as np
 
 from tail_beam_id.signals.contact_force import ForceReading, read_force
 from tail_beam_sim.errors import InputError
-from tail_beam_sim.spec import Section, integer, number, positive
+from tail_beam_sim.spec import Section, flag, integer, number, positive
 
 PENCIL_WIDTH = 24  # columns of the ring-down's Hankel matrix: 3 x the most poles (8) read from it
 # Durations of the first, coarse search (a log grid from min_duration_s to max_duration_s, each
@@ -93,6 +93,13 @@ CONTACT_FIT = Section(
             0.0,
             1e5,
             default=150.0,
+        ),
+        flag(
+            "force_readout",
+            "Also read the contact force through the ring-down (features contact_force_*, "
+            "the unreliable-duration cap); about 2-3x the fit's cost, not read by the shipped "
+            "models.",
+            default=False,
         ),
         number(
             "long_contact_half_periods",
@@ -160,6 +167,7 @@ class ContactFitConfig:
     max_fit_rate_hz: float = (
         51200.0  # a faster channel is read every k-th sample, at most this rate (cost)
     )
+    force_readout: bool = False  # the force read-out and the cap it feeds (costly)
     long_contact_half_periods: float = 5.0  # a force this many half periods long: unreliable
     poor_fit_unexplained: float = 0.25  # a force fit leaving this share of the power: unreliable
     poor_fit_noise_ratio: float = 3.0  # ... with a residual above this many noise RMS

@@ -153,6 +153,7 @@ class ImpactDecider:
                 impact.pulse.period_s,
                 impact.pulse.noise_mps2,
                 cfg.contact_fit,
+                with_force=cfg.contact_fit.force_readout,
             )
             if clipped_near(series.stamp_s, values, impact.pulse.onset_s, cfg.contact_fit):
                 saturated.append(impact.channel)

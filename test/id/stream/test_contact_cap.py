@@ -23,7 +23,7 @@ from tail_beam_id.study.supports import tabulated_modes
 MODES = ((3000.0, 300.0),)  # one stiff mode: half period 167 us
 
 
-def _label(params, radius_m: float, section: dict | None = None):
+def _label(params, radius_m: float, section: dict | None = None, force_readout: bool = True):
     """The one label of a coal particle of ``radius_m`` dropped 1.5 m at 1.0 m on a support
     with MODES, identified knowing the support, the accelerometer fed."""
     support = copy.deepcopy(params)
@@ -31,6 +31,10 @@ def _label(params, radius_m: float, section: dict | None = None):
     support["calibration"] = {"rigid_mode_frequency_hz": 40.0}
     result = impact(support, material="coal", radius_m=radius_m, drop_height_m=1.5, position_m=1.0)
     identification = {**params["identification"], **(section or {})}
+    identification["contact_fit"] = {
+        **identification["contact_fit"],
+        "force_readout": force_readout,
+    }
     labels = replay(
         StreamIdentifier("statistical", identification, support),
         result.pressure,
@@ -60,6 +64,15 @@ def test_a_contact_longer_than_the_training_saw_is_capped_with_its_reason(params
     assert short.features["contact_force_half_periods"] < config.long_contact_half_periods
     assert LONG_CONTACT not in short.outside_training
     assert short.confidence > config.unreliable_confidence_cap
+
+
+def test_without_the_force_read_out_nothing_is_read_or_capped(params):
+    """The force read-out is off by default (it costs 2-3x the fit): the 100 mm coal's label
+    then has no contact_force features and no cap from them."""
+    label = _label(params, 0.1, force_readout=False)
+    assert not [name for name in label.features if name.startswith("contact_force")]
+    assert LONG_CONTACT not in label.outside_training
+    assert "contact_duration_s" in label.features  # the half-sine the models read is still there
 
 
 def test_a_poor_fit_is_capped_with_its_reason(params):
