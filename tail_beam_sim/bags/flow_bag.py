@@ -10,11 +10,9 @@ from typing import Any
 from tail_beam_sim import topics
 from tail_beam_sim.bags.records import (
     BagRecord,
-    imu_msgs,
-    pressure_msgs,
     rebound_msg,
+    stream_records,
     string_msg,
-    vibration_msgs,
     write_bag,
 )
 from tail_beam_sim.physics.flow import FlowRecord
@@ -24,22 +22,7 @@ def flow_records(record: FlowRecord) -> list[BagRecord]:
     """Every bag record of ``record``: a window command at its stamp, a share interval at its
     end, a truth at its publishing stamp, a rebound at its camera frame."""
     out: list[BagRecord] = []
-    out.extend(
-        pressure_msgs(
-            record.pressure.stamp_s, record.pressure.pressure_pa, record.pressure.variance_pa2
-        )
-    )
-    imu = record.imu
-    out.extend(
-        imu_msgs(
-            imu.stamp_s,
-            imu.angular_velocity_radps,
-            imu.linear_acceleration_mps2,
-            imu.gyro_variance,
-            imu.accel_variance,
-        )
-    )
-    out.extend(vibration_msgs(record.vibration))
+    out.extend(stream_records(record.pressure, record.imu, record.vibration))
     out.extend(rebound_msg(r.stamp_s, r.velocity_mps) for _, r in record.rebounds)
     out.extend(
         (topics.IMPACT_TRUTH, topics.stamp_ns(stamp), string_msg(truth))

@@ -208,6 +208,22 @@ def write_bag(
     return len(ordered)
 
 
+def stream_records(pressure: Any, imu: Any, vibration: Any) -> list[BagRecord]:
+    """The bag records of the sensor streams (a PressureStream, an ImuStream and
+    VibrationBlocks of tail_beam_sim.physics.sensors): every sample and block."""
+    return [
+        *pressure_msgs(pressure.stamp_s, pressure.pressure_pa, pressure.variance_pa2),
+        *imu_msgs(
+            imu.stamp_s,
+            imu.angular_velocity_radps,
+            imu.linear_acceleration_mps2,
+            imu.gyro_variance,
+            imu.accel_variance,
+        ),
+        *vibration_msgs(vibration),
+    ]
+
+
 def result_records(result: Any, command: dict[str, Any] | None = None) -> list[BagRecord]:
     """All bag records of one simulated impact: command, sensor streams, rebound (and impact
     point, when the camera reports it), truth.
@@ -218,22 +234,7 @@ def result_records(result: Any, command: dict[str, Any] | None = None) -> list[B
     records: list[BagRecord] = []
     if command is not None:
         records.append((topics.IMPACT_CMD, 0, string_msg(command)))
-    records.extend(
-        pressure_msgs(
-            result.pressure.stamp_s, result.pressure.pressure_pa, result.pressure.variance_pa2
-        )
-    )
-    imu = result.imu
-    records.extend(
-        imu_msgs(
-            imu.stamp_s,
-            imu.angular_velocity_radps,
-            imu.linear_acceleration_mps2,
-            imu.gyro_variance,
-            imu.accel_variance,
-        )
-    )
-    records.extend(vibration_msgs(result.vibration))
+    records.extend(stream_records(result.pressure, result.imu, result.vibration))
     records.append(rebound_msg(result.rebound.stamp_s, result.rebound.velocity_mps))
     if getattr(result, "point", None) is not None:
         records.append(point_msg(result.point.stamp_s, result.point.point_m))
