@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.signals.contact_force import ForceReading, read_force
+from tail_beam_id.signals.contact_force import ForceReading, explained, read_force
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.spec import Section, flag, integer, number, positive
 
@@ -269,21 +269,9 @@ def _best(
         basis[:, :, 1 + 2 * k] = value.real
         basis[:, :, 2 + 2 * k] = value.imag
     basis = basis.reshape(-1, rows, n)
-    # The least squares against [sway, basis] from the basis' own products: with y orthogonal
-    # to the sway, taking the sway out of each column changes its Gram matrix by -(Q'B)'(Q'B)
-    # and leaves B'y as it is (cheaper than projecting every column); then each column scaled
-    # to unit norm, for the conditioning (a column all but inside the sway's span is floored at
-    # 1e-12 of its own norm, so that rounding never scales it to infinity).
-    on_sway = (basis.reshape(-1, n) @ sway).reshape(basis.shape[0], rows, sway.shape[1])
-    products = basis @ basis.transpose(0, 2, 1)
-    gram = products - on_sway @ on_sway.transpose(0, 2, 1)
-    norm = np.maximum(np.einsum("cii->ci", gram), 1e-12 * np.einsum("cii->ci", products)) + 1e-300
-    scale = 1.0 / np.sqrt(norm)
-    gram = gram * scale[:, :, None] * scale[:, None, :] + 1e-9 * np.eye(rows)
-    projected = (basis @ y) * scale
-    coefficients = np.linalg.solve(gram, projected[..., None])[..., 0]
-    score = np.einsum("ck,ck->c", coefficients, projected)
-    best = int(np.argmax(np.where(np.isfinite(score), score, -np.inf)))
+    # the least squares against [sway, basis], as the force read-out scores its shapes
+    score = explained(basis, y, sway)
+    best = int(np.argmax(score))
     return float(durations[best // starts.size]), float(starts[best % starts.size])
 
 
