@@ -153,6 +153,8 @@ class LumpSource:
         self._coal = materials[params.coal_material]
         self._gangue = [materials[name] for name in params.gangue_materials]
         self._gangue_density = float(np.mean([m.density_kgpm3 for m in self._gangue]))
+        if seed is not None:  # a caller's seed meets the flow.seed's own range
+            seed = FLOW.check({"seed": seed}, only=["seed"])["seed"]
         self._rng = np.random.default_rng(params.seed if seed is None else seed)
         self.windows: list[tuple[float, float]] = []  # (opened, closed) s; closed inf while open
         self._span = 0  # the window the release process is in

@@ -28,14 +28,15 @@ def test_simulate_flow_prints_share_intervals_and_writes_a_bag(tmp_path, capsys)
 
 
 def test_simulate_flow_refuses_bad_input_by_name(tmp_path, capsys):
-    """`simulate --flow` refuses a bad duration, an impact option or a bad flow config by
-    name (exit 2)."""
+    """`simulate --flow` refuses a bad duration, an impact option, a bad flow config or a
+    negative seed by name (exit 2)."""
     bad = tmp_path / "bad.yaml"
     bad.write_text("/**:\n  ros__parameters:\n    flow:\n      lumps_per_s: 5000.0\n")
     cases = [
         (["--flow", "-1"], "--flow = '-1': must be in (0, 3600] s"),
         (["--flow", "1", "--material", "coal"], "--material = 'coal': is not taken with --flow"),
         (["--flow", "1", "--config", str(bad)], "flow.lumps_per_s = 5000"),
+        (["--flow", "1", "--seed", "-5"], "flow.seed = -5: must be an integer >= 0"),
     ]
     for argv, message in cases:
         assert main(["simulate", *argv]) == 2
