@@ -169,6 +169,8 @@ def require_output_file(field: str, path: object) -> Path:
         )
     if target.is_dir():
         raise InputError(field, str(target), "is a directory: give a file name")
+    if target.parent.exists() and not target.parent.is_dir():
+        raise InputError(field, str(target), f"its folder {target.parent} is not a directory")
     return target
 
 

@@ -18,7 +18,7 @@ from tail_beam_id.study.caving import (
     summarise,
     write_chart,
 )
-from tail_beam_sim.errors import InputError, require_int
+from tail_beam_sim.errors import InputError, require_int, require_output_file
 from tail_beam_sim.physics.face import FaceParams, load_face_parameters
 from tail_beam_sim.spec import DRAWING_SEQUENCES, MAX_FACE_SUPPORTS
 
@@ -167,6 +167,7 @@ def _chart_path(text: str) -> str:
             raise InputError(
                 "--chart", text, f"its folder cannot be made ({exc.strerror})"
             ) from None
+    require_output_file("--chart", path)
     return text
 
 

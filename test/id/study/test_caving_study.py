@@ -141,8 +141,9 @@ def test_the_caving_verb_prints_its_table_and_writes_its_chart(tmp_path, capsys)
     assert "x real time" in out and chart.stat().st_size > 0
 
 
-def test_the_caving_verb_names_bad_options():
-    """An unknown source or rule, or seeds out of range: InputError naming the option."""
+def test_the_caving_verb_names_bad_options(tmp_path):
+    """An unknown source or rule, seeds out of range, or a chart that cannot be written (a
+    folder that is a file, a symbolic link): InputError naming the option, before any run."""
     from tail_beam_sim.errors import InputError
 
     with pytest.raises(InputError, match="--sources = 'labels'"):
@@ -151,3 +152,11 @@ def test_the_caving_verb_names_bad_options():
         caving_cmd.run(parse(["--rules", "second_gangue", "--chart", "", "--supports", "1"]))
     with pytest.raises(InputError, match="--seeds = 0"):
         caving_cmd.run(parse(["--seeds", "0", "--chart", ""]))
+    not_a_folder = tmp_path / "file"
+    not_a_folder.write_text("")
+    with pytest.raises(InputError, match="is not a directory"):
+        caving_cmd.run(parse(["--chart", str(not_a_folder / "chart.png")]))
+    link = tmp_path / "link.png"
+    link.symlink_to(tmp_path / "elsewhere.png")
+    with pytest.raises(InputError, match="symbolic link"):
+        caving_cmd.run(parse(["--chart", str(link)]))
