@@ -281,7 +281,7 @@ def _simulate_drawn(
     for index, (command, _, _) in enumerate(
         draw_commands(params, DRAWN_SCENES[scene_set], count, seed)
     ):
-        draw = draw_support(ranges, support_rng, vibration_rng)
+        draw = draw_support(ranges, support_rng, vibration_rng, params["modes"])
         varied = draw.apply(params)
         varied["sensors"]["seed"] = int(noise_seeds[index].generate_state(1)[0])
         scene = Scene.from_params(
@@ -341,41 +341,52 @@ def support_streams(
     ranges = support_ranges(ev, which)
     rng = np.random.default_rng(np.random.SeedSequence([seed, 2]))
     vibration_rng = np.random.default_rng(np.random.SeedSequence([seed, 4]))
-    gap_s = float(ev["stream_gap_s"])
     for index in range(supports):
         draw = draw_support(ranges, rng, vibration_rng, params["modes"])
         if setting is not None:
             draw = draw.with_sensors(
                 setting.rates_hz, setting.vibration_rate_hz, setting.noise_factor
             )
-        varied = draw.apply(params)
-        varied["sensors"]["seed"] = int(rng.integers(2**31))
-        varied["stream"] = {
-            **varied.get("stream", {}),
-            "tier": tier or ev["tier"],
-            "min_impact_gap_s": 0.0,
-            "command_lead_s": 0.001,
-            "max_queued_impacts": impacts_per_support + 1,
-        }
-        simulator = StreamSimulator.from_params(varied)
         commands = [
             c for c, _, _ in draw_commands(params, scene, impacts_per_support, seed + 1000 * index)
         ]
-        # Each contact gap_s to 1.5 gap_s after the one before. (Until this was cumulative, the
-        # k-th impact was put at k gap_s times a random 1..1.5: impacts came in any order and
-        # some within milliseconds of another, their features mixed.)
-        stamp = float(ev["pre_contact_s"]) * 2.0
-        for command in commands:
-            simulator.submit(command, contact_stamp_s=stamp)
-            stamp += gap_s * (1.0 + 0.5 * rng.uniform())
-        chunk = simulator.advance(stamp + 0.2)
-        yield SupportStream(
-            draw,
-            varied,
-            chunk.pressure,
-            chunk.imu,
-            [r for _, r in chunk.rebounds],
-            [t for _, t in chunk.truths],
-            chunk.vibration if draw.vibration_rate_hz > 0.0 else None,
-            [p for _, p in chunk.points],
-        )
+        yield record_support(params, draw, draw.apply(params), commands, rng, tier)
+
+
+def record_support(
+    params: Mapping[str, Any],
+    draw: SupportDraw,
+    varied: dict[str, Any],
+    commands: Sequence[Mapping[str, Any]],
+    rng: np.random.Generator,
+    tier: str | None = None,
+) -> SupportStream:
+    """One support (``varied``: its merged parameters, ``draw`` what was drawn of it) recorded
+    as one continuous stream of ``commands``, each contact stream_gap_s to 1.5 stream_gap_s
+    after the one before (``rng`` draws the gaps and the sensors' noise seed)."""
+    ev = evaluation_params(params)
+    varied["sensors"]["seed"] = int(rng.integers(2**31))
+    varied["stream"] = {
+        **varied.get("stream", {}),
+        "tier": tier or ev["tier"],
+        "min_impact_gap_s": 0.0,
+        "command_lead_s": 0.001,
+        "max_queued_impacts": len(commands) + 1,
+    }
+    simulator = StreamSimulator.from_params(varied)
+    gap_s = float(ev["stream_gap_s"])
+    stamp = float(ev["pre_contact_s"]) * 2.0
+    for command in commands:
+        simulator.submit(dict(command), contact_stamp_s=stamp)
+        stamp += gap_s * (1.0 + 0.5 * rng.uniform())
+    chunk = simulator.advance(stamp + 0.2)
+    return SupportStream(
+        draw,
+        varied,
+        chunk.pressure,
+        chunk.imu,
+        [r for _, r in chunk.rebounds],
+        [t for _, t in chunk.truths],
+        chunk.vibration if draw.vibration_rate_hz > 0.0 else None,
+        [p for _, p in chunk.points],
+    )

@@ -241,13 +241,18 @@ def support_ranges(evaluation: Mapping[str, Any], which: str) -> Mapping[str, An
                 pair,
                 "must be [low, high] with 0 < low <= high",
             )
-    share = ranges.get("vibration_share")
-    if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0.0 <= share <= 1.0:
-        raise InputError(
-            f"identification.evaluation.supports.{which}.vibration_share",
-            share,
-            "must be a fraction in [0, 1]",
-        )
+    for name in ("vibration_share", *(["structure_share"] if "structure_share" in ranges else [])):
+        share = ranges.get(name)
+        if (
+            isinstance(share, bool)
+            or not isinstance(share, (int, float))
+            or not 0.0 <= share <= 1.0
+        ):
+            raise InputError(
+                f"identification.evaluation.supports.{which}.{name}",
+                share,
+                "must be a fraction in [0, 1]",
+            )
     laws = ranges.get("contact_models")
     if not isinstance(laws, (list, tuple)) or not laws:
         raise InputError(
@@ -268,7 +273,9 @@ def draw_support(
     The accelerometer (present with probability ``vibration_share``, and its rate) is drawn from
     ``vibration_rng`` (default ``rng``), so a caller that gives it a generator of its own draws
     every other value as it did before the accelerometer was drawn. ``modes``: the nominal
-    ``modes`` section, which ranges with a ``structure`` need (:func:`draw_structure`)."""
+    ``modes`` section, which ranges with a ``structure`` need (:func:`draw_structure`); with a
+    ``structure_share`` as well, only that fraction of the supports has a drawn structure, the
+    rest the nominal modes rescaled."""
     values = {}
     for name in RANGES:
         if name == "vibration_rate_hz":
@@ -283,7 +290,9 @@ def draw_support(
     for name in OPTIONAL_RANGES:
         if name in ranges:
             values[name] = _draw(ranges[name], name, rng)
-    if "structure" in ranges:
+    if "structure" in ranges and (
+        "structure_share" not in ranges or rng.uniform() < float(ranges["structure_share"])
+    ):
         if modes is None:
             raise InputError(
                 "modes.derived_from", None, "a drawn structure needs the nominal beam"

@@ -105,3 +105,46 @@ def test_evaluate_scores_the_structures_sets(capsys):
         x.startswith("paper scene on structures supports nominal/x1/nominal threshold")
         for x in lines
     )
+
+
+def test_training_draws_structures_for_its_share_of_supports(params):
+    """The training ranges' structure_share: about that fraction of the drawn training supports
+    have modes from a beam of their own (the rest the nominal modes rescaled), each within the
+    training's narrower structure ranges (second mode 2.2-7 x the first); a share of 0 draws
+    none, 1 every one; a share outside [0, 1] is refused by name."""
+    import copy
+
+    from tail_beam_sim.errors import InputError
+
+    ev = evaluation_params(params)
+    ranges = support_ranges(ev, "training")
+    share = float(ranges["structure_share"])
+    assert 0.0 < share < 1.0
+    draws = [
+        draw_support(ranges, np.random.default_rng(seed), None, params["modes"])
+        for seed in range(60)
+    ]
+    structured = [d for d in draws if d.mode_frequencies_hz]
+    # binomial(60, share): well inside 5 standard deviations
+    assert abs(len(structured) - 60 * share) < 5 * math.sqrt(60 * share * (1 - share))
+    for draw in structured:
+        f = draw.mode_frequencies_hz
+        if len(f) > 1:
+            assert 2.2 - 1e-9 <= f[1] / f[0] <= 7.0 + 1e-9
+    for value, expected in ((0.0, 0), (1.0, 20)):
+        edited = copy.deepcopy(dict(ev))
+        edited["supports"]["training"]["structure_share"] = value
+        fixed = support_ranges(edited, "training")
+        got = sum(
+            bool(
+                draw_support(fixed, np.random.default_rng(s), None, params["modes"]).values.get(
+                    "structure_modes"
+                )
+            )
+            for s in range(20)
+        )
+        assert got == expected
+    edited = copy.deepcopy(dict(ev))
+    edited["supports"]["training"]["structure_share"] = 1.5
+    with pytest.raises(InputError, match="training.structure_share"):
+        support_ranges(edited, "training")
