@@ -30,6 +30,10 @@ def test_crossings_and_false_alarms_are_read_from_the_interval_ends():
     case = FlowCase("nominal", "shipped", 5.0)
     score_coal(case, [share(1.0, 0.0), share(1.5, 0.25), share(2.0, None)])
     assert (case.coal_intervals, case.false_crossings) == (3, 1)
+    # The crossing rule needs two consecutive intervals over the level: one is no alarm.
+    assert case.false_alarms == 0
+    score_coal(case, [share(3.0, 0.25), share(3.5, 0.3), share(4.0, 0.0)])
+    assert case.false_alarms == 1
 
 
 def test_a_sparse_pure_coal_flow_reads_near_zero_with_intervals_holding_it():
@@ -73,12 +77,14 @@ def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
     out = capsys.readouterr().out
     assert code == 0
     assert "targets (flow; shipped layout):" in out and "foreign-1" in out
+    assert "crossing rule (share_alarm)" in out
     cases = json.loads((tmp_path / "flow.json").read_text())
     assert {(c["support"], c["layout"]) for c in cases} == {
         (s, layout) for s in ("nominal", "foreign-1") for layout in ("shipped", "imu")
     }
     for case in cases:
         assert case["intervals"] >= 3 and 0.0 <= case["mae"] <= 1.0
+        assert 0.0 <= case["coverage"] <= 1.0 and case["false_alarms"] >= 0
         assert case["coal_intervals"] >= 1 and case["impacts"] >= 10
 
 
@@ -88,6 +94,7 @@ def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
         (["evaluate", "--sets", "flow", "--flow-rates", "-5"], "--flow-rates"),
         (["evaluate", "--sets", "flow", "--flow-duration-s", "0.5"], "--flow-duration-s"),
         (["evaluate", "--sets", "flow", "--flow-foreign", "-1"], "--flow-foreign"),
+        (["evaluate", "--sets", "flow", "--flow-layouts", "camera"], "--flow-layouts"),
     ],
 )
 def test_bad_flow_options_are_refused_in_one_line(capsys, argv, field):
