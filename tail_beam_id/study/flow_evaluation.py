@@ -17,7 +17,10 @@ replayed streams). Figures:
 * the same for the crossing rule (:mod:`tail_beam_id.stream.share_alarm`: the share
   ``alarm_z`` standard errors above the level in ``alarm_intervals`` consecutive intervals):
   its delay at 1/5 and 1/3, and the pure-coal intervals it is raised after;
-* per-impact accuracy (Wilson 95 %) of the labels, extra and missed labels counting as wrong.
+* per-impact accuracy (Wilson 95 %) of the labels, extra and missed labels counting as wrong;
+* what one label says of its lump: the area under the ROC curve of the matched labels' scores
+  (:func:`tail_beam_id.stream.share.label_score`) for gangue, and the fraction of them resting
+  on an acceleration pulse.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ import numpy as np
 
 from tail_beam_id.stream.label import match_stamps, match_tolerance_s
 from tail_beam_id.stream.replay import replay
-from tail_beam_id.stream.share import GangueShare, ShareConfig
+from tail_beam_id.stream.share import Z_95, GangueShare, ShareConfig, label_score
 from tail_beam_id.stream.share_alarm import alarm_states
 from tail_beam_id.stream.share_reader import SharingIdentifier
 from tail_beam_id.study.dataset import evaluation_params
@@ -68,6 +71,9 @@ class FlowCase:
     signed: list[float] = field(default_factory=list)  # estimate - truth per interval
     standard_errors: list[float] = field(default_factory=list)  # the stated ones, per interval
     covered: int = 0  # intervals whose 95 % interval holds the truth
+    # Each label matched to a lump: (its score, the lump is gangue, the label used the
+    # accelerometer): how much a single label says of its lump.
+    scored: list[tuple[float, bool, bool]] = field(default_factory=list)
     delays_s: dict[float, float] = field(default_factory=dict)  # level -> delay, s (nan: none)
     # The same with the estimate's lower 95 % bound reaching the level (a cautious alarm).
     low_delays_s: dict[float, float] = field(default_factory=dict)
@@ -86,6 +92,17 @@ class FlowCase:
     def mae(self) -> float:
         return float(np.mean(self.errors)) if self.errors else math.nan
 
+    def mae_interval(self, hop_s: float = 0.5, interval_s: float = 1.0) -> tuple[float, float]:
+        """A 95 % interval of the MAE: mean +- 1.96 standard deviations of the absolute errors
+        over the root of the intervals' count divided by their overlap (interval_s / hop_s:
+        overlapping intervals share lumps, so their errors are not independent)."""
+        n = len(self.errors)
+        if n < 2:
+            return math.nan, math.nan
+        effective = max(n * hop_s / interval_s, 1.0)
+        half = Z_95 * float(np.std(self.errors, ddof=1)) / math.sqrt(effective)
+        return max(0.0, self.mae - half), self.mae + half
+
     @property
     def bias(self) -> float:
         return float(np.mean(self.signed)) if self.signed else math.nan
@@ -101,6 +118,17 @@ class FlowCase:
         return self.covered / len(self.errors) if self.errors else math.nan
 
     @property
+    def score_auc(self) -> float:
+        """The area under the ROC curve of the matched labels' scores for their lumps being
+        gangue (0.5: a label's score says nothing of its lump; 1: it separates them)."""
+        return rank_auc([s for s, _, _ in self.scored], [g for _, g, _ in self.scored])
+
+    @property
+    def accelerometer_fraction(self) -> float:
+        """The fraction of matched labels that rest on the accelerometer (or the IMU's pulse)."""
+        return float(np.mean([a for _, _, a in self.scored])) if self.scored else math.nan
+
+    @property
     def accuracy(self) -> float:
         return self.correct / self.impacts if self.impacts else math.nan
 
@@ -111,9 +139,13 @@ class FlowCase:
             "layout": self.layout,
             "rate_per_s": self.rate_per_s,
             "mae": self.mae,
+            "mae_ci": list(self.mae_interval()),
+            "errors": self.signed,
             "bias": self.bias,
             "stated_se": self.stated_se,
             "coverage": self.coverage,
+            "score_auc": self.score_auc,
+            "accelerometer_fraction": self.accelerometer_fraction,
             "intervals": len(self.errors),
             "delay_s": {f"{level:.3f}": d for level, d in self.delays_s.items()},
             "low_delay_s": {f"{level:.3f}": d for level, d in self.low_delays_s.items()},
@@ -127,6 +159,25 @@ class FlowCase:
             "accuracy_ci": [low, high],
             "impacts": self.impacts,
         }
+
+
+def rank_auc(scores: Sequence[float], positive: Sequence[bool]) -> float:
+    """Area under the ROC curve (Mann-Whitney, ties counted half); nan without both classes."""
+    x = np.asarray(scores, dtype=float)
+    y = np.asarray(positive, dtype=bool)
+    n_pos, n_neg = int(y.sum()), int((~y).sum())
+    if n_pos == 0 or n_neg == 0:
+        return math.nan
+    order = np.argsort(x, kind="mergesort")
+    ranks = np.empty(x.size)
+    sorted_x = x[order]
+    # Average ranks over ties.
+    start = 0
+    for end in range(1, x.size + 1):
+        if end == x.size or sorted_x[end] != sorted_x[start]:
+            ranks[order[start:end]] = 0.5 * (start + end - 1) + 1.0
+            start = end
+    return float((ranks[y].sum() - n_pos * (n_pos + 1) / 2.0) / (n_pos * n_neg))
 
 
 def flow_supports(params: Mapping[str, Any], foreign: int, seed: int) -> list[tuple[str, Any]]:
@@ -219,6 +270,14 @@ def score_case(
     matching = match_stamps(stamps, [lab.impact_stamp_s for lab in labels], tolerance)
     gangue = recording.gangue()
     case.correct += sum((labels[j].material == "gangue") == gangue[i] for i, j in matching.pairs)
+    case.scored += [
+        (
+            label_score(labels[j]),
+            bool(gangue[i]),
+            bool({"vibration", "imu"} & set(labels[j].signals)),
+        )
+        for i, j in matching.pairs
+    ]
     case.impacts += len(stamps) + len(matching.extra)
 
 
@@ -275,7 +334,7 @@ def format_flow_table(cases: Sequence[FlowCase]) -> str:
     in brackets by its lower 95 % bound), how the intervals were read, per-impact accuracy."""
     lines = [
         "support     layout  lumps/s  MAE pts (n)  bias  SE  95%in  delay 1/5 s    delay 1/3 s    "
-        "coal >= 1/5    alarm 1/5, 1/3 s  coal alarm  intervals by          "
+        "coal >= 1/5    alarm 1/5, 1/3 s  coal alarm  AUC  accel  intervals by          "
         "per-impact accuracy (95 %)"
     ]
     for c in cases:
@@ -290,7 +349,10 @@ def format_flow_table(cases: Sequence[FlowCase]) -> str:
         coal = f"{c.false_crossings:2d} ({c.false_low_crossings:2d})/{c.coal_intervals:<3d}"
         accuracy = f"{100 * c.accuracy:5.1f} % ({100 * low:.1f}-{100 * high:.1f})"
         a1, a3 = (c.alarm_delays_s.get(level, math.nan) for level in LEVELS)
-        alarm = f"{a1:5.1f}, {a3:5.1f}     {c.false_alarms:3d}/{c.coal_intervals:<3d}  "
+        alarm = (
+            f"{a1:5.1f}, {a3:5.1f}     {c.false_alarms:3d}/{c.coal_intervals:<3d}  "
+            f"{c.score_auc:4.2f} {100 * c.accelerometer_fraction:4.0f}%"
+        )
         lines.append(
             f"{c.support:11s} {c.layout:7s} {c.rate_per_s:7g}  {mae}  {d1:5.1f} ({b1:5.1f})  "
             f"{d3:5.1f} ({b3:5.1f})  {coal}  {alarm}  {how:20s}  {accuracy}"

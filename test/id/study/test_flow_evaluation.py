@@ -11,7 +11,13 @@ import pytest
 from tail_beam_id.stream.label import Label
 from tail_beam_id.stream.share import GangueShare
 from tail_beam_id.study.flow import record_sim_flow
-from tail_beam_id.study.flow_evaluation import FlowCase, first_reaching, identify_flow, score_coal
+from tail_beam_id.study.flow_evaluation import (
+    FlowCase,
+    first_reaching,
+    identify_flow,
+    rank_auc,
+    score_coal,
+)
 from tail_beam_sim.cli import main
 from tail_beam_sim.config import load_parameters
 
@@ -34,6 +40,16 @@ def test_crossings_and_false_alarms_are_read_from_the_interval_ends():
     assert case.false_alarms == 0
     score_coal(case, [share(3.0, 0.25), share(3.5, 0.3), share(4.0, 0.0)])
     assert case.false_alarms == 1
+
+
+def test_the_score_auc_is_the_mann_whitney_statistic():
+    """Separated scores give 1, reversed 0, all tied 0.5; 3 positives at 2, 4, 6 against 1, 3,
+    5 win 6 of 9 pairs; one class alone gives nan."""
+    assert rank_auc([1, 2, 3, 4], [False, False, True, True]) == 1.0
+    assert rank_auc([4, 3, 2, 1], [False, False, True, True]) == 0.0
+    assert rank_auc([1, 1, 1, 1], [False, True, False, True]) == 0.5
+    assert rank_auc([1, 2, 3, 4, 5, 6], [False, True] * 3) == pytest.approx(6 / 9)
+    assert math.isnan(rank_auc([1.0, 2.0], [True, True]))
 
 
 def test_a_sparse_pure_coal_flow_reads_near_zero_with_intervals_holding_it():
