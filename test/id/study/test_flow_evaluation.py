@@ -69,6 +69,25 @@ def test_a_sparse_pure_coal_flow_reads_near_zero_with_intervals_holding_it():
     assert coal >= 0.8 * len(labels)
 
 
+def test_a_dense_pure_coal_flow_raises_no_alarm_and_no_lower_bound_reaches_a_fifth():
+    """Pure coal at 50 lumps/s for 4 s on the nominal support: the shares rest on the mixture
+    of about 50 labels a second; no interval's lower 95 % bound reaches 1/5, and the crossing
+    rule never rises at 1/5 or 1/3."""
+    from tail_beam_id.stream.share import ShareConfig
+    from tail_beam_id.stream.share_alarm import alarm_states
+
+    params = load_parameters([])
+    recording = record_sim_flow(params, 50.0, 4.0, 0.0, 0.0, 0.0, seed=9003)
+    assert not any(t["label"] == "gangue" for t in recording.truths)
+    _, shares = identify_flow(recording, "shipped")
+    rested = [s for s in shares if s.share is not None]
+    assert len(rested) >= 5 and all(s.basis_method == "mixture" for s in rested[1:])
+    assert all(s.low < 0.2 for s in rested)
+    config = ShareConfig.from_params(recording.params["identification"].get("gangue_share"))
+    for level in (0.2, 1.0 / 3.0):
+        assert not any(alarm_states(shares, level, config))
+
+
 @pytest.mark.slow
 def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
     """`tail-beam evaluate --sets flow` runs every support and layout, prints the targets and
