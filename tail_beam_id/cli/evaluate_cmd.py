@@ -90,6 +90,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=12.0,
         help="flow set: the pure-coal flow's length per case, s (false crossings; default 12)",
     )
+    parser.add_argument(
+        "--flow-layouts",
+        default="shipped,imu",
+        help="flow set: sensor layouts, comma-separated: shipped (with the accelerometer), imu "
+        "(without it) (default both)",
+    )
     parser.add_argument("--methods", default=None, help="methods, comma-separated (default: all)")
     parser.add_argument(
         "--noise", default=None, help="noise factors, comma-separated (default: config, 1,3,10)"
@@ -243,6 +249,7 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
     """The flow scene set: print its table and targets; with --out, flow.json (and with --plot
     the chart)."""
     from tail_beam_id.study.flow_evaluation import (
+        LAYOUTS,
         LEVELS,
         FlowScene,
         format_flow_table,
@@ -255,6 +262,9 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
     duration = require_range("--flow-duration-s", args.flow_duration_s, 2.0, 600.0)
     coal = require_range("--flow-coal-s", args.flow_coal_s, 1.0, 600.0)
     scene = FlowScene(duration, duration / 2.0, 2.0, 0.7, coal)
+    layouts = _names(args.flow_layouts, LAYOUTS, "--flow-layouts")
+    if not layouts:
+        raise InputError("--flow-layouts", args.flow_layouts, f"must name one of {LAYOUTS}")
     method = args.methods.split(",")[0] if args.methods else None
     if method is not None:
         _names(method, available_methods(), "--methods")
@@ -263,9 +273,11 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
     if args.out:
         require_output_file("--out", Path(args.out) / "flow.json")
     started = time.monotonic()
-    cases = list(run_flow_set(params, rates, args.flow_foreign, scene, method=method))
+    cases = list(
+        run_flow_set(params, rates, args.flow_foreign, scene, layouts=layouts, method=method)
+    )
     print(
-        f"flow: {len(rates)} rates x {1 + args.flow_foreign} supports x 2 layouts, "
+        f"flow: {len(rates)} rates x {1 + args.flow_foreign} supports x {len(layouts)} layouts, "
         f"{duration:g} s flows (pure coal to about {duration / 2:g} s, then the share by mass "
         f"rising to 0.7 over about 2 s) and {coal:g} s of pure coal each, method "
         f"{method or params['identification']['method']}, {time.monotonic() - started:.0f} s"
@@ -299,6 +311,17 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
     print(
         f"  no crossing of 1/5 in pure coal: {false} interval(s) crossing in {coal_s:g} s: "
         f"{'met' if false == 0 else 'NOT met'}"
+    )
+    alarms = [c.alarm_delays_s[LEVELS[0]] for c in shipped]
+    alarms = [d for d in alarms if not math.isnan(d)]
+    in_time = sum(d <= FLOW_DELAY_TARGET_S for d in alarms)
+    false_alarms = sum(c.false_alarms for c in shipped)
+    print(
+        f"  crossing rule (share_alarm): raised at 1/5 within {FLOW_DELAY_TARGET_S:g} s of the "
+        f"truth in {in_time} of {len(alarms)} cases: "
+        f"{'met' if in_time == len(alarms) else 'NOT met'};"
+        f" raised in pure coal after {false_alarms} interval(s) of {coal_s:g} s: "
+        f"{'met' if false_alarms == 0 else 'NOT met'}"
     )
     if args.out:
         out = Path(args.out)

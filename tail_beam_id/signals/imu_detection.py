@@ -266,6 +266,16 @@ class PulseDetector:
             int, float
         ] = {}  # noise RMS per block, by its first absolute index
 
+    def lookback_s(self) -> float:
+        """How far before the sample that sets it off a pulse's onset may lie, s
+        (``onset_lookback_s``, at least ``ONSET_LOOKBACK_MIN_SAMPLES`` samples): every pulse whose
+        onset is this far before the scan's cursor has been found."""
+        c = self.config
+        if self.period_s is None:
+            return c.onset_lookback_s
+        samples = max(ONSET_LOOKBACK_MIN_SAMPLES, int(round(c.onset_lookback_s / self.period_s)))
+        return samples * self.period_s
+
     def geometry(self, period_s: float) -> tuple[int, int, int]:
         """(baseline samples, noise block samples, most samples a pulse spans) at this period."""
         c = self.config

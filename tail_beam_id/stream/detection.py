@@ -80,7 +80,7 @@ class ImpactFinder:
         """Add the impacts the newest data show to the pending ones (``final``: the end of the
         data, every stream has said all it will)."""
         self._pulse_impacts(final)
-        self._rebound_impacts(final)
+        self.find_rebound_impacts(final)
         self._pressure_impacts(final)
 
     def accel_scanned_s(self) -> float:
@@ -89,6 +89,14 @@ class ImpactFinder:
         if self.channels.vibration_in_use():
             return scanned_s(self.channels.vibration, self.vibration_detector)
         return scanned_s(self.channels.imu, self.imu_detector)
+
+    def onsets_known_s(self) -> float:
+        """Stamp before which every pulse onset of the acceleration channel in use has been
+        found, s: the scan's progress less how far before its trigger a pulse's onset may lie
+        (:meth:`tail_beam_id.signals.imu_detection.PulseDetector.lookback_s`)."""
+        if self.channels.vibration_in_use():
+            return self.accel_scanned_s() - self.vibration_detector.lookback_s()
+        return self.accel_scanned_s() - self.imu_detector.lookback_s()
 
     def _pulse_impacts(self, final: bool) -> None:
         """Pulses of the acceleration channels: the vibration stream's, and the IMU's where the
@@ -151,14 +159,24 @@ class ImpactFinder:
             else:
                 association.pending.append(PendingImpact(onset_s=pulse.onset_s, pulse=pulse))
 
-    def _rebound_impacts(self, final: bool) -> None:
+    def find_rebound_impacts(self, final: bool) -> None:
         """A rebound no pulse can claim is an impact of its own (acceleration channels stopped
         or absent, or the pulse lost in noise); its onset is put ``rebound_onset_lead_s``
         before its stamp. One a waiting pulse may claim late (a camera slower than known) is
         that pulse's instead."""
+        # A late claim takes a waiting pulse's rebound window out of play, so a rebound passed
+        # over as claimable before it is looked at again: the impacts found do not depend on
+        # whether the claim came in this call or an earlier one.
+        while self._rebound_impacts_once(final):
+            pass
+
+    def _rebound_impacts_once(self, final: bool) -> bool:
+        """One pass of :meth:`find_rebound_impacts`; True when a pulse took a rebound late."""
         c = self.config.detection
         channels, association = self.channels, self.association
-        scanned = math.inf if final else self.accel_scanned_s()
+        # A pulse with its onset up to rebound_early_tolerance_s after the rebound may claim it.
+        scanned = math.inf if final else self.onsets_known_s()
+        claimed_late = False
         for stamp, velocity in association.rebounds:
             if stamp in association.used_rebounds:
                 continue
@@ -176,6 +194,7 @@ class ImpactFinder:
                 )
                 if late is not None:
                     association.take_late_rebound(late, stamp, velocity)
+                    claimed_late = True
                     continue
                 association.used_rebounds.add(stamp)
                 onset = stamp - c.rebound_onset_lead_s
@@ -184,6 +203,7 @@ class ImpactFinder:
                         onset_s=onset, pulse=None, rebound=(stamp, velocity), source="rebound"
                     )
                 )
+        return claimed_late
 
     def _accel_absent(self, final: bool) -> bool:
         """No acceleration channel (IMU, vibration) at all, after the pressure has run

@@ -231,6 +231,10 @@ class StreamIdentifier:
             label = self.decider.decide(self.impacts.pending.pop(0))
             if label is not None:
                 labels.append(label)
+            # The decided impact's rebound window claims no more: a rebound it left is now an
+            # impact of its own, found before the next decision however the data were chunked.
+            self.finder.find_rebound_impacts(final)
+            self.impacts.pending.sort(key=lambda impact: impact.onset_s)
         self.retention.trim()
         if final:
             self.points.flush()

@@ -2,8 +2,10 @@
 only so that the labels do not depend on how the data came.
 
 An impact is ready once every live continuous stream has passed its onset plus its data window,
-the acceleration channel has been scanned over its overlap window (no pulse still held there),
-no rebound it may yet claim late is undecided, and the camera has settled
+the acceleration channel has been scanned over its overlap window (no pulse still held there)
+and far enough past it that every rebound whose onset falls in that window and that no pulse
+claims has become an impact of its own (so its overlap flag does not depend on how the streams
+were chunked), no rebound it may yet claim late is undecided, and the camera has settled
 (:meth:`tail_beam_id.stream.association.ImpactAssociation.camera_settled`).
 """
 
@@ -45,9 +47,8 @@ class Readiness:
             if channels.live(series, False) and series.latest_s < horizon_s:
                 return False
         accel = channels.acceleration_in_use()
-        if (
-            channels.live(accel, False)
-            and self.finder.accel_scanned_s() < impact.onset_s + overlap_s
+        if channels.live(accel, False) and self.finder.onsets_known_s() < self._scan_needed_s(
+            impact.onset_s + overlap_s
         ):
             return False
         if any(p.onset_s < impact.onset_s + overlap_s for p in self.finder.held):
@@ -55,6 +56,16 @@ class Readiness:
         if self._late_rebound_undecided(impact):
             return False
         return self.association.camera_settled(impact, channels.newest_s())
+
+    def _scan_needed_s(self, overlap_end_s: float) -> float:
+        """Stamp every pulse onset must be known to (ImpactFinder.onsets_known_s) before an
+        impact whose overlap window ends at ``overlap_end_s`` (s) is decided: a rebound stamped
+        up to ``rebound_onset_lead_s`` after that end has its onset in the window, and the
+        finder makes it an impact of its own once onsets are known
+        ``rebound_early_tolerance_s`` past its stamp
+        (:meth:`tail_beam_id.stream.detection.ImpactFinder.find_rebound_impacts`)."""
+        c = self.config.detection
+        return overlap_end_s + c.rebound_onset_lead_s + c.rebound_early_tolerance_s
 
     def _late_rebound_undecided(self, impact: PendingImpact) -> bool:
         """A rebound this impact may claim late (ImpactAssociation.late_claimant) has come, but
@@ -70,7 +81,7 @@ class Readiness:
         if not self.channels.live(self.channels.acceleration_in_use(), False):
             return False
         association = self.association
-        settled_s = self.finder.accel_scanned_s() - self.config.detection.rebound_early_tolerance_s
+        settled_s = self.finder.onsets_known_s() - self.config.detection.rebound_early_tolerance_s
         # The conditions ImpactFinder claims a late rebound on, the camera's frame as known at
         # the rebound's own stamp.
         return any(

@@ -10,8 +10,9 @@ Basis: the share by count, the fraction of the lumps striking in the interval th
   mixture proportion that makes the labels' scores (their logits of gangue) likeliest, given
   how coal and gangue impacts score in that regime, learnt on simulated flows at 5-200 lumps/s
   on the nominal and on drawn supports (``tail_beam_id/models/gangue_share.json``); its 95 %
-  interval is the profile-likelihood one (``method: mixture``). A label that is wrong at
-  random then costs precision, not bias.
+  interval is the profile-likelihood one widened by the model's systematic error at that flow
+  density (``method: mixture``). A label that is wrong at random then costs precision, not
+  bias; a support that scores unlike training's biases it, which the systematic error states.
 
 An interval ends on the grid ``k hop_s`` of stamp time and rests on the labels whose impact
 stamp lies in it: live (id_node) and offline (tail-beam identify) give the same shares.
@@ -77,6 +78,22 @@ GANGUE_SHARE = Section(
             1000,
             default=1,
         ),
+        number(
+            "alarm_z",
+            "A share alarm at a level needs the estimate this many standard errors above it.",
+            "",
+            0.0,
+            10.0,
+            default=1.5,
+        ),
+        integer(
+            "alarm_intervals",
+            "A share alarm needs that evidence in this many consecutive intervals; it clears "
+            "once the estimate falls below the level.",
+            1,
+            100,
+            default=2,
+        ),
     ),
 )
 
@@ -91,6 +108,8 @@ class ShareConfig:
     max_labels_per_s: float = 15.0
     max_overlap_fraction: float = 0.25
     min_labels: int = 1
+    alarm_z: float = 1.5
+    alarm_intervals: int = 2
 
     @classmethod
     def from_params(cls, section: Mapping[str, Any] | None) -> ShareConfig:
@@ -209,32 +228,65 @@ def regime_of(label: Label, labels_per_s: float) -> str:
     (which network decided it), whether its impact overlapped another, and how dense the flow
     is (labels per second, in classes split at RATE_CLASS_EDGES_PER_S), e.g.
     ``jack_pressure+rebound_velocity/overlap/2``."""
-    rate_class = int(np.searchsorted(RATE_CLASS_EDGES_PER_S, labels_per_s, side="right"))
     overlap = "overlap" if label.overlap else "alone"
-    return f"{'+'.join(sorted(label.signals))}/{overlap}/{rate_class}"
+    return f"{'+'.join(sorted(label.signals))}/{overlap}/{rate_class(labels_per_s)}"
+
+
+def rate_class(labels_per_s: float) -> int:
+    """The flow-density class of RATE_CLASS_EDGES_PER_S a rate of labels (1/s) falls in."""
+    return int(np.searchsorted(RATE_CLASS_EDGES_PER_S, labels_per_s, side="right"))
 
 
 @dataclass(frozen=True)
 class ScoreModel:
     """The distribution of :func:`label_score` for coal and for gangue impacts in each
     :func:`regime_of`, learnt on simulated flows (histogram densities over ``edges``, per unit
-    score), what turns a dense flow's labels into a share however often each is wrong."""
+    score), what turns a dense flow's labels into a share however often each is wrong; and the
+    systematic error of a mixture share per flow-density class (RATE_CLASS_EDGES_PER_S): how
+    far, beyond its statistical error, the share of a flow the densities were not learnt on
+    (another support, another flow) lies from the truth, measured across training flows held
+    out of the fit."""
 
     edges: np.ndarray
     densities: dict[str, tuple[np.ndarray, np.ndarray]]  # regime -> (coal, gangue)
+    systematic_se: tuple[float, ...] = ()  # per rate class; () or missing classes: 0
+
+    def density_of(self, regime: str) -> tuple[np.ndarray, np.ndarray] | None:
+        """The densities of ``regime``, else of the nearest flow-density class with the same
+        signals and overlap, else of the same signals with the other overlap; None if the
+        signals are unknown."""
+        if regime in self.densities:
+            return self.densities[regime]
+        signals, overlap, rate = regime.rsplit("/", 2)
+        other = "alone" if overlap == "overlap" else "overlap"
+        for flag in (overlap, other):
+            classes = sorted(
+                (abs(int(k.rsplit("/", 1)[1]) - int(rate)), k)
+                for k in self.densities
+                if k.rsplit("/", 1)[0] == f"{signals}/{flag}"
+            )
+            if classes:
+                return self.densities[classes[0][1]]
+        return None
 
     def likelihoods(self, scores: np.ndarray, regimes: Sequence[str]) -> np.ndarray | None:
-        """(n, 2) densities of each score under coal and gangue; None if a regime is unknown."""
+        """(n, 2) densities of each score under coal and gangue; None if a regime's signals
+        are unknown (:meth:`density_of`)."""
         out = np.empty((len(regimes), 2))
         bins = np.clip(
             np.searchsorted(self.edges, scores, side="right") - 1, 0, self.edges.size - 2
         )
         for i, (b, regime) in enumerate(zip(bins, regimes)):
-            if regime not in self.densities:
+            pair = self.density_of(regime)
+            if pair is None:
                 return None
-            coal, gangue = self.densities[regime]
-            out[i] = coal[b], gangue[b]
+            out[i] = pair[0][b], pair[1][b]
         return out
+
+    def systematic(self, labels_per_s: float) -> float:
+        """The systematic standard error of a mixture share at this label rate (1/s)."""
+        k = rate_class(labels_per_s)
+        return float(self.systematic_se[k]) if k < len(self.systematic_se) else 0.0
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -243,6 +295,7 @@ class ScoreModel:
                 r: {"coal": c.tolist(), "gangue": g.tolist()}
                 for r, (c, g) in sorted(self.densities.items())
             },
+            "systematic_se": list(self.systematic_se),
         }
 
     @classmethod
@@ -257,7 +310,10 @@ class ScoreModel:
             if (coal <= 0).any() or (gangue <= 0).any():
                 raise InputError(f"gangue_share model {regime}", "densities", "must be > 0")
             densities[regime] = (coal, gangue)
-        return cls(edges, densities)
+        systematic = tuple(float(v) for v in data.get("systematic_se", ()))
+        if any(not (0.0 <= v <= 1.0) for v in systematic):
+            raise InputError("gangue_share model systematic_se", systematic, "must be in [0, 1]")
+        return cls(edges, densities, systematic)
 
 
 def load_score_model(path: str | Path | None = None) -> ScoreModel | None:
@@ -306,7 +362,11 @@ def estimate_share(
     scores through ``model`` (:func:`mixture_share`)."""
     if not end_s > start_s:
         raise InputError("end_stamp_s", end_s, f"must be after start_stamp_s ({start_s})")
-    inside = [lab for lab in labels if start_s <= lab.impact_stamp_s < end_s]
+    # In stamp order: the sums below then do not depend on the order the labels came in.
+    inside = sorted(
+        (lab for lab in labels if start_s <= lab.impact_stamp_s < end_s),
+        key=lambda lab: lab.impact_stamp_s,
+    )
     n = len(inside)
     if n == 0:
         return GangueShare(start_s, end_s, None, 0.0, 1.0, None, 0, 0, 0, "none", ())
@@ -329,7 +389,16 @@ def estimate_share(
         se = math.sqrt(p * (1 - p) / n)
         return GangueShare(start_s, end_s, p, low, high, se, n, k, overlapping, "labels", signals)
     p, low, high, se = mixture_share(likelihoods)
-    return GangueShare(start_s, end_s, p, low, high, se, n, k, overlapping, "mixture", signals)
+    # The systematic error (a support or flow unlike training's) adds to the statistical one
+    # in quadrature, on the standard error and on each side of the profile interval.
+    systematic = model.systematic(n / (end_s - start_s)) if model is not None else 0.0
+    if systematic > 0.0:
+        se = min(math.hypot(se, systematic), 1.0)
+        low = max(0.0, p - math.hypot(p - low, Z_95 * systematic))
+        high = min(1.0, p + math.hypot(high - p, Z_95 * systematic))
+    return GangueShare(
+        start_s, end_s, p, round(low, 6), round(high, 6), se, n, k, overlapping, "mixture", signals
+    )
 
 
 def interval_ends(first_s: float, last_s: float, config: ShareConfig) -> list[float]:

@@ -14,7 +14,13 @@ replayed streams). Figures:
   first gangue lump) minus when the true interval share first does, s (the interval ends; nan
   when the truth never reaches it, inf when the estimate never does);
 * false crossings: intervals of the pure-coal flow whose estimate reaches 1/5;
-* per-impact accuracy (Wilson 95 %) of the labels, extra and missed labels counting as wrong.
+* the same for the crossing rule (:mod:`tail_beam_id.stream.share_alarm`: the share
+  ``alarm_z`` standard errors above the level in ``alarm_intervals`` consecutive intervals):
+  its delay at 1/5 and 1/3, and the pure-coal intervals it is raised after;
+* per-impact accuracy (Wilson 95 %) of the labels, extra and missed labels counting as wrong;
+* what one label says of its lump: the area under the ROC curve of the matched labels' scores
+  (:func:`tail_beam_id.stream.share.label_score`) for gangue, and the fraction of them resting
+  on an acceleration pulse.
 """
 
 from __future__ import annotations
@@ -28,7 +34,8 @@ import numpy as np
 
 from tail_beam_id.stream.label import match_stamps, match_tolerance_s
 from tail_beam_id.stream.replay import replay
-from tail_beam_id.stream.share import GangueShare
+from tail_beam_id.stream.share import Z_95, GangueShare, ShareConfig, label_score
+from tail_beam_id.stream.share_alarm import alarm_states
 from tail_beam_id.stream.share_reader import SharingIdentifier
 from tail_beam_id.study.dataset import evaluation_params
 from tail_beam_id.study.evaluation import wilson
@@ -61,12 +68,21 @@ class FlowCase:
     layout: str
     rate_per_s: float
     errors: list[float] = field(default_factory=list)  # |estimate - truth| per interval
+    signed: list[float] = field(default_factory=list)  # estimate - truth per interval
+    standard_errors: list[float] = field(default_factory=list)  # the stated ones, per interval
+    covered: int = 0  # intervals whose 95 % interval holds the truth
+    # Each label matched to a lump: (its score, the lump is gangue, the label used the
+    # accelerometer): how much a single label says of its lump.
+    scored: list[tuple[float, bool, bool]] = field(default_factory=list)
     delays_s: dict[float, float] = field(default_factory=dict)  # level -> delay, s (nan: none)
     # The same with the estimate's lower 95 % bound reaching the level (a cautious alarm).
     low_delays_s: dict[float, float] = field(default_factory=dict)
     coal_intervals: int = 0
     false_crossings: int = 0  # pure-coal intervals whose estimate reached 1/5
     false_low_crossings: int = 0  # ... whose lower 95 % bound reached 1/5
+    # The crossing rule (share_alarm): level -> delay, s, and pure-coal intervals raised at 1/5.
+    alarm_delays_s: dict[float, float] = field(default_factory=dict)
+    false_alarms: int = 0
     methods: dict[str, int] = field(default_factory=dict)  # interval basis -> count
     correct: int = 0
     impacts: int = 0  # lumps, plus labels matching none
@@ -75,6 +91,42 @@ class FlowCase:
     @property
     def mae(self) -> float:
         return float(np.mean(self.errors)) if self.errors else math.nan
+
+    def mae_interval(self, hop_s: float = 0.5, interval_s: float = 1.0) -> tuple[float, float]:
+        """A 95 % interval of the MAE: mean +- 1.96 standard deviations of the absolute errors
+        over the root of the intervals' count divided by their overlap (interval_s / hop_s:
+        overlapping intervals share lumps, so their errors are not independent)."""
+        n = len(self.errors)
+        if n < 2:
+            return math.nan, math.nan
+        effective = max(n * hop_s / interval_s, 1.0)
+        half = Z_95 * float(np.std(self.errors, ddof=1)) / math.sqrt(effective)
+        return max(0.0, self.mae - half), self.mae + half
+
+    @property
+    def bias(self) -> float:
+        return float(np.mean(self.signed)) if self.signed else math.nan
+
+    @property
+    def stated_se(self) -> float:
+        """The mean standard error the estimator stated."""
+        return float(np.mean(self.standard_errors)) if self.standard_errors else math.nan
+
+    @property
+    def coverage(self) -> float:
+        """The fraction of intervals whose 95 % interval holds the true share."""
+        return self.covered / len(self.errors) if self.errors else math.nan
+
+    @property
+    def score_auc(self) -> float:
+        """The area under the ROC curve of the matched labels' scores for their lumps being
+        gangue (0.5: a label's score says nothing of its lump; 1: it separates them)."""
+        return rank_auc([s for s, _, _ in self.scored], [g for _, g, _ in self.scored])
+
+    @property
+    def accelerometer_fraction(self) -> float:
+        """The fraction of matched labels that rest on the accelerometer (or the IMU's pulse)."""
+        return float(np.mean([a for _, _, a in self.scored])) if self.scored else math.nan
 
     @property
     def accuracy(self) -> float:
@@ -87,10 +139,19 @@ class FlowCase:
             "layout": self.layout,
             "rate_per_s": self.rate_per_s,
             "mae": self.mae,
+            "mae_ci": list(self.mae_interval()),
+            "errors": self.signed,
+            "bias": self.bias,
+            "stated_se": self.stated_se,
+            "coverage": self.coverage,
+            "score_auc": self.score_auc,
+            "accelerometer_fraction": self.accelerometer_fraction,
             "intervals": len(self.errors),
             "delay_s": {f"{level:.3f}": d for level, d in self.delays_s.items()},
             "low_delay_s": {f"{level:.3f}": d for level, d in self.low_delays_s.items()},
             "false_low_crossings": self.false_low_crossings,
+            "alarm_delay_s": {f"{level:.3f}": d for level, d in self.alarm_delays_s.items()},
+            "false_alarms": self.false_alarms,
             "coal_intervals": self.coal_intervals,
             "false_crossings": self.false_crossings,
             "methods": self.methods,
@@ -98,6 +159,25 @@ class FlowCase:
             "accuracy_ci": [low, high],
             "impacts": self.impacts,
         }
+
+
+def rank_auc(scores: Sequence[float], positive: Sequence[bool]) -> float:
+    """Area under the ROC curve (Mann-Whitney, ties counted half); nan without both classes."""
+    x = np.asarray(scores, dtype=float)
+    y = np.asarray(positive, dtype=bool)
+    n_pos, n_neg = int(y.sum()), int((~y).sum())
+    if n_pos == 0 or n_neg == 0:
+        return math.nan
+    order = np.argsort(x, kind="mergesort")
+    ranks = np.empty(x.size)
+    sorted_x = x[order]
+    # Average ranks over ties.
+    start = 0
+    for end in range(1, x.size + 1):
+        if end == x.size or sorted_x[end] != sorted_x[start]:
+            ranks[order[start:end]] = 0.5 * (start + end - 1) + 1.0
+            start = end
+    return float((ranks[y].sum() - n_pos * (n_pos + 1) / 2.0) / (n_pos * n_neg))
 
 
 def flow_supports(params: Mapping[str, Any], foreign: int, seed: int) -> list[tuple[str, Any]]:
@@ -142,8 +222,17 @@ def first_reaching(
     return math.nan
 
 
+def alarm_values(shares: Sequence[GangueShare], level: float, config: ShareConfig) -> list:
+    """1 after each interval the crossing rule at ``level`` is raised, else 0."""
+    return [1.0 if on else 0.0 for on in alarm_states(shares, level, config)]
+
+
 def score_case(
-    case: FlowCase, recording: FlowRecording, labels: Sequence, shares: Sequence[GangueShare]
+    case: FlowCase,
+    recording: FlowRecording,
+    labels: Sequence,
+    shares: Sequence[GangueShare],
+    config: ShareConfig = ShareConfig(),
 ) -> None:
     """Fill ``case`` with one flow's figures."""
     intervals = [(s.start_stamp_s, s.end_stamp_s) for s in shares]
@@ -153,6 +242,9 @@ def score_case(
         case.methods[share.basis_method] = case.methods.get(share.basis_method, 0) + 1
         if share.share is not None and n:
             case.errors.append(abs(share.share - true))
+            case.signed.append(share.share - true)
+            case.standard_errors.append(float(share.standard_error or 0.0))
+            case.covered += share.low - 1e-9 <= true <= share.high + 1e-9
     case.series = [(s.end_stamp_s, t, s.share) for s, (t, _) in zip(shares, truth)]
     # The boundary arrives with the first gangue lump.
     gangue_at = recording.lump_stamps_s()[recording.gangue()]
@@ -160,11 +252,12 @@ def score_case(
     for level in LEVELS:
         true_at = first_reaching(ends, [t for t, _ in truth], level, boundary)
         # nan: the truth never reached the level; inf: the estimate never did while it did.
-        for delays, values in (
-            (case.delays_s, [s.share for s in shares]),
-            (case.low_delays_s, [None if s.share is None else s.low for s in shares]),
+        for delays, values, reach in (
+            (case.delays_s, [s.share for s in shares], level),
+            (case.low_delays_s, [None if s.share is None else s.low for s in shares], level),
+            (case.alarm_delays_s, alarm_values(shares, level, config), 1.0),
         ):
-            seen_at = first_reaching(ends, values, level, boundary)
+            seen_at = first_reaching(ends, values, reach, boundary)
             delays[level] = (
                 math.nan
                 if math.isnan(true_at)
@@ -177,14 +270,26 @@ def score_case(
     matching = match_stamps(stamps, [lab.impact_stamp_s for lab in labels], tolerance)
     gangue = recording.gangue()
     case.correct += sum((labels[j].material == "gangue") == gangue[i] for i, j in matching.pairs)
+    case.scored += [
+        (
+            label_score(labels[j]),
+            bool(gangue[i]),
+            bool({"vibration", "imu"} & set(labels[j].signals)),
+        )
+        for i, j in matching.pairs
+    ]
     case.impacts += len(stamps) + len(matching.extra)
 
 
-def score_coal(case: FlowCase, shares: Sequence[GangueShare]) -> None:
-    """Count the pure-coal flow's intervals and those whose estimate reached 1/5."""
+def score_coal(
+    case: FlowCase, shares: Sequence[GangueShare], config: ShareConfig = ShareConfig()
+) -> None:
+    """Count the pure-coal flow's intervals, those whose estimate (its lower bound) reached 1/5
+    and those the crossing rule at 1/5 is raised after."""
     case.coal_intervals += len(shares)
     case.false_crossings += sum(s.share is not None and s.share >= LEVELS[0] for s in shares)
     case.false_low_crossings += sum(s.share is not None and s.low >= LEVELS[0] for s in shares)
+    case.false_alarms += sum(alarm_states(shares, LEVELS[0], config))
 
 
 def run_flow_set(
@@ -211,11 +316,12 @@ def run_flow_set(
                 draw,
             )
             coal = record_sim_flow(params, rate, scene.coal_s, 0.0, 0.0, 0.0, case_seed + 50, draw)
+            config = ShareConfig.from_params(flow.params["identification"].get("gangue_share"))
             for layout in layouts:
                 case = FlowCase(name, layout, float(rate))
                 labels, shares = identify_flow(flow, layout, method)
-                score_case(case, flow, labels, shares)
-                score_coal(case, identify_flow(coal, layout, method)[1])
+                score_case(case, flow, labels, shares, config)
+                score_coal(case, identify_flow(coal, layout, method)[1], config)
                 yield case
 
 
@@ -227,19 +333,28 @@ def format_flow_table(cases: Sequence[FlowCase]) -> str:
     """One line per case: MAE, delays and pure-coal intervals reaching 1/5 (by the estimate;
     in brackets by its lower 95 % bound), how the intervals were read, per-impact accuracy."""
     lines = [
-        "support     layout  lumps/s  MAE pts (n)  delay 1/5 s    delay 1/3 s    "
-        "coal >= 1/5    intervals by          per-impact accuracy (95 %)"
+        "support     layout  lumps/s  MAE pts (n)  bias  SE  95%in  delay 1/5 s    delay 1/3 s    "
+        "coal >= 1/5    alarm 1/5, 1/3 s  coal alarm  AUC  accel  intervals by          "
+        "per-impact accuracy (95 %)"
     ]
     for c in cases:
         low, high = wilson(c.correct, c.impacts) if c.impacts else (math.nan, math.nan)
         how = ", ".join(f"{k} {v}" for k, v in sorted(c.methods.items()))
         d1, d3 = (c.delays_s.get(level, math.nan) for level in LEVELS)
         b1, b3 = (c.low_delays_s.get(level, math.nan) for level in LEVELS)
-        mae = f"{100 * c.mae:5.1f} ({len(c.errors):3d})"
+        mae = (
+            f"{100 * c.mae:5.1f} ({len(c.errors):3d}) {100 * c.bias:+5.1f} "
+            f"{100 * c.stated_se:4.1f} {100 * c.coverage:4.0f}%"
+        )
         coal = f"{c.false_crossings:2d} ({c.false_low_crossings:2d})/{c.coal_intervals:<3d}"
         accuracy = f"{100 * c.accuracy:5.1f} % ({100 * low:.1f}-{100 * high:.1f})"
+        a1, a3 = (c.alarm_delays_s.get(level, math.nan) for level in LEVELS)
+        alarm = (
+            f"{a1:5.1f}, {a3:5.1f}     {c.false_alarms:3d}/{c.coal_intervals:<3d}  "
+            f"{c.score_auc:4.2f} {100 * c.accelerometer_fraction:4.0f}%"
+        )
         lines.append(
             f"{c.support:11s} {c.layout:7s} {c.rate_per_s:7g}  {mae}  {d1:5.1f} ({b1:5.1f})  "
-            f"{d3:5.1f} ({b3:5.1f})  {coal}  {how:20s}  {accuracy}"
+            f"{d3:5.1f} ({b3:5.1f})  {coal}  {alarm}  {how:20s}  {accuracy}"
         )
     return "\n".join(lines)
