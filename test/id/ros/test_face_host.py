@@ -6,6 +6,7 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -99,7 +100,8 @@ def test_a_bad_host_parameter_is_refused_by_name(param, named):
     assert "Traceback" not in proc.stderr
 
 
-def test_sigint_stops_the_host_and_every_support(tmp_path):
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_signal_stops_the_host_and_every_support(tmp_path, sig):
     """A stop signal while the supports run ends the process with status 0; each support's
     sim_node and id_node close (their exit lines)."""
     procs = Processes(tmp_path)
@@ -114,10 +116,25 @@ def test_sigint_stops_the_host_and_every_support(tmp_path):
             assert spin_until(
                 executor, lambda: all(p.messages["jack_pressure"] for p in probes), timeout_s=60.0
             ), procs.log(host)[-2000:]
-            code = procs.stop(host, signal.SIGINT)
+            code = procs.stop(host, sig)
         log = procs.log(host)
         assert code == 0, log[-2000:]
         assert "Traceback" not in log
         assert log.count("impact_cmd: ") == 2 and log.count("samples lost:") == 2, log[-2000:]
     finally:
         procs.close()
+
+
+def test_a_stop_signal_during_start_up_exits_0_quietly():
+    """0.3 s in, the host is still importing: it ends at once, status 0, no traceback."""
+    proc = subprocess.Popen(
+        host_command("face_host.supports:=2"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 0, out[-1500:]
+    assert "Traceback" not in out and "KeyboardInterrupt" not in out
