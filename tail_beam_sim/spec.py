@@ -922,8 +922,7 @@ FACE_HOST = Section(
         flag("record", "Run each support's bag_recorder too (a bag per support)."),
         integer(
             "seed_stride",
-            "Support k (from 0) runs flow.seed, scenario.seed and sensors.seed plus k times "
-            "this.",
+            "Support k (from 0) runs flow.seed, scenario.seed and sensors.seed plus k times this.",
             0,
             1_000_000,
         ),
