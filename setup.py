@@ -61,6 +61,7 @@ setup(
             "sim_node = tail_beam_sim.ros.start:sim_node",
             "id_node = tail_beam_id.ros.start:id_node",
             "caving_node = tail_beam_id.ros.start:caving_node",
+            "face_host = tail_beam_id.ros.start:face_host",
             "bag_recorder = tail_beam_sim.ros.start:bag_recorder",
             "bag_replay = tail_beam_sim.ros.start:bag_replay",
             "tail-beam = tail_beam_sim.cli:main",

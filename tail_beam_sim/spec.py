@@ -902,6 +902,34 @@ RECORDER = Section(
     file="recorder.yaml",
 )
 
+MAX_HOST_SUPPORTS = 64  # supports one face_host process may run
+
+FACE_HOST = Section(
+    "face_host",
+    "face_host: several supports' sim_node and id_node (and bag_recorder) in one process.",
+    (
+        integer(
+            "supports",
+            "Supports run, as /support_001 .. (face_host.namespaces, when given, wins).",
+            1,
+            MAX_HOST_SUPPORTS,
+        ),
+        of_kind(
+            "strs",
+            "namespaces",
+            'Absolute namespaces of the supports run ([""] = /support_001 .. by count).',
+        ),
+        flag("record", "Run each support's bag_recorder too (a bag per support)."),
+        integer(
+            "seed_stride",
+            "Support k (from 0) runs flow.seed, scenario.seed and sensors.seed plus k times this.",
+            0,
+            1_000_000,
+        ),
+    ),
+    file="face_host.yaml",
+)
+
 REPLAY = Section(
     "replay",
     "bag_replay: which bag, what of it and how fast.",
@@ -1084,6 +1112,7 @@ PARAMETER_SECTIONS: tuple[Section, ...] = (
     SCENARIO,
     FLOW,
     RECORDER,
+    FACE_HOST,
     REPLAY,
     SEND,
     FACE,

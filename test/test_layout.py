@@ -164,12 +164,13 @@ def test_simulator_never_names_the_identifier(module):
 @pytest.mark.parametrize("module", sorted({**SIM, **ID}))
 def test_only_ros_rooms_import_ros(module):
     """rclpy and ROS message packages are imported only by tail_beam_sim.ros and
-    tail_beam_id.ros's nodes (id_node, caving_node)."""
+    tail_beam_id.ros's nodes (id_node, caving_node, face_host)."""
     path = SIM.get(module) or ID[module]
     ros = {name for name in imported(path) if name.split(".")[0] in ROS_PACKAGES}
     allowed = module.startswith("tail_beam_sim.ros") or module in (
         "tail_beam_id.ros.id_node",
         "tail_beam_id.ros.caving_node",
+        "tail_beam_id.ros.face_host",
     )
     assert allowed or not ros, f"{module} imports {sorted(ros)}"
     assert "_rclpy_pybind11" not in path.read_text(), (

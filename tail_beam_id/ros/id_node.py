@@ -191,6 +191,10 @@ class IdNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__("tail_beam_id", **kwargs)
+        # Its exit line names the namespace (several supports may share a process); read now,
+        # while the context is valid: a stop signal shuts it down before close().
+        ns = self.get_namespace()
+        self.exit_name = "id_node" if ns == "/" else f"id_node {ns}"
         # A support profile (tail-beam calibrate --out) brings its `calibration` section: what
         # makes
         # the identifier decide as calibrated, as `tail-beam identify --config profile.yaml` does.
@@ -419,7 +423,10 @@ class IdNode(Node):
 
     def close(self) -> None:
         """Say on the way out what was lost of the sensor streams."""
-        print(f"id_node: {self.published} labels published; {self.loss_report()}", file=sys.stderr)
+        print(
+            f"{self.exit_name}: {self.published} labels published; {self.loss_report()}",
+            file=sys.stderr,
+        )
 
     def _gaps_near(self, stamp_s: float) -> dict[str, int]:
         """Samples missing per stream within ``window_s`` of ``stamp_s``."""

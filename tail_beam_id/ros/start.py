@@ -1,5 +1,5 @@
-"""id_node's and caving_node's entry points: stop signals taken before the node's heavy imports
-(:mod:`tail_beam_sim.ros.start`)."""
+"""id_node's, caving_node's and face_host's entry points: stop signals taken before the node's
+heavy imports (:mod:`tail_beam_sim.ros.start`)."""
 
 from __future__ import annotations
 
@@ -12,3 +12,7 @@ def id_node() -> int:
 
 def caving_node() -> int:
     return run("tail_beam_id.ros.caving_node")
+
+
+def face_host() -> int:
+    return run("tail_beam_id.ros.face_host")

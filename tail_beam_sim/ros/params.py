@@ -171,6 +171,7 @@ NODE_CONFIG_FILES = (
     "replay.yaml",
     "caving_node.yaml",
     "face.yaml",
+    "face_host.yaml",
 )
 MAX_NAMED = 10  # most unused parameter names one log line lists
 

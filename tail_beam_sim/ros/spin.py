@@ -49,6 +49,19 @@ class ClosingNode(Protocol):
     def close(self) -> None: ...
 
 
+@runtime_checkable
+class HostingNode(Protocol):
+    """A node that builds other nodes of its process (face_host: several supports' nodes):
+    they spin on its executor and are closed and destroyed with it, before it."""
+
+    members: list[Node]
+
+
+def with_members(node: Node) -> list[Node]:
+    """``node``'s hosted nodes (a :class:`HostingNode`'s), then ``node`` itself."""
+    return [*(node.members if isinstance(node, HostingNode) else []), node]
+
+
 def overrides(values: Mapping[str, Any]) -> list[Parameter]:
     """``parameter_overrides`` for a node built in-process, from a flat {dotted name: value}."""
     return [Parameter(name, value=value) for name, value in values.items()]
@@ -104,7 +117,8 @@ def spin(node: Node, done: Future | None = None, stop: StopRequest | None = None
     not an error, and ends the spin quietly.
     """
     executor: Executor = EventsExecutor(context=node.context)
-    executor.add_node(node)
+    for member in with_members(node):
+        executor.add_node(member)
     try:
         while (
             rclpy.ok(context=node.context)
@@ -323,7 +337,8 @@ def run_node(
     status 2, as do arguments rcl refuses (a --params-file that is no YAML or missing, a trailing
     ``-p``) and any other failure to build the node from its parameters (a model that cannot take
     a value: the line names the parameters set); SIGINT and SIGTERM end it with status 0; a node
-    that sets ``exit_status`` (a replay that met a damaged bag) exits with it.
+    that sets ``exit_status`` (a replay that met a damaged bag) exits with it. A
+    :class:`HostingNode`'s members spin on the same executor and close with it.
     """
     if isinstance(usage, str):
         usage = NodeUsage(usage, (make.__doc__ or "").strip().split("\n\n")[0])
@@ -368,9 +383,10 @@ def run_node(
         if stop.requested:
             rclpy.try_shutdown()
         try:
-            if isinstance(node, ClosingNode):
-                node.close()
-            node.destroy_node()
+            for member in with_members(node):
+                if isinstance(member, ClosingNode):
+                    member.close()
+                member.destroy_node()
         except Exception:
             if rclpy.ok():
                 # a real failure; one on a context SIGINT already invalidated is the shutdown

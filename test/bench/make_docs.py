@@ -216,6 +216,15 @@ FAMILIES: tuple[Family, ...] = (
         3.0,
     ),
     Family(
+        "face_host",
+        "Several supports in one process",
+        "one face_host process with 1, 2 and 3 supports at the shipped layout in real time: CPU s "
+        "per simulated s per support, real-time ratio, samples lost",
+        "python test/bench/bench_face_host.py --record",
+        "python test/bench/bench_face_host.py --seconds 8",
+        1.5,
+    ),
+    Family(
         "soak",
         "Soak: the nodes on a long stream",
         "sim_node, id_node and bag_recorder on a long generated stream: memory, counts, "
