@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -111,6 +112,13 @@ class LinearStructure:
         """Damped natural frequencies of the structure, Hz, ascending."""
         eigenvalues = self._eigen[0]
         return np.sort(np.abs(eigenvalues.imag[eigenvalues.imag > 0])) / (2 * np.pi)
+
+    @cached_property
+    def fastest_frequency_hz(self) -> float:
+        """The highest damped natural frequency, Hz (0 for a structure without oscillating
+        modes)."""
+        frequencies = self.natural_frequencies_hz()
+        return float(frequencies.max()) if frequencies.size else 0.0
 
     def acceleration(
         self, q: np.ndarray, qd: np.ndarray, force_n: np.ndarray | float, shape: np.ndarray

@@ -202,20 +202,23 @@ class Trajectory:
         order = np.argsort(which, kind="stable")
         grouped = self._sample_grouped(times[order], which[order])
         out = self._empty_samples(times)
-        for name in ("q", "qd", "qdd", "force_n", "z_m", "zd_mps"):
-            getattr(out, name)[..., order] = getattr(grouped, name)
+        # every field is a block of rows of one buffer: one scatter puts them all back
+        out.q.base[:, order] = grouped.q.base
         return out
 
     def _empty_samples(self, times: np.ndarray) -> Samples:
+        """Zeroed samples at ``times`` whose fields are rows of one (3n + 3, T) buffer (q, qd,
+        qdd, force, z, zd), so that they are allocated, and reordered, at once."""
         n = self.problem.structure.size
+        buffer = np.zeros((3 * n + 3, times.size))
         return Samples(
             t_s=times,
-            q=np.zeros((n, times.size)),
-            qd=np.zeros((n, times.size)),
-            qdd=np.zeros((n, times.size)),
-            force_n=np.zeros(times.size),
-            z_m=np.zeros(times.size),
-            zd_mps=np.zeros(times.size),
+            q=buffer[:n],
+            qd=buffer[n : 2 * n],
+            qdd=buffer[2 * n : 3 * n],
+            force_n=buffer[3 * n],
+            z_m=buffer[3 * n + 1],
+            zd_mps=buffer[3 * n + 2],
         )
 
     def _sample_grouped(self, times: np.ndarray, which: np.ndarray) -> Samples:
@@ -270,13 +273,18 @@ class Trajectory:
     def _sample_free(self, seg: FreeSegment, times: np.ndarray, out: Samples, mask: slice) -> None:
         structure = self.problem.structure
         dt = times - seg.anchor_s
+        g = self.problem.gravity_mps2
+        if not (np.any(seg.q) or np.any(seg.qd)):
+            # at rest it stays at rest (the zeros of ``out``), also backwards in time
+            out.z_m[mask] = seg.z_m + seg.zd_mps * dt - 0.5 * g * dt * dt
+            out.zd_mps[mask] = seg.zd_mps - g * dt
+            return
         q, qd = structure.propagate(seg.q, seg.qd, dt)
         out.q[:, mask], out.qd[:, mask] = q, qd
         # no contact force: q'' = -M^-1 (C q' + K q), each time's value independent of how many
         # are asked at once (as propagate's)
         internal = _columnwise(structure.damping, qd) + _columnwise(structure.stiffness, q)
         out.qdd[:, mask] = -_columnwise(structure.inv_mass, internal)
-        g = self.problem.gravity_mps2
         out.z_m[mask] = seg.z_m + seg.zd_mps * dt - 0.5 * g * dt * dt
         out.zd_mps[mask] = seg.zd_mps - g * dt
 

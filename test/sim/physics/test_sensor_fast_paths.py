@@ -1,0 +1,85 @@
+"""The sensors' fast paths give what the direct computations give: scipy's filter kernel called
+directly, the accelerometer's rest before the contact taken as read, the seeds' children kept
+per seed, and the ring-down's per-structure gains kept."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from tail_beam_sim.physics import ringdown_filtering, sensors
+from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.simulate import simulate
+
+
+def test_the_direct_filter_kernel_is_scipys_sosfilt_bit_for_bit():
+    """sos_filter gives signal.sosfilt's output and final state exactly, whole or in chunks."""
+    sos, zi_unit = sensors._butterworth(25600.0, 4, 0.4, 4)
+    rng = np.random.default_rng(1)
+    x = 9.8 + rng.standard_normal(700)
+    expected, final = signal.sosfilt(sos, x, zi=zi_unit * x[0])
+    out, state = sensors.sos_filter(sos, x, zi_unit * x[0])
+    assert np.array_equal(out, expected) and np.array_equal(state, final)
+    head, middle = sensors.sos_filter(sos, x[:123], zi_unit * x[0])
+    tail, _ = sensors.sos_filter(sos, x[123:], middle)
+    assert np.array_equal(np.concatenate([head, tail]), expected)
+    assert not np.array_equal(out, x)  # the filter does filter
+
+
+@pytest.mark.parametrize("tier", ["rigid", "modal"])
+def test_the_rest_before_the_contact_reads_what_filtering_it_gives(params, tier, monkeypatch):
+    """The accelerometer's samples before the contact, taken as g without evaluating or
+    filtering the beam at rest, equal the samples of the dense path run from stamp 0, to the
+    float32 resolution of the samples; and the shortcut does cover most of the rest."""
+    base = Scene.from_params(params, {"material": "sandstone", "radius_m": 0.04})
+    scene = replace(base, sensors=replace(base.sensors.scaled_noise(0.0), seed=3))
+    result = simulate(scene, tier=tier)
+    span = sensors.SensorSuite._dense_span
+    first, _, _ = span(
+        sensors.SensorSuite(scene.sensors),
+        result.trajectory,
+        result.contact_stamp_s + scene.window_s,
+        result.contact_stamp_s,
+    )
+    dense_rate = scene.sensors.vibration_oversample * scene.sensors.vibration_rate_hz
+    assert first > 0.8 * result.contact_stamp_s * dense_rate
+    monkeypatch.setattr(
+        sensors.SensorSuite,
+        "_dense_span",
+        lambda self, t, end, stamp: (0, *span(self, t, end, stamp)[1:]),
+    )
+    whole = simulate(scene, tier=tier).vibration
+    assert np.array_equal(whole.first_index, result.vibration.first_index)
+    a, b = result.vibration.accel_mps2.astype(float), whole.accel_mps2.astype(float)
+    assert np.ptp(b) > 1.0  # the impact is in the blocks
+    assert np.max(np.abs(a - b)) < 1e-5
+
+
+def test_kept_seed_children_draw_what_fresh_ones_draw(params):
+    """A suite's generators, made from the children kept per seed, draw what generators of a
+    freshly spawned seed draw; the kept contact phase is the phase generator's first draw."""
+    spec = Scene.from_params(params, {}).sensors
+    for seed in (0, 7, 123456):
+        suite = sensors.SensorSuite(replace(spec, seed=seed))
+        fresh = np.random.SeedSequence(seed).spawn(6)
+        for index, name in ((0, "_pressure_rng"), (1, "_imu_rng"), (4, "_vibration_rng")):
+            drawn = getattr(suite, name).standard_normal(5)
+            assert np.array_equal(drawn, np.random.default_rng(fresh[index]).standard_normal(5))
+        width = 1.0 / 2000.0
+        assert 0.0 + width * suite.contact_phase() == np.random.default_rng(fresh[3]).uniform(
+            0.0, width
+        )
+
+
+def test_kept_ringdown_gains_equal_fresh_ones(params):
+    """The ring-down's per-structure gains, kept, equal those computed with the cache emptied."""
+    scene = Scene.from_params(params, {"material": "coal", "radius_m": 0.05})
+    result = simulate(scene, tier="modal")
+    kept = simulate(scene, tier="modal").vibration.accel_mps2
+    ringdown_filtering._GAINS.clear()
+    fresh = simulate(scene, tier="modal").vibration.accel_mps2
+    assert ringdown_filtering._GAINS  # refilled
+    assert np.array_equal(kept, fresh) and np.array_equal(kept, result.vibration.accel_mps2)
