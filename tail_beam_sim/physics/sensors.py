@@ -340,7 +340,7 @@ class SensorSuite:
             return 0, count, count
         switch = self._ringdown_start(trajectory, contact_stamp_s, count)
         head = trajectory.segments[0] if trajectory.segments else None
-        if not isinstance(head, FreeSegment) or np.any(head.q) or np.any(head.qd):
+        if not isinstance(head, FreeSegment) or not head.at_rest:
             return 0, switch, count
         # dense value i spans (instant i - 1, instant i]: at rest while instant i is at or
         # before the rest's end (one more value is taken as moving, against rounding)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -115,6 +116,11 @@ class FreeSegment:
     qd: np.ndarray
     z_m: float
     zd_mps: float
+
+    @cached_property
+    def at_rest(self) -> bool:
+        """Whether the structure is at rest in this segment (q and qd all zero): it stays so."""
+        return not (np.any(self.q) or np.any(self.qd))
 
 
 @dataclass
@@ -274,7 +280,7 @@ class Trajectory:
         structure = self.problem.structure
         dt = times - seg.anchor_s
         g = self.problem.gravity_mps2
-        if not (np.any(seg.q) or np.any(seg.qd)):
+        if seg.at_rest:
             # at rest it stays at rest (the zeros of ``out``), also backwards in time
             out.z_m[mask] = seg.z_m + seg.zd_mps * dt - 0.5 * g * dt * dt
             out.zd_mps[mask] = seg.zd_mps - g * dt
