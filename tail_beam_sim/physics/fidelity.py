@@ -315,7 +315,8 @@ def sampled_gram(
         ],
         axis=-1,
     )  # (channels, phases, samples, n_u + n_l)
-    gram = np.einsum("cpsi,cpsj->pij", stacked, stacked)
+    per_phase = stacked.transpose(1, 0, 2, 3).reshape(stacked.shape[1], -1, stacked.shape[3])
+    gram = per_phase.transpose(0, 2, 1) @ per_phase
     if len(_GRAMS) >= UNIT_RESPONSE_CACHE_SIZE:
         _GRAMS.clear()
     _GRAMS[key] = ((lower, upper), gram)  # holding them keeps their ids from being reused
@@ -344,33 +345,40 @@ def unit_responses(
         (np.arange(1, count + 1)[None, :] - np.array(PHASES)[:, None]) / rate_hz
     ).ravel()  # (phases x samples)
     n = structure.size
-    zero = np.zeros(n)
-    columns = []
-    for j in range(n):
-        qd0 = structure.inv_mass[:, j]  # M^-1 e_j: the velocity a unit impulse on q_j gives
-        q, qd = structure.propagate(zero, qd0, times)
-        if output == "pressure":
-            signal = (
-                structure.jack_stiffness_npm * (structure.jack_shape @ q)
-                + structure.jack_damping_nspm * (structure.jack_shape @ qd)
-            )[None, :] / structure.piston_area_m2
-        else:
-            early = times < 1.0 / rate_hz  # the beam is at rest before the impulse
-            before_q, before_qd = structure.propagate(
-                zero, qd0, np.maximum(times - 1.0 / rate_hz, 0.0)
+    eigenvalues, vectors, _ = structure._eigen
+    # The state after a unit impulse on q_j is x(t) = V exp(Lambda t) xi_j with xi_j the modal
+    # amplitudes of [0; M^-1 e_j] (the columns of modal_input): every coordinate's response
+    # read through an output row r is Re (exp(t lambda^T) diag(r V) modal_input), one
+    # product for all of them.
+    growth = np.exp(np.multiply.outer(times, eigenvalues))  # (T, 2n)
+    if output == "pressure":
+        row = (
+            np.concatenate(
+                [
+                    structure.jack_stiffness_npm * structure.jack_shape,
+                    structure.jack_damping_nspm * structure.jack_shape,
+                ]
             )
-            before_q[:, early], before_qd[:, early] = 0.0, 0.0
-            signal = (
-                np.stack(
-                    [
-                        structure.imu_shape @ (qd - before_qd),
-                        structure.imu_slope_shape @ (q - before_q),
-                    ]
-                )
-                * rate_hz
-            )
-        columns.append(signal.reshape(signal.shape[0], len(PHASES), count))
-    responses = np.stack(columns, axis=-1)
+            / structure.piston_area_m2
+        )
+        rows = [row]
+        signals = [(growth @ ((row @ vectors)[:, None] * structure.modal_input)).real]
+    else:
+        zero_n = np.zeros(n)
+        rows = [
+            np.concatenate([zero_n, structure.imu_shape]),
+            np.concatenate([structure.imu_slope_shape, zero_n]),
+        ]
+        # the beam is at rest before the impulse
+        before = np.exp(np.multiply.outer(np.maximum(times - 1.0 / rate_hz, 0.0), eigenvalues))
+        early = times < 1.0 / rate_hz
+        signals = []
+        for row in rows:
+            weights = (row @ vectors)[:, None] * structure.modal_input
+            now, then = (growth @ weights).real, (before @ weights).real
+            then[early] = 0.0
+            signals.append((now - then) * rate_hz)
+    responses = np.stack(signals).reshape(len(rows), len(PHASES), count, n)
     if len(_UNIT_RESPONSES) >= UNIT_RESPONSE_CACHE_SIZE:
         _UNIT_RESPONSES.clear()
     _UNIT_RESPONSES[key] = (structure, responses)  # holding it keeps its id from being reused
