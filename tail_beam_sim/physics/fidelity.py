@@ -105,6 +105,7 @@ TIERS: dict[str, Tier] = {
     ),
 }
 ACCURACY_LADDER = ("impulse", "rigid", "modal")
+EXACT_TIERS = ("modal", "brittle")  # model error 0 by definition: the estimates' reference
 DEFAULT_TIER = "rigid"
 TIER_CHOICES = ("auto", *TIERS)
 
@@ -188,7 +189,8 @@ def structure_for(tier: Tier, support: Support, modes: Sequence[BendingMode]) ->
 @dataclass
 class Plan:
     """The tier chosen for a scene: its structure, solver and options, its estimated model error
-    (and every tier's), and the tier above it to check it against (None at the top)."""
+    (and every tier's, except for a tier of EXACT_TIERS asked by name, which has only its own),
+    and the tier above it to check it against (None at the top)."""
 
     tier: Tier
     structure: LinearStructure
@@ -202,13 +204,18 @@ class Plan:
 def plan(scene: Scene, tier: str, needs: Needs, settings: FidelitySettings) -> Plan:
     """Choose (``tier='auto'``) or take the tier, with its structure, solver and options and the
     error estimates."""
-    estimates = model_errors(scene, needs, settings.modes)
     if tier == "auto":
+        estimates = model_errors(scene, needs, settings.modes)
         name = next(
             (t for t in ACCURACY_LADDER if estimates[t] <= needs.tolerance), ACCURACY_LADDER[-1]
         )
     else:
         name = get_tier(tier).name
+        # the richest tiers are the reference of the estimates (no model error of their own):
+        # the ladder's estimates are not needed for them
+        estimates = (
+            {name: 0.0} if name in EXACT_TIERS else model_errors(scene, needs, settings.modes)
+        )
     chosen = TIERS[name]
     return Plan(
         tier=chosen,
@@ -345,12 +352,22 @@ def unit_responses(
         (np.arange(1, count + 1)[None, :] - np.array(PHASES)[:, None]) / rate_hz
     ).ravel()  # (phases x samples)
     n = structure.size
-    eigenvalues, vectors, _ = structure._eigen
-    # The state after a unit impulse on q_j is x(t) = V exp(Lambda t) xi_j with xi_j the modal
-    # amplitudes of [0; M^-1 e_j] (the columns of modal_input): every coordinate's response
-    # read through an output row r is Re (exp(t lambda^T) diag(r V) modal_input), one
-    # product for all of them.
-    growth = np.exp(np.multiply.outer(times, eigenvalues))  # (T, 2n)
+    vectors = structure._eigen[1]
+    keep, sigma, omega, weight = structure._half_spectrum
+    # The state after a unit impulse on q_j is x(t) = Re sum_k V_k exp(lambda_k t) xi_kj, xi_j
+    # the modal amplitudes of [0; M^-1 e_j] (the columns of modal_input), over one eigenvalue
+    # of each conjugate pair (weight 2) and the real ones: read through an output row r, every
+    # coordinate's response at once is exp(sigma t) (cos(omega t) Re C - sin(omega t) Im C)
+    # with C_kj = w_k (r V)_k xi_kj, in real arithmetic.
+    growth = np.exp(np.multiply.outer(times, sigma))  # (T, k)
+    angle = np.multiply.outer(times, omega)
+    cos, sin = growth * np.cos(angle), growth * np.sin(angle)
+    inputs = structure.modal_input[keep] * weight[:, None]  # (k, n)
+
+    def read(row: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
+        amplitude = (row @ vectors[:, keep])[:, None] * inputs
+        return c @ amplitude.real - s @ amplitude.imag  # (T, n)
+
     if output == "pressure":
         row = (
             np.concatenate(
@@ -362,22 +379,26 @@ def unit_responses(
             / structure.piston_area_m2
         )
         rows = [row]
-        signals = [(growth @ ((row @ vectors)[:, None] * structure.modal_input)).real]
+        signals = [read(row, cos, sin)]
     else:
         zero_n = np.zeros(n)
         rows = [
             np.concatenate([zero_n, structure.imu_shape]),
             np.concatenate([structure.imu_slope_shape, zero_n]),
         ]
-        # the beam is at rest before the impulse
-        before = np.exp(np.multiply.outer(np.maximum(times - 1.0 / rate_hz, 0.0), eigenvalues))
-        early = times < 1.0 / rate_hz
+        # one sample period earlier: exp(lambda (t - T)) = exp(lambda t) exp(-lambda T), the
+        # beam at rest before the impulse
+        period = 1.0 / rate_hz
+        decay = np.exp(-sigma * period)
+        turn_cos, turn_sin = np.cos(omega * period), np.sin(omega * period)
+        cos_before = decay * (cos * turn_cos + sin * turn_sin)
+        sin_before = decay * (sin * turn_cos - cos * turn_sin)
+        early = times < period
         signals = []
         for row in rows:
-            weights = (row @ vectors)[:, None] * structure.modal_input
-            now, then = (growth @ weights).real, (before @ weights).real
+            then = read(row, cos_before, sin_before)
             then[early] = 0.0
-            signals.append((now - then) * rate_hz)
+            signals.append((read(row, cos, sin) - then) * rate_hz)
     responses = np.stack(signals).reshape(len(rows), len(PHASES), count, n)
     if len(_UNIT_RESPONSES) >= UNIT_RESPONSE_CACHE_SIZE:
         _UNIT_RESPONSES.clear()
