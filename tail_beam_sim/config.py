@@ -7,6 +7,7 @@ parameters of every node pattern in file order, and lets later files override ea
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 from collections.abc import Iterable, Mapping
@@ -187,3 +188,12 @@ def section(params: Mapping[str, Any], name: str) -> Mapping[str, Any]:
     if not isinstance(value, Mapping):
         raise InputError(name, value, "missing parameter section in the config files")
     return value
+
+
+def fingerprint(*sections: Any) -> str | None:
+    """A text equal for parameter sections of equal content (canonical JSON), to key what is
+    built from them once; None when a value cannot be written so (then build anew)."""
+    try:
+        return json.dumps(sections, sort_keys=True, default=repr)
+    except (TypeError, ValueError):
+        return None
