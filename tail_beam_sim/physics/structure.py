@@ -154,9 +154,15 @@ class LinearStructure:
         # einsum, not a BLAS product: each time's state then does not depend on how many times
         # are asked for at once (BLAS kernels round the tail of a block differently), so a stream
         # sampled in chunks is bit-identical to one sampled whole.
-        state = np.einsum("ik,k...->i...", amplitude.real, growth * np.cos(angle)) - np.einsum(
-            "ik,k...->i...", amplitude.imag, growth * np.sin(angle)
-        )
+        if keep.size == 1 and times.ndim == 1:
+            # one exponential (the rigid beam's pair): a plain product, the same floats
+            state = amplitude.real * (growth * np.cos(angle)) - amplitude.imag * (
+                growth * np.sin(angle)
+            )
+        else:
+            state = np.einsum("ik,k...->i...", amplitude.real, growth * np.cos(angle)) - np.einsum(
+                "ik,k...->i...", amplitude.imag, growth * np.sin(angle)
+            )
         n = self.size
         return state[:n], state[n:]
 

@@ -112,3 +112,41 @@ def test_the_streams_accelerometer_is_the_same_however_time_is_chunked():
     assert one.sample_count > 10000 and np.ptp(one.accel_mps2) > 1.0
     assert np.array_equal(joined.first_index, one.first_index)
     assert np.array_equal(joined.accel_mps2, one.accel_mps2)
+
+
+@pytest.mark.parametrize(("tier", "radius_m"), [("rigid", 0.04), ("modal", 0.09)])
+def test_a_contact_sampled_through_step_polynomials_is_its_hermite_interpolant(
+    params, tier, radius_m
+):
+    """States within a contact (the pulse's, and an integrated one) read through each step's
+    polynomial are the cubic Hermite of the step's ends (values and slopes) and the straight
+    line of q'' and the force, to rounding."""
+    scene = Scene.from_params(params, {"material": "coal", "radius_m": radius_m})
+    trajectory = simulate(scene, tier=tier).trajectory
+    segment = trajectory.segments[1]
+    t = segment.t_s
+    times = np.random.default_rng(2).uniform(t[0], t[-1], 200)
+    got = trajectory.sample(times)
+    k = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.size - 2)
+    h = t[k + 1] - t[k]
+    s = (times - t[k]) / h
+    values, slopes, _, _ = trajectory._stacks(1)
+    hermite = (
+        (2 * s**3 - 3 * s**2 + 1) * values[:, k]
+        + (s**3 - 2 * s**2 + s) * h * slopes[:, k]
+        + (-2 * s**3 + 3 * s**2) * values[:, k + 1]
+        + (s**3 - s**2) * h * slopes[:, k + 1]
+    )
+    n = trajectory.problem.structure.size
+    expected = {
+        "q": hermite[:n],
+        "qd": hermite[n : 2 * n],
+        "z_m": hermite[2 * n],
+        "zd_mps": hermite[2 * n + 1],
+        "qdd": segment.qdd[:, k] * (1 - s) + segment.qdd[:, k + 1] * s,
+        "force_n": segment.force_n[k] * (1 - s) + segment.force_n[k + 1] * s,
+    }
+    for name, value in expected.items():
+        scale = np.max(np.abs(value))
+        assert scale > 0.0, name
+        assert np.max(np.abs(getattr(got, name) - value)) <= 1e-12 * scale, name
