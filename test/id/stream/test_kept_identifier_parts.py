@@ -13,6 +13,8 @@ from tail_beam_sim.config import fingerprint
 
 
 def test_equal_sections_share_the_kept_config_and_a_changed_one_does_not(params):
+    """An equal identification section (a copy) gives the kept config; a changed window a new
+    one that reads the change."""
     section = dict(params["identification"])
     first = IdentifierConfig.from_params(section)
     assert IdentifierConfig.from_params(copy.deepcopy(section)) is first
@@ -22,6 +24,8 @@ def test_equal_sections_share_the_kept_config_and_a_changed_one_does_not(params)
 
 
 def test_the_beam_model_follows_the_support_it_is_built_from(params):
+    """Equal support and materials give the kept beam model; a heavier beam a new one, the kept
+    one unchanged."""
     first = BeamModel.from_params(params)
     assert BeamModel.from_params(copy.deepcopy(params)) is first
     heavier = copy.deepcopy(params)
@@ -33,5 +37,6 @@ def test_the_beam_model_follows_the_support_it_is_built_from(params):
 
 
 def test_only_plain_data_is_fingerprinted():
+    """Key order and numpy scalars do not change a fingerprint; an array gives none."""
     assert fingerprint({"a": np.float64(1.5), "b": [1, 2]}) == fingerprint({"b": [1, 2], "a": 1.5})
     assert fingerprint({"a": np.arange(3)}) is None

@@ -50,4 +50,5 @@ def test_every_loaded_openblas_is_limited_to_one_thread():
 
 
 def test_a_thread_count_set_in_the_environment_is_left_alone():
+    """OPENBLAS_NUM_THREADS set: no library is limited."""
     assert _probe(OPENBLAS_NUM_THREADS="2") == "0 []"

@@ -19,6 +19,8 @@ REL = 1e-9  # float rounding across machines (libm, BLAS), far below any feature
 
 
 def test_the_features_of_fixed_impacts_are_those_the_models_were_trained_on(params):
+    """Every labelled record of the fixed impacts has the pinned feature names and values to
+    1e-9."""
     pinned = json.loads(PINNED.read_text(encoding="utf-8"))
     seed = int(evaluation_params(params)["training_seed"])
     found = {}
