@@ -7,6 +7,7 @@ parameters of every node pattern in file order, and lets later files override ea
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 from collections.abc import Iterable, Mapping
@@ -187,3 +188,23 @@ def section(params: Mapping[str, Any], name: str) -> Mapping[str, Any]:
     if not isinstance(value, Mapping):
         raise InputError(name, value, "missing parameter section in the config files")
     return value
+
+
+def fingerprint(*sections: Any) -> str | None:
+    """A text equal for parameter sections of equal content (canonical JSON), to key what is
+    built from them once; None when a value is not plain data (numbers, text, lists,
+    mappings: then build anew)."""
+    try:
+        return json.dumps(sections, sort_keys=True, default=_plain)
+    except (TypeError, ValueError):
+        return None
+
+
+def _plain(value: Any) -> Any:
+    """A numpy scalar as its Python number; anything else is refused (TypeError)."""
+    item = getattr(value, "item", None)
+    if item is not None and getattr(value, "shape", None) == ():
+        return item()
+    if isinstance(value, Mapping):
+        return dict(value)
+    raise TypeError(f"not plain data: {type(value).__name__}")

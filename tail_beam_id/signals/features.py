@@ -18,6 +18,7 @@ import numpy as np
 
 from tail_beam_id.signals.contact_fit import ContactFit
 from tail_beam_id.signals.imu_detection import Pulse
+from tail_beam_sim.config import fingerprint
 from tail_beam_sim.physics.materials import material_table
 from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
 from tail_beam_sim.physics.support import Support
@@ -29,6 +30,10 @@ VIBRATION_CHANNEL = "vibration_channel"
 FORCE_DURATION = "contact_force_duration_s"  # the contact force's duration above 5 % of its peak
 
 
+MODEL_CACHE_SIZE = 64
+_BEAM_MODELS: dict[str, BeamModel] = {}
+
+
 @dataclass(frozen=True)
 class BeamModel:
     """The identifier's belief about the support: the nominal rigid beam from config/."""
@@ -38,9 +43,18 @@ class BeamModel:
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> BeamModel:
-        """The nominal beam from the merged ``support`` and ``materials`` parameters."""
-        support = Support.from_params(params.get("support"), material_table(params))
-        return cls(support, rigid_beam(support))
+        """The nominal beam from the merged ``support`` and ``materials`` parameters (built
+        once per content of those sections: an identifier per impact builds it again)."""
+        key = fingerprint(params.get("support"), params.get("materials"))
+        known = _BEAM_MODELS.get(key) if key is not None else None
+        if known is None:
+            support = Support.from_params(params.get("support"), material_table(params))
+            known = cls(support, rigid_beam(support))
+            if key is not None:
+                if len(_BEAM_MODELS) >= MODEL_CACHE_SIZE:
+                    _BEAM_MODELS.clear()
+                _BEAM_MODELS[key] = known
+        return known
 
     @property
     def imu_moment_per_velocity(self) -> float:

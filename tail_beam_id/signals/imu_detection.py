@@ -324,8 +324,14 @@ class PulseDetector:
     @staticmethod
     def _residual(accel_z: np.ndarray, lo: int, hi: int, baseline: int) -> np.ndarray:
         """Residuals of samples lo..hi-1 from the one-step quadratic prediction."""
-        windows = np.lib.stride_tricks.sliding_window_view(
-            accel_z[lo - baseline : hi - 1], baseline
+        history = accel_z[lo - baseline : hi - 1]
+        # sliding_window_view's view, built directly (its argument checks cost more than the
+        # product over a chunk's samples)
+        windows = np.lib.stride_tricks.as_strided(
+            history,
+            shape=(history.size - baseline + 1, baseline),
+            strides=(history.strides[0], history.strides[0]),
+            writeable=False,
         )
         return accel_z[lo:hi] - windows @ extrapolation_weights(baseline)
 

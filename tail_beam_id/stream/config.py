@@ -10,6 +10,7 @@ from tail_beam_id.methods import METHODS
 from tail_beam_id.signals.contact_fit import ContactFitConfig
 from tail_beam_id.signals.imu_detection import DetectionConfig
 from tail_beam_id.signals.timing import TimingConfig
+from tail_beam_sim.config import fingerprint
 from tail_beam_sim.errors import InputError, require_section
 from tail_beam_sim.spec import Field, Section, choice, flag, integer, number, of_kind, positive
 
@@ -206,6 +207,10 @@ def check_profile(merged: Mapping[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in PROFILE.check(given).items() if v is not None}
 
 
+CONFIG_CACHE_SIZE = 64
+_CONFIGS: dict[str, IdentifierConfig] = {}
+
+
 @dataclass(frozen=True)
 class IdentifierConfig:
     """The ``identification`` parameter section, validated (times in s of stamp time)."""
@@ -227,6 +232,20 @@ class IdentifierConfig:
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> IdentifierConfig:
+        """The validated section (built once per content: an identifier per impact reads the
+        same section again)."""
+        key = fingerprint(params) if isinstance(params, Mapping) else None
+        known = _CONFIGS.get(key) if key is not None else None
+        if known is None:
+            known = cls._from_params(params)
+            if key is not None:
+                if len(_CONFIGS) >= CONFIG_CACHE_SIZE:
+                    _CONFIGS.clear()
+                _CONFIGS[key] = known
+        return known
+
+    @classmethod
+    def _from_params(cls, params: Mapping[str, Any]) -> IdentifierConfig:
         if not isinstance(params, Mapping):
             raise InputError("identification", params, "missing parameter section")
 

@@ -63,6 +63,10 @@ class Record:
         return self.label is not None and (self.label.material == "coal") == self.is_coal
 
 
+REPLAY_CHUNK_S = 0.01  # the stamp-time span of each delivery, as id_node's subscriptions give it
+WHOLE_STREAM_CHUNK_S = 1e6  # s: one delivery holds an impact's whole streams
+
+
 def run_set(
     params: Mapping[str, Any],
     scene_set: str,
@@ -74,6 +78,7 @@ def run_set(
     windows_s: Sequence[float] = (),
     true_profile: bool = False,
     without_vibration_too: bool = False,
+    chunk_s: float = REPLAY_CHUNK_S,
 ) -> Iterator[Record]:
     """Simulate ``count`` impacts of ``scene_set`` and identify each with every method, at the
     configured data window and at each of ``windows_s`` (s) as well; the accelerometer's blocks
@@ -82,7 +87,9 @@ def run_set(
     calibration: what the calibrated models are trained on). With ``without_vibration_too`` an
     impact whose result has the accelerometer is also identified without it (setting
     ``<key>/no-vibration``:
-    the same impact at a site with the IMU alone; training uses it)."""
+    the same impact at a site with the IMU alone; training uses it). ``chunk_s``: the span of
+    each delivery of the replay, s (the identifier's labels do not depend on it: the
+    training replays each impact's streams in one delivery, WHOLE_STREAM_CHUNK_S)."""
     tolerance_s = match_tolerance_s(params["identification"])
     built: dict[str, Any] = {}
     sections = [dict(params["identification"])] + [
@@ -122,6 +129,7 @@ def run_set(
                         [result.rebound],
                         vibration=vibration,
                         points=point_tuples([result.point] if result.point is not None else []),
+                        chunk_s=chunk_s,
                     )
                     wall = time.perf_counter() - started
                     matching = match([truth], labels, tolerance_s)

@@ -43,6 +43,8 @@ SCALED = {
     "jack_stiffness_scale": ("support", "oil_bulk_modulus_pa"),
     "jack_damping_scale": ("support", "jack_damping_nspm"),
 }
+# The parameter sections SupportDraw.apply changes: its copy of the parameters owns them.
+APPLIED_SECTIONS = ("sensors", "scene", "support", "modes")
 NOISE_FIELDS = (
     "pressure_noise_pa",
     "imu_accel_noise_mps2",
@@ -104,8 +106,13 @@ class SupportDraw:
 
     def apply(self, params: Mapping[str, Any]) -> dict[str, Any]:
         """A copy of the merged parameters describing this support, its sensors (rates, every
-        noise RMS scaled by ``noise_factor``) and the particles' contact law."""
-        varied = copy.deepcopy(dict(params))
+        noise RMS scaled by ``noise_factor``) and the particles' contact law. The sections it
+        changes (APPLIED_SECTIONS) are copied deeply; the others are shared with ``params``,
+        read-only like it (copying every section cost more than simulating the impact)."""
+        varied = dict(params)
+        for section in APPLIED_SECTIONS:
+            if section in params:
+                varied[section] = copy.deepcopy(params[section])
         for name in NOISE_FIELDS:
             varied["sensors"][name] = float(params["sensors"][name]) * self.values["noise_factor"]
         varied.setdefault("scene", {})["contact_model"] = self.contact_model

@@ -50,8 +50,9 @@ from tail_beam_id.methods.statistical import (
 )
 from tail_beam_id.signals.features import VIBRATION_CHANNEL
 from tail_beam_id.stream.label import Label
+from tail_beam_id.study.blas_threads import single_blas_thread
 from tail_beam_id.study.dataset import DRAWN_SETS, evaluation_params, settings
-from tail_beam_id.study.runs import Record, run_set
+from tail_beam_id.study.runs import WHOLE_STREAM_CHUNK_S, Record, run_set
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.contact import hertz_elastic_impact, hertz_stiffness
@@ -90,6 +91,9 @@ def collect(
         tier,
         true_profile=true_profile,
         without_vibration_too=scene_set in DRAWN_SETS,
+        # the streams in one delivery: the same labels as id_node's chunks give (the detectors
+        # and the decision do not depend on the chunking), without the per-chunk work
+        chunk_s=WHOLE_STREAM_CHUNK_S,
     )
     return [r for r in records if r.label is not None]
 
@@ -734,6 +738,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "shipped statistical.json (every other model kept as it is)",
     )
     args = parser.parse_args(argv)
+    # the fits' small products in one BLAS thread: threads cost more than they save here
+    single_blas_thread()
     params = load_parameters()
     seed = int(evaluation_params(params)["training_seed"])
     if {seed, seed + 1, seed + 2, seed + 3} & set(evaluation_params(params)["seeds"].values()):

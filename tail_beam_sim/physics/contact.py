@@ -136,9 +136,11 @@ def calibrated_chi(restitution: Number) -> Number:
     """The chi that delivers ``restitution`` (a float or an array) on a rigid wall, by linear
     interpolation in the delivered-restitution table; InputError names the first value outside
     the table's range."""
+    chi_grid, e_grid = _restitution_table()
+    if isinstance(restitution, (float, int)) and not isinstance(restitution, bool):
+        return _calibrated_chi_scalar(float(restitution))
     e = np.asarray(restitution, dtype=float)
     flat = np.atleast_1d(e)
-    chi_grid, e_grid = _restitution_table()
     for outside, allowed in (
         (~((flat > 0.0) & (flat <= 1.0)), "must be in (0, 1]"),
         (flat < e_grid[-1], f"must be >= {e_grid[-1]:.3f} for the calibrated law"),
@@ -148,6 +150,18 @@ def calibrated_chi(restitution: Number) -> Number:
     # e_grid decreases with chi: interpolate chi against e in increasing order; e = 1 is elastic.
     chi = np.where(e == 1.0, 0.0, np.interp(e, e_grid[::-1], chi_grid[::-1]))
     return chi if e.ndim else float(chi)
+
+
+@lru_cache(maxsize=4096)
+def _calibrated_chi_scalar(e: float) -> float:
+    """:func:`calibrated_chi` of one restitution, by the same interpolation (kept per value:
+    most impacts take their material's restitution)."""
+    chi_grid, e_grid = _restitution_table()
+    if not 0.0 < e <= 1.0:
+        raise InputError("restitution", e, "must be in (0, 1]")
+    if e < e_grid[-1]:
+        raise InputError("restitution", e, f"must be >= {e_grid[-1]:.3f} for the calibrated law")
+    return 0.0 if e == 1.0 else float(np.interp(e, e_grid[::-1], chi_grid[::-1]))
 
 
 class CrushingContact:

@@ -105,6 +105,7 @@ TIERS: dict[str, Tier] = {
     ),
 }
 ACCURACY_LADDER = ("impulse", "rigid", "modal")
+EXACT_TIERS = ("modal", "brittle")  # model error 0 by definition: the estimates' reference
 DEFAULT_TIER = "rigid"
 TIER_CHOICES = ("auto", *TIERS)
 
@@ -188,7 +189,8 @@ def structure_for(tier: Tier, support: Support, modes: Sequence[BendingMode]) ->
 @dataclass
 class Plan:
     """The tier chosen for a scene: its structure, solver and options, its estimated model error
-    (and every tier's), and the tier above it to check it against (None at the top)."""
+    (and every tier's, except for a tier of EXACT_TIERS asked by name, which has only its own),
+    and the tier above it to check it against (None at the top)."""
 
     tier: Tier
     structure: LinearStructure
@@ -202,13 +204,18 @@ class Plan:
 def plan(scene: Scene, tier: str, needs: Needs, settings: FidelitySettings) -> Plan:
     """Choose (``tier='auto'``) or take the tier, with its structure, solver and options and the
     error estimates."""
-    estimates = model_errors(scene, needs, settings.modes)
     if tier == "auto":
+        estimates = model_errors(scene, needs, settings.modes)
         name = next(
             (t for t in ACCURACY_LADDER if estimates[t] <= needs.tolerance), ACCURACY_LADDER[-1]
         )
     else:
         name = get_tier(tier).name
+        # the richest tiers are the reference of the estimates (no model error of their own):
+        # the ladder's estimates are not needed for them
+        estimates = (
+            {name: 0.0} if name in EXACT_TIERS else model_errors(scene, needs, settings.modes)
+        )
     chosen = TIERS[name]
     return Plan(
         tier=chosen,
@@ -240,7 +247,7 @@ def model_errors(scene: Scene, needs: Needs, modes: Sequence[BendingMode]) -> di
     duration = pulse.duration_s
     gravity = support.gravity_mps2 * duration / impact.impact_speed_mps
     waveform = needs.outputs & set(WAVEFORM_OUTPUTS)
-    omega_rigid = 2 * math.pi * float(rigid.natural_frequencies_hz().max())
+    omega_rigid = 2 * math.pi * rigid.fastest_frequency_hz
     impulse_step = max(gravity, (omega_rigid * width) ** 2 / 2 if waveform else 0.0)
     restitution = max(pulse.separation_mps / impact.impact_speed_mps, 1e-3)
     rebound_step = (
@@ -277,26 +284,50 @@ def _sampled_difference(
     unit load (:func:`unit_responses`, cached per structure and sensor setting) with b (each
     structure comes with its contact shape at the impact's position)."""
     spec = scene.sensors
+    (lower, shape_lower), (upper, shape_upper) = rigid, modal
+    both = np.concatenate([shape_upper, shape_lower])
     worst = 0.0
     for output in sorted(outputs):
         rate = spec.pressure_rate_hz if output == "pressure" else spec.imu_rate_hz
-        lower, upper = (
-            unit_responses(structure, output, rate, scene.window_s) @ shape
-            for structure, shape in (rigid, modal)
-        )  # (channels, phases, samples)
-        reference = np.sqrt((upper**2).sum(axis=(0, 2)))
-        difference = np.sqrt(((upper - lower) ** 2).sum(axis=(0, 2)))
-        worst = max(
-            worst,
-            float(
-                np.max(
-                    np.where(
-                        reference > 0, difference / np.where(reference > 0, reference, 1.0), 0.0
-                    )
-                )
-            ),
-        )
+        gram = sampled_gram(lower, upper, output, rate, scene.window_s)  # (phases, N, N)
+        n = upper.size
+        # squared L2 norms per phase: of the difference (u b_u - l b_l) and of the reference
+        difference = np.maximum((gram @ both) @ both, 0.0)
+        reference = (gram[:, :n, :n] @ shape_upper) @ shape_upper
+        ratio = np.where(reference > 0, difference / np.where(reference > 0, reference, 1.0), 0.0)
+        worst = max(worst, math.sqrt(float(ratio.max())))
     return worst
+
+
+_GRAMS: dict[tuple[int, int, str, float, float], tuple[Any, np.ndarray]] = {}
+
+
+def sampled_gram(
+    lower: LinearStructure, upper: LinearStructure, output: str, rate_hz: float, window_s: float
+) -> np.ndarray:
+    """(phases, n_u + n_l, n_u + n_l): per phase, the Gram matrix of the unit responses
+    (:func:`unit_responses`) of ``upper`` and, negated, of ``lower``, over channels and samples.
+    With v = [b_u; b_l] the two contact shapes, v^T G v is the squared L2 norm of the
+    difference of the two sampled impulse responses and the upper-left block's form in b_u
+    that of ``upper``'s own, so that an impact's estimate costs two small products. Kept per
+    (structures, output, rate, window)."""
+    key = (id(lower), id(upper), output, float(rate_hz), float(window_s))
+    cached = _GRAMS.get(key)
+    if cached is not None and cached[0][0] is lower and cached[0][1] is upper:
+        return cached[1]
+    stacked = np.concatenate(
+        [
+            unit_responses(upper, output, rate_hz, window_s),
+            -unit_responses(lower, output, rate_hz, window_s),
+        ],
+        axis=-1,
+    )  # (channels, phases, samples, n_u + n_l)
+    per_phase = stacked.transpose(1, 0, 2, 3).reshape(stacked.shape[1], -1, stacked.shape[3])
+    gram = per_phase.transpose(0, 2, 1) @ per_phase
+    if len(_GRAMS) >= UNIT_RESPONSE_CACHE_SIZE:
+        _GRAMS.clear()
+    _GRAMS[key] = ((lower, upper), gram)  # holding them keeps their ids from being reused
+    return gram
 
 
 _UNIT_RESPONSES: dict[tuple[int, str, float, float], tuple[LinearStructure, np.ndarray]] = {}
@@ -321,33 +352,54 @@ def unit_responses(
         (np.arange(1, count + 1)[None, :] - np.array(PHASES)[:, None]) / rate_hz
     ).ravel()  # (phases x samples)
     n = structure.size
-    zero = np.zeros(n)
-    columns = []
-    for j in range(n):
-        qd0 = structure.inv_mass[:, j]  # M^-1 e_j: the velocity a unit impulse on q_j gives
-        q, qd = structure.propagate(zero, qd0, times)
-        if output == "pressure":
-            signal = (
-                structure.jack_stiffness_npm * (structure.jack_shape @ q)
-                + structure.jack_damping_nspm * (structure.jack_shape @ qd)
-            )[None, :] / structure.piston_area_m2
-        else:
-            early = times < 1.0 / rate_hz  # the beam is at rest before the impulse
-            before_q, before_qd = structure.propagate(
-                zero, qd0, np.maximum(times - 1.0 / rate_hz, 0.0)
+    vectors = structure._eigen[1]
+    keep, sigma, omega, weight = structure._half_spectrum
+    # The state after a unit impulse on q_j is x(t) = Re sum_k V_k exp(lambda_k t) xi_kj, xi_j
+    # the modal amplitudes of [0; M^-1 e_j] (the columns of modal_input), over one eigenvalue
+    # of each conjugate pair (weight 2) and the real ones: read through an output row r, every
+    # coordinate's response at once is exp(sigma t) (cos(omega t) Re C - sin(omega t) Im C)
+    # with C_kj = w_k (r V)_k xi_kj, in real arithmetic.
+    growth = np.exp(np.multiply.outer(times, sigma))  # (T, k)
+    angle = np.multiply.outer(times, omega)
+    cos, sin = growth * np.cos(angle), growth * np.sin(angle)
+    inputs = structure.modal_input[keep] * weight[:, None]  # (k, n)
+
+    def read(row: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
+        amplitude = (row @ vectors[:, keep])[:, None] * inputs
+        return c @ amplitude.real - s @ amplitude.imag  # (T, n)
+
+    if output == "pressure":
+        row = (
+            np.concatenate(
+                [
+                    structure.jack_stiffness_npm * structure.jack_shape,
+                    structure.jack_damping_nspm * structure.jack_shape,
+                ]
             )
-            before_q[:, early], before_qd[:, early] = 0.0, 0.0
-            signal = (
-                np.stack(
-                    [
-                        structure.imu_shape @ (qd - before_qd),
-                        structure.imu_slope_shape @ (q - before_q),
-                    ]
-                )
-                * rate_hz
-            )
-        columns.append(signal.reshape(signal.shape[0], len(PHASES), count))
-    responses = np.stack(columns, axis=-1)
+            / structure.piston_area_m2
+        )
+        rows = [row]
+        signals = [read(row, cos, sin)]
+    else:
+        zero_n = np.zeros(n)
+        rows = [
+            np.concatenate([zero_n, structure.imu_shape]),
+            np.concatenate([structure.imu_slope_shape, zero_n]),
+        ]
+        # one sample period earlier: exp(lambda (t - T)) = exp(lambda t) exp(-lambda T), the
+        # beam at rest before the impulse
+        period = 1.0 / rate_hz
+        decay = np.exp(-sigma * period)
+        turn_cos, turn_sin = np.cos(omega * period), np.sin(omega * period)
+        cos_before = decay * (cos * turn_cos + sin * turn_sin)
+        sin_before = decay * (sin * turn_cos - cos * turn_sin)
+        early = times < period
+        signals = []
+        for row in rows:
+            then = read(row, cos_before, sin_before)
+            then[early] = 0.0
+            signals.append((read(row, cos, sin) - then) * rate_hz)
+    responses = np.stack(signals).reshape(len(rows), len(PHASES), count, n)
     if len(_UNIT_RESPONSES) >= UNIT_RESPONSE_CACHE_SIZE:
         _UNIT_RESPONSES.clear()
     _UNIT_RESPONSES[key] = (structure, responses)  # holding it keeps its id from being reused

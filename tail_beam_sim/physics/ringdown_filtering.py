@@ -62,27 +62,45 @@ def filtered_ringdown(
     ring-down whose state is (``q0``, ``qd0``) at ``anchor_s``: each dense input value the mean
     specific force along the plate normal at the IMU over the dense period before its instant
     (:func:`tail_beam_sim.physics.sensors.mean_specific_force_z`)."""
-    eigenvalues, vectors, inverse = structure._eigen
+    _, vectors, inverse = structure._eigen
     n = structure.size
     modal = inverse @ np.concatenate([q0, qd0])
     keep, sigma, omega, weight = structure._half_spectrum
-    lam = eigenvalues[keep]
     amplitude = vectors[:, keep] * (weight * modal[keep])  # (2n, k), complex
     angle_weight = structure.imu_slope_shape @ amplitude[:n]  # rad per unit exponential
     velocity_weight = structure.imu_shape @ amplitude[n:]  # m/s per unit exponential
     # the dense input's term: -(qd(t) - qd(t - T)) / T at the IMU, then through the filter
-    gain = response(sos, np.exp(lam * dense_period_s))
-    dynamic_weight = gain * (
-        -velocity_weight * (1.0 - np.exp(-lam * dense_period_s)) / dense_period_s
-    )
+    dynamic_weight = velocity_weight * _dense_gain(structure, dense_period_s, sos)
     # Re(w exp(lambda t)) = exp(sigma t) (Re w cos(omega t) - Im w sin(omega t)), in real
-    # arithmetic: a complex exp costs several real ones
+    # arithmetic (a complex exp costs several real ones), every mode at once
     dt = np.asarray(t_s, dtype=float) - anchor_s
-    angle = np.zeros(dt.shape)
-    dynamic = np.zeros(dt.shape)
-    for k in range(lam.size):
-        growth = np.exp(sigma[k] * dt)
-        cos, sin = growth * np.cos(omega[k] * dt), growth * np.sin(omega[k] * dt)
-        angle += angle_weight[k].real * cos - angle_weight[k].imag * sin
-        dynamic += dynamic_weight[k].real * cos - dynamic_weight[k].imag * sin
+    growth = np.exp(np.multiply.outer(sigma, dt))
+    cos = growth * np.cos(np.multiply.outer(omega, dt))
+    sin = growth * np.sin(np.multiply.outer(omega, dt))
+    angle = angle_weight.real @ cos - angle_weight.imag @ sin
+    dynamic = dynamic_weight.real @ cos - dynamic_weight.imag @ sin
     return structure.gravity_mps2 * np.cos(angle) + dynamic
+
+
+_GAINS: dict[tuple[int, float, bytes], tuple[LinearStructure, np.ndarray]] = {}
+GAIN_CACHE_SIZE = 64
+
+
+def _dense_gain(structure: LinearStructure, dense_period_s: float, sos: np.ndarray) -> np.ndarray:
+    """Per exponential of the structure's half spectrum: the dense stage's factor from the
+    velocity's term to its specific force, -(1 - exp(-lambda T)) / T, times the filter's
+    response at exp(lambda T) (1/s). Depends on the structure and the sensor setting only, so
+    it is kept per (structure, dense period, filter)."""
+    key = (id(structure), float(dense_period_s), sos.tobytes())
+    cached = _GAINS.get(key)
+    if cached is not None and cached[0] is structure:
+        return cached[1]
+    keep = structure._half_spectrum[0]
+    lam = structure._eigen[0][keep]
+    gain = response(sos, np.exp(lam * dense_period_s)) * (
+        -(1.0 - np.exp(-lam * dense_period_s)) / dense_period_s
+    )
+    if len(_GAINS) >= GAIN_CACHE_SIZE:
+        _GAINS.clear()
+    _GAINS[key] = (structure, gain)  # holding it keeps its id from being reused
+    return gain

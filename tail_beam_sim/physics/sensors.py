@@ -34,10 +34,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 from scipy import signal
+
+try:  # scipy's compiled second-order-sections kernel, behind signal.sosfilt
+    from scipy.signal._sosfilt import _sosfilt as _SOSFILT_KERNEL
+except ImportError:  # pragma: no cover - another scipy layout: the public function
+    _SOSFILT_KERNEL = None
 
 from tail_beam_sim.physics.ringdown_filtering import filtered_ringdown, settle_steps
 from tail_beam_sim.physics.scene import SensorSpec
@@ -197,6 +202,19 @@ def dense_imu_response(
     return mean_specific_force_z(trajectory, t_s + 0.5 * dense_period_s, dense_period_s), rate
 
 
+@lru_cache(maxsize=1024)
+def _seed_children(seed: int) -> tuple[np.random.SeedSequence, ...]:
+    """The six children of ``seed`` (spawning costs more than a short stream's noise; a child
+    is only read, never spawned from, so one set serves every suite of that seed)."""
+    return tuple(np.random.SeedSequence(seed).spawn(6))
+
+
+@lru_cache(maxsize=1024)
+def _first_uniform(child: np.random.SeedSequence) -> float:
+    """The first ``random()`` of a generator made from ``child``."""
+    return float(np.random.default_rng(child).random())
+
+
 def sample_grid(start_s: float, end_s: float, rate_hz: float) -> np.ndarray:
     """Sample instants k / rate_hz of the absolute clock that fall in [start_s, end_s]."""
     first = math.ceil(start_s * rate_hz - 1e-9)
@@ -210,21 +228,40 @@ class SensorSuite:
     def __init__(self, spec: SensorSpec, seed: int | None = None) -> None:
         self.spec = spec
         self.noise = SensorNoise.of(spec)
-        children = np.random.SeedSequence(spec.seed if seed is None else seed).spawn(6)
-        pressure, imu, camera, vibration = children[0], children[1], children[2], children[4]
-        # The impact point's noise has a child of its own (the sixth): turning the point on
-        # changes no other sensor's readings.
-        self._point_rng = np.random.default_rng(children[5])
-        self._phase_seed = children[3]
-        self._vibration_rng = np.random.default_rng(vibration)
-        self._pressure_rng = np.random.default_rng(pressure)
-        self._imu_rng = np.random.default_rng(imu)
-        self._camera_rng = np.random.default_rng(camera)
+        # Children of the seed: pressure, IMU, camera, contact phase, vibration, impact point
+        # (the point's own, so that turning it on changes no other sensor's readings). Each
+        # generator is made from its child when first used.
+        self._children = _seed_children(spec.seed if seed is None else seed)
+
+    @cached_property
+    def _pressure_rng(self) -> np.random.Generator:
+        return np.random.default_rng(self._children[0])
+
+    @cached_property
+    def _imu_rng(self) -> np.random.Generator:
+        return np.random.default_rng(self._children[1])
+
+    @cached_property
+    def _camera_rng(self) -> np.random.Generator:
+        return np.random.default_rng(self._children[2])
+
+    @cached_property
+    def _vibration_rng(self) -> np.random.Generator:
+        return np.random.default_rng(self._children[4])
+
+    @cached_property
+    def _point_rng(self) -> np.random.Generator:
+        return np.random.default_rng(self._children[5])
 
     def phase_rng(self) -> np.random.Generator:
         """The generator of simulate()'s contact phase (the seed's fourth child, which no
         sensor's noise uses)."""
-        return np.random.default_rng(self._phase_seed)
+        return np.random.default_rng(self._children[3])
+
+    def contact_phase(self) -> float:
+        """The first uniform draw in [0, 1) of :meth:`phase_rng` (what simulate() scales to
+        its contact's phase), kept per seed."""
+        return _first_uniform(self._children[3])
 
     def pressure(
         self,
@@ -283,10 +320,36 @@ class SensorSuite:
         one evaluation per instant serves as both ends. They run to ``end_s``, or, given the
         ``trajectory``, only until its filtered ring-down takes over (:meth:`_ringdown_start`)."""
         dense_rate = self.spec.vibration_oversample * self.spec.vibration_rate_hz
+        first, switch, _ = self._dense_span(trajectory, end_s, contact_stamp_s)
+        return np.arange(first - 1, switch) / dense_rate - contact_stamp_s
+
+    def _dense_span(
+        self, trajectory: Trajectory | None, end_s: float, contact_stamp_s: float
+    ) -> tuple[int, int, int]:
+        """(first, switch, count): the accelerometer's dense indices run 0 .. count - 1 (to
+        ``end_s``); only ``first`` .. ``switch - 1`` are evaluated densely and filtered. Before
+        ``first`` (an output sample's index) the beam has not moved yet (the ``trajectory``
+        starts at rest: every dense value is g, which the filter, settled on it, passes
+        unchanged); from ``switch`` on the filtered ring-down takes over
+        (:meth:`_ringdown_start`). Without a trajectory: (0, count, count)."""
+        spec = self.spec
+        oversample = spec.vibration_oversample
+        dense_rate = oversample * spec.vibration_rate_hz
         count = math.floor(end_s * dense_rate + 1e-9) + 1
-        if trajectory is not None:
-            count = min(count, self._ringdown_start(trajectory, contact_stamp_s, count))
-        return np.arange(-1, count) / dense_rate - contact_stamp_s
+        if trajectory is None:
+            return 0, count, count
+        switch = self._ringdown_start(trajectory, contact_stamp_s, count)
+        head = trajectory.segments[0] if trajectory.segments else None
+        if not isinstance(head, FreeSegment) or not head.at_rest:
+            return 0, switch, count
+        # dense value i spans (instant i - 1, instant i]: at rest while instant i is at or
+        # before the rest's end (one more value is taken as moving, against rounding)
+        rest_end = contact_stamp_s + head.end_s
+        moving = (
+            max(math.floor(rest_end * dense_rate) - 1, 0) if math.isfinite(rest_end) else count
+        )
+        first = min(moving // oversample * oversample, switch)
+        return first, switch, count
 
     def _ringdown_start(self, trajectory: Trajectory, contact_stamp_s: float, count: int) -> int:
         """The first dense index (an output sample's) from which the accelerometer reads the
@@ -321,9 +384,9 @@ class SensorSuite:
         is ``contact_stamp_s``): dense response, anti-alias filter, noise, clipping.
         ``dense_states``: the trajectory already sampled at :meth:`vibration_times`."""
         spec = self.spec
-        dense_rate = spec.vibration_oversample * spec.vibration_rate_hz
-        count = math.floor(end_s * dense_rate + 1e-9) + 1
-        switch = self._ringdown_start(trajectory, contact_stamp_s, count)
+        oversample = spec.vibration_oversample
+        dense_rate = oversample * spec.vibration_rate_hz
+        first, switch, count = self._dense_span(trajectory, end_s, contact_stamp_s)
         if dense_states is None:
             dense_states = trajectory.sample(
                 self.vibration_times(end_s, contact_stamp_s, trajectory)
@@ -338,22 +401,29 @@ class SensorSuite:
             spec.vibration_rate_hz,
             spec.vibration_antialias_order,
             spec.vibration_antialias_cutoff_fraction,
-            spec.vibration_oversample,
+            oversample,
         )
-        clean = aa(dense[:switch])[:: spec.vibration_oversample]
+        pieces = []
+        if first > 0:  # the beam at rest reads g, and the filter settled on it passes g
+            rest = trajectory.problem.structure.gravity_mps2
+            pieces.append(np.full(first // oversample, rest))
+            aa.settle(rest)
+        pieces.append(aa(dense)[::oversample])
         if switch < count:
             last = trajectory.segments[-1]
-            outputs = np.arange(switch, count, spec.vibration_oversample) / dense_rate
-            ringdown = filtered_ringdown(
-                trajectory.problem.structure,
-                last.anchor_s,
-                last.q,
-                last.qd,
-                outputs - contact_stamp_s,
-                1.0 / dense_rate,
-                aa.sos,
+            outputs = np.arange(switch, count, oversample) / dense_rate
+            pieces.append(
+                filtered_ringdown(
+                    trajectory.problem.structure,
+                    last.anchor_s,
+                    last.q,
+                    last.qd,
+                    outputs - contact_stamp_s,
+                    1.0 / dense_rate,
+                    aa.sos,
+                )
             )
-            clean = np.concatenate([clean, ringdown])
+        clean = np.concatenate(pieces) if len(pieces) > 1 else pieces[0]
         noisy = clean + self._vibration_rng.normal(0.0, spec.vibration_noise_mps2, clean.size)
         blocks, _ = cut_blocks(
             np.clip(noisy, -spec.vibration_range_mps2, spec.vibration_range_mps2), 0, spec
@@ -420,6 +490,10 @@ class AntiAliasFilter:
         self.sos = self._sos
         self._zi: np.ndarray | None = None
 
+    def settle(self, value: float) -> None:
+        """Start (or restart) settled on a constant input ``value``, as after a long rest."""
+        self._zi = self._zi_unit * value
+
     def __call__(self, dense: np.ndarray) -> np.ndarray:
         """Filter dense values (in order, continuing the previous call); returns them all
         filtered."""
@@ -427,8 +501,21 @@ class AntiAliasFilter:
             return dense.copy()
         if self._zi is None:  # start settled on the first value (the beam at rest reads +g)
             self._zi = self._zi_unit * dense[0]
-        out, self._zi = signal.sosfilt(self._sos, dense, zi=self._zi)
+        out, self._zi = sos_filter(self._sos, dense, self._zi)
         return out
+
+
+def sos_filter(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``scipy.signal.sosfilt(sos, x, zi=zi)`` of a 1-D signal: (output, final state), through
+    scipy's compiled kernel directly when it is there (the same arithmetic; the public
+    function's argument handling costs ten times the filtering of an impact's few hundred
+    samples)."""
+    if _SOSFILT_KERNEL is None:
+        return signal.sosfilt(sos, x, zi=zi)
+    out = np.array(x, dtype=float, order="C").reshape(1, -1)
+    state = np.array(zi, dtype=float, order="C").reshape(1, -1, 2)
+    _SOSFILT_KERNEL(np.ascontiguousarray(sos, dtype=float), out, state)
+    return out[0], state[0]
 
 
 @lru_cache(maxsize=32)

@@ -292,9 +292,9 @@ def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> Simul
     """
     spec = scene.sensors
     suite = SensorSuite(spec)
-    phase_rng = suite.phase_rng()
     slowest = min(spec.pressure_rate_hz, spec.imu_rate_hz)
-    contact_stamp = scene.pre_contact_s + float(phase_rng.uniform(0.0, 1.0 / slowest))
+    # phase_rng().uniform(0, 1 / slowest), which is 0 + (1 / slowest) * its first random()
+    contact_stamp = scene.pre_contact_s + (0.0 + (1.0 / slowest) * suite.contact_phase())
     end = contact_stamp + scene.window_s
     pressure_stamps = sample_grid(0.0, end, spec.pressure_rate_hz)
     imu_stamps = sample_grid(0.0, end, spec.imu_rate_hz)

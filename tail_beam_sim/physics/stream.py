@@ -500,8 +500,17 @@ class StreamSimulator:
         stamps = dense_index / dense_rate
         dense = np.empty(stamps.size)
         for trajectory, start, mask in self._by_epoch(stamps):
+            # Each dense value is the mean over the period before its instant, which the
+            # instant before bounds: the epoch's instants and the one before the first,
+            # evaluated once each (index / rate, as every chunk cuts them).
+            index = dense_index[mask]
+            times = np.concatenate([[index[0] - 1], index]) / dense_rate
+            states = trajectory.sample(_relative(times, start))
             dense[mask] = mean_specific_force_z(
-                trajectory, _relative(stamps[mask], start), 1.0 / dense_rate
+                trajectory,
+                states.t_s[1:],
+                1.0 / dense_rate,
+                (states.take(slice(1, None)), states.take(slice(None, -1))),
             )
         # Every dense value goes through the filter once, in order; sample i is the filter's
         # output at dense index m * i (stamp i / rate).

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -112,6 +113,13 @@ class LinearStructure:
         eigenvalues = self._eigen[0]
         return np.sort(np.abs(eigenvalues.imag[eigenvalues.imag > 0])) / (2 * np.pi)
 
+    @cached_property
+    def fastest_frequency_hz(self) -> float:
+        """The highest damped natural frequency, Hz (0 for a structure without oscillating
+        modes)."""
+        frequencies = self.natural_frequencies_hz()
+        return float(frequencies.max()) if frequencies.size else 0.0
+
     def acceleration(
         self, q: np.ndarray, qd: np.ndarray, force_n: np.ndarray | float, shape: np.ndarray
     ) -> np.ndarray:
@@ -146,9 +154,15 @@ class LinearStructure:
         # einsum, not a BLAS product: each time's state then does not depend on how many times
         # are asked for at once (BLAS kernels round the tail of a block differently), so a stream
         # sampled in chunks is bit-identical to one sampled whole.
-        state = np.einsum("ik,k...->i...", amplitude.real, growth * np.cos(angle)) - np.einsum(
-            "ik,k...->i...", amplitude.imag, growth * np.sin(angle)
-        )
+        if keep.size == 1 and times.ndim == 1:
+            # one exponential (the rigid beam's pair): a plain product, the same floats
+            state = amplitude.real * (growth * np.cos(angle)) - amplitude.imag * (
+                growth * np.sin(angle)
+            )
+        else:
+            state = np.einsum("ik,k...->i...", amplitude.real, growth * np.cos(angle)) - np.einsum(
+                "ik,k...->i...", amplitude.imag, growth * np.sin(angle)
+            )
         n = self.size
         return state[:n], state[n:]
 

@@ -81,6 +81,20 @@ def _signature(method: str) -> inspect.Signature:
     return inspect.signature(SOLVERS[method])
 
 
+@lru_cache(maxsize=None)
+def _optional_names(method: str) -> frozenset[str]:
+    """The options the registered solver takes by keyword, each with a default (empty when one
+    is required: then every call's options go through the signature's own check)."""
+    parameters = list(_signature(method).parameters.values())[1:]
+    if any(p.default is inspect.Parameter.empty for p in parameters):
+        return frozenset()
+    return frozenset(
+        p.name
+        for p in parameters
+        if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    )
+
+
 def solve(problem: ImpactProblem, method: str = DEFAULT_SOLVER, **options: Any) -> Trajectory:
     """Solve ``problem`` with the solver registered as ``method``."""
     try:
@@ -88,7 +102,8 @@ def solve(problem: ImpactProblem, method: str = DEFAULT_SOLVER, **options: Any) 
     except KeyError:
         raise InputError("solver", method, f"must be one of {', '.join(SOLVERS)}") from None
     try:
-        _signature(method).bind(problem, **options)
+        if not _optional_names(method).issuperset(options):
+            _signature(method).bind(problem, **options)
     except TypeError as exc:
         raise InputError(
             "solver options", sorted(options), f"not all accepted by {method}: {exc}"

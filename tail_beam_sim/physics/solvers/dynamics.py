@@ -8,13 +8,21 @@ stepping solver (hybrid, fixed-step) shares this one right-hand side.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import lru_cache
+from typing import Any
+
 import numpy as np
 
 from tail_beam_sim.physics.solvers.problem import ImpactProblem
 
 
 class FloatDynamics:
-    """Right-hand side and contact force of ``problem`` for list states (see module docstring)."""
+    """Right-hand side and contact force of ``problem`` for list states (see module docstring).
+
+    ``penetration(y)`` and ``derivative(y, approach_mps, peak_penetration_m)`` are functions
+    written out for the structure's size (:func:`_unrolled`): every product and sum in the
+    order of the plain loops, so the same floats, without their per-term interpreter work."""
 
     def __init__(self, problem: ImpactProblem) -> None:
         structure = problem.structure
@@ -28,13 +36,16 @@ class FloatDynamics:
         self.hertz = problem.hertz_stiffness
         self.chi = problem.damping_factor
         self.crushing = problem.crushing
-
-    def penetration(self, y: list[float]) -> tuple[float, float]:
-        """Penetration (m) and its rate (m/s): delta = -(b . q) - z."""
-        n, b = self.n, self.shape
-        return (
-            -sum(bi * qi for bi, qi in zip(b, y[:n])) - y[2 * n],
-            -sum(bi * vi for bi, vi in zip(b, y[n : 2 * n])) - y[2 * n + 1],
+        self.penetration, self.derivative = _unrolled(self.n)(
+            self.shape,
+            self.stiffness_rows,
+            self.damping_rows,
+            self.load,
+            float(self.hertz),
+            float(self.chi),
+            float(self.mass_kg),
+            float(self.gravity_mps2),
+            None if self.crushing is None else self.crushing.force,
         )
 
     def force(
@@ -49,23 +60,64 @@ class FloatDynamics:
         value = self.hertz * delta_m**1.5 * (1.0 + self.chi * rate_mps / approach_mps)
         return value if value > 0.0 else 0.0
 
-    def derivative(
-        self, y: list[float], approach_mps: float, peak_penetration_m: float
-    ) -> tuple[list[float], float]:
-        """(dy/dt, contact force N) at state ``y``."""
-        n = self.n
-        q, qd = y[:n], y[n : 2 * n]
-        delta, rate = self.penetration(y)
-        force = self.force(delta, rate, approach_mps, peak_penetration_m) if delta > 0.0 else 0.0
-        acc = [
-            li * force - sum(k * a for k, a in zip(krow, q)) - sum(c * v for c, v in zip(crow, qd))
-            for li, krow, crow in zip(self.load, self.stiffness_rows, self.damping_rows)
-        ]
-        return [*qd, *acc, y[2 * n + 1], force / self.mass_kg - self.gravity_mps2], force
-
     def state(self, q: np.ndarray, qd: np.ndarray, z_m: float, zd_mps: float) -> list[float]:
         """A list state from arrays."""
         return [*map(float, q), *map(float, qd), float(z_m), float(zd_mps)]
+
+
+@lru_cache(maxsize=None)
+def _unrolled(n: int) -> Callable[..., tuple[Callable, Callable]]:
+    """A factory of (penetration, derivative) for ``n`` structure coordinates, written out term
+    by term. penetration(y) = (delta m, its rate m/s), delta = -(b . q) - z; derivative(y,
+    approach, peak) = (dy/dt, contact force N) with q'' = load F - (K' q) - (C' qd) row by row
+    (K' = M^-1 K, C' = M^-1 C) and z'' = F / m - g. Each dot product sums left to right as
+    ``sum()`` does, whose leading 0 adds nothing, so the floats are those of the loops."""
+    q = [f"q{i}" for i in range(n)]
+    v = [f"v{i}" for i in range(n)]
+
+    def dot(coefficients: list[str], values: list[str]) -> str:
+        return " + ".join(f"{c} * {x}" for c, x in zip(coefficients, values)) or "0.0"
+
+    b = [f"b{i}" for i in range(n)]
+    rows = []
+    for i in range(n):
+        k = [f"k{i}_{j}" for j in range(n)]
+        c = [f"c{i}_{j}" for j in range(n)]
+        rows.append(f"l{i} * force - ({dot(k, q)}) - ({dot(c, v)})")
+    constants = "\n".join(
+        [f"    {', '.join(b)}, = shape" if n else ""]
+        + [f"    {', '.join(f'k{i}_{j}' for j in range(n))}, = stiffness[{i}]" for i in range(n)]
+        + [f"    {', '.join(f'c{i}_{j}' for j in range(n))}, = damping[{i}]" for i in range(n)]
+        + ([f"    {', '.join(f'l{i}' for i in range(n))}, = load"] if n else [])
+    )
+    unpack = ", ".join([*q, *v, "z", "zd"])
+    source = f"""
+def factory(shape, stiffness, damping, load, hertz, chi, mass, g, crushing_force):
+{constants}
+    def penetration(y):
+        {unpack}, = y
+        return -({dot(b, q)}) - z, -({dot(b, v)}) - zd
+
+    def derivative(y, approach, peak):
+        {unpack}, = y
+        delta = -({dot(b, q)}) - z
+        if delta > 0.0:
+            if crushing_force is not None:
+                force = crushing_force(delta, peak)
+            else:
+                rate = -({dot(b, v)}) - zd
+                force = hertz * delta**1.5 * (1.0 + chi * rate / approach)
+                if not force > 0.0:
+                    force = 0.0
+        else:
+            force = 0.0
+        return [{", ".join([*v, *rows, "zd", "force / mass - g"])}], force
+
+    return penetration, derivative
+"""
+    namespace: dict[str, Any] = {}
+    exec(compile(source, f"<FloatDynamics n={n}>", "exec"), namespace)  # noqa: S102
+    return namespace["factory"]
 
 
 def rk4_step(

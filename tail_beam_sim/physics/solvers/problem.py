@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -116,6 +117,11 @@ class FreeSegment:
     z_m: float
     zd_mps: float
 
+    @cached_property
+    def at_rest(self) -> bool:
+        """Whether the structure is at rest in this segment (q and qd all zero): it stays so."""
+        return not (np.any(self.q) or np.any(self.qd))
+
 
 @dataclass
 class OdeSegment:
@@ -202,20 +208,23 @@ class Trajectory:
         order = np.argsort(which, kind="stable")
         grouped = self._sample_grouped(times[order], which[order])
         out = self._empty_samples(times)
-        for name in ("q", "qd", "qdd", "force_n", "z_m", "zd_mps"):
-            getattr(out, name)[..., order] = getattr(grouped, name)
+        # every field is a block of rows of one buffer: one scatter puts them all back
+        out.q.base[:, order] = grouped.q.base
         return out
 
     def _empty_samples(self, times: np.ndarray) -> Samples:
+        """Zeroed samples at ``times`` whose fields are rows of one (3n + 3, T) buffer (q, qd,
+        qdd, force, z, zd), so that they are allocated, and reordered, at once."""
         n = self.problem.structure.size
+        buffer = np.zeros((3 * n + 3, times.size))
         return Samples(
             t_s=times,
-            q=np.zeros((n, times.size)),
-            qd=np.zeros((n, times.size)),
-            qdd=np.zeros((n, times.size)),
-            force_n=np.zeros(times.size),
-            z_m=np.zeros(times.size),
-            zd_mps=np.zeros(times.size),
+            q=buffer[:n],
+            qd=buffer[n : 2 * n],
+            qdd=buffer[2 * n : 3 * n],
+            force_n=buffer[3 * n],
+            z_m=buffer[3 * n + 1],
+            zd_mps=buffer[3 * n + 2],
         )
 
     def _sample_grouped(self, times: np.ndarray, which: np.ndarray) -> Samples:
@@ -247,12 +256,13 @@ class Trajectory:
         union = self.sample(np.concatenate(arrays) if arrays else np.empty(0))
         return [union.take(slice(int(lo), int(hi))) for lo, hi in zip(edges[:-1], edges[1:])]
 
-    def _stacks(self, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _stacks(self, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """What contact segment ``index`` is interpolated from, stacked so that one Hermite
         evaluation serves every state: the values [q; q'; z; z'] (2n + 2, steps), their slopes
-        [q'; q''; z'; z''] (the particle's acceleration z'' from its velocity's gradient, m/s^2)
-        and the steps' lengths (s). Built once per segment: the sensors sample a trajectory
-        several times, and the stream once per chunk."""
+        [q'; q''; z'; z''] (the particle's acceleration z'' from its velocity's gradient, m/s^2),
+        the steps' lengths (s) and each step's polynomials (:func:`_step_polynomials`). Built
+        once per segment: the sensors sample a trajectory several times, and the stream once
+        per chunk."""
         cache = self.__dict__.setdefault("_contact_stacks", {})
         segment = self.segments[index]
         known = cache.get(index)
@@ -263,20 +273,25 @@ class Trajectory:
         zdd = _gradient(segment.zd_mps, steps) if t.size > 1 else np.zeros(1)
         values = np.vstack([segment.q, segment.qd, segment.z_m, segment.zd_mps])
         slopes = np.vstack([segment.qd, segment.qdd, segment.zd_mps, zdd])
-        stacks = (values, slopes, steps)
+        stacks = (values, slopes, steps, _step_polynomials(values, slopes, steps, segment))
         cache[index] = (segment, stacks)
         return stacks
 
     def _sample_free(self, seg: FreeSegment, times: np.ndarray, out: Samples, mask: slice) -> None:
         structure = self.problem.structure
         dt = times - seg.anchor_s
+        g = self.problem.gravity_mps2
+        if seg.at_rest:
+            # at rest it stays at rest (the zeros of ``out``), also backwards in time
+            out.z_m[mask] = seg.z_m + seg.zd_mps * dt - 0.5 * g * dt * dt
+            out.zd_mps[mask] = seg.zd_mps - g * dt
+            return
         q, qd = structure.propagate(seg.q, seg.qd, dt)
         out.q[:, mask], out.qd[:, mask] = q, qd
         # no contact force: q'' = -M^-1 (C q' + K q), each time's value independent of how many
         # are asked at once (as propagate's)
         internal = _columnwise(structure.damping, qd) + _columnwise(structure.stiffness, q)
         out.qdd[:, mask] = -_columnwise(structure.inv_mass, internal)
-        g = self.problem.gravity_mps2
         out.z_m[mask] = seg.z_m + seg.zd_mps * dt - 0.5 * g * dt * dt
         out.zd_mps[mask] = seg.zd_mps - g * dt
 
@@ -300,11 +315,21 @@ class Trajectory:
     ) -> None:
         """Cubic Hermite through the steps of ``seg`` (values and slopes: :meth:`_stacks`),
         linear for q'' and the force."""
-        values, slopes, steps = stacks
+        values, slopes, steps, polynomials = stacks
         t = seg.t_s
         k = np.minimum(np.maximum(np.searchsorted(t, times, side="right") - 1, 0), t.size - 2)
         h = steps[k] if t.size > 1 else np.zeros(times.size)
         s = np.where(h > 0, (times - t[k]) / np.where(h > 0, h, 1.0), 0.0)
+        n = out.q.shape[0]
+        if polynomials is not None:
+            # every state's polynomial of the steps asked, at once (Horner in s)
+            c = polynomials[k]  # (T, 4, 3n + 3)
+            x = s[:, None]
+            y = (c[:, 0] + x * (c[:, 1] + x * (c[:, 2] + x * c[:, 3]))).T
+            out.q[:, mask], out.qd[:, mask] = y[:n], y[n : 2 * n]
+            out.z_m[mask], out.zd_mps[mask] = y[2 * n], y[2 * n + 1]
+            out.qdd[:, mask], out.force_n[mask] = y[2 * n + 2 : 3 * n + 2], y[3 * n + 2]
+            return
         h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
         h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
         y = (
@@ -313,11 +338,35 @@ class Trajectory:
             + h01 * values[:, k + 1]
             + h11 * h * slopes[:, k + 1]
         )
-        n = out.q.shape[0]
         out.q[:, mask], out.qd[:, mask] = y[:n], y[n : 2 * n]
         out.z_m[mask], out.zd_mps[mask] = y[2 * n], y[2 * n + 1]
         out.qdd[:, mask] = seg.qdd[:, k] * (1 - s) + seg.qdd[:, k + 1] * s
         out.force_n[mask] = seg.force_n[k] * (1 - s) + seg.force_n[k + 1] * s
+
+
+def _step_polynomials(
+    values: np.ndarray, slopes: np.ndarray, steps: np.ndarray, segment: ContactSegment
+) -> np.ndarray | None:
+    """(steps, 4, 3n + 3): per step, the coefficients of s^0 .. s^3 (s the fraction of the
+    step) of the cubic Hermite of each of [q; q'; z; z'] (``values`` and ``slopes`` at the
+    step's ends) and of the straight line of [q''; force]; None for a segment of one instant
+    (nothing to interpolate)."""
+    if steps.size < 1 or segment.t_s.size < 2:
+        return None
+    v0, v1 = values[:, :-1], values[:, 1:]
+    m0, m1 = slopes[:, :-1] * steps, slopes[:, 1:] * steps
+    linear = np.vstack([segment.qdd, segment.force_n])
+    a0, a1 = linear[:, :-1], linear[:, 1:]
+    zero = np.zeros_like(a0)
+    coefficients = np.stack(
+        [
+            np.vstack([v0, a0]),
+            np.vstack([m0, a1 - a0]),
+            np.vstack([3.0 * (v1 - v0) - 2.0 * m0 - m1, zero]),
+            np.vstack([2.0 * (v0 - v1) + m0 + m1, zero]),
+        ]
+    )  # (4, 3n + 3, steps)
+    return np.ascontiguousarray(coefficients.transpose(2, 0, 1))
 
 
 def _columnwise(matrix: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -118,8 +118,9 @@ def test_cached_plan_equals_a_fresh_one_and_the_direct_estimate(params, position
     settings = shipped_settings()
     scene = _scene(params, position_m=position_m)
     fidelity._UNIT_RESPONSES.clear()
+    fidelity._GRAMS.clear()
     fresh = plan(scene, "auto", settings.needs, settings)
-    assert fidelity._UNIT_RESPONSES  # the fresh plan filled the cache
+    assert fidelity._UNIT_RESPONSES and fidelity._GRAMS  # the fresh plan filled the caches
     cached = plan(scene, "auto", settings.needs, settings)
     assert cached.estimates == fresh.estimates
     assert cached.tier == fresh.tier and cached.structure is fresh.structure
