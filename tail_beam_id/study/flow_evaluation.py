@@ -188,7 +188,7 @@ def flow_supports(params: Mapping[str, Any], foreign: int, seed: int) -> list[tu
     rates = {k: float(params["sensors"][k]) for k in SENSOR_RATES}
     out: list[tuple[str, Any]] = [("nominal", None)]
     for n in range(foreign):
-        draw = draw_support(ranges, rng, rng).with_sensors(
+        draw = draw_support(ranges, rng, rng, params["modes"]).with_sensors(
             rates, float(params["sensors"]["vibration_rate_hz"]), 1.0
         )
         out.append((f"foreign-{n + 1}", draw))

@@ -72,7 +72,7 @@ def training_flows(
         final = float(rng.uniform(0.3, 1.0))
         support = None
         if n % 2:
-            support = draw_support(ranges, rng, rng).with_sensors(
+            support = draw_support(ranges, rng, rng, params["modes"]).with_sensors(
                 rates, float(params["sensors"]["vibration_rate_hz"]), 1.0
             )
         out.append(

@@ -1,6 +1,8 @@
 """The features the shipped models read, pinned: a fixed training impact of the stream set at
 every sensor setting and two on drawn supports (with and without their accelerometer), as the
-suite computed them at commit b2b44a8 (before the speed work; pinned_features.json). The models
+suite computed them when the shipped models were trained (pinned_features.json; the drawn
+supports follow identification.evaluation.supports.training, so a change of those ranges draws
+other supports and rewrites their entries, while the stream set's stay). The models
 in tail_beam_id/models/ stay valid only while the features of the same impacts stay these;
 changing them on purpose means retraining the models and writing this file anew (the values
 printed by the same run_set calls)."""
