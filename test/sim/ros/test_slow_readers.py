@@ -20,6 +20,7 @@ from tail_beam_id.cli.identify_cmd import identify_bag
 from tail_beam_id.stream.label import Label, firsts, match, match_tolerance_s
 from tail_beam_sim import topics
 from tail_beam_sim.bags.read import read_sensors
+from tail_beam_sim.bags.write import PARTIAL_DIR
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.ros import messages as ros_messages
 
@@ -161,7 +162,8 @@ def test_busy_cores_leave_no_impact_unsaid_and_live_labels_are_the_bags(procs, t
     for loop in busy:
         loop.kill()
     assert procs.stop(ident) == 0
-    assert procs.stop(recorder) == 0
+    assert procs.stop(recorder) == 0  # SIGINT: the bag is closed, nothing left in .partial
+    assert not (bag / PARTIAL_DIR).exists()
     ident_log = procs.log(ident)
     undecided = int(re.search(r"(\d+) impact\(s\) not decided in time", ident_log).group(1))
     lost = re.search(r"samples lost: ([^;]*);", ident_log).group(1)
