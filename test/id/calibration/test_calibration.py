@@ -271,16 +271,30 @@ def test_identify_still_labels_when_self_calibration_fails(
     import tail_beam_id.cli.identify_cmd as identify_cmd
 
     recorded = recordings[1]
-    imu = recorded.imu
+    # The first four impacts suffice (what is pinned is that labels come, uncalibrated).
+    truths = recorded.truths[:4]
+    end_s = recorded.truths[4]["contact_start_stamp"] - 0.05
+    imu, pressure = recorded.imu, recorded.pressure
+    kept_imu, kept_pressure = imu.stamp_s < end_s, pressure.stamp_s < end_s
     bag = tmp_path / "support"
     write_bag(
         bag,
         [
-            *pressure_msgs(recorded.pressure.stamp_s, recorded.pressure.pressure_pa, 1e8),
-            *imu_msgs(
-                imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 0.0, 0.0
+            *pressure_msgs(
+                pressure.stamp_s[kept_pressure], pressure.pressure_pa[kept_pressure], 1e8
             ),
-            *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds),
+            *imu_msgs(
+                imu.stamp_s[kept_imu],
+                imu.angular_velocity_radps[kept_imu],
+                imu.linear_acceleration_mps2[kept_imu],
+                0.0,
+                0.0,
+            ),
+            *(
+                rebound_msg(r.stamp_s, r.velocity_mps)
+                for r in recorded.rebounds
+                if r.stamp_s < end_s
+            ),
         ],
     )
 
@@ -289,9 +303,7 @@ def test_identify_still_labels_when_self_calibration_fails(
 
     monkeypatch.setattr(identify_cmd, "calibrate_support", broken)
     labels = identify_cmd.identify_bag(str(bag))
-    assert len(labels) >= len(recorded.truths) - 1 and not any(
-        label.calibrated for label in labels
-    )
+    assert len(labels) >= len(truths) - 1 and not any(label.calibrated for label in labels)
     assert (
         "self-calibration failed (FloatingPointError: overflow in the sway fit)"
         in capsys.readouterr().err
