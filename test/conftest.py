@@ -52,29 +52,3 @@ def default_scene(params):
     from tail_beam_sim.physics.scene import Scene
 
     return Scene.from_params(params)
-
-
-def pytest_collection_modifyitems(config, items) -> None:
-    """Spread the modules holding slow tests (marked ``slow``) evenly among the others, each
-    module's tests kept together (its module fixtures built once). pytest-xdist deals tests out
-    in consecutive chunks, then tops each worker up from the front: left at the end (test/sim/ros
-    sorts late), a worker still holding two slow tests kept the other one idle; spread out, the
-    last tests are short ones that even the two workers out. The order is the same on every
-    worker (xdist requires it)."""
-    modules: dict[str, list] = {}
-    for item in items:
-        modules.setdefault(item.nodeid.split("::")[0], []).append(item)
-    slow = [m for m, its in modules.items() if any(i.get_closest_marker("slow") for i in its)]
-    fast = [m for m in modules if m not in slow]
-    slow.reverse()  # test/sim/ros's process tests, the longest, first
-    spacing = len(fast) / max(len(slow), 1)  # in modules: a module's count of tests says little
-    ordered: list = []
-    placed = 0  # slow modules placed so far
-    for done, module in enumerate(fast):
-        while slow and done >= spacing * placed:
-            ordered.extend(modules[slow.pop(0)])
-            placed += 1
-        ordered.extend(modules[module])
-    for module in slow:
-        ordered.extend(modules[module])
-    items[:] = ordered
