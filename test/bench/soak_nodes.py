@@ -144,8 +144,9 @@ def soak(
                 echo(f"{now:7.1f} s  RSS MB: " + "  ".join(line), flush=True)
                 next_sample += sample_s
             time.sleep(0.2)
-        # id_node decides the last impacts after the data stops (its idle flush): wait until it
-        # has said as many labels as impacts asked, then as long again for one too many.
+        # id_node decides the last impacts after the data stops (its idle flush, 2 s): wait until
+        # it has said as many labels as impacts asked and then nothing for 2 s (a label too many
+        # would come in that time).
         said_all_s = wait_for_labels(work / "id_node.log", impacts, quiet_s=2.0, timeout_s=60.0)
         echo(f"id_node said its labels {said_all_s:.1f} s after the simulator ended", flush=True)
         for name in NODES:
