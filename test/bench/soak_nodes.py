@@ -7,7 +7,7 @@ labels are those `tail-beam identify` gives on the bag.
     python test/bench/soak_nodes.py --impacts 1000          # about 8 minutes on a loaded 2-core
     machine
 
-Not part of the pytest suite (too long); test/sim/ros/test_soak_short.py runs the same with 50
+Not part of the pytest suite (too long); test/sim/ros/test_soak_short.py runs the same with 20
 impacts.
 Exit status 0 when the counts match and the bag reads, 1 otherwise.
 """
@@ -15,6 +15,7 @@ Exit status 0 when the counts match and the bag reads, 1 otherwise.
 from __future__ import annotations
 
 import argparse
+import re
 import signal
 import subprocess
 import sys
@@ -75,6 +76,22 @@ def start(exe: str, params: list[str], log_dir: Path, namespace: str = "") -> su
     return subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
 
 
+def wait_for_labels(log: Path, count: int, quiet_s: float, timeout_s: float) -> float:
+    """Wait until id_node's log holds ``count`` published labels ("impact at T s: coal ...")
+    and has not grown for ``quiet_s``, or ``timeout_s`` passed; the seconds waited."""
+    label_line = re.compile(r"\]: (?:revised: )?impact at \S+ s: ")
+    began = time.monotonic()
+    size, since = -1, began
+    while time.monotonic() - began < timeout_s:
+        text = log.read_text()
+        if len(text) != size:
+            size, since = len(text), time.monotonic()
+        elif len(label_line.findall(text)) >= count and time.monotonic() - since >= quiet_s:
+            break
+        time.sleep(0.2)
+    return time.monotonic() - began
+
+
 def soak(
     impacts: int,
     work: Path,
@@ -127,8 +144,11 @@ def soak(
                 echo(f"{now:7.1f} s  RSS MB: " + "  ".join(line), flush=True)
                 next_sample += sample_s
             time.sleep(0.2)
-        # id_node decides the last impacts after the data stops; give it its idle flush and more.
-        time.sleep(6.0)
+        # id_node decides the last impacts after the data stops (its idle flush, 2 s): wait until
+        # it has said as many labels as impacts asked and then nothing for 2 s (a label too many
+        # would come in that time).
+        said_all_s = wait_for_labels(work / "id_node.log", impacts, quiet_s=2.0, timeout_s=60.0)
+        echo(f"id_node said its labels {said_all_s:.1f} s after the simulator ended", flush=True)
         for name in NODES:
             result.rss[name].append((time.monotonic() - began, rss_mb(procs[name].pid)))
     finally:

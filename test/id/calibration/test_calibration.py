@@ -40,6 +40,27 @@ def recordings(params):
     return list(support_streams(params, 3, 12, seed=777))
 
 
+def first_impacts(recorded, count: int) -> tuple[list, list[dict]]:
+    """A recording's bag records (pressure, IMU, rebounds) up to 50 ms before its impact
+    ``count`` + 1, and the truths of the first ``count`` impacts: a shorter bag to write and
+    read, still many sway periods long."""
+    end_s = recorded.truths[count]["contact_start_stamp"] - 0.05
+    imu, pressure = recorded.imu, recorded.pressure
+    kept_imu, kept_pressure = imu.stamp_s < end_s, pressure.stamp_s < end_s
+    records = [
+        *pressure_msgs(pressure.stamp_s[kept_pressure], pressure.pressure_pa[kept_pressure], 1e8),
+        *imu_msgs(
+            imu.stamp_s[kept_imu],
+            imu.angular_velocity_radps[kept_imu],
+            imu.linear_acceleration_mps2[kept_imu],
+            0.0,
+            0.0,
+        ),
+        *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds if r.stamp_s < end_s),
+    ]
+    return records, recorded.truths[:count]
+
+
 def _identify(params, recorded):
     return lambda model_params: replay(
         StreamIdentifier("statistical", params["identification"], model_params),
@@ -135,13 +156,9 @@ def test_calibrate_then_identify_from_the_command_line(params, recordings, tmp_p
     folder made); `tail-beam identify BAG --config profile.yaml` then labels every impact as
     calibrated, as plain `tail-beam identify BAG` does by default (saying what it measured), and
     `--no-calibrate` does not. An --out that is a symbolic link is refused in one line, exit 2."""
-    recorded = recordings[0]
-    imu = recorded.imu
-    records = [
-        *pressure_msgs(recorded.pressure.stamp_s, recorded.pressure.pressure_pa, 1e8),
-        *imu_msgs(imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 0.0, 0.0),
-        *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds),
-    ]
+    # Six of the twelve impacts: 2.7 s, over a hundred periods of the 44 Hz sway (a bag half as
+    # long for each of the four commands to read).
+    records, truths = first_impacts(recordings[0], 6)
     bag = tmp_path / "support"
     write_bag(bag, records)
     link = tmp_path / "link.yaml"
@@ -179,7 +196,7 @@ def test_calibrate_then_identify_from_the_command_line(params, recordings, tmp_p
     )
     assert done.returncode == 0, done.stderr
     labels = [Label.from_json(line) for line in done.stdout.splitlines()]
-    assert len(labels) >= len(recorded.truths) - 1
+    assert len(labels) >= len(truths) - 1
     assert all(label.calibrated for label in labels)
     # Plain identify calibrates by itself (identification.self_calibrate) to the same profile,
     # says so on stderr, and gives the same labels; --no-calibrate gives the uncalibrated ones.
@@ -270,28 +287,17 @@ def test_identify_still_labels_when_self_calibration_fails(
     bag is still identified on the configured support, and stderr says why."""
     import tail_beam_id.cli.identify_cmd as identify_cmd
 
-    recorded = recordings[1]
-    imu = recorded.imu
+    # The first four impacts suffice (what is pinned is that labels come, uncalibrated).
+    records, truths = first_impacts(recordings[1], 4)
     bag = tmp_path / "support"
-    write_bag(
-        bag,
-        [
-            *pressure_msgs(recorded.pressure.stamp_s, recorded.pressure.pressure_pa, 1e8),
-            *imu_msgs(
-                imu.stamp_s, imu.angular_velocity_radps, imu.linear_acceleration_mps2, 0.0, 0.0
-            ),
-            *(rebound_msg(r.stamp_s, r.velocity_mps) for r in recorded.rebounds),
-        ],
-    )
+    write_bag(bag, records)
 
     def broken(*args, **kwargs):
         raise FloatingPointError("overflow in the sway fit")
 
     monkeypatch.setattr(identify_cmd, "calibrate_support", broken)
     labels = identify_cmd.identify_bag(str(bag))
-    assert len(labels) >= len(recorded.truths) - 1 and not any(
-        label.calibrated for label in labels
-    )
+    assert len(labels) >= len(truths) - 1 and not any(label.calibrated for label in labels)
     assert (
         "self-calibration failed (FloatingPointError: overflow in the sway fit)"
         in capsys.readouterr().err

@@ -1,8 +1,8 @@
 """Bags of other supports, recorded by another recorder or simulator, driven as a user would
-with `tail-beam identify` and `tail-beam calibrate`: a topic recorded twice, a support without
-the camera or without the jack transducer and IMU, two supports in one bag. Each is labelled
-(or calibrated) as id_node would, exit 0 and no traceback, or refused in one line naming what
-is missing."""
+with `tail-beam identify` (the command) and `calibrate` (its main, in this process): a topic
+recorded twice, a support without the camera or without the jack transducer and IMU, two
+supports in one bag. Each is labelled (or calibrated) as id_node would, exit 0 and no
+traceback, or refused in one line naming what is missing."""
 
 from __future__ import annotations
 
@@ -26,6 +26,18 @@ def run(*args: str, timeout_s: float = 120) -> subprocess.CompletedProcess:
     return subprocess.run(
         [str(BIN / "tail-beam"), *args], capture_output=True, text=True, timeout=timeout_s
     )
+
+
+def run_here(capsys, *args: str) -> subprocess.CompletedProcess:
+    """`tail-beam ARGS` run in this process (tail_beam_sim.cli.main, what the command calls),
+    its status and output as run() gives them: for `calibrate`, whose command is run as one
+    elsewhere (test_calibration); a traceback would be an exception here."""
+    from tail_beam_sim.cli import main
+
+    capsys.readouterr()
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(["tail-beam", *args], code, out, err)
 
 
 def labels_of(result: subprocess.CompletedProcess) -> list[dict]:
@@ -59,7 +71,7 @@ def write(path: Path, records, namespace: str = "/") -> Path:
 
 
 def test_a_bag_holding_every_sample_twice_is_identified_and_calibrated(
-    tmp_path, sandstone_records
+    tmp_path, sandstone_records, capsys
 ):
     """Every pressure and IMU message recorded twice (two recorders on one topic): identify and
     calibrate go on, exit 0, say on stderr how many repeated samples they left out, and the
@@ -76,7 +88,7 @@ def test_a_bag_holding_every_sample_twice_is_identified_and_calibrated(
         (x["impact_stamp"], x["label"], x["confidence"]) for x in expected
     ]
     assert "imu: " in result.stderr and "at a stamp already read left out" in result.stderr
-    calibrated = run("calibrate", str(doubled))
+    calibrated = run_here(capsys, "calibrate", str(doubled))
     assert calibrated.returncode == 0 and "Traceback" not in calibrated.stderr, calibrated.stderr[
         -3000:
     ]
@@ -101,13 +113,13 @@ def test_a_support_without_some_sensors_is_identified(tmp_path, sandstone_record
     assert labels[0]["label"] == "gangue"
 
 
-def test_calibrate_needs_no_camera(tmp_path, sandstone_records):
+def test_calibrate_needs_no_camera(tmp_path, sandstone_records, capsys):
     """calibrate reads the jack pressure and the IMU only: a bag without rebound_velocity is
     calibrated."""
     bag = write(
         tmp_path / "bag", [r for r in sandstone_records if r[0] != topics.REBOUND_VELOCITY]
     )
-    result = run("calibrate", str(bag))
+    result = run_here(capsys, "calibrate", str(bag))
     assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr[-3000:]
     assert "imu_mount_sign" in result.stdout
 
@@ -128,7 +140,7 @@ def test_a_bag_without_any_sensor_names_what_it_has(tmp_path, sandstone_records)
         ), lines
 
 
-def test_calibrate_chooses_one_support_of_several(tmp_path, sandstone_records):
+def test_calibrate_chooses_one_support_of_several(tmp_path, sandstone_records, capsys):
     """A bag of two supports: calibrate, like identify, asks for --namespace and takes it."""
     bag = tmp_path / "bag"
     names = {
@@ -141,17 +153,19 @@ def test_calibrate_chooses_one_support_of_several(tmp_path, sandstone_records):
         for support in ("/support_01", "/support_02"):
             writer.write(f"{support}/{topic}", ns, data)
     writer.close()
-    refused = run("calibrate", str(bag))
+    refused = run_here(capsys, "calibrate", str(bag))
     assert (
         refused.returncode == 2
         and "--namespace" in refused.stderr
         and "Traceback" not in refused.stderr
     )
-    chosen = run("calibrate", str(bag), "--namespace", "/support_02")
+    chosen = run_here(capsys, "calibrate", str(bag), "--namespace", "/support_02")
     assert chosen.returncode == 0 and "imu_mount_sign" in chosen.stdout, chosen.stderr[-3000:]
 
 
-def test_a_new_time_base_in_the_bag_is_said_and_each_run_taken_alone(tmp_path, sandstone_records):
+def test_a_new_time_base_in_the_bag_is_said_and_each_run_taken_alone(
+    tmp_path, sandstone_records, capsys
+):
     """A bag holding two runs whose stamps both start at 0 (a simulator restarted while the
     recorder ran on): identify and calibrate say so on stderr, naming the topic, how far its
     stamps went back and the log time where they did, and take each run alone, as id_node
@@ -183,7 +197,7 @@ def test_a_new_time_base_in_the_bag_is_said_and_each_run_taken_alone(tmp_path, s
     ]  # restarted: stamps from 0 again
     bag = write(tmp_path / "bag", first + second)
     for verb in ("identify", "calibrate"):
-        result = run(verb, str(bag))
+        result = run(verb, str(bag)) if verb == "identify" else run_here(capsys, verb, str(bag))
         assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr[-3000:]
         assert (
             "imu: stamps go back" in result.stderr and "2 runs, each taken alone" in result.stderr
@@ -218,7 +232,7 @@ def _reindexed(records, index_of_block):
     [("every block index 0", lambda k: 0), ("a block count", lambda k: k)],
 )
 def test_a_bag_whose_block_index_does_not_count_samples_is_refused_by_name(
-    tmp_path, sandstone_records, name, index_of_block
+    tmp_path, sandstone_records, name, index_of_block, capsys
 ):
     """A recorder or simulator that does not count samples in the blocks' index words (every
     block index 0, or the block's number): identify and calibrate refuse the bag in one line
@@ -227,7 +241,11 @@ def test_a_bag_whose_block_index_does_not_count_samples_is_refused_by_name(
     are."""
     bad = write(tmp_path / "bad", _reindexed(sandstone_records, index_of_block))
     for command in ("identify", "calibrate"):
-        result = run(command, str(bad))
+        result = (
+            run(command, str(bad))
+            if command == "identify"
+            else run_here(capsys, command, str(bad))
+        )
         assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr[-2000:]
         assert (
             "vibration.angle_min/angle_max" in result.stderr

@@ -113,16 +113,17 @@ def test_bag_replay_publishes_the_sensors_only_unless_asked(tmp_path, procs):
     data.append(string_record(topics.IMPACT_TRUTH, data[12][1], {"impact_id": "t1"}))
     data.sort(key=lambda r: r[1])
     write_segments(bag, [data])
-    heard = {}
-    for name, extra in (
-        ("default", []),
-        ("asked", ["replay.topics:=[jack_pressure, imu, label, impact_truth]"]),
-    ):
-        # A namespace of its own, so that the replay waits for this probe and not for an endpoint
-        # another test's killed process left in discovery.
-        ns = f"/replay_{name}"
-        with ros_context() as (context, executor):
-            probe = Probe(
+    runs = {
+        "default": [],
+        "asked": ["replay.topics:=[jack_pressure, imu, label, impact_truth]"],
+    }
+    # Both replays at once, each in a namespace of its own, so that it waits for its own probe
+    # (and not for an endpoint another test's killed process left in discovery).
+    with ros_context() as (context, executor):
+        probes, replays = {}, {}
+        for name, extra in runs.items():
+            ns = f"/replay_{name}"
+            probes[name] = Probe(
                 context,
                 {
                     topics.IMU: Imu,
@@ -133,9 +134,10 @@ def test_bag_replay_publishes_the_sensors_only_unless_asked(tmp_path, procs):
                     topics.IMPACT_TRUTH: String,
                 },
                 namespace=ns,
+                name=f"probe_{name}",
             )  # replay waits for its sensor subscribers
-            executor.add_node(probe)
-            replay = procs.start(
+            executor.add_node(probes[name])
+            replays[name] = procs.start(
                 "bag_replay",
                 f"replay.bag_path:={bag}",
                 "replay.wait_for_subscribers:=1",
@@ -143,16 +145,24 @@ def test_bag_replay_publishes_the_sensors_only_unless_asked(tmp_path, procs):
                 *extra,
                 ns=ns,
             )
-            assert (
-                spin_until(executor, lambda: replay.poll() is not None, timeout_s=60)
-                and replay.returncode == 0
-            ), procs.log(replay)
-            spin_until(executor, lambda: len(probe.messages[topics.IMU]) >= 40, timeout_s=15)
-            spin_for(executor, 0.5)
-            heard[name] = {
+        assert spin_until(
+            executor, lambda: all(r.poll() is not None for r in replays.values()), timeout_s=60
+        ), {name: procs.log(r) for name, r in replays.items()}
+        for replay in replays.values():
+            assert replay.returncode == 0, procs.log(replay)
+        spin_until(
+            executor,
+            lambda: all(len(p.messages[topics.IMU]) >= 40 for p in probes.values()),
+            timeout_s=15,
+        )
+        spin_for(executor, 0.5)
+        heard = {
+            name: {
                 t: len(probe.messages[t])
                 for t in (topics.IMU, topics.JACK_PRESSURE, topics.LABEL, topics.IMPACT_TRUTH)
             }
+            for name, probe in probes.items()
+        }
     assert heard["default"] == {
         topics.IMU: 40,
         topics.JACK_PRESSURE: 40,

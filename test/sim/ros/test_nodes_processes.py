@@ -1,6 +1,6 @@
 """The installed executables as subprocesses (what ``ros2 run`` starts), in this run's own
-ROS_DOMAIN_ID (set by conftest, inherited by the children): record, replay, identify offline;
-a recorder killed with SIGKILL; SIGTERM; two supports in one domain."""
+ROS_DOMAIN_ID (set by conftest, inherited by the children): record (closed by SIGTERM), replay,
+identify offline; a recorder killed with SIGKILL; two supports in one domain."""
 
 from __future__ import annotations
 
@@ -58,13 +58,22 @@ def assert_same_labels(got: list[Label], expected: list[Label]) -> None:
 
 def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, procs):
     """Real processes: the recorded live labels, the offline labels of the recorded bag and a
-    fresh id_node's labels on its replay all agree, and no sample was lost."""
+    fresh id_node's labels on its replay all agree, and no sample was lost. The recorder writes
+    sqlite3 and is stopped by SIGTERM: that closes a valid bag with its metadata, holding every
+    impact's truth and rebound (SIGINT and mcap: test_slow_readers, test_soak_short)."""
     bag = tmp_path / "live"
     with ros_context() as (context, executor):
         watcher = Probe(context, {topics.LABEL: String}, name="watcher")
         executor.add_node(watcher)
-        recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}")
+        recorder = procs.start(
+            "bag_recorder", f"recorder.bag_path:={bag}", "recorder.storage:=sqlite3"
+        )
         ident = procs.start("id_node", f"method:={method()}", "id_node.flush_after_idle_s:=0.5")
+        # The id_node that will hear the replay, started now (its start-up beside the others'),
+        # under a namespace of its own: it hears nothing of the live run.
+        ident2 = procs.start(
+            "id_node", f"method:={method()}", "id_node.flush_after_idle_s:=0.5", ns="/replayed"
+        )
         label_topic = watcher.resolve_topic_name(topics.LABEL)
         assert spin_until(
             executor,
@@ -86,14 +95,17 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
             settled = len(watcher.messages[topics.LABEL])
             spin_for(executor, 2.0)
     assert procs.stop(ident) == 0
-    assert procs.stop(recorder) == 0  # SIGINT: the bag is closed
+    assert procs.stop(recorder, signal.SIGTERM) == 0
     assert not (bag / PARTIAL_DIR).exists()
+    assert sorted(p.suffix for p in bag.iterdir() if p.is_file()) == [".db3"] * (
+        len(list(bag.glob("*.db3")))
+    ) + [".yaml"]
     recorded = read_sensors(bag)
     offline = identify_bag(
         str(bag), method(), calibrate=False
     )  # id_node does not calibrate by default
     live = [Label.from_dict(obj) for obj in recorded.json_topics[topics.LABEL]]
-    assert len(recorded.json_topics[topics.IMPACT_TRUTH]) == 4
+    assert len(recorded.json_topics[topics.IMPACT_TRUTH]) == 4 and len(recorded.rebounds) == 4
     assert len(offline) >= 1
     assert_same_labels(live, offline)
     # Every sample from stamp 0 on reached the recorder: consecutive stamps, none missing.
@@ -101,11 +113,10 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
     assert recorded.pressure_stamp_s[0] == 0.0
     np.testing.assert_allclose(np.diff(recorded.pressure_stamp_s), 1.0 / rate, atol=1e-9)
 
-    # Replay the sensor topics (not the recorded labels) into a fresh id_node.
+    # Replay the sensor topics (not the recorded labels) into the fresh id_node.
     with ros_context() as (context, executor):
-        probe = Probe(context, {topics.LABEL: String})
+        probe = Probe(context, {topics.LABEL: String}, namespace="/replayed")
         executor.add_node(probe)
-        ident2 = procs.start("id_node", f"method:={method()}", "id_node.flush_after_idle_s:=0.5")
         # Start the replay once the probe has discovered the new id_node's label publisher.
         assert spin_until(
             executor,
@@ -119,6 +130,7 @@ def test_record_then_replay_into_id_node_gives_the_offline_labels(tmp_path, proc
             "replay.rate:=1.0",
             "replay.wait_for_subscribers:=1",
             "replay.topics:=[jack_pressure, imu, vibration, rebound_velocity]",
+            ns="/replayed",
         )
         assert (
             spin_until(executor, lambda: replay.poll() is not None, timeout_s=60)
@@ -166,24 +178,6 @@ def test_recorder_killed_with_sigkill_leaves_all_but_the_last_seconds_readable(t
     assert result.returncode == 0, result.stderr
     repaired = read_sensors(bag, required=(topics.JACK_PRESSURE,))
     assert repaired.pressure_stamp_s.size >= data.pressure_stamp_s.size and not repaired.partial
-
-
-def test_sigterm_closes_a_valid_sqlite3_bag(tmp_path, procs):
-    """SIGTERM closes the recorder's sqlite3 bag with its metadata, holding both impacts' truths
-    and rebounds."""
-    bag = tmp_path / "terminated"
-    recorder = procs.start(
-        "bag_recorder", f"recorder.bag_path:={bag}", "recorder.storage:=sqlite3"
-    )
-    sim = procs.start("sim_node", *short_scenario(2, "sim_node.wait_for_subscribers:=1"))
-    assert sim.wait(timeout=60) == 0
-    time.sleep(0.5)
-    assert procs.stop(recorder, signal.SIGTERM) == 0
-    assert sorted(p.suffix for p in bag.iterdir() if p.is_file()) == [".db3"] * (
-        len(list(bag.glob("*.db3")))
-    ) + [".yaml"]
-    data = read_sensors(bag)
-    assert len(data.json_topics[topics.IMPACT_TRUTH]) == 2 and len(data.rebounds) == 2
 
 
 def test_two_supports_in_one_domain_do_not_mix(procs):

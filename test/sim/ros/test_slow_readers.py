@@ -20,6 +20,7 @@ from tail_beam_id.cli.identify_cmd import identify_bag
 from tail_beam_id.stream.label import Label, firsts, match, match_tolerance_s
 from tail_beam_sim import topics
 from tail_beam_sim.bags.read import read_sensors
+from tail_beam_sim.bags.write import PARTIAL_DIR
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.ros import messages as ros_messages
 
@@ -148,17 +149,21 @@ def test_busy_cores_leave_no_impact_unsaid_and_live_labels_are_the_bags(procs, t
     twice, and the live labels are those `tail-beam identify` gives on the recorded bag (what
     id_node or the recorder lost would show as a gap, and would be counted)."""
     bag = tmp_path / "bag"
-    for k in range(2):
-        procs.command(f"busy{k}", [sys.executable, "-c", BUSY_LOOP])
     recorder = procs.start("bag_recorder", f"recorder.bag_path:={bag}")
     ident = procs.start("id_node", "id_node.flush_after_idle_s:=0.5")
     time.sleep(2.0)  # both are up before the simulator waits for its subscribers
+    # The cores are kept busy from the simulator's start until id_node's last labels are out;
+    # not longer, for the busy loops slow every other test running beside this one as well.
+    busy = [procs.command(f"busy{k}", [sys.executable, "-c", BUSY_LOOP]) for k in range(2)]
     sim = simulator(procs, subscribers=2, impacts=BUSY_IMPACTS)
     assert sim.wait(timeout=90) == 0, procs.log(sim)
     with ros_context() as (context, executor):  # id_node's last labels, then a settle
         spin_for(executor, 4.0)
+    for loop in busy:
+        loop.kill()
     assert procs.stop(ident) == 0
-    assert procs.stop(recorder) == 0
+    assert procs.stop(recorder) == 0  # SIGINT: the bag is closed, nothing left in .partial
+    assert not (bag / PARTIAL_DIR).exists()
     ident_log = procs.log(ident)
     undecided = int(re.search(r"(\d+) impact\(s\) not decided in time", ident_log).group(1))
     lost = re.search(r"samples lost: ([^;]*);", ident_log).group(1)
