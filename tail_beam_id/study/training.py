@@ -19,6 +19,7 @@ import copy
 import dataclasses
 import json
 import math
+import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -96,6 +97,38 @@ def collect(
         chunk_s=WHOLE_STREAM_CHUNK_S,
     )
     return [r for r in records if r.label is not None]
+
+
+# One collect() call: (params, scene set, count, seed, tier, true_profile).
+CollectJob = tuple[Mapping[str, Any], str, int, int, "str | None", bool]
+
+
+def _collect_job(job: CollectJob) -> list[Record]:
+    return collect(*job)
+
+
+def collect_all(jobs: Sequence[CollectJob], workers: int) -> list[list[Record]]:
+    """collect() of each job, in the jobs' order, over ``workers`` processes (each job seeds
+    its own impacts, so the records are the same for any number of workers); the largest jobs
+    (by impacts) start first, so that the workers finish together."""
+    if workers <= 1 or len(jobs) <= 1:
+        return [_collect_job(job) for job in jobs]
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    order = sorted(range(len(jobs)), key=lambda k: -jobs[k][2])
+    context = multiprocessing.get_context("fork")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        futures = {k: pool.submit(_collect_job, jobs[k]) for k in order}
+        return [futures[k].result() for k in range(len(jobs))]
+
+
+def default_workers() -> int:
+    """Processes the training simulates in: every core this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
 
 
 def _nll(w: np.ndarray, x: np.ndarray, y: np.ndarray, l2: float) -> tuple[float, np.ndarray]:
@@ -737,7 +770,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="only fit the statistical models that read the impact point and add them to the "
         "shipped statistical.json (every other model kept as it is)",
     )
+    parser.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        help="processes simulating the training impacts (default: every core; the records "
+        "and models are the same for any number)",
+    )
     args = parser.parse_args(argv)
+    if args.jobs is None:
+        args.jobs = default_workers()
+    elif not 1 <= args.jobs <= 64:
+        parser.error(f"--jobs {args.jobs}: must be 1-64")
     # the fits' small products in one BLAS thread: threads cost more than they save here
     single_blas_thread()
     params = load_parameters()
@@ -755,19 +799,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     if cache is not None and cache.is_file():
         records, paper = load_cache(cache)
     else:
-        records = collect(params, "stream", args.count, seed, args.tier)
-        # Supports other than the nominal one, at IMU rates drawn from 0.8-64 kHz.
-        records += collect(params, "varied", varied_count, seed + 2, args.tier)
-        # The same impacts as a calibrated identifier sees them (the support's profile known).
-        records += collect(params, "varied", varied_count, seed + 2, args.tier, true_profile=True)
-        # The paper scene's impacts on drawn supports, both ways: without them the models knew
-        # that scene on config/'s support alone (foreign_paper 93.7 % against 99.8 % on it).
-        records += collect(params, "varied_paper", varied_paper_count, seed + 3, args.tier)
-        records += collect(
-            params, "varied_paper", varied_paper_count, seed + 3, args.tier, true_profile=True
-        )
-        # The threshold is the study's idea for the study's scene: tuned on paper-scene impacts.
-        paper = collect(params, "paper", paper_count, seed + 1, args.tier)
+        jobs: list[CollectJob] = [
+            (params, "stream", args.count, seed, args.tier, False),
+            # Supports other than the nominal one, at IMU rates drawn from 0.8-64 kHz.
+            (params, "varied", varied_count, seed + 2, args.tier, False),
+            # The same impacts as a calibrated identifier sees them (the support's profile known).
+            (params, "varied", varied_count, seed + 2, args.tier, True),
+            # The paper scene's impacts on drawn supports, both ways: without them the models
+            # knew that scene on config/'s support alone (foreign_paper 93.7 % against 99.8 %).
+            (params, "varied_paper", varied_paper_count, seed + 3, args.tier, False),
+            (params, "varied_paper", varied_paper_count, seed + 3, args.tier, True),
+            # The threshold is the study's idea for the study's scene: tuned on paper-scene
+            # impacts.
+            (params, "paper", paper_count, seed + 1, args.tier, False),
+        ]
+        *collected, paper = collect_all(jobs, args.jobs)
+        records = [r for part in collected for r in part]
         if cache is not None:
             save_cache(cache, records, paper)
     provenance = {
@@ -823,16 +870,16 @@ def add_point_models(params: Mapping[str, Any], args: argparse.Namespace, seed: 
     if cache is not None and cache.is_file():
         records, paper = load_cache(cache)
     else:
-        records = collect(pointed, "stream", args.count, seed, args.tier)
+        jobs: list[CollectJob] = [(pointed, "stream", args.count, seed, args.tier, False)]
         for scene_set, count, offset in (
             ("varied", args.varied_count, 2),
             ("varied_paper", varied_paper_count, 3),
         ):
             for true_profile in (False, True):
-                records += collect(
-                    pointed, scene_set, count, seed + offset, args.tier, true_profile
-                )
-        paper = collect(pointed, "paper", max(args.count // 4, 60), seed + 1, args.tier)
+                jobs.append((pointed, scene_set, count, seed + offset, args.tier, true_profile))
+        jobs.append((pointed, "paper", max(args.count // 4, 60), seed + 1, args.tier, False))
+        *collected, paper = collect_all(jobs, args.jobs)
+        records = [r for part in collected for r in part]
         if cache is not None:
             save_cache(cache, records, paper)
     records = records + paper
