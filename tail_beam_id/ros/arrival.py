@@ -57,6 +57,7 @@ if TYPE_CHECKING:
 
 CONTINUOUS = ("jack_pressure", "imu", "vibration")
 MAX_ASIDE_SAMPLES = 2_000_000  # samples held aside as "ahead of the others" (bounded memory)
+MAX_ASIDE_REBOUNDS = 10_000  # rebounds held aside as ahead of the streams (bounded memory)
 MAX_POINT_REASONS = 5  # reasons for refused impact points named in one note
 POINT_OUT_OF_TIME = "stamped out of the streams' time (more than time_jump_s behind or ahead)"
 MAX_OTHER_TRACKS = 4  # vibration block streams followed besides the one in use (blocks)
@@ -138,8 +139,8 @@ class Counts:
         0  # set aside: a run stamped more than time_jump_s ahead of the live streams
     )
     ahead_dropped: int = 0  # of those, dropped (the time base did not move)
-    # rebound not finite, or stamped more than time_jump_s behind the watermark or ahead of the
-    # streams
+    # rebound not finite, stamped more than time_jump_s behind the watermark, or held aside as
+    # ahead of the streams and never reached by them
     refused_rebounds: int = 0
     # impact points stamped more than time_jump_s behind the watermark or ahead of the streams
     refused_points: int = 0
@@ -152,6 +153,9 @@ class ArrivalGate:
         self.config = config
         self.streams = {name: _Stream() for name in CONTINUOUS}
         self.rebounds: list[tuple[float, float, np.ndarray]] = []  # (arrival_s, stamp_s, velocity)
+        # rebounds stamped more than time_jump_s ahead of the live streams: a reader of the
+        # continuous topics that lags (a busy node as fast as possible) or a clock gone wrong
+        self.rebounds_aside: list[tuple[float, float, np.ndarray]] = []
         self.points: list[tuple[float, str, np.ndarray]] = []  # (stamp_s, frame_id, point m)
         self.released_s = -math.inf  # the watermark last released
         self.first_arrival_s = math.inf  # wall clock of the first sample
@@ -240,18 +244,49 @@ class ArrivalGate:
     def add_rebound(self, stamp_s: float, velocity_mps: np.ndarray, now_s: float) -> None:
         """One rebound that arrived at wall clock ``now_s``; refused (counted) when its stamp or
         velocity is not finite, or it is stamped more than ``time_jump_s`` behind what was
-        released or ahead of the live streams."""
+        released. One stamped more than ``time_jump_s`` ahead of the live streams is held aside
+        until they come within ``time_jump_s`` of it (their reader lags: the camera's few
+        messages overtake a backlog of samples), and refused if they never do."""
         if not (math.isfinite(stamp_s) and np.isfinite(velocity_mps).all()):
             self.counts.refused_rebounds += (
                 1  # no measurement; the identifier would leave it out too
             )
             return
-        behind = stamp_s < self.released_s - self.config.time_jump_s
-        ahead = stamp_s > self._reference_s("", now_s) + self.config.time_jump_s
-        if behind or ahead:
+        if stamp_s < self.released_s - self.config.time_jump_s:
             self.counts.refused_rebounds += 1
             return
-        self.rebounds.append((now_s, float(stamp_s), np.asarray(velocity_mps, dtype=float)))
+        rebound = (now_s, float(stamp_s), np.asarray(velocity_mps, dtype=float))
+        if stamp_s > self._reference_s("", now_s) + self.config.time_jump_s:
+            if len(self.rebounds_aside) >= MAX_ASIDE_REBOUNDS:
+                self.counts.refused_rebounds += 1
+            else:
+                self.rebounds_aside.append(rebound)
+            return
+        self.rebounds.append(rebound)
+
+    def take_aside_rebounds(self) -> list[tuple[float, np.ndarray]]:
+        """The rebounds held aside as ahead of the streams, (stamp s, velocity m/s) each (and
+        forget them): a new time base gives them another chance."""
+        out = [(stamp, velocity) for _, stamp, velocity in self.rebounds_aside]
+        self.rebounds_aside = []
+        return out
+
+    def _admit_aside_rebounds(self, now_s: float, everything: bool) -> None:
+        """Take the rebounds held aside that the live streams have come within ``time_jump_s``
+        of; with ``everything`` (the data ended) the rest are refused, never released ahead of
+        any data (a label from a stray rebound alone would be made up)."""
+        if not self.rebounds_aside:
+            return
+        # only live streams reaching it admit a rebound: one beyond where the data stopped has
+        # no data to rest on
+        reach_s = self._reference_s("", now_s) + self.config.time_jump_s
+        kept = []
+        for rebound in self.rebounds_aside:
+            (self.rebounds if rebound[1] <= reach_s < math.inf else kept).append(rebound)
+        if everything:
+            self.counts.refused_rebounds += len(kept)
+            kept = []
+        self.rebounds_aside = kept
 
     def add_point(self, stamp_s: float, frame_id: str, point_m: np.ndarray, now_s: float) -> None:
         """One impact point that arrived at wall clock ``now_s``, held until the streams reach
@@ -327,6 +362,7 @@ class ArrivalGate:
 
     def release(self, now_s: float, everything: bool = False) -> Release:
         """Everything held with a stamp up to the watermark (all of it with ``everything``)."""
+        self._admit_aside_rebounds(now_s, everything)
         limit = math.inf if everything else self.watermark(now_s)
         if limit == math.inf:
             held = [s.chunks[-1].stamp_s[-1] for s in self.streams.values() if s.chunks]
@@ -519,6 +555,7 @@ class GatedIdentifier:
             self.gate.add_point(stamp, frame_id, point, arrived_s)
         if self.gate.forward_jump(arrived_s, self._held_ahead(arrived_s)):
             aside = self.gate.take_aside()
+            aside_rebounds = self.gate.take_aside_rebounds()
             labels += self._restart(
                 arrived_s,
                 f"every stream's stamps moved ahead by more than {self.gate.config.time_jump_s:g} "
@@ -526,6 +563,8 @@ class GatedIdentifier:
             )
             for name, (stamps, values) in aside.items():
                 self.gate.add(name, stamps, values, arrived_s)
+            for stamp, velocity in aside_rebounds:
+                self.gate.add_rebound(stamp, velocity, arrived_s)
             self._take_track(None, arrived_s)
         self._note_counts()
         return labels

@@ -435,3 +435,31 @@ def test_live_labels_are_the_offline_labels_when_each_batch_is_held_from_its_arr
     assert keys(
         drive_by_arrival(gated(params, gate_config), plan(chunk, delays), gate_config.reorder_s)
     ) == keys(expected)
+
+
+def test_rebounds_ahead_of_a_lagging_reader_wait_for_the_streams(params, chunk, gate_config):
+    """The continuous topics reach id_node 1.2 s of stamps behind the camera (a reader that
+    lags a simulator running as fast as possible, stamps 10 x the wall clock): each rebound is
+    held until the streams come within time_jump_s of it, not refused, so the live labels are
+    the offline ones, every one with its rebound. A stray rebound stamped 1e6 s ahead is held,
+    never released, and counted refused once the data ends: no label rests on it."""
+    lag_s = 0.12  # wall s: 1.2 s of stamps at speed 10, beyond time_jump_s (1 s)
+    run = plan(chunk, {"jack_pressure": lag_s, "imu": lag_s, "vibration": lag_s}, speed=10.0)
+    arrival, rebounds = run.rebounds
+    run.rebounds = (
+        np.append(arrival, arrival[-1]),
+        [*rebounds, (1e6, np.array([0.0, 0.0, 3.0]))],
+    )
+    runner = gated(params, gate_config)
+    live = drive(runner, [run])
+    identifier = StreamIdentifier(params=params["identification"], model_params=params)
+    offline = replay(
+        identifier,
+        chunk.pressure,
+        chunk.imu,
+        [r for _, r in chunk.rebounds],
+        vibration=chunk.vibration,
+    )
+    assert keys(live) == keys(offline) and len(live) == len(STAMPS)
+    assert all("rebound_velocity" in label.signals for label in live)
+    assert runner.count_totals()[3] == 1  # the stray one alone
