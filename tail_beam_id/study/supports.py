@@ -235,18 +235,21 @@ def support_ranges(evaluation: Mapping[str, Any], which: str) -> Mapping[str, An
             "missing parameter section (config/identification.yaml)",
         )
     ranges = supports[which]
+    where = f"identification.evaluation.supports.{which}"
     for name in (*RANGES, *(n for n in OPTIONAL_RANGES if n in ranges)):
-        pair = ranges.get(name)
-        if not (
-            isinstance(pair, (list, tuple))
-            and len(pair) == 2
-            and all(isinstance(x, (int, float)) for x in pair)
-            and 0 < pair[0] <= pair[1]
-        ):
+        _check_pair(ranges.get(name), f"{where}.{name}")
+    if "structure" in ranges:
+        structure = ranges["structure"]
+        if not isinstance(structure, Mapping):
+            raise InputError(f"{where}.structure", structure, "must be a parameter section")
+        for name in (*STRUCTURE_RANGES, "mode_ratio"):
+            _check_pair(
+                structure.get(name), f"{where}.structure.{name}", zero=name == "tip_mass_kg"
+            )
+        top = structure.get("max_mode_frequency_hz")
+        if isinstance(top, bool) or not isinstance(top, (int, float)) or not top > 0:
             raise InputError(
-                f"identification.evaluation.supports.{which}.{name}",
-                pair,
-                "must be [low, high] with 0 < low <= high",
+                f"{where}.structure.max_mode_frequency_hz", top, "must be a frequency > 0 Hz"
             )
     for name in ("vibration_share", *(["structure_share"] if "structure_share" in ranges else [])):
         share = ranges.get(name)
@@ -268,6 +271,20 @@ def support_ranges(evaluation: Mapping[str, Any], which: str) -> Mapping[str, An
             "must be a non-empty list of contact laws",
         )
     return ranges
+
+
+def _check_pair(pair: Any, field: str, zero: bool = False) -> None:
+    """A [low, high] range: numbers, 0 < low <= high (0 <= low with ``zero``)."""
+    if not (
+        isinstance(pair, (list, tuple))
+        and len(pair) == 2
+        and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in pair)
+        and (0 <= pair[0] if zero else 0 < pair[0])
+        and pair[0] <= pair[1]
+    ):
+        raise InputError(
+            field, pair, f"must be [low, high] with {'0 <=' if zero else '0 <'} low <= high"
+        )
 
 
 def draw_support(

@@ -148,3 +148,26 @@ def test_training_draws_structures_for_its_share_of_supports(params):
     edited["supports"]["training"]["structure_share"] = 1.5
     with pytest.raises(InputError, match="training.structure_share"):
         support_ranges(edited, "training")
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "field"),
+    [
+        ("held_at_m", [0.65], "structure.held_at_m"),
+        ("mode_ratio", [8.0, 2.0], "structure.mode_ratio"),
+        ("tip_mass_kg", [-1.0, 10.0], "structure.tip_mass_kg"),
+        ("max_mode_frequency_hz", 0.0, "structure.max_mode_frequency_hz"),
+    ],
+)
+def test_a_bad_structure_range_is_refused_by_name(params, name, value, field):
+    """A structure range that is no [low, high] (one value, low above high, a negative tip
+    mass) or a top frequency that is no positive number: an InputError naming the field, not a
+    traceback from the draw."""
+    import copy
+
+    from tail_beam_sim.errors import InputError
+
+    ev = copy.deepcopy(dict(evaluation_params(params)))
+    ev["supports"]["structures"]["structure"][name] = value
+    with pytest.raises(InputError, match=field.replace(".", r"\.")):
+        support_ranges(ev, "structures")
