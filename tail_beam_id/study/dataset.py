@@ -353,6 +353,20 @@ def support_streams(
         yield record_support(params, draw, draw.apply(params), commands, rng, tier)
 
 
+def study_simulator(varied: dict[str, Any], tier: str, impacts: int) -> StreamSimulator:
+    """A stream simulator of the support ``varied`` describes (its ``stream`` section set in
+    place) for a study's recording: ``impacts`` commands queued at once with their own contact
+    stamps, however close, solved at ``tier``."""
+    varied["stream"] = {
+        **varied.get("stream", {}),
+        "tier": tier,
+        "min_impact_gap_s": 0.0,
+        "command_lead_s": 0.001,
+        "max_queued_impacts": impacts + 1,
+    }
+    return StreamSimulator.from_params(varied)
+
+
 def record_support(
     params: Mapping[str, Any],
     draw: SupportDraw,
@@ -366,14 +380,7 @@ def record_support(
     after the one before (``rng`` draws the gaps and the sensors' noise seed)."""
     ev = evaluation_params(params)
     varied["sensors"]["seed"] = int(rng.integers(2**31))
-    varied["stream"] = {
-        **varied.get("stream", {}),
-        "tier": tier or ev["tier"],
-        "min_impact_gap_s": 0.0,
-        "command_lead_s": 0.001,
-        "max_queued_impacts": len(commands) + 1,
-    }
-    simulator = StreamSimulator.from_params(varied)
+    simulator = study_simulator(varied, tier or ev["tier"], len(commands))
     gap_s = float(ev["stream_gap_s"])
     stamp = float(ev["pre_contact_s"]) * 2.0
     for command in commands:

@@ -19,14 +19,13 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.study.dataset import evaluation_params
+from tail_beam_id.study.dataset import evaluation_params, study_simulator
 from tail_beam_id.study.supports import SupportDraw
 from tail_beam_sim.config import default_config_dir, load_parameters
 from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.flow import ShareCurve as MassShareCurve
 from tail_beam_sim.physics.flow import simulate_flow
 from tail_beam_sim.physics.materials import material_table
-from tail_beam_sim.physics.stream import StreamSimulator
 
 LEAD_S = 0.25  # quiet beam before the first lump (the detectors learn the noise there), s
 TAIL_S = 0.2  # quiet beam after the last lump, s
@@ -145,14 +144,7 @@ def record_flow(
     varied = support.apply(params) if support is not None else {k: v for k, v in params.items()}
     commands = flow_commands(params, rate_per_s, duration_s, curve, seed)
     varied["sensors"] = {**varied["sensors"], "seed": int(seed) % (2**31)}
-    varied["stream"] = {
-        **varied.get("stream", {}),
-        "tier": tier or ev["tier"],
-        "min_impact_gap_s": 0.0,
-        "command_lead_s": 0.001,
-        "max_queued_impacts": len(commands) + 1,
-    }
-    simulator = StreamSimulator.from_params(varied)
+    simulator = study_simulator(varied, tier or ev["tier"], len(commands))
     for t, command in commands:
         simulator.submit(command, contact_stamp_s=LEAD_S + t)
     chunk = simulator.advance(LEAD_S + duration_s + TAIL_S)

@@ -100,7 +100,7 @@ def collect(
 
 
 # One collect() call: (params, scene set, count, seed, tier, true_profile).
-CollectJob = tuple[Mapping[str, Any], str, int, int, "str | None", bool]
+CollectJob = tuple[Mapping[str, Any], str, int, int, str | None, bool]
 
 
 def _collect_job(job: CollectJob) -> list[Record]:
@@ -426,12 +426,7 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
     camera's frame limiting the contact duration, and cost a 20 kHz IMU 0.5-2 points.)
     """
     every = list(records)
-    rng = np.random.default_rng(seed)
-    impacts = sorted({(r.scene_set, r.index) for r in records})
-    chosen = rng.choice(
-        len(impacts), size=max(1, int(len(impacts) * HOLDOUT_FRACTION)), replace=False
-    )
-    held = {impacts[i] for i in chosen}
+    held = held_out(records, seed)
     subsets: dict[str, Any] = {}
     for mask in range(1, 2 ** len(SIGNAL_ORDER)):
         signals = tuple(s for i, s in enumerate(SIGNAL_ORDER) if mask >> i & 1)
@@ -455,6 +450,17 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
     return subsets
 
 
+def held_out(records: Sequence[Record], seed: int) -> set[tuple[str, int]]:
+    """The impacts (scene set, index) kept aside to fit the temperature: HOLDOUT_FRACTION of
+    them, drawn by ``seed``."""
+    rng = np.random.default_rng(seed)
+    impacts = sorted({(r.scene_set, r.index) for r in records})
+    chosen = rng.choice(
+        len(impacts), size=max(1, int(len(impacts) * HOLDOUT_FRACTION)), replace=False
+    )
+    return {impacts[i] for i in chosen}
+
+
 def train_point_models(records: Sequence[Record], seed: int) -> dict[str, dict[str, Any]]:
     """The statistical method's models fitted with the impact point as well (``WITH_POINT``),
     for both families (as :func:`train_statistical` splits the records): one per subset of
@@ -473,12 +479,7 @@ def point_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
     """One ``WITH_POINT`` network per subset of signals holding the rebound, on the inputs of
     the subset's model plus ``POINT_FEATURES``, held out and calibrated as :func:`train_family`
     does."""
-    rng = np.random.default_rng(seed)
-    impacts = sorted({(r.scene_set, r.index) for r in records})
-    chosen = rng.choice(
-        len(impacts), size=max(1, int(len(impacts) * HOLDOUT_FRACTION)), replace=False
-    )
-    held = {impacts[i] for i in chosen}
+    held = held_out(records, seed)
     subsets: dict[str, Any] = {}
     for mask in range(1, 2 ** len(SIGNAL_ORDER)):
         signals = tuple(s for i, s in enumerate(SIGNAL_ORDER) if mask >> i & 1)
