@@ -22,11 +22,13 @@ is zstd-compressed inside the file (:func:`tail_beam_sim.bags.records.open_write
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import sqlite3
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -248,10 +250,51 @@ def write_metadata(bag: Path, info: dict[str, Any]) -> None:
     if tmp.is_symlink() or tmp.is_file():
         tmp.unlink()
     with tmp.open("x", encoding="utf-8") as stream:
-        stream.write(
-            yaml.dump({"rosbag2_bagfile_information": info}, Dumper=_DUMPER, sort_keys=False)
-        )
+        stream.write(metadata_text(info))
     os.replace(tmp, bag / METADATA)
+
+
+_LISTS = ("relative_file_paths", "files")  # grow by one entry a segment: rendered once each
+
+
+def metadata_text(info: dict[str, Any]) -> str:
+    """``metadata.yaml``'s text for ``info``, the same mapping as ``yaml.dump`` gives.
+
+    A long recording lists thousands of files and rewrites the list at every segment close;
+    PyYAML's representer costs about 0.2 ms an entry, so the whole list would cost a growing
+    share of a core. Each file's lines are rendered once (:func:`_file_lines`, cached) and the
+    rest, a few dozen lines, is dumped as usual.
+    """
+    head = {key: value for key, value in info.items() if key not in _LISTS}
+    text = yaml.dump({"rosbag2_bagfile_information": head}, Dumper=_DUMPER, sort_keys=False)
+    parts = [text]
+    paths = info.get("relative_file_paths", [])
+    parts.append("  relative_file_paths:" + (" []\n" if not paths else "\n"))
+    parts.extend(f"  - {json.dumps(path)}\n" for path in paths)
+    files = info.get("files", [])
+    parts.append("  files:" + (" []\n" if not files else "\n"))
+    parts.extend(
+        _file_lines(
+            entry["path"],
+            entry["starting_time"]["nanoseconds_since_epoch"],
+            entry["duration"]["nanoseconds"],
+            entry["message_count"],
+        )
+        for entry in files
+    )
+    return "".join(parts)
+
+
+@lru_cache(maxsize=65536)
+def _file_lines(path: str, start_ns: int, duration_ns: int, message_count: int) -> str:
+    """One ``files`` entry of metadata.yaml (the path as a JSON string: a valid YAML scalar
+    whatever characters it holds)."""
+    return (
+        f"  - path: {json.dumps(path)}\n"
+        f"    starting_time:\n      nanoseconds_since_epoch: {int(start_ns)}\n"
+        f"    duration:\n      nanoseconds: {int(duration_ns)}\n"
+        f"    message_count: {int(message_count)}\n"
+    )
 
 
 @dataclass

@@ -162,3 +162,33 @@ def test_a_pressure_only_bag_lacks_a_topic_for_read_sensors_but_is_identified(tm
     assert all(
         json.loads(line)["signals"] == ["jack_pressure"] for line in result.stdout.splitlines()
     )
+
+
+def test_metadata_text_is_the_mapping_yaml_gives_whatever_the_file_names(tmp_path):
+    """The hand-rendered file list of metadata.yaml parses back to the same mapping, for names
+    YAML would misread unquoted (a colon, a leading dash, 'null', digits, quotes, non-ASCII),
+    and a bag of many segments with such a name reads whole."""
+    import yaml
+
+    from tail_beam_sim.bags.write import empty_info, metadata_text
+
+    info = empty_info("mcap")
+    assert yaml.safe_load(metadata_text(info)) == {"rosbag2_bagfile_information": info}
+    names = ["a: b", "it's", "null", "123", "- x", 'ü"\\', "#x", "on"]
+    info["files"] = [
+        {
+            "path": f"{name}_{i:05d}.mcap",
+            "starting_time": {"nanoseconds_since_epoch": i * 10**9},
+            "duration": {"nanoseconds": 10**9 - i},
+            "message_count": i,
+        }
+        for i, name in enumerate(names)
+    ]
+    info["relative_file_paths"] = [entry["path"] for entry in info["files"]]
+    assert yaml.safe_load(metadata_text(info)) == {"rosbag2_bagfile_information": info}
+
+    data = records(120)
+    bag = tmp_path / "on: null"
+    write_segments(bag, [data[i : i + 20] for i in range(0, 240, 20)])
+    with AnyReader([bag], default_typestore=bagio.TYPESTORE) as reader:
+        assert [(c.topic, ns) for c, ns, _ in reader.messages()] == [(t, ns) for t, ns, _ in data]
