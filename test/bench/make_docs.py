@@ -216,6 +216,15 @@ FAMILIES: tuple[Family, ...] = (
         3.0,
     ),
     Family(
+        "bag_segments",
+        "The recorder's bag writer",
+        "metadata.yaml rewritten at a segment close as the bag's file list grows, and the "
+        "writer's CPU per recorded second of one support's traffic by segment length",
+        "python test/bench/bench_bag_segments.py",
+        "python test/bench/bench_bag_segments.py --repeats 3 --seconds 10",
+        0.3,
+    ),
+    Family(
         "face_host",
         "Several supports in one process",
         "one face_host process with 1, 2 and 3 supports at the shipped layout in real time: CPU s "
