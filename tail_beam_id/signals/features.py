@@ -10,7 +10,7 @@ the contact duration, i.e. the particle's stiffness. Every feature is named with
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -86,13 +86,33 @@ class BeamModel:
 
 @dataclass(frozen=True)
 class PressureFit:
-    """Moment impulse fitted to the jack pressure around an onset, with its standard error."""
+    """Moment impulse fitted to the jack pressure around an onset, with its standard error;
+    ``neighbours``: other impacts' impulses fitted with it (their onsets in the window),
+    ``unresolved``: neighbours whose onsets lay too close to be told apart, read with it."""
 
     moment_impulse_nms: float
     sigma_nms: float
     noise_pa: float
     swing_pa: float
     saturated: bool
+    neighbours: int = 0
+    unresolved: int = 0
+
+
+def separable_onsets(
+    onset_s: float, other_onsets_s: Sequence[float], lo_s: float, hi_s: float, min_sep_s: float
+) -> tuple[list[float], int]:
+    """The onsets among ``other_onsets_s`` in [lo, hi] (s) that a joint fit can tell apart
+    from ``onset_s`` and from each other (at least ``min_sep_s`` apart, the earlier kept), and
+    how many in the window were not (they are read with the impulse they lie next to)."""
+    kept: list[float] = []
+    unresolved = 0
+    for t in sorted(float(t) for t in other_onsets_s if lo_s <= t <= hi_s):
+        if abs(t - onset_s) < min_sep_s or (kept and t - kept[-1] < min_sep_s):
+            unresolved += 1
+        else:
+            kept.append(t)
+    return kept, unresolved
 
 
 def fit_pressure(
@@ -103,12 +123,18 @@ def fit_pressure(
     pre_s: float,
     window_s: float,
     sway_drift: bool = False,
+    other_onsets_s: Sequence[float] = (),
+    min_separation_s: float = 0.0,
 ) -> PressureFit | None:
     """Least-squares fit of the pressure in [onset - pre, onset + window]: a constant plus the
     beam's free sway at its nominal frequency (earlier impacts still ringing) plus M times the
     response to a unit moment impulse at the onset. With ``sway_drift`` the free sway may also
     drift in frequency and decay across the window (t cos, t sin: their first order), which a
-    real sway does against the nominal one. None when too few samples."""
+    real sway does against the nominal one. Other impacts whose onsets (``other_onsets_s``, s)
+    lie in the window get an impulse column of their own (the support is linear: their
+    responses add), so the onset's moment impulse is read even where they overlap; one closer
+    than ``min_separation_s`` to the onset or to another kept onset is not separable and is
+    read with it (:func:`separable_onsets`). None when too few samples."""
     inside = (stamp_s >= onset_s - pre_s) & (stamp_s <= onset_s + window_s)
     t = stamp_s[inside] - onset_s
     y = pressure_pa[inside]
@@ -120,7 +146,17 @@ def fit_pressure(
     columns = [np.ones_like(t), np.cos(omega * t), np.sin(omega * t)]
     if sway_drift:
         columns += [t * np.cos(omega * t), t * np.sin(omega * t)]
-    basis = np.vstack([*columns, template]).T
+    others, unresolved = separable_onsets(
+        0.0,
+        [o - onset_s for o in other_onsets_s],
+        -pre_s,
+        window_s,
+        min_separation_s,
+    )
+    # An onset with fewer than two samples after it says nothing of its impulse yet.
+    others = [o for o in others if np.count_nonzero(t > o) >= 2]
+    neighbour_columns = [model.pressure_response(t - o) for o in others]
+    basis = np.vstack([*columns, template, *neighbour_columns]).T
     coeffs, *_ = np.linalg.lstsq(basis, y - y.mean(), rcond=None)
     residual = y - y.mean() - basis @ coeffs
     dof = max(t.size - basis.shape[1], 1)
@@ -134,6 +170,8 @@ def fit_pressure(
         noise,
         float(coeffs[k]) * peak,
         saturated,
+        len(others),
+        unresolved,
     )
 
 

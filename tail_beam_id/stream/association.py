@@ -165,6 +165,15 @@ class ImpactAssociation:
             if o is not impact and abs(o.onset_s - impact.onset_s) < overlap_s
         ]
 
+    def known_onsets(self, impact: PendingImpact, before_s: float) -> list[float]:
+        """Onsets (s) of the other impacts, pending or decided, from ``before_s`` before this
+        one's up to the end of its overlap window: those its decision may rest on, known
+        whatever the chunking once it is ready (:mod:`tail_beam_id.stream.readiness`)."""
+        lo = impact.onset_s - before_s
+        hi = impact.onset_s + self.windows(impact)[2]
+        pending = [o.onset_s for o in self.pending if o is not impact]
+        return sorted(t for t in pending + self.decided if lo <= t < hi)
+
     def overlapping(self, impact: PendingImpact) -> bool:
         """Another impact within the overlap window that something besides the IMU confirms (its
         own rebound, or detected from a rebound or the pressure), or one already labelled."""

@@ -51,6 +51,19 @@ IDENTIFICATION = Section(
         ),
         positive("camera_timeout_s", "Wait for the camera after the rebound window.", **_WINDOW),
         positive("overlap_window_s", "Onsets closer than this overlap (<= window_s).", **_WINDOW),
+        flag(
+            "neighbour_fit",
+            "The pressure fit reads known neighbouring impacts' impulses with the impact's.",
+            default=True,
+        ),
+        number(
+            "neighbour_min_separation_s",
+            "Neighbouring onsets closer than this are read together.",
+            "s",
+            0.0,
+            0.1,
+            default=0.001,
+        ),
         number(
             "overlap_confidence_cap",
             "Most confidence of an overlapping impact's label.",
@@ -90,6 +103,8 @@ CHECKED = (
     "stream_timeout_s",
     "camera_timeout_s",
     "overlap_window_s",
+    "neighbour_fit",
+    "neighbour_min_separation_s",
     "overlap_confidence_cap",
 )
 
@@ -225,6 +240,8 @@ class IdentifierConfig:
     stream_timeout_s: float
     camera_timeout_s: float
     overlap_window_s: float
+    neighbour_fit: bool  # the pressure fit reads neighbouring onsets' impulses jointly
+    neighbour_min_separation_s: float  # closer neighbouring onsets are read together (s)
     overlap_confidence_cap: float
     detection: DetectionConfig
     timing: TimingConfig

@@ -118,6 +118,12 @@ class ImpactDecider:
                 onset_s,
                 cfg.pressure_pre_s,
                 window_s,
+                other_onsets_s=(
+                    association.known_onsets(impact, cfg.pressure_pre_s)
+                    if cfg.neighbour_fit
+                    else ()
+                ),
+                min_separation_s=cfg.neighbour_min_separation_s,
             )
         if impact.pulse is not None and impact.rebound is None:
             ringing = any(
