@@ -123,7 +123,9 @@ class ImpactAssociation:
         rebound, at most ``late_rebound_max_s`` before it. A camera slower than its frame is
         known to be (:mod:`tail_beam_id.signals.camera`: read from the 4th rebound on, up to
         2 ms) stamps a rebound up to a frame after the contact ended; another impact's onset in
-        between means the rebound may be that one's, and it is not given."""
+        between means the rebound may be that one's, and it is not given. Nor is it given to an
+        impact whose own rebound window still holds an unused rebound: that one is its own, and
+        the late one another lump's (a dense flow's next lump, whose pulse went unseen)."""
         late_s = self.config.detection.late_rebound_max_s
         onsets = [i.onset_s for i in self.pending] + self.decided
         before = [t for t in onsets if t < stamp_s]
@@ -136,6 +138,7 @@ class ImpactAssociation:
                 and impact.pulse is not None
                 and impact.rebound is None
                 and stamp_s - impact.onset_s <= late_s
+                and self.matching_rebound(impact) is None
             ):
                 return impact
         return None

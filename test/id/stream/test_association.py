@@ -156,6 +156,19 @@ def test_a_late_rebound_goes_to_the_latest_waiting_pulse_and_never_past_another_
     assert book.late_claimant(2.008) is None
 
 
+def test_a_pulse_with_a_rebound_in_its_window_claims_no_later_one(book):
+    """A waiting pulse whose own window still holds an unused rebound (0.4 ms after it) does not
+    take a rebound 5.6 ms after it late: that one is a second lump's whose pulse went unseen
+    (a dense flow), and becomes an impact of its own; the first stays the pulse's."""
+    a = pulse_impact(1.0)
+    book.pending.append(a)
+    book.add_rebound(1.0004, UP)
+    book.add_rebound(1.0056, UP)
+    assert not book.claimable(1.0056)
+    assert book.late_claimant(1.0056) is None
+    assert book.matching_rebound(a)[0] == pytest.approx(1.0004)
+
+
 def test_late_rebounds_can_be_switched_off(params):
     """late_rebound_max_s: 0 turns the rule off (the rebound is then an impact of its own, as
     before)."""
