@@ -7,6 +7,11 @@ contact to the nearest other lump's. Run with the pressure fit's neighbour colum
 (``identification.neighbour_fit``) to see what the joint fit does. Seeds: the training flows'
 range (``TRAINING_SEED`` + 90 onwards), never the evaluation's.
 
+What a better impulse can buy at most: on a sparse flow's labels that rest on a pulse, the
+statistical method's score separates the materials (its AUC) with every signal, with the
+jack pressure and the camera alone (the pulse's features removed: what a dense flow's labels
+mostly rest on), and with those two and the true moment impulse in place of the read one.
+
     python -m tail_beam_id.study.overlap_impulses --rates 20,50,200 --duration-s 4
 """
 
@@ -19,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_id.methods import build_method
+from tail_beam_id.methods.statistical import JOINT_FEATURES, SIGNAL_FEATURES
 from tail_beam_id.stream.label import match_stamps, match_tolerance_s
 from tail_beam_id.stream.share import label_score
 from tail_beam_id.study.flow import FlowRecording, record_sim_flow
@@ -47,11 +54,7 @@ def read_impulses(recording: FlowRecording, neighbour_fit: bool) -> dict[str, An
     rows = []
     for i, j in matching.pairs:
         truth = recording.truths[i]
-        moment = (
-            truth["mass_kg"]
-            * (truth["impact_speed_mps"] + truth["rebound_speed_mps"])
-            * truth["position_m"]
-        )
+        moment = true_moment_nms(truth)
         gaps = np.abs(stamps - stamps[i])
         gaps[i] = np.inf
         features = labels[j].features
@@ -69,6 +72,48 @@ def read_impulses(recording: FlowRecording, neighbour_fit: bool) -> dict[str, An
     return {"rows": np.array(rows, dtype=float).reshape(-1, 5), "auc": auc}
 
 
+def true_moment_nms(truth: Mapping[str, Any]) -> float:
+    """A lump's moment impulse about the hinge, m (v_in + v_out) x, N m s."""
+    return (
+        truth["mass_kg"]
+        * (truth["impact_speed_mps"] + truth["rebound_speed_mps"])
+        * truth["position_m"]
+    )
+
+
+PULSE_FEATURES = {n for n, _ in SIGNAL_FEATURES["imu"]} | {
+    n for names in JOINT_FEATURES.values() for n, _ in names
+}
+
+
+def pressure_camera_ceiling(recording: FlowRecording) -> dict[str, float]:
+    """The score AUC of a sparse flow's labels that rest on a pulse: with every signal, without
+    the pulse's features, and without them but with the true moment impulse."""
+    params = recording.params
+    labels, _ = identify_flow(recording, "shipped")
+    stamps = recording.lump_stamps_s()
+    gangue = recording.gangue()
+    tolerance = match_tolerance_s(params["identification"])
+    matching = match_stamps(list(stamps), [lab.impact_stamp_s for lab in labels], tolerance)
+    method = build_method("statistical", params["identification"])
+    scores: dict[str, list[float]] = {"all": [], "pressure+camera": [], "true impulse": []}
+    truth = []
+    for i, j in matching.pairs:
+        features = dict(labels[j].features)
+        if "contact_duration_s" not in features:
+            continue
+        truth.append(bool(gangue[i]))
+        without = {k: v for k, v in features.items() if k not in PULSE_FEATURES}
+        exact = {**without, "moment_impulse_pressure_nms": true_moment_nms(recording.truths[i])}
+        for name, given in (
+            ("all", features),
+            ("pressure+camera", without),
+            ("true impulse", exact),
+        ):
+            scores[name].append(-method.decide(given).estimates["logit"])
+    return {"labels": len(truth), **{k: rank_auc(v, truth) for k, v in scores.items()}}
+
+
 def _median(values: np.ndarray) -> float:
     values = values[np.isfinite(values)]
     return float(np.median(values)) if values.size else float("nan")
@@ -82,8 +127,8 @@ def format_table(rate: float, off: Mapping[str, Any], on: Mapping[str, Any]) -> 
         f"{rate:g} lumps/s: {len(on['rows'])} labels matched; score AUC "
         f"{off['auc']:.3f} -> {on['auc']:.3f}; accuracy {off['rows'][:, 4].mean():.3f} -> "
         f"{on['rows'][:, 4].mean():.3f}",
-        "nearest lump   n  | pressure |err| N m s: single, joint | rel. err (true > 3 N m s, n):"
-        " single, joint | pulse read: n, rel. err",
+        "nearest lump      n | pressure, abs. error N m s: single  joint | rel. error, true >"
+        " 3 N m s: single  joint (   n) | pulse read: n  rel. error",
     ]
     for lo, hi in BINS_S:
         cells = []
@@ -103,9 +148,8 @@ def format_table(rate: float, off: Mapping[str, Any], on: Mapping[str, Any]) -> 
             )
         (n, a_off, r_off, big_n, pulses, pulse_err), (_, a_on, r_on, *_rest) = cells
         lines.append(
-            f"{lo * 1e3:4.0f}-{hi * 1e3:3.0f} ms {n:4d}  | {a_off:6.2f} {a_on:6.2f}"
-            f"                    | {r_off:6.3f} {r_on:6.3f} ({big_n:3d})"
-            f"                     | {pulses:4d} {pulse_err:6.3f}"
+            f"{lo * 1e3:4.0f}-{hi * 1e3:3.0f} ms {n:6d} | {a_off:33.2f} {a_on:6.2f} |"
+            f" {r_off:32.3f} {r_on:6.3f} ({big_n:4d}) | {pulses:13d} {pulse_err:11.3f}"
         )
     return "\n".join(lines)
 
@@ -114,6 +158,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rates", default="20,50,200", help="lumps/s, comma separated")
     parser.add_argument("--duration-s", type=float, default=4.0)
+    parser.add_argument("--sparse-s", type=float, default=40.0, help="the sparse flow's length")
     args = parser.parse_args(argv)
     params = load_parameters([])
     for n, rate in enumerate(float(r) for r in args.rates.split(",")):
@@ -125,6 +170,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         on = read_impulses(recording, True)
         print(format_table(rate, off, on))
         print()
+    sparse = record_sim_flow(
+        params, 4.0, args.sparse_s, 0.3 * args.sparse_s, 0.2 * args.sparse_s, 0.6, SEED + 10
+    )
+    ceiling = pressure_camera_ceiling(sparse)
+    print(
+        f"4 lumps/s, {args.sparse_s:g} s: {ceiling['labels']} labels resting on a pulse; "
+        "score AUC "
+        f"with every signal {ceiling['all']:.3f}, pressure + camera alone "
+        f"{ceiling['pressure+camera']:.3f}, pressure + camera with the true moment impulse "
+        f"{ceiling['true impulse']:.3f}"
+    )
     return 0
 
 
