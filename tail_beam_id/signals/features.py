@@ -282,6 +282,13 @@ def impact_features(
         features["moment_impulse_pressure_nms"] = pressure.moment_impulse_nms
         features["pressure_swing_pa"] = pressure.swing_pa
         features["pressure_noise_pa"] = pressure.noise_pa
+        # Other impacts in the fit's window, only when there were some (a lone impact's features
+        # are those the models were trained on): those read jointly with it, and those too close
+        # to tell apart, whose impulses its moment impulse includes.
+        if pressure.neighbours:
+            features["pressure_neighbours"] = float(pressure.neighbours)
+        if pressure.unresolved:
+            features["pressure_unresolved"] = float(pressure.unresolved)
         estimates.append((pressure.moment_impulse_nms, pressure.sigma_nms))
     if estimates:
         weights = np.array([1.0 / max(s, 1e-12) ** 2 for _, s in estimates])
