@@ -96,6 +96,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="flow set: sensor layouts, comma-separated: shipped (with the accelerometer), imu "
         "(without it) (default both)",
     )
+    parser.add_argument(
+        "--flow-profile",
+        default="self-calibrated",
+        help="flow set: how the identifier knows each support: self-calibrated (on its own "
+        "flow, as tail-beam identify does; default), nominal (config/, --no-calibrate), true "
+        "(the drawn support itself: the ceiling)",
+    )
     parser.add_argument("--methods", default=None, help="methods, comma-separated (default: all)")
     parser.add_argument(
         "--noise", default=None, help="noise factors, comma-separated (default: config, 1,3,10)"
@@ -249,6 +256,7 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
     """The flow scene set: print its table and targets; with --out, flow.json (and with --plot
     the chart)."""
     from tail_beam_id.study.flow_evaluation import (
+        FLOW_PROFILES,
         LAYOUTS,
         LEVELS,
         FlowScene,
@@ -268,19 +276,32 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
     method = args.methods.split(",")[0] if args.methods else None
     if method is not None:
         _names(method, available_methods(), "--methods")
+    if args.flow_profile not in FLOW_PROFILES:
+        raise InputError(
+            "--flow-profile", args.flow_profile, f"must be one of {', '.join(FLOW_PROFILES)}"
+        )
     if args.plot and not args.out:
         args.out = DEFAULT_OUT
     if args.out:
         require_output_file("--out", Path(args.out) / "flow.json")
     started = time.monotonic()
     cases = list(
-        run_flow_set(params, rates, args.flow_foreign, scene, layouts=layouts, method=method)
+        run_flow_set(
+            params,
+            rates,
+            args.flow_foreign,
+            scene,
+            layouts=layouts,
+            method=method,
+            profile=args.flow_profile,
+        )
     )
     print(
         f"flow: {len(rates)} rates x {1 + args.flow_foreign} supports x {len(layouts)} layouts, "
         f"{duration:g} s flows (pure coal to about {duration / 2:g} s, then the share by mass "
         f"rising to 0.7 over about 2 s) and {coal:g} s of pure coal each, method "
-        f"{method or params['identification']['method']}, {time.monotonic() - started:.0f} s"
+        f"{method or params['identification']['method']}, supports {args.flow_profile}, "
+        f"{time.monotonic() - started:.0f} s"
     )
     print(format_flow_table(cases))
     print("\ntargets (flow; shipped layout):")

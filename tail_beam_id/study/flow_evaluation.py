@@ -5,8 +5,9 @@ flow rates from sparse to dense, with the shipped layout and with the IMU alone.
 
 Each case is one flow (pure coal until about ``boundary_s``, the share by mass then rising to
 ``final_share_by_mass`` over about ``ramp_s``) and one pure-coal flow of ``coal_s``, both
-identified as ``tail-beam identify --no-calibrate`` does (a :class:`SharingIdentifier` on the
-replayed streams). Figures:
+identified as ``tail-beam identify`` does (a :class:`SharingIdentifier` on the replayed
+streams), the support known to it by a profile: calibrated on its own flow by default, as
+``identify`` does, or config/ (``--no-calibrate``), or the drawn support itself. Figures:
 
 * the share's mean absolute error per interval (the estimate against the share by count of the
   lumps that struck in it; intervals where none struck or nothing was estimated are left out);
@@ -32,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_id.calibration.offline import calibrate, with_profile
 from tail_beam_id.stream.label import match_stamps, match_tolerance_s
 from tail_beam_id.stream.replay import replay
 from tail_beam_id.stream.share import Z_95, GangueShare, ShareConfig, label_score
@@ -40,11 +42,13 @@ from tail_beam_id.stream.share_reader import SharingIdentifier
 from tail_beam_id.study.dataset import evaluation_params
 from tail_beam_id.study.evaluation import wilson
 from tail_beam_id.study.flow import FlowRecording, record_sim_flow, true_shares
+from tail_beam_id.study.runs import true_profile_section
 from tail_beam_id.study.supports import SupportDraw, draw_support, support_ranges
 
 FLOW_SEED = 46001  # the flow set's seed (training flows use share_training.TRAINING_SEED + n)
 LEVELS = (0.2, 1.0 / 3.0)  # the shares whose crossing is timed
 LAYOUTS = ("shipped", "imu")  # the shipped sensors; the same without the accelerometer
+FLOW_PROFILES = ("nominal", "self-calibrated", "true")  # how the identifier knows the support
 SENSOR_RATES = ("pressure_rate_hz", "imu_rate_hz", "camera_frame_rate_hz")
 
 
@@ -196,11 +200,21 @@ def flow_supports(params: Mapping[str, Any], foreign: int, seed: int) -> list[tu
 
 
 def identify_flow(
-    recording: FlowRecording, layout: str, method: str | None = None
+    recording: FlowRecording,
+    layout: str,
+    method: str | None = None,
+    model_params: Mapping[str, Any] | None = None,
 ) -> tuple[list, list[GangueShare]]:
-    """Labels and shares of a recording read as tail-beam identify --no-calibrate reads a bag."""
-    params = recording.params
-    identifier = SharingIdentifier(method, params=params["identification"], model_params=params)
+    """Labels and shares of a recording as ``tail-beam identify`` reads a bag whose support it
+    knows by ``model_params`` (:func:`reading_params`; default: the recorded support itself)."""
+    model = recording.params if model_params is None else model_params
+    section = dict(recording.params["identification"])
+    # The profile's detection settings (the ringing it measured) with the evaluation's section.
+    section["detection"] = {
+        **section.get("detection", {}),
+        **(model.get("identification", {}).get("detection") or {}),
+    }
+    identifier = SharingIdentifier(method, params=section, model_params=model)
     labels = replay(
         identifier,
         recording.pressure,
@@ -209,6 +223,31 @@ def identify_flow(
         vibration=recording.vibration if layout == "shipped" else None,
     )
     return labels, identifier.take_shares()
+
+
+def reading_params(
+    params: Mapping[str, Any], recording: FlowRecording, profile: str, layout: str
+) -> Mapping[str, Any]:
+    """What the identifier knows of the recorded support under ``profile`` (FLOW_PROFILES):
+    ``nominal`` config/ (``tail-beam identify --no-calibrate``), ``self-calibrated`` a profile
+    calibrated on the recording itself with the layout's signals (``tail-beam identify``'s
+    default), ``true`` the drawn support itself (the ceiling)."""
+    if profile == "true":
+        return {**recording.params, "calibration": true_profile_section(recording.params)}
+    if profile == "nominal":
+        return params
+    vibration = recording.vibration if layout == "shipped" else None
+    found = calibrate(
+        params,
+        (recording.pressure.stamp_s, recording.pressure.pressure_pa),
+        (recording.imu.stamp_s, recording.imu.linear_acceleration_mps2[:, 2]),
+        lambda calibrated: identify_flow(recording, layout, "statistical", calibrated)[0],
+        (vibration.sample_stamps_s(), vibration.accel_mps2)
+        if vibration is not None and vibration.count
+        else None,
+        [r.stamp_s for r in recording.rebounds],
+    )
+    return with_profile(params, found)
 
 
 def first_reaching(
@@ -300,8 +339,10 @@ def run_flow_set(
     layouts: Sequence[str] = LAYOUTS,
     seed: int = FLOW_SEED,
     method: str | None = None,
+    profile: str = "self-calibrated",
 ) -> Iterator[FlowCase]:
-    """Every case of the flow set, support by support, rate by rate, layout by layout."""
+    """Every case of the flow set, support by support, rate by rate, layout by layout, each
+    support known to the identifier by ``profile`` (:func:`reading_params`)."""
     for s_index, (name, draw) in enumerate(flow_supports(params, foreign, seed)):
         for r_index, rate in enumerate(rates_per_s):
             case_seed = seed + 100 * s_index + r_index
@@ -319,9 +360,11 @@ def run_flow_set(
             config = ShareConfig.from_params(flow.params["identification"].get("gangue_share"))
             for layout in layouts:
                 case = FlowCase(name, layout, float(rate))
-                labels, shares = identify_flow(flow, layout, method)
+                # A support is calibrated once, on its flow; its pure-coal flow is read with it.
+                model = reading_params(params, flow, profile, layout)
+                labels, shares = identify_flow(flow, layout, method, model)
                 score_case(case, flow, labels, shares, config)
-                score_coal(case, identify_flow(coal, layout, method)[1], config)
+                score_coal(case, identify_flow(coal, layout, method, model)[1], config)
                 yield case
 
 

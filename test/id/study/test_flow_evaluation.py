@@ -88,6 +88,32 @@ def test_a_dense_pure_coal_flow_raises_no_alarm_and_no_lower_bound_reaches_a_fif
         assert not any(alarm_states(shares, level, config))
 
 
+def test_a_drawn_supports_flow_is_read_with_what_the_profile_knows_of_it():
+    """The flow set's profiles: self-calibrated finds a drawn support's sway from its own
+    flow (within 3 %, where config/ is 13 % off), nominal is config/ itself, true the drawn
+    support; a pure-coal flow's labels follow."""
+    from tail_beam_id.study.flow_evaluation import flow_supports, reading_params
+    from tail_beam_sim.physics.scene import Scene
+
+    params = load_parameters([])
+    _, draw = flow_supports(params, 1, 777)[1]
+    recording = record_sim_flow(params, 5.0, 6.0, 0.0, 0.0, 0.0, seed=9011, support=draw)
+
+    def sway_hz(p):
+        return Scene.from_params(p).support.rigid_mode_frequency_hz
+
+    true_hz = sway_hz(recording.params)
+    assert abs(sway_hz(params) / true_hz - 1.0) > 0.1  # the drawn support is another one
+    calibrated = reading_params(params, recording, "self-calibrated", "shipped")
+    assert sway_hz(calibrated) == pytest.approx(true_hz, rel=0.03)
+    assert reading_params(params, recording, "nominal", "shipped") is params
+    assert sway_hz(reading_params(params, recording, "true", "shipped")) == true_hz
+    labels, _ = identify_flow(recording, "shipped", None, calibrated)
+    assert sum(isinstance(lab, Label) and lab.material == "coal" for lab in labels) >= 0.8 * len(
+        labels
+    )
+
+
 @pytest.mark.slow
 def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
     """`tail-beam evaluate --sets flow` runs every support and layout, prints the targets and
