@@ -34,8 +34,16 @@ from tail_beam_sim.physics.fidelity import (
     plan,
     shipped_settings,
 )
+from tail_beam_sim.physics.pulse_family import PulseFamily
 from tail_beam_sim.physics.result import SimulationResult
 from tail_beam_sim.physics.scene import Impact, Scene
+from tail_beam_sim.physics.sense_many import (
+    HISTORY_RATE_HZ,
+    layout_key,
+    sense_group,
+    summary_figures,
+    supported,
+)
 from tail_beam_sim.physics.sensors import (
     SensorSuite,
     VibrationBlocks,
@@ -43,6 +51,7 @@ from tail_beam_sim.physics.sensors import (
     specific_force_z,
 )
 from tail_beam_sim.physics.solvers import ImpactProblem, Samples, Trajectory, solve
+from tail_beam_sim.physics.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
 from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
 from tail_beam_sim.physics.support import Support
 
@@ -58,8 +67,6 @@ __all__ = [
     "simulate_many",
     "summarise",
 ]
-
-HISTORY_RATE_HZ = 20000.0
 
 
 def build_problem(
@@ -97,35 +104,14 @@ def summarise(
     scene: Scene, trajectory: Trajectory, history: dict[str, np.ndarray]
 ) -> dict[str, Any]:
     """The noise-free figures of an impact (the keys of ``tail-beam simulate --json``)."""
-    impact = scene.impact
     after = history["time_s"] >= 0.0
-    rebound = trajectory.rebound_velocity_mps
-    return {
-        "material": impact.material.name,
-        "radius_m": impact.radius_m,
-        "mass_kg": impact.mass_kg,
-        "position_m": impact.position_m,
-        "drop_height_m": impact.drop_height_m,
-        "impact_speed_mps": impact.impact_speed_mps,
-        "rebound_speed_mps": max(rebound, 0.0),
-        "restitution": max(rebound, 0.0) / impact.impact_speed_mps,
-        "contact_duration_s": trajectory.contacts[0].duration_s,
-        "peak_contact_force_n": max(c.peak_force_n for c in trajectory.contacts),
-        "peak_jack_pressure_change_pa": float(
-            np.max(history["jack_pressure_pa"][after]) - scene.support.setting_pressure_pa
-        ),
-        "peak_beam_angular_velocity_radps": float(
-            np.max(np.abs(history["beam_angular_velocity_radps"][after]))
-        ),
-        "peak_imu_dynamic_accel_mps2": float(
-            np.max(np.abs(history["imu_dynamic_accel_mps2"][after]))
-        ),
-        "n_contacts": len(trajectory.contacts),
-        "particle_at_rest": trajectory.particle_at_rest,
-        "contact_model": scene.contact_model,
-        "solver": trajectory.solver,
-        "window_s": scene.window_s,
-    }
+    return summary_figures(
+        scene,
+        trajectory,
+        float(np.max(history["jack_pressure_pa"][after]) - scene.support.setting_pressure_pa),
+        float(np.max(np.abs(history["beam_angular_velocity_radps"][after]))),
+        float(np.max(np.abs(history["imu_dynamic_accel_mps2"][after]))),
+    )
 
 
 def history_times(scene: Scene, trajectory: Trajectory) -> np.ndarray:
@@ -188,8 +174,15 @@ def simulate(
     settings = settings or shipped_settings()
     needs = needs or settings.needs
     chosen, problem, method, options = _prepare(scene, tier, needs, settings, solver)
-    trajectory = solve(problem, method, **{**options, **solver_options})
-    result = _finish(scene, chosen, trajectory, vibration)
+    result = None
+    if not solver_options and _pulse_path(scene, chosen, method, options):
+        family = PulseFamily([problem], _pulse_tolerance(options))
+        if family.ok[0]:
+            result = sense_group(family, np.zeros(1, dtype=np.int64), [scene], vibration)[0]
+            _label(result, chosen)
+    if result is None:
+        trajectory = solve(problem, method, **{**options, **solver_options})
+        result = _finish(scene, chosen, trajectory, vibration)
     if check and chosen.check_against is not None:
         reference = simulate(scene, tier=chosen.check_against, needs=needs, settings=settings)
         result.summary["check"] = {
@@ -216,6 +209,11 @@ def simulate_many(
     depend on how it is measured; each scene still gets its own plan (its error estimate and an
     automatic tier depend on its sample rates: scenes share a trajectory only when their plans
     agree on the model and solver) and its own streams.
+
+    Impacts the hybrid solver takes as one pulse contact (most: :mod:`~tail_beam_sim.physics.
+    pulse_family`) are solved together per structure, and the sensors of scenes that share
+    their rates and window are sampled together (:mod:`~tail_beam_sim.physics.sense_many`),
+    one array operation per signal for the group; the others one by one.
     """
     settings = settings or shipped_settings()
     needs = needs or settings.needs
@@ -223,9 +221,11 @@ def simulate_many(
     flags = [vibration] * len(scenes) if isinstance(vibration, bool) else list(vibration)
     if len(flags) != len(scenes):
         raise ValueError(f"{len(flags)} vibration flags for {len(scenes)} scenes")
-    solved: dict[tuple[Any, ...], Trajectory] = {}
-    results = []
-    for scene, with_vibration in zip(scenes, flags):
+    results: list[SimulationResult | None] = [None] * len(scenes)
+    plans = []
+    impacts: dict[tuple[Any, ...], int] = {}  # each distinct impact's index in ``distinct``
+    distinct: list[tuple[Plan, ImpactProblem, str, dict[str, Any]]] = []
+    for scene in scenes:
         chosen, problem, method, options = _prepare(scene, tier, needs, settings, None)
         key = (
             scene.support,
@@ -237,11 +237,64 @@ def simulate_many(
             method,
             tuple(sorted(options.items())),
         )
-        trajectory = solved.get(key)
-        if trajectory is None:
-            trajectory = solved[key] = solve(problem, method, **options)
-        results.append(_finish(scene, chosen, trajectory, with_vibration))
-    return results
+        if key not in impacts:
+            impacts[key] = len(distinct)
+            distinct.append((chosen, problem, method, options))
+        plans.append((chosen, impacts[key]))
+    # the pulse impacts, per structure and tolerance: one family each
+    families: dict[tuple[int, float], tuple[list[int], list[ImpactProblem]]] = {}
+    for index, (chosen, problem, method, options) in enumerate(distinct):
+        if _pulse_path(None, chosen, method, options):
+            members = families.setdefault(
+                (id(chosen.structure), _pulse_tolerance(options)), ([], [])
+            )
+            members[0].append(index)
+            members[1].append(problem)
+    place: dict[int, tuple[PulseFamily, int]] = {}
+    for (_, tolerance), (indices, problems) in families.items():
+        family = PulseFamily(problems, tolerance)
+        for row, index in enumerate(indices):
+            if family.ok[row]:
+                place[index] = (family, row)
+    groups: dict[tuple[Any, ...], list[int]] = {}
+    solved: dict[int, Trajectory] = {}
+    for k, (scene, (chosen, index)) in enumerate(zip(scenes, plans)):
+        if index in place and supported(scene.sensors):
+            family, _ = place[index]
+            groups.setdefault((id(family), layout_key(scene, flags[k])), []).append(k)
+            continue
+        if index in place:
+            trajectory = place[index][0].trajectory(place[index][1])
+        else:
+            trajectory = solved.get(index)
+            if trajectory is None:
+                _, problem, method, options = distinct[index]
+                trajectory = solved[index] = solve(problem, method, **options)
+        results[k] = _finish(scene, chosen, trajectory, flags[k])
+    for members in groups.values():
+        family = place[plans[members[0]][1]][0]
+        rows = np.array([place[plans[k][1]][1] for k in members], dtype=np.int64)
+        sensed = sense_group(family, rows, [scenes[k] for k in members], flags[members[0]])
+        for k, result in zip(members, sensed):
+            _label(result, plans[k][0])
+            results[k] = result
+    return [r for r in results if r is not None]
+
+
+def _pulse_path(scene: Scene | None, chosen: Plan, method: str, options: dict[str, Any]) -> bool:
+    """Whether the impact goes the pulse family's way: the hybrid solver with its default
+    contact handling (only the tier's tolerance given), no crushing, and (given the scene)
+    sensors the group path covers."""
+    return (
+        method == "hybrid"
+        and set(options) <= {"pulse_tolerance"}
+        and not chosen.tier.brittle
+        and (scene is None or supported(scene.sensors))
+    )
+
+
+def _pulse_tolerance(options: dict[str, Any]) -> float:
+    return float(options.get("pulse_tolerance", DEFAULT_PULSE_TOLERANCE))
 
 
 def _prepare(
@@ -272,14 +325,19 @@ def _finish(
 ) -> SimulationResult:
     """The sensors of ``trajectory`` and the summary's tier and error estimate."""
     result = sense(scene, trajectory, vibration)
+    _label(result, chosen)
+    return result
+
+
+def _label(result: SimulationResult, chosen: Plan) -> None:
+    """The summary's tier and error estimate (the plan's model error and the solver's own)."""
     # The solver's own estimate is a field of every trajectory (contract:
     # tail_beam_sim.physics.solvers).
-    own = trajectory.error_estimate
+    own = result.trajectory.error_estimate
     result.summary["tier"] = chosen.tier.name
     result.summary["error_estimate"] = (
         max(chosen.model_error, own) if math.isfinite(own) else math.nan
     )
-    return result
 
 
 def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> SimulationResult:

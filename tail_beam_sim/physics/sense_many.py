@@ -1,0 +1,485 @@
+"""Every sensor of many scenes at once, from a :class:`~tail_beam_sim.physics.pulse_family.
+PulseFamily`: what :func:`tail_beam_sim.physics.simulate.sense` makes of each trajectory, one
+array operation per signal for the whole group.
+
+A group is scenes that share the sample rates, the window and the accelerometer's settings
+(:func:`layout_key`); each scene has its own impact (a row of the family), seed, noise levels
+and ranges. The instants every sensor reads (histories, pressure, the IMU's stamps and the
+period before each, the accelerometer's dense instants) are sampled in one pass over the
+family; per scene remain only its seeded generators' draws (its noise must be the one
+``simulate`` gives) and the result's objects.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from tail_beam_sim.physics.pulse_family import PulseFamily
+from tail_beam_sim.physics.result import SimulationResult
+from tail_beam_sim.physics.ringdown_filtering import _dense_gain, settle_steps
+from tail_beam_sim.physics.scene import Scene, SensorSpec
+from tail_beam_sim.physics.sensors import (
+    _SOSFILT_KERNEL,
+    ImuStream,
+    PressureStream,
+    SensorSuite,
+    VibrationBlocks,
+    _butterworth,
+    cut_blocks,
+)
+from tail_beam_sim.physics.solvers.problem import Trajectory
+
+HISTORY_RATE_HZ = 20000.0
+
+
+def layout_key(scene: Scene, vibration: bool) -> tuple[Any, ...]:
+    """What scenes of one group share: window, pre-contact time, sample rates and the
+    accelerometer's settings (noise, ranges and seed may differ)."""
+    spec = scene.sensors
+    return (
+        scene.window_s,
+        scene.pre_contact_s,
+        spec.pressure_rate_hz,
+        spec.imu_rate_hz,
+        spec.camera_frame_rate_hz,
+        vibration,
+        spec.vibration_rate_hz,
+        spec.vibration_oversample,
+        spec.vibration_antialias_order,
+        spec.vibration_antialias_cutoff_fraction,
+        spec.vibration_block_samples,
+    )
+
+
+def supported(spec: SensorSpec) -> bool:
+    """Whether the group path covers these sensors (an IMU behind its own low-pass is left to
+    ``sense``)."""
+    return spec.imu_antialias_order == 0
+
+
+def summary_figures(
+    scene: Scene,
+    trajectory: Trajectory,
+    peak_pressure_change_pa: float,
+    peak_angular_velocity_radps: float,
+    peak_dynamic_accel_mps2: float,
+) -> dict[str, Any]:
+    """The noise-free figures of an impact (the keys of ``tail-beam simulate --json``), given
+    the peaks of its histories after first contact."""
+    impact = scene.impact
+    rebound = trajectory.rebound_velocity_mps
+    return {
+        "material": impact.material.name,
+        "radius_m": impact.radius_m,
+        "mass_kg": impact.mass_kg,
+        "position_m": impact.position_m,
+        "drop_height_m": impact.drop_height_m,
+        "impact_speed_mps": impact.impact_speed_mps,
+        "rebound_speed_mps": max(rebound, 0.0),
+        "restitution": max(rebound, 0.0) / impact.impact_speed_mps,
+        "contact_duration_s": trajectory.contacts[0].duration_s,
+        "peak_contact_force_n": max(c.peak_force_n for c in trajectory.contacts),
+        "peak_jack_pressure_change_pa": peak_pressure_change_pa,
+        "peak_beam_angular_velocity_radps": peak_angular_velocity_radps,
+        "peak_imu_dynamic_accel_mps2": peak_dynamic_accel_mps2,
+        "n_contacts": len(trajectory.contacts),
+        "particle_at_rest": trajectory.particle_at_rest,
+        "contact_model": scene.contact_model,
+        "solver": trajectory.solver,
+        "window_s": scene.window_s,
+    }
+
+
+def _grid_counts(end_s: np.ndarray, rate_hz: float) -> np.ndarray:
+    """How many instants k / rate of [0, end] each scene has (``sensors.sample_grid``)."""
+    return np.floor(end_s * rate_hz + 1e-9).astype(np.int64) + 1
+
+
+def _padded(draws: Sequence[np.ndarray], shape: tuple[int, ...]) -> np.ndarray:
+    """Per-scene arrays of different lengths stacked, zero-padded at the end."""
+    out = np.zeros(shape)
+    for i, values in enumerate(draws):
+        out[i, : values.shape[0]] = values
+    return out
+
+
+class _Readings:
+    """The states of a family at several grids of instants (S, T_k each), sampled in one pass
+    (:meth:`PulseFamily.sample`), each grid given as (instants, common grid or None, per-scene
+    shift or None): ``instants[i, j] = grid[j] - shift[i]`` when the grid is given."""
+
+    def __init__(
+        self,
+        family: PulseFamily,
+        rows: np.ndarray,
+        grids: Sequence[tuple[np.ndarray, np.ndarray | None, np.ndarray | None]],
+    ) -> None:
+        edges = np.cumsum([0] + [times.shape[1] for times, _, _ in grids])
+        self.spans = [slice(int(lo), int(hi)) for lo, hi in zip(edges[:-1], edges[1:])]
+        self.states = family.sample(
+            rows,
+            np.concatenate([times for times, _, _ in grids], axis=1),
+            [(span, grid, shift) for span, (_, grid, shift) in zip(self.spans, grids)],
+        )
+
+    def q(self, k: int) -> np.ndarray:
+        return self.states.q[:, :, self.spans[k]]
+
+    def qd(self, k: int) -> np.ndarray:
+        return self.states.qd[:, :, self.spans[k]]
+
+    def qdd(self, k: int) -> np.ndarray:
+        return self.states.qdd[:, :, self.spans[k]]
+
+    def field(self, name: str, k: int) -> np.ndarray:
+        return getattr(self.states, name)[:, self.spans[k]]
+
+
+def _read(weights: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``weights @ values`` over the coordinates of (n, S, T) values: (S, T), summed term by
+    term (one product for the rigid beam)."""
+    out = weights[0] * values[0]
+    for j in range(1, weights.size):
+        out = out + weights[j] * values[j]
+    return out
+
+
+def sense_group(
+    family: PulseFamily,
+    rows: np.ndarray,
+    scenes: Sequence[Scene],
+    vibration: bool,
+) -> list[SimulationResult]:
+    """The sensors of ``scenes`` (one group: :func:`layout_key`), scene i reading impact
+    ``rows[i]`` of ``family`` (whose ``ok`` must hold): each scene's result as ``sense`` gives
+    it, the summary without its tier and error estimate (the plan's)."""
+    structure = family.structure
+    scene0 = scenes[0]
+    spec0 = scene0.sensors
+    window, pre = scene0.window_s, scene0.pre_contact_s
+    count = len(scenes)
+    g = structure.gravity_mps2
+    suites = [SensorSuite(scene.sensors) for scene in scenes]
+    slowest = min(spec0.pressure_rate_hz, spec0.imu_rate_hz)
+    contact = np.array([pre + (0.0 + (1.0 / slowest) * suite.contact_phase()) for suite in suites])
+    end = contact + window
+    duration = family.duration_s[rows]
+
+    # the instants every sensor reads, one grid (S, T) each, sampled in one pass
+    uniform, nodes, gather, lengths, is_pad = _history_times(family, rows, window, pre)
+    pressure_counts = _grid_counts(end, spec0.pressure_rate_hz)
+    pressure_stamps = np.arange(int(pressure_counts.max())) / spec0.pressure_rate_hz
+    imu_counts = _grid_counts(end, spec0.imu_rate_hz)
+    imu_stamps = np.arange(int(imu_counts.max())) / spec0.imu_rate_hz
+    period = 1.0 / spec0.imu_rate_hz
+    imu_t = imu_stamps[None, :] - contact[:, None]
+    zero = np.zeros(count)
+    grids = [
+        (np.broadcast_to(uniform, (count, uniform.size)), uniform, zero),
+        (nodes, None, None),
+        (pressure_stamps[None, :] - contact[:, None], pressure_stamps, contact),
+        (imu_t, imu_stamps, contact),
+        (imu_t - period, imu_stamps - period, contact),
+    ]
+    dense = _DenseSpan(spec0, contact, end, duration) if vibration else None
+    if dense is not None:
+        grids.append((dense.times, None, None))
+    read = _Readings(family, rows, grids)
+
+    # histories and the summary's peaks (simulate.histories, summarise): the uniform instants
+    # and the pulse's, merged in time order by ``gather``
+    jack_shape, slope, imu_shape = (
+        structure.jack_shape,
+        structure.imu_slope_shape,
+        structure.imu_shape,
+    )
+    both = slice(read.spans[0].start, read.spans[1].stop)
+    states = read.states
+    q, qd, qdd = states.q[:, :, both], states.qd[:, :, both], states.qdd[:, :, both]
+
+    def merged(values: np.ndarray) -> np.ndarray:
+        return np.take_along_axis(values, gather, axis=1)
+
+    history_t = merged(np.concatenate([grids[0][0], nodes], axis=1))
+    pressure_history = merged(
+        structure.setting_pressure_pa
+        + (
+            structure.jack_stiffness_npm * _read(jack_shape, q)
+            + structure.jack_damping_nspm * _read(jack_shape, qd)
+        )
+        / structure.piston_area_m2
+    )
+    beam_rate = merged(qd[0])
+    accel_at_imu = _read(imu_shape, qdd)
+    dynamic = merged(-accel_at_imu)
+    specific = merged(g * np.cos(_read(slope, q)) - accel_at_imu)
+    after = (history_t >= 0.0) & ~is_pad
+    peak_pressure = np.where(after, pressure_history, -np.inf).max(axis=1)
+    peak_rate = np.where(after, np.abs(beam_rate), -np.inf).max(axis=1)
+    peak_accel = np.where(after, np.abs(dynamic), -np.inf).max(axis=1)
+    fields = {
+        "time_s": history_t,
+        "contact_force_n": merged(states.force_n[:, both]),
+        "jack_pressure_pa": pressure_history,
+        "beam_angle_rad": merged(q[0]),
+        "beam_angular_velocity_radps": beam_rate,
+        "imu_angular_velocity_radps": merged(_read(slope, qd)),
+        "imu_specific_force_mps2": specific,
+        "imu_dynamic_accel_mps2": dynamic,
+        "particle_position_m": merged(states.z_m[:, both]),
+        "particle_velocity_mps": merged(states.zd_mps[:, both]),
+    }
+
+    # pressure: point samples at k / rate
+    clean = (
+        structure.setting_pressure_pa
+        + (
+            structure.jack_stiffness_npm * _read(jack_shape, read.q(2))
+            + structure.jack_damping_nspm * _read(jack_shape, read.qd(2))
+        )
+        / structure.piston_area_m2
+    )
+    unit = _padded(
+        [s._pressure_rng.standard_normal(int(k)) for s, k in zip(suites, pressure_counts)],
+        clean.shape,
+    )
+    sigma = np.array([s.noise.pressure_pa for s in suites])[:, None]
+    low = np.array([s.noise.pressure_range_pa[0] for s in suites])[:, None]
+    high = np.array([s.noise.pressure_range_pa[1] for s in suites])[:, None]
+    pressure = np.clip(clean + sigma * unit, low, high)
+
+    # IMU: each reading the mean over the period before its stamp (sensors.imu_samples)
+    angle = _read(slope, read.q(3))
+    gyro = np.zeros(angle.shape + (3,))
+    gyro[:, :, 1] = _read(slope, read.q(3) - read.q(4)) / period
+    accel = np.zeros_like(gyro)
+    pitch_rate = _read(slope, read.qd(3))
+    accel[:, :, 0] = -structure.imu_from_hinge_m * pitch_rate**2 - g * np.sin(angle)
+    accel[:, :, 2] = g * np.cos(angle) - _read(imu_shape, read.qd(3) - read.qd(4)) / period
+    gyro_unit = np.zeros_like(gyro)
+    accel_unit = np.zeros_like(gyro)
+    for i, (suite, k) in enumerate(zip(suites, imu_counts)):
+        rng = suite._imu_rng
+        gyro_unit[i, :k] = rng.standard_normal((int(k), 3))
+        accel_unit[i, :k] = rng.standard_normal((int(k), 3))
+    gyro = gyro + np.array([s.noise.gyro_radps for s in suites])[:, None, None] * gyro_unit
+    accel = accel + np.array([s.noise.accel_mps2 for s in suites])[:, None, None] * accel_unit
+
+    blocks = (
+        dense.blocks(family, rows, suites, read.q(5), read.qd(5))
+        if dense is not None
+        else [VibrationBlocks.empty()] * count
+    )
+
+    out = []
+    for i, (scene, suite) in enumerate(zip(scenes, suites)):
+        trajectory = family.trajectory(int(rows[i]))
+        stamp = float(contact[i])
+        length = int(lengths[i])
+        rebound = suite.rebound(trajectory, stamp)
+        point = (
+            suite.impact_point(
+                scene.impact.position_m,
+                rebound,
+                scene.support.beam_length_m,
+                scene.support.plate_width_m,
+            )
+            if scene.sensors.camera_reports_impact_point
+            else None
+        )
+        kp, ki = int(pressure_counts[i]), int(imu_counts[i])
+        noise = suite.noise
+        out.append(
+            SimulationResult(
+                scene=scene,
+                trajectory=trajectory,
+                contact_stamp_s=stamp,
+                history={key: values[i, :length] for key, values in fields.items()},
+                pressure=PressureStream(
+                    pressure_stamps[:kp], pressure[i, :kp], noise.pressure_pa**2
+                ),
+                imu=ImuStream(
+                    imu_stamps[:ki],
+                    gyro[i, :ki],
+                    accel[i, :ki],
+                    noise.gyro_radps**2,
+                    noise.accel_mps2**2,
+                ),
+                rebound=rebound,
+                summary=summary_figures(
+                    scene,
+                    trajectory,
+                    float(peak_pressure[i]) - scene.support.setting_pressure_pa,
+                    float(peak_rate[i]),
+                    float(peak_accel[i]),
+                ),
+                vibration=blocks[i],
+                point=point,
+            )
+        )
+    return out
+
+
+def _history_times(
+    family: PulseFamily, rows: np.ndarray, window_s: float, pre_contact_s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The instants of the histories (``simulate.history_times``: HISTORY_RATE_HZ from
+    -pre_contact_s to window_s, plus every sample of the pulse, each instant once, in order):
+    the uniform ones (U,), the pulse's (S, P), ``gather`` (S, W): which of the U + P columns
+    each history sample is, each scene's count, and where rows are padded past it."""
+    uniform = np.arange(-pre_contact_s, window_s + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ)
+    nodes = family.node_times[rows]
+    position = np.searchsorted(uniform, nodes)
+    clipped = np.minimum(position, uniform.size - 1)
+    keep = ~((position < uniform.size) & (uniform[clipped] == nodes)) & (nodes <= window_s)
+    rank = np.cumsum(keep, axis=1) - keep
+    lengths = uniform.size + keep.sum(axis=1)
+    width = int(lengths.max())
+    count = rows.size
+    is_node = np.zeros((count, width), dtype=bool)
+    kept_rows, kept_cols = np.nonzero(keep)
+    is_node[kept_rows, (position + rank)[kept_rows, kept_cols]] = True
+    is_pad = np.arange(width)[None, :] >= lengths[:, None]
+    gather = np.zeros((count, width), dtype=np.int64)
+    gather[is_node] = uniform.size + kept_cols
+    gather[~(is_node | is_pad)] = np.tile(np.arange(uniform.size), count)
+    return uniform, nodes, gather, lengths, is_pad
+
+
+class _DenseSpan:
+    """The accelerometer's dense instants of every scene (``SensorSuite._dense_span``): the
+    beam rests (reads g) before index ``first``, the dense response runs through the
+    anti-alias filter from ``first`` to ``switch`` (padded to the longest span), the filtered
+    ring-down in closed form after, to ``count``."""
+
+    def __init__(
+        self, spec: SensorSpec, contact: np.ndarray, end: np.ndarray, duration: np.ndarray
+    ) -> None:
+        self.spec = spec
+        m = self.oversample = spec.vibration_oversample
+        self.dense_rate = m * spec.vibration_rate_hz
+        self.sos, self.zi_unit = _butterworth(
+            spec.vibration_rate_hz,
+            spec.vibration_antialias_order,
+            spec.vibration_antialias_cutoff_fraction,
+            m,
+        )
+        self.contact = contact
+        count = self.count = np.floor(end * self.dense_rate + 1e-9).astype(np.int64) + 1
+        free_from = np.ceil((contact + duration) * self.dense_rate - 1e-9).astype(np.int64) + 1
+        steady = np.maximum(free_from, 0) + settle_steps(self.sos.tobytes())
+        switch = self.switch = np.minimum(-(-steady // m) * m, count)
+        moving = np.maximum(np.floor(contact * self.dense_rate).astype(np.int64) - 1, 0)
+        self.first = np.minimum(moving // m * m, switch)
+        self.span = int((switch - self.first).max())
+        # each dense value the mean over the dense period before its instant: one instant
+        # more, before the first
+        index = self.first[:, None] - 1 + np.arange(self.span + 1)[None, :]
+        self.times = index / self.dense_rate - contact[:, None]
+
+    def blocks(
+        self,
+        family: PulseFamily,
+        rows: np.ndarray,
+        suites: Sequence[SensorSuite],
+        q: np.ndarray,
+        qd: np.ndarray,
+    ) -> list[VibrationBlocks]:
+        """Every scene's blocks from the states ``q``, ``qd`` (n, S, span + 1) at
+        :attr:`times`: dense values (``sensors.mean_specific_force_z``), filter, ring-down,
+        noise, clipping."""
+        structure = family.structure
+        g = structure.gravity_mps2
+        m, dense_rate = self.oversample, self.dense_rate
+        dense_period = 1.0 / dense_rate
+        first, switch, count = self.first, self.switch, self.count
+        angle = _read(structure.imu_slope_shape, q[:, :, 1:])
+        change = _read(structure.imu_shape, qd[:, :, 1:] - qd[:, :, :-1])
+        dense = np.ascontiguousarray(g * np.cos(angle) - change / dense_period)
+        if self.span:
+            start = np.where(first > 0, g, dense[:, 0])
+            state = np.ascontiguousarray(self.zi_unit[None, :, :] * start[:, None, None])
+            dense = _sos_filter_rows(self.sos, dense, state)
+        picks = dense[:, ::m]
+        outputs = -(-count // m)
+        j = np.arange(int(outputs.max()))[None, :]
+        clean = np.full((rows.size, j.size), g)
+        in_filter = (j >= (first // m)[:, None]) & (j < (switch // m)[:, None])
+        pick_rows, pick_cols = np.nonzero(in_filter)
+        clean[pick_rows, pick_cols] = picks[pick_rows, pick_cols - (first // m)[pick_rows]]
+        in_ringdown = (j >= (switch // m)[:, None]) & (j < outputs[:, None])
+        ringdown = _filtered_ringdown(
+            family, rows, (j[0] * m) / dense_rate, self.contact, dense_period, self.sos
+        )
+        clean[in_ringdown] = ringdown[in_ringdown]
+        blocks = []
+        for i, suite in enumerate(suites):
+            own = suite.spec
+            k = int(outputs[i])
+            noisy = clean[i, :k] + suite._vibration_rng.normal(0.0, own.vibration_noise_mps2, k)
+            limit = own.vibration_range_mps2
+            blocks.append(cut_blocks(np.clip(noisy, -limit, limit), 0, own)[0])
+        return blocks
+
+
+def _sos_filter_rows(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> np.ndarray:
+    """Every row of ``x`` (S, T) through the second-order sections from its own state ``zi``
+    (S, sections, 2): ``sensors.sos_filter`` row by row, in one call."""
+    if _SOSFILT_KERNEL is None:  # pragma: no cover - another scipy layout: the public function
+        from scipy import signal
+
+        return signal.sosfilt(sos, x, axis=-1, zi=zi.transpose(1, 0, 2))[0]
+    out = np.array(x, dtype=float, order="C")
+    _SOSFILT_KERNEL(np.ascontiguousarray(sos, dtype=float), out, zi)
+    return out
+
+
+def _filtered_ringdown(
+    family: PulseFamily,
+    rows: np.ndarray,
+    grid_s: np.ndarray,
+    contact_s: np.ndarray,
+    dense_period_s: float,
+    sos: np.ndarray,
+) -> np.ndarray:
+    """(S, T): ``ringdown_filtering.filtered_ringdown`` of impacts ``rows`` at the instants
+    ``grid_s`` (absolute) of scenes whose contacts start at ``contact_s``: the anti-alias
+    filter's steady output over the free ring-down, each term's exponential split into the
+    grid's and the scene's (:meth:`PulseFamily._free_on_grid`)."""
+    structure = family.structure
+    n = family.n
+    keep = structure._half_spectrum[0]
+    eigenvalues = structure._eigen[0][keep]
+    real, imag = family._free_amplitude  # (N, 2n, k)
+    amplitude = real[rows] + 1j * imag[rows]
+    angle_weight = np.einsum("i,sik->sk", structure.imu_slope_shape, amplitude[:, :n])
+    velocity_weight = np.einsum("i,sik->sk", structure.imu_shape, amplitude[:, n:])
+    dynamic_weight = velocity_weight * _dense_gain(structure, dense_period_s, sos)
+    offset = contact_s + family.duration_s[rows]
+    if max(
+        np.max(np.abs(np.multiply.outer(offset, eigenvalues.real)), initial=0.0),
+        np.max(np.abs(np.multiply.outer(grid_s, eigenvalues.real)), initial=0.0),
+    ) > 300.0:
+        # a strongly damped mode: instant by instant
+        dt = grid_s[None, :] - offset[:, None]
+        angle = np.zeros(dt.shape)
+        dynamic = np.zeros(dt.shape)
+        for k, lam in enumerate(eigenvalues):
+            growth = np.exp(lam.real * dt)
+            cos, sin = growth * np.cos(lam.imag * dt), growth * np.sin(lam.imag * dt)
+            a, d = angle_weight[:, k : k + 1], dynamic_weight[:, k : k + 1]
+            angle = angle + (a.real * cos - a.imag * sin)
+            dynamic = dynamic + (d.real * cos - d.imag * sin)
+        return structure.gravity_mps2 * np.cos(angle) + dynamic
+    shifted = np.exp(-np.multiply.outer(offset, eigenvalues))  # (S, k)
+    basis = np.exp(np.multiply.outer(eigenvalues, grid_s))  # (k, T)
+    a, d = angle_weight * shifted, dynamic_weight * shifted
+    angle = a.real @ basis.real - a.imag @ basis.imag
+    dynamic = d.real @ basis.real - d.imag @ basis.imag
+    return structure.gravity_mps2 * np.cos(angle) + dynamic
+
+
+__all__ = ["HISTORY_RATE_HZ", "layout_key", "sense_group", "summary_figures", "supported"]
