@@ -1,5 +1,5 @@
-"""Every sensor of many scenes at once, from a :class:`~tail_beam_sim.physics.pulse_family.
-PulseFamily`: what :func:`tail_beam_sim.physics.simulate.sense` makes of each trajectory, one
+"""Every sensor of many scenes at once, from a :class:`~tail_beam_sim.physics.contact_family.
+ContactFamily`: what :func:`tail_beam_sim.physics.simulate.sense` makes of each trajectory, one
 array operation per signal for the whole group.
 
 A group is scenes that share the sample rates, the window and the accelerometer's settings
@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_sim.physics.pulse_family import PulseFamily
+from tail_beam_sim.physics.contact_family import ContactFamily, Grid, grid_basis
 from tail_beam_sim.physics.result import SimulationResult
 from tail_beam_sim.physics.ringdown_filtering import _dense_gain, settle_steps
 from tail_beam_sim.physics.scene import Scene, SensorSpec
@@ -106,38 +106,6 @@ def _padded(draws: Sequence[np.ndarray], shape: tuple[int, ...]) -> np.ndarray:
     return out
 
 
-class _Readings:
-    """The states of a family at several grids of instants (S, T_k each), sampled in one pass
-    (:meth:`PulseFamily.sample`), each grid given as (instants, common grid or None, per-scene
-    shift or None): ``instants[i, j] = grid[j] - shift[i]`` when the grid is given."""
-
-    def __init__(
-        self,
-        family: PulseFamily,
-        rows: np.ndarray,
-        grids: Sequence[tuple[np.ndarray, np.ndarray | None, np.ndarray | None]],
-    ) -> None:
-        edges = np.cumsum([0] + [times.shape[1] for times, _, _ in grids])
-        self.spans = [slice(int(lo), int(hi)) for lo, hi in zip(edges[:-1], edges[1:])]
-        self.states = family.sample(
-            rows,
-            np.concatenate([times for times, _, _ in grids], axis=1),
-            [(span, grid, shift) for span, (_, grid, shift) in zip(self.spans, grids)],
-        )
-
-    def q(self, k: int) -> np.ndarray:
-        return self.states.q[:, :, self.spans[k]]
-
-    def qd(self, k: int) -> np.ndarray:
-        return self.states.qd[:, :, self.spans[k]]
-
-    def qdd(self, k: int) -> np.ndarray:
-        return self.states.qdd[:, :, self.spans[k]]
-
-    def field(self, name: str, k: int) -> np.ndarray:
-        return getattr(self.states, name)[:, self.spans[k]]
-
-
 def _read(weights: np.ndarray, values: np.ndarray) -> np.ndarray:
     """``weights @ values`` over the coordinates of (n, S, T) values: (S, T), summed term by
     term (one product for the rigid beam)."""
@@ -147,8 +115,28 @@ def _read(weights: np.ndarray, values: np.ndarray) -> np.ndarray:
     return out
 
 
+SMALL_ANGLE_RAD = 1e-3  # below it, cos and sin by their Taylor polynomials (to float rounding)
+
+
+def _cos(angle: np.ndarray) -> np.ndarray:
+    """cos of small angles (the beam's sway at the IMU, 1e-4 rad) as 1 - a^2/2 + a^4/24 (the
+    next term, a^6/720, is under 2e-21 there: float rounding), np.cos otherwise."""
+    if angle.size and float(np.max(np.abs(angle))) < SMALL_ANGLE_RAD:
+        square = angle * angle
+        return 1.0 - square * (0.5 - square * (1.0 / 24.0))
+    return np.cos(angle)
+
+
+def _sin(angle: np.ndarray) -> np.ndarray:
+    """sin of small angles as a - a^3/6 + a^5/120 (:func:`_cos`), np.sin otherwise."""
+    if angle.size and float(np.max(np.abs(angle))) < SMALL_ANGLE_RAD:
+        square = angle * angle
+        return angle * (1.0 - square * (1.0 / 6.0 - square * (1.0 / 120.0)))
+    return np.sin(angle)
+
+
 def sense_group(
-    family: PulseFamily,
+    family: ContactFamily,
     rows: np.ndarray,
     scenes: Sequence[Scene],
     vibration: bool,
@@ -168,77 +156,62 @@ def sense_group(
     end = contact + window
     duration = family.duration_s[rows]
 
-    # the instants every sensor reads, one grid (S, T) each, sampled in one pass
-    uniform, nodes, gather, lengths, is_pad = _history_times(family, rows, window, pre)
-    pressure_counts = _grid_counts(end, spec0.pressure_rate_hz)
-    pressure_stamps = np.arange(int(pressure_counts.max())) / spec0.pressure_rate_hz
-    imu_counts = _grid_counts(end, spec0.imu_rate_hz)
-    imu_stamps = np.arange(int(imu_counts.max())) / spec0.imu_rate_hz
-    period = 1.0 / spec0.imu_rate_hz
-    imu_t = imu_stamps[None, :] - contact[:, None]
-    zero = np.zeros(count)
-    grids = [
-        (np.broadcast_to(uniform, (count, uniform.size)), uniform, zero),
-        (nodes, None, None),
-        (pressure_stamps[None, :] - contact[:, None], pressure_stamps, contact),
-        (imu_t, imu_stamps, contact),
-        (imu_t - period, imu_stamps - period, contact),
-    ]
-    dense = _DenseSpan(spec0, contact, end, duration) if vibration else None
-    if dense is not None:
-        grids.append((dense.times, None, None))
-    read = _Readings(family, rows, grids)
-
-    # histories and the summary's peaks (simulate.histories, summarise): the uniform instants
-    # and the pulse's, merged in time order by ``gather``
+    # histories and the summary's peaks (simulate.histories, summarise)
+    times, index, uniform, lengths, is_pad = _history_times(family, rows, window, pre)
+    st = family.sample(
+        rows,
+        Grid(times, uniform, np.zeros(count), index, full=True, key=("history", pre, window)),
+    )
     jack_shape, slope, imu_shape = (
         structure.jack_shape,
         structure.imu_slope_shape,
         structure.imu_shape,
     )
-    both = slice(read.spans[0].start, read.spans[1].stop)
-    states = read.states
-    q, qd, qdd = states.q[:, :, both], states.qd[:, :, both], states.qdd[:, :, both]
-
-    def merged(values: np.ndarray) -> np.ndarray:
-        return np.take_along_axis(values, gather, axis=1)
-
-    history_t = merged(np.concatenate([grids[0][0], nodes], axis=1))
-    pressure_history = merged(
+    pressure_history = (
         structure.setting_pressure_pa
         + (
-            structure.jack_stiffness_npm * _read(jack_shape, q)
-            + structure.jack_damping_nspm * _read(jack_shape, qd)
+            structure.jack_stiffness_npm * _read(jack_shape, st.q)
+            + structure.jack_damping_nspm * _read(jack_shape, st.qd)
         )
         / structure.piston_area_m2
     )
-    beam_rate = merged(qd[0])
-    accel_at_imu = _read(imu_shape, qdd)
-    dynamic = merged(-accel_at_imu)
-    specific = merged(g * np.cos(_read(slope, q)) - accel_at_imu)
-    after = (history_t >= 0.0) & ~is_pad
+    beam_rate = st.qd[0]
+    accel_at_imu = _read(imu_shape, st.qdd)
+    dynamic = -accel_at_imu
+    after = (times >= 0.0) & ~is_pad
     peak_pressure = np.where(after, pressure_history, -np.inf).max(axis=1)
     peak_rate = np.where(after, np.abs(beam_rate), -np.inf).max(axis=1)
     peak_accel = np.where(after, np.abs(dynamic), -np.inf).max(axis=1)
     fields = {
-        "time_s": history_t,
-        "contact_force_n": merged(states.force_n[:, both]),
+        "time_s": times,
+        "contact_force_n": st.force_n,
         "jack_pressure_pa": pressure_history,
-        "beam_angle_rad": merged(q[0]),
+        "beam_angle_rad": st.q[0],
         "beam_angular_velocity_radps": beam_rate,
-        "imu_angular_velocity_radps": merged(_read(slope, qd)),
-        "imu_specific_force_mps2": specific,
+        "imu_angular_velocity_radps": _read(slope, st.qd),
+        "imu_specific_force_mps2": g * _cos(_read(slope, st.q)) - accel_at_imu,
         "imu_dynamic_accel_mps2": dynamic,
-        "particle_position_m": merged(states.z_m[:, both]),
-        "particle_velocity_mps": merged(states.zd_mps[:, both]),
+        "particle_position_m": st.z_m,
+        "particle_velocity_mps": st.zd_mps,
     }
 
     # pressure: point samples at k / rate
+    pressure_counts = _grid_counts(end, spec0.pressure_rate_hz)
+    pressure_stamps = np.arange(int(pressure_counts.max())) / spec0.pressure_rate_hz
+    at = family.sample(
+        rows,
+        Grid(
+            pressure_stamps[None, :] - contact[:, None],
+            pressure_stamps,
+            contact,
+            key=("stamps", spec0.pressure_rate_hz, pressure_stamps.size),
+        ),
+    )
     clean = (
         structure.setting_pressure_pa
         + (
-            structure.jack_stiffness_npm * _read(jack_shape, read.q(2))
-            + structure.jack_damping_nspm * _read(jack_shape, read.qd(2))
+            structure.jack_stiffness_npm * _read(jack_shape, at.q)
+            + structure.jack_damping_nspm * _read(jack_shape, at.qd)
         )
         / structure.piston_area_m2
     )
@@ -251,14 +224,29 @@ def sense_group(
     high = np.array([s.noise.pressure_range_pa[1] for s in suites])[:, None]
     pressure = np.clip(clean + sigma * unit, low, high)
 
-    # IMU: each reading the mean over the period before its stamp (sensors.imu_samples)
-    angle = _read(slope, read.q(3))
+    # IMU: each reading the mean over the period before its stamp (sensors.imu_samples); the
+    # period's start is the stamp before (the first: the beam at rest)
+    imu_counts = _grid_counts(end, spec0.imu_rate_hz)
+    imu_stamps = np.arange(int(imu_counts.max())) / spec0.imu_rate_hz
+    period = 1.0 / spec0.imu_rate_hz
+    now = family.sample(
+        rows,
+        Grid(
+            imu_stamps[None, :] - contact[:, None],
+            imu_stamps,
+            contact,
+            key=("stamps", spec0.imu_rate_hz, imu_stamps.size),
+        ),
+    )
+    q_before = np.concatenate([np.zeros(now.q.shape[:2] + (1,)), now.q[:, :, :-1]], axis=2)
+    qd_before = np.concatenate([np.zeros(now.qd.shape[:2] + (1,)), now.qd[:, :, :-1]], axis=2)
+    angle = _read(slope, now.q)
     gyro = np.zeros(angle.shape + (3,))
-    gyro[:, :, 1] = _read(slope, read.q(3) - read.q(4)) / period
+    gyro[:, :, 1] = _read(slope, now.q - q_before) / period
     accel = np.zeros_like(gyro)
-    pitch_rate = _read(slope, read.qd(3))
-    accel[:, :, 0] = -structure.imu_from_hinge_m * pitch_rate**2 - g * np.sin(angle)
-    accel[:, :, 2] = g * np.cos(angle) - _read(imu_shape, read.qd(3) - read.qd(4)) / period
+    pitch_rate = _read(slope, now.qd)
+    accel[:, :, 0] = -structure.imu_from_hinge_m * pitch_rate**2 - g * _sin(angle)
+    accel[:, :, 2] = g * _cos(angle) - _read(imu_shape, now.qd - qd_before) / period
     gyro_unit = np.zeros_like(gyro)
     accel_unit = np.zeros_like(gyro)
     for i, (suite, k) in enumerate(zip(suites, imu_counts)):
@@ -269,8 +257,8 @@ def sense_group(
     accel = accel + np.array([s.noise.accel_mps2 for s in suites])[:, None, None] * accel_unit
 
     blocks = (
-        dense.blocks(family, rows, suites, read.q(5), read.qd(5))
-        if dense is not None
+        _DenseSpan(spec0, contact, end, duration).blocks(family, rows, suites)
+        if vibration
         else [VibrationBlocks.empty()] * count
     )
 
@@ -324,14 +312,15 @@ def sense_group(
 
 
 def _history_times(
-    family: PulseFamily, rows: np.ndarray, window_s: float, pre_contact_s: float
+    family: ContactFamily, rows: np.ndarray, window_s: float, pre_contact_s: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The instants of the histories (``simulate.history_times``: HISTORY_RATE_HZ from
-    -pre_contact_s to window_s, plus every sample of the pulse, each instant once, in order):
-    the uniform ones (U,), the pulse's (S, P), ``gather`` (S, W): which of the U + P columns
-    each history sample is, each scene's count, and where rows are padded past it."""
+    -pre_contact_s to window_s, plus every sample of the contact, each instant once, in
+    order), (S, W) padded past each scene's count with the last uniform instant; which
+    uniform instant each is (-1: the contact's), the uniform instants (U,), each scene's
+    count, and where it is padded."""
     uniform = np.arange(-pre_contact_s, window_s + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ)
-    nodes = family.node_times[rows]
+    nodes = family.contact_times[rows]
     position = np.searchsorted(uniform, nodes)
     clipped = np.minimum(position, uniform.size - 1)
     keep = ~((position < uniform.size) & (uniform[clipped] == nodes)) & (nodes <= window_s)
@@ -343,10 +332,12 @@ def _history_times(
     kept_rows, kept_cols = np.nonzero(keep)
     is_node[kept_rows, (position + rank)[kept_rows, kept_cols]] = True
     is_pad = np.arange(width)[None, :] >= lengths[:, None]
-    gather = np.zeros((count, width), dtype=np.int64)
-    gather[is_node] = uniform.size + kept_cols
-    gather[~(is_node | is_pad)] = np.tile(np.arange(uniform.size), count)
-    return uniform, nodes, gather, lengths, is_pad
+    index = np.full((count, width), uniform.size - 1, dtype=np.int64)
+    index[is_node] = -1
+    index[~(is_node | is_pad)] = np.tile(np.arange(uniform.size), count)
+    times = uniform[index]
+    times[is_node] = nodes[keep]
+    return times, index, uniform, lengths, is_pad
 
 
 class _DenseSpan:
@@ -377,28 +368,26 @@ class _DenseSpan:
         self.span = int((switch - self.first).max())
         # each dense value the mean over the dense period before its instant: one instant
         # more, before the first
-        index = self.first[:, None] - 1 + np.arange(self.span + 1)[None, :]
-        self.times = index / self.dense_rate - contact[:, None]
+        low = int(self.first.min()) - 1
+        self.index = self.first[:, None] - 1 - low + np.arange(self.span + 1)[None, :]
+        self.grid = np.arange(low, low + int(self.index.max()) + 1) / self.dense_rate
+        self.times = self.grid[self.index] - contact[:, None]
 
     def blocks(
-        self,
-        family: PulseFamily,
-        rows: np.ndarray,
-        suites: Sequence[SensorSuite],
-        q: np.ndarray,
-        qd: np.ndarray,
+        self, family: ContactFamily, rows: np.ndarray, suites: Sequence[SensorSuite]
     ) -> list[VibrationBlocks]:
-        """Every scene's blocks from the states ``q``, ``qd`` (n, S, span + 1) at
-        :attr:`times`: dense values (``sensors.mean_specific_force_z``), filter, ring-down,
-        noise, clipping."""
+        """Every scene's blocks: dense values at :attr:`times`
+        (``sensors.mean_specific_force_z``), filter, ring-down, noise, clipping."""
         structure = family.structure
+        at = family.sample(rows, Grid(self.times, self.grid, self.contact, self.index))
+        q, qd = at.q, at.qd
         g = structure.gravity_mps2
         m, dense_rate = self.oversample, self.dense_rate
         dense_period = 1.0 / dense_rate
         first, switch, count = self.first, self.switch, self.count
         angle = _read(structure.imu_slope_shape, q[:, :, 1:])
         change = _read(structure.imu_shape, qd[:, :, 1:] - qd[:, :, :-1])
-        dense = np.ascontiguousarray(g * np.cos(angle) - change / dense_period)
+        dense = np.ascontiguousarray(g * _cos(angle) - change / dense_period)
         if self.span:
             start = np.where(first > 0, g, dense[:, 0])
             state = np.ascontiguousarray(self.zi_unit[None, :, :] * start[:, None, None])
@@ -438,7 +427,7 @@ def _sos_filter_rows(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> np.ndarr
 
 
 def _filtered_ringdown(
-    family: PulseFamily,
+    family: ContactFamily,
     rows: np.ndarray,
     grid_s: np.ndarray,
     contact_s: np.ndarray,
@@ -448,7 +437,7 @@ def _filtered_ringdown(
     """(S, T): ``ringdown_filtering.filtered_ringdown`` of impacts ``rows`` at the instants
     ``grid_s`` (absolute) of scenes whose contacts start at ``contact_s``: the anti-alias
     filter's steady output over the free ring-down, each term's exponential split into the
-    grid's and the scene's (:meth:`PulseFamily._free_on_grid`)."""
+    grid's and the scene's (:meth:`ContactFamily._free_on_grid`)."""
     structure = family.structure
     n = family.n
     keep = structure._half_spectrum[0]
@@ -459,10 +448,13 @@ def _filtered_ringdown(
     velocity_weight = np.einsum("i,sik->sk", structure.imu_shape, amplitude[:, n:])
     dynamic_weight = velocity_weight * _dense_gain(structure, dense_period_s, sos)
     offset = contact_s + family.duration_s[rows]
-    if max(
-        np.max(np.abs(np.multiply.outer(offset, eigenvalues.real)), initial=0.0),
-        np.max(np.abs(np.multiply.outer(grid_s, eigenvalues.real)), initial=0.0),
-    ) > 300.0:
+    if (
+        max(
+            np.max(np.abs(np.multiply.outer(offset, eigenvalues.real)), initial=0.0),
+            np.max(np.abs(np.multiply.outer(grid_s, eigenvalues.real)), initial=0.0),
+        )
+        > 300.0
+    ):
         # a strongly damped mode: instant by instant
         dt = grid_s[None, :] - offset[:, None]
         angle = np.zeros(dt.shape)
@@ -475,11 +467,11 @@ def _filtered_ringdown(
             dynamic = dynamic + (d.real * cos - d.imag * sin)
         return structure.gravity_mps2 * np.cos(angle) + dynamic
     shifted = np.exp(-np.multiply.outer(offset, eigenvalues))  # (S, k)
-    basis = np.exp(np.multiply.outer(eigenvalues, grid_s))  # (k, T)
+    basis = grid_basis(structure, grid_s, ("outputs", dense_period_s, grid_s.size, grid_s[-1]))
     a, d = angle_weight * shifted, dynamic_weight * shifted
     angle = a.real @ basis.real - a.imag @ basis.imag
     dynamic = d.real @ basis.real - d.imag @ basis.imag
-    return structure.gravity_mps2 * np.cos(angle) + dynamic
+    return structure.gravity_mps2 * _cos(angle) + dynamic
 
 
 __all__ = ["HISTORY_RATE_HZ", "layout_key", "sense_group", "summary_figures", "supported"]

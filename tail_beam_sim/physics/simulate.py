@@ -26,15 +26,16 @@ from tail_beam_sim.physics.contact import (
     effective_modulus_pa,
     hertz_stiffness,
 )
+from tail_beam_sim.physics.contact_family import ContactFamily
 from tail_beam_sim.physics.fidelity import (
     DEFAULT_TIER,
     FidelitySettings,
     Needs,
     Plan,
     plan,
+    plan_many,
     shipped_settings,
 )
-from tail_beam_sim.physics.pulse_family import PulseFamily
 from tail_beam_sim.physics.result import SimulationResult
 from tail_beam_sim.physics.scene import Impact, Scene
 from tail_beam_sim.physics.sense_many import (
@@ -175,8 +176,8 @@ def simulate(
     needs = needs or settings.needs
     chosen, problem, method, options = _prepare(scene, tier, needs, settings, solver)
     result = None
-    if not solver_options and _pulse_path(scene, chosen, method, options):
-        family = PulseFamily([problem], _pulse_tolerance(options))
+    if not solver_options and _family_path(scene, chosen, method, options):
+        family = ContactFamily([problem], _family_tolerance(options))
         if family.ok[0]:
             result = sense_group(family, np.zeros(1, dtype=np.int64), [scene], vibration)[0]
             _label(result, chosen)
@@ -210,8 +211,8 @@ def simulate_many(
     automatic tier depend on its sample rates: scenes share a trajectory only when their plans
     agree on the model and solver) and its own streams.
 
-    Impacts the hybrid solver takes as one pulse contact (most: :mod:`~tail_beam_sim.physics.
-    pulse_family`) are solved together per structure, and the sensors of scenes that share
+    Impacts the hybrid solver takes as one contact (most: :mod:`~tail_beam_sim.physics.
+    contact_family`) are solved together per structure, and the sensors of scenes that share
     their rates and window are sampled together (:mod:`~tail_beam_sim.physics.sense_many`),
     one array operation per signal for the group; the others one by one.
     """
@@ -225,8 +226,8 @@ def simulate_many(
     plans = []
     impacts: dict[tuple[Any, ...], int] = {}  # each distinct impact's index in ``distinct``
     distinct: list[tuple[Plan, ImpactProblem, str, dict[str, Any]]] = []
-    for scene in scenes:
-        chosen, problem, method, options = _prepare(scene, tier, needs, settings, None)
+    for scene, chosen in zip(scenes, plan_many(scenes, tier, needs, settings)):
+        problem, method, options = _problem(scene, chosen, settings, None)
         key = (
             scene.support,
             scene.impact,
@@ -241,18 +242,18 @@ def simulate_many(
             impacts[key] = len(distinct)
             distinct.append((chosen, problem, method, options))
         plans.append((chosen, impacts[key]))
-    # the pulse impacts, per structure and tolerance: one family each
+    # the one-contact impacts, per structure and tolerance: one family each
     families: dict[tuple[int, float], tuple[list[int], list[ImpactProblem]]] = {}
     for index, (chosen, problem, method, options) in enumerate(distinct):
-        if _pulse_path(None, chosen, method, options):
+        if _family_path(None, chosen, method, options):
             members = families.setdefault(
-                (id(chosen.structure), _pulse_tolerance(options)), ([], [])
+                (id(chosen.structure), _family_tolerance(options)), ([], [])
             )
             members[0].append(index)
             members[1].append(problem)
-    place: dict[int, tuple[PulseFamily, int]] = {}
+    place: dict[int, tuple[ContactFamily, int]] = {}
     for (_, tolerance), (indices, problems) in families.items():
-        family = PulseFamily(problems, tolerance)
+        family = ContactFamily(problems, tolerance)
         for row, index in enumerate(indices):
             if family.ok[row]:
                 place[index] = (family, row)
@@ -281,8 +282,8 @@ def simulate_many(
     return [r for r in results if r is not None]
 
 
-def _pulse_path(scene: Scene | None, chosen: Plan, method: str, options: dict[str, Any]) -> bool:
-    """Whether the impact goes the pulse family's way: the hybrid solver with its default
+def _family_path(scene: Scene | None, chosen: Plan, method: str, options: dict[str, Any]) -> bool:
+    """Whether the impact goes the contact family's way: the hybrid solver with its default
     contact handling (only the tier's tolerance given), no crushing, and (given the scene)
     sensors the group path covers."""
     return (
@@ -293,7 +294,7 @@ def _pulse_path(scene: Scene | None, chosen: Plan, method: str, options: dict[st
     )
 
 
-def _pulse_tolerance(options: dict[str, Any]) -> float:
+def _family_tolerance(options: dict[str, Any]) -> float:
     return float(options.get("pulse_tolerance", DEFAULT_PULSE_TOLERANCE))
 
 
@@ -303,6 +304,13 @@ def _prepare(
     """The plan of ``scene``, its impact problem, the solver and the plan's options for it
     (none when ``solver`` is another than the tier's)."""
     chosen = plan(scene, tier, needs, settings)
+    return (chosen, *_problem(scene, chosen, settings, solver))
+
+
+def _problem(
+    scene: Scene, chosen: Plan, settings: FidelitySettings, solver: str | None
+) -> tuple[ImpactProblem, str, dict[str, Any]]:
+    """The impact problem of ``scene`` under plan ``chosen``, the solver and its options."""
     crushing = (
         crushing_contact(scene.support, scene.impact, settings.crushing_confinement_factor)
         if chosen.tier.brittle
@@ -317,7 +325,7 @@ def _prepare(
         crushing=crushing,
     )
     options = chosen.solver_options if solver in (None, chosen.solver) else {}
-    return chosen, problem, solver or chosen.solver, dict(options)
+    return problem, solver or chosen.solver, dict(options)
 
 
 def _finish(
