@@ -39,8 +39,6 @@ from tail_beam_sim.physics.solvers.problem import (
     FreeSegment,
     ImpactProblem,
     Trajectory,
-    _gradient,
-    _step_polynomials,
 )
 from tail_beam_sim.physics.solvers.pulse import (
     PULSE_NODES,
@@ -54,15 +52,12 @@ from tail_beam_sim.physics.structure import LinearStructure, reduced_mass_kg
 
 @dataclass
 class FamilyStates:
-    """States of S impacts at T instants each: q-like fields (n, S, T), the others (S, T);
-    q'', the force and the particle's position and speed only when asked for."""
+    """The structure's states of S impacts at T instants each, (n, S, T): q, q' and, when
+    asked for, q''."""
 
     q: np.ndarray
     qd: np.ndarray
     qdd: np.ndarray | None
-    force_n: np.ndarray | None
-    z_m: np.ndarray | None
-    zd_mps: np.ndarray | None
 
 
 @dataclass
@@ -70,13 +65,13 @@ class Grid:
     """S x C instants to sample (s from first contact), ``times``; when ``grid`` (G,) and
     ``shift`` (S,) are given, ``times[i, j] = grid[j] - shift[i]`` (a sensor's stamps less each
     scene's contact instant), or ``grid[index[i, j]] - shift[i]`` where ``index`` (S, C) is
-    given and not negative. ``full``: q'', the force and the particle's state too."""
+    given and not negative. ``accel``: q'' too."""
 
     times: np.ndarray
     grid: np.ndarray | None = None
     shift: np.ndarray | None = None
     index: np.ndarray | None = None
-    full: bool = False
+    accel: bool = False
     key: tuple[Any, ...] | None = None  # names the grid (a sensor's rate and count): its
     # exponentials are kept per structure and key
 
@@ -243,43 +238,50 @@ class ContactFamily:
     @cached_property
     def _contact_nodes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every impact's contact samples, padded to the longest: their instants (N, P) (s from
-        contact start, +inf past the last), each step's cubic Hermite coefficients of
-        [q; q'; z; z'] and straight line of [q''; force] (N, P - 1, 4, 3n + 3)
-        (``Trajectory._stacks``), the count of samples (N,) and a nominal step (N,) s."""
+        contact start, +inf past the last), each step's cubic Hermite coefficients of [q; q']
+        and straight line of q'' (N, P - 1, 4, 3n) (``Trajectory._stacks``), the count of
+        samples (N,) and a nominal step (N,) s."""
         size, n = self.size, self.n
         pulses = np.flatnonzero(self.pulse)
-        width = PULSE_NODES + 1
-        for i, (t, *_rest) in self.integrated.items():
-            width = max(width, t.size)
+        integrated = sorted(self.integrated)
+        width = max([PULSE_NODES + 1] + [self.integrated[i][0].size for i in integrated])
         nodes = np.full((size, width), np.inf)
-        polynomials = np.zeros((size, width - 1, 4, 3 * n + 3))
+        values = np.zeros((size, 2 * n, width))  # [q; q'] at the samples
+        slopes = np.zeros((size, 2 * n, width))  # [q'; q'']
         counts = np.full(size, 2, dtype=np.int64)
         step = np.ones(size)
         if pulses.size:
             times = pulse_table().fractions * self.duration_s[pulses, None]
             nodes[pulses, : PULSE_NODES + 1] = times
-            polynomials[pulses, :PULSE_NODES] = self._pulse_polynomials(pulses, times)
+            q, qd, qdd = self._pulse_states(pulses, times)
+            values[pulses, :, : PULSE_NODES + 1] = np.concatenate([q, qd], axis=1)
+            slopes[pulses, :, : PULSE_NODES + 1] = np.concatenate([qd, qdd], axis=1)
             counts[pulses] = PULSE_NODES + 1
             step[pulses] = self.duration_s[pulses] / PULSE_NODES
-        for i, (t, states, derivatives, force) in self.integrated.items():
-            segment = ContactSegment(
-                t_s=t,
-                q=states[:, :n].T,
-                qd=states[:, n : 2 * n].T,
-                qdd=derivatives[:, n : 2 * n].T,
-                z_m=states[:, 2 * n],
-                zd_mps=states[:, 2 * n + 1],
-                force_n=force,
-            )
-            steps = np.diff(t)
-            zdd = _gradient(segment.zd_mps, steps)
-            values = np.vstack([segment.q, segment.qd, segment.z_m, segment.zd_mps])
-            slopes = np.vstack([segment.qd, segment.qdd, segment.zd_mps, zdd])
+        for i in integrated:
+            t, states, derivatives, _ = self.integrated[i]
             nodes[i, : t.size] = t
-            polynomials[i, : t.size - 1] = _step_polynomials(values, slopes, steps, segment)
+            values[i, :, : t.size] = states[:, : 2 * n].T
+            slopes[i, :, : t.size] = derivatives[:, : 2 * n].T
             counts[i] = t.size
-            step[i] = steps[0]
-        return nodes, polynomials, counts, step
+            step[i] = t[1] - t[0]
+        # past each impact's last sample: a zero-length step (never sampled)
+        last = nodes[np.arange(size), counts - 1]
+        steps = np.diff(np.where(np.isfinite(nodes), nodes, last[:, None]), axis=1)
+        v0, v1 = values[:, :, :-1], values[:, :, 1:]
+        m0, m1 = slopes[:, :, :-1] * steps[:, None], slopes[:, :, 1:] * steps[:, None]
+        a0, a1 = slopes[:, n:, :-1], slopes[:, n:, 1:]  # q'' (straight line)
+        zero = np.zeros_like(a0)
+        coefficients = np.stack(
+            [
+                np.concatenate([v0, a0], axis=1),
+                np.concatenate([m0, a1 - a0], axis=1),
+                np.concatenate([3.0 * (v1 - v0) - 2.0 * m0 - m1, zero], axis=1),
+                np.concatenate([2.0 * (v0 - v1) + m0 + m1, zero], axis=1),
+            ],
+            axis=1,
+        )  # (N, 4, 3n, steps)
+        return nodes, np.ascontiguousarray(coefficients.transpose(0, 3, 1, 2)), counts, step
 
     @property
     def contact_times(self) -> np.ndarray:
@@ -291,10 +293,12 @@ class ContactFamily:
         w = self.weight[:, None]
         return (1 - w) * rows[self.row, k] + w * rows[self.row + 1, k]
 
-    def _pulse_polynomials(self, which: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """(W, steps, 4, 3n + 3): for impacts ``which`` (pulse contacts sampled at ``t``), per
-        pulse step the cubic Hermite coefficients of [q; q'; z; z'] and the straight line of
-        [q''; force] (``Trajectory._stacks`` of ``hybrid.PulseSegment``)."""
+    def _pulse_states(
+        self, which: np.ndarray, t: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """q, q', q'' (W, n, samples) of impacts ``which`` (pulse contacts) at their pulse's
+        samples ``t`` (``hybrid.PulseSegment``: the structure driven by the piecewise-linear
+        pulse, exact in its eigen-basis)."""
         structure = self.structure
         n = self.n
         eigenvalues, vectors, inverse = structure._eigen
@@ -330,28 +334,7 @@ class ContactFamily:
         qdd = self.load[which, :, None] * force[:, None, :] - np.matmul(
             m_inv, np.matmul(structure.damping, qd) + np.matmul(structure.stiffness, q)
         )
-        shape = self.shape[which, :, None]
-        z = -(shape * q).sum(axis=1) - self._rows(0)[which] * self.length_m[which, None]
-        zd = -(shape * qd).sum(axis=1) - self._rows(1)[which] * self.approach_mps[which, None]
-        steps = np.diff(t, axis=1)
-        zdd = _gradient_rows(zd, steps)
-        values = np.concatenate([q, qd, z[:, None], zd[:, None]], axis=1)
-        slopes = np.concatenate([qd, qdd, zd[:, None], zdd[:, None]], axis=1)
-        linear = np.concatenate([qdd, force[:, None]], axis=1)
-        v0, v1 = values[:, :, :-1], values[:, :, 1:]
-        m0, m1 = slopes[:, :, :-1] * steps[:, None], slopes[:, :, 1:] * steps[:, None]
-        a0, a1 = linear[:, :, :-1], linear[:, :, 1:]
-        zero = np.zeros_like(a0)
-        coefficients = np.stack(
-            [
-                np.concatenate([v0, a0], axis=1),
-                np.concatenate([m0, a1 - a0], axis=1),
-                np.concatenate([3.0 * (v1 - v0) - 2.0 * m0 - m1, zero], axis=1),
-                np.concatenate([2.0 * (v0 - v1) + m0 + m1, zero], axis=1),
-            ],
-            axis=1,
-        )  # (N, 4, 3n + 3, steps)
-        return np.ascontiguousarray(coefficients.transpose(0, 3, 1, 2))
+        return q, qd, qdd
 
     @cached_property
     def _free_amplitude(self) -> tuple[np.ndarray, np.ndarray]:
@@ -365,16 +348,15 @@ class ContactFamily:
         return np.ascontiguousarray(amplitude.real), np.ascontiguousarray(amplitude.imag)
 
     def sample(self, rows: np.ndarray, grid: Grid) -> FamilyStates:
-        """The states of impact ``rows[i]`` (S,) at the instants ``grid.times[i]`` (S, C),
-        as ``Trajectory.sample`` gives them: q and q' (n, S, C) always, q'', the force and the
-        particle's position and speed (S, C; q'' (n, S, C)) when ``grid.full``, else None.
+        """The structure's states of impact ``rows[i]`` (S,) at the instants ``grid.times[i]``
+        (S, C), as ``Trajectory.sample`` gives them: q and q' (n, S, C), q'' when
+        ``grid.accel``.
 
         Where the grid says its instants are a common grid less each scene's shift, the free
         response is a product of the grid's and the scenes' exponentials
         (:meth:`_free_on_grid`); elsewhere it is evaluated instant by instant."""
         n = self.n
         structure = self.structure
-        g = self.gravity_mps2
         times = grid.times
         dt = times - self.duration_s[rows][:, None]
         state = None
@@ -388,33 +370,24 @@ class ContactFamily:
                 i, k = np.nonzero(off)
                 state[:, i, k] = self._free_direct(rows[i], dt[i, k])
         q, qd = state[:n], state[n:]
-        out = FamilyStates(q, qd, None, None, None, None)
-        if grid.full:
+        out = FamilyStates(q, qd, None)
+        if grid.accel:
             flat = (n, times.size)
             internal = _columnwise(structure.damping, qd.reshape(flat)) + _columnwise(
                 structure.stiffness, q.reshape(flat)
             )
             out.qdd = -_columnwise(structure.inv_mass, internal).reshape(q.shape)
-            out.force_n = np.zeros(times.shape)
-            end_z, end_zd = self.end_z_m[rows][:, None], self.end_zd_mps[rows][:, None]
-            out.z_m = end_z + end_zd * dt - 0.5 * g * dt * dt
-            out.zd_mps = end_zd - g * dt
         before = times < 0.0
-        if before.any():
-            # at rest before the contact, the particle falling at its approach speed
+        if before.any():  # at rest before the contact
             i, k = np.nonzero(before)
             out.q[:, i, k] = 0.0
             out.qd[:, i, k] = 0.0
-            if grid.full:
-                t = times[i, k]
+            if grid.accel:
                 out.qdd[:, i, k] = 0.0
-                speed = self.speed_mps[rows[i]]
-                out.z_m[i, k] = 0.0 + (-speed) * t - 0.5 * g * t * t
-                out.zd_mps[i, k] = -speed - g * t
         during = ~before & (dt < 0.0)
         if during.any():
             i, k = np.nonzero(during)
-            self._sample_contact(rows[i], times[i, k], out, (i, k), grid.full)
+            self._sample_contact(rows[i], times[i, k], out, (i, k), grid.accel)
         return out
 
     def _free_direct(self, rows: np.ndarray, dt: np.ndarray) -> np.ndarray:
@@ -460,13 +433,13 @@ class ContactFamily:
             :, None, :
         ]  # (S, 2n, k)
         basis = grid_basis(self.structure, grid, key)  # (k, G)
-        if index is None:
-            state = np.matmul(weights.real, basis.real) - np.matmul(weights.imag, basis.imag)
-            return state.transpose(1, 0, 2)
-        at = np.maximum(index, 0)
+        at = None if index is None else np.maximum(index, 0)
         state = None
         for j in range(eigenvalues.size):
-            re, im = basis.real[j][at], basis.imag[j][at]  # (S, C)
+            if at is None:
+                re, im = basis.real[j][None, :], basis.imag[j][None, :]  # (1, C)
+            else:
+                re, im = basis.real[j][at], basis.imag[j][at]  # (S, C)
             term = (
                 weights.real[:, :, j].T[:, :, None] * re - weights.imag[:, :, j].T[:, :, None] * im
             )
@@ -479,10 +452,10 @@ class ContactFamily:
         t_s: np.ndarray,
         out: FamilyStates,
         where: tuple[np.ndarray, np.ndarray],
-        full: bool,
+        accel: bool,
     ) -> None:
         """The cubic Hermite through the contact's samples (``Trajectory._sample_contact``) at
-        (impact, instant) pairs within their contacts (only q and q' unless ``full``)."""
+        (impact, instant) pairs within their contacts (q'' too when ``accel``)."""
         nodes, polynomials, counts, step = self._contact_nodes
         last = counts[rows] - 2
         guess = np.minimum(np.maximum((t_s / step[rows]).astype(np.int64), 0), last)
@@ -494,14 +467,13 @@ class ContactFamily:
         h = nodes[rows, k + 1] - start
         s = np.where(h > 0, (t_s - start) / np.where(h > 0, h, 1.0), 0.0)
         n = self.n
-        c = polynomials[rows, k] if full else polynomials[rows, k, :, : 2 * n]  # (M, 4, .)
+        c = polynomials[rows, k] if accel else polynomials[rows, k, :, : 2 * n]  # (M, 4, .)
         x = s[:, None]
         y = (c[:, 0] + x * (c[:, 1] + x * (c[:, 2] + x * c[:, 3]))).T
         i, j = where
         out.q[:, i, j], out.qd[:, i, j] = y[:n], y[n : 2 * n]
-        if full:
-            out.z_m[i, j], out.zd_mps[i, j] = y[2 * n], y[2 * n + 1]
-            out.qdd[:, i, j], out.force_n[i, j] = y[2 * n + 2 : 3 * n + 2], y[3 * n + 2]
+        if accel:
+            out.qdd[:, i, j] = y[2 * n :]
 
     def trajectory(self, i: int) -> Trajectory:
         """Impact ``i``'s trajectory, as the hybrid solver gives it (``ok[i]`` must hold); one
@@ -575,22 +547,4 @@ def _columnwise(matrix: np.ndarray, values: np.ndarray) -> np.ndarray:
     out = matrix[:, :1] * values[0]
     for j in range(1, matrix.shape[1]):
         out = out + matrix[:, j : j + 1] * values[j]
-    return out
-
-
-def _gradient_rows(values: np.ndarray, steps: np.ndarray) -> np.ndarray:
-    """``problem._gradient`` of each row of ``values`` (N, T) on its own ``steps`` (N, T - 1):
-    the uniform-step formula on rows whose steps are all equal, the general one elsewhere."""
-    out = np.empty_like(values)
-    uniform = (steps == steps[:, :1]).all(axis=1)
-    step = steps[:, :1]
-    even = (values[:, 2:] - values[:, :-2]) / (2.0 * step)
-    dx1, dx2 = steps[:, :-1], steps[:, 1:]
-    a = -(dx2) / (dx1 * (dx1 + dx2))
-    b = (dx2 - dx1) / (dx1 * dx2)
-    c = dx1 / (dx2 * (dx1 + dx2))
-    uneven = a * values[:, :-2] + b * values[:, 1:-1] + c * values[:, 2:]
-    out[:, 1:-1] = np.where(uniform[:, None], even, uneven)
-    out[:, 0] = (values[:, 1] - values[:, 0]) / steps[:, 0]
-    out[:, -1] = (values[:, -1] - values[:, -2]) / steps[:, -1]
     return out

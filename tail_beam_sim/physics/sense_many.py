@@ -12,13 +12,14 @@ family; per scene remain only its seeded generators' draws (its noise must be th
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
 
 from tail_beam_sim.physics.contact_family import ContactFamily, Grid, grid_basis
-from tail_beam_sim.physics.result import SimulationResult
+from tail_beam_sim.physics.result import LazyHistory, SimulationResult
 from tail_beam_sim.physics.ringdown_filtering import _dense_gain, settle_steps
 from tail_beam_sim.physics.scene import Scene, SensorSpec
 from tail_beam_sim.physics.sensors import (
@@ -140,10 +141,12 @@ def sense_group(
     rows: np.ndarray,
     scenes: Sequence[Scene],
     vibration: bool,
+    history_of: Callable[[Scene, Trajectory], dict[str, np.ndarray]],
 ) -> list[SimulationResult]:
     """The sensors of ``scenes`` (one group: :func:`layout_key`), scene i reading impact
     ``rows[i]`` of ``family`` (whose ``ok`` must hold): each scene's result as ``sense`` gives
-    it, the summary without its tier and error estimate (the plan's)."""
+    it, the summary without its tier and error estimate (the plan's); its histories are
+    ``history_of(scene, trajectory)``, computed when first read."""
     structure = family.structure
     scene0 = scenes[0]
     spec0 = scene0.sensors
@@ -156,44 +159,49 @@ def sense_group(
     end = contact + window
     duration = family.duration_s[rows]
 
-    # histories and the summary's peaks (simulate.histories, summarise)
-    times, index, uniform, lengths, is_pad = _history_times(family, rows, window, pre)
-    st = family.sample(
-        rows,
-        Grid(times, uniform, np.zeros(count), index, full=True, key=("history", pre, window)),
-    )
+    # the summary's peaks after first contact (summarise) over the histories' instants: the
+    # uniform ones from contact on and the contact's samples (the histories themselves are
+    # computed when first read)
+    uniform = np.arange(-pre, window + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ)
+    uniform = uniform[uniform >= 0.0]
+    nodes = family.contact_times[rows]
+    real = nodes <= window
+    nodes = np.where(real, nodes, window)
     jack_shape, slope, imu_shape = (
         structure.jack_shape,
         structure.imu_slope_shape,
         structure.imu_shape,
     )
-    pressure_history = (
-        structure.setting_pressure_pa
-        + (
+    peaks = []
+    for grid, valid in (
+        (
+            Grid(
+                np.broadcast_to(uniform, (count, uniform.size)),
+                uniform,
+                np.zeros(count),
+                accel=True,
+                key=("history", pre, window),
+            ),
+            None,
+        ),
+        (Grid(nodes, accel=True), real),
+    ):
+        st = family.sample(rows, grid)
+        values = (
             structure.jack_stiffness_npm * _read(jack_shape, st.q)
-            + structure.jack_damping_nspm * _read(jack_shape, st.qd)
+            + structure.jack_damping_nspm * _read(jack_shape, st.qd),
+            np.abs(st.qd[0]),
+            np.abs(_read(imu_shape, st.qdd)),
         )
-        / structure.piston_area_m2
+        peaks.append(
+            [(v if valid is None else np.where(valid, v, -np.inf)).max(axis=1) for v in values]
+        )
+    peak_pressure = (
+        structure.setting_pressure_pa
+        + np.maximum(peaks[0][0], peaks[1][0]) / structure.piston_area_m2
     )
-    beam_rate = st.qd[0]
-    accel_at_imu = _read(imu_shape, st.qdd)
-    dynamic = -accel_at_imu
-    after = (times >= 0.0) & ~is_pad
-    peak_pressure = np.where(after, pressure_history, -np.inf).max(axis=1)
-    peak_rate = np.where(after, np.abs(beam_rate), -np.inf).max(axis=1)
-    peak_accel = np.where(after, np.abs(dynamic), -np.inf).max(axis=1)
-    fields = {
-        "time_s": times,
-        "contact_force_n": st.force_n,
-        "jack_pressure_pa": pressure_history,
-        "beam_angle_rad": st.q[0],
-        "beam_angular_velocity_radps": beam_rate,
-        "imu_angular_velocity_radps": _read(slope, st.qd),
-        "imu_specific_force_mps2": g * _cos(_read(slope, st.q)) - accel_at_imu,
-        "imu_dynamic_accel_mps2": dynamic,
-        "particle_position_m": st.z_m,
-        "particle_velocity_mps": st.zd_mps,
-    }
+    peak_rate = np.maximum(peaks[0][1], peaks[1][1])
+    peak_accel = np.maximum(peaks[0][2], peaks[1][2])
 
     # pressure: point samples at k / rate
     pressure_counts = _grid_counts(end, spec0.pressure_rate_hz)
@@ -266,7 +274,6 @@ def sense_group(
     for i, (scene, suite) in enumerate(zip(scenes, suites)):
         trajectory = family.trajectory(int(rows[i]))
         stamp = float(contact[i])
-        length = int(lengths[i])
         rebound = suite.rebound(trajectory, stamp)
         point = (
             suite.impact_point(
@@ -285,7 +292,7 @@ def sense_group(
                 scene=scene,
                 trajectory=trajectory,
                 contact_stamp_s=stamp,
-                history={key: values[i, :length] for key, values in fields.items()},
+                history=LazyHistory(partial(history_of, scene, trajectory)),
                 pressure=PressureStream(
                     pressure_stamps[:kp], pressure[i, :kp], noise.pressure_pa**2
                 ),
@@ -309,35 +316,6 @@ def sense_group(
             )
         )
     return out
-
-
-def _history_times(
-    family: ContactFamily, rows: np.ndarray, window_s: float, pre_contact_s: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The instants of the histories (``simulate.history_times``: HISTORY_RATE_HZ from
-    -pre_contact_s to window_s, plus every sample of the contact, each instant once, in
-    order), (S, W) padded past each scene's count with the last uniform instant; which
-    uniform instant each is (-1: the contact's), the uniform instants (U,), each scene's
-    count, and where it is padded."""
-    uniform = np.arange(-pre_contact_s, window_s + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ)
-    nodes = family.contact_times[rows]
-    position = np.searchsorted(uniform, nodes)
-    clipped = np.minimum(position, uniform.size - 1)
-    keep = ~((position < uniform.size) & (uniform[clipped] == nodes)) & (nodes <= window_s)
-    rank = np.cumsum(keep, axis=1) - keep
-    lengths = uniform.size + keep.sum(axis=1)
-    width = int(lengths.max())
-    count = rows.size
-    is_node = np.zeros((count, width), dtype=bool)
-    kept_rows, kept_cols = np.nonzero(keep)
-    is_node[kept_rows, (position + rank)[kept_rows, kept_cols]] = True
-    is_pad = np.arange(width)[None, :] >= lengths[:, None]
-    index = np.full((count, width), uniform.size - 1, dtype=np.int64)
-    index[is_node] = -1
-    index[~(is_node | is_pad)] = np.tile(np.arange(uniform.size), count)
-    times = uniform[index]
-    times[is_node] = nodes[keep]
-    return times, index, uniform, lengths, is_pad
 
 
 class _DenseSpan:

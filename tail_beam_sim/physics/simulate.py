@@ -179,7 +179,9 @@ def simulate(
     if not solver_options and _family_path(scene, chosen, method, options):
         family = ContactFamily([problem], _family_tolerance(options))
         if family.ok[0]:
-            result = sense_group(family, np.zeros(1, dtype=np.int64), [scene], vibration)[0]
+            result = sense_group(
+                family, np.zeros(1, dtype=np.int64), [scene], vibration, histories
+            )[0]
             _label(result, chosen)
     if result is None:
         trajectory = solve(problem, method, **{**options, **solver_options})
@@ -275,7 +277,9 @@ def simulate_many(
     for members in groups.values():
         family = place[plans[members[0]][1]][0]
         rows = np.array([place[plans[k][1]][1] for k in members], dtype=np.int64)
-        sensed = sense_group(family, rows, [scenes[k] for k in members], flags[members[0]])
+        sensed = sense_group(
+            family, rows, [scenes[k] for k in members], flags[members[0]], histories
+        )
         for k, result in zip(members, sensed):
             _label(result, plans[k][0])
             results[k] = result
