@@ -51,27 +51,16 @@ from tail_beam_sim.physics.structure import LinearStructure, reduced_mass_kg
 
 
 @dataclass
-class FamilyStates:
-    """The structure's states of S impacts at T instants each, (n, S, T): q, q' and, when
-    asked for, q''."""
-
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray | None
-
-
-@dataclass
 class Grid:
     """S x C instants to sample (s from first contact), ``times``; when ``grid`` (G,) and
     ``shift`` (S,) are given, ``times[i, j] = grid[j] - shift[i]`` (a sensor's stamps less each
     scene's contact instant), or ``grid[index[i, j]] - shift[i]`` where ``index`` (S, C) is
-    given and not negative. ``accel``: q'' too."""
+    given and not negative."""
 
     times: np.ndarray
     grid: np.ndarray | None = None
     shift: np.ndarray | None = None
     index: np.ndarray | None = None
-    accel: bool = False
     key: tuple[Any, ...] | None = None  # names the grid (a sensor's rate and count): its
     # exponentials are kept per structure and key
 
@@ -347,115 +336,98 @@ class ContactFamily:
         amplitude = vectors[:, keep][None] * (weight * modal[:, keep])[:, None, :]
         return np.ascontiguousarray(amplitude.real), np.ascontiguousarray(amplitude.imag)
 
-    def sample(self, rows: np.ndarray, grid: Grid) -> FamilyStates:
-        """The structure's states of impact ``rows[i]`` (S,) at the instants ``grid.times[i]``
-        (S, C), as ``Trajectory.sample`` gives them: q and q' (n, S, C), q'' when
-        ``grid.accel``.
+    def read(self, rows: np.ndarray, grid: Grid, readings: np.ndarray) -> np.ndarray:
+        """(o, S, C): the readings ``readings`` (o, 3n: weights of [q; q'; q'']) of impact
+        ``rows[i]`` (S,) at the instants ``grid.times[i]`` (S, C), from the states
+        ``Trajectory.sample`` gives: at rest before the contact, the cubic Hermite through the
+        contact's samples during it, the free response after it.
 
-        Where the grid says its instants are a common grid less each scene's shift, the free
-        response is a product of the grid's and the scenes' exponentials
-        (:meth:`_free_on_grid`); elsewhere it is evaluated instant by instant."""
+        The free response is read through each reading's own projection of the modal
+        amplitudes (q'' = -M^-1 (K q + C q') there); where the grid says its instants are a
+        common grid less each scene's shift, it is a product of the grid's and the scenes'
+        exponentials (:meth:`_read_on_grid`), elsewhere evaluated instant by instant."""
         n = self.n
         structure = self.structure
+        readings = np.atleast_2d(readings)
+        # the free response's q'' in terms of [q; q']
+        free = readings[:, : 2 * n] - readings[:, 2 * n :] @ (
+            structure.inv_mass @ np.hstack([structure.stiffness, structure.damping])
+        )
+        real, imag = self._free_amplitude  # (N, 2n, k)
+        weights = np.einsum("oc,sck->osk", free, real[rows]) + 1j * np.einsum(
+            "oc,sck->osk", free, imag[rows]
+        )  # (o, S, k)
         times = grid.times
         dt = times - self.duration_s[rows][:, None]
-        state = None
+        out = None
         if grid.grid is not None:
-            state = self._free_on_grid(rows, grid.grid, grid.shift, grid.index, grid.key)
-        if state is None:
-            state = self._free_direct(rows, dt)
+            out = self._read_on_grid(rows, grid, weights)
+        if out is None:
+            out = self._read_direct(weights, dt)
         elif grid.index is not None:
             off = (grid.index < 0) & (dt >= 0.0)
             if off.any():
                 i, k = np.nonzero(off)
-                state[:, i, k] = self._free_direct(rows[i], dt[i, k])
-        q, qd = state[:n], state[n:]
-        out = FamilyStates(q, qd, None)
-        if grid.accel:
-            flat = (n, times.size)
-            internal = _columnwise(structure.damping, qd.reshape(flat)) + _columnwise(
-                structure.stiffness, q.reshape(flat)
-            )
-            out.qdd = -_columnwise(structure.inv_mass, internal).reshape(q.shape)
+                out[:, i, k] = self._read_direct(weights[:, i], dt[i, k])
         before = times < 0.0
         if before.any():  # at rest before the contact
-            i, k = np.nonzero(before)
-            out.q[:, i, k] = 0.0
-            out.qd[:, i, k] = 0.0
-            if grid.accel:
-                out.qdd[:, i, k] = 0.0
+            out[:, before] = 0.0
         during = ~before & (dt < 0.0)
         if during.any():
             i, k = np.nonzero(during)
-            self._sample_contact(rows[i], times[i, k], out, (i, k), grid.accel)
+            accel = bool(np.any(readings[:, 2 * n :]))
+            out[:, i, k] = readings[:, : 3 * n if accel else 2 * n] @ self._contact_states(
+                rows[i], times[i, k], accel
+            )
         return out
 
-    def _free_direct(self, rows: np.ndarray, dt: np.ndarray) -> np.ndarray:
-        """(2n, *dt.shape): the free response ``dt`` after each contact's end (``rows`` and
-        ``dt`` of one shape, or ``rows`` (S,) and ``dt`` (S, C)), instant by instant
-        (``LinearStructure.propagate``'s arithmetic)."""
+    def _read_direct(self, weights: np.ndarray, dt: np.ndarray) -> np.ndarray:
+        """(o, *dt.shape): sum_k Re(w_k exp(lambda_k dt)) of ``weights`` (o, S, k) after each
+        contact's end, instant by instant (``LinearStructure.propagate``'s arithmetic)."""
         _, sigma, omega, _ = self.structure._half_spectrum
-        real, imag = self._free_amplitude
-        state = None
+        out = None
         for j in range(sigma.size):
             growth = np.exp(sigma[j] * dt)
-            a, b = real[rows, :, j].T, imag[rows, :, j].T
+            a, b = weights.real[:, :, j], weights.imag[:, :, j]
             if dt.ndim == 2:
                 a, b = a[:, :, None], b[:, :, None]
             term = a * (growth * np.cos(omega[j] * dt)) - b * (growth * np.sin(omega[j] * dt))
-            state = term if state is None else state + term
-        return state
+            out = term if out is None else out + term
+        return out
 
-    def _free_on_grid(
-        self,
-        rows: np.ndarray,
-        grid: np.ndarray,
-        shift: np.ndarray,
-        index: np.ndarray | None,
-        key: tuple[Any, ...] | None = None,
+    def _read_on_grid(
+        self, rows: np.ndarray, grid: Grid, weights: np.ndarray
     ) -> np.ndarray | None:
-        """(2n, S, C): the free response at instants ``grid[j] - shift[i]`` (or, given
-        ``index`` (S, C), ``grid[index[i, j]] - shift[i]``), each term w exp(lambda (t - T))
-        written as (w exp(-lambda (shift + T))) exp(lambda grid): one exponential per scene and
-        one per grid instant instead of one per pair, equal to the instant-by-instant form to
-        rounding (about 1e-13 of the signal). None where a factor could overflow (a strongly
-        damped mode and long shifts)."""
-        eigenvalues = self.structure._eigen[0][self.structure._half_spectrum[0]]
-        offset = shift + self.duration_s[rows]
-        sigma = eigenvalues.real
-        if (
-            np.max(np.abs(np.multiply.outer(offset, sigma)), initial=0.0) > 300.0
-            or np.max(np.abs(np.multiply.outer(grid, sigma)), initial=0.0) > 300.0
-        ):
+        """(o, S, C): the free response's readings at instants ``grid[j] - shift[i]`` (or
+        ``grid[index[i, j]] - shift[i]``), each term w exp(lambda (t - T)) written as
+        (w exp(-lambda (shift + T))) exp(lambda grid): one exponential per scene and one per
+        grid instant instead of one per pair, equal to the instant-by-instant form to rounding
+        (about 1e-13 of the signal). None where a factor could overflow (a strongly damped mode
+        and long shifts)."""
+        structure = self.structure
+        eigenvalues = structure._eigen[0][structure._half_spectrum[0]]
+        offset = grid.shift + self.duration_s[rows]
+        fastest = float(np.max(np.abs(eigenvalues.real), initial=0.0))
+        reach = max(float(np.max(np.abs(offset), initial=0.0)), abs(float(grid.grid[0])))
+        if fastest * max(reach, abs(float(grid.grid[-1]))) > 300.0:
             return None
-        real, imag = self._free_amplitude
-        weights = (real[rows] + 1j * imag[rows]) * np.exp(-np.multiply.outer(offset, eigenvalues))[
-            :, None, :
-        ]  # (S, 2n, k)
-        basis = grid_basis(self.structure, grid, key)  # (k, G)
-        at = None if index is None else np.maximum(index, 0)
-        state = None
+        shifted = weights * np.exp(-np.multiply.outer(offset, eigenvalues))[None]  # (o, S, k)
+        basis = grid_basis(structure, grid.grid, grid.key)  # (k, G)
+        at = None if grid.index is None else np.maximum(grid.index, 0)
+        out = None
         for j in range(eigenvalues.size):
             if at is None:
-                re, im = basis.real[j][None, :], basis.imag[j][None, :]  # (1, C)
+                re, im = basis.real[j], basis.imag[j]  # (G,)
             else:
                 re, im = basis.real[j][at], basis.imag[j][at]  # (S, C)
-            term = (
-                weights.real[:, :, j].T[:, :, None] * re - weights.imag[:, :, j].T[:, :, None] * im
-            )
-            state = term if state is None else state + term
-        return state
+            term = shifted.real[:, :, j, None] * re - shifted.imag[:, :, j, None] * im
+            out = term if out is None else out + term
+        return out
 
-    def _sample_contact(
-        self,
-        rows: np.ndarray,
-        t_s: np.ndarray,
-        out: FamilyStates,
-        where: tuple[np.ndarray, np.ndarray],
-        accel: bool,
-    ) -> None:
-        """The cubic Hermite through the contact's samples (``Trajectory._sample_contact``) at
-        (impact, instant) pairs within their contacts (q'' too when ``accel``)."""
+    def _contact_states(self, rows: np.ndarray, t_s: np.ndarray, accel: bool) -> np.ndarray:
+        """(2n or 3n, M): [q; q'] (and q'' when ``accel``) of impacts ``rows`` at instants
+        ``t_s`` within their contacts: the cubic Hermite through the contact's samples (q''
+        the straight line; ``Trajectory._sample_contact``)."""
         nodes, polynomials, counts, step = self._contact_nodes
         last = counts[rows] - 2
         guess = np.minimum(np.maximum((t_s / step[rows]).astype(np.int64), 0), last)
@@ -469,11 +441,7 @@ class ContactFamily:
         n = self.n
         c = polynomials[rows, k] if accel else polynomials[rows, k, :, : 2 * n]  # (M, 4, .)
         x = s[:, None]
-        y = (c[:, 0] + x * (c[:, 1] + x * (c[:, 2] + x * c[:, 3]))).T
-        i, j = where
-        out.q[:, i, j], out.qd[:, i, j] = y[:n], y[n : 2 * n]
-        if accel:
-            out.qdd[:, i, j] = y[2 * n :]
+        return (c[:, 0] + x * (c[:, 1] + x * (c[:, 2] + x * c[:, 3]))).T
 
     def trajectory(self, i: int) -> Trajectory:
         """Impact ``i``'s trajectory, as the hybrid solver gives it (``ok[i]`` must hold); one
@@ -540,11 +508,3 @@ class ContactFamily:
             particle_at_rest=False,
             stats=stats,
         )
-
-
-def _columnwise(matrix: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """``matrix @ values`` summed term by term (``problem._columnwise``)."""
-    out = matrix[:, :1] * values[0]
-    for j in range(1, matrix.shape[1]):
-        out = out + matrix[:, j : j + 1] * values[j]
-    return out

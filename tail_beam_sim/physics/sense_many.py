@@ -167,61 +167,52 @@ def sense_group(
     nodes = family.contact_times[rows]
     real = nodes <= window
     nodes = np.where(real, nodes, window)
-    jack_shape, slope, imu_shape = (
-        structure.jack_shape,
-        structure.imu_slope_shape,
-        structure.imu_shape,
+    n = family.n
+    zero_n = np.zeros(n)
+    slope, imu_shape = structure.imu_slope_shape, structure.imu_shape
+    area = structure.piston_area_m2
+    # pressure change, pitch rate, acceleration along z at the IMU: weights of [q; q'; q'']
+    jack = np.concatenate(
+        [
+            structure.jack_stiffness_npm * structure.jack_shape / area,
+            structure.jack_damping_nspm * structure.jack_shape / area,
+            zero_n,
+        ]
     )
-    peaks = []
-    for grid, valid in (
-        (
-            Grid(
-                np.broadcast_to(uniform, (count, uniform.size)),
-                uniform,
-                np.zeros(count),
-                accel=True,
-                key=("history", pre, window),
-            ),
-            None,
+    rate_0 = np.zeros(3 * n)
+    rate_0[n] = 1.0
+    outputs = np.stack([jack, rate_0, np.concatenate([zero_n, zero_n, imu_shape])])
+    on_grid = family.read(
+        rows,
+        Grid(
+            np.broadcast_to(uniform, (count, uniform.size)),
+            uniform,
+            np.zeros(count),
+            key=("history", pre, window),
         ),
-        (Grid(nodes, accel=True), real),
-    ):
-        st = family.sample(rows, grid)
-        values = (
-            structure.jack_stiffness_npm * _read(jack_shape, st.q)
-            + structure.jack_damping_nspm * _read(jack_shape, st.qd),
-            np.abs(st.qd[0]),
-            np.abs(_read(imu_shape, st.qdd)),
-        )
-        peaks.append(
-            [(v if valid is None else np.where(valid, v, -np.inf)).max(axis=1) for v in values]
-        )
-    peak_pressure = (
-        structure.setting_pressure_pa
-        + np.maximum(peaks[0][0], peaks[1][0]) / structure.piston_area_m2
+        outputs,
     )
-    peak_rate = np.maximum(peaks[0][1], peaks[1][1])
-    peak_accel = np.maximum(peaks[0][2], peaks[1][2])
+    on_nodes = family.read(rows, Grid(nodes), outputs)
+    on_grid[1:], on_nodes[1:] = np.abs(on_grid[1:]), np.abs(on_nodes[1:])
+    on_nodes[:, ~real] = -np.inf
+    peak_change, peak_rate, peak_accel = np.maximum(on_grid.max(axis=2), on_nodes.max(axis=2))
+    peak_pressure = structure.setting_pressure_pa + peak_change
 
     # pressure: point samples at k / rate
     pressure_counts = _grid_counts(end, spec0.pressure_rate_hz)
     pressure_stamps = np.arange(int(pressure_counts.max())) / spec0.pressure_rate_hz
-    at = family.sample(
-        rows,
-        Grid(
-            pressure_stamps[None, :] - contact[:, None],
-            pressure_stamps,
-            contact,
-            key=("stamps", spec0.pressure_rate_hz, pressure_stamps.size),
-        ),
-    )
     clean = (
         structure.setting_pressure_pa
-        + (
-            structure.jack_stiffness_npm * _read(jack_shape, at.q)
-            + structure.jack_damping_nspm * _read(jack_shape, at.qd)
-        )
-        / structure.piston_area_m2
+        + family.read(
+            rows,
+            Grid(
+                pressure_stamps[None, :] - contact[:, None],
+                pressure_stamps,
+                contact,
+                key=("stamps", spec0.pressure_rate_hz, pressure_stamps.size),
+            ),
+            jack,
+        )[0]
     )
     unit = _padded(
         [s._pressure_rng.standard_normal(int(k)) for s, k in zip(suites, pressure_counts)],
@@ -237,7 +228,7 @@ def sense_group(
     imu_counts = _grid_counts(end, spec0.imu_rate_hz)
     imu_stamps = np.arange(int(imu_counts.max())) / spec0.imu_rate_hz
     period = 1.0 / spec0.imu_rate_hz
-    now = family.sample(
+    angle, pitch_rate, velocity = family.read(
         rows,
         Grid(
             imu_stamps[None, :] - contact[:, None],
@@ -245,16 +236,22 @@ def sense_group(
             contact,
             key=("stamps", spec0.imu_rate_hz, imu_stamps.size),
         ),
+        np.stack(
+            [
+                np.concatenate([slope, zero_n, zero_n]),
+                np.concatenate([zero_n, slope, zero_n]),
+                np.concatenate([zero_n, imu_shape, zero_n]),
+            ]
+        ),
     )
-    q_before = np.concatenate([np.zeros(now.q.shape[:2] + (1,)), now.q[:, :, :-1]], axis=2)
-    qd_before = np.concatenate([np.zeros(now.qd.shape[:2] + (1,)), now.qd[:, :, :-1]], axis=2)
-    angle = _read(slope, now.q)
     gyro = np.zeros(angle.shape + (3,))
-    gyro[:, :, 1] = _read(slope, now.q - q_before) / period
+    gyro[:, 0, 1] = angle[:, 0] / period
+    gyro[:, 1:, 1] = (angle[:, 1:] - angle[:, :-1]) / period
     accel = np.zeros_like(gyro)
-    pitch_rate = _read(slope, now.qd)
     accel[:, :, 0] = -structure.imu_from_hinge_m * pitch_rate**2 - g * _sin(angle)
-    accel[:, :, 2] = g * _cos(angle) - _read(imu_shape, now.qd - qd_before) / period
+    accel[:, :, 2] = g * _cos(angle)
+    accel[:, 0, 2] -= velocity[:, 0] / period
+    accel[:, 1:, 2] -= (velocity[:, 1:] - velocity[:, :-1]) / period
     gyro_unit = np.zeros_like(gyro)
     accel_unit = np.zeros_like(gyro)
     for i, (suite, k) in enumerate(zip(suites, imu_counts)):
@@ -357,14 +354,24 @@ class _DenseSpan:
         """Every scene's blocks: dense values at :attr:`times`
         (``sensors.mean_specific_force_z``), filter, ring-down, noise, clipping."""
         structure = family.structure
-        at = family.sample(rows, Grid(self.times, self.grid, self.contact, self.index))
-        q, qd = at.q, at.qd
+        n = family.n
+        zero_n = np.zeros(n)
+        angle, velocity = family.read(
+            rows,
+            Grid(self.times, self.grid, self.contact, self.index),
+            np.stack(
+                [
+                    np.concatenate([structure.imu_slope_shape, zero_n, zero_n]),
+                    np.concatenate([zero_n, structure.imu_shape, zero_n]),
+                ]
+            ),
+        )
         g = structure.gravity_mps2
         m, dense_rate = self.oversample, self.dense_rate
         dense_period = 1.0 / dense_rate
         first, switch, count = self.first, self.switch, self.count
-        angle = _read(structure.imu_slope_shape, q[:, :, 1:])
-        change = _read(structure.imu_shape, qd[:, :, 1:] - qd[:, :, :-1])
+        angle = angle[:, 1:]
+        change = velocity[:, 1:] - velocity[:, :-1]
         dense = np.ascontiguousarray(g * _cos(angle) - change / dense_period)
         if self.span:
             start = np.where(first > 0, g, dense[:, 0])

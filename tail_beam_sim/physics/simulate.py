@@ -175,17 +175,10 @@ def simulate(
     settings = settings or shipped_settings()
     needs = needs or settings.needs
     chosen, problem, method, options = _prepare(scene, tier, needs, settings, solver)
-    result = None
-    if not solver_options and _family_path(scene, chosen, method, options):
-        family = ContactFamily([problem], _family_tolerance(options))
-        if family.ok[0]:
-            result = sense_group(
-                family, np.zeros(1, dtype=np.int64), [scene], vibration, histories
-            )[0]
-            _label(result, chosen)
-    if result is None:
-        trajectory = solve(problem, method, **{**options, **solver_options})
-        result = _finish(scene, chosen, trajectory, vibration)
+    # One scene alone: the solver and the per-trajectory sensors (the group path's fixed cost
+    # is larger than its saving for one impact; simulate_many takes it for many).
+    trajectory = solve(problem, method, **{**options, **solver_options})
+    result = _finish(scene, chosen, trajectory, vibration)
     if check and chosen.check_against is not None:
         reference = simulate(scene, tier=chosen.check_against, needs=needs, settings=settings)
         result.summary["check"] = {
