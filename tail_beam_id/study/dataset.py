@@ -218,6 +218,9 @@ def draw_commands(
         yield command, scale, law
 
 
+CHUNK_IMPACTS = 64  # impacts of a set simulated together (simulate_many)
+
+
 def simulate_set(
     params: Mapping[str, Any],
     scene_set: str,
@@ -237,12 +240,17 @@ def simulate_set(
     fidelity = FidelitySettings.from_params(
         params
     )  # the given parameters' bending modes (config/'s by default)
+    # Impacts are simulated CHUNK_IMPACTS at a time: simulate_many solves and senses many
+    # impacts together (the same results as one by one, to rounding), and each impact's
+    # settings differ in their sensors only, so each impact is solved once and each setting's
+    # sensors sample that motion.
+    pending: list[tuple[int, dict[str, Any], dict[str, float], str]] = []
+    scenes: list[Scene] = []
     for index, (command, scale, law) in enumerate(draw_commands(params, scene_set, count, seed)):
         varied = copy.deepcopy(dict(params))
         for name, factor in scale.items():
             varied["support"][name] = float(params["support"][name]) * factor
         noise_seed = int(noise_seeds[index].generate_state(1)[0])
-        scenes = []
         for setting in chosen:
             varied["sensors"] = {**params["sensors"], **setting.sensors(), "seed": noise_seed}
             scene = Scene.from_params(
@@ -255,16 +263,28 @@ def simulate_set(
                 },
             )
             scenes.append(replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor)))
-        # One impact at every setting: the settings differ in their sensors only, so the impact
-        # is solved once and each setting's sensors sample that motion (simulate_many gives what
-        # simulate gives for each).
-        outcomes = simulate_many(
-            scenes,
-            tier=tier,
-            settings=fidelity,
-            vibration=[setting.has_vibration for setting in chosen],
-        )
-        results = {setting.key: result for setting, result in zip(chosen, outcomes)}
+        pending.append((index, command, scale, law))
+        if len(pending) == CHUNK_IMPACTS:
+            yield from _simulated(pending, scenes, chosen, tier, fidelity)
+            pending, scenes = [], []
+    if pending:
+        yield from _simulated(pending, scenes, chosen, tier, fidelity)
+
+
+def _simulated(
+    pending: Sequence[tuple[int, dict[str, Any], dict[str, float], str]],
+    scenes: Sequence[Scene],
+    chosen: Sequence[Setting],
+    tier: str,
+    fidelity: FidelitySettings,
+) -> Iterator[LabelledImpact]:
+    """The impacts ``pending``, each at every setting of ``chosen`` (``scenes``, impact after
+    impact), simulated together."""
+    flags = [setting.has_vibration for setting in chosen]
+    outcomes = simulate_many(scenes, tier=tier, settings=fidelity, vibration=flags * len(pending))
+    for k, (index, command, scale, law) in enumerate(pending):
+        mine = outcomes[k * len(chosen) : (k + 1) * len(chosen)]
+        results = {setting.key: result for setting, result in zip(chosen, mine)}
         yield LabelledImpact(index, command, scale, law, results)
 
 

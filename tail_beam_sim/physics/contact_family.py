@@ -27,17 +27,20 @@ from typing import Any
 import numpy as np
 
 from tail_beam_sim.physics.solvers.contact_batch import integrate_contacts
+from tail_beam_sim.physics.solvers.dynamics import FloatDynamics
 from tail_beam_sim.physics.solvers.hybrid import (
     DEFAULT_STEPS_PER_CONTACT,
     REST_SPEED_MPS,
     RK4_CONTACT_ERROR,
     PulseSegment,
+    contact_phase,
 )
 from tail_beam_sim.physics.solvers.problem import (
     ContactRecord,
     ContactSegment,
     FreeSegment,
     ImpactProblem,
+    SolverError,
     Trajectory,
 )
 from tail_beam_sim.physics.solvers.pulse import (
@@ -48,6 +51,10 @@ from tail_beam_sim.physics.solvers.pulse import (
     pulse_table,
 )
 from tail_beam_sim.physics.structure import LinearStructure, reduced_mass_kg
+
+# RK4 contacts integrated in lockstep from this many on (the lockstep's fixed cost, a few
+# thousand array operations, is that of about this many contacts integrated one by one)
+LOCKSTEP_MIN = 16
 
 
 @dataclass
@@ -183,27 +190,64 @@ class ContactFamily:
 
     def _integrate(self, which: np.ndarray, steps: int) -> np.ndarray:
         """Integrate the contacts of impacts ``which`` by RK4 (the hybrid solver's, for those
-        the pulse does not cover) and take their end states; returns which are ``ok``."""
+        the pulse does not cover: in lockstep over them when they are LOCKSTEP_MIN or more,
+        else one by one, whose fixed cost is smaller) and take their end states; returns which
+        are ``ok``."""
         n = self.n
         _, _, inverse = self.structure._eigen
-        contacts = integrate_contacts([self.problems[i] for i in which], steps)
-        for k, i in enumerate(which):
-            states = contacts.states[k]
+        problems = [self.problems[i] for i in which]
+        if which.size >= LOCKSTEP_MIN:
+            contacts = integrate_contacts(problems, steps)
+            ok = contacts.ok
+            found = zip(
+                contacts.t_s,
+                contacts.states,
+                contacts.derivatives,
+                contacts.force_n,
+                contacts.approach_mps,
+                contacts.peak_force_n,
+            )
+        else:
+            ok = np.ones(which.size, dtype=bool)
+            found = []
+            for k, problem in enumerate(problems):
+                dynamics = FloatDynamics(problem)
+                start = dynamics.state(problem.q0, problem.qd0, 0.0, -problem.impact_speed_mps)
+                try:
+                    segment, record = contact_phase(problem, dynamics, 0.0, start, steps)
+                except SolverError:
+                    ok[k] = False
+                    found.append((None,) * 6)
+                    continue
+                states = np.vstack([segment.q, segment.qd, segment.z_m, segment.zd_mps]).T
+                derivatives = np.vstack(
+                    [segment.qd, segment.qdd, segment.zd_mps, np.zeros(segment.t_s.size)]
+                ).T
+                found.append(
+                    (
+                        segment.t_s,
+                        states,
+                        derivatives,
+                        segment.force_n,
+                        record.approach_speed_mps,
+                        record.peak_force_n,
+                    )
+                )
+        for k, (i, (t, states, derivatives, force, approach, peak)) in enumerate(
+            zip(which, found)
+        ):
+            if not ok[k]:
+                continue
             end = states[-1]
             self.end_q[i], self.end_qd[i] = end[:n], end[n : 2 * n]
             self.end_z_m[i], self.end_zd_mps[i] = end[2 * n], end[2 * n + 1]
-            self.duration_s[i] = contacts.t_s[k][-1]
-            self.peak_force_n[i] = contacts.peak_force_n[k]
-            self.approach_mps[i] = contacts.approach_mps[k]
+            self.duration_s[i] = t[-1]
+            self.peak_force_n[i] = peak
+            self.approach_mps[i] = approach
             self.estimate[i] = RK4_CONTACT_ERROR
             self.end_modal[i] = inverse @ end[: 2 * n]
-            self.integrated[int(i)] = (
-                contacts.t_s[k],
-                states,
-                contacts.derivatives[k],
-                contacts.force_n[k],
-            )
-        return contacts.ok
+            self.integrated[int(i)] = (t, states, derivatives, force)
+        return ok
 
     def _spectrum(self, eigenvalues: np.ndarray) -> np.ndarray:
         """(N, 2n): int_0^T F(s) e^{-lambda_k s} ds of each impact's pulse, N s

@@ -69,6 +69,10 @@ __all__ = [
     "summarise",
 ]
 
+# Impacts solved together, and scenes sensed together, from this many on (fewer: one by one,
+# whose fixed cost is smaller)
+MIN_GROUP = 4
+
 
 def build_problem(
     support: Support,
@@ -221,7 +225,12 @@ def simulate_many(
     plans = []
     impacts: dict[tuple[Any, ...], int] = {}  # each distinct impact's index in ``distinct``
     distinct: list[tuple[Plan, ImpactProblem, str, dict[str, Any]]] = []
-    for scene, chosen in zip(scenes, plan_many(scenes, tier, needs, settings)):
+    plans_made = (
+        plan_many(scenes, tier, needs, settings)
+        if len(scenes) >= MIN_GROUP
+        else [plan(scene, tier, needs, settings) for scene in scenes]
+    )
+    for scene, chosen in zip(scenes, plans_made):
         problem, method, options = _problem(scene, chosen, settings, None)
         key = (
             scene.support,
@@ -248,17 +257,22 @@ def simulate_many(
             members[1].append(problem)
     place: dict[int, tuple[ContactFamily, int]] = {}
     for (_, tolerance), (indices, problems) in families.items():
+        if len(indices) < MIN_GROUP:
+            continue  # solved one by one below
         family = ContactFamily(problems, tolerance)
         for row, index in enumerate(indices):
             if family.ok[row]:
                 place[index] = (family, row)
     groups: dict[tuple[Any, ...], list[int]] = {}
-    solved: dict[int, Trajectory] = {}
     for k, (scene, (chosen, index)) in enumerate(zip(scenes, plans)):
         if index in place and supported(scene.sensors):
             family, _ = place[index]
             groups.setdefault((id(family), layout_key(scene, flags[k])), []).append(k)
-            continue
+    alone = [k for members in groups.values() if len(members) < MIN_GROUP for k in members]
+    solved: dict[int, Trajectory] = {}
+    grouped = {k for members in groups.values() for k in members}
+    for k in sorted(alone) + [k for k in range(len(scenes)) if k not in grouped]:
+        chosen, index = plans[k]
         if index in place:
             trajectory = place[index][0].trajectory(place[index][1])
         else:
@@ -266,8 +280,10 @@ def simulate_many(
             if trajectory is None:
                 _, problem, method, options = distinct[index]
                 trajectory = solved[index] = solve(problem, method, **options)
-        results[k] = _finish(scene, chosen, trajectory, flags[k])
+        results[k] = _finish(scenes[k], chosen, trajectory, flags[k])
     for members in groups.values():
+        if len(members) < MIN_GROUP:
+            continue
         family = place[plans[members[0]][1]][0]
         rows = np.array([place[plans[k][1]][1] for k in members], dtype=np.int64)
         sensed = sense_group(
