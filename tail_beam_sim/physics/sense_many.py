@@ -29,7 +29,6 @@ from tail_beam_sim.physics.sensors import (
     SensorSuite,
     VibrationBlocks,
     _butterworth,
-    cut_blocks,
 )
 from tail_beam_sim.physics.solvers.problem import Trajectory
 
@@ -389,13 +388,35 @@ class _DenseSpan:
             family, rows, (j[0] * m) / dense_rate, self.contact, dense_period, self.sos
         )
         clean[in_ringdown] = ringdown[in_ringdown]
+        # noise (each scene's own generator), clipping, float32 and the blocks: as
+        # SensorSuite.vibration and cut_blocks make them, all scenes at once
+        noise = np.zeros(clean.shape)
+        for i, suite in enumerate(suites):
+            k = int(outputs[i])
+            noise[i, :k] = suite._vibration_rng.normal(0.0, suite.spec.vibration_noise_mps2, k)
+        limit = np.array([suite.spec.vibration_range_mps2 for suite in suites])[:, None]
+        samples = np.clip(clean + noise, -limit, limit).astype(np.float32)
+        size = self.spec.vibration_block_samples
+        whole = outputs // size
+        starts = size * np.arange(int(whole.max()), dtype=np.int64)
+        stamps = starts / self.spec.vibration_rate_hz
+        lengths = np.full(starts.size, size, dtype=np.int64)
+        period = 1.0 / self.spec.vibration_rate_hz
         blocks = []
         for i, suite in enumerate(suites):
+            b = int(whole[i])
             own = suite.spec
-            k = int(outputs[i])
-            noisy = clean[i, :k] + suite._vibration_rng.normal(0.0, own.vibration_noise_mps2, k)
-            limit = own.vibration_range_mps2
-            blocks.append(cut_blocks(np.clip(noisy, -limit, limit), 0, own)[0])
+            blocks.append(
+                VibrationBlocks(
+                    starts[:b],
+                    lengths[:b],
+                    stamps[:b],
+                    samples[i, : b * size],
+                    period,
+                    own.vibration_range_mps2,
+                    own.vibration_noise_mps2**2,
+                )
+            )
         return blocks
 
 
