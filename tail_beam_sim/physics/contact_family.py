@@ -9,8 +9,9 @@ operation per quantity and the solver's own arithmetic (the pulse's end state an
 closed form; the RK4 contacts in lockstep, :mod:`~tail_beam_sim.physics.solvers.contact_batch`),
 and marks the impacts that are not of that kind (``ok`` false: a particle coming to rest, a
 re-contact possible within the window, a contact the solver would refine), which a caller
-solves one by one. :meth:`ContactFamily.sample` evaluates the states at (impact, instant)
-pairs as :meth:`~tail_beam_sim.physics.solvers.problem.Trajectory.sample` does: rest before the
+solves one by one. :meth:`ContactFamily.read` evaluates linear readings of the states at
+(impact, instant) pairs from the states
+:meth:`~tail_beam_sim.physics.solvers.problem.Trajectory.sample` gives: rest before the
 contact, the cubic Hermite through the contact's samples during it, the exact free response
 after it; :meth:`ContactFamily.trajectory` gives one impact's :class:`Trajectory`, the hybrid
 solver's.
@@ -59,7 +60,7 @@ LOCKSTEP_MIN = 16
 
 @dataclass
 class Grid:
-    """S x C instants to sample (s from first contact), ``times``; when ``grid`` (G,) and
+    """S x C instants to read (s from first contact), ``times``; when ``grid`` (G,) and
     ``shift`` (S,) are given, ``times[i, j] = grid[j] - shift[i]`` (a sensor's stamps less each
     scene's contact instant), or ``grid[index[i, j]] - shift[i]`` where ``index`` (S, C) is
     given and not negative."""

@@ -4,10 +4,12 @@ array operation per signal for the whole group.
 
 A group is scenes that share the sample rates, the window and the accelerometer's settings
 (:func:`layout_key`); each scene has its own impact (a row of the family), seed, noise levels
-and ranges. The instants every sensor reads (histories, pressure, the IMU's stamps and the
-period before each, the accelerometer's dense instants) are sampled in one pass over the
-family; per scene remain only its seeded generators' draws (its noise must be the one
-``simulate`` gives) and the result's objects.
+and ranges. Each sensor's readings are read for the whole group at once
+(:meth:`ContactFamily.read`, the free response as products of the sensor grid's exponentials,
+kept per setting, and each scene's); per scene remain only its seeded generators' draws (its
+noise must be the one ``simulate`` gives) and the result's objects. The noise-free histories
+are computed when first read (:class:`~tail_beam_sim.physics.result.LazyHistory`): the
+summary's peaks are read from the same instants without them.
 """
 
 from __future__ import annotations
