@@ -10,7 +10,6 @@ runs feed them to the identifier, as id_node does); one without it has no blocks
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 from collections.abc import Iterator, Mapping, Sequence
@@ -23,7 +22,7 @@ from tail_beam_id.study.supports import SupportDraw, draw_support, support_range
 from tail_beam_sim.config import section
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.fidelity import FidelitySettings
-from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.scene import Scene, SensorSpec
 from tail_beam_sim.physics.simulate import SimulationResult, simulate, simulate_many
 from tail_beam_sim.physics.stream import StreamSimulator
 
@@ -247,21 +246,26 @@ def simulate_set(
     pending: list[tuple[int, dict[str, Any], dict[str, float], str]] = []
     scenes: list[Scene] = []
     for index, (command, scale, law) in enumerate(draw_commands(params, scene_set, count, seed)):
-        varied = copy.deepcopy(dict(params))
+        varied = {**params, "support": dict(params["support"])}
         for name, factor in scale.items():
             varied["support"][name] = float(params["support"][name]) * factor
         noise_seed = int(noise_seeds[index].generate_state(1)[0])
+        # the impact and its support validated once; each setting changes the sensors only
+        base: Scene | None = None
         for setting in chosen:
             varied["sensors"] = {**params["sensors"], **setting.sensors(), "seed": noise_seed}
-            scene = Scene.from_params(
-                varied,
-                {
-                    **command,
-                    "contact_model": law,
-                    "pre_contact_s": ev["pre_contact_s"],
-                    "window_s": ev["window_s"],
-                },
-            )
+            if base is None:
+                base = scene = Scene.from_params(
+                    varied,
+                    {
+                        **command,
+                        "contact_model": law,
+                        "pre_contact_s": ev["pre_contact_s"],
+                        "window_s": ev["window_s"],
+                    },
+                )
+            else:
+                scene = replace(base, sensors=SensorSpec.from_params(varied["sensors"]))
             scenes.append(replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor)))
         pending.append((index, command, scale, law))
         if len(pending) == CHUNK_IMPACTS:
