@@ -181,7 +181,7 @@ def test_propagate_equals_the_complex_exponential_form_for_every_time_alone(para
 
 
 def test_simulate_many_gives_simulate_results_solving_each_impact_once(params):
-    """simulate_many returns what simulate returns for each scene (to 1e-12 of each signal,
+    """simulate_many returns what simulate returns for each scene (to 1e-11 of each signal,
     the same noise and accelerometer blocks); scenes that differ only in their sensors (noise,
     seed, rates) share one trajectory, another impact gets its own."""
     base = _scene(params, seed=2)
