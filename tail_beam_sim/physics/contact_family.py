@@ -458,13 +458,14 @@ class ContactFamily:
             return None
         shifted = weights * np.exp(-np.multiply.outer(offset, eigenvalues))[None]  # (o, S, k)
         basis = grid_basis(structure, grid.grid, grid.key)  # (k, G)
-        at = None if grid.index is None else np.maximum(grid.index, 0)
+        if grid.index is None:  # one product over the spectrum for every reading and scene
+            flat = shifted.reshape(-1, eigenvalues.size)
+            out = flat.real @ basis.real - flat.imag @ basis.imag
+            return out.reshape(shifted.shape[:2] + (basis.shape[1],))
+        at = np.maximum(grid.index, 0)
         out = None
         for j in range(eigenvalues.size):
-            if at is None:
-                re, im = basis.real[j], basis.imag[j]  # (G,)
-            else:
-                re, im = basis.real[j][at], basis.imag[j][at]  # (S, C)
+            re, im = basis.real[j][at], basis.imag[j][at]  # (S, C)
             term = shifted.real[:, :, j, None] * re - shifted.imag[:, :, j, None] * im
             out = term if out is None else out + term
         return out
