@@ -108,15 +108,6 @@ def _padded(draws: Sequence[np.ndarray], shape: tuple[int, ...]) -> np.ndarray:
     return out
 
 
-def _read(weights: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """``weights @ values`` over the coordinates of (n, S, T) values: (S, T), summed term by
-    term (one product for the rigid beam)."""
-    out = weights[0] * values[0]
-    for j in range(1, weights.size):
-        out = out + weights[j] * values[j]
-    return out
-
-
 SMALL_ANGLE_RAD = 1e-3  # below it, cos and sin by their Taylor polynomials (to float rounding)
 
 
