@@ -371,16 +371,18 @@ class _DenseSpan:
             dense = _sos_filter_rows(self.sos, dense, state)
         picks = dense[:, ::m]
         outputs = -(-count // m)
-        j = np.arange(int(outputs.max()))[None, :]
-        clean = np.full((rows.size, j.size), g)
-        in_filter = (j >= (first // m)[:, None]) & (j < (switch // m)[:, None])
-        pick_rows, pick_cols = np.nonzero(in_filter)
-        clean[pick_rows, pick_cols] = picks[pick_rows, pick_cols - (first // m)[pick_rows]]
-        in_ringdown = (j >= (switch // m)[:, None]) & (j < outputs[:, None])
-        ringdown = _filtered_ringdown(
-            family, rows, (j[0] * m) / dense_rate, self.contact, dense_period, self.sos
+        j = np.arange(int(outputs.max()))
+        # the ring-down everywhere (past each scene's last output: unused), then each scene's
+        # rest (g) and filtered span over it
+        clean = _filtered_ringdown(
+            family, rows, (j * m) / dense_rate, self.contact, dense_period, self.sos
         )
-        clean[in_ringdown] = ringdown[in_ringdown]
+        clean[j[None, :] < (first // m)[:, None]] = g
+        span = picks.shape[1]
+        if span:
+            within = np.arange(span)[None, :] < ((switch - first) // m)[:, None]
+            pick_rows, pick_cols = np.nonzero(within)
+            clean[pick_rows, pick_cols + (first // m)[pick_rows]] = picks[pick_rows, pick_cols]
         # noise (each scene's own generator), clipping, float32 and the blocks: as
         # SensorSuite.vibration and cut_blocks make them, all scenes at once
         noise = np.zeros(clean.shape)
