@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_sim.physics.contact_family import ContactFamily, Grid, grid_basis
+from tail_beam_sim.physics.contact_family import ContactFamily, Grid, _product, grid_basis
 from tail_beam_sim.physics.result import LazyHistory, SimulationResult
 from tail_beam_sim.physics.ringdown_filtering import _dense_gain, settle_steps
 from tail_beam_sim.physics.scene import Scene, SensorSpec
@@ -470,8 +470,8 @@ def _filtered_ringdown(
     shifted = np.exp(-np.multiply.outer(offset, eigenvalues))  # (S, k)
     basis = grid_basis(structure, grid_s, ("outputs", dense_period_s, grid_s.size, grid_s[-1]))
     a, d = angle_weight * shifted, dynamic_weight * shifted
-    angle = a.real @ basis.real - a.imag @ basis.imag
-    dynamic = d.real @ basis.real - d.imag @ basis.imag
+    angle = _product(a.real, basis.real) - _product(a.imag, basis.imag)
+    dynamic = _product(d.real, basis.real) - _product(d.imag, basis.imag)
     return structure.gravity_mps2 * _cos(angle) + dynamic
 
 
