@@ -202,7 +202,8 @@ def simulate_many(
 ) -> list[SimulationResult]:
     """Full sensor streams of many scenes: the same results as
     ``[simulate(s, tier=tier, needs=needs, settings=settings, vibration=v) for s in scenes]``
-    (``vibration``: one flag for all, or one per scene), with each distinct impact solved once.
+    (``vibration``: one flag for all, or one per scene; the same noise, stamps and blocks, the
+    signals to rounding), with each distinct impact solved once.
 
     Scenes that differ only in their sensors (rates, noise, seed: what a data set varies to
     train and evaluate across sensor settings) share one trajectory, since the motion does not
@@ -213,7 +214,8 @@ def simulate_many(
     Impacts the hybrid solver takes as one contact (most: :mod:`~tail_beam_sim.physics.
     contact_family`) are solved together per structure, and the sensors of scenes that share
     their rates and window are sampled together (:mod:`~tail_beam_sim.physics.sense_many`),
-    one array operation per signal for the group; the others one by one.
+    one array operation per signal for the group, when there are MIN_GROUP or more; the others
+    one by one. A grouped result's histories are computed when first read.
     """
     settings = settings or shipped_settings()
     needs = needs or settings.needs
