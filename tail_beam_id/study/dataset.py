@@ -10,7 +10,6 @@ runs feed them to the identifier, as id_node does); one without it has no blocks
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 from collections.abc import Iterator, Mapping, Sequence
@@ -23,7 +22,7 @@ from tail_beam_id.study.supports import SupportDraw, draw_support, support_range
 from tail_beam_sim.config import section
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.fidelity import FidelitySettings
-from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.scene import Scene, SensorSpec
 from tail_beam_sim.physics.simulate import SimulationResult, simulate, simulate_many
 from tail_beam_sim.physics.stream import StreamSimulator
 
@@ -218,6 +217,9 @@ def draw_commands(
         yield command, scale, law
 
 
+CHUNK_IMPACTS = 64  # impacts of a set simulated together (simulate_many)
+
+
 def simulate_set(
     params: Mapping[str, Any],
     scene_set: str,
@@ -237,34 +239,56 @@ def simulate_set(
     fidelity = FidelitySettings.from_params(
         params
     )  # the given parameters' bending modes (config/'s by default)
+    # Impacts are simulated CHUNK_IMPACTS at a time: simulate_many solves and senses many
+    # impacts together (the same results as one by one, to rounding), and each impact's
+    # settings differ in their sensors only, so each impact is solved once and each setting's
+    # sensors sample that motion.
+    pending: list[tuple[int, dict[str, Any], dict[str, float], str]] = []
+    scenes: list[Scene] = []
     for index, (command, scale, law) in enumerate(draw_commands(params, scene_set, count, seed)):
-        varied = copy.deepcopy(dict(params))
+        varied = {**params, "support": dict(params["support"])}
         for name, factor in scale.items():
             varied["support"][name] = float(params["support"][name]) * factor
         noise_seed = int(noise_seeds[index].generate_state(1)[0])
-        scenes = []
+        # the impact and its support validated once; each setting changes the sensors only
+        base: Scene | None = None
         for setting in chosen:
             varied["sensors"] = {**params["sensors"], **setting.sensors(), "seed": noise_seed}
-            scene = Scene.from_params(
-                varied,
-                {
-                    **command,
-                    "contact_model": law,
-                    "pre_contact_s": ev["pre_contact_s"],
-                    "window_s": ev["window_s"],
-                },
-            )
+            if base is None:
+                base = scene = Scene.from_params(
+                    varied,
+                    {
+                        **command,
+                        "contact_model": law,
+                        "pre_contact_s": ev["pre_contact_s"],
+                        "window_s": ev["window_s"],
+                    },
+                )
+            else:
+                scene = replace(base, sensors=SensorSpec.from_params(varied["sensors"]))
             scenes.append(replace(scene, sensors=scene.sensors.scaled_noise(setting.noise_factor)))
-        # One impact at every setting: the settings differ in their sensors only, so the impact
-        # is solved once and each setting's sensors sample that motion (simulate_many gives what
-        # simulate gives for each).
-        outcomes = simulate_many(
-            scenes,
-            tier=tier,
-            settings=fidelity,
-            vibration=[setting.has_vibration for setting in chosen],
-        )
-        results = {setting.key: result for setting, result in zip(chosen, outcomes)}
+        pending.append((index, command, scale, law))
+        if len(pending) == CHUNK_IMPACTS:
+            yield from _simulated(pending, scenes, chosen, tier, fidelity)
+            pending, scenes = [], []
+    if pending:
+        yield from _simulated(pending, scenes, chosen, tier, fidelity)
+
+
+def _simulated(
+    pending: Sequence[tuple[int, dict[str, Any], dict[str, float], str]],
+    scenes: Sequence[Scene],
+    chosen: Sequence[Setting],
+    tier: str,
+    fidelity: FidelitySettings,
+) -> Iterator[LabelledImpact]:
+    """The impacts ``pending``, each at every setting of ``chosen`` (``scenes``, impact after
+    impact), simulated together."""
+    flags = [setting.has_vibration for setting in chosen]
+    outcomes = simulate_many(scenes, tier=tier, settings=fidelity, vibration=flags * len(pending))
+    for k, (index, command, scale, law) in enumerate(pending):
+        mine = outcomes[k * len(chosen) : (k + 1) * len(chosen)]
+        results = {setting.key: result for setting, result in zip(chosen, mine)}
         yield LabelledImpact(index, command, scale, law, results)
 
 

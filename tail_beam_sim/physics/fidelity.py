@@ -41,7 +41,7 @@ from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.contact import damping_factor, hertz_stiffness
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
-from tail_beam_sim.physics.solvers.pulse import contact_pulse
+from tail_beam_sim.physics.solvers.pulse import contact_pulse, pulse_table
 from tail_beam_sim.physics.structure import (
     BendingMode,
     LinearStructure,
@@ -226,6 +226,140 @@ def plan(scene: Scene, tier: str, needs: Needs, settings: FidelitySettings) -> P
         estimates=estimates,
         check_against=next_tier_up(name),
     )
+
+
+def plan_many(
+    scenes: Sequence[Scene], tier: str, needs: Needs, settings: FidelitySettings
+) -> list[Plan]:
+    """:func:`plan` of every scene, the error estimates of all of them at once
+    (:func:`model_errors_many`)."""
+    name = tier if tier == "auto" else get_tier(tier).name
+    if name in EXACT_TIERS:
+        estimates: list[dict[str, float]] = [{name: 0.0} for _ in scenes]
+    else:
+        estimates = model_errors_many(scenes, needs, settings.modes)
+    plans = []
+    for scene, estimate in zip(scenes, estimates):
+        chosen_name = (
+            next((t for t in ACCURACY_LADDER if estimate[t] <= needs.tolerance), "modal")
+            if name == "auto"
+            else name
+        )
+        chosen = TIERS[chosen_name]
+        plans.append(
+            Plan(
+                tier=chosen,
+                structure=structure_for(chosen, scene.support, settings.modes),
+                solver=chosen.default_solver,
+                solver_options=chosen.solver_options(needs),
+                model_error=estimate.get(chosen_name, 0.0),
+                estimates=estimate,
+                check_against=next_tier_up(chosen_name),
+            )
+        )
+    return plans
+
+
+def model_errors_many(
+    scenes: Sequence[Scene], needs: Needs, modes: Sequence[BendingMode]
+) -> list[dict[str, float]]:
+    """:func:`model_errors` of every scene (the same estimates to rounding), in array
+    operations over the scenes that share a support, sample rates and window."""
+    groups: dict[tuple[Any, ...], list[int]] = {}
+    for k, scene in enumerate(scenes):
+        spec = scene.sensors
+        key = (scene.support, spec.pressure_rate_hz, spec.imu_rate_hz, scene.window_s)
+        groups.setdefault(key, []).append(k)
+    out: list[dict[str, float]] = [{} for _ in scenes]
+    for members in groups.values():
+        group = [scenes[k] for k in members]
+        for k, estimate in zip(members, _model_errors_group(group, needs, modes)):
+            out[k] = estimate
+    return out
+
+
+def _model_errors_group(
+    scenes: Sequence[Scene], needs: Needs, modes: Sequence[BendingMode]
+) -> list[dict[str, float]]:
+    """:func:`model_errors` of scenes on one support at one set of rates and window."""
+    support = scenes[0].support
+    rigid = structure_for(TIERS["rigid"], support, modes)
+    modal = structure_for(TIERS["modal"], support, modes)
+    impacts = [scene.impact for scene in scenes]
+    shape_rigid = np.array([rigid.contact_shape(i.position_m) for i in impacts])
+    shape_modal = np.array([modal.contact_shape(i.position_m) for i in impacts])
+    c_rigid = np.einsum("si,ij,sj->s", shape_rigid, rigid.inv_mass, shape_rigid)
+    c_modal = np.einsum("si,ij,sj->s", shape_modal, modal.inv_mass, shape_modal)
+    mass = np.array([i.mass_kg for i in impacts])
+    speed = np.array([i.impact_speed_mps for i in impacts])
+    reduced = reduced_mass_kg(mass, c_rigid)
+    chi = np.array(
+        [
+            damping_factor(s.contact_model, s.impact.restitution, support.contact_damping_scale)
+            for s in scenes
+        ]
+    )
+    stiffness = np.array([hertz_stiffness(i.material, support.plate, i.radius_m) for i in impacts])
+    duration, separation, width = pulse_figures(np.minimum(chi, 40.0), stiffness, reduced, speed)
+    gravity = support.gravity_mps2 * duration / speed
+    waveform = needs.outputs & set(WAVEFORM_OUTPUTS)
+    omega_rigid = 2 * math.pi * rigid.fastest_frequency_hz
+    impulse_step = np.maximum(gravity, (omega_rigid * width) ** 2 / 2 if waveform else 0.0)
+    restitution = np.maximum(separation / speed, 1e-3)
+    rebound_step = (
+        (1 + restitution)
+        / restitution
+        * np.abs(reduced_mass_kg(1.0, mass * c_modal) - reduced_mass_kg(1.0, mass * c_rigid))
+    )
+    rigid_step = rebound_step if needs.outputs & {"rebound", "contact"} else np.zeros(len(scenes))
+    if waveform and modes:
+        spec = scenes[0].sensors
+        both = np.concatenate([shape_modal, shape_rigid], axis=1)
+        n = modal.size
+        worst = np.zeros(len(scenes))
+        for output in sorted(waveform):
+            rate = spec.pressure_rate_hz if output == "pressure" else spec.imu_rate_hz
+            gram = sampled_gram(rigid, modal, output, rate, scenes[0].window_s)
+            difference = np.maximum(np.einsum("pij,sj,si->sp", gram, both, both), 0.0)
+            reference = np.einsum("pij,sj,si->sp", gram[:, :n, :n], shape_modal, shape_modal)
+            ratio = np.where(
+                reference > 0, difference / np.where(reference > 0, reference, 1.0), 0.0
+            )
+            worst = np.maximum(worst, np.sqrt(ratio.max(axis=1)))
+        rigid_step = np.maximum(rigid_step, SAMPLED_MARGIN * worst)
+    return [
+        {"impulse": float(a + b), "rigid": float(b), "modal": 0.0, "brittle": 0.0}
+        for a, b in zip(impulse_step, rigid_step)
+    ]
+
+
+def pulse_figures(
+    chi: np.ndarray,
+    hertz_stiffness: np.ndarray,
+    reduced_mass_kg: np.ndarray,
+    speed_mps: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Duration (s), separation speed (m/s) and force-weighted RMS width (s) of the contact
+    pulses of many contacts (:func:`~tail_beam_sim.physics.solvers.pulse.contact_pulse`'s)."""
+    table = pulse_table()
+    row = np.clip(np.searchsorted(table.chi, chi, side="right") - 1, 0, table.chi.size - 2)
+    weight = (chi - table.chi[row]) / (table.chi[row + 1] - table.chi[row])
+    length = (reduced_mass_kg * speed_mps**2 / hertz_stiffness) ** 0.4
+    w = weight[:, None]
+    duration = ((1 - weight) * table.duration[row] + weight * table.duration[row + 1]) * (
+        length / speed_mps
+    )
+    separation = speed_mps * (
+        (1 - weight) * table.restitution[row] + weight * table.restitution[row + 1]
+    )
+    force = ((1 - w) * table.rows[row, 2] + w * table.rows[row + 1, 2]) * (
+        hertz_stiffness * length**1.5
+    )[:, None]
+    times = table.fractions * duration[:, None]
+    total = force.sum(axis=1)
+    centroid = np.einsum("sj,sj->s", force, times) / total
+    width = np.sqrt(np.einsum("sj,sj->s", force, (times - centroid[:, None]) ** 2) / total)
+    return duration, separation, width
 
 
 def model_errors(scene: Scene, needs: Needs, modes: Sequence[BendingMode]) -> dict[str, float]:

@@ -4,6 +4,7 @@ simulation and the stream alike."""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -54,6 +55,31 @@ def impact_truth(
     }
 
 
+class LazyHistory(Mapping[str, np.ndarray]):
+    """A result's noise-free histories, computed by ``compute`` when first read: a data set's
+    users read the streams and the summary, seldom the histories, which cost as much as all
+    the streams together."""
+
+    def __init__(self, compute: Callable[[], dict[str, np.ndarray]]) -> None:
+        self._compute: Callable[[], dict[str, np.ndarray]] | None = compute
+        self._values: dict[str, np.ndarray] | None = None
+
+    def _get(self) -> dict[str, np.ndarray]:
+        if self._values is None:
+            assert self._compute is not None
+            self._values, self._compute = self._compute(), None
+        return self._values
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        return self._get()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._get())
+
+    def __len__(self) -> int:
+        return len(self._get())
+
+
 @dataclass
 class SimulationResult:
     """Everything one scene produced: the trajectory (time from first contact), its noise-free
@@ -63,7 +89,7 @@ class SimulationResult:
     scene: Scene
     trajectory: Trajectory
     contact_stamp_s: float
-    history: dict[str, np.ndarray]
+    history: Mapping[str, np.ndarray]
     pressure: PressureStream
     imu: ImuStream
     rebound: Rebound
@@ -81,4 +107,4 @@ class SimulationResult:
         )
 
 
-__all__ = ["SimulationResult", "impact_truth"]
+__all__ = ["LazyHistory", "SimulationResult", "impact_truth"]

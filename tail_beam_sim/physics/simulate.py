@@ -26,16 +26,25 @@ from tail_beam_sim.physics.contact import (
     effective_modulus_pa,
     hertz_stiffness,
 )
+from tail_beam_sim.physics.contact_family import ContactFamily
 from tail_beam_sim.physics.fidelity import (
     DEFAULT_TIER,
     FidelitySettings,
     Needs,
     Plan,
     plan,
+    plan_many,
     shipped_settings,
 )
 from tail_beam_sim.physics.result import SimulationResult
 from tail_beam_sim.physics.scene import Impact, Scene
+from tail_beam_sim.physics.sense_many import (
+    HISTORY_RATE_HZ,
+    layout_key,
+    sense_group,
+    summary_figures,
+    supported,
+)
 from tail_beam_sim.physics.sensors import (
     SensorSuite,
     VibrationBlocks,
@@ -43,6 +52,7 @@ from tail_beam_sim.physics.sensors import (
     specific_force_z,
 )
 from tail_beam_sim.physics.solvers import ImpactProblem, Samples, Trajectory, solve
+from tail_beam_sim.physics.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
 from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
 from tail_beam_sim.physics.support import Support
 
@@ -59,7 +69,9 @@ __all__ = [
     "summarise",
 ]
 
-HISTORY_RATE_HZ = 20000.0
+# Impacts solved together, and scenes sensed together, from this many on (fewer: one by one,
+# whose fixed cost is smaller)
+MIN_GROUP = 4
 
 
 def build_problem(
@@ -97,35 +109,14 @@ def summarise(
     scene: Scene, trajectory: Trajectory, history: dict[str, np.ndarray]
 ) -> dict[str, Any]:
     """The noise-free figures of an impact (the keys of ``tail-beam simulate --json``)."""
-    impact = scene.impact
     after = history["time_s"] >= 0.0
-    rebound = trajectory.rebound_velocity_mps
-    return {
-        "material": impact.material.name,
-        "radius_m": impact.radius_m,
-        "mass_kg": impact.mass_kg,
-        "position_m": impact.position_m,
-        "drop_height_m": impact.drop_height_m,
-        "impact_speed_mps": impact.impact_speed_mps,
-        "rebound_speed_mps": max(rebound, 0.0),
-        "restitution": max(rebound, 0.0) / impact.impact_speed_mps,
-        "contact_duration_s": trajectory.contacts[0].duration_s,
-        "peak_contact_force_n": max(c.peak_force_n for c in trajectory.contacts),
-        "peak_jack_pressure_change_pa": float(
-            np.max(history["jack_pressure_pa"][after]) - scene.support.setting_pressure_pa
-        ),
-        "peak_beam_angular_velocity_radps": float(
-            np.max(np.abs(history["beam_angular_velocity_radps"][after]))
-        ),
-        "peak_imu_dynamic_accel_mps2": float(
-            np.max(np.abs(history["imu_dynamic_accel_mps2"][after]))
-        ),
-        "n_contacts": len(trajectory.contacts),
-        "particle_at_rest": trajectory.particle_at_rest,
-        "contact_model": scene.contact_model,
-        "solver": trajectory.solver,
-        "window_s": scene.window_s,
-    }
+    return summary_figures(
+        scene,
+        trajectory,
+        float(np.max(history["jack_pressure_pa"][after]) - scene.support.setting_pressure_pa),
+        float(np.max(np.abs(history["beam_angular_velocity_radps"][after]))),
+        float(np.max(np.abs(history["imu_dynamic_accel_mps2"][after]))),
+    )
 
 
 def history_times(scene: Scene, trajectory: Trajectory) -> np.ndarray:
@@ -188,6 +179,8 @@ def simulate(
     settings = settings or shipped_settings()
     needs = needs or settings.needs
     chosen, problem, method, options = _prepare(scene, tier, needs, settings, solver)
+    # One scene alone: the solver and the per-trajectory sensors (the group path's fixed cost
+    # is larger than its saving for one impact; simulate_many takes it for many).
     trajectory = solve(problem, method, **{**options, **solver_options})
     result = _finish(scene, chosen, trajectory, vibration)
     if check and chosen.check_against is not None:
@@ -209,13 +202,20 @@ def simulate_many(
 ) -> list[SimulationResult]:
     """Full sensor streams of many scenes: the same results as
     ``[simulate(s, tier=tier, needs=needs, settings=settings, vibration=v) for s in scenes]``
-    (``vibration``: one flag for all, or one per scene), with each distinct impact solved once.
+    (``vibration``: one flag for all, or one per scene; the same noise, stamps and blocks, the
+    signals to rounding), with each distinct impact solved once.
 
     Scenes that differ only in their sensors (rates, noise, seed: what a data set varies to
     train and evaluate across sensor settings) share one trajectory, since the motion does not
     depend on how it is measured; each scene still gets its own plan (its error estimate and an
     automatic tier depend on its sample rates: scenes share a trajectory only when their plans
     agree on the model and solver) and its own streams.
+
+    Impacts the hybrid solver takes as one contact (most: :mod:`~tail_beam_sim.physics.
+    contact_family`) are solved together per structure, and the sensors of scenes that share
+    their rates and window are sampled together (:mod:`~tail_beam_sim.physics.sense_many`),
+    one array operation per signal for the group, when there are MIN_GROUP or more; the others
+    one by one. A grouped result's histories are computed when first read.
     """
     settings = settings or shipped_settings()
     needs = needs or settings.needs
@@ -223,10 +223,17 @@ def simulate_many(
     flags = [vibration] * len(scenes) if isinstance(vibration, bool) else list(vibration)
     if len(flags) != len(scenes):
         raise ValueError(f"{len(flags)} vibration flags for {len(scenes)} scenes")
-    solved: dict[tuple[Any, ...], Trajectory] = {}
-    results = []
-    for scene, with_vibration in zip(scenes, flags):
-        chosen, problem, method, options = _prepare(scene, tier, needs, settings, None)
+    results: list[SimulationResult | None] = [None] * len(scenes)
+    plans = []
+    impacts: dict[tuple[Any, ...], int] = {}  # each distinct impact's index in ``distinct``
+    distinct: list[tuple[Plan, ImpactProblem, str, dict[str, Any]]] = []
+    plans_made = (
+        plan_many(scenes, tier, needs, settings)
+        if len(scenes) >= MIN_GROUP
+        else [plan(scene, tier, needs, settings) for scene in scenes]
+    )
+    for scene, chosen in zip(scenes, plans_made):
+        problem, method, options = _problem(scene, chosen, settings, None)
         key = (
             scene.support,
             scene.impact,
@@ -237,11 +244,73 @@ def simulate_many(
             method,
             tuple(sorted(options.items())),
         )
-        trajectory = solved.get(key)
-        if trajectory is None:
-            trajectory = solved[key] = solve(problem, method, **options)
-        results.append(_finish(scene, chosen, trajectory, with_vibration))
-    return results
+        if key not in impacts:
+            impacts[key] = len(distinct)
+            distinct.append((chosen, problem, method, options))
+        plans.append((chosen, impacts[key]))
+    # the one-contact impacts, per structure and tolerance: one family each
+    families: dict[tuple[int, float], tuple[list[int], list[ImpactProblem]]] = {}
+    for index, (chosen, problem, method, options) in enumerate(distinct):
+        if _family_path(None, chosen, method, options):
+            members = families.setdefault(
+                (id(chosen.structure), _family_tolerance(options)), ([], [])
+            )
+            members[0].append(index)
+            members[1].append(problem)
+    place: dict[int, tuple[ContactFamily, int]] = {}
+    for (_, tolerance), (indices, problems) in families.items():
+        if len(indices) < MIN_GROUP:
+            continue  # solved one by one below
+        family = ContactFamily(problems, tolerance)
+        for row, index in enumerate(indices):
+            if family.ok[row]:
+                place[index] = (family, row)
+    groups: dict[tuple[Any, ...], list[int]] = {}
+    for k, (scene, (chosen, index)) in enumerate(zip(scenes, plans)):
+        if index in place and supported(scene.sensors):
+            family, _ = place[index]
+            groups.setdefault((id(family), layout_key(scene, flags[k])), []).append(k)
+    alone = [k for members in groups.values() if len(members) < MIN_GROUP for k in members]
+    solved: dict[int, Trajectory] = {}
+    grouped = {k for members in groups.values() for k in members}
+    for k in sorted(alone) + [k for k in range(len(scenes)) if k not in grouped]:
+        chosen, index = plans[k]
+        if index in place:
+            trajectory = place[index][0].trajectory(place[index][1])
+        else:
+            trajectory = solved.get(index)
+            if trajectory is None:
+                _, problem, method, options = distinct[index]
+                trajectory = solved[index] = solve(problem, method, **options)
+        results[k] = _finish(scenes[k], chosen, trajectory, flags[k])
+    for members in groups.values():
+        if len(members) < MIN_GROUP:
+            continue
+        family = place[plans[members[0]][1]][0]
+        rows = np.array([place[plans[k][1]][1] for k in members], dtype=np.int64)
+        sensed = sense_group(
+            family, rows, [scenes[k] for k in members], flags[members[0]], histories
+        )
+        for k, result in zip(members, sensed):
+            _label(result, plans[k][0])
+            results[k] = result
+    return [r for r in results if r is not None]
+
+
+def _family_path(scene: Scene | None, chosen: Plan, method: str, options: dict[str, Any]) -> bool:
+    """Whether the impact goes the contact family's way: the hybrid solver with its default
+    contact handling (only the tier's tolerance given), no crushing, and (given the scene)
+    sensors the group path covers."""
+    return (
+        method == "hybrid"
+        and set(options) <= {"pulse_tolerance"}
+        and not chosen.tier.brittle
+        and (scene is None or supported(scene.sensors))
+    )
+
+
+def _family_tolerance(options: dict[str, Any]) -> float:
+    return float(options.get("pulse_tolerance", DEFAULT_PULSE_TOLERANCE))
 
 
 def _prepare(
@@ -250,6 +319,13 @@ def _prepare(
     """The plan of ``scene``, its impact problem, the solver and the plan's options for it
     (none when ``solver`` is another than the tier's)."""
     chosen = plan(scene, tier, needs, settings)
+    return (chosen, *_problem(scene, chosen, settings, solver))
+
+
+def _problem(
+    scene: Scene, chosen: Plan, settings: FidelitySettings, solver: str | None
+) -> tuple[ImpactProblem, str, dict[str, Any]]:
+    """The impact problem of ``scene`` under plan ``chosen``, the solver and its options."""
     crushing = (
         crushing_contact(scene.support, scene.impact, settings.crushing_confinement_factor)
         if chosen.tier.brittle
@@ -264,7 +340,7 @@ def _prepare(
         crushing=crushing,
     )
     options = chosen.solver_options if solver in (None, chosen.solver) else {}
-    return chosen, problem, solver or chosen.solver, dict(options)
+    return problem, solver or chosen.solver, dict(options)
 
 
 def _finish(
@@ -272,14 +348,19 @@ def _finish(
 ) -> SimulationResult:
     """The sensors of ``trajectory`` and the summary's tier and error estimate."""
     result = sense(scene, trajectory, vibration)
+    _label(result, chosen)
+    return result
+
+
+def _label(result: SimulationResult, chosen: Plan) -> None:
+    """The summary's tier and error estimate (the plan's model error and the solver's own)."""
     # The solver's own estimate is a field of every trajectory (contract:
     # tail_beam_sim.physics.solvers).
-    own = trajectory.error_estimate
+    own = result.trajectory.error_estimate
     result.summary["tier"] = chosen.tier.name
     result.summary["error_estimate"] = (
         max(chosen.model_error, own) if math.isfinite(own) else math.nan
     )
-    return result
 
 
 def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> SimulationResult:

@@ -5,11 +5,11 @@ give."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from same_result import assert_same_result
 
 from tail_beam_sim.physics import fidelity
 from tail_beam_sim.physics.fidelity import (
@@ -181,9 +181,9 @@ def test_propagate_equals_the_complex_exponential_form_for_every_time_alone(para
 
 
 def test_simulate_many_gives_simulate_results_solving_each_impact_once(params):
-    """simulate_many returns, bit for bit, what simulate returns for each scene; scenes that
-    differ only in their sensors (noise, seed, rates) share one trajectory, another impact
-    gets its own."""
+    """simulate_many returns what simulate returns for each scene (to 1e-11 of each signal,
+    the same noise and accelerometer blocks); scenes that differ only in their sensors (noise,
+    seed, rates) share one trajectory, another impact gets its own."""
     base = _scene(params, seed=2)
     louder = replace(base, sensors=replace(base.sensors.scaled_noise(3.0), seed=9))
     faster = replace(base, sensors=replace(base.sensors, pressure_rate_hz=4000.0, seed=4))
@@ -194,18 +194,7 @@ def test_simulate_many_gives_simulate_results_solving_each_impact_once(params):
     assert many[0].trajectory is many[1].trajectory is many[2].trajectory
     assert many[3].trajectory is not many[0].trajectory
     for scene, flag, result in zip(scenes, flags, many):
-        alone = simulate(scene, vibration=flag)
-        assert result.summary.keys() == alone.summary.keys()
-        for key, value in alone.summary.items():
-            assert result.summary[key] == value or (
-                isinstance(value, float) and math.isnan(value) and math.isnan(result.summary[key])
-            ), key
-        assert np.array_equal(result.pressure.pressure_pa, alone.pressure.pressure_pa)
-        assert np.array_equal(
-            result.imu.linear_acceleration_mps2, alone.imu.linear_acceleration_mps2
-        )
-        assert np.array_equal(result.vibration.accel_mps2, alone.vibration.accel_mps2)
-        assert np.array_equal(result.rebound.velocity_mps, alone.rebound.velocity_mps)
+        assert_same_result(result, simulate(scene, vibration=flag))
     assert many[1].vibration.count == 0 and many[0].vibration.count > 0
     with pytest.raises(ValueError, match="2 vibration flags for 4 scenes"):
         simulate_many(scenes, vibration=[True, False])

@@ -1,0 +1,478 @@
+"""Every sensor of many scenes at once, from a :class:`~tail_beam_sim.physics.contact_family.
+ContactFamily`: what :func:`tail_beam_sim.physics.simulate.sense` makes of each trajectory, one
+array operation per signal for the whole group.
+
+A group is scenes that share the sample rates, the window and the accelerometer's settings
+(:func:`layout_key`); each scene has its own impact (a row of the family), seed, noise levels
+and ranges. Each sensor's readings are read for the whole group at once
+(:meth:`ContactFamily.read`, the free response as products of the sensor grid's exponentials,
+kept per setting, and each scene's); per scene remain only its seeded generators' draws (its
+noise must be the one ``simulate`` gives) and the result's objects. The noise-free histories
+are computed when first read (:class:`~tail_beam_sim.physics.result.LazyHistory`): the
+summary's peaks are read from the same instants without them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from functools import partial
+from typing import Any
+
+import numpy as np
+
+from tail_beam_sim.physics.contact_family import ContactFamily, Grid, _product, grid_basis
+from tail_beam_sim.physics.result import LazyHistory, SimulationResult
+from tail_beam_sim.physics.ringdown_filtering import _dense_gain, settle_steps
+from tail_beam_sim.physics.scene import Scene, SensorSpec
+from tail_beam_sim.physics.sensors import (
+    _SOSFILT_KERNEL,
+    ImuStream,
+    PressureStream,
+    SensorSuite,
+    VibrationBlocks,
+    _butterworth,
+)
+from tail_beam_sim.physics.solvers.problem import Trajectory
+
+HISTORY_RATE_HZ = 20000.0
+
+
+def layout_key(scene: Scene, vibration: bool) -> tuple[Any, ...]:
+    """What scenes of one group share: window, pre-contact time, sample rates and the
+    accelerometer's settings (noise, ranges and seed may differ)."""
+    spec = scene.sensors
+    return (
+        scene.window_s,
+        scene.pre_contact_s,
+        spec.pressure_rate_hz,
+        spec.imu_rate_hz,
+        spec.camera_frame_rate_hz,
+        vibration,
+        spec.vibration_rate_hz,
+        spec.vibration_oversample,
+        spec.vibration_antialias_order,
+        spec.vibration_antialias_cutoff_fraction,
+        spec.vibration_block_samples,
+    )
+
+
+def supported(spec: SensorSpec) -> bool:
+    """Whether the group path covers these sensors (an IMU behind its own low-pass is left to
+    ``sense``)."""
+    return spec.imu_antialias_order == 0
+
+
+def summary_figures(
+    scene: Scene,
+    trajectory: Trajectory,
+    peak_pressure_change_pa: float,
+    peak_angular_velocity_radps: float,
+    peak_dynamic_accel_mps2: float,
+) -> dict[str, Any]:
+    """The noise-free figures of an impact (the keys of ``tail-beam simulate --json``), given
+    the peaks of its histories after first contact."""
+    impact = scene.impact
+    rebound = trajectory.rebound_velocity_mps
+    return {
+        "material": impact.material.name,
+        "radius_m": impact.radius_m,
+        "mass_kg": impact.mass_kg,
+        "position_m": impact.position_m,
+        "drop_height_m": impact.drop_height_m,
+        "impact_speed_mps": impact.impact_speed_mps,
+        "rebound_speed_mps": max(rebound, 0.0),
+        "restitution": max(rebound, 0.0) / impact.impact_speed_mps,
+        "contact_duration_s": trajectory.contacts[0].duration_s,
+        "peak_contact_force_n": max(c.peak_force_n for c in trajectory.contacts),
+        "peak_jack_pressure_change_pa": peak_pressure_change_pa,
+        "peak_beam_angular_velocity_radps": peak_angular_velocity_radps,
+        "peak_imu_dynamic_accel_mps2": peak_dynamic_accel_mps2,
+        "n_contacts": len(trajectory.contacts),
+        "particle_at_rest": trajectory.particle_at_rest,
+        "contact_model": scene.contact_model,
+        "solver": trajectory.solver,
+        "window_s": scene.window_s,
+    }
+
+
+def _grid_counts(end_s: np.ndarray, rate_hz: float) -> np.ndarray:
+    """How many instants k / rate of [0, end] each scene has (``sensors.sample_grid``)."""
+    return np.floor(end_s * rate_hz + 1e-9).astype(np.int64) + 1
+
+
+def _padded(draws: Sequence[np.ndarray], shape: tuple[int, ...]) -> np.ndarray:
+    """Per-scene arrays of different lengths stacked, zero-padded at the end."""
+    out = np.zeros(shape)
+    for i, values in enumerate(draws):
+        out[i, : values.shape[0]] = values
+    return out
+
+
+SMALL_ANGLE_RAD = 1e-3  # below it, cos and sin by their Taylor polynomials (to float rounding)
+
+
+def _cos(angle: np.ndarray) -> np.ndarray:
+    """cos of small angles (the beam's sway at the IMU, 1e-4 rad) as 1 - a^2/2 + a^4/24 (the
+    next term, a^6/720, is under 2e-21 there: float rounding), np.cos otherwise."""
+    if angle.size and float(np.max(np.abs(angle))) < SMALL_ANGLE_RAD:
+        square = angle * angle
+        return 1.0 - square * (0.5 - square * (1.0 / 24.0))
+    return np.cos(angle)
+
+
+def _sin(angle: np.ndarray) -> np.ndarray:
+    """sin of small angles as a - a^3/6 + a^5/120 (:func:`_cos`), np.sin otherwise."""
+    if angle.size and float(np.max(np.abs(angle))) < SMALL_ANGLE_RAD:
+        square = angle * angle
+        return angle * (1.0 - square * (1.0 / 6.0 - square * (1.0 / 120.0)))
+    return np.sin(angle)
+
+
+def sense_group(
+    family: ContactFamily,
+    rows: np.ndarray,
+    scenes: Sequence[Scene],
+    vibration: bool,
+    history_of: Callable[[Scene, Trajectory], dict[str, np.ndarray]],
+) -> list[SimulationResult]:
+    """The sensors of ``scenes`` (one group: :func:`layout_key`), scene i reading impact
+    ``rows[i]`` of ``family`` (whose ``ok`` must hold): each scene's result as ``sense`` gives
+    it, the summary without its tier and error estimate (the plan's); its histories are
+    ``history_of(scene, trajectory)``, computed when first read."""
+    structure = family.structure
+    scene0 = scenes[0]
+    spec0 = scene0.sensors
+    window, pre = scene0.window_s, scene0.pre_contact_s
+    count = len(scenes)
+    g = structure.gravity_mps2
+    suites = [SensorSuite(scene.sensors) for scene in scenes]
+    slowest = min(spec0.pressure_rate_hz, spec0.imu_rate_hz)
+    contact = np.array([pre + (0.0 + (1.0 / slowest) * suite.contact_phase()) for suite in suites])
+    end = contact + window
+    duration = family.duration_s[rows]
+
+    # the summary's peaks after first contact (summarise) over the histories' instants: the
+    # uniform ones from contact on and the contact's samples (the histories themselves are
+    # computed when first read)
+    uniform = np.arange(-pre, window + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ)
+    uniform = uniform[uniform >= 0.0]
+    nodes = family.contact_times[rows]
+    real = nodes <= window
+    nodes = np.where(real, nodes, window)
+    n = family.n
+    zero_n = np.zeros(n)
+    slope, imu_shape = structure.imu_slope_shape, structure.imu_shape
+    area = structure.piston_area_m2
+    # pressure change, pitch rate, acceleration along z at the IMU: weights of [q; q'; q'']
+    jack = np.concatenate(
+        [
+            structure.jack_stiffness_npm * structure.jack_shape / area,
+            structure.jack_damping_nspm * structure.jack_shape / area,
+            zero_n,
+        ]
+    )
+    rate_0 = np.zeros(3 * n)
+    rate_0[n] = 1.0
+    outputs = np.stack([jack, rate_0, np.concatenate([zero_n, zero_n, imu_shape])])
+    on_grid = family.read(
+        rows,
+        Grid(
+            np.broadcast_to(uniform, (count, uniform.size)),
+            uniform,
+            np.zeros(count),
+            key=("history", pre, window),
+        ),
+        outputs,
+    )
+    on_nodes = family.read(rows, Grid(nodes), outputs)
+    on_grid[1:], on_nodes[1:] = np.abs(on_grid[1:]), np.abs(on_nodes[1:])
+    on_nodes[:, ~real] = -np.inf
+    peak_change, peak_rate, peak_accel = np.maximum(on_grid.max(axis=2), on_nodes.max(axis=2))
+    peak_pressure = structure.setting_pressure_pa + peak_change
+
+    # pressure: point samples at k / rate
+    pressure_counts = _grid_counts(end, spec0.pressure_rate_hz)
+    pressure_stamps = np.arange(int(pressure_counts.max())) / spec0.pressure_rate_hz
+    clean = (
+        structure.setting_pressure_pa
+        + family.read(
+            rows,
+            Grid(
+                pressure_stamps[None, :] - contact[:, None],
+                pressure_stamps,
+                contact,
+                key=("stamps", spec0.pressure_rate_hz, pressure_stamps.size),
+            ),
+            jack,
+        )[0]
+    )
+    unit = _padded(
+        [s._pressure_rng.standard_normal(int(k)) for s, k in zip(suites, pressure_counts)],
+        clean.shape,
+    )
+    sigma = np.array([s.noise.pressure_pa for s in suites])[:, None]
+    low = np.array([s.noise.pressure_range_pa[0] for s in suites])[:, None]
+    high = np.array([s.noise.pressure_range_pa[1] for s in suites])[:, None]
+    pressure = np.clip(clean + sigma * unit, low, high)
+
+    # IMU: each reading the mean over the period before its stamp (sensors.imu_samples); the
+    # period's start is the stamp before (the first: the beam at rest)
+    imu_counts = _grid_counts(end, spec0.imu_rate_hz)
+    imu_stamps = np.arange(int(imu_counts.max())) / spec0.imu_rate_hz
+    period = 1.0 / spec0.imu_rate_hz
+    angle, pitch_rate, velocity = family.read(
+        rows,
+        Grid(
+            imu_stamps[None, :] - contact[:, None],
+            imu_stamps,
+            contact,
+            key=("stamps", spec0.imu_rate_hz, imu_stamps.size),
+        ),
+        np.stack(
+            [
+                np.concatenate([slope, zero_n, zero_n]),
+                np.concatenate([zero_n, slope, zero_n]),
+                np.concatenate([zero_n, imu_shape, zero_n]),
+            ]
+        ),
+    )
+    gyro = np.zeros(angle.shape + (3,))
+    gyro[:, 0, 1] = angle[:, 0] / period
+    gyro[:, 1:, 1] = (angle[:, 1:] - angle[:, :-1]) / period
+    accel = np.zeros_like(gyro)
+    accel[:, :, 0] = -structure.imu_from_hinge_m * pitch_rate**2 - g * _sin(angle)
+    accel[:, :, 2] = g * _cos(angle)
+    accel[:, 0, 2] -= velocity[:, 0] / period
+    accel[:, 1:, 2] -= (velocity[:, 1:] - velocity[:, :-1]) / period
+    gyro_unit = np.zeros_like(gyro)
+    accel_unit = np.zeros_like(gyro)
+    for i, (suite, k) in enumerate(zip(suites, imu_counts)):
+        rng = suite._imu_rng
+        gyro_unit[i, :k] = rng.standard_normal((int(k), 3))
+        accel_unit[i, :k] = rng.standard_normal((int(k), 3))
+    gyro = gyro + np.array([s.noise.gyro_radps for s in suites])[:, None, None] * gyro_unit
+    accel = accel + np.array([s.noise.accel_mps2 for s in suites])[:, None, None] * accel_unit
+
+    blocks = (
+        _DenseSpan(spec0, contact, end, duration).blocks(family, rows, suites)
+        if vibration
+        else [VibrationBlocks.empty()] * count
+    )
+
+    out = []
+    for i, (scene, suite) in enumerate(zip(scenes, suites)):
+        trajectory = family.trajectory(int(rows[i]))
+        stamp = float(contact[i])
+        rebound = suite.rebound(trajectory, stamp)
+        point = (
+            suite.impact_point(
+                scene.impact.position_m,
+                rebound,
+                scene.support.beam_length_m,
+                scene.support.plate_width_m,
+            )
+            if scene.sensors.camera_reports_impact_point
+            else None
+        )
+        kp, ki = int(pressure_counts[i]), int(imu_counts[i])
+        noise = suite.noise
+        out.append(
+            SimulationResult(
+                scene=scene,
+                trajectory=trajectory,
+                contact_stamp_s=stamp,
+                history=LazyHistory(partial(history_of, scene, trajectory)),
+                pressure=PressureStream(
+                    pressure_stamps[:kp], pressure[i, :kp], noise.pressure_pa**2
+                ),
+                imu=ImuStream(
+                    imu_stamps[:ki],
+                    gyro[i, :ki],
+                    accel[i, :ki],
+                    noise.gyro_radps**2,
+                    noise.accel_mps2**2,
+                ),
+                rebound=rebound,
+                summary=summary_figures(
+                    scene,
+                    trajectory,
+                    float(peak_pressure[i]) - scene.support.setting_pressure_pa,
+                    float(peak_rate[i]),
+                    float(peak_accel[i]),
+                ),
+                vibration=blocks[i],
+                point=point,
+            )
+        )
+    return out
+
+
+class _DenseSpan:
+    """The accelerometer's dense instants of every scene (``SensorSuite._dense_span``): the
+    beam rests (reads g) before index ``first``, the dense response runs through the
+    anti-alias filter from ``first`` to ``switch`` (padded to the longest span), the filtered
+    ring-down in closed form after, to ``count``."""
+
+    def __init__(
+        self, spec: SensorSpec, contact: np.ndarray, end: np.ndarray, duration: np.ndarray
+    ) -> None:
+        self.spec = spec
+        m = self.oversample = spec.vibration_oversample
+        self.dense_rate = m * spec.vibration_rate_hz
+        self.sos, self.zi_unit = _butterworth(
+            spec.vibration_rate_hz,
+            spec.vibration_antialias_order,
+            spec.vibration_antialias_cutoff_fraction,
+            m,
+        )
+        self.contact = contact
+        count = self.count = np.floor(end * self.dense_rate + 1e-9).astype(np.int64) + 1
+        free_from = np.ceil((contact + duration) * self.dense_rate - 1e-9).astype(np.int64) + 1
+        steady = np.maximum(free_from, 0) + settle_steps(self.sos.tobytes())
+        switch = self.switch = np.minimum(-(-steady // m) * m, count)
+        moving = np.maximum(np.floor(contact * self.dense_rate).astype(np.int64) - 1, 0)
+        self.first = np.minimum(moving // m * m, switch)
+        self.span = int((switch - self.first).max())
+        # each dense value the mean over the dense period before its instant: one instant
+        # more, before the first
+        low = int(self.first.min()) - 1
+        self.index = self.first[:, None] - 1 - low + np.arange(self.span + 1)[None, :]
+        self.grid = np.arange(low, low + int(self.index.max()) + 1) / self.dense_rate
+        self.times = self.grid[self.index] - contact[:, None]
+
+    def blocks(
+        self, family: ContactFamily, rows: np.ndarray, suites: Sequence[SensorSuite]
+    ) -> list[VibrationBlocks]:
+        """Every scene's blocks: dense values at :attr:`times`
+        (``sensors.mean_specific_force_z``), filter, ring-down, noise, clipping."""
+        structure = family.structure
+        n = family.n
+        zero_n = np.zeros(n)
+        angle, velocity = family.read(
+            rows,
+            Grid(self.times, self.grid, self.contact, self.index),
+            np.stack(
+                [
+                    np.concatenate([structure.imu_slope_shape, zero_n, zero_n]),
+                    np.concatenate([zero_n, structure.imu_shape, zero_n]),
+                ]
+            ),
+        )
+        g = structure.gravity_mps2
+        m, dense_rate = self.oversample, self.dense_rate
+        dense_period = 1.0 / dense_rate
+        first, switch, count = self.first, self.switch, self.count
+        angle = angle[:, 1:]
+        change = velocity[:, 1:] - velocity[:, :-1]
+        dense = np.ascontiguousarray(g * _cos(angle) - change / dense_period)
+        if self.span:
+            start = np.where(first > 0, g, dense[:, 0])
+            state = np.ascontiguousarray(self.zi_unit[None, :, :] * start[:, None, None])
+            dense = _sos_filter_rows(self.sos, dense, state)
+        picks = dense[:, ::m]
+        outputs = -(-count // m)
+        j = np.arange(int(outputs.max()))
+        # the ring-down everywhere (past each scene's last output: unused), then each scene's
+        # rest (g) and filtered span over it
+        clean = _filtered_ringdown(
+            family, rows, (j * m) / dense_rate, self.contact, dense_period, self.sos
+        )
+        clean[j[None, :] < (first // m)[:, None]] = g
+        span = picks.shape[1]
+        if span:
+            within = np.arange(span)[None, :] < ((switch - first) // m)[:, None]
+            pick_rows, pick_cols = np.nonzero(within)
+            clean[pick_rows, pick_cols + (first // m)[pick_rows]] = picks[pick_rows, pick_cols]
+        # noise (each scene's own generator), clipping, float32 and the blocks: as
+        # SensorSuite.vibration and cut_blocks make them, all scenes at once
+        noise = np.zeros(clean.shape)
+        for i, suite in enumerate(suites):
+            k = int(outputs[i])
+            noise[i, :k] = suite._vibration_rng.normal(0.0, suite.spec.vibration_noise_mps2, k)
+        limit = np.array([suite.spec.vibration_range_mps2 for suite in suites])[:, None]
+        samples = np.clip(clean + noise, -limit, limit).astype(np.float32)
+        size = self.spec.vibration_block_samples
+        whole = outputs // size
+        starts = size * np.arange(int(whole.max()), dtype=np.int64)
+        stamps = starts / self.spec.vibration_rate_hz
+        lengths = np.full(starts.size, size, dtype=np.int64)
+        period = 1.0 / self.spec.vibration_rate_hz
+        blocks = []
+        for i, suite in enumerate(suites):
+            b = int(whole[i])
+            own = suite.spec
+            blocks.append(
+                VibrationBlocks(
+                    starts[:b],
+                    lengths[:b],
+                    stamps[:b],
+                    samples[i, : b * size],
+                    period,
+                    own.vibration_range_mps2,
+                    own.vibration_noise_mps2**2,
+                )
+            )
+        return blocks
+
+
+def _sos_filter_rows(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> np.ndarray:
+    """Every row of ``x`` (S, T) through the second-order sections from its own state ``zi``
+    (S, sections, 2): ``sensors.sos_filter`` row by row, in one call."""
+    if _SOSFILT_KERNEL is None:  # pragma: no cover - another scipy layout: the public function
+        from scipy import signal
+
+        return signal.sosfilt(sos, x, axis=-1, zi=zi.transpose(1, 0, 2))[0]
+    out = np.array(x, dtype=float, order="C")
+    _SOSFILT_KERNEL(np.ascontiguousarray(sos, dtype=float), out, zi)
+    return out
+
+
+def _filtered_ringdown(
+    family: ContactFamily,
+    rows: np.ndarray,
+    grid_s: np.ndarray,
+    contact_s: np.ndarray,
+    dense_period_s: float,
+    sos: np.ndarray,
+) -> np.ndarray:
+    """(S, T): ``ringdown_filtering.filtered_ringdown`` of impacts ``rows`` at the instants
+    ``grid_s`` (absolute) of scenes whose contacts start at ``contact_s``: the anti-alias
+    filter's steady output over the free ring-down, each term's exponential split into the
+    grid's and the scene's (:meth:`ContactFamily._free_on_grid`)."""
+    structure = family.structure
+    n = family.n
+    keep = structure._half_spectrum[0]
+    eigenvalues = structure._eigen[0][keep]
+    real, imag = family._free_amplitude  # (N, 2n, k)
+    amplitude = real[rows] + 1j * imag[rows]
+    angle_weight = np.einsum("i,sik->sk", structure.imu_slope_shape, amplitude[:, :n])
+    velocity_weight = np.einsum("i,sik->sk", structure.imu_shape, amplitude[:, n:])
+    dynamic_weight = velocity_weight * _dense_gain(structure, dense_period_s, sos)
+    offset = contact_s + family.duration_s[rows]
+    if (
+        max(
+            np.max(np.abs(np.multiply.outer(offset, eigenvalues.real)), initial=0.0),
+            np.max(np.abs(np.multiply.outer(grid_s, eigenvalues.real)), initial=0.0),
+        )
+        > 300.0
+    ):
+        # a strongly damped mode: instant by instant
+        dt = grid_s[None, :] - offset[:, None]
+        angle = np.zeros(dt.shape)
+        dynamic = np.zeros(dt.shape)
+        for k, lam in enumerate(eigenvalues):
+            growth = np.exp(lam.real * dt)
+            cos, sin = growth * np.cos(lam.imag * dt), growth * np.sin(lam.imag * dt)
+            a, d = angle_weight[:, k : k + 1], dynamic_weight[:, k : k + 1]
+            angle = angle + (a.real * cos - a.imag * sin)
+            dynamic = dynamic + (d.real * cos - d.imag * sin)
+        return structure.gravity_mps2 * np.cos(angle) + dynamic
+    shifted = np.exp(-np.multiply.outer(offset, eigenvalues))  # (S, k)
+    basis = grid_basis(structure, grid_s, ("outputs", dense_period_s, grid_s.size, grid_s[-1]))
+    a, d = angle_weight * shifted, dynamic_weight * shifted
+    angle = _product(a.real, basis.real) - _product(a.imag, basis.imag)
+    dynamic = _product(d.real, basis.real) - _product(d.imag, basis.imag)
+    return structure.gravity_mps2 * _cos(angle) + dynamic
+
+
+__all__ = ["HISTORY_RATE_HZ", "layout_key", "sense_group", "summary_figures", "supported"]
