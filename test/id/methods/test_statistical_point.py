@@ -131,3 +131,20 @@ def test_the_points_model_reads_the_camera_frame_and_a_faster_one_is_not_outside
     # without the point (the point's models read one row).
     slower = method.decide({**calibrated, FRAME_PERIOD: 1e-3})
     assert POINT_USED not in slower.estimates
+
+
+def test_only_the_calibrated_point_models_read_the_camera_frame(shipped_point_models):
+    """Identified with config/ alone, the training's single impacts know config/'s frame only
+    (one value: nothing to learn from, and any other camera would read as outside training):
+    those point models read the point alone; the calibrated ones read the frame as well."""
+    for key, model in shipped_point_models["subsets"].items():
+        if key.endswith(WITH_POINT):
+            assert FRAME_PERIOD not in [name for name, _ in model["features"]], key
+    calibrated = [
+        model
+        for key, model in shipped_point_models["calibrated_subsets"].items()
+        if key.endswith(WITH_POINT)
+    ]
+    assert calibrated
+    for model in calibrated:
+        assert [name for name, _ in model["features"]][-2:] == [IMPACT_X, FRAME_PERIOD]
