@@ -33,8 +33,9 @@ The shift moves the boundary; it never makes a label surer than the impact alone
 
 Where the particle struck: an impact whose camera reported its impact point (``impact_x_m``)
 is decided by a twin of its signals' model fitted with the point as well (``WITH_POINT``),
-when one was trained (``python -m tail_beam_id.study.training --point-models``); the moment
-impulse is m v0 (1 + e) x, so knowing x separates what the impulse alone leaves open. Its
+and (on a support with a profile) the camera's frame period, when one was trained (``python -m
+tail_beam_id.study.training --point-models``); the moment impulse is m v0 (1 + e) x, so
+knowing x separates what the impulse alone leaves open. Its
 delay check, signals and hysteresis reading are the model's without the point, which every
 impact without a point (or decided over a slow camera's lags, or without the delay) still gets.
 
@@ -89,7 +90,16 @@ WITHOUT_DELAY = "~without_delay"
 # impact point, ``impact_x_m``): used only for an impact that has one, and only where such a
 # model was trained; every other impact is decided by the models without it, as before.
 WITH_POINT = "~with_point"
+# Its inputs besides the signals' own: the point, and (where the support's profile is known)
+# the camera's frame period (s), the spread of the lag the rebound delay carries besides the
+# contact's duration (up to a frame): knowing it, a model reads a fast camera's delay as the
+# sharper measure of the duration it is. A frame shorter than any trained is read as the
+# shortest trained, not as outside training: its delay is only sharper, so that errs less sure.
+# (Identified with config/ alone, training's single impacts know only config/'s frame: those
+# models read the point alone.)
+FRAME_PERIOD = "camera_frame_period_s"
 POINT_FEATURES: tuple[tuple[str, float | None], ...] = ((IMPACT_X, 0.05),)
+CALIBRATED_POINT_FEATURES = (*POINT_FEATURES, (FRAME_PERIOD, 1e-5))
 LAG_ROWS = 16  # lags a camera slower than the training's is averaged over
 # a camera frame this many times the reference (or slowest) frame or longer counts as slower
 SLOWER = 1.05
@@ -313,7 +323,7 @@ class StatisticalMethod:
         None when the impact has no point or no such model was trained. It keeps the decision's
         delay check and signals, and the hysteresis shift the support's profile reads, taken as
         far as it makes the label less sure or turns it."""
-        if not all(name in features for name, _ in POINT_FEATURES):
+        if IMPACT_X not in features:
             return None
         family = (
             self.calibrated_subsets
@@ -324,10 +334,14 @@ class StatisticalMethod:
         if model is None:
             return None
         names = [(n, f) for n, f in model["features"]]
+        if not all(name in features for name, _ in names):
+            return None  # an input the point's model reads is missing (no known camera frame)
         x = base_vector(features, names)
         low, high = (np.array(v) for v in model["envelope"])
         outside = tuple(
-            name for (name, _), v, lo, hi in zip(names, x, low, high) if not lo <= v <= hi
+            name
+            for (name, _), v, lo, hi in zip(names, x, low, high)
+            if not lo <= v <= hi and not (name == FRAME_PERIOD and v < lo)
         )
         clipped = np.clip(x, low, high)
         z = (clipped - np.array(model["mean"])) / np.array(model["scale"])

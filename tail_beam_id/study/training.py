@@ -36,6 +36,7 @@ from tail_beam_id.methods.hysteresis import (
 )
 from tail_beam_id.methods.inputs import IMPACT_X
 from tail_beam_id.methods.statistical import (
+    CALIBRATED_POINT_FEATURES,
     HYSTERESIS,
     POINT_FEATURES,
     SIGNAL_ORDER,
@@ -468,17 +469,21 @@ def train_point_models(records: Sequence[Record], seed: int) -> dict[str, dict[s
     carry ``impact_x_m``. They join the shipped models without changing any of them: an impact
     without a point is decided exactly as before."""
     return {
-        "subsets": point_family([r for r in records if not r.calibrated], seed),
+        "subsets": point_family([r for r in records if not r.calibrated], seed, POINT_FEATURES),
         "calibrated_subsets": point_family(
-            [r for r in records if r.calibrated or r.scene_set not in DRAWN_SETS], seed
+            [r for r in records if r.calibrated or r.scene_set not in DRAWN_SETS],
+            seed,
+            CALIBRATED_POINT_FEATURES,
         ),
     }
 
 
-def point_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
+def point_family(
+    records: Sequence[Record], seed: int, point_features: Sequence[tuple[str, float | None]]
+) -> dict[str, Any]:
     """One ``WITH_POINT`` network per subset of signals holding the rebound, on the inputs of
-    the subset's model plus ``POINT_FEATURES``, held out and calibrated as :func:`train_family`
-    does."""
+    the subset's model plus ``point_features``, held out and calibrated as
+    :func:`train_family` does."""
     held = held_out(records, seed)
     subsets: dict[str, Any] = {}
     for mask in range(1, 2 ** len(SIGNAL_ORDER)):
@@ -488,10 +493,11 @@ def point_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
         usable = [
             r
             for r in records
-            if set(signals) <= set(signals_of(r.label.features)) and IMPACT_X in r.label.features
+            if set(signals) <= set(signals_of(r.label.features))
+            and all(name in r.label.features for name, _ in point_features)
         ]
         if len(usable) >= 50:
-            names = feature_list(signals) + list(POINT_FEATURES)
+            names = feature_list(signals) + list(point_features)
             subsets[subset_key(signals) + WITH_POINT] = fit_subset(usable, names, held)
     return subsets
 

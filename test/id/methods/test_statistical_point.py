@@ -5,13 +5,14 @@ trained before the point existed ignore it."""
 from __future__ import annotations
 
 import copy
+import math
 
 import pytest
 from id_helpers import impact
 
 from tail_beam_id.methods import build_method, load_model
 from tail_beam_id.methods.inputs import IMPACT_X, IMPACT_Y, POINT_USED
-from tail_beam_id.methods.statistical import FULL_KEY, WITH_POINT
+from tail_beam_id.methods.statistical import FRAME_PERIOD, FULL_KEY, WITH_POINT
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.replay import point_tuples, replay
 
@@ -83,3 +84,67 @@ def test_the_points_model_reads_the_point(params, shipped_point_models, features
     near = method.decide({**features, IMPACT_X: 0.2}).p_coal
     far = method.decide({**features, IMPACT_X: 1.4}).p_coal
     assert abs(near - far) > 0.01
+
+
+def test_a_point_model_missing_an_input_leaves_the_decision_without_the_point(
+    params, shipped_point_models, features
+):
+    """The calibrated family's point models read the camera's frame period as well: an impact
+    with a point but no known frame is decided as one without the point, never with an input
+    made up."""
+    model = shipped_point_models["calibrated_subsets"][FULL_KEY + WITH_POINT]
+    if FRAME_PERIOD not in [name for name, _ in model["features"]]:
+        pytest.skip("the shipped point models do not read the camera's frame period")
+    method = build_method("statistical", params)
+    calibrated = {**features, "support_calibrated": 1.0}
+    assert method.decide(calibrated).estimates[POINT_USED] == 1.0
+    unknown_frame = {k: v for k, v in calibrated.items() if k != FRAME_PERIOD}
+    bare = {k: v for k, v in unknown_frame.items() if k not in (IMPACT_X, IMPACT_Y)}
+    decided = method.decide(unknown_frame)
+    assert POINT_USED not in decided.estimates
+    assert decided == method.decide(bare)
+
+
+def test_the_points_model_reads_the_camera_frame_and_a_faster_one_is_not_outside(
+    params, shipped_point_models, features
+):
+    """The same delay from a camera twice as fast says a contact nearer the delay's length (its
+    lag is shorter): the calibrated point model decides it otherwise. A frame shorter than any
+    trained is read as the shortest trained (its delay only sharper), not flagged outside
+    training."""
+    model = shipped_point_models["calibrated_subsets"][FULL_KEY + WITH_POINT]
+    names = [name for name, _ in model["features"]]
+    if FRAME_PERIOD not in names:
+        pytest.skip("the shipped point models do not read the camera's frame period")
+    method = build_method("statistical", params)
+    calibrated = {**features, "support_calibrated": 1.0}
+    slow = method.decide({**calibrated, FRAME_PERIOD: 2e-4})
+    fast = method.decide({**calibrated, FRAME_PERIOD: 1e-4})
+    assert slow.estimates[POINT_USED] == fast.estimates[POINT_USED] == 1.0
+    assert abs(slow.p_coal - fast.p_coal) > 1e-3
+    shortest = math.exp(model["envelope"][0][names.index(FRAME_PERIOD)])
+    faster = method.decide({**calibrated, FRAME_PERIOD: shortest / 4.0})
+    assert FRAME_PERIOD not in faster.outside_training
+    at_shortest = method.decide({**calibrated, FRAME_PERIOD: shortest})
+    assert faster.p_coal == pytest.approx(at_shortest.p_coal)
+    # A camera slower than the training's reference is averaged over its lags by the model
+    # without the point (the point's models read one row).
+    slower = method.decide({**calibrated, FRAME_PERIOD: 1e-3})
+    assert POINT_USED not in slower.estimates
+
+
+def test_only_the_calibrated_point_models_read_the_camera_frame(shipped_point_models):
+    """Identified with config/ alone, the training's single impacts know config/'s frame only
+    (one value: nothing to learn from, and any other camera would read as outside training):
+    those point models read the point alone; the calibrated ones read the frame as well."""
+    for key, model in shipped_point_models["subsets"].items():
+        if key.endswith(WITH_POINT):
+            assert FRAME_PERIOD not in [name for name, _ in model["features"]], key
+    calibrated = [
+        model
+        for key, model in shipped_point_models["calibrated_subsets"].items()
+        if key.endswith(WITH_POINT)
+    ]
+    assert calibrated
+    for model in calibrated:
+        assert [name for name, _ in model["features"]][-2:] == [IMPACT_X, FRAME_PERIOD]
