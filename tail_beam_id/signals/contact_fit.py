@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -275,14 +276,20 @@ def _best(
     return float(durations[best // starts.size]), float(starts[best % starts.size])
 
 
+@lru_cache(maxsize=16)
+def _coarse_durations(min_duration_s: float, max_duration_s: float) -> np.ndarray:
+    """The first search's durations, s: a log grid of COARSE_DURATIONS (read-only, shared)."""
+    durations = np.exp(
+        np.linspace(math.log(min_duration_s), math.log(max_duration_s), COARSE_DURATIONS)
+    )
+    durations.flags.writeable = False
+    return durations
+
+
 def _coarse_grid(period_s: float, config: ContactFitConfig) -> tuple[np.ndarray, np.ndarray]:
     """The first search's (durations, starts), s: a log grid of COARSE_DURATIONS durations,
     starts half a sample apart."""
-    durations = np.exp(
-        np.linspace(
-            math.log(config.min_duration_s), math.log(config.max_duration_s), COARSE_DURATIONS
-        )
-    )
+    durations = _coarse_durations(config.min_duration_s, config.max_duration_s)
     return durations, np.arange(-3, 6) * period_s / 2.0
 
 
@@ -291,7 +298,7 @@ def _refine_grid(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The (durations, starts) about the coarse best (``duration``, ``start``), s: a coarse
     step either side, and starts a third of a sample apart."""
-    coarse, _ = _coarse_grid(period_s, config)
+    coarse = _coarse_durations(config.min_duration_s, config.max_duration_s)
     step = math.log(coarse[1] / coarse[0])
     return (
         duration * np.exp(np.linspace(-step, step, 9)),

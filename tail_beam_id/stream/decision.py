@@ -106,7 +106,8 @@ class ImpactDecider:
         self.camera = camera
         # Where the camera saw the particles strike (topic impact_point), when it reports it.
         self.points: ImpactPoints | None = None
-        pulse_shapes()  # the force read-out's shapes tabulated now, not in the first decision
+        if config.contact_fit.force_readout:
+            pulse_shapes()  # the force read-out's shapes tabulated now, not in the first decision
 
     def decide(self, impact: PendingImpact) -> Label | None:
         """The label of ``impact``, now that its data are in; None when it is taken for the
