@@ -293,15 +293,24 @@ def _coarse_grid(period_s: float, config: ContactFitConfig) -> tuple[np.ndarray,
     return durations, np.arange(-3, 6) * period_s / 2.0
 
 
+@lru_cache(maxsize=16)
+def _refine_factors(min_duration_s: float, max_duration_s: float) -> np.ndarray:
+    """The refined durations over the coarse best's: a coarse step either side, nine of them
+    (read-only, shared)."""
+    coarse = _coarse_durations(min_duration_s, max_duration_s)
+    step = math.log(coarse[1] / coarse[0])
+    factors = np.exp(np.linspace(-step, step, 9))
+    factors.flags.writeable = False
+    return factors
+
+
 def _refine_grid(
     duration: float, start: float, period_s: float, config: ContactFitConfig
 ) -> tuple[np.ndarray, np.ndarray]:
     """The (durations, starts) about the coarse best (``duration``, ``start``), s: a coarse
     step either side, and starts a third of a sample apart."""
-    coarse = _coarse_durations(config.min_duration_s, config.max_duration_s)
-    step = math.log(coarse[1] / coarse[0])
     return (
-        duration * np.exp(np.linspace(-step, step, 9)),
+        duration * _refine_factors(config.min_duration_s, config.max_duration_s),
         start + np.arange(-2, 3) * period_s / 6.0,
     )
 
@@ -392,6 +401,8 @@ def _unbroken(where: np.ndarray, stamp_s: np.ndarray, period_s: float) -> np.nda
     if where.size < 2:
         return where
     breaks = np.flatnonzero(np.diff(stamp_s[where]) > 1.5 * period_s) + 1
+    if not breaks.size:
+        return where
     runs = np.split(where, breaks)
     return max(runs, key=len)
 
@@ -450,13 +461,14 @@ def fit_contact(
     # read as one at period x stride would be.
     stride = max(1, math.ceil(1.0 / (period_s * config.max_fit_rate_hz) - 1e-9))
     kept = (np.arange(stamp_s.size) - int(np.argmax(inside))) % stride == 0
+    clipped = clipped_samples(accel, np.flatnonzero((ring | inside) & kept))
     ring, inside = np.flatnonzero(ring & kept), np.flatnonzero(inside & kept)
     period_s *= stride
-    clipped = clipped_samples(accel, np.union1d(ring, inside))
     # A sensor driven past its range reads its limit: those samples say only that the signal
     # was beyond it, so the fit leaves them out (they read as a flat top, i.e. a long pulse
     # shortened to its edges), and the ring-down is read after the last of them.
-    inside = np.setdiff1d(inside, clipped)
+    if clipped.size:
+        inside = np.setdiff1d(inside, clipped)
     if inside.size < 8:
         return None
 
