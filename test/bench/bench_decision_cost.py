@@ -16,11 +16,19 @@ draws them, on seeds of its own), each recorded as one stream of stream-scene im
 shipped layout (accelerometer at 25.6 kHz) and with the sensors drawn with it, identified
 knowing the support (the self-calibration left out: it costs seconds per support and does not
 change what a decision computes). Each stream is identified in alternating rounds with and
-without the shortcuts; per impact the label's compute time (wall clock, ms) and the decision's
-CPU time (process time, ms: on a shared machine the steadier of the two); medians over the
-impacts of every round, and their ratio (without / with).
+without the shortcuts. Figures: the labels' compute time (wall clock, ms), median over the
+impacts of every round, as evaluate takes it; and the decision's CPU time (process time, ms),
+each impact's least over the rounds (the round the other processes disturbed least), median
+over the impacts: on a shared machine the wall clock mostly measures the others' load. Ratios:
+without / with.
+
+With ``--before PATH`` (a checkout of other code, e.g. ``git worktree add /tmp/before
+<commit>``) the same streams are also identified by that code and by this tree, each in a
+process of its own (PYTHONPATH), in alternating rounds: the CPU figure of each and their ratio
+(before / this), and whether every label and feature agrees.
 
 Usage: python test/bench/bench_decision_cost.py [--supports 2] [--impacts 20] [--repeats 3]
+       [--before PATH]
 """
 
 from __future__ import annotations
@@ -28,10 +36,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import json
 import os
 import statistics
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from unittest import mock
 
 import numpy as np
@@ -98,52 +110,119 @@ def identify(params: dict, recorded) -> list:
     )
 
 
+def draw(params: dict, supports: int, impacts: int) -> dict[str, list]:
+    """The recorded support streams, by sensors: the shipped layout's, and drawn with each."""
+    shipped = settings(params, [1.0], ["shipped"])[0]
+    return {
+        name: list(
+            support_streams(params, supports, impacts, SEED, which="structures", setting=setting)
+        )
+        for name, setting in (("shipped", shipped), ("drawn", None))
+    }
+
+
+def worker(supports: int, impacts: int) -> None:
+    """One round of the code on PYTHONPATH: prints, by sensors, each decision's CPU time (ms)
+    and every label (stamp, material, confidence, features) as JSON."""
+    params = load_parameters()
+    out = {}
+    for name, recorded_streams in draw(params, supports, impacts).items():
+        times: list[float] = []
+        with cpu_times(times):
+            labels = [label for r in recorded_streams for label in identify(params, r)]
+        out[name] = {
+            "cpu_ms": times,
+            "labels": [
+                [x.impact_stamp_s, x.material, x.confidence, sorted(x.features.items())]
+                for x in labels
+            ],
+        }
+    print(json.dumps(out))
+
+
+def against(before: Path, supports: int, impacts: int, repeats: int) -> None:
+    """The CPU figure of the code at ``before`` and of this tree, alternating rounds, each in a
+    process of its own; and whether their labels agree."""
+    trees = {"before": str(before), "this tree": str(Path(__file__).resolve().parents[2])}
+    rounds: dict[str, list[dict]] = {tree: [] for tree in trees}
+    for _ in range(repeats):
+        for tree, path in trees.items():
+            done = subprocess.run(
+                [sys.executable, __file__, "--worker"]
+                + [f"--supports={supports}", f"--impacts={impacts}"],
+                env={**os.environ, "PYTHONPATH": path},
+                capture_output=True,
+                text=True,
+                check=True,
+            )
+            rounds[tree].append(json.loads(done.stdout.strip().splitlines()[-1]))
+    for name in rounds["before"][0]:
+        cpu = {
+            tree: float(np.median(np.min([r[name]["cpu_ms"] for r in rounds[tree]], axis=0)))
+            for tree in trees
+        }
+        same = rounds["before"][0][name]["labels"] == rounds["this tree"][0][name]["labels"]
+        print(
+            f"{name} sensors, against {before}: CPU per decision {cpu['before']:.2f} ms before, "
+            f"{cpu['this tree']:.2f} ms this tree ({cpu['before'] / cpu['this tree']:.2f} x); "
+            f"labels and features the same: {same}"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--supports", type=int, default=2, help="drawn supports (default 2)")
     parser.add_argument("--impacts", type=int, default=20, help="impacts per support")
     parser.add_argument("--repeats", type=int, default=3, help="rounds of each (default 3)")
+    parser.add_argument("--before", type=Path, default=None, help="code to compare against")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.worker:
+        worker(args.supports, args.impacts)
+        return
     print(f"load average before: {os.getloadavg()[0]:.2f} ({os.cpu_count()} cores, shared)")
     params = load_parameters()
-    shipped = settings(params, [1.0], ["shipped"])[0]
-    streams = {
-        name: list(
-            support_streams(
-                params, args.supports, args.impacts, SEED, which="structures", setting=setting
-            )
-        )
-        for name, setting in (("shipped", shipped), ("drawn", None))
-    }
+    streams = draw(params, args.supports, args.impacts)
     same = True
     for name, recorded_streams in streams.items():
-        wall: dict[str, list[float]] = {"with": [], "without": []}
-        cpu: dict[str, list[float]] = {"with": [], "without": []}
+        # Per round and mode, each decision's wall and CPU time in decision order (the same
+        # impacts in the same order every round).
+        wall: dict[str, list[list[float]]] = {"with": [], "without": []}
+        cpu: dict[str, list[list[float]]] = {"with": [], "without": []}
         for _ in range(args.repeats):
             for mode in ("without", "with"):
-                labels = []
+                labels, times = [], []
                 with contextlib.ExitStack() as stack:
-                    stack.enter_context(cpu_times(cpu[mode]))
+                    stack.enter_context(cpu_times(times))
                     if mode == "without":
                         stack.enter_context(straightforward())
                     for recorded in recorded_streams:
                         labels.append(identify(params, recorded))
-                wall[mode] += [label.latency_ms for run in labels for label in run]
+                wall[mode].append([label.latency_ms for run in labels for label in run])
+                cpu[mode].append(times)
                 kept = [[dataclasses.replace(x, latency_ms=None) for x in run] for run in labels]
                 if mode == "without":
                     reference = kept
                 else:
                     same = same and kept == reference
-        impacts = len(wall["with"]) // args.repeats
-        medians = {k: (statistics.median(wall[k]), statistics.median(cpu[k])) for k in wall}
+        figures = {
+            mode: (
+                statistics.median(v for run in wall[mode] for v in run),
+                float(np.median(np.min(np.array(cpu[mode]), axis=0))),
+            )
+            for mode in wall
+        }
+        (wall_without, cpu_without), (wall_with, cpu_with) = figures["without"], figures["with"]
         print(
-            f"{name} sensors, {args.supports} supports, {impacts} labels, {args.repeats} rounds: "
-            f"compute per impact median {medians['without'][0]:.2f} ms without the shortcuts, "
-            f"{medians['with'][0]:.2f} ms with ({medians['without'][0] / medians['with'][0]:.2f} "
-            f"x); CPU {medians['without'][1]:.2f} -> {medians['with'][1]:.2f} ms "
-            f"({medians['without'][1] / medians['with'][1]:.2f} x)"
+            f"{name} sensors, {args.supports} supports, {len(wall['with'][0])} labels, "
+            f"{args.repeats} rounds: compute per impact (wall, median) {wall_without:.2f} ms "
+            f"without the shortcuts, {wall_with:.2f} ms with ({wall_without / wall_with:.2f} x); "
+            f"CPU (median over impacts of each one's least over the rounds) {cpu_without:.2f} "
+            f"-> {cpu_with:.2f} ms ({cpu_without / cpu_with:.2f} x)"
         )
     print(f"labels and features the same with and without: {same}")
+    if args.before is not None:
+        against(args.before, args.supports, args.impacts, args.repeats)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 
