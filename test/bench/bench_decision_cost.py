@@ -20,7 +20,8 @@ without the shortcuts. Figures: the labels' compute time (wall clock, ms), media
 impacts of every round, as evaluate takes it; and the decision's CPU time (process time, ms),
 each impact's least over the rounds (the round the other processes disturbed least), median
 over the impacts: on a shared machine the wall clock mostly measures the others' load. Ratios:
-without / with.
+without / with. Then where a decision's CPU time goes: the shares of the pressure fit, the
+impulse and the contact fit (its half-sine grid searches and its ring-down poles).
 
 With ``--before PATH`` (a checkout of other code, e.g. ``git worktree add /tmp/before
 <commit>``) the same streams are also identified by that code and by this tree, each in a
@@ -95,6 +96,42 @@ def cpu_times(into: list[float]) -> Iterator[None]:
 
     with mock.patch.object(decision.ImpactDecider, "decide", timed):
         yield
+
+
+# The parts of a decision whose CPU time the split reports: (module, function name, label).
+PARTS = (
+    (decision, "fit_pressure", "pressure fit"),
+    (decision, "imu_impulse", "impulse"),
+    (decision, "fit_contact", "contact fit"),
+    (contact_fit, "_best", "  of it: half-sine grid searches"),
+    (contact_fit, "ringing_poles", "  of it: ring-down poles (matrix pencil)"),
+)
+
+
+def split(params: dict, streams: dict[str, list]) -> None:
+    """Prints where a decision's CPU time goes (process time, shares of the decisions' total),
+    over every stream once, with the shortcuts."""
+    spent = {label: 0.0 for *_, label in PARTS}
+    decisions: list[float] = []
+    with contextlib.ExitStack() as stack:
+        for module, name, label in PARTS:
+            real = getattr(module, name)
+
+            def timed(*args, _real=real, _label=label, **kwargs):
+                started = time.process_time()
+                try:
+                    return _real(*args, **kwargs)
+                finally:
+                    spent[_label] += time.process_time() - started
+
+            stack.enter_context(mock.patch.object(module, name, timed))
+        stack.enter_context(cpu_times(decisions))
+        for recorded_streams in streams.values():
+            for recorded in recorded_streams:
+                identify(params, recorded)
+    total = sum(decisions) / 1e3
+    shares = ", ".join(f"{label.strip()} {100 * t / total:.0f} %" for label, t in spent.items())
+    print(f"where a decision's CPU time goes ({len(decisions)} decisions): {shares}")
 
 
 def identify(params: dict, recorded) -> list:
@@ -221,6 +258,7 @@ def main() -> None:
             f"-> {cpu_with:.2f} ms ({cpu_without / cpu_with:.2f} x)"
         )
     print(f"labels and features the same with and without: {same}")
+    split(params, streams)
     if args.before is not None:
         against(args.before, args.supports, args.impacts, args.repeats)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
