@@ -21,7 +21,8 @@ impacts of every round, as evaluate takes it; and the decision's CPU time (proce
 each impact's least over the rounds (the round the other processes disturbed least), median
 over the impacts: on a shared machine the wall clock mostly measures the others' load. Ratios:
 without / with. Then where a decision's CPU time goes: the shares of the pressure fit, the
-impulse and the contact fit (its half-sine grid searches and its ring-down poles).
+impulse and the contact fit (its half-sine grid searches and its ring-down poles), and in how
+many two-pass fits the first pass's refinement was left out.
 
 With ``--before PATH`` (a checkout of other code, e.g. ``git worktree add /tmp/before
 <commit>``) the same streams are also identified by that code and by this tree, each in a
@@ -112,6 +113,8 @@ def split(params: dict, streams: dict[str, list]) -> None:
     """Prints where a decision's CPU time goes (process time, shares of the decisions' total),
     over every stream once, with the shortcuts."""
     spent = {label: 0.0 for *_, label in PARTS}
+    calls = {label: 0 for *_, label in PARTS}
+    searches_per_fit: list[int] = []  # the grid searches of each contact fit that searched
     decisions: list[float] = []
     with contextlib.ExitStack() as stack:
         for module, name, label in PARTS:
@@ -119,10 +122,14 @@ def split(params: dict, streams: dict[str, list]) -> None:
 
             def timed(*args, _real=real, _label=label, **kwargs):
                 started = time.process_time()
+                calls[_label] += 1
+                searches = calls[PARTS[3][2]]
                 try:
                     return _real(*args, **kwargs)
                 finally:
                     spent[_label] += time.process_time() - started
+                    if _real is contact_fit.fit_contact and calls[PARTS[3][2]] > searches:
+                        searches_per_fit.append(calls[PARTS[3][2]] - searches)
 
             stack.enter_context(mock.patch.object(module, name, timed))
         stack.enter_context(cpu_times(decisions))
@@ -132,6 +139,12 @@ def split(params: dict, streams: dict[str, list]) -> None:
     total = sum(decisions) / 1e3
     shares = ", ".join(f"{label.strip()} {100 * t / total:.0f} %" for label, t in spent.items())
     print(f"where a decision's CPU time goes ({len(decisions)} decisions): {shares}")
+    two_pass = [n for n in searches_per_fit if n >= 3]
+    print(
+        f"contact fits that searched: {len(searches_per_fit)}, {len(two_pass)} of them in two "
+        f"passes; the first pass's refinement left out in {two_pass.count(3)} "
+        f"(grid searches per two-pass fit {np.mean(two_pass) if two_pass else 0:.2f}, 4 without)"
+    )
 
 
 def identify(params: dict, recorded) -> list:
