@@ -29,7 +29,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import butter, find_peaks, hilbert, sosfiltfilt
 
 # ring-down starts this long after the onset (the longest contact, 1 ms, and the filter's delay), s
 SKIP_S = 0.0015
@@ -139,6 +138,10 @@ def mode_frequencies(
         return []
     spectrum = total[band]
     floor = float(np.median(spectrum))
+    # scipy.signal is imported where used (a second or two to import: id_node's start need not
+    # wait for it).
+    from scipy.signal import find_peaks
+
     peaks, props = find_peaks(spectrum, prominence=MIN_PEAK_PROMINENCE * floor)
     # A mode stands out of what is around it: a ripple on the tail of a strong mode's peak (its
     # spectrum falls off as 1 / (f - f0)^2, far above the noise) does not.
@@ -174,6 +177,8 @@ def decay_rate(
     )
     if not low < high:
         return None
+    from scipy.signal import butter, hilbert, sosfiltfilt
+
     sos = butter(2, [low, high], btype="band", fs=rate, output="sos")
     edge = max(1, int(math.ceil(EDGE_PERIODS * rate / frequency_hz)))
     if len(segment) <= max(3 * 2 * sos.shape[0] + 1, 4 * edge):

@@ -38,8 +38,6 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import brentq
-from scipy.signal import welch
 
 from tail_beam_id.calibration.modes import MIN_FREQUENCY_HZ as MIN_MODE_FREQUENCY_HZ
 from tail_beam_id.calibration.modes import RingingMode, ring_decay_s, ringing_modes, sample_noise
@@ -176,6 +174,10 @@ def sway_frequency(stamp_s: np.ndarray, pressure_pa: np.ndarray) -> float | None
     period = float(np.median(np.diff(stamp_s)))
     rate = 1.0 / period
     segment = min(stamp_s.size, int(2.0 * rate))  # 0.5 Hz resolution where the recording allows
+    # scipy.signal and scipy.optimize are imported where used: importing them takes a second
+    # or two, which id_node's start (and every process that imports it) need not pay.
+    from scipy.signal import welch
+
     freq, power = welch(
         pressure_pa - np.mean(pressure_pa), fs=rate, nperseg=segment, detrend="linear"
     )
@@ -208,6 +210,8 @@ def bulk_modulus_for(params: Mapping[str, Any], frequency_hz: float) -> float | 
         return math.log(
             Support.from_params(varied, materials).rigid_mode_frequency_hz / frequency_hz
         )
+
+    from scipy.optimize import brentq
 
     try:
         return float(params["support"]["oil_bulk_modulus_pa"]) * math.exp(

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -275,6 +276,45 @@ def _best(
     return float(durations[best // starts.size]), float(starts[best % starts.size])
 
 
+@lru_cache(maxsize=16)
+def _coarse_durations(min_duration_s: float, max_duration_s: float) -> np.ndarray:
+    """The first search's durations, s: a log grid of COARSE_DURATIONS (read-only, shared)."""
+    durations = np.exp(
+        np.linspace(math.log(min_duration_s), math.log(max_duration_s), COARSE_DURATIONS)
+    )
+    durations.flags.writeable = False
+    return durations
+
+
+def _coarse_grid(period_s: float, config: ContactFitConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The first search's (durations, starts), s: a log grid of COARSE_DURATIONS durations,
+    starts half a sample apart."""
+    durations = _coarse_durations(config.min_duration_s, config.max_duration_s)
+    return durations, np.arange(-3, 6) * period_s / 2.0
+
+
+@lru_cache(maxsize=16)
+def _refine_factors(min_duration_s: float, max_duration_s: float) -> np.ndarray:
+    """The refined durations over the coarse best's: a coarse step either side, nine of them
+    (read-only, shared)."""
+    coarse = _coarse_durations(min_duration_s, max_duration_s)
+    step = math.log(coarse[1] / coarse[0])
+    factors = np.exp(np.linspace(-step, step, 9))
+    factors.flags.writeable = False
+    return factors
+
+
+def _refine_grid(
+    duration: float, start: float, period_s: float, config: ContactFitConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """The (durations, starts) about the coarse best (``duration``, ``start``), s: a coarse
+    step either side, and starts a third of a sample apart."""
+    return (
+        duration * _refine_factors(config.min_duration_s, config.max_duration_s),
+        start + np.arange(-2, 3) * period_s / 6.0,
+    )
+
+
 def _search(
     t: np.ndarray,
     y: np.ndarray,
@@ -285,20 +325,35 @@ def _search(
 ) -> tuple[float, float]:
     """(duration, start) of the best half-sine: every duration of a log grid (COARSE_DURATIONS)
     with starts half a sample apart, then refined around the best."""
-    coarse = np.exp(
-        np.linspace(
-            math.log(config.min_duration_s), math.log(config.max_duration_s), COARSE_DURATIONS
-        )
+    duration, start = _best(t, y, sway, poles, *_coarse_grid(period_s, config))
+    return _best(t, y, sway, poles, *_refine_grid(duration, start, period_s, config))
+
+
+def _early_ring_start_s(
+    duration_s: np.ndarray | float, start_s: np.ndarray | float, config: ContactFitConfig
+) -> np.ndarray | float:
+    """Where the second pass's ring-down starts after a first pass that read ``duration_s``
+    from ``start_s`` (s after the onset; arrays: for each pair)."""
+    return np.maximum(
+        config.early_ring_start_s,
+        start_s + config.ring_after_contact_factor * duration_s + config.ring_after_contact_s,
     )
-    duration, start = _best(t, y, sway, poles, coarse, np.arange(-3, 6) * period_s / 2.0)
-    step = math.log(coarse[1] / coarse[0])
-    return _best(
-        t,
-        y,
-        sway,
-        poles,
-        duration * np.exp(np.linspace(-step, step, 9)),
-        start + np.arange(-2, 3) * period_s / 6.0,
+
+
+def one_second_ring_down(
+    stamp_s: np.ndarray,
+    onset_s: float,
+    early_s: np.ndarray,
+    period_s: float,
+    config: ContactFitConfig,
+) -> bool:
+    """Whether the second pass's ring-down starts at the same samples whichever of ``early_s``
+    (s after the onset ``onset_s``; one for each pair the first pass's refinement could pick)
+    it starts from, each early enough for a second pass: then the refinement can change
+    nothing and is left out (:func:`fit_contact`)."""
+    low, high = float(np.min(early_s)), float(np.max(early_s))
+    return high < config.ring_start_s - period_s and not np.any(
+        (stamp_s > onset_s + low) & (stamp_s <= onset_s + high)
     )
 
 
@@ -346,6 +401,8 @@ def _unbroken(where: np.ndarray, stamp_s: np.ndarray, period_s: float) -> np.nda
     if where.size < 2:
         return where
     breaks = np.flatnonzero(np.diff(stamp_s[where]) > 1.5 * period_s) + 1
+    if not breaks.size:
+        return where
     runs = np.split(where, breaks)
     return max(runs, key=len)
 
@@ -404,13 +461,14 @@ def fit_contact(
     # read as one at period x stride would be.
     stride = max(1, math.ceil(1.0 / (period_s * config.max_fit_rate_hz) - 1e-9))
     kept = (np.arange(stamp_s.size) - int(np.argmax(inside))) % stride == 0
+    clipped = clipped_samples(accel, np.flatnonzero((ring | inside) & kept))
     ring, inside = np.flatnonzero(ring & kept), np.flatnonzero(inside & kept)
     period_s *= stride
-    clipped = clipped_samples(accel, np.union1d(ring, inside))
     # A sensor driven past its range reads its limit: those samples say only that the signal
     # was beyond it, so the fit leaves them out (they read as a flat top, i.e. a long pulse
     # shortened to its edges), and the ring-down is read after the last of them.
-    inside = np.setdiff1d(inside, clipped)
+    if clipped.size:
+        inside = np.setdiff1d(inside, clipped)
     if inside.size < 8:
         return None
 
@@ -439,23 +497,30 @@ def fit_contact(
     poles = ringing_poles(
         accel[ring], period_s, config.max_modes, noise, config.min_mode_frequency_hz
     )
-    duration, start = _search(t, y, sway, poles, period_s, config)
+    duration, start = _best(t, y, sway, poles, *_coarse_grid(period_s, config))
+    refine = _refine_grid(duration, start, period_s, config)
     # A second pass whose ring-down starts soon after the contact the first pass read (not
     # before early_ring_start_s): on a stiff beam the modes that shape the pulse ring out
     # within a millisecond, before ring_start_s, and without them the reading split between
     # two minima (one 25 mm coal read 113 or 289 us on one support; README, Identification).
-    early_s = max(
-        config.early_ring_start_s,
-        start + config.ring_after_contact_factor * duration + config.ring_after_contact_s,
+    # When every pair the refinement could pick starts that ring-down at the same samples and
+    # it is read, the first pass is not refined: its reading is then used for nothing else.
+    early = _early_ring_start_s(refine[0][:, None], refine[1][None, :], config)
+    sooner = (
+        ring_down(float(np.min(early)))
+        if one_second_ring_down(stamp_s, onset_s, early, period_s, config)
+        else None
     )
+    if sooner is None or sooner.size < config.min_ring_samples:
+        duration, start = _best(t, y, sway, poles, *refine)
+        early_s = float(_early_ring_start_s(duration, start, config))
+        sooner = ring_down(early_s) if early_s < config.ring_start_s - period_s else None
     used = poles
-    if early_s < config.ring_start_s - period_s:
-        sooner = ring_down(early_s)
-        if sooner.size >= config.min_ring_samples:
-            used = ringing_poles(
-                accel[sooner], period_s, config.max_modes, noise, config.min_mode_frequency_hz
-            )
-            duration, start = _search(t, y, sway, used, period_s, config)
+    if sooner is not None and sooner.size >= config.min_ring_samples:
+        used = ringing_poles(
+            accel[sooner], period_s, config.max_modes, noise, config.min_mode_frequency_hz
+        )
+        duration, start = _search(t, y, sway, used, period_s, config)
     force = (
         read_force(t, y, sway, poles, period_s, start, duration, noise, config.max_duration_s)
         if with_force

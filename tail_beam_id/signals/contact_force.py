@@ -38,8 +38,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.integrate import solve_ivp
-from scipy.signal import lfilter
 
 END_FRACTION = 0.05  # the force "ends" when it falls below this fraction of its peak
 # Hertz's exponent and the hysteresis factors of the shapes tried. 1.5: a sphere's contact, chi
@@ -99,6 +97,9 @@ def pulse_shapes() -> tuple[PulseShape, ...]:
 
 def _shape(exponent: float, chi: float) -> PulseShape:
     """One shape of :func:`pulse_shapes`."""
+    # scipy's integrators and filters are imported where used: a process that never reads the
+    # force (the force read-out off, the caving node) need not pay for importing them.
+    from scipy.integrate import solve_ivp
 
     def rhs(_: float, s: np.ndarray) -> list[float]:
         d, v = s
@@ -136,6 +137,8 @@ def pole_responses(forces: np.ndarray, poles: np.ndarray, period_s: float) -> np
     before as E0 - E1, and what came before decays by z = exp(p T): the filter
     (E1 + (E0 - E1) q^-1) / (1 - z q^-1), run as two real second-order filters (its numerator
     and denominator times 1 - conj(z) q^-1; ten times faster than a complex one)."""
+    from scipy.signal import lfilter
+
     out = np.empty((forces.shape[0], 2 * poles.size, forces.shape[1]))
     for k, pole in enumerate(poles):
         pole = complex(pole)

@@ -16,6 +16,8 @@ from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
 
+import numpy as np
+
 from tail_beam_id.methods import Decision, Method
 from tail_beam_id.methods.inputs import IMPACT_X, IMPACT_Y, POINT_USED
 from tail_beam_id.signals.contact_fit import clipped_near, fit_contact, half_periods, unreliable
@@ -45,6 +47,18 @@ from tail_beam_id.stream.impact_point import ImpactPoints
 from tail_beam_id.stream.label import Label, make_label
 
 UNUSUAL_DELAY_PROBABILITY = 0.5  # above it, the delay check counts an impact's delay unusual
+
+
+def around(
+    stamp_s: np.ndarray, values: np.ndarray, onset_s: float, before_s: float, after_s: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The samples (stamps s, increasing; values) from ``before_s`` before ``onset_s`` to
+    ``after_s`` after it, each end inclusive, and one more on either side: every sample the
+    pulse's read-outs select by stamp, so that they select the same ones without scanning the
+    whole buffer (several seconds of a fast channel)."""
+    low = max(int(np.searchsorted(stamp_s, onset_s - before_s, side="left")) - 1, 0)
+    high = int(np.searchsorted(stamp_s, onset_s + after_s, side="right")) + 1
+    return stamp_s[low:high], values[low:high]
 
 
 def profile_says_timing_suspect(merged: Mapping[str, Any], config: TimingConfig) -> bool:
@@ -92,7 +106,8 @@ class ImpactDecider:
         self.camera = camera
         # Where the camera saw the particles strike (topic impact_point), when it reports it.
         self.points: ImpactPoints | None = None
-        pulse_shapes()  # the force read-out's shapes tabulated now, not in the first decision
+        if config.contact_fit.force_readout:
+            pulse_shapes()  # the force read-out's shapes tabulated now, not in the first decision
 
     def decide(self, impact: PendingImpact) -> Label | None:
         """The label of ``impact``, now that its data are in; None when it is taken for the
@@ -143,9 +158,16 @@ class ImpactDecider:
                 if impact.channel == "vibration"
                 else (channels.imu, self.acceleration.imu_z())
             )
+            stamps, values = around(
+                series.stamp_s,
+                values,
+                impact.pulse.onset_s,
+                max(cfg.impulse_pre_s, cfg.contact_fit.before_s),
+                max(post_s, cfg.contact_fit.after_s, cfg.contact_fit.ring_end_s),
+            )
             impulse = imu_impulse(
                 self.model,
-                series.stamp_s,
+                stamps,
                 values,
                 impact.pulse,
                 cfg.impulse_pre_s,
@@ -153,7 +175,7 @@ class ImpactDecider:
                 post_s,
             )
             contact = fit_contact(
-                series.stamp_s,
+                stamps,
                 values,
                 impact.pulse.onset_s,
                 impact.pulse.period_s,
@@ -161,7 +183,7 @@ class ImpactDecider:
                 cfg.contact_fit,
                 with_force=cfg.contact_fit.force_readout,
             )
-            if clipped_near(series.stamp_s, values, impact.pulse.onset_s, cfg.contact_fit):
+            if clipped_near(stamps, values, impact.pulse.onset_s, cfg.contact_fit):
                 saturated.append(impact.channel)
         features = impact_features(
             self.model,

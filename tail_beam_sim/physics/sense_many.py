@@ -25,12 +25,12 @@ from tail_beam_sim.physics.result import LazyHistory, SimulationResult
 from tail_beam_sim.physics.ringdown_filtering import _dense_gain, settle_steps
 from tail_beam_sim.physics.scene import Scene, SensorSpec
 from tail_beam_sim.physics.sensors import (
-    _SOSFILT_KERNEL,
     ImuStream,
     PressureStream,
     SensorSuite,
     VibrationBlocks,
     _butterworth,
+    _sosfilt_kernel,
 )
 from tail_beam_sim.physics.solvers.problem import Trajectory
 
@@ -418,12 +418,13 @@ class _DenseSpan:
 def _sos_filter_rows(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> np.ndarray:
     """Every row of ``x`` (S, T) through the second-order sections from its own state ``zi``
     (S, sections, 2): ``sensors.sos_filter`` row by row, in one call."""
-    if _SOSFILT_KERNEL is None:  # pragma: no cover - another scipy layout: the public function
+    kernel = _sosfilt_kernel()
+    if kernel is None:  # pragma: no cover - another scipy layout: the public function
         from scipy import signal
 
         return signal.sosfilt(sos, x, axis=-1, zi=zi.transpose(1, 0, 2))[0]
     out = np.array(x, dtype=float, order="C")
-    _SOSFILT_KERNEL(np.ascontiguousarray(sos, dtype=float), out, zi)
+    kernel(np.ascontiguousarray(sos, dtype=float), out, zi)
     return out
 
 

@@ -37,12 +37,6 @@ from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
 import numpy as np
-from scipy import signal
-
-try:  # scipy's compiled second-order-sections kernel, behind signal.sosfilt
-    from scipy.signal._sosfilt import _sosfilt as _SOSFILT_KERNEL
-except ImportError:  # pragma: no cover - another scipy layout: the public function
-    _SOSFILT_KERNEL = None
 
 from tail_beam_sim.physics.ringdown_filtering import filtered_ringdown, settle_steps
 from tail_beam_sim.physics.scene import SensorSpec
@@ -505,16 +499,32 @@ class AntiAliasFilter:
         return out
 
 
+@lru_cache(maxsize=1)
+def _sosfilt_kernel() -> Callable[..., None] | None:
+    """scipy's compiled second-order-sections kernel behind ``scipy.signal.sosfilt``; None in
+    another scipy layout. Imported on first use, as scipy.signal is here: importing it takes
+    a second or two, which a process that filters nothing (the command line's other verbs,
+    the bag tools) need not pay."""
+    try:
+        from scipy.signal._sosfilt import _sosfilt
+    except ImportError:  # pragma: no cover - another scipy layout: the public function
+        return None
+    return _sosfilt
+
+
 def sos_filter(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``scipy.signal.sosfilt(sos, x, zi=zi)`` of a 1-D signal: (output, final state), through
     scipy's compiled kernel directly when it is there (the same arithmetic; the public
     function's argument handling costs ten times the filtering of an impact's few hundred
     samples)."""
-    if _SOSFILT_KERNEL is None:
+    kernel = _sosfilt_kernel()
+    if kernel is None:
+        from scipy import signal
+
         return signal.sosfilt(sos, x, zi=zi)
     out = np.array(x, dtype=float, order="C").reshape(1, -1)
     state = np.array(zi, dtype=float, order="C").reshape(1, -1, 2)
-    _SOSFILT_KERNEL(np.ascontiguousarray(sos, dtype=float), out, state)
+    kernel(np.ascontiguousarray(sos, dtype=float), out, state)
     return out[0], state[0]
 
 
@@ -525,6 +535,8 @@ def _butterworth(
     """The low-pass's second-order sections and their settled state for a unit input, designed
     once per setting: the design costs more than filtering one impact's samples. Shared between
     filters, which only read them."""
+    from scipy import signal
+
     sos = signal.butter(
         order, cutoff_fraction * rate_hz, btype="low", fs=oversample * rate_hz, output="sos"
     )
