@@ -41,6 +41,13 @@ from tail_beam_id.caving.events import (
     TrueShare,
 )
 from tail_beam_id.caving.rules import Rule, rule_factories
+from tail_beam_id.study.caving_pipeline import (
+    LAYOUTS,
+    SOURCE_PREFIX,
+    IdentifiedWindowFeed,
+    Pipeline,
+    layout_of,
+)
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.drawing import GANGUE
 from tail_beam_sim.physics.face import (
@@ -51,10 +58,12 @@ from tail_beam_sim.physics.face import (
     draw_window,
     schedule,
 )
-from tail_beam_sim.spec import CAVING_LABELS
+from tail_beam_sim.spec import CAVING_LABELS, CAVING_PIPELINE
 
 __all__ = [
     "FIELD_TRIAL",
+    "ALL_SOURCES",
+    "IDENTIFIED_SOURCES",
     "SOURCES",
     "CavingRun",
     "LabelModel",
@@ -66,6 +75,9 @@ __all__ = [
 ]
 
 SOURCES = ("truth", "stand-in")
+# The identified sources (:mod:`tail_beam_id.study.caving_pipeline`), one per sensor layout.
+IDENTIFIED_SOURCES = tuple(SOURCE_PREFIX + layout for layout in LAYOUTS)
+ALL_SOURCES = SOURCES + IDENTIFIED_SOURCES
 # Tashan 8222 (12 m top coal, close at first gangue, groups of 9 supports): top coal drawn and
 # gangue content, fractions.
 FIELD_TRIAL = ("Tashan 8222 field trial", 0.8053, 0.0400)
@@ -201,18 +213,42 @@ def run_one(
     source: str,
     model: LabelModel,
     seed: int,
+    pipeline: Pipeline | None = None,
+    window_done: Callable[[int, float], None] | None = None,
 ) -> CavingRun:
-    """Draw the face once with ``make_rule`` closing every window, fed by ``source``."""
-    if source not in SOURCES:
-        raise InputError("source", source, f"must be one of {', '.join(SOURCES)}")
+    """Draw the face once with ``make_rule`` closing every window, fed by ``source``; an
+    identified source needs the ``pipeline`` of its layout. ``window_done(windows, clock_s)``
+    after each window."""
+    if source not in ALL_SOURCES:
+        layout_of(source)  # names a bad layout
+        raise InputError("source", source, f"must be one of {', '.join(ALL_SOURCES)}")
+    layout = layout_of(source)
+    if layout is not None and (pipeline is None or pipeline.layout != layout):
+        raise InputError("pipeline", layout, f"source {source} needs the pipeline of its layout")
     start = time.perf_counter()
     params = face_params.with_changes(seed=seed)
     face = Face(params)
     rngs = (np.random.default_rng([seed, 1]), np.random.default_rng([seed, 2]))
     timed_out = 0
-    for visit in schedule(params):
-        feed = WindowFeed(make_rule(), source, model, rngs, params.share_window_kg, face.clock_s)
+    for window, visit in enumerate(schedule(params)):
+        if pipeline is not None and layout is not None:
+            sensor_seed = int(np.random.SeedSequence([seed, 4, window]).generate_state(1)[0])
+            feed: Callable[[DrawnCell], bool] = IdentifiedWindowFeed(
+                make_rule(),
+                pipeline,
+                rngs,
+                params.share_window_kg,
+                face.clock_s,
+                sensor_seed,
+                window,
+            )
+        else:
+            feed = WindowFeed(
+                make_rule(), source, model, rngs, params.share_window_kg, face.clock_s
+            )
         timed_out += draw_window(face, visit, feed).timed_out
+        if window_done is not None:
+            window_done(window + 1, face.clock_s)
     return CavingRun(
         rule,
         source,
@@ -225,6 +261,26 @@ def run_one(
     )
 
 
+def pipelines_for(
+    sources: Sequence[str],
+    physics: Mapping[str, Any] | None,
+    caving: Mapping[str, Any],
+) -> dict[str, Pipeline]:
+    """The pipeline of each identified source among ``sources`` (layout -> Pipeline), on the
+    ``physics`` parameters (:func:`~tail_beam_id.study.caving_pipeline.pipeline_parameters`)."""
+    layouts = [layout for layout in map(layout_of, sources) if layout is not None]
+    if not layouts:
+        return {}
+    if physics is None:
+        raise InputError("physics", None, "identified sources need the physics parameters")
+    section = CAVING_PIPELINE.check(caving.get("pipeline") or {})
+    labels = CAVING_LABELS.check(caving.get("labels") or {})
+    return {
+        layout: Pipeline(physics, layout, section["lumps"], labels["impacts_per_tonne"])
+        for layout in dict.fromkeys(layouts)
+    }
+
+
 def run_study(
     face_params: FaceParams,
     caving: Mapping[str, Any],
@@ -232,24 +288,54 @@ def run_study(
     rules: Sequence[str] | None = None,
     sources: Sequence[str] = SOURCES,
     progress: Callable[[int, int], None] | None = None,
+    physics: Mapping[str, Any] | None = None,
+    window_progress: Callable[[str, int, float], None] | None = None,
 ) -> list[CavingRun]:
     """Every rule (``rules``: a subset by name) under every source for every seed; the oracle
-    under the truth only. ``progress(done, total)`` after each run."""
+    under the truth only (it reads the truth whatever the source), ``fixed_time`` under the
+    truth and the stand-in only (it reads the clock alone). ``progress(done, total)`` after each
+    run; ``window_progress(run, windows, clock_s)`` after each window of an identified run;
+    ``physics``: the parameters identified sources run on."""
     makers = rule_factories(caving)
     model = LabelModel.from_params(caving.get("labels") or {})
     chosen = list(makers) if rules is None else list(rules)
     for name in chosen:
         if name not in makers:
             raise InputError("rules", name, f"must be among {', '.join(makers)}")
+    for source in sources:
+        if source not in ALL_SOURCES:
+            layout_of(source)
+            raise InputError("sources", source, f"must be among {', '.join(ALL_SOURCES)}")
+    pipelines = pipelines_for(sources, physics, caving)
     plan = [
         (name, source, seed)
         for seed in seeds
         for name in chosen
         for source in (("truth",) if name == "oracle" else sources)
+        if not (name == "fixed_time" and layout_of(source) is not None)
     ]
     runs = []
     for done, (name, source, seed) in enumerate(plan, 1):
-        runs.append(run_one(face_params, makers[name], name, source, model, seed))
+        layout = layout_of(source)
+        tell = None
+        if window_progress is not None and layout is not None:
+            label = f"{done}/{len(plan)} {name} {source} seed {seed}"
+
+            def tell(windows: int, clock_s: float, label: str = label) -> None:
+                window_progress(label, windows, clock_s)
+
+        runs.append(
+            run_one(
+                face_params,
+                makers[name],
+                name,
+                source,
+                model,
+                seed,
+                pipelines.get(layout) if layout is not None else None,
+                tell,
+            )
+        )
         if progress is not None:
             progress(done, len(plan))
     return runs
