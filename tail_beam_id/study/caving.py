@@ -290,12 +290,14 @@ def run_study(
     progress: Callable[[int, int], None] | None = None,
     physics: Mapping[str, Any] | None = None,
     window_progress: Callable[[str, int, float], None] | None = None,
+    jobs: int = 1,
 ) -> list[CavingRun]:
     """Every rule (``rules``: a subset by name) under every source for every seed; the oracle
     under the truth only (it reads the truth whatever the source), ``fixed_time`` under the
     truth and the stand-in only (it reads the clock alone). ``progress(done, total)`` after each
     run; ``window_progress(run, windows, clock_s)`` after each window of an identified run;
-    ``physics``: the parameters identified sources run on."""
+    ``physics``: the parameters identified sources run on; ``jobs``: worker processes (the
+    runs are independent; per-window progress then is not reported)."""
     makers = rule_factories(caving)
     model = LabelModel.from_params(caving.get("labels") or {})
     chosen = list(makers) if rules is None else list(rules)
@@ -306,7 +308,6 @@ def run_study(
         if source not in ALL_SOURCES:
             layout_of(source)
             raise InputError("sources", source, f"must be among {', '.join(ALL_SOURCES)}")
-    pipelines = pipelines_for(sources, physics, caving)
     plan = [
         (name, source, seed)
         for seed in seeds
@@ -314,6 +315,9 @@ def run_study(
         for source in (("truth",) if name == "oracle" else sources)
         if not (name == "fixed_time" and layout_of(source) is not None)
     ]
+    if jobs > 1:
+        return _run_in_processes(face_params, caving, plan, physics, jobs, progress)
+    pipelines = pipelines_for(sources, physics, caving)
     runs = []
     for done, (name, source, seed) in enumerate(plan, 1):
         layout = layout_of(source)
@@ -339,6 +343,56 @@ def run_study(
         if progress is not None:
             progress(done, len(plan))
     return runs
+
+
+_WORKER_PIPELINES: dict[str, Pipeline] = {}  # a worker process's pipelines, built once each
+
+
+def _run_planned(
+    face_params: FaceParams,
+    caving: Mapping[str, Any],
+    name: str,
+    source: str,
+    seed: int,
+    physics: Mapping[str, Any] | None,
+) -> CavingRun:
+    """One planned run in a worker process (its rule and pipeline made there)."""
+    layout = layout_of(source)
+    pipeline = None
+    if layout is not None:
+        if layout not in _WORKER_PIPELINES:
+            _WORKER_PIPELINES.update(pipelines_for([source], physics, caving))
+        pipeline = _WORKER_PIPELINES[layout]
+    model = LabelModel.from_params(caving.get("labels") or {})
+    maker = rule_factories(caving)[name]
+    return run_one(face_params, maker, name, source, model, seed, pipeline)
+
+
+def _run_in_processes(
+    face_params: FaceParams,
+    caving: Mapping[str, Any],
+    plan: Sequence[tuple[str, str, int]],
+    physics: Mapping[str, Any] | None,
+    jobs: int,
+    progress: Callable[[int, int], None] | None,
+) -> list[CavingRun]:
+    """The plan's runs over ``jobs`` worker processes, in the plan's order (each run seeded on
+    its own: the same runs as one process gives, wall times aside)."""
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from multiprocessing import get_context
+
+    pipelines_for([s for _, s, _ in plan], physics, caving)  # bad settings refused up front
+    out: list[CavingRun | None] = [None] * len(plan)
+    with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
+        futures = {
+            pool.submit(_run_planned, face_params, caving, name, source, seed, physics): k
+            for k, (name, source, seed) in enumerate(plan)
+        }
+        for done, future in enumerate(as_completed(futures), 1):
+            out[futures[future]] = future.result()
+            if progress is not None:
+                progress(done, len(plan))
+    return [run for run in out if run is not None]
 
 
 @dataclass(frozen=True)
