@@ -194,7 +194,8 @@ class WindowFeed:
 @dataclass(frozen=True)
 class CavingRun:
     """One rule, one source, one seed over the face: top-coal recovery and gangue content
-    (fractions), simulated drawing time (s), wall time (s), windows that ran to max_window_s."""
+    (fractions), simulated drawing time (s), wall time (s), windows that ran to max_window_s,
+    lumps struck on the beams (identified sources; 0 otherwise)."""
 
     rule: str
     source: str
@@ -204,6 +205,7 @@ class CavingRun:
     drawing_s: float
     wall_s: float
     timed_out: int
+    lumps: int = 0
 
 
 def run_one(
@@ -229,7 +231,7 @@ def run_one(
     params = face_params.with_changes(seed=seed)
     face = Face(params)
     rngs = (np.random.default_rng([seed, 1]), np.random.default_rng([seed, 2]))
-    timed_out = 0
+    timed_out = lumps = 0
     for window, visit in enumerate(schedule(params)):
         if pipeline is not None and layout is not None:
             sensor_seed = int(np.random.SeedSequence([seed, 4, window]).generate_state(1)[0])
@@ -247,6 +249,8 @@ def run_one(
                 make_rule(), source, model, rngs, params.share_window_kg, face.clock_s
             )
         timed_out += draw_window(face, visit, feed).timed_out
+        if isinstance(feed, IdentifiedWindowFeed):
+            lumps += feed.tally.lumps
         if window_done is not None:
             window_done(window + 1, face.clock_s)
     return CavingRun(
@@ -258,6 +262,7 @@ def run_one(
         face.clock_s,
         time.perf_counter() - start,
         timed_out,
+        lumps,
     )
 
 
