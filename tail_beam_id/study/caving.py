@@ -459,6 +459,7 @@ def write_chart(summaries: Sequence[Summary], path: str | Path, title: str = "")
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 5.5))
     markers = {"truth": "o", "stand-in": "s"}
+    markers.update(zip(IDENTIFIED_SOURCES, ("D", "^", "v", "P")))
     rules = list(dict.fromkeys(s.rule for s in summaries if s.rule != "oracle"))
     colours = {rule: plt.get_cmap("tab10")(k % 10) for k, rule in enumerate(rules)}
     for s in summaries:
@@ -486,7 +487,10 @@ def write_chart(summaries: Sequence[Summary], path: str | Path, title: str = "")
     ax.set_xlabel("gangue content of the drawn mass, %")
     ax.set_ylabel("top-coal recovery, %")
     ax.set_title(
-        title or "Closing rules: top-coal recovery against gangue content (open: truth-fed)"
+        title
+        or "Closing rules: top-coal recovery against gangue content (open: truth-fed; "
+        "square: stand-in; diamond, triangles, plus: identified layouts)",
+        fontsize=9,
     )
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="lower right", ncol=2)
