@@ -129,3 +129,16 @@ def test_a_bad_layout_is_refused_by_name(setup):
         Pipeline(pipeline.params, "imu", "some")
     with pytest.raises(InputError, match="needs the pipeline"):
         run_one(face, rule_factories(caving)["sprt"], "sprt", "identified:shipped", model, 0)
+
+
+def test_worker_processes_give_the_runs_one_process_gives(setup):
+    """--jobs: the plan's runs in two worker processes, in the plan's order, equal to one
+    process's (wall time aside)."""
+    face, caving, _, _ = setup
+
+    def strip(runs):
+        return [dataclasses.replace(r, wall_s=0.0) for r in runs]
+
+    one = run_study(face, caving, [0, 1], ["sprt", "oracle"], ["truth", "stand-in"])
+    two = run_study(face, caving, [0, 1], ["sprt", "oracle"], ["truth", "stand-in"], jobs=2)
+    assert strip(one) == strip(two) and len(one) == 6
