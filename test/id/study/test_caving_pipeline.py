@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 
 from tail_beam_id.caving.events import LabelEvent, ShareEstimate, Tick
@@ -142,3 +143,20 @@ def test_worker_processes_give_the_runs_one_process_gives(setup):
     one = run_study(face, caving, [0, 1], ["sprt", "oracle"], ["truth", "stand-in"])
     two = run_study(face, caving, [0, 1], ["sprt", "oracle"], ["truth", "stand-in"], jobs=2)
     assert strip(one) == strip(two) and len(one) == 6
+
+
+def test_the_impact_point_layout_reports_where_each_lump_struck(setup):
+    """The flow simulator of the impact_point layout gives one camera point per lump, near the
+    strike position asked (noise 1 cm); the other layouts none."""
+    _, _, pipeline, _ = setup
+    pointed = Pipeline(pipeline.params, "impact_point")
+    for layout, expected in ((pointed, 3), (pipeline, 0)):
+        sim = layout.simulator(1)
+        for k, position in enumerate((0.4, 0.8, 1.2)):
+            command = dict(layout.command(False, np.full(5, 0.5), f"p{k}")[0])
+            command["position_m"] = position
+            sim.submit(command, 0.1 + 0.1 * k)
+        points = sim.advance(0.6).points
+        assert len(points) == expected
+        for (_, point), position in zip(points, (0.4, 0.8, 1.2)):
+            assert abs(point.point_m[0] - position) < 0.05
