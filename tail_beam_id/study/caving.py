@@ -1,19 +1,20 @@
 """The caving study: a face drawn once through its sequence for each closing rule, each rule
 fed by the true lumps or by labels, and the top-coal recovery and gangue content each gives.
 
-Two sources feed the rules:
+Three kinds of source feed the rules:
 
 - ``truth``: every lump that strikes the tail beam with its true material, confidence 1, at
   once; the ``gangue_share`` estimate is the true instantaneous share, its interval a point.
-- ``stand-in``: labels drawn from the true lumps by :class:`LabelModel`, a stated stand-in for
-  the simulated sensors and the identifier until they are wired in: each label right with
-  chance ``accuracy``, its confidence drawn from a Beta distribution (mean
-  ``confidence_right`` or ``confidence_wrong``), known ``latency_s`` after its impact; the
-  ``gangue_share`` estimate is the share of gangue labels over each ``share_interval_s``
-  with its Wilson 95 % interval.
+- ``stand-in``: labels drawn from the true lumps by :class:`LabelModel`, a cheap stand-in for
+  the sensors and the identifier: each label right with chance ``accuracy``, its confidence
+  drawn from a Beta distribution (mean ``confidence_right`` or ``confidence_wrong``), known
+  ``latency_s`` after its impact; the ``gangue_share`` estimate is the share of gangue labels
+  over each ``share_interval_s`` with its Wilson 95 % interval.
+- ``identified:<layout>``: the drawn flow through the physics core, the layout's sensors and
+  the identifier (:mod:`tail_beam_id.study.caving_pipeline`).
 
 The oracle rule closes on the truth alone (:class:`~tail_beam_id.caving.events.TrueShare`),
-the same under both sources, and runs once. Every rule of a seed meets the same face (the
+the same under every source, and runs once. Every rule of a seed meets the same face (the
 drawing model's and the labels' random numbers are seeded alike), so rules differ by what
 they decide, not by the draw.
 """
