@@ -4,6 +4,7 @@ run to seconds."""
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 
 import numpy as np
@@ -160,3 +161,29 @@ def test_the_impact_point_layout_reports_where_each_lump_struck(setup):
         assert len(points) == expected
         for (_, point), position in zip(points, (0.4, 0.8, 1.2)):
             assert abs(point.point_m[0] - position) < 0.05
+
+
+def test_the_caving_verb_runs_an_identified_source(tmp_path, capsys):
+    """`tail-beam caving --sources identified:imu` on one short support: its row, its speed
+    line and a progress line per window; a bad layout refused by name before any run."""
+    from tail_beam_id.cli import caving_cmd
+
+    config = tmp_path / "short.yaml"
+    config.write_text(
+        "/**:\n  ros__parameters:\n    face:\n      supports: 1\n      group_size: 1\n"
+        "      cell_size_m: 0.25\n      top_coal_height_m: 1.0\n      max_window_s: 10.0\n"
+    )
+    parser = argparse.ArgumentParser(prog="tail-beam")
+    caving_cmd.register(parser.add_subparsers(dest="command"))
+
+    def parse(argv):
+        return parser.parse_args(["caving", "--config", str(config), "--chart", "", *argv])
+
+    with pytest.raises(InputError, match="identified:camera"):
+        caving_cmd.run(parse(["--sources", "truth,identified:camera"]))
+    args = parse(["--sources", "identified:imu", "--rules", "sprt", "--seeds", "1"])
+    assert caving_cmd.run(args) == 0
+    captured = capsys.readouterr()
+    assert "sprt            identified:imu     1" in captured.out
+    assert "identified:imu (struck lumps):" in captured.out
+    assert "caving: run 1/1 sprt identified:imu seed 0: 1 window(s)" in captured.err
