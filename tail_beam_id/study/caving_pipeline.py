@@ -54,6 +54,7 @@ from tail_beam_sim.physics.drawing import GANGUE
 from tail_beam_sim.physics.face import DrawnCell, ShareMeter
 from tail_beam_sim.physics.lumps import FlowParams
 from tail_beam_sim.physics.materials import material_table, sphere_mass_kg
+from tail_beam_sim.physics.solvers import SolverError
 from tail_beam_sim.physics.stream import Chunk
 from tail_beam_sim.physics.superpose import FlowSimulator
 from tail_beam_sim.topics import FRAME_PLATE
@@ -193,6 +194,7 @@ class WindowTally:
     gangue_lumps: int = 0
     labels: int = 0
     shares: int = 0
+    skipped: int = 0  # lumps whose contact the solver failed on (as FlowRun skips them)
 
 
 class IdentifiedWindowFeed:
@@ -237,7 +239,7 @@ class IdentifiedWindowFeed:
         until the cell's mass is used up, spread evenly over its time."""
         p = self.pipeline
         gangue = cell.material == GANGUE
-        first = self.tally.lumps
+        first = self.tally.lumps + self.tally.skipped
         commands: list[dict[str, Any]] = []
         if p.lumps == "struck":
             n = self.lumps_rng.poisson(p.impacts_per_tonne * cell.mass_kg / 1000.0)
@@ -255,9 +257,13 @@ class IdentifiedWindowFeed:
             span = (cell.end_s - cell.start_s) / len(commands)
             stamps = [cell.start_s + span * (k + 0.5) for k in range(len(commands))]
         for stamp, command in zip(stamps, commands):
-            self.sim.submit(command, contact_stamp_s=stamp - self.offset_s)
-        self.tally.lumps += len(commands)
-        self.tally.gangue_lumps += len(commands) if gangue else 0
+            try:
+                self.sim.submit(command, contact_stamp_s=stamp - self.offset_s)
+            except SolverError:  # a contact the solver could not take: counted, left out
+                self.tally.skipped += 1
+                continue
+            self.tally.lumps += 1
+            self.tally.gangue_lumps += gangue
 
     def _deliver(self, chunk: Chunk) -> None:
         """The chunk's samples of the layout's sensors to the identifier; labels and shares out
