@@ -169,6 +169,7 @@ class Pipeline:
         return command, float(sphere_mass_kg(material.density_kgpm3, radius))
 
     def simulator(self, sensor_seed: int) -> FlowSimulator:
+        """A fresh support for one window: the flow simulator, its sensors' noise seeded."""
         params = dict(self.params)
         params["sensors"] = {**params["sensors"], "seed": int(sensor_seed) % (2**31)}
         sim = FlowSimulator.from_params(params)
@@ -177,6 +178,7 @@ class Pipeline:
         return sim
 
     def identifier(self) -> SharingIdentifier:
+        """A fresh identifier for one window, uncalibrated (id_node's), the method reused."""
         return SharingIdentifier(
             None,
             params=self.params["identification"],
