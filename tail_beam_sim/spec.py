@@ -1075,7 +1075,7 @@ CAVING = Section(
         integer("seeds", "Seeds of the study (intervals are over them).", 1, 1000),
     ),
     file="face.yaml",
-    sections=("labels",),
+    sections=("labels", "pipeline"),
 )
 
 CAVING_LABELS = Section(
@@ -1094,6 +1094,21 @@ CAVING_LABELS = Section(
         number("latency_s", "From a lump's impact to its label.", "s", 0.0, 60.0),
         positive(
             "share_interval_s", "Length of a gangue_share estimate's interval.", "s", high=600.0
+        ),
+    ),
+    file="face.yaml",
+)
+
+CAVING_PIPELINE = Section(
+    "caving.pipeline",
+    "The caving study's identified sources: the drawn flow through the sensors and the "
+    "identifier.",
+    (
+        choice(
+            "lumps",
+            "Lumps struck per drawn cell: struck (caving.labels.impacts_per_tonne per tonne, the "
+            "truth source's lumps) or drawn (the cell's whole mass as flow-sized lumps).",
+            ("struck", "drawn"),
         ),
     ),
     file="face.yaml",
@@ -1118,6 +1133,7 @@ PARAMETER_SECTIONS: tuple[Section, ...] = (
     FACE,
     CAVING,
     CAVING_LABELS,
+    CAVING_PIPELINE,
 )
 NOT_PARAMETERS = ("impacts.yaml",)  # config/ files that hold a scene list, not parameters
 

@@ -1,5 +1,6 @@
 """``tail-beam caving``: a face drawn through its sequence once per closing rule, each rule fed
-by the true lumps and by stand-in labels; a table of top-coal recovery and gangue content with
+by the true lumps, by stand-in labels or by the identifier's labels on a sensor layout's
+simulated samples (``identified:<layout>``); a table of top-coal recovery and gangue content with
 95 % intervals over seeds, and the chart of one against the other (docs/caving.md)."""
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from tail_beam_id.study.caving import (
+    ALL_SOURCES,
     FIELD_TRIAL,
     SOURCES,
     Summary,
@@ -18,6 +20,7 @@ from tail_beam_id.study.caving import (
     summarise,
     write_chart,
 )
+from tail_beam_id.study.caving_pipeline import LUMP_MODES, layout_of, pipeline_parameters
 from tail_beam_sim.errors import InputError, require_int, require_output_file
 from tail_beam_sim.physics.face import FaceParams, load_face_parameters
 from tail_beam_sim.spec import DRAWING_SEQUENCES, MAX_FACE_SUPPORTS
@@ -41,7 +44,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, help="first seed (default: face.seed)")
     parser.add_argument("--rules", help="rules, comma-separated (default: all)")
     parser.add_argument(
-        "--sources", default=",".join(SOURCES), help="label sources, comma-separated"
+        "--sources",
+        default=",".join(SOURCES),
+        help="label sources, comma-separated: truth, stand-in, identified:<layout> with layout "
+        "shipped, imu, pressure or impact_point (the drawn flow through that layout's simulated "
+        f"sensors and the identifier; far slower) (default {','.join(SOURCES)})",
+    )
+    parser.add_argument(
+        "--jobs", type=int, default=1, help="runs at once in worker processes (default 1)"
+    )
+    parser.add_argument(
+        "--lumps",
+        choices=LUMP_MODES,
+        help="identified sources: the lumps of each drawn cell, struck (those striking the beam, "
+        "caving.labels.impacts_per_tonne) or drawn (its whole mass) (default: "
+        "caving.pipeline.lumps)",
     )
     parser.add_argument(
         "--chart", default=DEFAULT_CHART, help=f"chart to write (default {DEFAULT_CHART}; '' none)"
@@ -73,12 +90,32 @@ class Progress:
         self.stream = stream
         self.enabled = bool(getattr(stream, "isatty", lambda: False)())
         self.shown = False
+        self.start = time.perf_counter()
+        self.runs = ""
+        self.lines = False  # a line per run where no terminal shows the bar (long runs)
 
     def update(self, done: int, total: int) -> None:
+        self.runs = f"{done} of {total} runs ({100 * done / total:.0f} %)"
         if self.enabled:
-            self.stream.write(f"\rcaving: {done} of {total} runs ({100 * done / total:.0f} %)")
+            self.stream.write(f"\rcaving: {self.runs}\033[K")
             self.stream.flush()
             self.shown = True
+        elif self.lines:
+            wall = time.perf_counter() - self.start
+            self.stream.write(f"caving: {self.runs}, {wall:.0f} s wall\n")
+            self.stream.flush()
+
+    def window(self, run: str, windows: int, clock_s: float) -> None:
+        """After each window of an identified run: rewritten in place on a terminal, one line
+        otherwise (these runs take minutes)."""
+        wall = time.perf_counter() - self.start
+        text = f"caving: run {run}: {windows} window(s), {clock_s:.0f} s drawn, {wall:.0f} s wall"
+        if self.enabled:
+            self.stream.write(f"\r{text}\033[K")
+            self.shown = True
+        else:
+            self.stream.write(text + "\n")
+        self.stream.flush()
 
     def close(self) -> None:
         if self.shown:
@@ -93,8 +130,9 @@ def _pct(value: float) -> str:
 def table(summaries: list[Summary]) -> str:
     """The study's table: per rule and source, recovery and gangue content (%) with their 95 %
     intervals over seeds, the mean drawing time (s); the field trial last."""
+    w = max([9] + [len(s.source) for s in summaries])
     lines = [
-        f"{'rule':<15} {'source':<9} {'seeds':>5}  {'recovery %':<22} {'gangue content %':<22}"
+        f"{'rule':<15} {'source':<{w}} {'seeds':>5}  {'recovery %':<22} {'gangue content %':<22}"
         f" {'drawing s':>9}",
     ]
     for s in summaries:
@@ -106,7 +144,7 @@ def table(summaries: list[Summary]) -> str:
             f"{_pct(s.gangue_interval[1])}]"
         )
         lines.append(
-            f"{s.rule:<15} {s.source:<9} {s.seeds:>5}  {rec:<22} {gan:<22} {s.drawing_s:>9.0f}"
+            f"{s.rule:<15} {s.source:<{w}} {s.seeds:>5}  {rec:<22} {gan:<22} {s.drawing_s:>9.0f}"
         )
     name, recovery, gangue = FIELD_TRIAL
     lines.append(f"{name}: recovery {100 * recovery:.2f} %, gangue content {100 * gangue:.2f} %")
@@ -124,13 +162,34 @@ def run(args: argparse.Namespace) -> int:
     )
     first = face.seed if args.seed is None else require_int("--seed", args.seed, 0)
     rules = None if args.rules is None else _names(args.rules, "--rules")
-    sources = _names(args.sources, "--sources", SOURCES)
+    sources = _names(args.sources, "--sources")
+    for source in sources:
+        layout_of(source)  # a bad layout refused by name
+        if source not in ALL_SOURCES:
+            raise InputError("--sources", source, f"must be among {', '.join(ALL_SOURCES)}")
+    physics = None
+    if any(layout_of(s) for s in sources):
+        physics = pipeline_parameters(tuple(args.config))
+        if args.lumps is not None:
+            caving = {
+                **caving,
+                "pipeline": {**(caving.get("pipeline") or {}), "lumps": args.lumps},
+            }
     chart = _chart_path(args.chart) if args.chart else None  # refused before the runs
     progress = Progress(sys.stderr)
+    progress.lines = physics is not None
     start = time.perf_counter()
     try:
         runs = run_study(
-            face, caving, range(first, first + seeds), rules, sources, progress.update
+            face,
+            caving,
+            range(first, first + seeds),
+            rules,
+            sources,
+            progress.update,
+            physics,
+            progress.window,
+            require_int("--jobs", args.jobs, 1, 64),
         )
     finally:
         progress.close()
@@ -146,6 +205,15 @@ def run(args: argparse.Namespace) -> int:
         f"simulated {drawn_s:.0f} s of drawing in {wall_s:.1f} s of wall time "
         f"({drawn_s / wall_s:.0f}x real time)"
     )
+    for source in sources:
+        mine = [r for r in runs if r.source == source and layout_of(source) is not None]
+        if mine:
+            drawn, wall = sum(r.drawing_s for r in mine), sum(r.wall_s for r in mine)
+            lumps = (caving.get("pipeline") or {}).get("lumps", "struck")
+            print(
+                f"{source} ({lumps} lumps): {drawn:.0f} s of drawing in {wall:.1f} s of wall "
+                f"time ({drawn / wall:.1f}x real time)"
+            )
     timed_out = sum(s.timed_out for s in summaries)
     if timed_out:
         print(

@@ -1,19 +1,20 @@
 """The caving study: a face drawn once through its sequence for each closing rule, each rule
 fed by the true lumps or by labels, and the top-coal recovery and gangue content each gives.
 
-Two sources feed the rules:
+Three kinds of source feed the rules:
 
 - ``truth``: every lump that strikes the tail beam with its true material, confidence 1, at
   once; the ``gangue_share`` estimate is the true instantaneous share, its interval a point.
-- ``stand-in``: labels drawn from the true lumps by :class:`LabelModel`, a stated stand-in for
-  the simulated sensors and the identifier until they are wired in: each label right with
-  chance ``accuracy``, its confidence drawn from a Beta distribution (mean
-  ``confidence_right`` or ``confidence_wrong``), known ``latency_s`` after its impact; the
-  ``gangue_share`` estimate is the share of gangue labels over each ``share_interval_s``
-  with its Wilson 95 % interval.
+- ``stand-in``: labels drawn from the true lumps by :class:`LabelModel`, a cheap stand-in for
+  the sensors and the identifier: each label right with chance ``accuracy``, its confidence
+  drawn from a Beta distribution (mean ``confidence_right`` or ``confidence_wrong``), known
+  ``latency_s`` after its impact; the ``gangue_share`` estimate is the share of gangue labels
+  over each ``share_interval_s`` with its Wilson 95 % interval.
+- ``identified:<layout>``: the drawn flow through the physics core, the layout's sensors and
+  the identifier (:mod:`tail_beam_id.study.caving_pipeline`).
 
 The oracle rule closes on the truth alone (:class:`~tail_beam_id.caving.events.TrueShare`),
-the same under both sources, and runs once. Every rule of a seed meets the same face (the
+the same under every source, and runs once. Every rule of a seed meets the same face (the
 drawing model's and the labels' random numbers are seeded alike), so rules differ by what
 they decide, not by the draw.
 """
@@ -41,6 +42,13 @@ from tail_beam_id.caving.events import (
     TrueShare,
 )
 from tail_beam_id.caving.rules import Rule, rule_factories
+from tail_beam_id.study.caving_pipeline import (
+    LAYOUTS,
+    SOURCE_PREFIX,
+    IdentifiedWindowFeed,
+    Pipeline,
+    layout_of,
+)
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.drawing import GANGUE
 from tail_beam_sim.physics.face import (
@@ -51,10 +59,12 @@ from tail_beam_sim.physics.face import (
     draw_window,
     schedule,
 )
-from tail_beam_sim.spec import CAVING_LABELS
+from tail_beam_sim.spec import CAVING_LABELS, CAVING_PIPELINE
 
 __all__ = [
     "FIELD_TRIAL",
+    "ALL_SOURCES",
+    "IDENTIFIED_SOURCES",
     "SOURCES",
     "CavingRun",
     "LabelModel",
@@ -66,6 +76,9 @@ __all__ = [
 ]
 
 SOURCES = ("truth", "stand-in")
+# The identified sources (:mod:`tail_beam_id.study.caving_pipeline`), one per sensor layout.
+IDENTIFIED_SOURCES = tuple(SOURCE_PREFIX + layout for layout in LAYOUTS)
+ALL_SOURCES = SOURCES + IDENTIFIED_SOURCES
 # Tashan 8222 (12 m top coal, close at first gangue, groups of 9 supports): top coal drawn and
 # gangue content, fractions.
 FIELD_TRIAL = ("Tashan 8222 field trial", 0.8053, 0.0400)
@@ -182,7 +195,8 @@ class WindowFeed:
 @dataclass(frozen=True)
 class CavingRun:
     """One rule, one source, one seed over the face: top-coal recovery and gangue content
-    (fractions), simulated drawing time (s), wall time (s), windows that ran to max_window_s."""
+    (fractions), simulated drawing time (s), wall time (s), windows that ran to max_window_s,
+    lumps struck on the beams (identified sources; 0 otherwise)."""
 
     rule: str
     source: str
@@ -192,6 +206,7 @@ class CavingRun:
     drawing_s: float
     wall_s: float
     timed_out: int
+    lumps: int = 0
 
 
 def run_one(
@@ -201,18 +216,44 @@ def run_one(
     source: str,
     model: LabelModel,
     seed: int,
+    pipeline: Pipeline | None = None,
+    window_done: Callable[[int, float], None] | None = None,
 ) -> CavingRun:
-    """Draw the face once with ``make_rule`` closing every window, fed by ``source``."""
-    if source not in SOURCES:
-        raise InputError("source", source, f"must be one of {', '.join(SOURCES)}")
+    """Draw the face once with ``make_rule`` closing every window, fed by ``source``; an
+    identified source needs the ``pipeline`` of its layout. ``window_done(windows, clock_s)``
+    after each window."""
+    if source not in ALL_SOURCES:
+        layout_of(source)  # names a bad layout
+        raise InputError("source", source, f"must be one of {', '.join(ALL_SOURCES)}")
+    layout = layout_of(source)
+    if layout is not None and (pipeline is None or pipeline.layout != layout):
+        raise InputError("pipeline", layout, f"source {source} needs the pipeline of its layout")
     start = time.perf_counter()
     params = face_params.with_changes(seed=seed)
     face = Face(params)
     rngs = (np.random.default_rng([seed, 1]), np.random.default_rng([seed, 2]))
-    timed_out = 0
-    for visit in schedule(params):
-        feed = WindowFeed(make_rule(), source, model, rngs, params.share_window_kg, face.clock_s)
+    timed_out = lumps = 0
+    for window, visit in enumerate(schedule(params)):
+        if pipeline is not None and layout is not None:
+            sensor_seed = int(np.random.SeedSequence([seed, 4, window]).generate_state(1)[0])
+            feed: Callable[[DrawnCell], bool] = IdentifiedWindowFeed(
+                make_rule(),
+                pipeline,
+                rngs,
+                params.share_window_kg,
+                face.clock_s,
+                sensor_seed,
+                window,
+            )
+        else:
+            feed = WindowFeed(
+                make_rule(), source, model, rngs, params.share_window_kg, face.clock_s
+            )
         timed_out += draw_window(face, visit, feed).timed_out
+        if isinstance(feed, IdentifiedWindowFeed):
+            lumps += feed.tally.lumps
+        if window_done is not None:
+            window_done(window + 1, face.clock_s)
     return CavingRun(
         rule,
         source,
@@ -222,7 +263,28 @@ def run_one(
         face.clock_s,
         time.perf_counter() - start,
         timed_out,
+        lumps,
     )
+
+
+def pipelines_for(
+    sources: Sequence[str],
+    physics: Mapping[str, Any] | None,
+    caving: Mapping[str, Any],
+) -> dict[str, Pipeline]:
+    """The pipeline of each identified source among ``sources`` (layout -> Pipeline), on the
+    ``physics`` parameters (:func:`~tail_beam_id.study.caving_pipeline.pipeline_parameters`)."""
+    layouts = [layout for layout in map(layout_of, sources) if layout is not None]
+    if not layouts:
+        return {}
+    if physics is None:
+        raise InputError("physics", None, "identified sources need the physics parameters")
+    section = CAVING_PIPELINE.check(caving.get("pipeline") or {})
+    labels = CAVING_LABELS.check(caving.get("labels") or {})
+    return {
+        layout: Pipeline(physics, layout, section["lumps"], labels["impacts_per_tonne"])
+        for layout in dict.fromkeys(layouts)
+    }
 
 
 def run_study(
@@ -232,27 +294,111 @@ def run_study(
     rules: Sequence[str] | None = None,
     sources: Sequence[str] = SOURCES,
     progress: Callable[[int, int], None] | None = None,
+    physics: Mapping[str, Any] | None = None,
+    window_progress: Callable[[str, int, float], None] | None = None,
+    jobs: int = 1,
 ) -> list[CavingRun]:
     """Every rule (``rules``: a subset by name) under every source for every seed; the oracle
-    under the truth only. ``progress(done, total)`` after each run."""
+    under the truth only (it reads the truth whatever the source), ``fixed_time`` under the
+    truth and the stand-in only (it reads the clock alone). ``progress(done, total)`` after each
+    run; ``window_progress(run, windows, clock_s)`` after each window of an identified run;
+    ``physics``: the parameters identified sources run on; ``jobs``: worker processes (the
+    runs are independent; per-window progress then is not reported)."""
     makers = rule_factories(caving)
     model = LabelModel.from_params(caving.get("labels") or {})
     chosen = list(makers) if rules is None else list(rules)
     for name in chosen:
         if name not in makers:
             raise InputError("rules", name, f"must be among {', '.join(makers)}")
+    for source in sources:
+        if source not in ALL_SOURCES:
+            layout_of(source)
+            raise InputError("sources", source, f"must be among {', '.join(ALL_SOURCES)}")
     plan = [
         (name, source, seed)
         for seed in seeds
         for name in chosen
         for source in (("truth",) if name == "oracle" else sources)
+        if not (name == "fixed_time" and layout_of(source) is not None)
     ]
+    if jobs > 1:
+        return _run_in_processes(face_params, caving, plan, physics, jobs, progress)
+    pipelines = pipelines_for(sources, physics, caving)
     runs = []
     for done, (name, source, seed) in enumerate(plan, 1):
-        runs.append(run_one(face_params, makers[name], name, source, model, seed))
+        layout = layout_of(source)
+        tell = None
+        if window_progress is not None and layout is not None:
+            label = f"{done}/{len(plan)} {name} {source} seed {seed}"
+
+            def tell(windows: int, clock_s: float, label: str = label) -> None:
+                window_progress(label, windows, clock_s)
+
+        runs.append(
+            run_one(
+                face_params,
+                makers[name],
+                name,
+                source,
+                model,
+                seed,
+                pipelines.get(layout) if layout is not None else None,
+                tell,
+            )
+        )
         if progress is not None:
             progress(done, len(plan))
     return runs
+
+
+_WORKER_PIPELINES: dict[str, Pipeline] = {}  # a worker process's pipelines, built once each
+
+
+def _run_planned(
+    face_params: FaceParams,
+    caving: Mapping[str, Any],
+    name: str,
+    source: str,
+    seed: int,
+    physics: Mapping[str, Any] | None,
+) -> CavingRun:
+    """One planned run in a worker process (its rule and pipeline made there)."""
+    layout = layout_of(source)
+    pipeline = None
+    if layout is not None:
+        if layout not in _WORKER_PIPELINES:
+            _WORKER_PIPELINES.update(pipelines_for([source], physics, caving))
+        pipeline = _WORKER_PIPELINES[layout]
+    model = LabelModel.from_params(caving.get("labels") or {})
+    maker = rule_factories(caving)[name]
+    return run_one(face_params, maker, name, source, model, seed, pipeline)
+
+
+def _run_in_processes(
+    face_params: FaceParams,
+    caving: Mapping[str, Any],
+    plan: Sequence[tuple[str, str, int]],
+    physics: Mapping[str, Any] | None,
+    jobs: int,
+    progress: Callable[[int, int], None] | None,
+) -> list[CavingRun]:
+    """The plan's runs over ``jobs`` worker processes, in the plan's order (each run seeded on
+    its own: the same runs as one process gives, wall times aside)."""
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from multiprocessing import get_context
+
+    pipelines_for([s for _, s, _ in plan], physics, caving)  # bad settings refused up front
+    out: list[CavingRun | None] = [None] * len(plan)
+    with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
+        futures = {
+            pool.submit(_run_planned, face_params, caving, name, source, seed, physics): k
+            for k, (name, source, seed) in enumerate(plan)
+        }
+        for done, future in enumerate(as_completed(futures), 1):
+            out[futures[future]] = future.result()
+            if progress is not None:
+                progress(done, len(plan))
+    return [run for run in out if run is not None]
 
 
 @dataclass(frozen=True)
@@ -314,6 +460,7 @@ def write_chart(summaries: Sequence[Summary], path: str | Path, title: str = "")
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 5.5))
     markers = {"truth": "o", "stand-in": "s"}
+    markers.update(zip(IDENTIFIED_SOURCES, ("D", "^", "v", "P")))
     rules = list(dict.fromkeys(s.rule for s in summaries if s.rule != "oracle"))
     colours = {rule: plt.get_cmap("tab10")(k % 10) for k, rule in enumerate(rules)}
     for s in summaries:
@@ -341,7 +488,10 @@ def write_chart(summaries: Sequence[Summary], path: str | Path, title: str = "")
     ax.set_xlabel("gangue content of the drawn mass, %")
     ax.set_ylabel("top-coal recovery, %")
     ax.set_title(
-        title or "Closing rules: top-coal recovery against gangue content (open: truth-fed)"
+        title
+        or "Closing rules: top-coal recovery against gangue content (open: truth-fed; "
+        "square: stand-in; diamond, triangles, plus: identified layouts)",
+        fontsize=9,
     )
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="lower right", ncol=2)

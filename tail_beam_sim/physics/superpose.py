@@ -237,6 +237,16 @@ class FlowSimulator(StreamSimulator):
         self._push_epoch(FlowEpoch(self._rest_problem, stamp_s, q, qd, [*active, contribution]))
         self._latest_stamp_s = stamp_s
         rebound = self._suite.rebound(trajectory, stamp_s)
+        point = (
+            self._suite.impact_point(
+                impact.position_m,
+                rebound,
+                self.support.beam_length_m,
+                self.support.plate_width_m,
+            )
+            if self.sensors.camera_reports_impact_point
+            else None
+        )
         scene = Scene(
             self.support,
             impact,
@@ -254,6 +264,7 @@ class FlowSimulator(StreamSimulator):
             impact_truth(
                 scene, trajectory, stamp_s, rebound.stamp_s, contact_summary(scene, trajectory)
             ),
+            point,
         )
 
 
