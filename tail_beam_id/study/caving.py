@@ -21,8 +21,6 @@ they decide, not by the draw.
 
 from __future__ import annotations
 
-import heapq
-import itertools
 import math
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -34,13 +32,10 @@ import numpy as np
 from scipy import stats
 
 from tail_beam_id.caving.events import (
-    Event,
     LabelEvent,
-    Opened,
     ShareEstimate,
-    Tick,
-    TrueShare,
 )
+from tail_beam_id.caving.rule_feed import RuleFeed
 from tail_beam_id.caving.rules import Rule, rule_factories
 from tail_beam_id.study.caving_pipeline import (
     LAYOUTS,
@@ -120,7 +115,7 @@ def wilson(gangue: int, total: int, z: float = WILSON_Z) -> tuple[float, float]:
     return min(max(0.0, centre - half), p), max(min(1.0, centre + half), p)
 
 
-class WindowFeed:
+class WindowFeed(RuleFeed):
     """A window's controller in the study: asked after each drawn cell, it makes the lumps that
     struck the beam, their labels (``source``) and share estimates, feeds the rule whatever has
     become known by the cell's end, and says whether the rule decided."""
@@ -134,19 +129,13 @@ class WindowFeed:
         window_kg: float,
         opened_s: float,
     ) -> None:
-        self.rule, self.source, self.model = rule, source, model
+        self.source, self.model = source, model
         self.lumps_rng, self.labels_rng = rngs  # the lumps alike under every source
         self.meter = ShareMeter(window_kg)
         self.opened_s = opened_s
-        self.pending: list[tuple[float, int, Event]] = []
-        self.order = itertools.count()
         self.interval = 0  # the share estimate's interval being counted
         self.counts = [0, 0]  # [labels, gangue labels] in it
-        self.decided = False
-        rule.feed(Opened(opened_s))
-
-    def _push(self, event: Event) -> None:
-        heapq.heappush(self.pending, (event.known_s, next(self.order), event))
+        super().__init__(rule, opened_s)
 
     def _estimates_until(self, stamp_s: float) -> None:
         """Share estimates of the intervals that ended by ``stamp_s`` (stand-in source)."""
@@ -183,13 +172,7 @@ class WindowFeed:
             self._push(ShareEstimate(cell.end_s, share, share, share, 0.0))
         else:
             self._estimates_until(cell.end_s)
-        self._push(TrueShare(cell.end_s, share))
-        self._push(Tick(cell.end_s))
-        while self.pending and self.pending[0][0] <= cell.end_s:
-            event = heapq.heappop(self.pending)[2]
-            if self.rule.feed(event) is not None:
-                self.decided = True
-        return self.decided
+        return self._end_cell(cell.end_s, share)
 
 
 @dataclass(frozen=True)

@@ -31,8 +31,6 @@ also reporting where each lump struck).
 
 from __future__ import annotations
 
-import heapq
-import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -41,8 +39,9 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr, ndtri
 
-from tail_beam_id.caving.events import Event, Opened, ShareEstimate, Tick, TrueShare
+from tail_beam_id.caving.events import ShareEstimate
 from tail_beam_id.caving.feed import label_event, share_event
+from tail_beam_id.caving.rule_feed import RuleFeed
 from tail_beam_id.caving.rules import Rule
 from tail_beam_id.methods import build_method
 from tail_beam_id.stream.identifier import IdentifierConfig
@@ -199,7 +198,7 @@ class WindowTally:
     skipped: int = 0  # lumps whose contact the solver failed on (as FlowRun skips them)
 
 
-class IdentifiedWindowFeed:
+class IdentifiedWindowFeed(RuleFeed):
     """A window's controller on the identified source: asked after each drawn cell, it strikes
     the cell's lumps on the support's beam, advances the sensors to the cell's end, hands their
     samples to the identifier and feeds the rule every label, share estimate, true share and
@@ -215,7 +214,7 @@ class IdentifiedWindowFeed:
         sensor_seed: int,
         window: int,
     ) -> None:
-        self.rule, self.pipeline = rule, pipeline
+        self.pipeline = pipeline
         self.lumps_rng, self.props_rng = rngs  # the lumps' count and stamps; their properties
         self.meter = ShareMeter(window_kg)
         self.opened_s = opened_s
@@ -223,17 +222,11 @@ class IdentifiedWindowFeed:
         self.sim = pipeline.simulator(sensor_seed)
         self.identifier = pipeline.identifier()
         self.window = window
-        self.pending: list[tuple[float, int, Event]] = []
-        self.order = itertools.count()
-        self.decided = False
         self.tally = WindowTally()
         self.vibration = pipeline.layout in ("shipped", "impact_point")
         self.imu = pipeline.layout != "pressure"
-        rule.feed(Opened(opened_s))
+        super().__init__(rule, opened_s)
         self._deliver(self.sim.advance(LEAD_S - 1e-9))
-
-    def _push(self, event: Event) -> None:
-        heapq.heappush(self.pending, (event.known_s, next(self.order), event))
 
     def _strike(self, cell: DrawnCell) -> None:
         """Submit the lumps of ``cell`` to the support's simulator: ``struck``, the lumps that
@@ -320,10 +313,4 @@ class IdentifiedWindowFeed:
         share = self.meter.add(cell.material, cell.mass_kg)
         self._strike(cell)
         self._deliver(self.sim.advance(cell.end_s - self.offset_s))
-        self._push(TrueShare(cell.end_s, share))
-        self._push(Tick(cell.end_s))
-        while self.pending and self.pending[0][0] <= cell.end_s:
-            event = heapq.heappop(self.pending)[2]
-            if self.rule.feed(event) is not None:
-                self.decided = True
-        return self.decided
+        return self._end_cell(cell.end_s, share)

@@ -237,16 +237,7 @@ class FlowSimulator(StreamSimulator):
         self._push_epoch(FlowEpoch(self._rest_problem, stamp_s, q, qd, [*active, contribution]))
         self._latest_stamp_s = stamp_s
         rebound = self._suite.rebound(trajectory, stamp_s)
-        point = (
-            self._suite.impact_point(
-                impact.position_m,
-                rebound,
-                self.support.beam_length_m,
-                self.support.plate_width_m,
-            )
-            if self.sensors.camera_reports_impact_point
-            else None
-        )
+        point = self._camera_point(impact.position_m, rebound)
         scene = Scene(
             self.support,
             impact,
