@@ -264,16 +264,7 @@ def sense_group(
         trajectory = family.trajectory(int(rows[i]))
         stamp = float(contact[i])
         rebound = suite.rebound(trajectory, stamp)
-        point = (
-            suite.impact_point(
-                scene.impact.position_m,
-                rebound,
-                scene.support.beam_length_m,
-                scene.support.plate_width_m,
-            )
-            if scene.sensors.camera_reports_impact_point
-            else None
-        )
+        point = suite.reported_point(scene.impact.position_m, rebound, scene.support)
         kp, ki = int(pressure_counts[i]), int(imu_counts[i])
         noise = suite.noise
         out.append(

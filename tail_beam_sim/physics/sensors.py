@@ -41,6 +41,7 @@ import numpy as np
 from tail_beam_sim.physics.ringdown_filtering import filtered_ringdown, settle_steps
 from tail_beam_sim.physics.scene import SensorSpec
 from tail_beam_sim.physics.solvers.problem import FreeSegment, Samples, Trajectory
+from tail_beam_sim.physics.support import Support
 
 
 @dataclass
@@ -435,6 +436,16 @@ class SensorSuite:
             math.ceil(separation * spec.camera_frame_rate_hz - 1e-9) / spec.camera_frame_rate_hz
         )
         return Rebound(stamp, measured, true)
+
+    def reported_point(
+        self, position_m: float, rebound: Rebound, support: Support
+    ) -> ImpactPoint | None:
+        """:meth:`impact_point` on ``support``'s plate (its ``beam_length_m`` by
+        ``plate_width_m``) when the camera reports impact points (the spec's
+        ``camera_reports_impact_point``), else None."""
+        if not self.spec.camera_reports_impact_point:
+            return None
+        return self.impact_point(position_m, rebound, support.beam_length_m, support.plate_width_m)
 
     def impact_point(
         self, position_m: float, rebound: Rebound, length_m: float, width_m: float

@@ -390,16 +390,7 @@ def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> Simul
     states = trajectory.sample_many(parts)
     history = histories(scene, trajectory, states[0])
     rebound = suite.rebound(trajectory, contact_stamp)
-    point = (
-        suite.impact_point(
-            scene.impact.position_m,
-            rebound,
-            scene.support.beam_length_m,
-            scene.support.plate_width_m,
-        )
-        if spec.camera_reports_impact_point
-        else None
-    )
+    point = suite.reported_point(scene.impact.position_m, rebound, scene.support)
     return SimulationResult(
         scene=scene,
         trajectory=trajectory,

@@ -367,7 +367,7 @@ class StreamSimulator:
         self._epoch_starts.append(stamp_s)
         self._epochs.append(trajectory)
         rebound = self._suite.rebound(trajectory, stamp_s)
-        point = self._camera_point(impact.position_m, rebound)
+        point = self._suite.reported_point(impact.position_m, rebound, self.support)
         scene = Scene(
             self.support,
             impact,
@@ -385,15 +385,6 @@ class StreamSimulator:
             rebound,
             impact_truth(scene, trajectory, stamp_s, rebound.stamp_s, summary),
             point,
-        )
-
-    def _camera_point(self, position_m: float, rebound: Rebound) -> ImpactPoint | None:
-        """Where the camera saw the particle strike ``position_m`` (m from the hinge), stamped
-        as its ``rebound``; None unless the camera reports impact points."""
-        if not self.sensors.camera_reports_impact_point:
-            return None
-        return self._suite.impact_point(
-            position_m, rebound, self.support.beam_length_m, self.support.plate_width_m
         )
 
     def advance(self, until_s: float) -> Chunk:

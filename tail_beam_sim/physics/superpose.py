@@ -237,7 +237,7 @@ class FlowSimulator(StreamSimulator):
         self._push_epoch(FlowEpoch(self._rest_problem, stamp_s, q, qd, [*active, contribution]))
         self._latest_stamp_s = stamp_s
         rebound = self._suite.rebound(trajectory, stamp_s)
-        point = self._camera_point(impact.position_m, rebound)
+        point = self._suite.reported_point(impact.position_m, rebound, self.support)
         scene = Scene(
             self.support,
             impact,
