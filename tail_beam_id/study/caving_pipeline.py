@@ -37,7 +37,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.special import ndtr, ndtri
 
 from tail_beam_id.caving.events import ShareEstimate
 from tail_beam_id.caving.feed import label_event, share_event
@@ -51,7 +50,7 @@ from tail_beam_sim.config import default_config_dir, load_parameters
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.drawing import GANGUE
 from tail_beam_sim.physics.face import DrawnCell, ShareMeter
-from tail_beam_sim.physics.lumps import FlowParams
+from tail_beam_sim.physics.lumps import FlowParams, lump_radius_m
 from tail_beam_sim.physics.materials import material_table, sphere_mass_kg
 from tail_beam_sim.physics.solvers import SolverError
 from tail_beam_sim.physics.stream import Chunk
@@ -129,24 +128,6 @@ class Pipeline:
         section = dict(merged["identification"])
         self.method = build_method(IdentifierConfig.from_params(section).method, merged, None)
         self.share_model = load_score_model()
-        sigma, (lo, hi), median = (
-            self.flow.radius_log_sigma,
-            self.flow.radius_m,
-            self.flow.radius_median_m,
-        )
-        self._cdf = (0.0, 1.0)
-        if sigma > 0:
-            self._cdf = tuple(float(ndtr(math.log(r / median) / sigma)) for r in (lo, hi))
-
-    def radius_m(self, u: float) -> float:
-        """A lump radius from one uniform draw: the flow's truncated log-normal (m)."""
-        f = self.flow
-        lo, hi = f.radius_m
-        if f.radius_log_sigma == 0.0:
-            return min(max(f.radius_median_m, lo), hi)
-        a, b = self._cdf
-        z = float(ndtri(a + u * (b - a)))
-        return min(max(f.radius_median_m * math.exp(f.radius_log_sigma * z), lo), hi)
 
     def command(self, gangue: bool, u: np.ndarray, impact_id: str) -> tuple[dict[str, Any], float]:
         """One lump's ``impact_cmd`` object from five uniform draws, and its mass (kg)."""
@@ -155,7 +136,7 @@ class Pipeline:
             material = self.gangue[min(int(u[0] * len(self.gangue)), len(self.gangue) - 1)]
         else:
             material = self.coal
-        radius = self.radius_m(float(u[1]))
+        radius = lump_radius_m(self.flow, float(u[1]))
         low, high = material.restitution_range
         command = {
             "material": material.name,

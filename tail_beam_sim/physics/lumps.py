@@ -161,16 +161,6 @@ class LumpSource:
         self._next_release_s: float | None = None  # None: the window's opening
         self.drawn_mass_kg = 0.0
         self.count = 0
-        sigma, (lo, hi) = params.radius_log_sigma, params.radius_m
-        median = params.radius_median_m
-        self._cdf_span = (
-            (
-                float(ndtr(math.log(lo / median) / sigma)),
-                float(ndtr(math.log(hi / median) / sigma)),
-            )
-            if sigma > 0
-            else (0.0, 1.0)
-        )
 
     @property
     def is_open(self) -> bool:
@@ -239,7 +229,7 @@ class LumpSource:
             if is_gangue
             else self._coal
         )
-        radius = self._radius(float(u[2]))
+        radius = lump_radius_m(self.params, float(u[2]))
         mass = float(sphere_mass_kg(material.density_kgpm3, radius))
         height = p.drop_height_m[0] + u[3] * (p.drop_height_m[1] - p.drop_height_m[0])
         position = p.position_m[0] + u[4] * (p.position_m[1] - p.position_m[0])
@@ -263,11 +253,15 @@ class LumpSource:
         self.drawn_mass_kg += mass
         return lump, gap
 
-    def _radius(self, u: float) -> float:
-        p = self.params
-        lo, hi = p.radius_m
-        if p.radius_log_sigma == 0.0:
-            return min(max(p.radius_median_m, lo), hi)
-        a, b = self._cdf_span
-        z = float(ndtri(a + u * (b - a)))
-        return min(max(p.radius_median_m * math.exp(p.radius_log_sigma * z), lo), hi)
+
+def lump_radius_m(params: FlowParams, u: float) -> float:
+    """A lump radius from one uniform draw ``u`` in [0, 1): the flow's log-normal radius
+    (median ``radius_median_m``, log-sigma ``radius_log_sigma``) truncated to ``radius_m``, by
+    inverting its distribution function (m)."""
+    lo, hi = params.radius_m
+    median, sigma = params.radius_median_m, params.radius_log_sigma
+    if sigma == 0.0:
+        return min(max(median, lo), hi)
+    a, b = (float(ndtr(math.log(r / median) / sigma)) for r in (lo, hi))
+    z = float(ndtri(a + u * (b - a)))
+    return min(max(median * math.exp(sigma * z), lo), hi)
