@@ -14,6 +14,11 @@ Seeds: training flows use ``TRAINING_SEED`` + n; the evaluation's flow set uses 
 (``FLOW_SEED`` in :mod:`tail_beam_id.study.flow_evaluation`), which no training flow uses.
 
     python -m tail_beam_id.study.share_training --flows 20 --duration-s 10
+
+Each training flow is read with its support's own parameters; ``--profile`` reads them as the
+flow set reads its supports instead (``self-calibrated``: calibrated on the flow itself, as
+``tail-beam identify`` reads a bag). Trained self-calibrated, the model read the flow set worse
+(docs/results/gangue_share.md), so the shipped one is not.
 """
 
 from __future__ import annotations
@@ -28,9 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label, match_stamps, match_tolerance_s
-from tail_beam_id.stream.replay import replay
 from tail_beam_id.stream.share import (
     MODEL_PATH,
     RATE_CLASS_EDGES_PER_S,
@@ -44,6 +47,7 @@ from tail_beam_id.stream.share import (
 )
 from tail_beam_id.study.dataset import evaluation_params
 from tail_beam_id.study.flow import FlowRecording, record_sim_flow
+from tail_beam_id.study.flow_evaluation import FLOW_PROFILES, identify_flow, reading_params
 from tail_beam_id.study.supports import draw_support, support_ranges
 from tail_beam_sim.config import load_parameters
 
@@ -85,23 +89,18 @@ def training_flows(
 SENSOR_RATES = ("pressure_rate_hz", "imu_rate_hz", "camera_frame_rate_hz")
 
 
-def identify_flow(recording: FlowRecording, vibration: bool, method: str | None = None):
-    """The labels of a flow recording, with the accelerometer or the IMU alone."""
-    params = recording.params
-    identifier = StreamIdentifier(method, params=params["identification"], model_params=params)
-    return replay(
-        identifier,
-        recording.pressure,
-        recording.imu,
-        recording.rebounds,
-        vibration=recording.vibration if vibration else None,
-    )
-
-
-def identified(recording: FlowRecording, layout: str) -> dict[str, Any]:
-    """A flow read with one layout (``shipped``, or ``imu``: without the accelerometer), as the
-    training keeps it: its rate, its labels (JSON), the lumps' stamps and materials."""
-    labels = identify_flow(recording, layout == "shipped")
+def identified(
+    recording: FlowRecording,
+    layout: str,
+    params: Mapping[str, Any] | None = None,
+    profile: str = "true",
+) -> dict[str, Any]:
+    """A flow read with one layout (``shipped``, or ``imu``: without the accelerometer), the
+    support known by ``profile`` on ``params`` (config/; :func:`~tail_beam_id.study.
+    flow_evaluation.reading_params`), as the training keeps it: its rate, its labels (JSON),
+    the lumps' stamps and materials."""
+    model = None if params is None else reading_params(params, recording, profile, layout)
+    labels, _ = identify_flow(recording, layout, None, model)
     return {
         "rate_per_s": recording.rate_per_s,
         "layout": layout,
@@ -234,13 +233,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--cache", help="JSON file keeping the flows' labels: read when it exists (a refit)"
     )
+    parser.add_argument(
+        "--profile",
+        default=None,
+        choices=FLOW_PROFILES,
+        help="read each training flow as the flow set reads its supports with this profile "
+        "(default: with the recorded support's own parameters, as the shipped model)",
+    )
     args = parser.parse_args(argv)
     params = load_parameters([])
     if args.cache and Path(args.cache).exists():
         flows = json.loads(Path(args.cache).read_text())
     else:
         flows = [
-            dict(identified(recording, layout), flow=n)
+            dict(
+                identified(recording, layout, params if args.profile else None, args.profile),
+                flow=n,
+            )
             for n, recording in enumerate(training_flows(params, args.flows, args.duration_s))
             for layout in ("shipped", "imu")
         ]
@@ -255,6 +264,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "duration_s": args.duration_s,
         "seed": TRAINING_SEED,
         "rates_per_s": list(RATES_PER_S),
+        "profile": args.profile or "recorded",
     }
     with open(args.out, "w") as handle:
         json.dump(model, handle, indent=1)
