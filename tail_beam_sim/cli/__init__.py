@@ -15,6 +15,7 @@ pipe, ``| head``: as a tool killed by SIGPIPE reports it in a shell). Never a tr
 
 from __future__ import annotations
 
+import _thread
 import argparse
 import errno
 import os
@@ -27,6 +28,7 @@ from typing import Any
 from tail_beam_sim.errors import InputError
 
 VERB_GROUP = "tail_beam.verbs"
+REDELIVER_S = 0.01  # a Ctrl-C Python could only report comes back this much later, s
 # Order of ``tail-beam --help`` for the verbs it knows; any other installed verb follows, by name.
 __all__ = [
     "EXIT_BAD_INPUT",
@@ -171,20 +173,38 @@ class _Interrupt:
 
     received = False
 
+    _unraisable_hook: Any = None  # sys.unraisablehook while installed
+
     @classmethod
     def install(cls) -> Any:
         """Take SIGINT (main thread only: signal handlers belong to it); the handler it
         replaced."""
         cls.received = False
         if threading.current_thread() is threading.main_thread():
+            cls._unraisable_hook = sys.unraisablehook
+            sys.unraisablehook = cls._unraisable
             return signal.signal(signal.SIGINT, cls._handle)
         return None
 
-    @staticmethod
-    def restore(previous: Any) -> None:
+    @classmethod
+    def restore(cls, previous: Any) -> None:
         """Give SIGINT back to ``previous`` (a library caller of main() keeps its own handler)."""
         if previous is not None and threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGINT, previous)
+            sys.unraisablehook = cls._unraisable_hook or sys.__unraisablehook__
+
+    @classmethod
+    def _unraisable(cls, unraisable: Any) -> None:
+        """A KeyboardInterrupt that landed where Python can only report it (a callback of the
+        import machinery's module locks, while the verbs load) is delivered again to the main
+        thread, where main() ends as interrupted, instead of printed as a traceback and lost."""
+        if isinstance(unraisable.exc_value, KeyboardInterrupt):
+            # From another thread, a moment later: raised here it would be reported again.
+            timer = threading.Timer(REDELIVER_S, _thread.interrupt_main)
+            timer.daemon = True
+            timer.start()
+            return
+        (cls._unraisable_hook or sys.__unraisablehook__)(unraisable)
 
     @classmethod
     def _handle(cls, signum: int, frame: object) -> None:

@@ -89,3 +89,36 @@ def test_main_gives_the_callers_ctrl_c_handler_back(capsys):
     finally:
         signal.signal(signal.SIGINT, before)
     assert "radius" in capsys.readouterr().err
+
+
+def test_a_ctrl_c_python_can_only_report_is_delivered_again(capsys):
+    """A KeyboardInterrupt raised where Python only reports it (a weakref callback, as the
+    import machinery's module locks have) is neither printed nor lost while main()'s guard is
+    installed: it comes back to the main thread as a KeyboardInterrupt."""
+    import threading
+    import weakref
+
+    from tail_beam_sim.cli import _Interrupt
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signal handlers belong to the main thread")
+
+    class Lock:
+        pass
+
+    def callback(_ref: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = _Interrupt.install()
+    try:
+        lock = Lock()
+        ref = weakref.ref(lock, callback)
+        with pytest.raises(KeyboardInterrupt):
+            del lock  # the callback's KeyboardInterrupt is unraisable here
+            deadline = time.monotonic() + 5.0
+            while time.monotonic() < deadline:  # the re-delivered interrupt lands here
+                pass
+    finally:
+        _Interrupt.restore(previous)
+    assert ref() is None
+    assert "Traceback" not in capsys.readouterr().err
