@@ -100,10 +100,11 @@ def soak(
     echo=print,
     recorder_params: tuple[str, ...] = (),
     namespace: str = "",
+    id_params: tuple[str, ...] = (),
 ) -> SoakResult:
     """Run the three nodes on ``impacts`` generated impacts; return what the bag holds.
-    ``recorder_params`` are extra ``name:=value`` overrides of the recorder (experiments);
-    ``namespace`` puts the whole support under one."""
+    ``recorder_params`` and ``id_params`` are extra ``name:=value`` overrides of the recorder
+    and id_node (experiments); ``namespace`` puts the whole support under one."""
     from tail_beam_id.stream.label import Label, match, match_tolerance_s
     from tail_beam_sim import topics
     from tail_beam_sim.bags.read import read_sensors
@@ -114,7 +115,9 @@ def soak(
         "bag_recorder": start(
             "bag_recorder", [f"recorder.bag_path:={bag}", *recorder_params], work, namespace
         ),
-        "id_node": start("id_node", ["id_node.flush_after_idle_s:=2.0"], work, namespace),
+        "id_node": start(
+            "id_node", ["id_node.flush_after_idle_s:=2.0", *id_params], work, namespace
+        ),
     }
     time.sleep(2.0)  # both are up before the simulator waits for its subscribers
     procs["sim_node"] = start(
