@@ -204,17 +204,25 @@ class Plan:
 def plan(scene: Scene, tier: str, needs: Needs, settings: FidelitySettings) -> Plan:
     """Choose (``tier='auto'``) or take the tier, with its structure, solver and options and the
     error estimates."""
-    if tier == "auto":
-        estimates = model_errors(scene, needs, settings.modes)
+    name = tier if tier == "auto" else get_tier(tier).name
+    # the richest tiers are the reference of the estimates (no model error of their own): the
+    # ladder's estimates are not needed for them
+    estimates = {name: 0.0} if name in EXACT_TIERS else model_errors(scene, needs, settings.modes)
+    return _plan_of(scene, name, estimates, needs, settings)
+
+
+def _plan_of(
+    scene: Scene,
+    name: str,
+    estimates: dict[str, float],
+    needs: Needs,
+    settings: FidelitySettings,
+) -> Plan:
+    """The plan of ``scene`` for tier ``name`` (``auto``: the first of the ladder whose
+    estimated error is within the tolerance, else its last) given its error ``estimates``."""
+    if name == "auto":
         name = next(
             (t for t in ACCURACY_LADDER if estimates[t] <= needs.tolerance), ACCURACY_LADDER[-1]
-        )
-    else:
-        name = get_tier(tier).name
-        # the richest tiers are the reference of the estimates (no model error of their own):
-        # the ladder's estimates are not needed for them
-        estimates = (
-            {name: 0.0} if name in EXACT_TIERS else model_errors(scene, needs, settings.modes)
         )
     chosen = TIERS[name]
     return Plan(
@@ -238,26 +246,7 @@ def plan_many(
         estimates: list[dict[str, float]] = [{name: 0.0} for _ in scenes]
     else:
         estimates = model_errors_many(scenes, needs, settings.modes)
-    plans = []
-    for scene, estimate in zip(scenes, estimates):
-        chosen_name = (
-            next((t for t in ACCURACY_LADDER if estimate[t] <= needs.tolerance), "modal")
-            if name == "auto"
-            else name
-        )
-        chosen = TIERS[chosen_name]
-        plans.append(
-            Plan(
-                tier=chosen,
-                structure=structure_for(chosen, scene.support, settings.modes),
-                solver=chosen.default_solver,
-                solver_options=chosen.solver_options(needs),
-                model_error=estimate.get(chosen_name, 0.0),
-                estimates=estimate,
-                check_against=next_tier_up(chosen_name),
-            )
-        )
-    return plans
+    return [_plan_of(s, name, e, needs, settings) for s, e in zip(scenes, estimates)]
 
 
 def model_errors_many(
