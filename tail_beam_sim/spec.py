@@ -875,7 +875,7 @@ RECORDER = Section(
         text("bag_path", 'Bag directory to create ("" = out/bags/tail_beam_<UTC time>).'),
         text("storage", "Storage plugin: mcap or sqlite3."),
         text("compression", "mcap chunk compression: zstd or none."),
-        positive("segment_s", "Log time per segment file.", "s", high=3600.0),
+        positive("segment_s", "Wall time per closed segment file of the bag.", "s", high=3600.0),
         positive(
             "flush_s", "Wall time between flushes (what a SIGKILL may lose).", "s", high=3600.0
         ),
