@@ -43,7 +43,7 @@ from tail_beam_id.calibration.modes import MIN_FREQUENCY_HZ as MIN_MODE_FREQUENC
 from tail_beam_id.calibration.modes import RingingMode, ring_decay_s, ringing_modes, sample_noise
 from tail_beam_id.methods import hysteresis, load_model
 from tail_beam_id.methods.statistical import HYSTERESIS
-from tail_beam_id.signals.camera import frame_period_s
+from tail_beam_id.signals.camera import GRIDLESS_PERIOD_S, MIN_REBOUNDS, frame_period_s
 from tail_beam_id.signals.timing import UNUSUAL
 from tail_beam_id.stream.label import Label
 from tail_beam_sim.config import deep_merge
@@ -85,7 +85,8 @@ class SupportProfile:
     # damping ratio; None when none could be measured (too few impacts, or the channel too slow).
     ringing_modes_hz: list[float] | None = None
     ringing_damping_ratios: list[float] | None = None
-    # The camera's frame rate read from the grid of every rebound stamp, Hz; None without a grid.
+    # The camera's frame rate read from the grid of every rebound stamp, Hz (1 / GRIDLESS_PERIOD_S:
+    # stamps on no grid); None from fewer than MIN_REBOUNDS.
     camera_frame_rate_hz: float | None = None
     # The weight of each hysteresis bin of the statistical model (tail_beam_id.methods.hysteresis)
     # and the impacts they rest on; None when too few impacts had every signal.
@@ -127,7 +128,9 @@ class SupportProfile:
     def describe_camera(self) -> str:
         """The camera's frame as read from the rebound stamps, in a few words."""
         if self.camera_frame_rate_hz is None:
-            return "camera frame not read (fewer than 4 rebounds, or stamps on no frame grid)"
+            return f"camera frame not read (fewer than {MIN_REBOUNDS} rebounds)"
+        if self.camera_frame_rate_hz >= 1.0 / GRIDLESS_PERIOD_S:
+            return "camera stamps on no frame grid: taken as the contact's end itself"
         return f"camera {self.camera_frame_rate_hz:.0f} frames/s"
 
     @property
@@ -387,10 +390,13 @@ def _hysteresis_weights(
 
 
 def _camera_frame_rate_hz(stamps_s: Sequence[float]) -> float | None:
-    """The camera's frame rate (Hz) from the grid of the rebound stamps (s), or None."""
+    """The camera's frame rate (Hz) from the grid of the rebound stamps (s); 1 / GRIDLESS_PERIOD_S
+    for MIN_REBOUNDS or more stamps on no grid (stamped at the separation itself:
+    tail_beam_id.signals.camera); None for fewer."""
     stamps = [float(t) for t in stamps_s if math.isfinite(float(t))]
-    period = frame_period_s(stamps)
-    return None if period is None else 1.0 / period
+    if len(set(stamps)) < MIN_REBOUNDS:
+        return None
+    return 1.0 / (frame_period_s(stamps) or GRIDLESS_PERIOD_S)
 
 
 def _finite(stamp_s: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

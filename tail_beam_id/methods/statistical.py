@@ -98,8 +98,15 @@ WITH_POINT = "~with_point"
 # (Identified with config/ alone, training's single impacts know only config/'s frame: those
 # models read the point alone.)
 FRAME_PERIOD = "camera_frame_period_s"
+# The frame period as a model's input, floored at 10 us: a lag that short is below what the
+# onset's timing resolves, so a camera stamped at the separation itself (the frame
+# tail_beam_id.signals.camera.GRIDLESS_PERIOD_S) reads as one of 100 kHz. The models of a
+# support with a profile (``calibrated_subsets``) with the rebound delay read it, so that the
+# delay tells the contact's duration as sharply as the camera allows, from a stamp at the
+# separation itself to a frame of 2 kHz (tail_beam_id.study.training.train_statistical).
+FRAME_INPUT: tuple[str, float | None] = (FRAME_PERIOD, 1e-5)
 POINT_FEATURES: tuple[tuple[str, float | None], ...] = ((IMPACT_X, 0.05),)
-CALIBRATED_POINT_FEATURES = (*POINT_FEATURES, (FRAME_PERIOD, 1e-5))
+CALIBRATED_POINT_FEATURES = (*POINT_FEATURES, FRAME_INPUT)
 LAG_ROWS = 16  # lags a camera slower than the training's is averaged over
 # a camera frame this many times the reference (or slowest) frame or longer counts as slower
 SLOWER = 1.05
@@ -218,14 +225,21 @@ def subset_key(signals: Sequence[str]) -> str:
     return "+".join(signals)
 
 
-def feature_list(signals: Sequence[str], delay: bool = True) -> list[tuple[str, float | None]]:
+def feature_list(
+    signals: Sequence[str], delay: bool = True, frame: bool = False
+) -> list[tuple[str, float | None]]:
     """The (name, floor) of every feature a model on these signals uses (``delay=False``: all
-    but the rebound delay)."""
+    but the rebound delay; ``frame``: with the camera's frame period after the delay, which a
+    model of a support with a profile reads: FRAME_INPUT)."""
     chosen = [f for s in signals for f in SIGNAL_FEATURES[s]]
     for pair, extra in JOINT_FEATURES.items():
         if all(s in signals for s in pair):
             chosen += list(extra)
-    return chosen if delay else [f for f in chosen if f[0] != "rebound_delay_s"]
+    if not delay:
+        return [f for f in chosen if f[0] != "rebound_delay_s"]
+    if frame and any(name == "rebound_delay_s" for name, _ in chosen):
+        chosen.append(FRAME_INPUT)
+    return chosen
 
 
 class StatisticalMethod:
@@ -379,11 +393,16 @@ class StatisticalMethod:
         if model is None:
             return Decision(0.5, {}, signals=()), key, False
         names = [(n, f) for n, f in model["features"]]
+        if FRAME_PERIOD in dict(names) and FRAME_PERIOD not in features:
+            # No frame known (none configured, none measured yet): the training's reference.
+            features = {**features, FRAME_PERIOD: self.reference_frame_period_s}
         rows = self._lag_rows(features, names)
         low, high = (np.array(v) for v in model["envelope"])
         middle = rows[len(rows) // 2]
         outside = tuple(
-            name for (name, _), v, lo, hi in zip(names, middle, low, high) if not lo <= v <= hi
+            name
+            for (name, _), v, lo, hi in zip(names, middle, low, high)
+            if not lo <= v <= hi and not (name == FRAME_PERIOD and v < lo)
         )
         clipped = np.clip(rows, low, high)
         z = (clipped - np.array(model["mean"])) / np.array(model["scale"])
@@ -449,27 +468,35 @@ class StatisticalMethod:
     def _lag_rows(
         self, features: Mapping[str, float], names: Sequence[tuple[str, float | None]]
     ) -> np.ndarray:
-        """The model's inputs (K, d): one row, or, for a camera slower than the training's
-        (``camera_frame_period_s`` > the reference), one per lag the camera may have added.
+        """The model's inputs (K, d): one row, or, for a camera slower than the model knows
+        (``camera_frame_period_s`` > its reference), one per lag the camera may have added.
 
         The delay from onset to camera stamp is the contact duration plus the camera's lag,
-        uniform over its frame period P. The network learnt it with the training's cameras,
-        whose lag is about half the reference frame P0; so each row moves the delay by
-        P0/2 - u for u over (0, min(P, delay)), and the decision averages the rows'
-        probabilities, so that a 1 kHz camera's lag is not read as a contact up to 1 ms long."""
+        uniform over its frame period P. A model without the frame input learnt it with the
+        training's cameras, whose lag is about half the reference frame P0; one with it
+        (FRAME_INPUT) knows frames up to the slowest trained, its P0. So each row moves the delay
+        by P0/2 - u for u over (0, min(P, delay)) (and gives the frame input P0), and the
+        decision averages the rows' probabilities, so that a 1 kHz camera's lag is not read as
+        a contact up to 1 ms long."""
         x = base_vector(features, names)
-        period = features.get("camera_frame_period_s")
+        period = features.get(FRAME_PERIOD)
         column = next((k for k, (name, _) in enumerate(names) if name == "rebound_delay_s"), None)
-        if column is None or period is None or not period > SLOWER * self.reference_frame_period_s:
+        frame = next((k for k, (name, _) in enumerate(names) if name == FRAME_PERIOD), None)
+        reference = (
+            self.reference_frame_period_s if frame is None else self.slowest_delay_frame_period_s
+        )
+        if column is None or period is None or not period > SLOWER * reference:
             return x[None, :]
         floor = dict(names)["rebound_delay_s"] or 0.0
         delay = float(features["rebound_delay_s"])
         # The lag is no longer than the delay itself (the contact lasted some time): lags up to
         # a frame longer than the delay read as contacts of no duration, the surest gangue.
         lags = (np.arange(LAG_ROWS) + 0.5) / LAG_ROWS * min(period, max(delay, 0.0))
-        delays = delay + 0.5 * self.reference_frame_period_s - lags
+        delays = delay + 0.5 * reference - lags
         rows = np.repeat(x[None, :], LAG_ROWS, axis=0)
         rows[:, column] = np.log(np.maximum(delays, floor))
+        if frame is not None:
+            rows[:, frame] = np.log(max(reference, dict(names)[FRAME_PERIOD] or 0.0))
         return rows
 
 

@@ -28,6 +28,10 @@ MAX_PERIOD_S = 0.002  # the slowest (500 Hz), s
 # this costs more confident wrong labels than it saves (docs/identification.md).
 MIN_REBOUNDS = 4
 MAX_REBOUNDS = 64  # rebounds kept for the estimate (the grid does not change)
+# The frame (s) of a camera whose MIN_REBOUNDS or more stamps lie on no grid of MIN_PERIOD_S or
+# more (module docstring): shorter than any lag the statistical models tell from none (they read
+# every frame below their floor, 10 us, alike).
+GRIDLESS_PERIOD_S = 1e-6
 
 
 def frame_period_s(
@@ -102,15 +106,16 @@ class FramePeriod:
         last = self.estimates_s[-1] if self.estimates_s else None
         if last is not None and _on_grid(stamp_s - self.stamps_s[-2], last):
             estimate: float | None = last
+        elif len(self.stamps_s) >= MIN_REBOUNDS:
+            estimate = frame_period_s(self.stamps_s) or GRIDLESS_PERIOD_S
         else:
-            estimate = (
-                frame_period_s(self.stamps_s) if len(self.stamps_s) >= MIN_REBOUNDS else None
-            )
+            estimate = None
         self.estimates_s.append(estimate)
 
     def measured_at(self, stamp_s: float) -> float | None:
-        """The frame period (s) the stamps up to ``stamp_s`` gave, or None (fewer than
-        MIN_REBOUNDS, or on no grid): measured only, never the configured one."""
+        """The frame period (s) the stamps up to ``stamp_s`` gave (GRIDLESS_PERIOD_S for stamps
+        on no grid), or None (fewer than MIN_REBOUNDS): measured only, never the configured
+        one."""
         k = bisect.bisect_right(self.stamps_s, stamp_s)
         return self.estimates_s[k - 1] if k else None
 

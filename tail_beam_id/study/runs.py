@@ -57,6 +57,10 @@ class Record:
     # (tail_beam_id.methods.hysteresis).
     contact_model: str | None = None
     contact_damping_scale: float | None = None
+    # The recording's camera frame rate, Hz (None: not kept): training keeps a camera that
+    # stamps the separation itself out of the models for config/ alone, which take every delay
+    # as a reference camera's.
+    camera_frame_rate_hz: float | None = None
 
     @property
     def correct(self) -> bool:
@@ -91,11 +95,12 @@ def run_set(
     each delivery of the replay, s (the identifier's labels do not depend on it: the
     training replays each impact's streams in one delivery, WHOLE_STREAM_CHUNK_S)."""
     tolerance_s = match_tolerance_s(params["identification"])
-    built: dict[str, Any] = {}
+    built: dict[Any, Any] = {}
     sections = [dict(params["identification"])] + [
         with_window(params["identification"], w) for w in windows_s
     ]
     nominal_scale = float(params["support"].get("contact_damping_scale", 1.0))
+    cameras: dict[float, Mapping[str, Any]] = {}
     for impact in simulate_set(params, scene_set, count, seed, chosen, tier):
         law, scale = (
             (
@@ -105,22 +110,29 @@ def run_set(
             if impact.support is not None
             else (impact.contact_model, nominal_scale)
         )
-        model_params = params
+        support_params = params
         if true_profile and impact.support is not None:
-            model_params = impact.support.apply(params)
-            model_params["calibration"] = true_profile_section(model_params)
+            support_params = impact.support.apply(params)
+            support_params["calibration"] = true_profile_section(support_params)
         for key, result, vibration in _feeds(impact.results, without_vibration_too):
             truth = result.truth()
+            model_params = (
+                with_camera(params, result.scene.sensors.camera_frame_rate_hz, cameras)
+                if impact.support is None
+                else support_params
+            )
             for method in methods:
                 for section in sections:
-                    reuse = (
-                        built.get(method)
-                        if model_params is params or method != "physics"
-                        else None
-                    )
+                    # The physics method is built for its support (the nominal one's kept per
+                    # camera); the others read no support and are built once.
+                    reuse_key: Any = method
+                    if method == "physics":
+                        nominal = impact.support is None or not true_profile
+                        reuse_key = (method, id(model_params)) if nominal else None
+                    reuse = built.get(reuse_key) if reuse_key is not None else None
                     identifier = StreamIdentifier(method, section, model_params, prebuilt=reuse)
-                    if model_params is params:
-                        built[method] = identifier.method
+                    if reuse_key is not None:
+                        built[reuse_key] = identifier.method
                     started = time.perf_counter()
                     labels = replay(
                         identifier,
@@ -151,7 +163,24 @@ def run_set(
                         calibrated=identifier.calibrated,
                         contact_model=law,
                         contact_damping_scale=scale,
+                        camera_frame_rate_hz=float(result.scene.sensors.camera_frame_rate_hz),
                     )
+
+
+def with_camera(
+    params: Mapping[str, Any], rate_hz: float, cache: dict[float, Mapping[str, Any]]
+) -> Mapping[str, Any]:
+    """``params`` with the camera of the recording (``sensors.camera_frame_rate_hz``, Hz), as
+    its user would configure it: ``params`` itself when it is the configured one, else a copy
+    (one per rate, kept in ``cache``) whose other sections are shared."""
+    if float(params["sensors"]["camera_frame_rate_hz"]) == float(rate_hz):
+        return params
+    if rate_hz not in cache:
+        cache[rate_hz] = {
+            **params,
+            "sensors": {**params["sensors"], "camera_frame_rate_hz": float(rate_hz)},
+        }
+    return cache[rate_hz]
 
 
 def _feeds(

@@ -22,7 +22,9 @@ merged parameter dict; ranges live in ``identification.evaluation.supports``
 - ``vibration_share`` and ``vibration_rate_hz`` (log-uniform): whether the support has the
   tail-beam accelerometer (topic ``vibration``) and at what rate; ``vibration_rate_hz`` is 0 in
   a draw without it (the IMU alone is then the acceleration channel). Drawn from a generator of
-  its own (:func:`draw_support`), so adding it left every other draw of a seed unchanged.
+  its own (:func:`draw_support`), so adding it left every other draw of a seed unchanged;
+- ``exact_camera_share`` (optional, 0..1): the share of supports whose camera stamps the
+  contact's end itself (EXACT_CAMERA_RATE_HZ in place of the drawn frame rate), drawn last.
 """
 
 from __future__ import annotations
@@ -84,6 +86,11 @@ STRUCTURE_RANGES = {
     "tip_mass_kg": False,  # a point mass at the tip (a wear plate's edge, a lip), kg
     "modal_mass_kg": True,  # the first mode's modal mass (peak-normalised shape), kg
 }
+# The frame rate (Hz) of a camera that stamps the contact's end itself (``exact_camera_share``
+# of the drawn supports, where the ranges name it): its 1 us frames lie on no grid the
+# identifier reads (tail_beam_id.signals.camera.GRIDLESS_PERIOD_S), as a camera's that
+# interpolates the separation between frames; the fastest rate a sensor may have.
+EXACT_CAMERA_RATE_HZ = 1e6
 STRUCTURE_ELEMENTS = 32  # finite elements of a drawn beam (nodes every 0.05 m on 1.6 m)
 MAX_MODES = 4  # bending modes a drawn structure keeps (those below max_mode_frequency_hz)
 STRUCTURE_TRIES = 200  # draws of a structure before the one nearest mode_ratio is kept
@@ -251,7 +258,10 @@ def support_ranges(evaluation: Mapping[str, Any], which: str) -> Mapping[str, An
             raise InputError(
                 f"{where}.structure.max_mode_frequency_hz", top, "must be a frequency > 0 Hz"
             )
-    for name in ("vibration_share", *(["structure_share"] if "structure_share" in ranges else [])):
+    for name in (
+        "vibration_share",
+        *(n for n in ("structure_share", "exact_camera_share") if n in ranges),
+    ):
         share = ranges.get(name)
         if (
             isinstance(share, bool)
@@ -322,6 +332,9 @@ def draw_support(
                 "modes.derived_from", None, "a drawn structure needs the nominal beam"
             )
         values.update(draw_structure(ranges["structure"], values, rng, modes))
+    if "exact_camera_share" in ranges and rng.uniform() < float(ranges["exact_camera_share"]):
+        # Drawn last and only where named, so naming it leaves every other draw of a seed the same.
+        values["camera_frame_rate_hz"] = EXACT_CAMERA_RATE_HZ
     return SupportDraw(values, draw_law)
 
 

@@ -50,6 +50,7 @@ from tail_beam_id.methods.statistical import (
     size_feature,
     subset_key,
 )
+from tail_beam_id.signals.camera import MIN_PERIOD_S
 from tail_beam_id.signals.features import VIBRATION_CHANNEL
 from tail_beam_id.stream.label import Label
 from tail_beam_id.study.blas_threads import single_blas_thread
@@ -292,7 +293,8 @@ def fit_hysteresis(
     statistical models, its temperature fitted on held-out impacts (each on a support no
     training impact struck) with their support's true bin."""
     edges, reference = hysteresis_section(section)
-    names = feature_list(SIGNAL_ORDER)
+    # the inputs of the full model of a support with a profile, the camera's frame among them
+    names = feature_list(SIGNAL_ORDER, frame=True)
     usable = [
         r
         for r in records
@@ -300,6 +302,7 @@ def fit_hysteresis(
         and r.scene_set in DRAWN_SETS
         and r.contact_model is not None
         and set(SIGNAL_ORDER) <= set(signals_of(r.label.features))
+        and all(name in r.label.features for name, _ in names)
     ]
     if len(usable) < 200:
         raise SystemExit(
@@ -408,17 +411,33 @@ def train_statistical(
     Without the latter the calibrated models knew only drawn supports and lost 3 points on
     streams of the nominal support at the shipped layout (88.7 against 91.7 %, 240 impacts)."""
     return {
-        "subsets": train_family([r for r in records if not r.calibrated], seed),
+        "subsets": train_family(
+            [r for r in records if not r.calibrated and not stamps_separation(r)], seed
+        ),
         "calibrated_subsets": train_family(
-            [r for r in records if r.calibrated or r.scene_set not in DRAWN_SETS], seed
+            [r for r in records if r.calibrated or r.scene_set not in DRAWN_SETS],
+            seed,
+            frame=True,
         ),
         "hysteresis": fit_hysteresis(records, hysteresis, seed),
     }
 
 
-def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
+def stamps_separation(record: Record) -> bool:
+    """Whether the record's camera stamps the separation itself (faster than any frame grid the
+    identifier reads, tail_beam_id.signals.camera.MIN_PERIOD_S). The models for config/ alone
+    take every delay as the training's reference camera's (lag about half its frame) and are
+    fitted without such records; the models of a support with a profile read the frame."""
+    rate = record.camera_frame_rate_hz
+    return rate is not None and rate * MIN_PERIOD_S > 1.0
+
+
+def train_family(records: Sequence[Record], seed: int, frame: bool = False) -> dict[str, Any]:
     """One temperature-calibrated network per subset of signals (every non-empty subset), across
     every support and sensor rate in ``records`` (the IMU period is a continuous feature).
+    ``frame``: the models with the rebound delay read the camera's frame period as well (the
+    family of supports with a profile, whose frame is measured or configured per support: the
+    drawn supports' cameras, from 2 kHz to stamps at the separation itself).
 
     Impacts whose acceleration features came from the accelerometer are fitted too: its
     anti-alias filter shapes the pulse that ``contact_duration_s`` is read from
@@ -431,15 +450,25 @@ def train_family(records: Sequence[Record], seed: int) -> dict[str, Any]:
     subsets: dict[str, Any] = {}
     for mask in range(1, 2 ** len(SIGNAL_ORDER)):
         signals = tuple(s for i, s in enumerate(SIGNAL_ORDER) if mask >> i & 1)
-        usable = [r for r in records if set(signals) <= set(signals_of(r.label.features))]
+        names = feature_list(signals, frame=frame)
+        usable = [
+            r
+            for r in records
+            if set(signals) <= set(signals_of(r.label.features))
+            and all(name in r.label.features for name, _ in names)
+        ]
         if len(usable) >= 50:
-            names = feature_list(signals)
             subsets[subset_key(signals)] = fit_subset(usable, names, held)
             if "rebound_delay_s" in dict(names):
                 # The check of the delay is fitted on the accelerometer's impacts too: its
                 # delays are the tight ones an offset clock shows in (tail_beam_id.signals.timing).
                 subsets[subset_key(signals)]["delay_check"] = fit_delay_check(
-                    [r for r in every if set(signals) <= set(signals_of(r.label.features))],
+                    [
+                        r
+                        for r in every
+                        if set(signals) <= set(signals_of(r.label.features))
+                        and all(name in r.label.features for name, _ in names)
+                    ],
                     names,
                     subsets[subset_key(signals)],
                 )
@@ -469,7 +498,11 @@ def train_point_models(records: Sequence[Record], seed: int) -> dict[str, dict[s
     carry ``impact_x_m``. They join the shipped models without changing any of them: an impact
     without a point is decided exactly as before."""
     return {
-        "subsets": point_family([r for r in records if not r.calibrated], seed, POINT_FEATURES),
+        "subsets": point_family(
+            [r for r in records if not r.calibrated and not stamps_separation(r)],
+            seed,
+            POINT_FEATURES,
+        ),
         "calibrated_subsets": point_family(
             [r for r in records if r.calibrated or r.scene_set not in DRAWN_SETS],
             seed,
@@ -693,8 +726,8 @@ def timing_table(records: Sequence[Record], vibration: bool = False) -> list[dic
 
 
 # The cache layout: records with the accelerometer fed (vibration_channel) and each record's
-# contact law and scale.
-CACHE_FORMAT = "tail_beam training records 4"
+# contact law and scale and camera frame rate.
+CACHE_FORMAT = "tail_beam training records 5"
 
 
 def save_cache(path: Path, records: Sequence[Record], paper: Sequence[Record]) -> None:

@@ -8,6 +8,7 @@ wrong labels at confidence >= 0.9, extra labels, median compute per impact); ass
 
     python test/bench/bench_tabulated_supports.py      # 80 + 60 impacts on 4 supports, ~6 min
     python test/bench/bench_tabulated_supports.py --shapes sine --imu-alone --paper-count 0
+    python test/bench/bench_tabulated_supports.py --camera-hz 1e6   # stamps at the separation
 
 Supports: modes 185 / 560 Hz with 600 kg modal masses each, and 300 / 1350 / 3100 Hz at 350 kg
 (tail_beam_id.study.supports.tabulated_modes: no mass coupling with the rigid rotation, so each
@@ -84,6 +85,13 @@ def main() -> int:
         default=",".join(SHAPES),
         help=f"comma-separated mode shape families of {', '.join(SHAPES)}",
     )
+    parser.add_argument(
+        "--camera-hz",
+        type=float,
+        default=None,
+        help="the recorded camera's frame rate, Hz (default config/'s; 1e6: stamps at the "
+        "separation itself); the identifier is told config/'s, as `tail-beam identify` would be",
+    )
     add_config_option(parser)
     args = parser.parse_args()
     params = load_parameters(args.config)
@@ -116,6 +124,8 @@ def main() -> int:
                 )
                 varied["scene"]["contact_model"] = "gonthier"
                 varied["sensors"]["imu_rate_hz"] = imu_hz
+                if args.camera_hz is not None:
+                    varied["sensors"]["camera_frame_rate_hz"] = args.camera_hz
                 # no accelerometer: the draw says so; the rate stays a valid one
                 varied["sensors"]["vibration_rate_hz"] = vibration_hz or shipped_vibration_hz
                 draw = SupportDraw({"vibration_rate_hz": vibration_hz}, "gonthier")

@@ -21,6 +21,7 @@ from tail_beam_id.calibration.offline import (
     sway_frequency,
     with_profile,
 )
+from tail_beam_id.signals.camera import GRIDLESS_PERIOD_S
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label
 from tail_beam_id.stream.replay import replay
@@ -385,7 +386,7 @@ def test_self_calibration_reads_the_cameras_frame_from_every_rebound(params, rec
     profile reads its frame from the grid of all the recording's rebound stamps, so even the
     first impacts, before four rebounds have come, are decided with its lag, not config/'s
     5 kHz camera's (labels say the frame they assumed); a recording whose stamps lie on no grid
-    keeps config/'s."""
+    is read as stamped at the separation itself (tail_beam_id.signals.camera.GRIDLESS_PERIOD_S)."""
     recorded = recordings[0]
     separations = np.array([truth["final_separation_stamp"] for truth in recorded.truths])
     rebounds = [
@@ -437,7 +438,7 @@ def test_self_calibration_reads_the_cameras_frame_from_every_rebound(params, rec
             _identify(params, slow),
             rebound_stamps_s=jittered,
         ).camera_frame_rate_hz
-        is None
+        == 1.0 / GRIDLESS_PERIOD_S
     )
 
 

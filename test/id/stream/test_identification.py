@@ -336,7 +336,8 @@ def test_the_shipped_models_can_decide_a_slow_cameras_impacts_without_the_delay(
     """Every model that reads the rebound delay has a twin trained without it, in both families
     (a camera slower than any trained is decided by the twin), with the same features less the
     delay; a non-positive slowest camera rate is refused by name. (The impact point's models
-    have none: such an impact is decided by the twin without the point.)"""
+    have none: such an impact is decided by the twin without the point. The models of a support
+    with a profile read the camera's frame beside the delay; their twins read neither.)"""
     import copy
 
     from tail_beam_id.methods import load_model
@@ -354,8 +355,12 @@ def test_the_shipped_models_can_decide_a_slow_cameras_impacts_without_the_delay(
         for key in with_delay:
             twin = model[family][key + WITHOUT_DELAY]
             assert [name for name, _ in twin["features"]] == [
-                name for name, _ in model[family][key]["features"] if name != "rebound_delay_s"
+                name
+                for name, _ in model[family][key]["features"]
+                if name not in ("rebound_delay_s", "camera_frame_period_s")
             ]
+            reads_frame = "camera_frame_period_s" in dict(model[family][key]["features"])
+            assert reads_frame == (family == "calibrated_subsets"), (family, key)
     bad = copy.deepcopy(params)
     bad["identification"]["statistical"]["slowest_delay_camera_frame_rate_hz"] = 0.0
     with pytest.raises(

@@ -5,6 +5,7 @@ training (confidence capped, and the label says why)."""
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -253,9 +254,13 @@ def test_the_drawn_paper_set_strikes_drawn_supports_with_the_paper_scenes_impact
 
 def rescaled_ranges(params) -> dict:
     """The training's support ranges without its structure draws (the nominal modes rescaled on
-    every support)."""
+    every support) and its cameras that stamp the separation (drawn after them)."""
     ranges = support_ranges(evaluation_params(params), "training")
-    return {k: v for k, v in ranges.items() if not k.startswith("structure")}
+    return {
+        k: v
+        for k, v in ranges.items()
+        if not k.startswith("structure") and k != "exact_camera_share"
+    }
 
 
 def test_training_supports_draw_a_hysteresis_scale_without_moving_any_other_draw(params):
@@ -481,3 +486,33 @@ def test_a_camera_known_to_be_fast_gives_no_late_rebounds(params):
         assert all(
             label.impact_stamp_s < fourth for label in labels if label.features.get("rebound_late")
         )
+
+
+def test_a_share_of_training_supports_have_a_camera_that_stamps_the_separation(params):
+    """exact_camera_share of the training's supports (drawn last) have the camera that stamps
+    the separation itself (EXACT_CAMERA_RATE_HZ); the draw changes nothing else, and ranges
+    without it (foreign's, structures') draw no such camera."""
+    from tail_beam_id.study.supports import EXACT_CAMERA_RATE_HZ
+
+    ev = evaluation_params(params)
+    ranges = support_ranges(ev, "training")
+    share = float(ranges["exact_camera_share"])
+    assert 0.0 < share < 1.0
+    without = {k: v for k, v in ranges.items() if k != "exact_camera_share"}
+    exact = 0
+    for k in range(200):
+        draw = draw_support(
+            ranges, np.random.default_rng(k), np.random.default_rng(100 + k), params["modes"]
+        )
+        other = draw_support(
+            without, np.random.default_rng(k), np.random.default_rng(100 + k), params["modes"]
+        )
+        changed = {n for n in draw.values if draw.values[n] != other.values[n]}
+        assert changed <= {"camera_frame_rate_hz"}
+        if draw.values["camera_frame_rate_hz"] == EXACT_CAMERA_RATE_HZ:
+            exact += 1
+        else:
+            assert not changed
+    assert abs(exact / 200 - share) < 4 * math.sqrt(share * (1 - share) / 200)
+    for which in ("foreign", "structures"):
+        assert "exact_camera_share" not in support_ranges(ev, which)

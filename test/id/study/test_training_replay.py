@@ -47,3 +47,25 @@ def test_one_delivery_gives_the_chunked_records(params, scene_set, count, true_p
             assert dict(a.label.features) == dict(b.label.features)
             assert a.label.signals == b.label.signals
     assert labelled >= count
+
+
+def test_each_recording_is_identified_with_its_own_camera(params):
+    """An impact on the nominal support is identified knowing its recording's camera, as its
+    user would configure it: each rate setting's label says that setting's frame (1 / camera
+    rate; the exact camera's 1 us), not config/'s 5 kHz, which the models that read the frame
+    would otherwise learn for every camera."""
+    ev = evaluation_params(params)
+    chosen = settings(params, [1.0], every_rate=True)
+    frames = {s.rate_name: 1.0 / s.rates_hz["camera_frame_rate_hz"] for s in chosen}
+    assert len(set(frames.values())) >= 3  # the settings differ in their camera
+    seen = set()
+    for record in run_set(
+        params, "stream", 2, int(ev["training_seed"]) + 3, chosen, ["threshold"]
+    ):
+        if record.label is not None and "camera_frame_period_s" in record.label.features:
+            key = record.setting.split("/")[0]
+            assert record.label.features["camera_frame_period_s"] == pytest.approx(
+                frames[key], rel=1e-9
+            ), record.setting
+            seen.add(key)
+    assert seen == set(frames)
