@@ -20,11 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_sim.physics import seeds
 from tail_beam_sim.physics.contact_family import ContactFamily, Grid, _product, grid_basis
 from tail_beam_sim.physics.result import LazyHistory, SimulationResult
 from tail_beam_sim.physics.ringdown_filtering import _dense_gain, settle_steps
 from tail_beam_sim.physics.scene import Scene, SensorSpec
 from tail_beam_sim.physics.sensors import (
+    SEED_CHILDREN,
     ImuStream,
     PressureStream,
     SensorSuite,
@@ -145,6 +147,7 @@ def sense_group(
     window, pre = scene0.window_s, scene0.pre_contact_s
     count = len(scenes)
     g = structure.gravity_mps2
+    seeds.children([scene.sensors.seed for scene in scenes], SEED_CHILDREN)  # in one batch
     suites = [SensorSuite(scene.sensors) for scene in scenes]
     slowest = min(spec0.pressure_rate_hz, spec0.imu_rate_hz)
     contact = np.array([pre + (0.0 + (1.0 / slowest) * suite.contact_phase()) for suite in suites])
