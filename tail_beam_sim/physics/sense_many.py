@@ -14,6 +14,7 @@ summary's peaks are read from the same instants without them.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from functools import partial
 from typing import Any
@@ -177,20 +178,11 @@ def sense_group(
     rate_0 = np.zeros(3 * n)
     rate_0[n] = 1.0
     outputs = np.stack([jack, rate_0, np.concatenate([zero_n, zero_n, imu_shape])])
-    on_grid = family.read(
-        rows,
-        Grid(
-            np.broadcast_to(uniform, (count, uniform.size)),
-            uniform,
-            np.zeros(count),
-            key=("history", pre, window),
-        ),
-        outputs,
-    )
+    on_grid = _grid_peaks(family, rows, uniform, outputs, ("history", pre, window))
     on_nodes = family.read(rows, Grid(nodes), outputs)
-    on_grid[1:], on_nodes[1:] = np.abs(on_grid[1:]), np.abs(on_nodes[1:])
+    on_nodes[1:] = np.abs(on_nodes[1:])
     on_nodes[:, ~real] = -np.inf
-    peak_change, peak_rate, peak_accel = np.maximum(on_grid.max(axis=2), on_nodes.max(axis=2))
+    peak_change, peak_rate, peak_accel = np.maximum(on_grid, on_nodes.max(axis=2))
     peak_pressure = structure.setting_pressure_pa + peak_change
 
     # pressure: point samples at k / rate
@@ -299,6 +291,64 @@ def sense_group(
             )
         )
     return out
+
+
+def _grid_peaks(
+    family: ContactFamily,
+    rows: np.ndarray,
+    uniform: np.ndarray,
+    outputs: np.ndarray,
+    key: tuple[Any, ...],
+) -> np.ndarray:
+    """(3, S): the largest value over the instants ``uniform`` (s from first contact, rising,
+    from 0) of each scene's readings ``outputs`` (3, 3n), the first signed, the others in
+    magnitude: the maxima of :meth:`ContactFamily.read` on the whole grid.
+
+    A structure of one mode rings after the contact as g(t) = Re(w exp(lambda (t - T))), whose
+    derivative vanishes only at the instants T + (pi/2 + m pi - arg(w lambda)) / omega; g is
+    monotonic between them, so its largest value (and |g|'s) over the grid is at a grid instant
+    next to one of them or at the grid's end. Read are only those (two either side of each)
+    and every instant up to the longest contact; a structure of more modes is read on the
+    whole grid."""
+    count = rows.size
+    structure = family.structure
+    eigenvalues = structure._eigen[0][structure._half_spectrum[0]]
+    omega = float(eigenvalues[0].imag) if eigenvalues.size == 1 else 0.0
+    if eigenvalues.size != 1 or not abs(omega) > 0.0 or uniform.size < 8:
+        values = family.read(
+            rows,
+            Grid(
+                np.broadcast_to(uniform, (count, uniform.size)), uniform, np.zeros(count), key=key
+            ),
+            outputs,
+        )
+        values[1:] = np.abs(values[1:])
+        return values.max(axis=2)
+    omega = abs(omega)
+    duration = family.duration_s[rows]  # (S,)
+    # the derivative's zeros after each contact, from the first at or after its end
+    phase = np.angle(family.free_weights(rows, outputs)[:, :, 0] * eigenvalues[0])  # (o, S)
+    if eigenvalues[0].imag < 0.0:
+        phase = -phase
+    first = np.ceil((phase - 0.5 * np.pi) / np.pi)
+    extrema = int(math.ceil(omega * float(uniform[-1]) / np.pi)) + 2
+    m = first[:, :, None] + np.arange(extrema)
+    instants = duration[None, :, None] + (0.5 * np.pi + m * np.pi - phase[:, :, None]) / omega
+    at = np.searchsorted(uniform, instants.transpose(1, 0, 2).reshape(count, -1))  # (S, 3E)
+    near = (at[:, :, None] + np.arange(-2, 2)).reshape(count, -1)
+    contact = int(np.searchsorted(uniform, float(duration.max()), side="right")) + 2
+    index = np.concatenate(
+        [
+            np.broadcast_to(np.arange(contact), (count, contact)),
+            near,
+            np.full((count, 1), uniform.size - 1),
+        ],
+        axis=1,
+    )
+    index = np.clip(index, 0, uniform.size - 1)
+    values = family.read(rows, Grid(uniform[index], uniform, np.zeros(count), index, key), outputs)
+    values[1:] = np.abs(values[1:])
+    return values.max(axis=2)
 
 
 class _DenseSpan:
