@@ -123,6 +123,16 @@ def _cos(angle: np.ndarray) -> np.ndarray:
     return np.cos(angle)
 
 
+def _small_cos_in_place(angle: np.ndarray) -> np.ndarray:
+    """:func:`_cos` of angles known to be under SMALL_ANGLE_RAD, computed in ``angle``'s own
+    memory (the ring-down's arrays are an impact's every output sample)."""
+    square = np.multiply(angle, angle, out=angle)
+    term = square * (1.0 / 24.0)
+    np.subtract(0.5, term, out=term)
+    term *= square
+    return np.subtract(1.0, term, out=term)
+
+
 def _sin(angle: np.ndarray) -> np.ndarray:
     """sin of small angles as a - a^3/6 + a^5/120 (:func:`_cos`), np.sin otherwise."""
     if angle.size and float(np.max(np.abs(angle))) < SMALL_ANGLE_RAD:
@@ -429,12 +439,14 @@ class _DenseSpan:
             clean[pick_rows, pick_cols + (first // m)[pick_rows]] = picks[pick_rows, pick_cols]
         # noise (each scene's own generator), clipping, float32 and the blocks: as
         # SensorSuite.vibration and cut_blocks make them, all scenes at once
+        # (normal(0, sigma, k) is sigma times standard_normal(k), draw by draw)
         noise = np.zeros(clean.shape)
         for i, suite in enumerate(suites):
-            k = int(outputs[i])
-            noise[i, :k] = suite._vibration_rng.normal(0.0, suite.spec.vibration_noise_mps2, k)
+            suite._vibration_rng.standard_normal(out=noise[i, : int(outputs[i])])
+        noise *= np.array([suite.spec.vibration_noise_mps2 for suite in suites])[:, None]
+        clean += noise
         limit = np.array([suite.spec.vibration_range_mps2 for suite in suites])[:, None]
-        samples = np.clip(clean + noise, -limit, limit).astype(np.float32)
+        samples = np.clip(clean, -limit, limit, out=clean).astype(np.float32)
         size = self.spec.vibration_block_samples
         whole = outputs // size
         starts = size * np.arange(int(whole.max()), dtype=np.int64)
@@ -514,10 +526,21 @@ def _filtered_ringdown(
         return structure.gravity_mps2 * np.cos(angle) + dynamic
     shifted = np.exp(-np.multiply.outer(offset, eigenvalues))  # (S, k)
     basis = grid_basis(structure, grid_s, ("outputs", dense_period_s, grid_s.size, grid_s[-1]))
-    a, d = angle_weight * shifted, dynamic_weight * shifted
-    angle = _product(a.real, basis.real) - _product(a.imag, basis.imag)
-    dynamic = _product(d.real, basis.real) - _product(d.imag, basis.imag)
-    return structure.gravity_mps2 * _cos(angle) + dynamic
+    # angle and dynamic term of every scene in one product: Re(w b) = [w.re, -w.im] . [b.re; b.im]
+    weights = np.concatenate([angle_weight * shifted, dynamic_weight * shifted])  # (2S, k)
+    both = _product(
+        np.concatenate([weights.real, -weights.imag], axis=1),
+        np.concatenate([basis.real, basis.imag]),
+    )
+    count = offset.size
+    angle, out = both[:count], both[count:]
+    # |angle| <= sum_k |weight| max|basis|: small (the polynomial), unless the bound says not
+    bound = float(np.max(np.abs(weights[:count]) @ np.abs(basis).max(axis=1), initial=0.0))
+    if bound < SMALL_ANGLE_RAD:
+        out += structure.gravity_mps2 * _small_cos_in_place(angle)
+    else:
+        out += structure.gravity_mps2 * np.cos(angle)
+    return out
 
 
 __all__ = ["HISTORY_RATE_HZ", "layout_key", "sense_group", "summary_figures", "supported"]
