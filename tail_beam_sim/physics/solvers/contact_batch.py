@@ -53,6 +53,9 @@ class _Dynamics:
 
     def penetration(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = self.n
+        if n == 1:  # one coordinate: each sum is its one product
+            shape = self.shape[:, 0]
+            return -(shape * y[:, 0]) - y[:, 2], -(shape * y[:, 1]) - y[:, 3]
         delta = -(self.shape * y[:, :n]).sum(axis=1) - y[:, 2 * n]
         rate = -(self.shape * y[:, n : 2 * n]).sum(axis=1) - y[:, 2 * n + 1]
         return delta, rate
@@ -62,10 +65,21 @@ class _Dynamics:
         q, v = y[:, :n], y[:, n : 2 * n]
         delta, rate = self.penetration(y)
         force = self.hertz * np.maximum(delta, 0.0) ** 1.5 * (1.0 + self.chi * rate / approach)
-        force = np.where((delta > 0.0) & (force > 0.0), force, 0.0)
+        # zero where the plate is not penetrated (there the force is a zero or not finite) and
+        # where the damping term makes it pull
+        force = np.where(force > 0.0, force, 0.0)
         out = np.empty_like(y)
         out[:, :n] = v
-        out[:, n : 2 * n] = self.load * force[:, None] - q @ self.stiffness_t - v @ self.damping_t
+        if n == 1:  # the products over one coordinate, element by element
+            out[:, 1] = (
+                self.load[:, 0] * force
+                - y[:, 0] * self.stiffness_t[0, 0]
+                - y[:, 1] * self.damping_t[0, 0]
+            )
+        else:
+            out[:, n : 2 * n] = (
+                self.load * force[:, None] - q @ self.stiffness_t - v @ self.damping_t
+            )
         out[:, 2 * n] = y[:, 2 * n + 1]
         out[:, 2 * n + 1] = force / self.mass - self.gravity
         return out, force
