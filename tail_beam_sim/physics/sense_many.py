@@ -103,14 +103,6 @@ def _grid_counts(end_s: np.ndarray, rate_hz: float) -> np.ndarray:
     return np.floor(end_s * rate_hz + 1e-9).astype(np.int64) + 1
 
 
-def _padded(draws: Sequence[np.ndarray], shape: tuple[int, ...]) -> np.ndarray:
-    """Per-scene arrays of different lengths stacked, zero-padded at the end."""
-    out = np.zeros(shape)
-    for i, values in enumerate(draws):
-        out[i, : values.shape[0]] = values
-    return out
-
-
 SMALL_ANGLE_RAD = 1e-3  # below it, cos and sin by their Taylor polynomials (to float rounding)
 
 
@@ -211,10 +203,9 @@ def sense_group(
             jack,
         )[0]
     )
-    unit = _padded(
-        [s._pressure_rng.standard_normal(int(k)) for s, k in zip(suites, pressure_counts)],
-        clean.shape,
-    )
+    unit = np.zeros(clean.shape)
+    for suite, row, k in zip(suites, unit, pressure_counts.tolist()):
+        suite._pressure_rng.standard_normal(out=row[:k])
     sigma = np.array([s.noise.pressure_pa for s in suites])[:, None]
     low = np.array([s.noise.pressure_range_pa[0] for s in suites])[:, None]
     high = np.array([s.noise.pressure_range_pa[1] for s in suites])[:, None]
@@ -251,10 +242,10 @@ def sense_group(
     accel[:, 1:, 2] -= (velocity[:, 1:] - velocity[:, :-1]) / period
     gyro_unit = np.zeros_like(gyro)
     accel_unit = np.zeros_like(gyro)
-    for i, (suite, k) in enumerate(zip(suites, imu_counts)):
+    for suite, gyro_row, accel_row, k in zip(suites, gyro_unit, accel_unit, imu_counts.tolist()):
         rng = suite._imu_rng
-        gyro_unit[i, :k] = rng.standard_normal((int(k), 3))
-        accel_unit[i, :k] = rng.standard_normal((int(k), 3))
+        rng.standard_normal(out=gyro_row[:k])
+        rng.standard_normal(out=accel_row[:k])
     gyro = gyro + np.array([s.noise.gyro_radps for s in suites])[:, None, None] * gyro_unit
     accel = accel + np.array([s.noise.accel_mps2 for s in suites])[:, None, None] * accel_unit
 
@@ -441,8 +432,8 @@ class _DenseSpan:
         # SensorSuite.vibration and cut_blocks make them, all scenes at once
         # (normal(0, sigma, k) is sigma times standard_normal(k), draw by draw)
         noise = np.zeros(clean.shape)
-        for i, suite in enumerate(suites):
-            suite._vibration_rng.standard_normal(out=noise[i, : int(outputs[i])])
+        for suite, row, k in zip(suites, noise, outputs.tolist()):
+            suite._vibration_rng.standard_normal(out=row[:k])
         noise *= np.array([suite.spec.vibration_noise_mps2 for suite in suites])[:, None]
         clean += noise
         limit = np.array([suite.spec.vibration_range_mps2 for suite in suites])[:, None]
