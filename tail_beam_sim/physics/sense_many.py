@@ -162,9 +162,6 @@ def sense_group(
     # computed when first read)
     uniform = np.arange(-pre, window + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ)
     uniform = uniform[uniform >= 0.0]
-    nodes = family.contact_times[rows]
-    real = nodes <= window
-    nodes = np.where(real, nodes, window)
     n = family.n
     zero_n = np.zeros(n)
     slope, imu_shape = structure.imu_slope_shape, structure.imu_shape
@@ -181,10 +178,9 @@ def sense_group(
     rate_0[n] = 1.0
     outputs = np.stack([jack, rate_0, np.concatenate([zero_n, zero_n, imu_shape])])
     on_grid = _grid_peaks(family, rows, uniform, outputs, ("history", pre, window))
-    on_nodes = family.read(rows, Grid(nodes), outputs)
+    on_nodes = family.read_at_samples(rows, outputs)
     on_nodes[1:] = np.abs(on_nodes[1:])
-    on_nodes[:, ~real] = -np.inf
-    peak_change, peak_rate, peak_accel = np.maximum(on_grid, on_nodes.max(axis=2))
+    peak_change, peak_rate, peak_accel = np.maximum(on_grid, np.nanmax(on_nodes, axis=2))
     peak_pressure = structure.setting_pressure_pa + peak_change
 
     # pressure: point samples at k / rate
@@ -430,12 +426,13 @@ class _DenseSpan:
             clean[pick_rows, pick_cols + (first // m)[pick_rows]] = picks[pick_rows, pick_cols]
         # noise (each scene's own generator), clipping, float32 and the blocks: as
         # SensorSuite.vibration and cut_blocks make them, all scenes at once
-        # (normal(0, sigma, k) is sigma times standard_normal(k), draw by draw)
-        noise = np.zeros(clean.shape)
-        for suite, row, k in zip(suites, noise, outputs.tolist()):
-            suite._vibration_rng.standard_normal(out=row[:k])
-        noise *= np.array([suite.spec.vibration_noise_mps2 for suite in suites])[:, None]
-        clean += noise
+        # scene by scene, in a buffer of one row (normal(0, sigma, k) is sigma times
+        # standard_normal(k), draw by draw)
+        noise = np.empty(clean.shape[1])
+        for suite, row, k in zip(suites, clean, outputs.tolist()):
+            draws = suite._vibration_rng.standard_normal(out=noise[:k])
+            draws *= suite.spec.vibration_noise_mps2
+            row[:k] += draws
         limit = np.array([suite.spec.vibration_range_mps2 for suite in suites])[:, None]
         samples = np.clip(clean, -limit, limit, out=clean).astype(np.float32)
         size = self.spec.vibration_block_samples

@@ -159,3 +159,26 @@ def test_peaks_read_next_to_the_extrema_are_the_whole_grids(params, rate_hz):
     whole[1:] = np.abs(whole[1:])
     peaks = _grid_peaks(family, rows, uniform, outputs, ("test", rate_hz))
     assert np.array_equal(peaks, whole.max(axis=2))
+
+
+def test_readings_at_the_contact_samples_are_reads_there(params):
+    """read_at_samples, which takes each contact sample's own state, gives what read gives at
+    those instants (the cubic Hermite there, the free response at the contact's end), for
+    readings of q, q' and q'', pulse and RK4 contacts; nan past an impact's last sample."""
+    settings = shipped_settings()
+    scenes = _drawn(params, 40, seed=5)
+    problems = [
+        _problem(s, plan(s, "modal", settings.needs, settings), settings, None)[0] for s in scenes
+    ]
+    family = ContactFamily(problems, 5e-3)
+    rows = np.flatnonzero(family.ok)
+    assert family.pulse[rows].any() and (~family.pulse[rows]).any()
+    readings = np.random.default_rng(8).normal(size=(4, 3 * family.n))
+    readings[0, 2 * family.n :] = 0.0  # one of q and q' only
+    got = family.read_at_samples(rows, readings)
+    times = family.contact_times[rows]
+    real = np.isfinite(times)
+    expected = family.read(rows, Grid(np.where(real, times, 0.0)), readings)
+    assert np.array_equal(np.isnan(got), np.broadcast_to(~real, got.shape))
+    scale = np.abs(expected[:, real]).max(axis=1, keepdims=True)
+    assert np.all(np.abs(got[:, real] - expected[:, real]) <= SIGNAL_TOLERANCE * scale)
