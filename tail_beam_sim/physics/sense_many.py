@@ -305,7 +305,7 @@ def _grid_peaks(
     derivative vanishes only at the instants T + (pi/2 + m pi - arg(w lambda)) / omega; g is
     monotonic between them, so its largest value (and |g|'s) over the grid is at a grid instant
     next to one of them or at the grid's end. Read are only those (two either side of each)
-    and every instant up to the longest contact; a structure of more modes is read on the
+    and every instant through the scene's contact; a structure of more modes is read on the
     whole grid."""
     count = rows.size
     structure = family.structure
@@ -333,15 +333,12 @@ def _grid_peaks(
     instants = duration[None, :, None] + (0.5 * np.pi + m * np.pi - phase[:, :, None]) / omega
     at = np.searchsorted(uniform, instants.transpose(1, 0, 2).reshape(count, -1))  # (S, 3E)
     near = (at[:, :, None] + np.arange(-2, 2)).reshape(count, -1)
-    contact = int(np.searchsorted(uniform, float(duration.max()), side="right")) + 2
-    index = np.concatenate(
-        [
-            np.broadcast_to(np.arange(contact), (count, contact)),
-            near,
-            np.full((count, 1), uniform.size - 1),
-        ],
-        axis=1,
-    )
+    # every instant through each scene's contact and two after (the columns past a shorter
+    # contact repeat the grid's last instant, a free one)
+    through = np.searchsorted(uniform, duration, side="right") + 2  # (S,)
+    columns = np.arange(int(through.max()))
+    contact = np.where(columns[None, :] < through[:, None], columns[None, :], uniform.size - 1)
+    index = np.concatenate([contact, near, np.full((count, 1), uniform.size - 1)], axis=1)
     index = np.clip(index, 0, uniform.size - 1)
     values = family.read(rows, Grid(uniform[index], uniform, np.zeros(count), index, key), outputs)
     values[1:] = np.abs(values[1:])
