@@ -139,6 +139,7 @@ def spawn_many(seeds: Sequence[object], count: int) -> list[tuple[Any, ...]]:
     if mine:
         values = [int(seeds[k]) for k in mine]  # type: ignore[call-overload]
         words = _pcg_words(np.array(values, dtype=np.uint64), count)
+        words.flags.writeable = False  # each child hands out its row: read, never written
         for row, (k, seed) in enumerate(zip(mine, values)):
             out[k] = tuple(Child(seed, i, words[row, i]) for i in range(count))
     for k, seed in enumerate(seeds):

@@ -444,10 +444,9 @@ class _DenseSpan:
             within = np.arange(span)[None, :] < ((switch - first) // m)[:, None]
             pick_rows, pick_cols = np.nonzero(within)
             clean[pick_rows, pick_cols + (first // m)[pick_rows]] = picks[pick_rows, pick_cols]
-        # noise (each scene's own generator), clipping, float32 and the blocks: as
-        # SensorSuite.vibration and cut_blocks make them, all scenes at once
-        # scene by scene, in a buffer of one row (normal(0, sigma, k) is sigma times
-        # standard_normal(k), draw by draw)
+        # noise (each scene's own generator, added row by row through a buffer of one row:
+        # normal(0, sigma, k) is sigma times standard_normal(k), draw by draw), clipping,
+        # float32 and the blocks: as SensorSuite.vibration and cut_blocks make them
         noise = np.empty(clean.shape[1])
         for suite, row, k in zip(suites, clean, outputs.tolist()):
             draws = suite._vibration_rng.standard_normal(out=noise[:k])

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
 import numpy as np
+from numpy.random.bit_generator import ISeedSequence
 
 from tail_beam_sim.physics import seeds
 from tail_beam_sim.physics.ringdown_filtering import filtered_ringdown, settle_steps
@@ -201,7 +202,7 @@ def dense_imu_response(
 SEED_CHILDREN = 6  # a suite's children of its seed (SensorSuite.__init__)
 
 
-def _seed_children(seed: int) -> tuple[np.random.SeedSequence, ...]:
+def _seed_children(seed: int) -> tuple[ISeedSequence, ...]:
     """The six children of ``seed``, ``np.random.SeedSequence(seed).spawn(6)``'s (spawning
     costs more than a short stream's noise; a child is only read, never spawned from, so one
     set serves every suite of that seed: :func:`tail_beam_sim.physics.seeds.children`)."""
@@ -209,7 +210,7 @@ def _seed_children(seed: int) -> tuple[np.random.SeedSequence, ...]:
 
 
 @lru_cache(maxsize=1024)
-def _first_uniform(child: np.random.SeedSequence) -> float:
+def _first_uniform(child: ISeedSequence) -> float:
     """The first ``random()`` of a generator made from ``child``."""
     return float(seeds.generator(child).random())
 
