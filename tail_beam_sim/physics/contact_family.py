@@ -392,16 +392,8 @@ class ContactFamily:
         common grid less each scene's shift, it is a product of the grid's and the scenes'
         exponentials (:meth:`_read_on_grid`), elsewhere evaluated instant by instant."""
         n = self.n
-        structure = self.structure
         readings = np.atleast_2d(readings)
-        # the free response's q'' in terms of [q; q']
-        free = readings[:, : 2 * n] - readings[:, 2 * n :] @ (
-            structure.inv_mass @ np.hstack([structure.stiffness, structure.damping])
-        )
-        real, imag = self._free_amplitude  # (N, 2n, k)
-        weights = np.einsum("oc,sck->osk", free, real[rows]) + 1j * np.einsum(
-            "oc,sck->osk", free, imag[rows]
-        )  # (o, S, k)
+        weights = self.free_weights(rows, readings)
         times = grid.times
         dt = times - self.duration_s[rows][:, None]
         out = None
@@ -425,6 +417,47 @@ class ContactFamily:
                 rows[i], times[i, k], accel
             )
         return out
+
+    def read_at_samples(self, rows: np.ndarray, readings: np.ndarray) -> np.ndarray:
+        """(o, S, P): :meth:`read` at each impact's contact samples (``contact_times[rows]``;
+        nan past an impact's last). There the cubic Hermite is the sample's own state, taken
+        as it is; the last sample, the contact's end, is read from the free response."""
+        nodes, polynomials, counts, _ = self._contact_nodes
+        readings = np.atleast_2d(readings)
+        n = self.n
+        accel = bool(np.any(readings[:, 2 * n :]))
+        width = 3 * n if accel else 2 * n
+        count = rows.size
+        steps = nodes.shape[1] - 1
+        # each step's value at its start: the state at its first sample
+        states = polynomials[rows, :, 0, :width]  # (S, P - 1, width)
+        out = np.full((readings.shape[0], count, steps + 1), np.nan)
+        out[:, :, :steps] = (readings[:, :width] @ states.reshape(-1, width).T).reshape(
+            -1, count, steps
+        )
+        last = counts[rows] - 1
+        out[:, np.arange(count), last] = self.read(
+            rows, Grid(self.duration_s[rows][:, None]), readings
+        )[:, :, 0]
+        past = np.arange(steps + 1)[None, :] > last[:, None]
+        out[:, past] = np.nan
+        return out
+
+    def free_weights(self, rows: np.ndarray, readings: np.ndarray) -> np.ndarray:
+        """(o, S, k): the readings ``readings`` (o, 3n) of impact ``rows[i]``'s free response
+        after its contact as weights w of the half spectrum's exponentials: the reading at
+        time t (s from first contact) is sum_k Re(w_k exp(lambda_k (t - duration)))."""
+        n = self.n
+        structure = self.structure
+        readings = np.atleast_2d(readings)
+        # the free response's q'' in terms of [q; q']
+        free = readings[:, : 2 * n] - readings[:, 2 * n :] @ (
+            structure.inv_mass @ np.hstack([structure.stiffness, structure.damping])
+        )
+        real, imag = self._free_amplitude  # (N, 2n, k)
+        return np.einsum("oc,sck->osk", free, real[rows]) + 1j * np.einsum(
+            "oc,sck->osk", free, imag[rows]
+        )
 
     def _read_direct(self, weights: np.ndarray, dt: np.ndarray) -> np.ndarray:
         """(o, *dt.shape): sum_k Re(w_k exp(lambda_k dt)) of ``weights`` (o, S, k) after each

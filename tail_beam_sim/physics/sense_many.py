@@ -14,19 +14,23 @@ summary's peaks are read from the same instants without them.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from functools import partial
 from typing import Any
 
 import numpy as np
 
+from tail_beam_sim.physics import seeds
 from tail_beam_sim.physics.contact_family import ContactFamily, Grid, _product, grid_basis
 from tail_beam_sim.physics.result import LazyHistory, SimulationResult
 from tail_beam_sim.physics.ringdown_filtering import _dense_gain, settle_steps
 from tail_beam_sim.physics.scene import Scene, SensorSpec
 from tail_beam_sim.physics.sensors import (
+    SEED_CHILDREN,
     ImuStream,
     PressureStream,
+    Rebound,
     SensorSuite,
     VibrationBlocks,
     _butterworth,
@@ -100,14 +104,6 @@ def _grid_counts(end_s: np.ndarray, rate_hz: float) -> np.ndarray:
     return np.floor(end_s * rate_hz + 1e-9).astype(np.int64) + 1
 
 
-def _padded(draws: Sequence[np.ndarray], shape: tuple[int, ...]) -> np.ndarray:
-    """Per-scene arrays of different lengths stacked, zero-padded at the end."""
-    out = np.zeros(shape)
-    for i, values in enumerate(draws):
-        out[i, : values.shape[0]] = values
-    return out
-
-
 SMALL_ANGLE_RAD = 1e-3  # below it, cos and sin by their Taylor polynomials (to float rounding)
 
 
@@ -118,6 +114,16 @@ def _cos(angle: np.ndarray) -> np.ndarray:
         square = angle * angle
         return 1.0 - square * (0.5 - square * (1.0 / 24.0))
     return np.cos(angle)
+
+
+def _small_cos_in_place(angle: np.ndarray) -> np.ndarray:
+    """:func:`_cos` of angles known to be under SMALL_ANGLE_RAD, computed in ``angle``'s own
+    memory (the ring-down's arrays are an impact's every output sample)."""
+    square = np.multiply(angle, angle, out=angle)
+    term = square * (1.0 / 24.0)
+    np.subtract(0.5, term, out=term)
+    term *= square
+    return np.subtract(1.0, term, out=term)
 
 
 def _sin(angle: np.ndarray) -> np.ndarray:
@@ -145,6 +151,7 @@ def sense_group(
     window, pre = scene0.window_s, scene0.pre_contact_s
     count = len(scenes)
     g = structure.gravity_mps2
+    seeds.children([scene.sensors.seed for scene in scenes], SEED_CHILDREN)  # in one batch
     suites = [SensorSuite(scene.sensors) for scene in scenes]
     slowest = min(spec0.pressure_rate_hz, spec0.imu_rate_hz)
     contact = np.array([pre + (0.0 + (1.0 / slowest) * suite.contact_phase()) for suite in suites])
@@ -156,9 +163,6 @@ def sense_group(
     # computed when first read)
     uniform = np.arange(-pre, window + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ)
     uniform = uniform[uniform >= 0.0]
-    nodes = family.contact_times[rows]
-    real = nodes <= window
-    nodes = np.where(real, nodes, window)
     n = family.n
     zero_n = np.zeros(n)
     slope, imu_shape = structure.imu_slope_shape, structure.imu_shape
@@ -174,20 +178,10 @@ def sense_group(
     rate_0 = np.zeros(3 * n)
     rate_0[n] = 1.0
     outputs = np.stack([jack, rate_0, np.concatenate([zero_n, zero_n, imu_shape])])
-    on_grid = family.read(
-        rows,
-        Grid(
-            np.broadcast_to(uniform, (count, uniform.size)),
-            uniform,
-            np.zeros(count),
-            key=("history", pre, window),
-        ),
-        outputs,
-    )
-    on_nodes = family.read(rows, Grid(nodes), outputs)
-    on_grid[1:], on_nodes[1:] = np.abs(on_grid[1:]), np.abs(on_nodes[1:])
-    on_nodes[:, ~real] = -np.inf
-    peak_change, peak_rate, peak_accel = np.maximum(on_grid.max(axis=2), on_nodes.max(axis=2))
+    on_grid = _grid_peaks(family, rows, uniform, outputs, ("history", pre, window))
+    on_nodes = family.read_at_samples(rows, outputs)
+    on_nodes[1:] = np.abs(on_nodes[1:])
+    peak_change, peak_rate, peak_accel = np.maximum(on_grid, np.nanmax(on_nodes, axis=2))
     peak_pressure = structure.setting_pressure_pa + peak_change
 
     # pressure: point samples at k / rate
@@ -206,10 +200,9 @@ def sense_group(
             jack,
         )[0]
     )
-    unit = _padded(
-        [s._pressure_rng.standard_normal(int(k)) for s, k in zip(suites, pressure_counts)],
-        clean.shape,
-    )
+    unit = np.zeros(clean.shape)
+    for suite, row, k in zip(suites, unit, pressure_counts.tolist()):
+        suite._pressure_rng.standard_normal(out=row[:k])
     sigma = np.array([s.noise.pressure_pa for s in suites])[:, None]
     low = np.array([s.noise.pressure_range_pa[0] for s in suites])[:, None]
     high = np.array([s.noise.pressure_range_pa[1] for s in suites])[:, None]
@@ -246,10 +239,10 @@ def sense_group(
     accel[:, 1:, 2] -= (velocity[:, 1:] - velocity[:, :-1]) / period
     gyro_unit = np.zeros_like(gyro)
     accel_unit = np.zeros_like(gyro)
-    for i, (suite, k) in enumerate(zip(suites, imu_counts)):
+    for suite, gyro_row, accel_row, k in zip(suites, gyro_unit, accel_unit, imu_counts.tolist()):
         rng = suite._imu_rng
-        gyro_unit[i, :k] = rng.standard_normal((int(k), 3))
-        accel_unit[i, :k] = rng.standard_normal((int(k), 3))
+        rng.standard_normal(out=gyro_row[:k])
+        rng.standard_normal(out=accel_row[:k])
     gyro = gyro + np.array([s.noise.gyro_radps for s in suites])[:, None, None] * gyro_unit
     accel = accel + np.array([s.noise.accel_mps2 for s in suites])[:, None, None] * accel_unit
 
@@ -259,11 +252,11 @@ def sense_group(
         else [VibrationBlocks.empty()] * count
     )
 
+    rebounds = _rebounds(family, rows, suites, contact)
     out = []
-    for i, (scene, suite) in enumerate(zip(scenes, suites)):
+    for i, (scene, suite, rebound) in enumerate(zip(scenes, suites, rebounds)):
         trajectory = family.trajectory(int(rows[i]))
         stamp = float(contact[i])
-        rebound = suite.rebound(trajectory, stamp)
         point = suite.reported_point(scene.impact.position_m, rebound, scene.support)
         kp, ki = int(pressure_counts[i]), int(imu_counts[i])
         noise = suite.noise
@@ -296,6 +289,83 @@ def sense_group(
             )
         )
     return out
+
+
+def _grid_peaks(
+    family: ContactFamily,
+    rows: np.ndarray,
+    uniform: np.ndarray,
+    outputs: np.ndarray,
+    key: tuple[Any, ...],
+) -> np.ndarray:
+    """(3, S): the largest value over the instants ``uniform`` (s from first contact, rising,
+    from 0) of each scene's readings ``outputs`` (3, 3n), the first signed, the others in
+    magnitude: the maxima of :meth:`ContactFamily.read` on the whole grid.
+
+    A structure of one mode rings after the contact as g(t) = Re(w exp(lambda (t - T))), whose
+    derivative vanishes only at the instants T + (pi/2 + m pi - arg(w lambda)) / omega; g is
+    monotonic between them, so its largest value (and |g|'s) over the grid is at a grid instant
+    next to one of them or at the grid's end. Read are only those (two either side of each)
+    and every instant through the scene's contact; a structure of more modes is read on the
+    whole grid."""
+    count = rows.size
+    structure = family.structure
+    eigenvalues = structure._eigen[0][structure._half_spectrum[0]]
+    omega = float(eigenvalues[0].imag) if eigenvalues.size == 1 else 0.0
+    if eigenvalues.size != 1 or not abs(omega) > 0.0 or uniform.size < 8:
+        values = family.read(
+            rows,
+            Grid(
+                np.broadcast_to(uniform, (count, uniform.size)), uniform, np.zeros(count), key=key
+            ),
+            outputs,
+        )
+        values[1:] = np.abs(values[1:])
+        return values.max(axis=2)
+    omega = abs(omega)
+    duration = family.duration_s[rows]  # (S,)
+    # the derivative's zeros after each contact, from the first at or after its end
+    phase = np.angle(family.free_weights(rows, outputs)[:, :, 0] * eigenvalues[0])  # (o, S)
+    if eigenvalues[0].imag < 0.0:
+        phase = -phase
+    first = np.ceil((phase - 0.5 * np.pi) / np.pi)
+    extrema = int(math.ceil(omega * float(uniform[-1]) / np.pi)) + 2
+    m = first[:, :, None] + np.arange(extrema)
+    instants = duration[None, :, None] + (0.5 * np.pi + m * np.pi - phase[:, :, None]) / omega
+    at = np.searchsorted(uniform, instants.transpose(1, 0, 2).reshape(count, -1))  # (S, 3E)
+    near = (at[:, :, None] + np.arange(-2, 2)).reshape(count, -1)
+    # every instant through each scene's contact and two after (the columns past a shorter
+    # contact repeat the grid's last instant, a free one)
+    through = np.searchsorted(uniform, duration, side="right") + 2  # (S,)
+    columns = np.arange(int(through.max()))
+    contact = np.where(columns[None, :] < through[:, None], columns[None, :], uniform.size - 1)
+    index = np.concatenate([contact, near, np.full((count, 1), uniform.size - 1)], axis=1)
+    index = np.clip(index, 0, uniform.size - 1)
+    values = family.read(rows, Grid(uniform[index], uniform, np.zeros(count), index, key), outputs)
+    values[1:] = np.abs(values[1:])
+    return values.max(axis=2)
+
+
+def _rebounds(
+    family: ContactFamily, rows: np.ndarray, suites: Sequence[SensorSuite], contact: np.ndarray
+) -> list[Rebound]:
+    """Every scene's camera view of its rebound, as ``SensorSuite.rebound`` makes it (each
+    scene's three draws from its own camera generator), the arithmetic for all at once: the
+    particle leaves at the contact's end with the contact's separation speed."""
+    true = np.zeros((rows.size, 3))
+    true[:, 2] = family.end_zd_mps[rows]
+    specs = [suite.spec for suite in suites]
+    sigma = np.array([spec.camera_velocity_noise_mps for spec in specs]) + np.array(
+        [spec.camera_velocity_noise_fraction for spec in specs]
+    ) * np.abs(true[:, 2])
+    draws = np.empty((rows.size, 3))
+    for suite, row, scale in zip(suites, draws, sigma.tolist()):
+        row[:] = suite._camera_rng.normal(0.0, scale, 3)
+    measured = true + draws * np.array([1.0, 0.0, 1.0])
+    rate = np.array([spec.camera_frame_rate_hz for spec in specs])
+    separation = contact + family.duration_s[rows]
+    stamps = (np.ceil(separation * rate - 1e-9) / rate).tolist()
+    return [Rebound(stamp, measured[i], true[i]) for i, stamp in enumerate(stamps)]
 
 
 class _DenseSpan:
@@ -374,14 +444,16 @@ class _DenseSpan:
             within = np.arange(span)[None, :] < ((switch - first) // m)[:, None]
             pick_rows, pick_cols = np.nonzero(within)
             clean[pick_rows, pick_cols + (first // m)[pick_rows]] = picks[pick_rows, pick_cols]
-        # noise (each scene's own generator), clipping, float32 and the blocks: as
-        # SensorSuite.vibration and cut_blocks make them, all scenes at once
-        noise = np.zeros(clean.shape)
-        for i, suite in enumerate(suites):
-            k = int(outputs[i])
-            noise[i, :k] = suite._vibration_rng.normal(0.0, suite.spec.vibration_noise_mps2, k)
+        # noise (each scene's own generator, added row by row through a buffer of one row:
+        # normal(0, sigma, k) is sigma times standard_normal(k), draw by draw), clipping,
+        # float32 and the blocks: as SensorSuite.vibration and cut_blocks make them
+        noise = np.empty(clean.shape[1])
+        for suite, row, k in zip(suites, clean, outputs.tolist()):
+            draws = suite._vibration_rng.standard_normal(out=noise[:k])
+            draws *= suite.spec.vibration_noise_mps2
+            row[:k] += draws
         limit = np.array([suite.spec.vibration_range_mps2 for suite in suites])[:, None]
-        samples = np.clip(clean + noise, -limit, limit).astype(np.float32)
+        samples = np.clip(clean, -limit, limit, out=clean).astype(np.float32)
         size = self.spec.vibration_block_samples
         whole = outputs // size
         starts = size * np.arange(int(whole.max()), dtype=np.int64)
@@ -461,10 +533,21 @@ def _filtered_ringdown(
         return structure.gravity_mps2 * np.cos(angle) + dynamic
     shifted = np.exp(-np.multiply.outer(offset, eigenvalues))  # (S, k)
     basis = grid_basis(structure, grid_s, ("outputs", dense_period_s, grid_s.size, grid_s[-1]))
-    a, d = angle_weight * shifted, dynamic_weight * shifted
-    angle = _product(a.real, basis.real) - _product(a.imag, basis.imag)
-    dynamic = _product(d.real, basis.real) - _product(d.imag, basis.imag)
-    return structure.gravity_mps2 * _cos(angle) + dynamic
+    # angle and dynamic term of every scene in one product: Re(w b) = [w.re, -w.im] . [b.re; b.im]
+    weights = np.concatenate([angle_weight * shifted, dynamic_weight * shifted])  # (2S, k)
+    both = _product(
+        np.concatenate([weights.real, -weights.imag], axis=1),
+        np.concatenate([basis.real, basis.imag]),
+    )
+    count = offset.size
+    angle, out = both[:count], both[count:]
+    # |angle| <= sum_k |weight| max|basis|: small (the polynomial), unless the bound says not
+    bound = float(np.max(np.abs(weights[:count]) @ np.abs(basis).max(axis=1), initial=0.0))
+    if bound < SMALL_ANGLE_RAD:
+        out += structure.gravity_mps2 * _small_cos_in_place(angle)
+    else:
+        out += structure.gravity_mps2 * np.cos(angle)
+    return out
 
 
 __all__ = ["HISTORY_RATE_HZ", "layout_key", "sense_group", "summary_figures", "supported"]

@@ -37,7 +37,9 @@ from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
 import numpy as np
+from numpy.random.bit_generator import ISeedSequence
 
+from tail_beam_sim.physics import seeds
 from tail_beam_sim.physics.ringdown_filtering import filtered_ringdown, settle_steps
 from tail_beam_sim.physics.scene import SensorSpec
 from tail_beam_sim.physics.solvers.problem import FreeSegment, Samples, Trajectory
@@ -197,17 +199,20 @@ def dense_imu_response(
     return mean_specific_force_z(trajectory, t_s + 0.5 * dense_period_s, dense_period_s), rate
 
 
-@lru_cache(maxsize=1024)
-def _seed_children(seed: int) -> tuple[np.random.SeedSequence, ...]:
-    """The six children of ``seed`` (spawning costs more than a short stream's noise; a child
-    is only read, never spawned from, so one set serves every suite of that seed)."""
-    return tuple(np.random.SeedSequence(seed).spawn(6))
+SEED_CHILDREN = 6  # a suite's children of its seed (SensorSuite.__init__)
+
+
+def _seed_children(seed: int) -> tuple[ISeedSequence, ...]:
+    """The six children of ``seed``, ``np.random.SeedSequence(seed).spawn(6)``'s (spawning
+    costs more than a short stream's noise; a child is only read, never spawned from, so one
+    set serves every suite of that seed: :func:`tail_beam_sim.physics.seeds.children`)."""
+    return seeds.children([seed], SEED_CHILDREN)[0]
 
 
 @lru_cache(maxsize=1024)
-def _first_uniform(child: np.random.SeedSequence) -> float:
+def _first_uniform(child: ISeedSequence) -> float:
     """The first ``random()`` of a generator made from ``child``."""
-    return float(np.random.default_rng(child).random())
+    return float(seeds.generator(child).random())
 
 
 def sample_grid(start_s: float, end_s: float, rate_hz: float) -> np.ndarray:
@@ -230,28 +235,28 @@ class SensorSuite:
 
     @cached_property
     def _pressure_rng(self) -> np.random.Generator:
-        return np.random.default_rng(self._children[0])
+        return seeds.generator(self._children[0])
 
     @cached_property
     def _imu_rng(self) -> np.random.Generator:
-        return np.random.default_rng(self._children[1])
+        return seeds.generator(self._children[1])
 
     @cached_property
     def _camera_rng(self) -> np.random.Generator:
-        return np.random.default_rng(self._children[2])
+        return seeds.generator(self._children[2])
 
     @cached_property
     def _vibration_rng(self) -> np.random.Generator:
-        return np.random.default_rng(self._children[4])
+        return seeds.generator(self._children[4])
 
     @cached_property
     def _point_rng(self) -> np.random.Generator:
-        return np.random.default_rng(self._children[5])
+        return seeds.generator(self._children[5])
 
     def phase_rng(self) -> np.random.Generator:
         """The generator of simulate()'s contact phase (the seed's fourth child, which no
         sensor's noise uses)."""
-        return np.random.default_rng(self._children[3])
+        return seeds.generator(self._children[3])
 
     def contact_phase(self) -> float:
         """The first uniform draw in [0, 1) of :meth:`phase_rng` (what simulate() scales to

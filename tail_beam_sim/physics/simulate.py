@@ -244,10 +244,10 @@ def simulate_many(
             method,
             tuple(sorted(options.items())),
         )
-        if key not in impacts:
-            impacts[key] = len(distinct)
+        index = impacts.setdefault(key, len(distinct))  # the key hashed once
+        if index == len(distinct):
             distinct.append((chosen, problem, method, options))
-        plans.append((chosen, impacts[key]))
+        plans.append((chosen, index))
     # the one-contact impacts, per structure and tolerance: one family each
     families: dict[tuple[int, float], tuple[list[int], list[ImpactProblem]]] = {}
     for index, (chosen, problem, method, options) in enumerate(distinct):

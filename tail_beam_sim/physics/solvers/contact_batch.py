@@ -50,36 +50,68 @@ class _Dynamics:
         self.chi = np.array([p.damping_factor for p in problems])
         self.mass = np.array([p.mass_kg for p in problems])
         self.gravity = problems[0].gravity_mps2
+        # one coordinate: the shape and load as columns, stiffness and damping as numbers
+        self._shape0 = np.ascontiguousarray(self.shape[:, 0])
+        self._load0 = np.ascontiguousarray(self.load[:, 0])
+        self._stiffness0 = float(self.stiffness_t[0, 0])
+        self._damping0 = float(self.damping_t[0, 0])
 
     def penetration(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = self.n
+        if n == 1:  # one coordinate: each sum is its one product
+            shape = self._shape0
+            return -(shape * y[:, 0]) - y[:, 2], -(shape * y[:, 1]) - y[:, 3]
         delta = -(self.shape * y[:, :n]).sum(axis=1) - y[:, 2 * n]
         rate = -(self.shape * y[:, n : 2 * n]).sum(axis=1) - y[:, 2 * n + 1]
         return delta, rate
 
-    def derivative(self, y: np.ndarray, approach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def derivative(
+        self,
+        y: np.ndarray,
+        approach: np.ndarray,
+        penetration: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(dy/dt, contact force N) at states ``y``; ``penetration``: :meth:`penetration` of
+        ``y`` when already known."""
         n = self.n
         q, v = y[:, :n], y[:, n : 2 * n]
-        delta, rate = self.penetration(y)
+        delta, rate = penetration or self.penetration(y)
         force = self.hertz * np.maximum(delta, 0.0) ** 1.5 * (1.0 + self.chi * rate / approach)
-        force = np.where((delta > 0.0) & (force > 0.0), force, 0.0)
+        # zero where the plate is not penetrated (there the force is a zero or not finite) and
+        # where the damping term makes it pull
+        force = np.where(force > 0.0, force, 0.0)
         out = np.empty_like(y)
         out[:, :n] = v
-        out[:, n : 2 * n] = self.load * force[:, None] - q @ self.stiffness_t - v @ self.damping_t
+        if n == 1:  # the products over one coordinate, element by element
+            out[:, 1] = self._load0 * force - y[:, 0] * self._stiffness0 - y[:, 1] * self._damping0
+        else:
+            out[:, n : 2 * n] = (
+                self.load * force[:, None] - q @ self.stiffness_t - v @ self.damping_t
+            )
         out[:, 2 * n] = y[:, 2 * n + 1]
         out[:, 2 * n + 1] = force / self.mass - self.gravity
         return out, force
 
     def step(
-        self, y: np.ndarray, h: np.ndarray, k1: np.ndarray, approach: np.ndarray
+        self,
+        y: np.ndarray,
+        h: np.ndarray,
+        k1: np.ndarray,
+        approach: np.ndarray,
+        fractions: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     ) -> np.ndarray:
-        """One RK4 step of length ``h`` (per impact) from ``y`` whose derivative is ``k1``."""
-        half = (0.5 * h)[:, None]
+        """One RK4 step of length ``h`` (per impact) from ``y`` whose derivative is ``k1``;
+        ``fractions``: :func:`_fractions` of ``h`` when already known."""
+        half, whole, sixth = fractions or _fractions(h)
         k2, _ = self.derivative(y + half * k1, approach)
         k3, _ = self.derivative(y + half * k2, approach)
-        k4, _ = self.derivative(y + h[:, None] * k3, approach)
-        sixth = (h / 6.0)[:, None]
+        k4, _ = self.derivative(y + whole * k3, approach)
         return y + sixth * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+def _fractions(h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An RK4 step's h / 2, h and h / 6 as columns."""
+    return (0.5 * h)[:, None], h[:, None], (h / 6.0)[:, None]
 
 
 def integrate_contacts(problems: list[ImpactProblem], steps: int) -> BatchContacts:
@@ -101,12 +133,14 @@ def integrate_contacts(problems: list[ImpactProblem], steps: int) -> BatchContac
     times, states, derivatives, forces = [t], [y], [k1], [force]
     active = np.ones(count, dtype=bool)
     last = np.zeros(count, dtype=np.int64)
+    full = _fractions(dt)
     for iteration in range(1, limit + 1):
-        y_new = dynamics.step(y, dt, k1, approach)
+        y_new = dynamics.step(y, dt, k1, approach, full)
         delta_new, rate_new = dynamics.penetration(y_new)
         left = active & (delta_new <= 0.0) & (t > 0.0)
         t_new = t + dt
-        if left.any():
+        crossed = bool(left.any())
+        if crossed:
             delta_old, rate_old = dynamics.penetration(y)
             where = np.flatnonzero(left)
             theta = np.array(
@@ -124,7 +158,9 @@ def integrate_contacts(problems: list[ImpactProblem], steps: int) -> BatchContac
             h[where] = theta * dt[where]
             y_new[where] = dynamics.step(y, h, k1, approach)[where]
             t_new[where] = t[where] + h[where]
-        k1_new, force_new = dynamics.derivative(y_new, approach)
+        k1_new, force_new = dynamics.derivative(
+            y_new, approach, None if crossed else (delta_new, rate_new)
+        )
         # impacts that left earlier keep their last state
         frozen = ~active
         y_new[frozen], t_new[frozen] = y[frozen], t[frozen]

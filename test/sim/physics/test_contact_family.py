@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 from same_result import SIGNAL_TOLERANCE, assert_same_result
 
-from tail_beam_sim.physics.contact_family import ContactFamily
+from tail_beam_sim.physics.contact_family import ContactFamily, Grid
 from tail_beam_sim.physics.fidelity import plan, shipped_settings
 from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.sense_many import _grid_peaks
 from tail_beam_sim.physics.simulate import _problem, histories, simulate, simulate_many
 from tail_beam_sim.physics.solvers.contact_batch import integrate_contacts
 from tail_beam_sim.physics.solvers.dynamics import FloatDynamics
@@ -129,3 +130,55 @@ def test_the_family_leaves_recontacts_to_the_solver(params):
     ]
     family = ContactFamily(problems, 5e-3)
     assert list(family.ok) == [False, True, True, True]
+
+
+@pytest.mark.parametrize("rate_hz", [2000.0, 20000.0, 97000.0])
+def test_peaks_read_next_to_the_extrema_are_the_whole_grids(params, rate_hz):
+    """The summary's peaks read only at the grid instants next to each reading's extrema (and
+    through the contact) equal the maxima of the same readings over every grid instant, signed
+    and in magnitude, on grids coarse and fine against the ring's 39 Hz and the contacts."""
+    settings = shipped_settings()
+    scenes = _drawn(params, 60, seed=11)
+    problems = [
+        _problem(s, plan(s, "rigid", settings.needs, settings), settings, None)[0] for s in scenes
+    ]
+    family = ContactFamily(problems, 5e-3)
+    rows = np.flatnonzero(family.ok)
+    assert rows.size > 50
+    n = family.n
+    rng = np.random.default_rng(3)
+    outputs = rng.normal(size=(3, 3 * n))
+    window = scenes[0].window_s
+    uniform = np.arange(0.0, window + 0.5 / rate_hz, 1.0 / rate_hz)
+    count = rows.size
+    whole = family.read(
+        rows,
+        Grid(np.broadcast_to(uniform, (count, uniform.size)), uniform, np.zeros(count)),
+        outputs,
+    )
+    whole[1:] = np.abs(whole[1:])
+    peaks = _grid_peaks(family, rows, uniform, outputs, ("test", rate_hz))
+    assert np.array_equal(peaks, whole.max(axis=2))
+
+
+def test_readings_at_the_contact_samples_are_reads_there(params):
+    """read_at_samples, which takes each contact sample's own state, gives what read gives at
+    those instants (the cubic Hermite there, the free response at the contact's end), for
+    readings of q, q' and q'', pulse and RK4 contacts; nan past an impact's last sample."""
+    settings = shipped_settings()
+    scenes = _drawn(params, 40, seed=5)
+    problems = [
+        _problem(s, plan(s, "modal", settings.needs, settings), settings, None)[0] for s in scenes
+    ]
+    family = ContactFamily(problems, 5e-3)
+    rows = np.flatnonzero(family.ok)
+    assert family.pulse[rows].any() and (~family.pulse[rows]).any()
+    readings = np.random.default_rng(8).normal(size=(4, 3 * family.n))
+    readings[0, 2 * family.n :] = 0.0  # one of q and q' only
+    got = family.read_at_samples(rows, readings)
+    times = family.contact_times[rows]
+    real = np.isfinite(times)
+    expected = family.read(rows, Grid(np.where(real, times, 0.0)), readings)
+    assert np.array_equal(np.isnan(got), np.broadcast_to(~real, got.shape))
+    scale = np.abs(expected[:, real]).max(axis=1, keepdims=True)
+    assert np.all(np.abs(got[:, real] - expected[:, real]) <= SIGNAL_TOLERANCE * scale)
