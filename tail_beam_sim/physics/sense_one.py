@@ -1,0 +1,360 @@
+"""Every sensor of one impact from one evaluation of its trajectory: ``simulate``'s lean path.
+
+It makes what :func:`tail_beam_sim.physics.simulate.sense_general` makes of a trajectory (the
+same noise, stamps and blocks; the signals to rounding) with a fraction of the array
+operations, which for one impact's few thousand instants cost more than the arithmetic:
+
+* every instant any reading needs (the histories', the IMU's stamps and one period before, the
+  pressure's, the accelerometer's dense instants and its ring-down outputs) is evaluated in one
+  pass, and only the readings the sensors take, not the whole state: the beam's angle and rate,
+  the pressure change, the angle, pitch rate, normal velocity and acceleration at the IMU and the
+  accelerometer's filtered ring-down, rows of a readout matrix kept per structure;
+* the last free segment, where most instants fall, reads them in closed form over every
+  instant at once (its exponentials times each reading's modal weights:
+  :meth:`~tail_beam_sim.physics.structure.LinearStructure.propagate`,
+  :func:`~tail_beam_sim.physics.ringdown_filtering.filtered_ringdown`); the other segments'
+  instants (the rest before the contact, the contact itself) are then evaluated on their own
+  segment (:meth:`~tail_beam_sim.physics.solvers.Trajectory.sample_segment`) and put in place;
+* the histories' uniform instants, which depend on the window only, are kept.
+
+It covers trajectories of free segments and contacts (every solver but scipy's, whose free
+flights are dense outputs) ending in a free segment, and sensors the group path covers (an IMU
+behind its own low-pass is left to the general path).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from tail_beam_sim.physics.result import SimulationResult
+from tail_beam_sim.physics.ringdown_filtering import _dense_gain
+from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.sense_many import (
+    HISTORY_RATE_HZ,
+    _cos,
+    _sin,
+    summary_figures,
+    supported,
+)
+from tail_beam_sim.physics.sensors import (
+    AntiAliasFilter,
+    ImuStream,
+    PressureStream,
+    SensorSuite,
+    VibrationBlocks,
+    cut_blocks,
+    sample_grid,
+)
+from tail_beam_sim.physics.solvers.problem import FreeSegment, OdeSegment, Trajectory
+from tail_beam_sim.physics.structure import LinearStructure
+
+# Rows of the readings evaluated at every instant: the beam's angle (rad) and rate (rad/s), the
+# jack pressure's change (Pa), at the IMU the angle (rad), pitch rate (rad/s), velocity (m/s)
+# and acceleration (m/s^2) along the plate normal, the accelerometer's filtered ring-down's
+# dynamic part (m/s^2, last free segment only), the contact force (N), the particle's position
+# (m) and velocity (m/s).
+ANGLE, RATE, PRESSURE, IMU_ANGLE, PITCH_RATE, IMU_VELOCITY, IMU_ACCEL, RINGDOWN = range(8)
+FORCE, Z, ZD = 8, 9, 10
+ROWS = 11
+LINEAR = 7  # the readings linear in the state, ANGLE .. IMU_ACCEL
+
+
+def covers(scene: Scene, trajectory: Trajectory) -> bool:
+    """Whether the lean path covers ``scene``'s sensors and ``trajectory``'s segments."""
+    segments = trajectory.segments
+    return (
+        supported(scene.sensors)
+        and bool(segments)
+        and isinstance(segments[-1], FreeSegment)
+        and not any(isinstance(segment, OdeSegment) for segment in segments)
+    )
+
+
+def sense_one(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> SimulationResult:
+    """What the sensors and the summary make of ``trajectory`` (:func:`covers` must hold): the
+    result of ``simulate.sense_general`` (module docstring)."""
+    spec = scene.sensors
+    suite = SensorSuite(spec)
+    structure = trajectory.problem.structure
+    g = structure.gravity_mps2
+    setting = structure.setting_pressure_pa
+    slowest = min(spec.pressure_rate_hz, spec.imu_rate_hz)
+    # phase_rng().uniform(0, 1 / slowest), which is 0 + (1 / slowest) * its first random()
+    contact_stamp = scene.pre_contact_s + (0.0 + (1.0 / slowest) * suite.contact_phase())
+    end = contact_stamp + scene.window_s
+    imu_stamps = sample_grid(0.0, end, spec.imu_rate_hz)
+    period = 1.0 / spec.imu_rate_hz
+    now = imu_stamps - contact_stamp
+    history_times = _history_times(scene, trajectory)
+    # the pressure's instants are the IMU's when the rates are equal (the same arithmetic)
+    same_grid = spec.pressure_rate_hz == spec.imu_rate_hz
+    pressure_stamps = (
+        imu_stamps.copy() if same_grid else sample_grid(0.0, end, spec.pressure_rate_hz)
+    )
+    parts = [history_times, now, now - period]
+    if not same_grid:
+        parts.append(pressure_stamps - contact_stamp)
+    gain = None
+    if vibration:
+        oversample = spec.vibration_oversample
+        dense_rate = oversample * spec.vibration_rate_hz
+        span = suite._dense_span(trajectory, end, contact_stamp)
+        first, switch, count = span
+        filter_ = AntiAliasFilter(
+            spec.vibration_rate_hz,
+            spec.vibration_antialias_order,
+            spec.vibration_antialias_cutoff_fraction,
+            oversample,
+        )
+        parts.append(np.arange(first - 1, switch) / dense_rate - contact_stamp)
+        if switch < count:
+            parts.append(np.arange(switch, count, oversample) / dense_rate - contact_stamp)
+            gain = _dense_gain(structure, 1.0 / dense_rate, filter_.sos)
+    values = _evaluate(trajectory, np.concatenate(parts), gain)
+    edges = np.cumsum([0] + [part.size for part in parts]).tolist()
+    read = [values[:, lo:hi] for lo, hi in zip(edges[:-1], edges[1:])]
+
+    at = read[0]
+    history = {
+        "time_s": history_times,
+        "contact_force_n": at[FORCE],
+        "jack_pressure_pa": setting + at[PRESSURE],
+        "beam_angle_rad": at[ANGLE],
+        "beam_angular_velocity_radps": at[RATE],
+        "imu_angular_velocity_radps": at[PITCH_RATE],
+        "imu_specific_force_mps2": g * _cos(at[IMU_ANGLE]) - at[IMU_ACCEL],
+        "imu_dynamic_accel_mps2": -at[IMU_ACCEL],
+        "particle_position_m": at[Z],
+        "particle_velocity_mps": at[ZD],
+    }
+    after = int(np.searchsorted(history_times, 0.0))  # the instants from first contact on
+    summary = summary_figures(
+        scene,
+        trajectory,
+        float(np.max(history["jack_pressure_pa"][after:]) - setting),
+        float(np.max(np.abs(at[RATE, after:]))),
+        float(np.max(np.abs(at[IMU_ACCEL, after:]))),
+    )
+
+    noise = suite.noise
+    at_now, before = read[1], read[2]
+    clean = setting + (at_now if same_grid else read[3])[PRESSURE]
+    pressure = PressureStream(
+        pressure_stamps,
+        noise.pressure(clean, suite._pressure_rng.standard_normal(pressure_stamps.size)),
+        noise.pressure_pa**2,
+    )
+    # each IMU reading the mean over the period before its stamp (sensors.imu_samples)
+    angle = at_now[IMU_ANGLE]
+    gyro = np.zeros((imu_stamps.size, 3))
+    gyro[:, 1] = (angle - before[IMU_ANGLE]) / period
+    accel = np.zeros((imu_stamps.size, 3))
+    accel[:, 0] = -structure.imu_from_hinge_m * at_now[PITCH_RATE] ** 2 - g * _sin(angle)
+    accel[:, 2] = g * _cos(angle) - (at_now[IMU_VELOCITY] - before[IMU_VELOCITY]) / period
+    rng = suite._imu_rng
+    gyro = noise.gyro(gyro, rng.standard_normal(gyro.shape))
+    accel = noise.accel(accel, rng.standard_normal(accel.shape))
+    imu = ImuStream(imu_stamps, gyro, accel, noise.gyro_radps**2, noise.accel_mps2**2)
+
+    rebound = suite.rebound(trajectory, contact_stamp)
+    return SimulationResult(
+        scene=scene,
+        trajectory=trajectory,
+        contact_stamp_s=contact_stamp,
+        history=history,
+        pressure=pressure,
+        imu=imu,
+        rebound=rebound,
+        summary=summary,
+        vibration=_blocks(suite, filter_, g, read[3 + (not same_grid) :], span)
+        if vibration
+        else VibrationBlocks.empty(),
+        point=suite.reported_point(scene.impact.position_m, rebound, scene.support),
+    )
+
+
+def _blocks(
+    suite: SensorSuite,
+    filter_: AntiAliasFilter,
+    g: float,
+    read: list[np.ndarray],
+    span: tuple[int, int, int],
+) -> VibrationBlocks:
+    """The accelerometer's blocks (``SensorSuite.vibration``) through the fresh anti-alias
+    ``filter_``, from the readings at its dense instants and, when the ring-down takes over
+    (``span``: ``SensorSuite._dense_span``), at its outputs."""
+    spec = suite.spec
+    oversample = spec.vibration_oversample
+    first, switch, count = span
+    dense_period = 1.0 / (oversample * spec.vibration_rate_hz)
+    at = read[0]
+    # each dense value the mean over the dense period before its instant (the instant before)
+    velocity = at[IMU_VELOCITY]
+    dense = g * _cos(at[IMU_ANGLE, 1:]) - (velocity[1:] - velocity[:-1]) / dense_period
+    pieces = []
+    if first > 0:  # the beam at rest reads g, and the filter settled on it passes g
+        pieces.append(np.full(first // oversample, g))
+        filter_.settle(g)
+    pieces.append(filter_(dense)[::oversample])
+    if switch < count:
+        outputs = read[1]
+        pieces.append(g * _cos(outputs[IMU_ANGLE]) + outputs[RINGDOWN])
+    clean = np.concatenate(pieces) if len(pieces) > 1 else pieces[0]
+    noisy = clean + suite._vibration_rng.normal(0.0, spec.vibration_noise_mps2, clean.size)
+    limit = spec.vibration_range_mps2
+    blocks, _ = cut_blocks(np.clip(noisy, -limit, limit), 0, spec)
+    return blocks
+
+
+def _evaluate(trajectory: Trajectory, times: np.ndarray, gain: np.ndarray | None) -> np.ndarray:
+    """(ROWS, T): the readings at ``times`` (s from first contact); RINGDOWN with the ring-down
+    ``gain`` per exponential (``ringdown_filtering._dense_gain``), read on the last segment
+    only."""
+    segments = trajectory.segments
+    structure = trajectory.problem.structure
+    out = np.empty((ROWS, times.size))
+    last = segments[-1]
+    # the last segment's formula at every instant (each other segment's instants, replaced
+    # below, read it no earlier than its own start, so that nothing overflows)
+    dt = times - last.anchor_s
+    if len(segments) > 1:
+        np.maximum(dt, last.start_s - last.anchor_s, out=dt)
+    g = trajectory.problem.gravity_mps2
+    _free_readings(structure, last, dt, gain, g, out)
+    if len(segments) == 1:
+        return out
+    starts = np.array([segment.start_s for segment in segments])
+    which = np.searchsorted(starts, times, side="right") - 1
+    n = structure.size
+    for index in range(len(segments) - 1):
+        chosen = np.flatnonzero(which <= 0 if index == 0 else which == index)
+        if not chosen.size:
+            continue
+        segment = segments[index]
+        block = np.empty((ROWS, chosen.size))
+        if isinstance(segment, FreeSegment):
+            _free_readings(structure, segment, times[chosen] - segment.anchor_s, None, g, block)
+        else:
+            samples = trajectory.sample_segment(index, times[chosen])
+            buffer = samples.q.base  # [q; qd; qdd; force; z; zd]
+            np.matmul(_readouts(structure)[3], buffer[: 3 * n], out=block[:LINEAR])
+            block[RINGDOWN] = 0.0
+            block[FORCE:] = buffer[3 * n :]
+        out[:, chosen] = block
+    return out
+
+
+def _free_readings(
+    structure: LinearStructure,
+    segment: FreeSegment,
+    dt: np.ndarray,
+    gain: np.ndarray | None,
+    gravity_mps2: float,
+    out: np.ndarray,
+) -> None:
+    """Every reading of free ``segment`` at ``dt`` s from its anchor, into ``out``: the
+    structure's free response read through each reading's modal weights, in real arithmetic
+    (``LinearStructure.propagate``), and the particle's flight."""
+    out[FORCE] = 0.0
+    out[Z] = segment.z_m + segment.zd_mps * dt - 0.5 * gravity_mps2 * dt * dt
+    out[ZD] = segment.zd_mps - gravity_mps2 * dt
+    if segment.at_rest:
+        out[:FORCE] = 0.0
+        return
+    free_rows, modes, inverse, _ = _readouts(structure)
+    keep, sigma, omega, weight = structure._half_spectrum
+    modal = inverse @ np.concatenate([segment.q, segment.qd])
+    amplitude = modes * (weight * modal)  # (2n, k)
+    weights = np.empty((RINGDOWN + 1, keep.size), dtype=complex)
+    np.matmul(free_rows, amplitude, out=weights[:LINEAR])
+    weights[RINGDOWN] = 0.0 if gain is None else weights[IMU_VELOCITY] * gain
+    growth = np.exp(np.multiply.outer(sigma, dt))
+    angle = np.multiply.outer(omega, dt)
+    _modal_sum(weights, growth * np.cos(angle), growth * np.sin(angle), out[:FORCE])
+
+
+def _modal_sum(weights: np.ndarray, cos: np.ndarray, sin: np.ndarray, out: np.ndarray) -> None:
+    """``out = Re(weights) @ cos - Im(weights) @ sin`` (weights (R, k) complex, cos and sin
+    (k, T)); one exponential (the rigid beam's pair) as a plain product, which numpy's matrix
+    product of an inner dimension of one takes several times longer over."""
+    if weights.shape[1] == 1:
+        np.multiply(weights.real, cos, out=out)
+        out -= weights.imag * sin
+    else:
+        np.matmul(weights.real, cos, out=out)
+        out -= weights.imag @ sin
+
+
+Readouts = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+_READOUTS: dict[int, tuple[LinearStructure, Readouts]] = {}
+READOUT_CACHE_SIZE = 64
+
+
+def _readouts(structure: LinearStructure) -> Readouts:
+    """The readings' rows, kept per structure: over a free state [q; q'] (LINEAR, 2n), q''
+    from the structure's own forces; the eigenvectors of its half spectrum (2n, k) and the
+    rows of their inverse that give its modal amplitudes (k, 2n); over [q; q'; q''] (LINEAR,
+    3n), as a segment's samples give them."""
+    cached = _READOUTS.get(id(structure))
+    if cached is not None and cached[0] is structure:
+        return cached[1]
+    n = structure.size
+    zero = np.zeros(n)
+    first = np.zeros(n)
+    first[0] = 1.0
+    area = structure.piston_area_m2
+    imu = structure.imu_shape
+    # q'' = -M^-1 (C q' + K q) without a contact force
+    accel = -(imu @ structure.inv_mass) @ np.hstack([structure.stiffness, structure.damping])
+    state = np.stack(
+        [
+            np.concatenate([first, zero, zero]),
+            np.concatenate([zero, first, zero]),
+            np.concatenate(
+                [
+                    structure.jack_stiffness_npm * structure.jack_shape / area,
+                    structure.jack_damping_nspm * structure.jack_shape / area,
+                    zero,
+                ]
+            ),
+            np.concatenate([structure.imu_slope_shape, zero, zero]),
+            np.concatenate([zero, structure.imu_slope_shape, zero]),
+            np.concatenate([zero, imu, zero]),
+            np.concatenate([zero, zero, imu]),
+        ]
+    )
+    free = np.vstack([state[: LINEAR - 1, : 2 * n], accel])
+    _, vectors, inverse = structure._eigen
+    keep = structure._half_spectrum[0]
+    rows = (free, vectors[:, keep], inverse[keep], state)
+    if len(_READOUTS) >= READOUT_CACHE_SIZE:
+        _READOUTS.clear()
+    _READOUTS[id(structure)] = (structure, rows)  # holding it keeps its id from being reused
+    return rows
+
+
+def _history_times(scene: Scene, trajectory: Trajectory) -> np.ndarray:
+    """``simulate.history_times``: the uniform instants (kept per window) and every step of each
+    contact up to the window's end, sorted, each once."""
+    contact = [segment.t_s for segment in trajectory.segments if hasattr(segment, "force_n")]
+    uniform = _uniform_times(scene.pre_contact_s, scene.window_s)
+    if not contact:
+        return uniform.copy()
+    if contact[-1][-1] > scene.window_s:
+        contact = [t[t <= scene.window_s] for t in contact]
+    times = np.concatenate([uniform, *contact])
+    times.sort()
+    keep = np.empty(times.size, dtype=bool)
+    keep[0] = True
+    np.not_equal(times[1:], times[:-1], out=keep[1:])
+    return times[keep]
+
+
+@lru_cache(maxsize=64)
+def _uniform_times(pre_contact_s: float, window_s: float) -> np.ndarray:
+    """HISTORY_RATE_HZ from -pre_contact_s to window_s (read only: shared)."""
+    uniform = np.arange(-pre_contact_s, window_s + 0.5 / HISTORY_RATE_HZ, 1.0 / HISTORY_RATE_HZ)
+    uniform.flags.writeable = False
+    return uniform
