@@ -24,11 +24,12 @@ behind its own low-pass is left to the general path).
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import lru_cache, partial
+from itertools import accumulate
 
 import numpy as np
 
-from tail_beam_sim.physics.result import SimulationResult
+from tail_beam_sim.physics.result import LazyHistory, SimulationResult
 from tail_beam_sim.physics.ringdown_filtering import _dense_gain
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.sense_many import (
@@ -50,15 +51,18 @@ from tail_beam_sim.physics.sensors import (
 from tail_beam_sim.physics.solvers.problem import FreeSegment, OdeSegment, Trajectory
 from tail_beam_sim.physics.structure import LinearStructure
 
-# Rows of the readings evaluated at every instant: the beam's angle (rad) and rate (rad/s), the
-# jack pressure's change (Pa), at the IMU the angle (rad), pitch rate (rad/s), velocity (m/s)
-# and acceleration (m/s^2) along the plate normal, the accelerometer's filtered ring-down's
-# dynamic part (m/s^2, last free segment only), the contact force (N), the particle's position
-# (m) and velocity (m/s).
-ANGLE, RATE, PRESSURE, IMU_ANGLE, PITCH_RATE, IMU_VELOCITY, IMU_ACCEL, RINGDOWN = range(8)
+# Rows of the readings: the beam's angle (rad), at the IMU the pitch rate (rad/s) and the
+# velocity along the plate normal (m/s), the jack pressure's change (Pa), the beam's rate
+# (rad/s), at the IMU the acceleration along the plate normal (m/s^2) and the angle (rad), the
+# accelerometer's filtered ring-down's dynamic part (m/s^2, last free segment only), the
+# contact force (N), the particle's position (m) and velocity (m/s). What a grid reads is a
+# run of them.
+ANGLE, PITCH_RATE, IMU_VELOCITY, PRESSURE, RATE, IMU_ACCEL, IMU_ANGLE, RINGDOWN = range(8)
 FORCE, Z, ZD = 8, 9, 10
 ROWS = 11
-LINEAR = 7  # the readings linear in the state, ANGLE .. IMU_ACCEL
+LINEAR = 7  # the readings linear in the state, ANGLE .. IMU_ANGLE
+PEAKS = slice(PRESSURE, IMU_ACCEL + 1)  # what the summary's peaks read
+RINGDOWN_ROWS = slice(IMU_ANGLE, RINGDOWN + 1)  # what the ring-down's outputs read
 
 
 def covers(scene: Scene, trajectory: Trajectory) -> bool:
@@ -74,7 +78,9 @@ def covers(scene: Scene, trajectory: Trajectory) -> bool:
 
 def sense_one(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> SimulationResult:
     """What the sensors and the summary make of ``trajectory`` (:func:`covers` must hold): the
-    result of ``simulate.sense_general`` (module docstring)."""
+    result of ``simulate.sense_general`` (module docstring), its histories computed when first
+    read (:func:`history`), as the group path's are: the summary's peaks are read at the same
+    instants without them."""
     spec = scene.sensors
     suite = SensorSuite(spec)
     structure = trajectory.problem.structure
@@ -87,15 +93,21 @@ def sense_one(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> S
     imu_stamps = sample_grid(0.0, end, spec.imu_rate_hz)
     period = 1.0 / spec.imu_rate_hz
     now = imu_stamps - contact_stamp
-    history_times = _history_times(scene, trajectory)
     # the pressure's instants are the IMU's when the rates are equal (the same arithmetic)
     same_grid = spec.pressure_rate_hz == spec.imu_rate_hz
     pressure_stamps = (
         imu_stamps.copy() if same_grid else sample_grid(0.0, end, spec.pressure_rate_hz)
     )
-    parts = [history_times, now, now - period]
+    # Instants read directly, part after part: the histories' from first contact up to their
+    # uniform tail (the summary's peaks), the IMU's stamps and one period before (and the
+    # pressure's, at another rate), the accelerometer's dense ones; the histories' uniform tail
+    # and the accelerometer's ring-down outputs, on the last free segment, on their grids.
+    history_times, head = _history_instants(scene, trajectory)
+    after = int(np.searchsorted(history_times, 0.0))  # the instants from first contact on
+    parts = [history_times[min(after, head) : head], now, now - period]
     if not same_grid:
         parts.append(pressure_stamps - contact_stamp)
+    grids = [(history_times[max(after, head) :], 1.0 / HISTORY_RATE_HZ, PEAKS)]
     gain = None
     if vibration:
         oversample = spec.vibration_oversample
@@ -110,32 +122,20 @@ def sense_one(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> S
         )
         parts.append(np.arange(first - 1, switch) / dense_rate - contact_stamp)
         if switch < count:
-            parts.append(np.arange(switch, count, oversample) / dense_rate - contact_stamp)
+            outputs = np.arange(switch, count, oversample) / dense_rate - contact_stamp
+            grids.append((outputs, oversample / dense_rate, RINGDOWN_ROWS))
             gain = _dense_gain(structure, 1.0 / dense_rate, filter_.sos)
-    values = _evaluate(trajectory, np.concatenate(parts), gain)
-    edges = np.cumsum([0] + [part.size for part in parts]).tolist()
-    read = [values[:, lo:hi] for lo, hi in zip(edges[:-1], edges[1:])]
+    values, on_grids = _evaluate(trajectory, np.concatenate(parts), grids, gain)
+    edges = list(accumulate(part.size for part in parts))
+    read = [values[:, lo:hi] for lo, hi in zip([0, *edges[:-1]], edges)]
 
-    at = read[0]
-    history = {
-        "time_s": history_times,
-        "contact_force_n": at[FORCE],
-        "jack_pressure_pa": setting + at[PRESSURE],
-        "beam_angle_rad": at[ANGLE],
-        "beam_angular_velocity_radps": at[RATE],
-        "imu_angular_velocity_radps": at[PITCH_RATE],
-        "imu_specific_force_mps2": g * _cos(at[IMU_ANGLE]) - at[IMU_ACCEL],
-        "imu_dynamic_accel_mps2": -at[IMU_ACCEL],
-        "particle_position_m": at[Z],
-        "particle_velocity_mps": at[ZD],
-    }
-    after = int(np.searchsorted(history_times, 0.0))  # the instants from first contact on
+    # the peaks after first contact (max(setting + change) is setting + max(change): the sum
+    # rounds monotonically)
+    near = np.concatenate([read[0][PEAKS], on_grids[0][PEAKS]], axis=1)
+    change = near[0].max()
+    rate, accel_peak = np.abs(near[1:]).max(axis=1)
     summary = summary_figures(
-        scene,
-        trajectory,
-        float(np.max(history["jack_pressure_pa"][after:]) - setting),
-        float(np.max(np.abs(at[RATE, after:]))),
-        float(np.max(np.abs(at[IMU_ACCEL, after:]))),
+        scene, trajectory, float((setting + change) - setting), float(rate), float(accel_peak)
     )
 
     noise = suite.noise
@@ -163,23 +163,58 @@ def sense_one(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> S
         scene=scene,
         trajectory=trajectory,
         contact_stamp_s=contact_stamp,
-        history=history,
+        history=LazyHistory(partial(history, scene, trajectory)),
         pressure=pressure,
         imu=imu,
         rebound=rebound,
         summary=summary,
-        vibration=_blocks(suite, filter_, g, read[3 + (not same_grid) :], span)
+        vibration=_blocks(suite, filter_, g, read[-1], on_grids[-1], span)
         if vibration
         else VibrationBlocks.empty(),
         point=suite.reported_point(scene.impact.position_m, rebound, scene.support),
     )
 
 
+def history(scene: Scene, trajectory: Trajectory) -> dict[str, np.ndarray]:
+    """``simulate.histories`` of ``trajectory`` (:func:`covers` must hold), read as
+    :func:`sense_one` reads the summary's peaks."""
+    structure = trajectory.problem.structure
+    g = structure.gravity_mps2
+    times, head = _history_instants(scene, trajectory)
+    near, (far,) = _evaluate(
+        trajectory, times[:head], [(times[head:], 1.0 / HISTORY_RATE_HZ, slice(0, ROWS))], None
+    )
+    at = near if not far.size else far if not head else np.concatenate([near, far], axis=1)
+    return {
+        "time_s": times,
+        "contact_force_n": at[FORCE],
+        "jack_pressure_pa": structure.setting_pressure_pa + at[PRESSURE],
+        "beam_angle_rad": at[ANGLE],
+        "beam_angular_velocity_radps": at[RATE],
+        "imu_angular_velocity_radps": at[PITCH_RATE],
+        "imu_specific_force_mps2": g * _cos(at[IMU_ANGLE]) - at[IMU_ACCEL],
+        "imu_dynamic_accel_mps2": -at[IMU_ACCEL],
+        "particle_position_m": at[Z],
+        "particle_velocity_mps": at[ZD],
+    }
+
+
+def _history_instants(scene: Scene, trajectory: Trajectory) -> tuple[np.ndarray, int]:
+    """The histories' instants (``simulate.history_times``) and how many of them come before
+    their tail on the last free segment, at or after its anchor, on the uniform grid."""
+    times = _history_times(scene, trajectory)
+    last = trajectory.segments[-1]
+    uniform = _uniform_times(scene.pre_contact_s, scene.window_s)
+    tail = uniform.size - int(np.searchsorted(uniform, max(last.start_s, last.anchor_s)))
+    return times, times.size - tail
+
+
 def _blocks(
     suite: SensorSuite,
     filter_: AntiAliasFilter,
     g: float,
-    read: list[np.ndarray],
+    dense_read: np.ndarray,
+    outputs_read: np.ndarray,
     span: tuple[int, int, int],
 ) -> VibrationBlocks:
     """The accelerometer's blocks (``SensorSuite.vibration``) through the fresh anti-alias
@@ -189,7 +224,7 @@ def _blocks(
     oversample = spec.vibration_oversample
     first, switch, count = span
     dense_period = 1.0 / (oversample * spec.vibration_rate_hz)
-    at = read[0]
+    at = dense_read
     # each dense value the mean over the dense period before its instant (the instant before)
     velocity = at[IMU_VELOCITY]
     dense = g * _cos(at[IMU_ANGLE, 1:]) - (velocity[1:] - velocity[:-1]) / dense_period
@@ -199,8 +234,7 @@ def _blocks(
         filter_.settle(g)
     pieces.append(filter_(dense)[::oversample])
     if switch < count:
-        outputs = read[1]
-        pieces.append(g * _cos(outputs[IMU_ANGLE]) + outputs[RINGDOWN])
+        pieces.append(g * _cos(outputs_read[IMU_ANGLE]) + outputs_read[RINGDOWN])
     clean = np.concatenate(pieces) if len(pieces) > 1 else pieces[0]
     noisy = clean + suite._vibration_rng.normal(0.0, spec.vibration_noise_mps2, clean.size)
     limit = spec.vibration_range_mps2
@@ -208,23 +242,39 @@ def _blocks(
     return blocks
 
 
-def _evaluate(trajectory: Trajectory, times: np.ndarray, gain: np.ndarray | None) -> np.ndarray:
-    """(ROWS, T): the readings at ``times`` (s from first contact); RINGDOWN with the ring-down
-    ``gain`` per exponential (``ringdown_filtering._dense_gain``), read on the last segment
-    only."""
+def _evaluate(
+    trajectory: Trajectory,
+    times: np.ndarray,
+    grids: list[tuple[np.ndarray, float, slice]],
+    gain: np.ndarray | None,
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The readings (ROWS, T) at ``times`` (s from first contact), and (ROWS, grid size) on
+    each grid (its instants, on the last free segment at or after its anchor, evenly spaced;
+    their spacing, s; the rows read there, the others left unset); RINGDOWN with the
+    ring-down ``gain`` per exponential (``ringdown_filtering._dense_gain``), read on the last
+    segment only."""
     segments = trajectory.segments
     structure = trajectory.problem.structure
-    out = np.empty((ROWS, times.size))
+    g = trajectory.problem.gravity_mps2
     last = segments[-1]
+    weights = _free_weights(structure, last, gain)
+    on_grids = []
+    for instants, step_s, rows in grids:
+        block = np.empty((ROWS, instants.size))
+        if instants.size:
+            _grid_readings(structure, last, weights, instants, step_s, rows, g, block)
+        on_grids.append(block)
+    out = np.empty((ROWS, times.size))
+    if not times.size:
+        return out, on_grids
     # the last segment's formula at every instant (each other segment's instants, replaced
     # below, read it no earlier than its own start, so that nothing overflows)
     dt = times - last.anchor_s
     if len(segments) > 1:
         np.maximum(dt, last.start_s - last.anchor_s, out=dt)
-    g = trajectory.problem.gravity_mps2
-    _free_readings(structure, last, dt, gain, g, out)
+    _free_readings(structure, last, weights, dt, g, out)
     if len(segments) == 1:
-        return out
+        return out, on_grids
     starts = np.array([segment.start_s for segment in segments])
     which = np.searchsorted(starts, times, side="right") - 1
     n = structure.size
@@ -235,7 +285,8 @@ def _evaluate(trajectory: Trajectory, times: np.ndarray, gain: np.ndarray | None
         segment = segments[index]
         block = np.empty((ROWS, chosen.size))
         if isinstance(segment, FreeSegment):
-            _free_readings(structure, segment, times[chosen] - segment.anchor_s, None, g, block)
+            own = _free_weights(structure, segment, None)
+            _free_readings(structure, segment, own, times[chosen] - segment.anchor_s, g, block)
         else:
             samples = trajectory.sample_segment(index, times[chosen])
             buffer = samples.q.base  # [q; qd; qdd; force; z; zd]
@@ -243,36 +294,104 @@ def _evaluate(trajectory: Trajectory, times: np.ndarray, gain: np.ndarray | None
             block[RINGDOWN] = 0.0
             block[FORCE:] = buffer[3 * n :]
         out[:, chosen] = block
-    return out
+    return out, on_grids
 
 
-def _free_readings(
-    structure: LinearStructure,
-    segment: FreeSegment,
-    dt: np.ndarray,
-    gain: np.ndarray | None,
-    gravity_mps2: float,
-    out: np.ndarray,
-) -> None:
-    """Every reading of free ``segment`` at ``dt`` s from its anchor, into ``out``: the
-    structure's free response read through each reading's modal weights, in real arithmetic
-    (``LinearStructure.propagate``), and the particle's flight."""
-    out[FORCE] = 0.0
-    out[Z] = segment.z_m + segment.zd_mps * dt - 0.5 * gravity_mps2 * dt * dt
-    out[ZD] = segment.zd_mps - gravity_mps2 * dt
+def _free_weights(
+    structure: LinearStructure, segment: FreeSegment, gain: np.ndarray | None
+) -> np.ndarray | None:
+    """(RINGDOWN + 1, k) complex: each reading of free ``segment`` per exponential of the
+    structure's half spectrum from its anchor (``LinearStructure.propagate``), RINGDOWN with
+    the ring-down ``gain`` (zero without); None at rest."""
     if segment.at_rest:
-        out[:FORCE] = 0.0
-        return
+        return None
     free_rows, modes, inverse, _ = _readouts(structure)
-    keep, sigma, omega, weight = structure._half_spectrum
+    keep, _, _, weight = structure._half_spectrum
     modal = inverse @ np.concatenate([segment.q, segment.qd])
     amplitude = modes * (weight * modal)  # (2n, k)
     weights = np.empty((RINGDOWN + 1, keep.size), dtype=complex)
     np.matmul(free_rows, amplitude, out=weights[:LINEAR])
     weights[RINGDOWN] = 0.0 if gain is None else weights[IMU_VELOCITY] * gain
+    return weights
+
+
+def _free_readings(
+    structure: LinearStructure,
+    segment: FreeSegment,
+    weights: np.ndarray | None,
+    dt: np.ndarray,
+    gravity_mps2: float,
+    out: np.ndarray,
+) -> None:
+    """Every reading of free ``segment`` at ``dt`` s from its anchor, into ``out``: the
+    structure's free response through each reading's ``weights`` (:func:`_free_weights`), in
+    real arithmetic, and the particle's flight."""
+    out[FORCE] = 0.0
+    out[Z] = segment.z_m + segment.zd_mps * dt - 0.5 * gravity_mps2 * dt * dt
+    out[ZD] = segment.zd_mps - gravity_mps2 * dt
+    if weights is None:
+        out[:FORCE] = 0.0
+        return
+    _, sigma, omega, _ = structure._half_spectrum
     growth = np.exp(np.multiply.outer(sigma, dt))
     angle = np.multiply.outer(omega, dt)
     _modal_sum(weights, growth * np.cos(angle), growth * np.sin(angle), out[:FORCE])
+
+
+def _grid_readings(
+    structure: LinearStructure,
+    segment: FreeSegment,
+    weights: np.ndarray | None,
+    instants: np.ndarray,
+    step_s: float,
+    rows: slice,
+    gravity_mps2: float,
+    out: np.ndarray,
+) -> None:
+    """The ``rows`` of :func:`_free_readings` at ``instants`` evenly ``step_s`` apart, at or
+    after the anchor of ``segment``: each exponential the first instant's times the grid's
+    (:func:`_grid_basis`, kept), so that no instant costs an exponential, a cosine and a
+    sine."""
+    if rows.stop > FORCE:
+        dt = instants - segment.anchor_s
+        out[FORCE] = 0.0
+        out[Z] = segment.z_m + segment.zd_mps * dt - 0.5 * gravity_mps2 * dt * dt
+        out[ZD] = segment.zd_mps - gravity_mps2 * dt
+    linear = slice(rows.start, min(rows.stop, FORCE))
+    if weights is None:
+        out[linear] = 0.0
+        return
+    keep = structure._half_spectrum[0]
+    first = np.exp(structure._eigen[0][keep] * (float(instants[0]) - segment.anchor_s))
+    cos, sin = _grid_basis(structure, step_s, instants.size)
+    _modal_sum(weights[linear] * first, cos, sin, out[linear])
+
+
+_BASES: dict[tuple[int, float], tuple[LinearStructure, np.ndarray, np.ndarray]] = {}
+BASIS_CACHE_SIZE = 64
+
+
+def _grid_basis(
+    structure: LinearStructure, step_s: float, count: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(k, count) each: Re and Im of exp(lambda j step_s), j = 0 .. count - 1, over the
+    structure's half spectrum: kept per structure and step (a sensor's grid spacing depends on
+    its settings only), extended when a longer grid asks."""
+    cached = _BASES.get((id(structure), step_s))
+    if cached is None or cached[0] is not structure or cached[1].shape[1] < count:
+        _, sigma, omega, _ = structure._half_spectrum
+        offsets = np.arange(count) * step_s
+        growth = np.exp(np.multiply.outer(sigma, offsets))
+        angle = np.multiply.outer(omega, offsets)
+        if len(_BASES) >= BASIS_CACHE_SIZE:
+            _BASES.clear()
+        # holding the structure keeps its id from being reused
+        cached = _BASES[(id(structure), step_s)] = (
+            structure,
+            growth * np.cos(angle),
+            growth * np.sin(angle),
+        )
+    return cached[1][:, :count], cached[2][:, :count]
 
 
 def _modal_sum(weights: np.ndarray, cos: np.ndarray, sin: np.ndarray, out: np.ndarray) -> None:
@@ -301,31 +420,22 @@ def _readouts(structure: LinearStructure) -> Readouts:
     if cached is not None and cached[0] is structure:
         return cached[1]
     n = structure.size
-    zero = np.zeros(n)
-    first = np.zeros(n)
-    first[0] = 1.0
     area = structure.piston_area_m2
     imu = structure.imu_shape
+    state = np.zeros((LINEAR, 3 * n))
+    state[ANGLE, 0] = 1.0
+    state[RATE, n] = 1.0
+    state[PRESSURE, :n] = structure.jack_stiffness_npm * structure.jack_shape / area
+    state[PRESSURE, n : 2 * n] = structure.jack_damping_nspm * structure.jack_shape / area
+    state[PITCH_RATE, n : 2 * n] = structure.imu_slope_shape
+    state[IMU_VELOCITY, n : 2 * n] = imu
+    state[IMU_ACCEL, 2 * n :] = imu
+    state[IMU_ANGLE, :n] = structure.imu_slope_shape
+    free = state[:, : 2 * n].copy()
     # q'' = -M^-1 (C q' + K q) without a contact force
-    accel = -(imu @ structure.inv_mass) @ np.hstack([structure.stiffness, structure.damping])
-    state = np.stack(
-        [
-            np.concatenate([first, zero, zero]),
-            np.concatenate([zero, first, zero]),
-            np.concatenate(
-                [
-                    structure.jack_stiffness_npm * structure.jack_shape / area,
-                    structure.jack_damping_nspm * structure.jack_shape / area,
-                    zero,
-                ]
-            ),
-            np.concatenate([structure.imu_slope_shape, zero, zero]),
-            np.concatenate([zero, structure.imu_slope_shape, zero]),
-            np.concatenate([zero, imu, zero]),
-            np.concatenate([zero, zero, imu]),
-        ]
+    free[IMU_ACCEL] = -(imu @ structure.inv_mass) @ np.hstack(
+        [structure.stiffness, structure.damping]
     )
-    free = np.vstack([state[: LINEAR - 1, : 2 * n], accel])
     _, vectors, inverse = structure._eigen
     keep = structure._half_spectrum[0]
     rows = (free, vectors[:, keep], inverse[keep], state)
