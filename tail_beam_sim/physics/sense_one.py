@@ -168,7 +168,7 @@ def sense_one(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> S
         imu=imu,
         rebound=rebound,
         summary=summary,
-        vibration=_blocks(suite, filter_, g, read[-1], on_grids[-1], span)
+        vibration=_blocks(suite, filter_, g, read[-1], on_grids[1:], span)
         if vibration
         else VibrationBlocks.empty(),
         point=suite.reported_point(scene.impact.position_m, rebound, scene.support),
@@ -214,7 +214,7 @@ def _blocks(
     filter_: AntiAliasFilter,
     g: float,
     dense_read: np.ndarray,
-    outputs_read: np.ndarray,
+    outputs_read: list[np.ndarray],
     span: tuple[int, int, int],
 ) -> VibrationBlocks:
     """The accelerometer's blocks (``SensorSuite.vibration``) through the fresh anti-alias
@@ -222,23 +222,27 @@ def _blocks(
     (``span``: ``SensorSuite._dense_span``), at its outputs."""
     spec = suite.spec
     oversample = spec.vibration_oversample
-    first, switch, count = span
+    first, switch, _ = span
     dense_period = 1.0 / (oversample * spec.vibration_rate_hz)
     at = dense_read
     # each dense value the mean over the dense period before its instant (the instant before)
     velocity = at[IMU_VELOCITY]
     dense = g * _cos(at[IMU_ANGLE, 1:]) - (velocity[1:] - velocity[:-1]) / dense_period
-    pieces = []
-    if first > 0:  # the beam at rest reads g, and the filter settled on it passes g
-        pieces.append(np.full(first // oversample, g))
+    # the samples: the rest before ``first`` (the beam at rest reads g, and the filter settled
+    # on it passes g), the filtered dense span, the ring-down from ``switch``
+    rest, filtered = first // oversample, -(-(switch - first) // oversample)
+    ringdown = outputs_read[0] if outputs_read else np.empty((ROWS, 0))
+    samples = np.empty(rest + filtered + ringdown.shape[1])
+    if first > 0:
+        samples[:rest] = g
         filter_.settle(g)
-    pieces.append(filter_(dense)[::oversample])
-    if switch < count:
-        pieces.append(g * _cos(outputs_read[IMU_ANGLE]) + outputs_read[RINGDOWN])
-    clean = np.concatenate(pieces) if len(pieces) > 1 else pieces[0]
-    noisy = clean + suite._vibration_rng.normal(0.0, spec.vibration_noise_mps2, clean.size)
+    samples[rest : rest + filtered] = filter_(dense)[::oversample]
+    if ringdown.shape[1]:
+        np.add(g * _cos(ringdown[IMU_ANGLE]), ringdown[RINGDOWN], out=samples[rest + filtered :])
+    samples += suite._vibration_rng.normal(0.0, spec.vibration_noise_mps2, samples.size)
     limit = spec.vibration_range_mps2
-    blocks, _ = cut_blocks(np.clip(noisy, -limit, limit), 0, spec)
+    np.minimum(np.maximum(samples, -limit, out=samples), limit, out=samples)  # np.clip
+    blocks, _ = cut_blocks(samples, 0, spec)
     return blocks
 
 

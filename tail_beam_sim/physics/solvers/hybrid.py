@@ -26,7 +26,6 @@ came) is refined with twice the steps, up to ``MAX_REFINEMENTS`` times, then ref
 from __future__ import annotations
 
 import math
-from functools import cached_property
 
 import numpy as np
 from scipy.optimize import brentq
@@ -34,6 +33,7 @@ from scipy.optimize import brentq
 from tail_beam_sim.errors import InputError, require_int
 from tail_beam_sim.physics.contact import hertz_elastic_impact
 from tail_beam_sim.physics.solvers.dynamics import FloatDynamics, rk4_step
+from tail_beam_sim.physics.solvers.lazy import lazy
 from tail_beam_sim.physics.solvers.problem import (
     ContactRecord,
     ContactSegment,
@@ -210,7 +210,7 @@ class PulseSegment:
         self.problem, self.x0, self.pulse = problem, x0, pulse
         self.start_s = t0
 
-    @cached_property
+    @lazy
     def t_s(self) -> np.ndarray:
         return self.pulse.t_s + self.start_s
 
@@ -218,7 +218,7 @@ class PulseSegment:
     def force_n(self) -> np.ndarray:
         return self.pulse.force_n
 
-    @cached_property
+    @lazy
     def _states(self) -> tuple[np.ndarray, ...]:
         structure = self.problem.structure
         b = self.problem.contact_shape

@@ -12,11 +12,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 
 from tail_beam_sim.physics.contact import CrushingContact
+from tail_beam_sim.physics.solvers.lazy import lazy
 from tail_beam_sim.physics.structure import LinearStructure, reduced_mass_kg
 
 
@@ -117,7 +117,7 @@ class FreeSegment:
     z_m: float
     zd_mps: float
 
-    @cached_property
+    @lazy
     def at_rest(self) -> bool:
         """Whether the structure is at rest in this segment (q and qd all zero): it stays so."""
         return not (np.any(self.q) or np.any(self.qd))
@@ -281,7 +281,7 @@ class Trajectory:
         if known is not None and known[0] is segment:
             return known[1]
         t = segment.t_s
-        steps = np.diff(t) if t.size > 1 else np.zeros(1)
+        steps = t[1:] - t[:-1] if t.size > 1 else np.zeros(1)  # np.diff(t)
         zdd = _gradient(segment.zd_mps, steps) if t.size > 1 else np.zeros(1)
         values = _rows(segment.q, segment.qd, segment.z_m, segment.zd_mps)
         slopes = _rows(segment.qd, segment.qdd, segment.zd_mps, zdd)

@@ -13,6 +13,7 @@ from same_result import assert_same_result
 
 from tail_beam_sim.physics import sense_one
 from tail_beam_sim.physics.scene import Scene
+from tail_beam_sim.physics.sensors import SensorSuite
 from tail_beam_sim.physics.simulate import sense, sense_general, simulate
 from tail_beam_sim.physics.solvers import solve
 from tail_beam_sim.physics.solvers.problem import OdeSegment
@@ -116,3 +117,14 @@ def test_kept_readouts_and_history_instants_equal_fresh_ones(params):
     assert np.array_equal(kept.vibration.accel_mps2, fresh.vibration.accel_mps2)
     for name, values in kept.history.items():
         assert np.array_equal(values, fresh.history[name]), name
+
+
+def test_lean_sensing_without_the_ring_down(params, monkeypatch):
+    """The accelerometer read densely over the whole window (the ring-down's start pushed past
+    it): the same results."""
+    monkeypatch.setattr(SensorSuite, "_ringdown_start", lambda self, t, c, count: count)
+    for scene in _drawn(params, 2, seed=13):
+        trajectory = simulate(scene).trajectory
+        lean = sense(scene, trajectory)
+        assert lean.vibration.sample_count > 1000
+        assert_same_result(lean, sense_general(scene, trajectory))
