@@ -102,12 +102,17 @@ def sense_one(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> S
     # uniform tail (the summary's peaks), the IMU's stamps and one period before (and the
     # pressure's, at another rate), the accelerometer's dense ones; the histories' uniform tail
     # and the accelerometer's ring-down outputs, on the last free segment, on their grids.
-    history_times, head = _history_instants(scene, trajectory)
-    after = int(np.searchsorted(history_times, 0.0))  # the instants from first contact on
-    parts = [history_times[min(after, head) : head], now, now - period]
+    # the summary's peaks are over the histories' instants from first contact on: every step
+    # of each contact and the uniform instants (a repeated one changes no maximum), those on the
+    # last free segment's uniform tail on their grid
+    uniform = _uniform_times(scene.pre_contact_s, scene.window_s)
+    after = int(uniform.searchsorted(0.0))
+    tail = max(after, _tail_start(uniform, trajectory.segments[-1]))
+    parts = [np.concatenate([*_contact_steps(scene, trajectory), uniform[after:tail]]), now]
+    parts.append(now - period)
     if not same_grid:
         parts.append(pressure_stamps - contact_stamp)
-    grids = [(history_times[max(after, head) :], 1.0 / HISTORY_RATE_HZ, PEAKS)]
+    grids = [(uniform[tail:], 1.0 / HISTORY_RATE_HZ, PEAKS)]
     gain = None
     if vibration:
         oversample = spec.vibration_oversample
@@ -201,12 +206,24 @@ def history(scene: Scene, trajectory: Trajectory) -> dict[str, np.ndarray]:
 
 def _history_instants(scene: Scene, trajectory: Trajectory) -> tuple[np.ndarray, int]:
     """The histories' instants (``simulate.history_times``) and how many of them come before
-    their tail on the last free segment, at or after its anchor, on the uniform grid."""
+    their tail on the last free segment's uniform grid (:func:`_tail_start`)."""
     times = _history_times(scene, trajectory)
-    last = trajectory.segments[-1]
     uniform = _uniform_times(scene.pre_contact_s, scene.window_s)
-    tail = uniform.size - int(np.searchsorted(uniform, max(last.start_s, last.anchor_s)))
-    return times, times.size - tail
+    return times, times.size - (uniform.size - _tail_start(uniform, trajectory.segments[-1]))
+
+
+def _tail_start(uniform: np.ndarray, last: FreeSegment) -> int:
+    """The first of the histories' ``uniform`` instants on free segment ``last`` (the last) and
+    at or after its anchor: from it on every instant of the histories is a uniform one."""
+    return int(uniform.searchsorted(max(last.start_s, last.anchor_s)))
+
+
+def _contact_steps(scene: Scene, trajectory: Trajectory) -> list[np.ndarray]:
+    """Every step of each contact up to the window's end (s from first contact)."""
+    steps = [segment.t_s for segment in trajectory.segments if hasattr(segment, "force_n")]
+    if steps and steps[-1][-1] > scene.window_s:
+        return [t[t <= scene.window_s] for t in steps]
+    return steps
 
 
 def _blocks(
@@ -452,12 +469,10 @@ def _readouts(structure: LinearStructure) -> Readouts:
 def _history_times(scene: Scene, trajectory: Trajectory) -> np.ndarray:
     """``simulate.history_times``: the uniform instants (kept per window) and every step of each
     contact up to the window's end, sorted, each once."""
-    contact = [segment.t_s for segment in trajectory.segments if hasattr(segment, "force_n")]
+    contact = _contact_steps(scene, trajectory)
     uniform = _uniform_times(scene.pre_contact_s, scene.window_s)
     if not contact:
         return uniform.copy()
-    if contact[-1][-1] > scene.window_s:
-        contact = [t[t <= scene.window_s] for t in contact]
     times = np.concatenate([uniform, *contact])
     times.sort()
     keep = np.empty(times.size, dtype=bool)

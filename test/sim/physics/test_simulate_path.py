@@ -119,6 +119,7 @@ def test_cached_plan_equals_a_fresh_one_and_the_direct_estimate(params, position
     scene = _scene(params, position_m=position_m)
     fidelity._UNIT_RESPONSES.clear()
     fidelity._GRAMS.clear()
+    fidelity._OUTPUT_GRAMS.clear()
     fresh = plan(scene, "auto", settings.needs, settings)
     assert fidelity._UNIT_RESPONSES and fidelity._GRAMS  # the fresh plan filled the caches
     cached = plan(scene, "auto", settings.needs, settings)
