@@ -130,7 +130,7 @@ def sense_one(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> S
             outputs = np.arange(switch, count, oversample) / dense_rate - contact_stamp
             grids.append((outputs, oversample / dense_rate, RINGDOWN_ROWS))
             gain = _dense_gain(structure, 1.0 / dense_rate, filter_.sos)
-    values, on_grids = _evaluate(trajectory, np.concatenate(parts), grids, gain)
+    values, on_grids = _evaluate(trajectory, np.concatenate(parts), grids, gain, flight=False)
     edges = list(accumulate(part.size for part in parts))
     read = [values[:, lo:hi] for lo, hi in zip([0, *edges[:-1]], edges)]
 
@@ -268,12 +268,13 @@ def _evaluate(
     times: np.ndarray,
     grids: list[tuple[np.ndarray, float, slice]],
     gain: np.ndarray | None,
+    flight: bool = True,
 ) -> tuple[np.ndarray, list[np.ndarray]]:
     """The readings (ROWS, T) at ``times`` (s from first contact), and (ROWS, grid size) on
     each grid (its instants, on the last free segment at or after its anchor, evenly spaced;
     their spacing, s; the rows read there, the others left unset); RINGDOWN with the
     ring-down ``gain`` per exponential (``ringdown_filtering._dense_gain``), read on the last
-    segment only."""
+    segment only; FORCE, Z and ZD at ``times`` only when ``flight``."""
     segments = trajectory.segments
     structure = trajectory.problem.structure
     g = trajectory.problem.gravity_mps2
@@ -293,7 +294,7 @@ def _evaluate(
     dt = times - last.anchor_s
     if len(segments) > 1:
         np.maximum(dt, last.start_s - last.anchor_s, out=dt)
-    _free_readings(structure, last, weights, dt, g, out)
+    _free_readings(structure, last, weights, dt, g, out, flight)
     if len(segments) == 1:
         return out, on_grids
     starts = np.array([segment.start_s for segment in segments])
@@ -304,10 +305,14 @@ def _evaluate(
         if not chosen.size:
             continue
         segment = segments[index]
+        if not flight and isinstance(segment, FreeSegment) and segment.at_rest:
+            out[:FORCE, chosen] = 0.0  # at rest it stays at rest
+            continue
         block = np.empty((ROWS, chosen.size))
         if isinstance(segment, FreeSegment):
             own = _free_weights(structure, segment, None)
-            _free_readings(structure, segment, own, times[chosen] - segment.anchor_s, g, block)
+            dt = times[chosen] - segment.anchor_s
+            _free_readings(structure, segment, own, dt, g, block, flight)
         else:
             samples = trajectory.sample_segment(index, times[chosen])
             buffer = samples.q.base  # [q; qd; qdd; force; z; zd]
@@ -343,13 +348,15 @@ def _free_readings(
     dt: np.ndarray,
     gravity_mps2: float,
     out: np.ndarray,
+    flight: bool = True,
 ) -> None:
     """Every reading of free ``segment`` at ``dt`` s from its anchor, into ``out``: the
     structure's free response through each reading's ``weights`` (:func:`_free_weights`), in
-    real arithmetic, and the particle's flight."""
-    out[FORCE] = 0.0
-    out[Z] = segment.z_m + segment.zd_mps * dt - 0.5 * gravity_mps2 * dt * dt
-    out[ZD] = segment.zd_mps - gravity_mps2 * dt
+    real arithmetic, and (``flight``) the particle's flight."""
+    if flight:
+        out[FORCE] = 0.0
+        out[Z] = segment.z_m + segment.zd_mps * dt - 0.5 * gravity_mps2 * dt * dt
+        out[ZD] = segment.zd_mps - gravity_mps2 * dt
     if weights is None:
         out[:FORCE] = 0.0
         return
