@@ -1,21 +1,26 @@
 """Every sensor of one impact from one evaluation of its trajectory: ``simulate``'s lean path.
 
 It makes what :func:`tail_beam_sim.physics.simulate.sense_general` makes of a trajectory (the
-same noise, stamps and blocks; the signals to rounding) with a fraction of the array
+same noise, stamps, blocks and summary; the signals to rounding) with a fraction of the array
 operations, which for one impact's few thousand instants cost more than the arithmetic:
 
-* every instant any reading needs (the histories', the IMU's stamps and one period before, the
-  pressure's, the accelerometer's dense instants and its ring-down outputs) is evaluated in one
-  pass, and only the readings the sensors take, not the whole state: the beam's angle and rate,
-  the pressure change, the angle, pitch rate, normal velocity and acceleration at the IMU and the
-  accelerometer's filtered ring-down, rows of a readout matrix kept per structure;
+* every instant a sensor or the summary reads (the histories' from first contact on, the
+  IMU's stamps and one period before, the pressure's, the accelerometer's dense instants) is
+  evaluated in one pass, and only the readings the sensors take, not the whole state: the
+  beam's angle and rate, the pressure change, the pitch rate, angle, normal velocity and
+  acceleration at the IMU, rows of a readout matrix kept per structure;
 * the last free segment, where most instants fall, reads them in closed form over every
-  instant at once (its exponentials times each reading's modal weights:
-  :meth:`~tail_beam_sim.physics.structure.LinearStructure.propagate`,
-  :func:`~tail_beam_sim.physics.ringdown_filtering.filtered_ringdown`); the other segments'
-  instants (the rest before the contact, the contact itself) are then evaluated on their own
-  segment (:meth:`~tail_beam_sim.physics.solvers.Trajectory.sample_segment`) and put in place;
-* the histories' uniform instants, which depend on the window only, are kept.
+  instant at once (its exponentials times each reading's modal weights, as
+  :meth:`~tail_beam_sim.physics.structure.LinearStructure.propagate` and
+  :func:`~tail_beam_sim.physics.ringdown_filtering.filtered_ringdown` have them); the other
+  segments' instants (the rest before the contact, the contact itself) are then evaluated on
+  their own segment (:meth:`~tail_beam_sim.physics.solvers.Trajectory.sample_segment`) and put
+  in place;
+* the instants on an even grid there, the histories' uniform tail and the accelerometer's
+  ring-down outputs, read each exponential as the first instant's times the grid's, kept per
+  structure and spacing: no exponential, cosine or sine per instant;
+* the histories are computed when first read (:func:`history`), as the group path's are: a
+  data set's users read the streams and the summary, whose peaks are read at the same instants.
 
 It covers trajectories of free segments and contacts (every solver but scipy's, whose free
 flights are dense outputs) ending in a free segment, and sensors the group path covers (an IMU
@@ -99,12 +104,10 @@ def sense_one(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> S
         imu_stamps.copy() if same_grid else sample_grid(0.0, end, spec.pressure_rate_hz)
     )
     # Instants read directly, part after part: the histories' from first contact up to their
-    # uniform tail (the summary's peaks), the IMU's stamps and one period before (and the
-    # pressure's, at another rate), the accelerometer's dense ones; the histories' uniform tail
-    # and the accelerometer's ring-down outputs, on the last free segment, on their grids.
-    # the summary's peaks are over the histories' instants from first contact on: every step
-    # of each contact and the uniform instants (a repeated one changes no maximum), those on the
-    # last free segment's uniform tail on their grid
+    # uniform tail on the last free segment (the summary's peaks: every step of each contact
+    # and the uniform instants, a repeated one changing no maximum), the IMU's stamps and one
+    # period before (and the pressure's, at another rate), the accelerometer's dense ones; the
+    # histories' uniform tail and the accelerometer's ring-down outputs on their grids.
     uniform = _uniform_times(scene.pre_contact_s, scene.window_s)
     after = int(uniform.searchsorted(0.0))
     tail = max(after, _tail_start(uniform, trajectory.segments[-1]))
