@@ -176,9 +176,12 @@ class Pulse:
             values[self.row + 1]
         )
 
-    def _rows(self, k: int) -> np.ndarray:
+    @lazy
+    def _blended(self) -> np.ndarray:
+        """The two table rows blended (3, samples): penetration, its rate and the force, each
+        row as a blend of its own alone would be, dimensionless."""
         rows = pulse_table().rows
-        return (1 - self.weight) * rows[self.row, k] + self.weight * rows[self.row + 1, k]
+        return (1 - self.weight) * rows[self.row] + self.weight * rows[self.row + 1]
 
     def spectrum(self, eigenvalues: np.ndarray) -> np.ndarray:
         """int_0^T F(s) e^{-lambda_k s} ds per eigenvalue, N s: a power series in lambda T over the
@@ -210,15 +213,15 @@ class Pulse:
 
     @lazy
     def force_n(self) -> np.ndarray:
-        return self._rows(2) * self.force_scale_n
+        return self._blended[2] * self.force_scale_n
 
     @lazy
     def penetration_m(self) -> np.ndarray:
-        return self._rows(0) * self.length_m
+        return self._blended[0] * self.length_m
 
     @lazy
     def rate_mps(self) -> np.ndarray:
-        return self._rows(1) * self.approach_mps
+        return self._blended[1] * self.approach_mps
 
 
 def contact_pulse(
