@@ -53,7 +53,12 @@ from tail_beam_sim.physics.sensors import (
     cut_blocks,
     sample_grid,
 )
-from tail_beam_sim.physics.solvers.problem import FreeSegment, OdeSegment, Trajectory
+from tail_beam_sim.physics.solvers.problem import (
+    ContactSegment,
+    FreeSegment,
+    OdeSegment,
+    Trajectory,
+)
 from tail_beam_sim.physics.structure import LinearStructure
 
 # Rows of the readings: the beam's angle (rad), at the IMU the pitch rate (rad/s) and the
@@ -311,6 +316,11 @@ def _evaluate(
         if not flight and isinstance(segment, FreeSegment) and segment.at_rest:
             out[:FORCE, chosen] = 0.0  # at rest it stays at rest
             continue
+        if not flight and not isinstance(segment, FreeSegment) and segment.t_s.size > 1:
+            block = np.empty((LINEAR, chosen.size))
+            _contact_readings(structure, segment, times[chosen], block)
+            out[:LINEAR, chosen] = block
+            continue
         block = np.empty((ROWS, chosen.size))
         if isinstance(segment, FreeSegment):
             own = _free_weights(structure, segment, None)
@@ -324,6 +334,39 @@ def _evaluate(
             block[FORCE:] = buffer[3 * n :]
         out[:, chosen] = block
     return out, on_grids
+
+
+def _contact_readings(
+    structure: LinearStructure, segment: ContactSegment, times: np.ndarray, out: np.ndarray
+) -> None:
+    """The LINEAR rows at ``times`` within contact ``segment`` (two steps or more), into
+    ``out``: q and q' by the cubic Hermite through its steps, q'' on the straight line, each
+    step's polynomial in Horner form, as :meth:`~tail_beam_sim.physics.solvers.Trajectory.
+    sample` evaluates them (the same arithmetic), without the particle's and the force's."""
+    t = segment.t_s
+    steps = t[1:] - t[:-1]
+    n = structure.size
+    q, qd, qdd = segment.q, segment.qd, segment.qdd
+    # (4, 3n, steps): per step the coefficients of s^0 .. s^3 of [q; q'] (values and slopes at
+    # the step's ends) and of q''
+    coefficients = np.empty((4, 3 * n, steps.size))
+    constant, linear, square, cube = coefficients
+    values, slopes = np.concatenate([q, qd]), np.concatenate([qd, qdd])
+    v0, v1 = values[:, :-1], values[:, 1:]
+    m0 = np.multiply(slopes[:, :-1], steps, out=linear[: 2 * n])
+    m1 = slopes[:, 1:] * steps
+    constant[: 2 * n] = v0
+    constant[2 * n :] = qdd[:, :-1]
+    np.subtract(qdd[:, 1:], qdd[:, :-1], out=linear[2 * n :])
+    square[: 2 * n] = 3.0 * (v1 - v0) - 2.0 * m0 - m1
+    cube[: 2 * n] = 2.0 * (v0 - v1) + m0 + m1
+    coefficients[2:, 2 * n :] = 0.0
+    k = np.minimum(np.maximum(t.searchsorted(times, side="right") - 1, 0), t.size - 2)
+    h = steps[k]
+    s = np.where(h > 0, (times - t[k]) / np.where(h > 0, h, 1.0), 0.0)
+    c = coefficients[:, :, k]  # (4, 3n, T)
+    states = c[0] + s * (c[1] + s * (c[2] + s * c[3]))
+    np.matmul(_readouts(structure)[3], states, out=out[:LINEAR])
 
 
 def _free_weights(

@@ -128,3 +128,46 @@ def test_lean_sensing_without_the_ring_down(params, monkeypatch):
         lean = sense(scene, trajectory)
         assert lean.vibration.sample_count > 1000
         assert_same_result(lean, sense_general(scene, trajectory))
+
+
+@pytest.mark.parametrize(
+    ("material", "radius_m", "tier"),
+    [("coal", 0.03, "rigid"), ("coal", 0.09, "modal"), ("marble", 0.05, "brittle")],
+)
+def test_contact_readings_are_the_general_sampling_read_through_the_rows(
+    params, material, radius_m, tier
+):
+    """Within a contact (the pulse's, an integrated one, a crushing one) the lean path's
+    readings are bit for bit the states Trajectory.sample gives, read through the same rows, at
+    the contact's steps and between them."""
+    scene = Scene.from_params(params, {"material": material, "radius_m": radius_m})
+    trajectory = simulate(scene, tier=tier).trajectory
+    structure, segment = trajectory.problem.structure, trajectory.segments[1]
+    rng = np.random.default_rng(4)
+    times = np.concatenate([segment.t_s[:-1], rng.uniform(segment.t_s[0], segment.t_s[-1], 50)])
+    lean = np.empty((sense_one.LINEAR, times.size))
+    sense_one._contact_readings(structure, segment, times, lean)
+    n = structure.size
+    general = sense_one._readouts(structure)[3] @ trajectory.sample(times).q.base[: 3 * n]
+    assert np.array_equal(lean, general)
+
+
+@pytest.mark.parametrize("tier", ["rigid", "modal"])
+def test_free_readings_direct_and_on_grids_are_the_general_sampling_to_rounding(params, tier):
+    """After the contact the readings in closed form, instant by instant and on an even grid
+    (each exponential the first instant's times the grid's), equal the states Trajectory.sample
+    gives read through the same rows, to 1e-12 of each reading's largest magnitude."""
+    scene = _drawn(params, 1, seed=6)[0]
+    trajectory = simulate(scene, tier=tier).trajectory
+    structure, last = trajectory.problem.structure, trajectory.segments[-1]
+    grid = last.start_s + 1e-5 + np.arange(2000) * 2.5e-5
+    direct = np.random.default_rng(5).uniform(-0.004, 0.05, 500)
+    near, (far,) = sense_one._evaluate(
+        trajectory, direct, [(grid, 2.5e-5, slice(0, sense_one.LINEAR))], None
+    )
+    n = structure.size
+    rows = sense_one._readouts(structure)[3]
+    for times, got in ((direct, near), (grid, far)):
+        expected = rows @ trajectory.sample(times).q.base[: 3 * n]
+        scale = np.max(np.abs(expected), axis=1, keepdims=True)
+        assert np.all(np.abs(got[: sense_one.LINEAR] - expected) <= 1e-12 * scale)
