@@ -220,8 +220,8 @@ class PulseSegment:
 
     @lazy
     def _states(self) -> tuple[np.ndarray, ...]:
+        """The structure's q, q' and q'' at the pulse's samples."""
         structure = self.problem.structure
-        b = self.problem.contact_shape
         n = structure.size
         load = self.problem.contact_load
         x = structure_response(structure._eigen, load, self.x0, self.t_s, self.pulse.force_n)
@@ -229,13 +229,21 @@ class PulseSegment:
         qdd = load[:, None] * self.pulse.force_n - structure.inv_mass @ (
             structure.damping @ qd + structure.stiffness @ q
         )
-        return q, qd, qdd, -(b @ q) - self.pulse.penetration_m, -(b @ qd) - self.pulse.rate_mps
+        return q, qd, qdd
+
+    @lazy
+    def _particle(self) -> tuple[np.ndarray, np.ndarray]:
+        """The particle's position (m) and velocity (m/s) at the pulse's samples: apart from the
+        structure's, which sensors read without them."""
+        b = self.problem.contact_shape
+        q, qd, _ = self._states
+        return -(b @ q) - self.pulse.penetration_m, -(b @ qd) - self.pulse.rate_mps
 
     q = property(lambda self: self._states[0])
     qd = property(lambda self: self._states[1])
     qdd = property(lambda self: self._states[2])
-    z_m = property(lambda self: self._states[3])
-    zd_mps = property(lambda self: self._states[4])
+    z_m = property(lambda self: self._particle[0])
+    zd_mps = property(lambda self: self._particle[1])
 
 
 def contact_phase(
