@@ -409,17 +409,56 @@ def _sampled_difference(
     spec = scene.sensors
     (lower, shape_lower), (upper, shape_upper) = rigid, modal
     both = np.concatenate([shape_upper, shape_lower])
-    worst = 0.0
-    for output in sorted(outputs):
-        rate = spec.pressure_rate_hz if output == "pressure" else spec.imu_rate_hz
-        gram = sampled_gram(lower, upper, output, rate, scene.window_s)  # (phases, N, N)
-        n = upper.size
-        # squared L2 norms per phase: of the difference (u b_u - l b_l) and of the reference
-        difference = np.maximum((gram @ both) @ both, 0.0)
-        reference = (gram[:, :n, :n] @ shape_upper) @ shape_upper
-        ratio = np.where(reference > 0, difference / np.where(reference > 0, reference, 1.0), 0.0)
-        worst = max(worst, math.sqrt(float(ratio.max())))
-    return worst
+    # every output's phases at once (outputs x phases, N, N)
+    gram = _output_grams(
+        lower,
+        upper,
+        tuple(sorted(outputs)),
+        spec.pressure_rate_hz,
+        spec.imu_rate_hz,
+        scene.window_s,
+    )
+    n = upper.size
+    # squared L2 norms per phase: of the difference (u b_u - l b_l) and of the reference
+    difference = np.maximum((gram @ both) @ both, 0.0)
+    reference = (gram[:, :n, :n] @ shape_upper) @ shape_upper
+    ratio = np.where(reference > 0, difference / np.where(reference > 0, reference, 1.0), 0.0)
+    return math.sqrt(float(ratio.max()))
+
+
+_OUTPUT_GRAMS: dict[tuple[Any, ...], tuple[Any, np.ndarray]] = {}
+
+
+def _output_grams(
+    lower: LinearStructure,
+    upper: LinearStructure,
+    outputs: tuple[str, ...],
+    pressure_rate_hz: float,
+    imu_rate_hz: float,
+    window_s: float,
+) -> np.ndarray:
+    """The :func:`sampled_gram` of each of ``outputs`` (its sensor's rate), stacked: (outputs x
+    phases, N, N), kept per (structures, outputs, rates, window)."""
+    key = (id(lower), id(upper), outputs, pressure_rate_hz, imu_rate_hz, window_s)
+    cached = _OUTPUT_GRAMS.get(key)
+    if cached is not None and cached[0][0] is lower and cached[0][1] is upper:
+        return cached[1]
+    gram = np.concatenate(
+        [
+            sampled_gram(
+                lower,
+                upper,
+                output,
+                pressure_rate_hz if output == "pressure" else imu_rate_hz,
+                window_s,
+            )
+            for output in outputs
+        ]
+    )
+    if len(_OUTPUT_GRAMS) >= UNIT_RESPONSE_CACHE_SIZE:
+        _OUTPUT_GRAMS.clear()
+    _OUTPUT_GRAMS[key] = ((lower, upper), gram)  # holding them keeps their ids from being reused
+    return gram
 
 
 _GRAMS: dict[tuple[int, int, str, float, float], tuple[Any, np.ndarray]] = {}

@@ -45,6 +45,7 @@ from tail_beam_sim.physics.sense_many import (
     summary_figures,
     supported,
 )
+from tail_beam_sim.physics.sense_one import covers, sense_one
 from tail_beam_sim.physics.sensors import (
     SensorSuite,
     VibrationBlocks,
@@ -64,6 +65,7 @@ __all__ = [
     "histories",
     "history_times",
     "sense",
+    "sense_general",
     "simulate",
     "simulate_many",
     "summarise",
@@ -369,8 +371,20 @@ def sense(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> Simul
 
     The contact falls at a seeded instant within the first sample period after
     ``pre_contact_s``, so it is not always aligned with a sample, as it would not be on a
-    real support.
+    real support. The lean path (:mod:`~tail_beam_sim.physics.sense_one`) reads the scenes and
+    trajectories it covers, :func:`sense_general` the others, with the same results.
     """
+    if covers(scene, trajectory):
+        return sense_one(scene, trajectory, vibration)
+    return sense_general(scene, trajectory, vibration)
+
+
+def sense_general(
+    scene: Scene, trajectory: Trajectory, vibration: bool = True
+) -> SimulationResult:
+    """:func:`sense` for any scene and trajectory: each sensor's readings from the trajectory's
+    own sampling (:meth:`~tail_beam_sim.physics.solvers.Trajectory.sample_many`, every
+    sensor's instants in one pass)."""
     spec = scene.sensors
     suite = SensorSuite(spec)
     slowest = min(spec.pressure_rate_hz, spec.imu_rate_hz)

@@ -26,7 +26,6 @@ came) is refined with twice the steps, up to ``MAX_REFINEMENTS`` times, then ref
 from __future__ import annotations
 
 import math
-from functools import cached_property
 
 import numpy as np
 from scipy.optimize import brentq
@@ -34,6 +33,7 @@ from scipy.optimize import brentq
 from tail_beam_sim.errors import InputError, require_int
 from tail_beam_sim.physics.contact import hertz_elastic_impact
 from tail_beam_sim.physics.solvers.dynamics import FloatDynamics, rk4_step
+from tail_beam_sim.physics.solvers.lazy import lazy
 from tail_beam_sim.physics.solvers.problem import (
     ContactRecord,
     ContactSegment,
@@ -210,7 +210,7 @@ class PulseSegment:
         self.problem, self.x0, self.pulse = problem, x0, pulse
         self.start_s = t0
 
-    @cached_property
+    @lazy
     def t_s(self) -> np.ndarray:
         return self.pulse.t_s + self.start_s
 
@@ -218,10 +218,10 @@ class PulseSegment:
     def force_n(self) -> np.ndarray:
         return self.pulse.force_n
 
-    @cached_property
+    @lazy
     def _states(self) -> tuple[np.ndarray, ...]:
+        """The structure's q, q' and q'' at the pulse's samples."""
         structure = self.problem.structure
-        b = self.problem.contact_shape
         n = structure.size
         load = self.problem.contact_load
         x = structure_response(structure._eigen, load, self.x0, self.t_s, self.pulse.force_n)
@@ -229,13 +229,21 @@ class PulseSegment:
         qdd = load[:, None] * self.pulse.force_n - structure.inv_mass @ (
             structure.damping @ qd + structure.stiffness @ q
         )
-        return q, qd, qdd, -(b @ q) - self.pulse.penetration_m, -(b @ qd) - self.pulse.rate_mps
+        return q, qd, qdd
+
+    @lazy
+    def _particle(self) -> tuple[np.ndarray, np.ndarray]:
+        """The particle's position (m) and velocity (m/s) at the pulse's samples: apart from the
+        structure's, which sensors read without them."""
+        b = self.problem.contact_shape
+        q, qd, _ = self._states
+        return -(b @ q) - self.pulse.penetration_m, -(b @ qd) - self.pulse.rate_mps
 
     q = property(lambda self: self._states[0])
     qd = property(lambda self: self._states[1])
     qdd = property(lambda self: self._states[2])
-    z_m = property(lambda self: self._states[3])
-    zd_mps = property(lambda self: self._states[4])
+    z_m = property(lambda self: self._particle[0])
+    zd_mps = property(lambda self: self._particle[1])
 
 
 def contact_phase(

@@ -12,11 +12,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 
 from tail_beam_sim.physics.contact import CrushingContact
+from tail_beam_sim.physics.solvers.lazy import lazy
 from tail_beam_sim.physics.structure import LinearStructure, reduced_mass_kg
 
 
@@ -117,7 +117,7 @@ class FreeSegment:
     z_m: float
     zd_mps: float
 
-    @cached_property
+    @lazy
     def at_rest(self) -> bool:
         """Whether the structure is at rest in this segment (q and qd all zero): it stays so."""
         return not (np.any(self.q) or np.any(self.qd))
@@ -233,17 +233,29 @@ class Trajectory:
         edges = np.searchsorted(which, np.arange(len(self.segments) + 1)).tolist()
         for index in range(len(self.segments)):
             lo, hi = edges[index], edges[index + 1]
-            if lo == hi:
-                continue
-            where = slice(lo, hi)
-            segment = self.segments[index]
-            if isinstance(segment, FreeSegment):
-                self._sample_free(segment, times[where], out, where)
-            elif isinstance(segment, OdeSegment):
-                self._sample_ode(segment, times[where], out, where)
-            else:
-                self._sample_contact(segment, times[where], out, where, self._stacks(index))
+            if lo != hi:
+                where = slice(lo, hi)
+                self._sample_on(index, times[where], out, where)
         return out
+
+    def sample_segment(self, index: int, t_s: np.ndarray) -> Samples:
+        """The states at times ``t_s`` evaluated on segment ``index``: what :meth:`sample`
+        gives for those of them that fall in it (the others read its formula beyond its
+        span)."""
+        times = np.asarray(t_s, dtype=float)
+        out = self._empty_samples(times)
+        self._sample_on(index, times, out, slice(None))
+        return out
+
+    def _sample_on(self, index: int, times: np.ndarray, out: Samples, where: slice) -> None:
+        """Segment ``index`` evaluated at ``times`` into positions ``where`` of ``out``."""
+        segment = self.segments[index]
+        if isinstance(segment, FreeSegment):
+            self._sample_free(segment, times, out, where)
+        elif isinstance(segment, OdeSegment):
+            self._sample_ode(segment, times, out, where)
+        else:
+            self._sample_contact(segment, times, out, where, self._stacks(index))
 
     def sample_many(self, parts: Sequence[np.ndarray]) -> list[Samples]:
         """Evaluate the state at several sets of times in one pass: the same values as
@@ -269,10 +281,10 @@ class Trajectory:
         if known is not None and known[0] is segment:
             return known[1]
         t = segment.t_s
-        steps = np.diff(t) if t.size > 1 else np.zeros(1)
+        steps = t[1:] - t[:-1] if t.size > 1 else np.zeros(1)  # np.diff(t)
         zdd = _gradient(segment.zd_mps, steps) if t.size > 1 else np.zeros(1)
-        values = np.vstack([segment.q, segment.qd, segment.z_m, segment.zd_mps])
-        slopes = np.vstack([segment.qd, segment.qdd, segment.zd_mps, zdd])
+        values = _rows(segment.q, segment.qd, segment.z_m, segment.zd_mps)
+        slopes = _rows(segment.qd, segment.qdd, segment.zd_mps, zdd)
         stacks = (values, slopes, steps, _step_polynomials(values, slopes, steps, segment))
         cache[index] = (segment, stacks)
         return stacks
@@ -353,20 +365,31 @@ def _step_polynomials(
     (nothing to interpolate)."""
     if steps.size < 1 or segment.t_s.size < 2:
         return None
+    hermite = values.shape[0]  # the rows of [q; q'; z; z'], then those of [q''; force]
+    qdd, force = segment.qdd, segment.force_n
+    # (4, 3n + 3, steps), each block written in place
+    coefficients = np.empty((4, hermite + qdd.shape[0] + 1, steps.size))
+    constant, linear, square, cube = coefficients
     v0, v1 = values[:, :-1], values[:, 1:]
-    m0, m1 = slopes[:, :-1] * steps, slopes[:, 1:] * steps
-    linear = np.vstack([segment.qdd, segment.force_n])
-    a0, a1 = linear[:, :-1], linear[:, 1:]
-    zero = np.zeros_like(a0)
-    coefficients = np.stack(
-        [
-            np.vstack([v0, a0]),
-            np.vstack([m0, a1 - a0]),
-            np.vstack([3.0 * (v1 - v0) - 2.0 * m0 - m1, zero]),
-            np.vstack([2.0 * (v0 - v1) + m0 + m1, zero]),
-        ]
-    )  # (4, 3n + 3, steps)
+    m0 = np.multiply(slopes[:, :-1], steps, out=linear[:hermite])
+    m1 = slopes[:, 1:] * steps
+    constant[:hermite] = v0
+    constant[hermite:-1] = qdd[:, :-1]
+    constant[-1] = force[:-1]
+    np.subtract(qdd[:, 1:], qdd[:, :-1], out=linear[hermite:-1])
+    np.subtract(force[1:], force[:-1], out=linear[-1])
+    square[:hermite] = 3.0 * (v1 - v0) - 2.0 * m0 - m1
+    cube[:hermite] = 2.0 * (v0 - v1) + m0 + m1
+    coefficients[2:, hermite:] = 0.0
     return np.ascontiguousarray(coefficients.transpose(2, 0, 1))
+
+
+def _rows(q: np.ndarray, qd: np.ndarray, z: np.ndarray, zd: np.ndarray) -> np.ndarray:
+    """``np.vstack([q, qd, z, zd])`` (q and qd (n, T), z and zd (T,)) written in place."""
+    n = q.shape[0]
+    out = np.empty((2 * n + 2, z.size))
+    out[:n], out[n : 2 * n], out[2 * n], out[2 * n + 1] = q, qd, z, zd
+    return out
 
 
 def _columnwise(matrix: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -19,10 +19,12 @@ import cmath
 import math
 from bisect import bisect_right
 from dataclasses import dataclass
-from functools import cached_property, lru_cache
+from functools import lru_cache
 
 import numpy as np
 from scipy.special import factorial
+
+from tail_beam_sim.physics.solvers.lazy import lazy
 
 PULSE_NODES = 64  # samples per contact: enough for cubic Hermite sampling to 1e-6 of the peak
 SUBSTEPS = 8  # RK4 steps between samples in the second pass
@@ -174,9 +176,12 @@ class Pulse:
             values[self.row + 1]
         )
 
-    def _rows(self, k: int) -> np.ndarray:
+    @lazy
+    def _blended(self) -> np.ndarray:
+        """The two table rows blended (3, samples): penetration, its rate and the force, each
+        row as a blend of its own alone would be, dimensionless."""
         rows = pulse_table().rows
-        return (1 - self.weight) * rows[self.row, k] + self.weight * rows[self.row + 1, k]
+        return (1 - self.weight) * rows[self.row] + self.weight * rows[self.row + 1]
 
     def spectrum(self, eigenvalues: np.ndarray) -> np.ndarray:
         """int_0^T F(s) e^{-lambda_k s} ds per eigenvalue, N s: a power series in lambda T over the
@@ -190,33 +195,33 @@ class Pulse:
         ] + self.weight * pulse_table().moments[self.row + 1]
         return (np.power.outer(-mu, _POWERS) @ moments) * (self.force_scale_n * self.duration_s)
 
-    @cached_property
+    @lazy
     def t_s(self) -> np.ndarray:
         return pulse_table().fractions * self.duration_s
 
-    @cached_property
+    @lazy
     def centroid_s(self) -> float:
         """Force-weighted mean time of the pulse, s."""
         return float(self.force_n @ self.t_s) / float(self.force_n.sum())
 
-    @cached_property
+    @lazy
     def width_s(self) -> float:
         """Force-weighted RMS spread of the pulse about its centroid, s."""
         return math.sqrt(
             float(self.force_n @ (self.t_s - self.centroid_s) ** 2) / float(self.force_n.sum())
         )
 
-    @cached_property
+    @lazy
     def force_n(self) -> np.ndarray:
-        return self._rows(2) * self.force_scale_n
+        return self._blended[2] * self.force_scale_n
 
-    @cached_property
+    @lazy
     def penetration_m(self) -> np.ndarray:
-        return self._rows(0) * self.length_m
+        return self._blended[0] * self.length_m
 
-    @cached_property
+    @lazy
     def rate_mps(self) -> np.ndarray:
-        return self._rows(1) * self.approach_mps
+        return self._blended[1] * self.approach_mps
 
 
 def contact_pulse(
