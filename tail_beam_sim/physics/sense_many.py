@@ -110,7 +110,7 @@ SMALL_ANGLE_RAD = 1e-3  # below it, cos and sin by their Taylor polynomials (to 
 def _cos(angle: np.ndarray) -> np.ndarray:
     """cos of small angles (the beam's sway at the IMU, 1e-4 rad) as 1 - a^2/2 + a^4/24 (the
     next term, a^6/720, is under 2e-21 there: float rounding), np.cos otherwise."""
-    if angle.size and float(np.max(np.abs(angle))) < SMALL_ANGLE_RAD:
+    if angle.size and np.abs(angle).max() < SMALL_ANGLE_RAD:
         square = angle * angle
         return 1.0 - square * (0.5 - square * (1.0 / 24.0))
     return np.cos(angle)
@@ -128,7 +128,7 @@ def _small_cos_in_place(angle: np.ndarray) -> np.ndarray:
 
 def _sin(angle: np.ndarray) -> np.ndarray:
     """sin of small angles as a - a^3/6 + a^5/120 (:func:`_cos`), np.sin otherwise."""
-    if angle.size and float(np.max(np.abs(angle))) < SMALL_ANGLE_RAD:
+    if angle.size and np.abs(angle).max() < SMALL_ANGLE_RAD:
         square = angle * angle
         return angle * (1.0 - square * (1.0 / 6.0 - square * (1.0 / 120.0)))
     return np.sin(angle)

@@ -54,6 +54,7 @@ from tail_beam_sim.physics.sensors import (
 )
 from tail_beam_sim.physics.solvers import ImpactProblem, Samples, Trajectory, solve
 from tail_beam_sim.physics.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
+from tail_beam_sim.physics.solvers.pulse import shared_pulses
 from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
 from tail_beam_sim.physics.support import Support
 
@@ -180,10 +181,12 @@ def simulate(
     """
     settings = settings or shipped_settings()
     needs = needs or settings.needs
-    chosen, problem, method, options = _prepare(scene, tier, needs, settings, solver)
-    # One scene alone: the solver and the per-trajectory sensors (the group path's fixed cost
-    # is larger than its saving for one impact; simulate_many takes it for many).
-    trajectory = solve(problem, method, **{**options, **solver_options})
+    # the plan's contact pulse is the solver's when their arguments agree (shared_pulses)
+    with shared_pulses():
+        chosen, problem, method, options = _prepare(scene, tier, needs, settings, solver)
+        # One scene alone: the solver and the per-trajectory sensors (the group path's fixed
+        # cost is larger than its saving for one impact; simulate_many takes it for many).
+        trajectory = solve(problem, method, **{**options, **solver_options})
     result = _finish(scene, chosen, trajectory, vibration)
     if check and chosen.check_against is not None:
         reference = simulate(scene, tier=chosen.check_against, needs=needs, settings=settings)

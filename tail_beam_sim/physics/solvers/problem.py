@@ -120,7 +120,7 @@ class FreeSegment:
     @lazy
     def at_rest(self) -> bool:
         """Whether the structure is at rest in this segment (q and qd all zero): it stays so."""
-        return not (np.any(self.q) or np.any(self.qd))
+        return not (self.q.any() or self.qd.any())
 
 
 @dataclass

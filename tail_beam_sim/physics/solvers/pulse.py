@@ -18,6 +18,9 @@ from __future__ import annotations
 import cmath
 import math
 from bisect import bisect_right
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -224,10 +227,42 @@ class Pulse:
         return self._blended[1] * self.approach_mps
 
 
+# The pulses made within :func:`shared_pulses`, by their arguments (None outside it).
+_SHARED: ContextVar[dict[tuple[float, float, float, float], Pulse] | None] = ContextVar(
+    "shared_pulses", default=None
+)
+
+
+@contextmanager
+def shared_pulses() -> Iterator[None]:
+    """Within it, :func:`contact_pulse` asked again with the same arguments (one impact's
+    plan and its solver) returns the same pulse, its samples computed once; forgotten on
+    exit, so that nothing outlives the call that made it."""
+    token = _SHARED.set({})
+    try:
+        yield
+    finally:
+        _SHARED.reset(token)
+
+
 def contact_pulse(
     chi: float, hertz_stiffness: float, reduced_mass_kg: float, approach_mps: float
 ) -> Pulse:
-    """The pulse of a contact with hysteresis ``chi`` (blend of the two nearest table rows)."""
+    """The pulse of a contact with hysteresis ``chi`` (blend of the two nearest table rows);
+    within :func:`shared_pulses`, one per distinct set of arguments (a pulse is only read)."""
+    shared = _SHARED.get()
+    if shared is None:
+        return _contact_pulse(chi, hertz_stiffness, reduced_mass_kg, approach_mps)
+    key = (chi, hertz_stiffness, reduced_mass_kg, approach_mps)
+    pulse = shared.get(key)
+    if pulse is None:
+        pulse = shared[key] = _contact_pulse(*key)
+    return pulse
+
+
+def _contact_pulse(
+    chi: float, hertz_stiffness: float, reduced_mass_kg: float, approach_mps: float
+) -> Pulse:
     table = pulse_table()
     i = min(max(bisect_right(_chi_list(), chi) - 1, 0), table.chi.size - 2)
     lo, hi = float(table.chi[i]), float(table.chi[i + 1])
