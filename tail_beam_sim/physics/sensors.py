@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cached_property, lru_cache
+from functools import lru_cache
 
 import numpy as np
 from numpy.random.bit_generator import ISeedSequence
@@ -42,6 +42,7 @@ from numpy.random.bit_generator import ISeedSequence
 from tail_beam_sim.physics import seeds
 from tail_beam_sim.physics.ringdown_filtering import filtered_ringdown, settle_steps
 from tail_beam_sim.physics.scene import SensorSpec
+from tail_beam_sim.physics.solvers.lazy import lazy
 from tail_beam_sim.physics.solvers.problem import FreeSegment, Samples, Trajectory
 from tail_beam_sim.physics.support import Support
 
@@ -107,7 +108,8 @@ class SensorNoise:
 
     def pressure(self, clean_pa: np.ndarray, unit: np.ndarray) -> np.ndarray:
         """Pressure readings, Pa: a saturated transducer reads its limit."""
-        return np.clip(clean_pa + self.pressure_pa * unit, *self.pressure_range_pa)
+        low, high = self.pressure_range_pa
+        return np.minimum(np.maximum(clean_pa + self.pressure_pa * unit, low), high)  # np.clip
 
     def gyro(self, clean_radps: np.ndarray, unit: np.ndarray) -> np.ndarray:
         """Angular velocity readings, rad/s."""
@@ -233,23 +235,23 @@ class SensorSuite:
         # generator is made from its child when first used.
         self._children = _seed_children(spec.seed if seed is None else seed)
 
-    @cached_property
+    @lazy
     def _pressure_rng(self) -> np.random.Generator:
         return seeds.generator(self._children[0])
 
-    @cached_property
+    @lazy
     def _imu_rng(self) -> np.random.Generator:
         return seeds.generator(self._children[1])
 
-    @cached_property
+    @lazy
     def _camera_rng(self) -> np.random.Generator:
         return seeds.generator(self._children[2])
 
-    @cached_property
+    @lazy
     def _vibration_rng(self) -> np.random.Generator:
         return seeds.generator(self._children[4])
 
-    @cached_property
+    @lazy
     def _point_rng(self) -> np.random.Generator:
         return seeds.generator(self._children[5])
 

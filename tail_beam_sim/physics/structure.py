@@ -233,30 +233,33 @@ class BendingMode:
                 x_m,
                 f"position must be in [{stations[0]:g}, {stations[-1]:g}] m",
             )
-        k = min(max(int(np.searchsorted(stations, x_m, side="right")) - 1, 0), stations.size - 2)
+        k = min(max(int(stations.searchsorted(x_m, side="right")) - 1, 0), stations.size - 2)
         h = float(stations[k + 1] - stations[k])
         return k, h, (x_m - float(stations[k])) / h
 
     def shape_at(self, x_m: float) -> float:
         """Plate displacement per unit eta at ``x_m`` (m/m)."""
         k, h, s = self._locate(x_m)
-        w, t = self.shape, self.slope_radpm
+        # Python floats: the same double arithmetic as numpy's scalars, a fraction of the cost
+        w0, w1 = self.shape[k : k + 2].tolist()
+        t0, t1 = self.slope_radpm[k : k + 2].tolist()
         return float(
-            (2 * s**3 - 3 * s**2 + 1) * w[k]
-            + (s**3 - 2 * s**2 + s) * h * t[k]
-            + (-2 * s**3 + 3 * s**2) * w[k + 1]
-            + (s**3 - s**2) * h * t[k + 1]
+            (2 * s**3 - 3 * s**2 + 1) * w0
+            + (s**3 - 2 * s**2 + s) * h * t0
+            + (-2 * s**3 + 3 * s**2) * w1
+            + (s**3 - s**2) * h * t1
         )
 
     def slope_at(self, x_m: float) -> float:
         """Plate rotation per unit eta at ``x_m`` (rad/m)."""
         k, h, s = self._locate(x_m)
-        w, t = self.shape, self.slope_radpm
+        w0, w1 = self.shape[k : k + 2].tolist()
+        t0, t1 = self.slope_radpm[k : k + 2].tolist()
         return float(
-            (6 * s**2 - 6 * s) / h * w[k]
-            + (3 * s**2 - 4 * s + 1) * t[k]
-            + (-6 * s**2 + 6 * s) / h * w[k + 1]
-            + (3 * s**2 - 2 * s) * t[k + 1]
+            (6 * s**2 - 6 * s) / h * w0
+            + (3 * s**2 - 4 * s + 1) * t0
+            + (-6 * s**2 + 6 * s) / h * w1
+            + (3 * s**2 - 2 * s) * t1
         )
 
 

@@ -321,7 +321,7 @@ def structure_response(
     eigenvalues, vectors, inverse = eigen
     n = load.size
     h = float(t_s[1] - t_s[0])
-    weights = np.array([_segment_weights(complex(lam) * h, h) for lam in eigenvalues]).T
+    weights = np.array([_segment_weights(complex(lam) * h, h) for lam in eigenvalues.tolist()]).T
     beta = inverse[:, n:] @ load
     increments = (beta * weights[0])[:, None] * force_n[:-1] + (beta * weights[1])[
         :, None
