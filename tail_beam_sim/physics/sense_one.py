@@ -39,8 +39,8 @@ from tail_beam_sim.physics.ringdown_filtering import _dense_gain
 from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.sense_many import (
     HISTORY_RATE_HZ,
+    SMALL_ANGLE_RAD,
     _cos,
-    _sin,
     summary_figures,
     supported,
 )
@@ -164,8 +164,9 @@ def sense_one(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> S
     gyro = np.zeros((imu_stamps.size, 3))
     gyro[:, 1] = (angle - before[IMU_ANGLE]) / period
     accel = np.zeros((imu_stamps.size, 3))
-    accel[:, 0] = -structure.imu_from_hinge_m * at_now[PITCH_RATE] ** 2 - g * _sin(angle)
-    accel[:, 2] = g * _cos(angle) - (at_now[IMU_VELOCITY] - before[IMU_VELOCITY]) / period
+    cos, sin = _cos_sin(angle)
+    accel[:, 0] = -structure.imu_from_hinge_m * at_now[PITCH_RATE] ** 2 - g * sin
+    accel[:, 2] = g * cos - (at_now[IMU_VELOCITY] - before[IMU_VELOCITY]) / period
     rng = suite._imu_rng
     gyro = noise.gyro(gyro, rng.standard_normal(gyro.shape))
     accel = noise.accel(accel, rng.standard_normal(accel.shape))
@@ -224,6 +225,17 @@ def _tail_start(uniform: np.ndarray, last: FreeSegment) -> int:
     """The first of the histories' ``uniform`` instants on free segment ``last`` (the last) and
     at or after its anchor: from it on every instant of the histories is a uniform one."""
     return int(uniform.searchsorted(max(last.start_s, last.anchor_s)))
+
+
+def _cos_sin(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``sense_many._cos`` and ``_sin`` of the same angles, which are small or not for both."""
+    if angle.size and np.abs(angle).max() < SMALL_ANGLE_RAD:
+        square = angle * angle
+        return (
+            1.0 - square * (0.5 - square * (1.0 / 24.0)),
+            angle * (1.0 - square * (1.0 / 6.0 - square * (1.0 / 120.0))),
+        )
+    return np.cos(angle), np.sin(angle)
 
 
 def _contact_steps(scene: Scene, trajectory: Trajectory) -> list[np.ndarray]:
@@ -306,10 +318,10 @@ def _evaluate(
     if len(segments) == 1:
         return out, on_grids
     starts = np.array([segment.start_s for segment in segments])
-    which = np.searchsorted(starts, times, side="right") - 1
+    which = starts.searchsorted(times, side="right") - 1
     n = structure.size
     for index in range(len(segments) - 1):
-        chosen = np.flatnonzero(which <= 0 if index == 0 else which == index)
+        chosen = (which <= 0 if index == 0 else which == index).nonzero()[0]
         if not chosen.size:
             continue
         segment = segments[index]
@@ -363,7 +375,8 @@ def _contact_readings(
     coefficients[2:, 2 * n :] = 0.0
     k = np.minimum(np.maximum(t.searchsorted(times, side="right") - 1, 0), t.size - 2)
     h = steps[k]
-    s = np.where(h > 0, (times - t[k]) / np.where(h > 0, h, 1.0), 0.0)
+    positive = h > 0
+    s = np.where(positive, (times - t[k]) / np.where(positive, h, 1.0), 0.0)
     c = coefficients[:, :, k]  # (4, 3n, T)
     states = c[0] + s * (c[1] + s * (c[2] + s * c[3]))
     np.matmul(_readouts(structure)[3], states, out=out[:LINEAR])

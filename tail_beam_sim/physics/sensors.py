@@ -202,6 +202,8 @@ def dense_imu_response(
 
 
 SEED_CHILDREN = 6  # a suite's children of its seed (SensorSuite.__init__)
+_ALONG_X_AND_Z = np.array([1.0, 0.0, 1.0])  # the camera's noise mask (rebound: no y)
+_ALONG_X_AND_Z.flags.writeable = False
 
 
 def _seed_children(seed: int) -> tuple[ISeedSequence, ...]:
@@ -437,7 +439,7 @@ class SensorSuite:
         spec = self.spec
         true = np.array([0.0, 0.0, trajectory.rebound_velocity_mps])
         sigma = spec.camera_velocity_noise_mps + spec.camera_velocity_noise_fraction * abs(true[2])
-        measured = true + self._camera_rng.normal(0.0, sigma, 3) * np.array([1.0, 0.0, 1.0])
+        measured = true + self._camera_rng.normal(0.0, sigma, 3) * _ALONG_X_AND_Z
         separation = contact_stamp_s + trajectory.final_separation_s
         stamp = (
             math.ceil(separation * spec.camera_frame_rate_hz - 1e-9) / spec.camera_frame_rate_hz

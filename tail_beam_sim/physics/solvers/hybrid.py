@@ -376,7 +376,7 @@ def plate_speed_bound_mps(
     if modal is None:
         modal = inverse @ np.concatenate([q0, qd0])
     rows = problem.contact_shape @ vectors[n:]
-    return float(np.sum(np.abs(rows * modal)))
+    return float(np.abs(rows * modal).sum())
 
 
 def next_contact_time(
