@@ -33,6 +33,8 @@ def effective_modulus_pa(a: Material, b: Material) -> float:
 def hertz_constant(effective_modulus_pa: Number, radius_m: Number) -> Number:
     """Hertz constant K = 4/3 E* sqrt(R) of a sphere of radius R (m) on a flat, N/m^1.5
     (floats, or arrays for a batch of particles)."""
+    if type(radius_m) is float:  # one particle: math's sqrt, correctly rounded as numpy's
+        return 4.0 / 3.0 * effective_modulus_pa * math.sqrt(radius_m)
     root = np.sqrt(radius_m)
     return 4.0 / 3.0 * effective_modulus_pa * (float(root) if np.ndim(root) == 0 else root)
 

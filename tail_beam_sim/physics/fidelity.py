@@ -169,21 +169,37 @@ def shipped_settings() -> FidelitySettings:
 
 
 _STRUCTURES: dict[tuple[Support, int, bool], tuple[Sequence[BendingMode], LinearStructure]] = {}
+_RECENT: dict[tuple[int, int, bool], tuple[Support, Sequence[BendingMode], LinearStructure]] = {}
 STRUCTURE_CACHE_SIZE = 64
 
 
 def structure_for(tier: Tier, support: Support, modes: Sequence[BendingMode]) -> LinearStructure:
     """The linear structure ``tier`` uses on ``support`` (built once per support and mode set:
     its eigen-decomposition is the costly part)."""
+    # the same support object as a recent call: found by identity, without hashing its fields
+    recent = _RECENT.get((id(support), id(modes), tier.bending_modes))
+    if recent is not None and recent[0] is support and recent[1] is modes:
+        return recent[2]
     key = (support, id(modes), tier.bending_modes)
     cached = _STRUCTURES.get(key)
-    if cached is not None and cached[0] is modes:
-        return cached[1]
+    if cached is None or cached[0] is not modes:
+        cached = _build_structure(key, tier, support, modes)
+    if len(_RECENT) >= STRUCTURE_CACHE_SIZE:
+        _RECENT.clear()
+    # holding ``support`` and ``modes`` keeps their ids from being reused
+    _RECENT[(id(support), id(modes), tier.bending_modes)] = (support, modes, cached[1])
+    return cached[1]
+
+
+def _build_structure(
+    key: tuple[Support, int, bool], tier: Tier, support: Support, modes: Sequence[BendingMode]
+) -> tuple[Sequence[BendingMode], LinearStructure]:
+    """The structure of ``tier`` on ``support``, kept under ``key`` with its ``modes``."""
     structure = beam_with_modes(support, modes) if tier.bending_modes else rigid_beam(support)
     if len(_STRUCTURES) >= STRUCTURE_CACHE_SIZE:
         _STRUCTURES.clear()
-    _STRUCTURES[key] = (modes, structure)  # holding ``modes`` keeps its id from being reused
-    return structure
+    cached = _STRUCTURES[key] = (modes, structure)  # holding ``modes`` keeps its id
+    return cached
 
 
 @dataclass
