@@ -56,12 +56,13 @@ class ImpactProblem:
     qd0: np.ndarray
     crushing: CrushingContact | None = None
 
-    @property
+    @lazy
     def contact_load(self) -> np.ndarray:
-        """M^-1 b: the structure's acceleration per newton at the contact point."""
+        """M^-1 b: the structure's acceleration per newton at the contact point (kept: the
+        problem is frozen)."""
         return self.structure.inv_mass @ self.contact_shape
 
-    @property
+    @lazy
     def reduced_mass_kg(self) -> float:
         """The particle's and the plate's effective mass at the contact point, in series, kg."""
         # Written with the compliance b^T M^-1 b, so that it stays finite over the hinge (a
