@@ -121,17 +121,20 @@ def require_section(field: str, value: object) -> Mapping[str, Any]:
 def require_int(field: str, value: object, low: int | None = None, high: int | None = None) -> int:
     """Return ``value``, an integer within [low, high] (either bound optional), or raise
     InputError naming the field and the allowed range (a bool, a float or a string is refused)."""
-    if low is not None and high is not None:
-        allowed = f"must be an integer in [{low}, {high}]"
-    elif low is not None:
-        allowed = f"must be an integer >= {low}"
-    elif high is not None:
-        allowed = f"must be an integer <= {high}"
-    else:
-        allowed = "must be an integer"
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise InputError(field, value, allowed)
-    if (low is not None and value < low) or (high is not None and value > high):
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int)
+        or (low is not None and value < low)
+        or (high is not None and value > high)
+    ):
+        if low is not None and high is not None:
+            allowed = f"must be an integer in [{low}, {high}]"
+        elif low is not None:
+            allowed = f"must be an integer >= {low}"
+        elif high is not None:
+            allowed = f"must be an integer <= {high}"
+        else:
+            allowed = "must be an integer"
         raise InputError(field, value, allowed)
     return value
 

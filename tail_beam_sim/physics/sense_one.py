@@ -41,6 +41,7 @@ from tail_beam_sim.physics.sense_many import (
     HISTORY_RATE_HZ,
     SMALL_ANGLE_RAD,
     _cos,
+    _small_cos_in_place,
     summary_figures,
     supported,
 )
@@ -275,7 +276,13 @@ def _blocks(
         filter_.settle(g)
     samples[rest : rest + filtered] = filter_(dense)[::oversample]
     if ringdown.shape[1]:
-        np.add(g * _cos(ringdown[IMU_ANGLE]), ringdown[RINGDOWN], out=samples[rest + filtered :])
+        # the ring-down's angle row is read once: its cosine computed in its own memory
+        angle = ringdown[IMU_ANGLE]
+        if np.abs(angle).max() < SMALL_ANGLE_RAD:
+            cos = np.multiply(_small_cos_in_place(angle), g, out=angle)
+        else:
+            cos = g * np.cos(angle)
+        np.add(cos, ringdown[RINGDOWN], out=samples[rest + filtered :])
     samples += suite._vibration_rng.normal(0.0, spec.vibration_noise_mps2, samples.size)
     limit = spec.vibration_range_mps2
     np.minimum(np.maximum(samples, -limit, out=samples), limit, out=samples)  # np.clip
@@ -390,7 +397,7 @@ def _free_weights(
     the ring-down ``gain`` (zero without); None at rest."""
     if segment.at_rest:
         return None
-    free_rows, modes, inverse, _ = _readouts(structure)
+    free_rows, modes, inverse, _, _ = _readouts(structure)
     keep, _, _, weight = structure._half_spectrum
     modal = inverse @ np.concatenate([segment.q, segment.qd])
     amplitude = modes * (weight * modal)  # (2n, k)
@@ -448,8 +455,7 @@ def _grid_readings(
     if weights is None:
         out[linear] = 0.0
         return
-    keep = structure._half_spectrum[0]
-    first = np.exp(structure._eigen[0][keep] * (float(instants[0]) - segment.anchor_s))
+    first = np.exp(_readouts(structure)[4] * (float(instants[0]) - segment.anchor_s))
     cos, sin = _grid_basis(structure, step_s, instants.size)
     _modal_sum(weights[linear] * first, cos, sin, out[linear])
 
@@ -493,7 +499,7 @@ def _modal_sum(weights: np.ndarray, cos: np.ndarray, sin: np.ndarray, out: np.nd
         out -= weights.imag @ sin
 
 
-Readouts = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+Readouts = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 _READOUTS: dict[int, tuple[LinearStructure, Readouts]] = {}
 READOUT_CACHE_SIZE = 64
 
@@ -502,7 +508,7 @@ def _readouts(structure: LinearStructure) -> Readouts:
     """The readings' rows, kept per structure: over a free state [q; q'] (LINEAR, 2n), q''
     from the structure's own forces; the eigenvectors of its half spectrum (2n, k) and the
     rows of their inverse that give its modal amplitudes (k, 2n); over [q; q'; q''] (LINEAR,
-    3n), as a segment's samples give them."""
+    3n), as a segment's samples give them; the half spectrum's eigenvalues (k, 1/s)."""
     cached = _READOUTS.get(id(structure))
     if cached is not None and cached[0] is structure:
         return cached[1]
@@ -525,7 +531,7 @@ def _readouts(structure: LinearStructure) -> Readouts:
     )
     _, vectors, inverse = structure._eigen
     keep = structure._half_spectrum[0]
-    rows = (free, vectors[:, keep], inverse[keep], state)
+    rows = (free, vectors[:, keep], inverse[keep], state, structure._eigen[0][keep])
     if len(_READOUTS) >= READOUT_CACHE_SIZE:
         _READOUTS.clear()
     _READOUTS[id(structure)] = (structure, rows)  # holding it keeps its id from being reused
