@@ -235,11 +235,10 @@ def collector_paused() -> Iterator[None]:
     """Python's cyclic garbage collector off within (on again after, if it was on before).
 
     A group allocates a few tens of small objects per scene (results, trajectories, segments,
-    summaries, generators), most of which outlive the call; each 700 of them start a collection
-    and every tenth of those a collection of the older generation, and, as they pile up, a full
-    collection walks the whole heap, whose cost grows with the caller's heap rather than with
-    the group. Reference counting still frees everything at once; the cycles left, if any, go at
-    the next collection after."""
+    summaries, generators), most of which outlive the call: left on, the collector walks them
+    again and again as they pile up, and its full collections walk the caller's whole heap, a
+    cost that grows with the caller rather than with the group. Reference counting still frees
+    everything as before; the few cycles left go at the next collection after the call."""
     was_on = gc.isenabled()
     gc.disable()
     try:
