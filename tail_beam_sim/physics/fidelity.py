@@ -291,8 +291,9 @@ def _model_errors_group(
     rigid = structure_for(TIERS["rigid"], support, modes)
     modal = structure_for(TIERS["modal"], support, modes)
     impacts = [scene.impact for scene in scenes]
-    shape_rigid = np.array([rigid.contact_shape(i.position_m) for i in impacts])
-    shape_modal = np.array([modal.contact_shape(i.position_m) for i in impacts])
+    positions = [i.position_m for i in impacts]
+    shape_rigid = rigid.contact_shapes(positions)
+    shape_modal = modal.contact_shapes(positions)
     c_rigid = np.einsum("si,ij,sj->s", shape_rigid, rigid.inv_mass, shape_rigid)
     c_modal = np.einsum("si,ij,sj->s", shape_modal, modal.inv_mass, shape_modal)
     mass = np.array([i.mass_kg for i in impacts])
