@@ -50,7 +50,7 @@ from tail_beam_sim.physics.structure import (
     reduced_mass_kg,
     rigid_beam,
 )
-from tail_beam_sim.physics.support import Support
+from tail_beam_sim.physics.support import Support, support_indices
 from tail_beam_sim.spec import FIDELITY
 
 OUTPUTS = ("rebound", "contact", "pressure", "imu")
@@ -271,9 +271,15 @@ def model_errors_many(
     """:func:`model_errors` of every scene (the same estimates to rounding), in array
     operations over the scenes that share a support, sample rates and window."""
     groups: dict[tuple[Any, ...], list[int]] = {}
+    support_index = support_indices()
     for k, scene in enumerate(scenes):
         spec = scene.sensors
-        key = (scene.support, spec.pressure_rate_hz, spec.imu_rate_hz, scene.window_s)
+        key = (
+            support_index(scene.support),
+            spec.pressure_rate_hz,
+            spec.imu_rate_hz,
+            scene.window_s,
+        )
         groups.setdefault(key, []).append(k)
     out: list[dict[str, float]] = [{} for _ in scenes]
     for members in groups.values():

@@ -58,7 +58,7 @@ from tail_beam_sim.physics.solvers import ImpactProblem, Samples, Trajectory, so
 from tail_beam_sim.physics.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
 from tail_beam_sim.physics.solvers.pulse import shared_pulses
 from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
-from tail_beam_sim.physics.support import Support
+from tail_beam_sim.physics.support import Support, support_indices
 
 __all__ = [
     "HISTORY_RATE_HZ",
@@ -271,10 +271,11 @@ def _simulate_many(
         if len(scenes) >= MIN_GROUP
         else [plan(scene, tier, needs, settings) for scene in scenes]
     )
+    support_index = support_indices()
     for scene, chosen in zip(scenes, plans_made):
         problem, method, options = _problem(scene, chosen, settings, None)
         key = (
-            scene.support,
+            support_index(scene.support),
             scene.impact,
             scene.contact_model,
             scene.window_s,
