@@ -271,11 +271,11 @@ class BendingMode:
         if not inside.all():
             self._locate(float(x_m[~inside][0]))  # raises, naming the position
         k = np.clip(stations.searchsorted(x_m, side="right") - 1, 0, stations.size - 2)
-        h = stations[k + 1] - stations[k]
+        widths = stations[k + 1] - stations[k]
         out = []
         for s, h, w0, w1, t0, t1 in zip(
-            ((x_m - stations[k]) / h).tolist(),
-            h.tolist(),
+            ((x_m - stations[k]) / widths).tolist(),
+            widths.tolist(),
             self.shape[k].tolist(),
             self.shape[k + 1].tolist(),
             self.slope_radpm[k].tolist(),
