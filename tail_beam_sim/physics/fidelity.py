@@ -50,7 +50,7 @@ from tail_beam_sim.physics.structure import (
     reduced_mass_kg,
     rigid_beam,
 )
-from tail_beam_sim.physics.support import Support
+from tail_beam_sim.physics.support import Support, support_indices
 from tail_beam_sim.spec import FIDELITY
 
 OUTPUTS = ("rebound", "contact", "pressure", "imu")
@@ -271,9 +271,15 @@ def model_errors_many(
     """:func:`model_errors` of every scene (the same estimates to rounding), in array
     operations over the scenes that share a support, sample rates and window."""
     groups: dict[tuple[Any, ...], list[int]] = {}
+    support_index = support_indices()
     for k, scene in enumerate(scenes):
         spec = scene.sensors
-        key = (scene.support, spec.pressure_rate_hz, spec.imu_rate_hz, scene.window_s)
+        key = (
+            support_index(scene.support),
+            spec.pressure_rate_hz,
+            spec.imu_rate_hz,
+            scene.window_s,
+        )
         groups.setdefault(key, []).append(k)
     out: list[dict[str, float]] = [{} for _ in scenes]
     for members in groups.values():
@@ -291,8 +297,9 @@ def _model_errors_group(
     rigid = structure_for(TIERS["rigid"], support, modes)
     modal = structure_for(TIERS["modal"], support, modes)
     impacts = [scene.impact for scene in scenes]
-    shape_rigid = np.array([rigid.contact_shape(i.position_m) for i in impacts])
-    shape_modal = np.array([modal.contact_shape(i.position_m) for i in impacts])
+    positions = [i.position_m for i in impacts]
+    shape_rigid = rigid.contact_shapes(positions)
+    shape_modal = modal.contact_shapes(positions)
     c_rigid = np.einsum("si,ij,sj->s", shape_rigid, rigid.inv_mass, shape_rigid)
     c_modal = np.einsum("si,ij,sj->s", shape_modal, modal.inv_mass, shape_modal)
     mass = np.array([i.mass_kg for i in impacts])

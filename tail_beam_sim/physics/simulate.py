@@ -13,8 +13,10 @@ them) and a summary.
 
 from __future__ import annotations
 
+import gc
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -56,7 +58,7 @@ from tail_beam_sim.physics.solvers import ImpactProblem, Samples, Trajectory, so
 from tail_beam_sim.physics.solvers.hybrid import DEFAULT_PULSE_TOLERANCE
 from tail_beam_sim.physics.solvers.pulse import shared_pulses
 from tail_beam_sim.physics.structure import LinearStructure, rigid_beam
-from tail_beam_sim.physics.support import Support
+from tail_beam_sim.physics.support import Support, support_indices
 
 __all__ = [
     "HISTORY_RATE_HZ",
@@ -221,7 +223,39 @@ def simulate_many(
     their rates and window are sampled together (:mod:`~tail_beam_sim.physics.sense_many`),
     one array operation per signal for the group, when there are MIN_GROUP or more; the others
     one by one. A grouped result's histories are computed when first read.
+
+    Python's cycle collector is paused meanwhile (:func:`collector_paused`).
     """
+    with collector_paused():
+        return _simulate_many(scenes, tier, needs, settings, vibration)
+
+
+@contextmanager
+def collector_paused() -> Iterator[None]:
+    """Python's cyclic garbage collector off within (on again after, if it was on before).
+
+    A group allocates a few tens of small objects per scene (results, trajectories, segments,
+    summaries, generators), most of which outlive the call: left on, the collector walks them
+    again and again as they pile up, and its full collections walk the caller's whole heap, a
+    cost that grows with the caller rather than with the group. Reference counting still frees
+    everything as before; the few cycles left go at the next collection after the call."""
+    was_on = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_on:
+            gc.enable()
+
+
+def _simulate_many(
+    scenes: Iterable[Scene],
+    tier: str,
+    needs: Needs | None,
+    settings: FidelitySettings | None,
+    vibration: bool | Sequence[bool],
+) -> list[SimulationResult]:
+    """:func:`simulate_many`'s work."""
     settings = settings or shipped_settings()
     needs = needs or settings.needs
     scenes = list(scenes)
@@ -237,10 +271,11 @@ def simulate_many(
         if len(scenes) >= MIN_GROUP
         else [plan(scene, tier, needs, settings) for scene in scenes]
     )
+    support_index = support_indices()
     for scene, chosen in zip(scenes, plans_made):
         problem, method, options = _problem(scene, chosen, settings, None)
         key = (
-            scene.support,
+            support_index(scene.support),
             scene.impact,
             scene.contact_model,
             scene.window_s,

@@ -51,6 +51,10 @@ class LinearStructure:
     setting_pressure_pa: float
     imu_from_hinge_m: float
     gravity_mps2: float
+    # contact_shape_fn of many positions at once, (positions, size); None: one by one
+    contact_shapes_fn: Callable[[np.ndarray], np.ndarray] | None = field(
+        default=None, repr=False, compare=False
+    )
     _eigen: tuple[np.ndarray, np.ndarray, np.ndarray] = field(
         init=False, repr=False, compare=False
     )
@@ -99,6 +103,14 @@ class LinearStructure:
     def contact_shape(self, position_m: float) -> np.ndarray:
         """Plate displacement away from the particle at ``position_m`` per unit of each q."""
         return np.asarray(self.contact_shape_fn(position_m), dtype=float)
+
+    def contact_shapes(self, positions_m: Sequence[float]) -> np.ndarray:
+        """:meth:`contact_shape` of each position, (positions, size): the same values."""
+        if self.contact_shapes_fn is None:
+            return np.array([self.contact_shape(x) for x in positions_m], dtype=float)
+        return np.asarray(
+            self.contact_shapes_fn(np.asarray(positions_m, dtype=float)), dtype=float
+        )
 
     def contact_compliance(self, shape: np.ndarray) -> float:
         """b^T M^-1 b: the contact point's velocity change per unit impulse, 1/kg.
@@ -193,6 +205,7 @@ def rigid_beam(support: Support) -> LinearStructure:
         damping=np.array([[support.rotational_damping_nmsprad]]),
         stiffness=np.array([[support.rotational_stiffness_nmprad]]),
         contact_shape_fn=lambda x: np.array([x]),
+        contact_shapes_fn=lambda xs: xs[:, None].copy(),
         jack_shape=np.array([lever]),
         imu_shape=np.array([support.imu_from_hinge_m]),
         imu_slope_shape=np.array([1.0]),
@@ -249,6 +262,32 @@ class BendingMode:
             + (-2 * s**3 + 3 * s**2) * w1
             + (s**3 - s**2) * h * t1
         )
+
+    def shapes_at(self, x_m: np.ndarray) -> np.ndarray:
+        """:meth:`shape_at` of each position (one search of the stations for all; the
+        polynomial in Python floats, as there: the same values)."""
+        stations = self.stations_m
+        inside = (stations[0] - 1e-9 <= x_m) & (x_m <= stations[-1] + 1e-9)
+        if not inside.all():
+            self._locate(float(x_m[~inside][0]))  # raises, naming the position
+        k = np.clip(stations.searchsorted(x_m, side="right") - 1, 0, stations.size - 2)
+        widths = stations[k + 1] - stations[k]
+        out = []
+        for s, h, w0, w1, t0, t1 in zip(
+            ((x_m - stations[k]) / widths).tolist(),
+            widths.tolist(),
+            self.shape[k].tolist(),
+            self.shape[k + 1].tolist(),
+            self.slope_radpm[k].tolist(),
+            self.slope_radpm[k + 1].tolist(),
+        ):
+            out.append(
+                (2 * s**3 - 3 * s**2 + 1) * w0
+                + (s**3 - 2 * s**2 + s) * h * t0
+                + (-2 * s**3 + 3 * s**2) * w1
+                + (s**3 - s**2) * h * t1
+            )
+        return np.array(out)
 
     def slope_at(self, x_m: float) -> float:
         """Plate rotation per unit eta at ``x_m`` (rad/m)."""
@@ -345,6 +384,7 @@ def beam_with_modes(support: Support, modes: Sequence[BendingMode]) -> LinearStr
         damping=np.diag(own_damping) + support.jack_damping_nspm * np.outer(jack, jack),
         stiffness=np.diag(own_stiffness) + support.jack_stiffness_npm * np.outer(jack, jack),
         contact_shape_fn=lambda x: np.array([x] + [m.shape_at(x) for m in modes]),
+        contact_shapes_fn=lambda xs: np.column_stack([xs] + [m.shapes_at(xs) for m in modes]),
         jack_shape=jack,
         imu_shape=np.array([x_imu] + [m.shape_at(x_imu) for m in modes]),
         imu_slope_shape=np.array([1.0] + [m.slope_at(x_imu) for m in modes]),

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -132,3 +132,19 @@ class Support:
                 "must not exceed impact_zone_max_m",
             )
         return support
+
+
+def support_indices() -> Callable[[Support], int]:
+    """A function giving each support the index of the first equal one it was given: equal
+    supports one index, each object hashed once (a support's hash walks all its fields; the
+    scenes of a batch mostly share one object). The supports must outlive the function."""
+    by_id: dict[int, int] = {}
+    by_value: dict[Support, int] = {}
+
+    def index(support: Support) -> int:
+        known = by_id.get(id(support))
+        if known is None:
+            known = by_id[id(support)] = by_value.setdefault(support, len(by_value))
+        return known
+
+    return index

@@ -25,6 +25,7 @@ from tail_beam_sim.physics.scene import Scene
 from tail_beam_sim.physics.sensors import SensorSuite
 from tail_beam_sim.physics.simulate import histories, sense_general, simulate, simulate_many
 from tail_beam_sim.physics.structure import LinearStructure
+from tail_beam_sim.physics.support import support_indices
 
 FIELDS = ("t_s", "q", "qd", "qdd", "force_n", "z_m", "zd_mps")
 
@@ -199,6 +200,24 @@ def test_simulate_many_gives_simulate_results_solving_each_impact_once(params):
     assert many[1].vibration.count == 0 and many[0].vibration.count > 0
     with pytest.raises(ValueError, match="2 vibration flags for 4 scenes"):
         simulate_many(scenes, vibration=[True, False])
+
+
+def test_equal_supports_count_as_one_however_many_objects(params):
+    """Scenes on equal but distinct support objects share one trajectory in simulate_many; a
+    support with a more damped jack is another impact. support_indices gives equal supports one
+    index, others the next."""
+    base = _scene(params, seed=2)
+    twin = replace(base, support=replace(base.support), sensors=replace(base.sensors, seed=3))
+    support = base.support
+    damped = replace(
+        base, support=replace(support, jack_damping_nspm=2.0 * support.jack_damping_nspm)
+    )
+    many = simulate_many([base, twin, damped])
+    assert twin.support is not base.support and twin.support == base.support
+    assert many[0].trajectory is many[1].trajectory
+    assert many[2].trajectory is not many[0].trajectory
+    index = support_indices()
+    assert [index(s.support) for s in (base, twin, damped, base)] == [0, 0, 1, 0]
 
 
 def test_model_errors_depend_on_the_impact_position_through_the_cache(params):

@@ -130,6 +130,24 @@ def test_bending_modes_leave_rebound_and_add_imu_vibration(params):
     assert modal["peak_imu_dynamic_accel_mps2"] > 1.3 * rigid["peak_imu_dynamic_accel_mps2"]
 
 
+def test_contact_shapes_of_many_positions_are_each_positions_own(params):
+    """The shapes of many positions at once (the group path's) are exactly those of each alone,
+    on the stations, between them and at the plate's ends; a position off the plate is an
+    InputError naming the mode."""
+    support = Scene.from_params(params).support
+    modes = shipped_settings().modes
+    stations = modes[0].stations_m
+    inside = np.random.default_rng(3).uniform(stations[0], stations[-1], 500)
+    positions = np.concatenate([inside, stations, [stations[0] - 1e-9, stations[-1] + 1e-9]])
+    for structure in (rigid_beam(support), beam_with_modes(support, modes)):
+        alone = np.array([structure.contact_shape(x) for x in positions.tolist()])
+        together = structure.contact_shapes(positions.tolist())
+        assert together.shape == (positions.size, structure.size)
+        assert np.array_equal(together, alone)
+    with pytest.raises(InputError, match="modes.bending_1"):
+        beam_with_modes(support, modes).contact_shapes([0.5, float(stations[-1]) + 0.1])
+
+
 def test_mode_table_errors_name_the_field(params):
     """Too many modes or a negative mode frequency is an InputError naming modes.count or the
     mode's field."""
