@@ -21,6 +21,14 @@ from tail_beam_sim.physics.solvers.dynamics import FloatDynamics
 from tail_beam_sim.physics.solvers.hybrid import DEFAULT_STEPS_PER_CONTACT, contact_phase
 
 
+def _problems(scenes: list[Scene], tier: str) -> list:
+    """Each scene's impact problem as simulate_many plans it at ``tier`` (shipped settings)."""
+    settings = shipped_settings()
+    return [
+        _problem(s, plan(s, tier, settings.needs, settings), settings, None)[0] for s in scenes
+    ]
+
+
 def _drawn(params: dict, count: int, seed: int = 4) -> list[Scene]:
     """Coal and gangue, 25-100 mm, dropped 0.5-4 m anywhere on the impact zone, each scene
     with its own noise seed (as the benchmark and the data sets draw them)."""
@@ -100,11 +108,8 @@ def test_lockstep_rk4_contacts_are_the_hybrid_solvers(params):
     """The RK4 contacts integrated in lockstep over impacts take the hybrid solver's steps, and
     end in its state to rounding (1e-12 of the state's scale), each impact's own step size and
     exit kept."""
-    settings = shipped_settings()
     scenes = [s for s in _drawn(params, 24, seed=5) if s.impact.radius_m > 0.06]
-    problems = [
-        _problem(s, plan(s, "modal", settings.needs, settings), settings, None)[0] for s in scenes
-    ]
+    problems = _problems(scenes, "modal")
     batch = integrate_contacts(problems, DEFAULT_STEPS_PER_CONTACT)
     assert batch.ok.all() and len(problems) >= 4
     for k, problem in enumerate(problems):
@@ -123,11 +128,8 @@ def test_lockstep_rk4_contacts_are_the_hybrid_solvers(params):
 def test_the_family_leaves_recontacts_to_the_solver(params):
     """An impact whose particle the plate can catch again within the window is not the
     family's (ok false); a drawn impact from 0.5-4 m is."""
-    settings = shipped_settings()
     scenes = [_recontact(params)] + _drawn(params, 3)
-    problems = [
-        _problem(s, plan(s, "rigid", settings.needs, settings), settings, None)[0] for s in scenes
-    ]
+    problems = _problems(scenes, "rigid")
     family = ContactFamily(problems, 5e-3)
     assert list(family.ok) == [False, True, True, True]
 
@@ -137,11 +139,8 @@ def test_peaks_read_next_to_the_extrema_are_the_whole_grids(params, rate_hz):
     """The summary's peaks read only at the grid instants next to each reading's extrema (and
     through the contact) equal the maxima of the same readings over every grid instant, signed
     and in magnitude, on grids coarse and fine against the ring's 39 Hz and the contacts."""
-    settings = shipped_settings()
     scenes = _drawn(params, 60, seed=11)
-    problems = [
-        _problem(s, plan(s, "rigid", settings.needs, settings), settings, None)[0] for s in scenes
-    ]
+    problems = _problems(scenes, "rigid")
     family = ContactFamily(problems, 5e-3)
     rows = np.flatnonzero(family.ok)
     assert rows.size > 50
@@ -165,11 +164,8 @@ def test_readings_at_the_contact_samples_are_reads_there(params):
     """read_at_samples, which takes each contact sample's own state, gives what read gives at
     those instants (the cubic Hermite there, the free response at the contact's end), for
     readings of q, q' and q'', pulse and RK4 contacts; nan past an impact's last sample."""
-    settings = shipped_settings()
     scenes = _drawn(params, 40, seed=5)
-    problems = [
-        _problem(s, plan(s, "modal", settings.needs, settings), settings, None)[0] for s in scenes
-    ]
+    problems = _problems(scenes, "modal")
     family = ContactFamily(problems, 5e-3)
     rows = np.flatnonzero(family.ok)
     assert family.pulse[rows].any() and (~family.pulse[rows]).any()
