@@ -104,6 +104,22 @@ def _grid_counts(end_s: np.ndarray, rate_hz: float) -> np.ndarray:
     return np.floor(end_s * rate_hz + 1e-9).astype(np.int64) + 1
 
 
+def _stamp_grid(
+    end_s: np.ndarray, rate_hz: float, contact_s: np.ndarray
+) -> tuple[Grid, np.ndarray]:
+    """A sensor's stamps k / rate over the group (as many as the longest scene has, s) as a
+    Grid of times from each scene's contact, and each scene's own count of them."""
+    counts = _grid_counts(end_s, rate_hz)
+    stamps = np.arange(int(counts.max())) / rate_hz
+    grid = Grid(
+        stamps[None, :] - contact_s[:, None],
+        stamps,
+        contact_s,
+        key=("stamps", rate_hz, stamps.size),
+    )
+    return grid, counts
+
+
 SMALL_ANGLE_RAD = 1e-3  # below it, cos and sin by their Taylor polynomials (to float rounding)
 
 
@@ -185,21 +201,9 @@ def sense_group(
     peak_pressure = structure.setting_pressure_pa + peak_change
 
     # pressure: point samples at k / rate
-    pressure_counts = _grid_counts(end, spec0.pressure_rate_hz)
-    pressure_stamps = np.arange(int(pressure_counts.max())) / spec0.pressure_rate_hz
-    clean = (
-        structure.setting_pressure_pa
-        + family.read(
-            rows,
-            Grid(
-                pressure_stamps[None, :] - contact[:, None],
-                pressure_stamps,
-                contact,
-                key=("stamps", spec0.pressure_rate_hz, pressure_stamps.size),
-            ),
-            jack,
-        )[0]
-    )
+    pressure_grid, pressure_counts = _stamp_grid(end, spec0.pressure_rate_hz, contact)
+    clean = structure.setting_pressure_pa + family.read(rows, pressure_grid, jack)[0]
+    pressure_stamps = pressure_grid.grid
     unit = np.zeros(clean.shape)
     for suite, row, k in zip(suites, unit, pressure_counts.tolist()):
         suite._pressure_rng.standard_normal(out=row[:k])
@@ -210,17 +214,12 @@ def sense_group(
 
     # IMU: each reading the mean over the period before its stamp (sensors.imu_samples); the
     # period's start is the stamp before (the first: the beam at rest)
-    imu_counts = _grid_counts(end, spec0.imu_rate_hz)
-    imu_stamps = np.arange(int(imu_counts.max())) / spec0.imu_rate_hz
+    imu_grid, imu_counts = _stamp_grid(end, spec0.imu_rate_hz, contact)
+    imu_stamps = imu_grid.grid
     period = 1.0 / spec0.imu_rate_hz
     angle, pitch_rate, velocity = family.read(
         rows,
-        Grid(
-            imu_stamps[None, :] - contact[:, None],
-            imu_stamps,
-            contact,
-            key=("stamps", spec0.imu_rate_hz, imu_stamps.size),
-        ),
+        imu_grid,
         np.stack(
             [
                 np.concatenate([slope, zero_n, zero_n]),
