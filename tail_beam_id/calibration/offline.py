@@ -43,7 +43,7 @@ from tail_beam_id.calibration.modes import MIN_FREQUENCY_HZ as MIN_MODE_FREQUENC
 from tail_beam_id.calibration.modes import RingingMode, ring_decay_s, ringing_modes, sample_noise
 from tail_beam_id.methods import hysteresis, load_model
 from tail_beam_id.methods.statistical import HYSTERESIS
-from tail_beam_id.signals.camera import GRIDLESS_PERIOD_S, MIN_REBOUNDS, frame_period_s
+from tail_beam_id.signals.camera import GRIDLESS_PERIOD_S, MIN_REBOUNDS, measured_period_s
 from tail_beam_id.signals.timing import UNUSUAL
 from tail_beam_id.stream.label import Label
 from tail_beam_sim.config import deep_merge
@@ -393,10 +393,8 @@ def _camera_frame_rate_hz(stamps_s: Sequence[float]) -> float | None:
     """The camera's frame rate (Hz) from the grid of the rebound stamps (s); 1 / GRIDLESS_PERIOD_S
     for MIN_REBOUNDS or more stamps on no grid (stamped at the separation itself:
     tail_beam_id.signals.camera); None for fewer."""
-    stamps = [float(t) for t in stamps_s if math.isfinite(float(t))]
-    if len(set(stamps)) < MIN_REBOUNDS:
-        return None
-    return 1.0 / (frame_period_s(stamps) or GRIDLESS_PERIOD_S)
+    period = measured_period_s([float(t) for t in stamps_s if math.isfinite(float(t))])
+    return None if period is None else 1.0 / period
 
 
 def _finite(stamp_s: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

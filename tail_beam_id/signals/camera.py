@@ -67,6 +67,15 @@ def frame_period_s(
     return float(periods[0])
 
 
+def measured_period_s(stamps_s: Sequence[float]) -> float | None:
+    """The camera's frame period (s) the rebound stamps say: their grid's
+    (:func:`frame_period_s`), GRIDLESS_PERIOD_S when MIN_REBOUNDS or more distinct stamps lie on
+    no grid, None from fewer."""
+    if len(set(stamps_s)) < MIN_REBOUNDS:
+        return None
+    return frame_period_s(stamps_s) or GRIDLESS_PERIOD_S
+
+
 class FramePeriod:
     """The camera's frame period for one stream: from the rebound stamps once enough have come
     (:func:`frame_period_s`), else the configured one (``configured_s``, s; None if unknown).
@@ -106,10 +115,8 @@ class FramePeriod:
         last = self.estimates_s[-1] if self.estimates_s else None
         if last is not None and _on_grid(stamp_s - self.stamps_s[-2], last):
             estimate: float | None = last
-        elif len(self.stamps_s) >= MIN_REBOUNDS:
-            estimate = frame_period_s(self.stamps_s) or GRIDLESS_PERIOD_S
         else:
-            estimate = None
+            estimate = measured_period_s(self.stamps_s)
         self.estimates_s.append(estimate)
 
     def measured_at(self, stamp_s: float) -> float | None:
