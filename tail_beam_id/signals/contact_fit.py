@@ -232,6 +232,73 @@ def ringing_poles(
     return np.unique(np.round(poles, 6))[:max_modes]
 
 
+@dataclass(frozen=True)
+class _PulseGrid:
+    """What the bases of a grid of half-sines (D durations x S starts) at the samples ``t``
+    share whatever the poles: ``since`` (S, N) each sample's time since each start, s;
+    ``after`` since > 0; ``clamped`` since where after, else 0; ``within`` the (duration,
+    start, sample) indices inside each pulse, as np.nonzero gives them; at those, ``w_in`` the
+    pulse's angular frequency pi / d (1/s), ``sine`` and ``cosine`` of w_in since; ``d`` the
+    durations (D, 1, 1), ``w`` pi / d."""
+
+    t: np.ndarray
+    durations: np.ndarray
+    starts: np.ndarray
+    d: np.ndarray
+    w: np.ndarray
+    after: np.ndarray
+    clamped: np.ndarray
+    within: tuple[np.ndarray, np.ndarray, np.ndarray]
+    w_in: np.ndarray
+    sine: np.ndarray
+    cosine: np.ndarray
+
+
+# The last grids built, newest first: the coarse search of a fit's second pass reads the same
+# samples and grid (the same arrays) as its first, with other poles.
+_last_grids: list[_PulseGrid] = []
+LAST_GRIDS = 2
+
+
+def _pulse_grid(t: np.ndarray, durations: np.ndarray, starts: np.ndarray) -> _PulseGrid:
+    """The :class:`_PulseGrid` of these arrays; one of the last LAST_GRIDS again when called
+    with the very same arrays (which the caller does not change in between)."""
+    for last in _last_grids:
+        if last.t is t and last.durations is durations and last.starts is starts:
+            return last
+    d = durations[:, None, None]  # (D, 1, 1)
+    since = t[None, :] - starts[:, None]  # time since each candidate start, (S, N)
+    after = since > 0.0
+    w = math.pi / d
+    if t.size > 1 and bool(np.all(t[1:] > t[:-1])):
+        # t increases: inside a pulse are the runs [first, end) of samples with since > 0 and
+        # since < d, listed as np.nonzero would list them (duration, start, sample).
+        first = np.tile(np.count_nonzero(~after, axis=1), durations.size)
+        end = np.count_nonzero(since[None] < d, axis=2).ravel()
+        length = np.maximum(end - first, 0)
+        candidate = np.repeat(np.arange(length.size), length)
+        sample = np.arange(candidate.size) - np.repeat(np.cumsum(length) - length - first, length)
+        within = (candidate // starts.size, candidate % starts.size, sample)
+    else:
+        within = np.nonzero(after[None] & (since[None] < d))  # (D, S, N) indices in the pulse
+    t_in, w_in = since[within[1], within[2]], w.ravel()[within[0]]
+    grid = _PulseGrid(
+        t,
+        durations,
+        starts,
+        d,
+        w,
+        after,
+        np.where(after, since, 0.0),
+        within,
+        w_in,
+        np.sin(w_in * t_in),
+        np.cos(w_in * t_in),
+    )
+    _last_grids[:] = [grid, *_last_grids[: LAST_GRIDS - 1]]
+    return grid
+
+
 def _best(
     t: np.ndarray,
     y: np.ndarray,
@@ -247,22 +314,14 @@ def _best(
     ((-p sin wT - w cos wT) exp(p (t - d)+) + w exp(p t)) / (p^2 + w^2) with w = pi / d and
     T = min(t, d), whose exponentials factor into t and d alone."""
     n = t.size
-    d = durations[:, None, None]  # (D, 1, 1)
-    since = t[None, :] - starts[:, None]  # time since each candidate start, (S, N)
-    after = since > 0.0
-    w = math.pi / d
-    # Inside the pulse (few samples) the closed form in full; after it the response is the
-    # pulse's end value carried by exp(p t), a product of a (D,) and an (S, N) factor.
-    within = np.nonzero(after[None] & (since[None] < d))  # (D, S, N) indices inside the pulse
-    t_in, w_in = since[within[1], within[2]], w.ravel()[within[0]]
-    sine, cosine = np.sin(w_in * t_in), np.cos(w_in * t_in)
+    grid = _pulse_grid(t, durations, starts)
+    d, w, within, sine, cosine = grid.d, grid.w, grid.within, grid.sine, grid.cosine
+    after, w_in = grid.after, grid.w_in
     rows = 1 + 2 * poles.size
     basis = np.zeros((durations.size, starts.size, rows, n))
     basis[within[0], within[1], 0, within[2]] = sine
     for k, pole in enumerate(poles):
-        grows = np.where(
-            after, np.exp(pole * np.where(after, since, 0.0)), 0.0
-        )  # exp(p t) after the start, (S, N)
+        grows = np.where(after, np.exp(pole * grid.clamped), 0.0)  # exp(p t) after start, (S, N)
         value = (w * (1.0 + np.exp(-pole * d)) / (pole * pole + w * w)) * grows[None]
         value[within] = ((-pole * sine - w_in * cosine) + w_in * grows[within[1], within[2]]) / (
             pole * pole + w_in * w_in
@@ -290,7 +349,15 @@ def _coarse_grid(period_s: float, config: ContactFitConfig) -> tuple[np.ndarray,
     """The first search's (durations, starts), s: a log grid of COARSE_DURATIONS durations,
     starts half a sample apart."""
     durations = _coarse_durations(config.min_duration_s, config.max_duration_s)
-    return durations, np.arange(-3, 6) * period_s / 2.0
+    return durations, _coarse_starts(period_s)
+
+
+@lru_cache(maxsize=16)
+def _coarse_starts(period_s: float) -> np.ndarray:
+    """The first search's starts, s after the onset: half a sample apart (read-only, shared)."""
+    starts = np.arange(-3, 6) * period_s / 2.0
+    starts.flags.writeable = False
+    return starts
 
 
 @lru_cache(maxsize=16)
