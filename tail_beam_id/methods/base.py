@@ -13,9 +13,34 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+import numpy as np
+
 from tail_beam_sim.errors import InputError
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+
+# Arrays of trained models' lists, by the list's identity (the list kept with its array, so
+# that the identity is not reused): a decision reads the same weights for every impact.
+_ARRAYS: dict[int, tuple[list, np.ndarray]] = {}
+MOST_ARRAYS = 4096  # beyond this many, the oldest are forgotten (training builds many models)
+
+
+def model_array(model: Mapping[str, Any], name: str) -> np.ndarray:
+    """``np.array(model[name])``, read-only, converted once per list: a model's weights and
+    standardisation are lists (JSON), never changed in place once trained. Anything but a list
+    (an array a fit is still changing) is converted on every call."""
+    value = model[name]
+    if not isinstance(value, list):
+        return np.array(value)
+    known = _ARRAYS.get(id(value))
+    if known is not None and known[0] is value:
+        return known[1]
+    array = np.array(value)
+    array.flags.writeable = False
+    if len(_ARRAYS) >= MOST_ARRAYS:
+        del _ARRAYS[next(iter(_ARRAYS))]
+    _ARRAYS[id(value)] = (value, array)
+    return array
 
 
 @dataclass

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_id.methods.base import model_array
 from tail_beam_id.methods.inputs import base_vector
 from tail_beam_sim.physics.contact import calibrated_chi, damping_factor
 
@@ -62,17 +63,17 @@ def joint_inputs(model: Mapping[str, Any], features: Mapping[str, float]) -> np.
     if any(name not in features for name, _ in names):
         return None
     row = base_vector(features, names)
-    low, high = (np.array(v) for v in model["envelope"])
+    low, high = model_array(model, "envelope")
     if not np.all((row >= low) & (row <= high)):
         return None
-    return (row - np.array(model["mean"])) / np.array(model["scale"])
+    return (row - model_array(model, "mean")) / model_array(model, "scale")
 
 
 def joint_probabilities(model: Mapping[str, Any], z: np.ndarray) -> np.ndarray:
     """P(class, bin | impact) for standardised inputs ``z`` (N, d): (N, 2K), gangue bins then
     coal bins."""
-    hidden = np.tanh(z @ np.array(model["w1"]).T + np.array(model["b1"]))
-    scores = hidden @ np.array(model["w2"]).T + np.array(model["b2"])
+    hidden = np.tanh(z @ model_array(model, "w1").T + model_array(model, "b1"))
+    scores = hidden @ model_array(model, "w2").T + model_array(model, "b2")
     scores -= scores.max(axis=1, keepdims=True)
     p = np.exp(scores)
     return p / p.sum(axis=1, keepdims=True)

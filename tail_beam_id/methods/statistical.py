@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.methods.base import Decision, cap_confidence, sigmoid
+from tail_beam_id.methods.base import Decision, cap_confidence, model_array, sigmoid
 from tail_beam_id.methods.hysteresis import applied_shift, hysteresis_shift, joint_inputs
 from tail_beam_id.methods.inputs import IMPACT_X, POINT_USED, base_vector
 from tail_beam_id.signals.timing import DELAY_UNTRUSTED, UNUSUAL
@@ -351,14 +351,14 @@ class StatisticalMethod:
         if not all(name in features for name, _ in names):
             return None  # an input the point's model reads is missing (no known camera frame)
         x = base_vector(features, names)
-        low, high = (np.array(v) for v in model["envelope"])
+        low, high = model_array(model, "envelope")
         outside = tuple(
             name
             for (name, _), v, lo, hi in zip(names, x, low, high)
             if not lo <= v <= hi and not (name == FRAME_PERIOD and v < lo)
         )
         clipped = np.clip(x, low, high)
-        z = (clipped - np.array(model["mean"])) / np.array(model["scale"])
+        z = (clipped - model_array(model, "mean")) / model_array(model, "scale")
         logit = float(network_logit(model, z[None, :])[0]) / temperature_of(model, clipped)
         estimates = dict(without.estimates)
         estimates["logit_without_point"] = estimates.get("logit", 0.0)
@@ -397,7 +397,7 @@ class StatisticalMethod:
             # No frame known (none configured, none measured yet): the training's reference.
             features = {**features, FRAME_PERIOD: self.reference_frame_period_s}
         rows = self._lag_rows(features, names)
-        low, high = (np.array(v) for v in model["envelope"])
+        low, high = model_array(model, "envelope")
         middle = rows[len(rows) // 2]
         outside = tuple(
             name
@@ -405,7 +405,7 @@ class StatisticalMethod:
             if not lo <= v <= hi and not (name == FRAME_PERIOD and v < lo)
         )
         clipped = np.clip(rows, low, high)
-        z = (clipped - np.array(model["mean"])) / np.array(model["scale"])
+        z = (clipped - model_array(model, "mean")) / model_array(model, "scale")
         logits = network_logit(model, z) / temperature_of(model, clipped[len(rows) // 2])
         if len(rows) == 1:
             logit = float(logits[0])
@@ -590,8 +590,10 @@ def delay_check(
     if check is None:
         return {}
     column = [name for name, _ in names].index("rebound_delay_s")
-    residual = float(z[column] - delay_design(z[None, :], column)[0] @ np.array(check["weights"]))
-    band = int(np.searchsorted(np.array(check["bands_s"]), period_s))
+    residual = float(
+        z[column] - delay_design(z[None, :], column)[0] @ model_array(check, "weights")
+    )
+    band = int(np.searchsorted(model_array(check, "bands_s"), period_s))
     low, high = check["low"][band], check["high"][band]
     if low is None or high is None:
         return {"delay_residual": residual}
@@ -600,5 +602,5 @@ def delay_check(
 
 def network_logit(model: Mapping[str, Any], z: np.ndarray) -> np.ndarray:
     """The network's logit for standardised inputs ``z`` (N, d), before the temperature."""
-    hidden = np.tanh(z @ np.array(model["w1"]).T + np.array(model["b1"]))
-    return hidden @ np.array(model["w2"]) + float(model["b2"])
+    hidden = np.tanh(z @ model_array(model, "w1").T + model_array(model, "b1"))
+    return hidden @ model_array(model, "w2") + float(model["b2"])

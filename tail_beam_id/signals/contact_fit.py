@@ -214,14 +214,19 @@ def ringing_poles(
     left out."""
     y = values - values.mean()
     width = min(y.size // 2, PENCIL_WIDTH)
-    hankel = np.lib.stride_tricks.sliding_window_view(y, width + 1)
+    # sliding_window_view's (y.size - width) x (width + 1) view, built directly (its argument
+    # checks cost more than the pencil's products)
+    hankel = np.ndarray(
+        (y.size - width, width + 1), dtype=y.dtype, buffer=y, strides=(y.itemsize, y.itemsize)
+    )
+    hankel.flags.writeable = False
     # The right singular vectors and values from the small Gram matrix (width + 1 square), so
     # that the cost does not grow with the sampling rate's square.
     power, vectors = np.linalg.eigh(hankel.T @ hankel)
     power, vectors = power[::-1], vectors[:, ::-1]
-    singular = np.sqrt(np.clip(power, 0.0, None))
-    floor = max(singular[0] * 1e-3, 3.0 * noise * math.sqrt(hankel.shape[0]))
-    order = int(np.clip(np.sum(singular > floor), 2, 2 * max_modes))
+    singular = np.sqrt(np.maximum(power, 0.0))
+    floor = max(float(singular[0]) * 1e-3, 3.0 * noise * math.sqrt(hankel.shape[0]))
+    order = min(max(int(np.count_nonzero(singular > floor)), 2), 2 * max_modes)
     v = vectors[:, :order]
     shift = np.linalg.lstsq(v[:-1], v[1:], rcond=None)[0]
     z = np.linalg.eigvals(shift)

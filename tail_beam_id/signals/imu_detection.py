@@ -217,12 +217,11 @@ def background_values(
     ends = np.asarray(ends, dtype=int)
     if ends.size == 0:
         return np.empty(0)
-    offsets = np.arange(-baseline, 0)
+    offsets, powers = _window_powers(baseline)
     index = ends[:, None] + offsets[None, :]
     y = values[index]
     keep = (~excluded[index]).astype(float)
     kept = keep.sum(axis=1)
-    powers = (offsets / baseline)[None, :] ** np.arange(5)[:, None]  # (5, baseline)
     moments = keep @ powers.T  # (N, 5): sums of x^m over the kept samples
     rhs = (keep * y) @ powers[:3].T  # (N, 3)
     out = y.mean(axis=1)  # no sample kept: the plain mean, as background_fit
@@ -230,15 +229,23 @@ def background_values(
     for d in range(3):
         rows = (degree == d) & (kept > 0)
         if rows.any():
-            normal = np.stack(
-                [
-                    np.stack([moments[rows, p + q] for q in range(d + 1)], axis=-1)
-                    for p in range(d + 1)
-                ],
-                axis=-2,
-            )
+            normal = moments[rows][:, _HANKEL[d]]  # (n, d + 1, d + 1): moment p + q at (p, q)
             out[rows] = np.linalg.solve(normal, rhs[rows, : d + 1, None])[:, 0, 0]
     return out
+
+
+# The moment each entry of a degree-d fit's normal matrix holds: p + q at (p, q).
+_HANKEL = tuple(np.add.outer(np.arange(d + 1), np.arange(d + 1)) for d in range(3))
+
+
+@lru_cache(maxsize=16)
+def _window_powers(baseline: int) -> tuple[np.ndarray, np.ndarray]:
+    """The sample offsets of a ``baseline`` window before a sample (-baseline..-1), and their
+    powers 0..4 in units of the window, (5, baseline) (read-only, shared)."""
+    offsets = np.arange(-baseline, 0)
+    powers = (offsets / baseline)[None, :] ** np.arange(5)[:, None]
+    offsets.flags.writeable = powers.flags.writeable = False
+    return offsets, powers
 
 
 RING_RUN_DECAYS = (
@@ -327,12 +334,14 @@ class PulseDetector:
         history = accel_z[lo - baseline : hi - 1]
         # sliding_window_view's view, built directly (its argument checks cost more than the
         # product over a chunk's samples)
-        windows = np.lib.stride_tricks.as_strided(
-            history,
-            shape=(history.size - baseline + 1, baseline),
-            strides=(history.strides[0], history.strides[0]),
-            writeable=False,
-        )
+        shape, strides = (history.size - baseline + 1, baseline), (history.strides[0],) * 2
+        if history.flags.c_contiguous:
+            windows = np.ndarray(shape, dtype=history.dtype, buffer=history, strides=strides)
+            windows.flags.writeable = False
+        else:
+            windows = np.lib.stride_tricks.as_strided(
+                history, shape=shape, strides=strides, writeable=False
+            )
         return accel_z[lo:hi] - windows @ extrapolation_weights(baseline)
 
     def scan(

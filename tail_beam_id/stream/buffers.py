@@ -21,6 +21,12 @@ class Series:
         self.stamp_s = np.zeros(0)
         self.values = np.zeros((0, 1))
         self.base_index = 0  # absolute index of element 0 (after trimming)
+        # ``stamp_s`` and ``values`` are views of rows [start, stop) of these, which have room
+        # for more: a join copies the new chunks only, not the whole buffer again. Rows the
+        # views show are never written again (a view handed out keeps its contents).
+        self._stamp_store = self.stamp_s
+        self._value_store = self.values
+        self._start = self._stop = 0
 
     @property
     def seen(self) -> bool:
@@ -46,12 +52,29 @@ class Series:
 
     def join(self) -> None:
         """Move the appended chunks into ``stamp_s`` and ``values``."""
-        if self.chunks_t:
-            self.stamp_s = np.concatenate([self.stamp_s, *self.chunks_t])
-            width = self.chunks_v[0].shape[1]
-            old = self.values if self.values.shape[1] == width else np.zeros((0, width))
-            self.values = np.concatenate([old, *self.chunks_v])
-            self.chunks_t, self.chunks_v = [], []
+        if not self.chunks_t:
+            return
+        width = self.chunks_v[0].shape[1]
+        if self.values.shape[1] != width:  # the first samples: the width they come with
+            self._value_store = np.zeros((0, width))
+            self._start = self._stop = 0
+        incoming = sum(chunk.size for chunk in self.chunks_t)
+        if self._stop + incoming > self._stamp_store.size:
+            # Out of room: the rows still shown move to new stores twice their new size.
+            kept = self._stop - self._start
+            room = 2 * (kept + incoming)
+            stamps, values = np.empty(room), np.empty((room, width))
+            stamps[:kept] = self._stamp_store[self._start : self._stop]
+            values[:kept] = self._value_store[self._start : self._stop]
+            self._stamp_store, self._value_store = stamps, values
+            self._start, self._stop = 0, kept
+        for chunk_t, chunk_v in zip(self.chunks_t, self.chunks_v):
+            self._stamp_store[self._stop : self._stop + chunk_t.size] = chunk_t
+            self._value_store[self._stop : self._stop + chunk_t.size] = chunk_v
+            self._stop += chunk_t.size
+        self.stamp_s = self._stamp_store[self._start : self._stop]
+        self.values = self._value_store[self._start : self._stop]
+        self.chunks_t, self.chunks_v = [], []
 
     def trim_before(self, stamp_s: float) -> None:
         """Forget samples older than ``stamp_s`` (keeps absolute indices valid)."""
@@ -60,3 +83,4 @@ class Series:
             self.stamp_s = self.stamp_s[drop:]
             self.values = self.values[drop:]
             self.base_index += drop
+            self._start += drop
