@@ -597,15 +597,16 @@ class PulseDetector:
         # back than a contact spans, and a run cut off before k sent the walk backwards.
         end = min(max(first + span, k + 1), accel_z.size)
         deviation = accel_z[first:end] - background(np.arange(first, end))
-        last = first
-        for j in range(1, deviation.size):
-            # The run reaches at least the sample that set the detection off: an early sample
-            # past the onset threshold does not cut the contact itself off.
-            if first + j > k and (
-                abs(deviation[j]) <= c.extend_threshold_sigma * sigma or mask[first + j]
-            ):
-                break
-            last = first + j
+        # The run ends before the first sample after ``first`` that is back within
+        # extend_threshold_sigma or already another pulse's; it reaches at least the sample that
+        # set the detection off: an early sample past the onset threshold does not cut the
+        # contact itself off.
+        following = np.arange(first + 1, end)
+        ends_run = (following > k) & (
+            (np.abs(deviation[1:]) <= c.extend_threshold_sigma * sigma) | mask[first + 1 : end]
+        )
+        stops = np.flatnonzero(ends_run)
+        last = int(following[stops[0]]) - 1 if stops.size else end - 1
         weight = np.abs(deviation[: last - first + 1])
         times = (
             stamp_s[first : last + 1] - 0.5 * period
