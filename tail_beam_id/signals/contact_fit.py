@@ -31,7 +31,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -237,14 +237,13 @@ def ringing_poles(
     return np.unique(np.round(poles, 6))[:max_modes]
 
 
-@dataclass(frozen=True)
-class _PulseGrid:
+class _PulseGrid(NamedTuple):
     """What the bases of a grid of half-sines (D durations x S starts) at the samples ``t``
-    share whatever the poles: ``since`` (S, N) each sample's time since each start, s;
-    ``after`` since > 0; ``clamped`` since where after, else 0; ``within`` the (duration,
-    start, sample) indices inside each pulse, as np.nonzero gives them; at those, ``w_in`` the
-    pulse's angular frequency pi / d (1/s), ``sine`` and ``cosine`` of w_in since; ``d`` the
-    durations (D, 1, 1), ``w`` pi / d."""
+    share whatever the poles: ``after`` (S, N) each sample's time since each start > 0;
+    ``clamped`` that time where after, else 0, s; ``within`` the (duration, start, sample)
+    indices inside each pulse; at those, ``w_in`` the pulse's angular frequency pi / d (1/s),
+    ``sine`` and ``cosine`` of w_in times the time since the start; ``d`` the durations
+    (D, 1, 1), ``w`` pi / d."""
 
     t: np.ndarray
     durations: np.ndarray
@@ -275,17 +274,7 @@ def _pulse_grid(t: np.ndarray, durations: np.ndarray, starts: np.ndarray) -> _Pu
     since = t[None, :] - starts[:, None]  # time since each candidate start, (S, N)
     after = since > 0.0
     w = math.pi / d
-    if t.size > 1 and bool(np.all(t[1:] > t[:-1])):
-        # t increases: inside a pulse are the runs [first, end) of samples with since > 0 and
-        # since < d, listed as np.nonzero would list them (duration, start, sample).
-        first = np.tile(np.count_nonzero(~after, axis=1), durations.size)
-        end = np.count_nonzero(since[None] < d, axis=2).ravel()
-        length = np.maximum(end - first, 0)
-        candidate = np.repeat(np.arange(length.size), length)
-        sample = np.arange(candidate.size) - np.repeat(np.cumsum(length) - length - first, length)
-        within = (candidate // starts.size, candidate % starts.size, sample)
-    else:
-        within = np.nonzero(after[None] & (since[None] < d))  # (D, S, N) indices in the pulse
+    within = np.nonzero(after[None] & (since[None] < d))  # (D, S, N) indices in the pulse
     t_in, w_in = since[within[1], within[2]], w.ravel()[within[0]]
     grid = _PulseGrid(
         t,
