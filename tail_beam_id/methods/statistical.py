@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -570,11 +571,18 @@ def _profile_weights(
 def delay_design(z: np.ndarray, column: int) -> np.ndarray:
     """The delay check's regressors (N, k) from standardised inputs ``z`` (N, d): every input
     but the delay (``column``), their pairwise products and squares, and 1."""
-    x = np.delete(z, column, axis=1)
-    upper = np.triu_indices(x.shape[1])
-    return np.hstack(
-        [x, (x[:, :, None] * x[:, None, :])[:, upper[0], upper[1]], np.ones((x.shape[0], 1))]
-    )
+    others, first, second = _design_indices(z.shape[1], column)
+    x = z[:, others]
+    return np.concatenate([x, x[:, first] * x[:, second], np.ones((x.shape[0], 1))], axis=1)
+
+
+@lru_cache(maxsize=64)
+def _design_indices(inputs: int, column: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For :func:`delay_design`: the inputs but ``column``, and the pairs (i <= j, row by row)
+    of those whose products it takes."""
+    others = np.delete(np.arange(inputs), column)
+    first, second = np.triu_indices(others.size)
+    return others, first, second
 
 
 def delay_check(

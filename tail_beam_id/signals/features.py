@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -59,6 +60,12 @@ class BeamModel:
                     _BEAM_MODELS.clear()
                 _BEAM_MODELS[key] = known
         return known
+
+    @cached_property
+    def sway_omega_radps(self) -> float:
+        """The rigid beam's sway (its undamped mode on the jack), rad/s: the same for every
+        impact (the support is not changed once the model is built)."""
+        return 2.0 * math.pi * self.support.rigid_mode_frequency_hz
 
     @property
     def imu_moment_per_velocity(self) -> float:
@@ -154,7 +161,7 @@ def fit_pressure(
     if t.size < 8 or not np.any(t > 0):
         return None
     saturated = _flat_lined(y)
-    omega = 2.0 * math.pi * model.support.rigid_mode_frequency_hz
+    omega = model.sway_omega_radps
     template = model.pressure_response(t)
     columns = [np.ones_like(t), np.cos(omega * t), np.sin(omega * t)]
     if sway_drift:
@@ -223,7 +230,7 @@ def imu_impulse(
     after = (stamp_s >= pulse.onset_s) & (stamp_s <= pulse.onset_s + post_s)
     if before.sum() < 4 or after.sum() < 2:
         return None
-    omega = 2.0 * math.pi * model.support.rigid_mode_frequency_hz
+    omega = model.sway_omega_radps
     t_before = stamp_s[before] - pulse.onset_s
     basis = np.vstack(
         [np.ones_like(t_before), np.cos(omega * t_before), np.sin(omega * t_before)]
