@@ -314,6 +314,8 @@ def _best(
     rows = 1 + 2 * poles.size
     basis = np.zeros((durations.size, starts.size, rows, n))
     basis[within[0], within[1], 0, within[2]] = sine
+    # Inside the pulse (few samples) the closed form in full; after it the response is the
+    # pulse's end value carried by exp(p t), a product of a (D,) and an (S, N) factor.
     for k, pole in enumerate(poles):
         grows = np.where(after, np.exp(pole * grid.clamped), 0.0)  # exp(p t) after start, (S, N)
         value = (w * (1.0 + np.exp(-pole * d)) / (pole * pole + w * w)) * grows[None]
