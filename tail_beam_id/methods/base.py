@@ -22,7 +22,7 @@ MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 # Arrays of trained models' lists, by the list's identity (the list kept with its array, so
 # that the identity is not reused): a decision reads the same weights for every impact.
 _ARRAYS: dict[int, tuple[list, np.ndarray]] = {}
-MOST_ARRAYS = 4096  # beyond this many, the oldest are forgotten (training builds many models)
+MOST_ARRAYS = 4096  # at this many, all are forgotten (training builds many models)
 
 
 def model_array(model: Mapping[str, Any], name: str) -> np.ndarray:
@@ -38,7 +38,7 @@ def model_array(model: Mapping[str, Any], name: str) -> np.ndarray:
     array = np.array(value)
     array.flags.writeable = False
     if len(_ARRAYS) >= MOST_ARRAYS:
-        del _ARRAYS[next(iter(_ARRAYS))]
+        _ARRAYS.clear()
     _ARRAYS[id(value)] = (value, array)
     return array
 

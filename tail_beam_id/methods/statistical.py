@@ -579,9 +579,11 @@ def delay_design(z: np.ndarray, column: int) -> np.ndarray:
 @lru_cache(maxsize=64)
 def _design_indices(inputs: int, column: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For :func:`delay_design`: the inputs but ``column``, and the pairs (i <= j, row by row)
-    of those whose products it takes."""
+    of those whose products it takes (read-only, shared)."""
     others = np.delete(np.arange(inputs), column)
     first, second = np.triu_indices(others.size)
+    for indices in (others, first, second):
+        indices.flags.writeable = False
     return others, first, second
 
 
