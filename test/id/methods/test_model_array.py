@@ -9,6 +9,7 @@ from tail_beam_id.methods.base import model_array
 
 
 def test_a_list_is_converted_once_and_read_only():
+    """A trained list reads as np.array of it, the same read-only array on every call."""
     model = {"w1": [[1.0, 2.0], [3.0, 4.0]]}
     first = model_array(model, "w1")
     np.testing.assert_array_equal(first, np.array(model["w1"]))
@@ -18,6 +19,7 @@ def test_a_list_is_converted_once_and_read_only():
 
 
 def test_a_new_list_under_the_same_name_is_read_anew():
+    """A list replaced under the same name is converted again, not served from the cache."""
     model = {"mean": [1.0, 2.0]}
     model_array(model, "mean")
     model["mean"] = [5.0, 6.0]
@@ -25,6 +27,7 @@ def test_a_new_list_under_the_same_name_is_read_anew():
 
 
 def test_an_array_is_converted_on_every_call():
+    """An array (a fit still changing its weights) is copied afresh on every call."""
     weights = np.array([1.0, 2.0])
     model = {"w2": weights}
     seen = model_array(model, "w2")

@@ -11,6 +11,7 @@ from tail_beam_id.signals import contact_fit
 
 
 def test_the_same_arrays_get_the_same_grid_and_others_a_new_one():
+    """The grid is shared only with a call on the very same arrays."""
     t = np.arange(40) * 4e-5
     durations, starts = np.array([1e-4, 2e-4]), np.array([0.0, 2e-5])
     grid = contact_fit._pulse_grid(t, durations, starts)

@@ -10,6 +10,8 @@ from tail_beam_id.stream.buffers import Series
 
 
 def test_joined_buffer_is_the_concatenation_and_old_views_keep_their_contents():
+    """After appends, joins and trims the buffer shows the concatenation of what was kept, and
+    every view handed out still shows what it showed."""
     rng = np.random.default_rng(7)
     series = Series()
     stamps, values, handed_out = [], [], []
@@ -42,6 +44,7 @@ def test_joined_buffer_is_the_concatenation_and_old_views_keep_their_contents():
 
 
 def test_repeated_stamps_are_dropped_across_joins():
+    """A stamp not after the latest one, across a join or within a chunk, is dropped."""
     series = Series()
     series.append(np.array([1.0, 2.0]), np.array([[1.0], [2.0]]))
     series.join()
