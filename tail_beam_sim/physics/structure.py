@@ -146,10 +146,25 @@ class LinearStructure:
 
         Returns q and qd with shape (n,) for a scalar time, (n, len(dt_s)) for an array.
         """
+        return self.propagate_amplitude(self.free_amplitude(q0, qd0), dt_s)
+
+    def free_amplitude(self, q0: np.ndarray, qd0: np.ndarray) -> np.ndarray | None:
+        """The free response from (q0, qd0) as the complex amplitude of each exponential
+        (one of each conjugate pair, weighted; :meth:`propagate_amplitude`), None at rest: a
+        state propagated many times is decomposed once."""
         _, vectors, inverse = self._eigen
         modal = inverse @ np.concatenate([q0, qd0])
-        times = np.asarray(dt_s, dtype=float)
         if not np.any(modal):
+            return None
+        keep, _, _, weight = self._half_spectrum
+        return vectors[:, keep] * (weight * modal[keep])
+
+    def propagate_amplitude(
+        self, amplitude: np.ndarray | None, dt_s: np.ndarray | float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`propagate` of the state whose :meth:`free_amplitude` is ``amplitude``."""
+        times = np.asarray(dt_s, dtype=float)
+        if amplitude is None:
             # At rest it stays at rest, also backwards in time (samples before the first contact):
             # exp(lambda t) of a strongly damped mode overflows there, and inf * 0 is NaN.
             rest = np.zeros((self.size,) + times.shape)
@@ -159,8 +174,7 @@ class LinearStructure:
         # lambda = sigma + i omega and w V c = a + i b, each term is
         # exp(sigma t) (a cos(omega t) - b sin(omega t)). Real exp, cos and sin cost a fraction
         # of a complex exp.
-        keep, sigma, omega, weight = self._half_spectrum
-        amplitude = vectors[:, keep] * (weight * modal[keep])
+        keep, sigma, omega, _ = self._half_spectrum
         growth = np.exp(np.multiply.outer(sigma, times))
         angle = np.multiply.outer(omega, times)
         # einsum, not a BLAS product: each time's state then does not depend on how many times

@@ -98,6 +98,9 @@ class FlowEpoch:
         self.q = q
         self.qd = qd
         self.active = list(active)
+        # the free state's decomposition (LinearStructure.free_amplitude), made at first use
+        self._amplitude: np.ndarray | None = None
+        self._decomposed = False
         # The epoch before (starting at previous_start_s): a sensor's value is a mean over the
         # period before its instant, and a period reaching back before this epoch is read there.
         self.previous = previous
@@ -131,17 +134,28 @@ class FlowEpoch:
         return out
 
     def _sample_own(self, times: np.ndarray) -> Samples:
+        return self.sample_parts(times)[0]
+
+    def sample_parts(self, times: np.ndarray) -> tuple[Samples, list[Samples]]:
+        """The beam's state at times ``times`` (>= 0, from the epoch's start), and each active
+        contact's trajectory there (their sum less the free part)."""
         structure = self.problem.structure
-        q, qd = structure.propagate(self.q, self.qd, times)
+        if not self._decomposed:
+            self._amplitude = structure.free_amplitude(self.q, self.qd)
+            self._decomposed = True
+        q, qd = structure.propagate_amplitude(self._amplitude, times)
         qdd = _free_acceleration(structure, q, qd)
         force = np.zeros(times.size)
-        stamps = times + self.start_s
-        for contribution in self.active:
-            part = contribution.sample(stamps)
-            q, qd, qdd = q + part.q, qd + part.qd, qdd + part.qdd
-            force = force + part.force_n
+        parts = []
+        if self.active:
+            stamps = times + self.start_s
+            for contribution in self.active:
+                part = contribution.sample(stamps)
+                parts.append(part)
+                q, qd, qdd = q + part.q, qd + part.qd, qdd + part.qdd
+                force = force + part.force_n
         zeros = np.zeros(times.size)
-        return Samples(times, q, qd, qdd, force, zeros, zeros.copy())
+        return Samples(times, q, qd, qdd, force, zeros, zeros.copy()), parts
 
     def sample_many(self, parts: Sequence[np.ndarray]) -> list[Samples]:
         """:meth:`sample` of several sets of times in one pass."""
@@ -186,8 +200,9 @@ class FlowSimulator(StreamSimulator):
                 return
             first = min(ended, key=lambda c: c.until_s)
             start = max(first.until_s, self._epoch_starts[-1])
+            total, active, parts = self._state_at(start)
+            q, qd = self._aggregate(total, active, parts, lambda c: c is not first)
             remaining = [c for c in active if c is not first]
-            q, qd = self._aggregate_at(epoch, start, remaining)
             self._push_epoch(FlowEpoch(self._rest_problem, start, q, qd, remaining))
 
     def _push_epoch(self, epoch: FlowEpoch) -> None:
@@ -204,28 +219,40 @@ class FlowSimulator(StreamSimulator):
         if isinstance(first, FlowEpoch):
             first.previous = None
 
-    def _aggregate_at(
-        self, epoch: FlowEpoch | Trajectory, stamp_s: float, keep: Sequence[Contribution]
+    def _state_at(self, stamp_s: float) -> tuple[Samples, list[Contribution], list[Samples]]:
+        """The latest epoch at ``stamp_s`` (not before its start): the beam's state, the epoch's
+        active contacts and each one's trajectory there."""
+        epoch = self._epochs[-1]
+        times = _relative(np.array([stamp_s]), self._epoch_starts[-1])
+        if isinstance(epoch, FlowEpoch) and times[0] >= 0.0:
+            total, parts = epoch.sample_parts(times)
+            if times[0] + epoch.start_s == stamp_s:  # the epoch sampled them at stamp_s itself
+                return total, epoch.active, parts
+            return total, epoch.active, [c.sample(np.array([stamp_s])) for c in epoch.active]
+        active = list(getattr(epoch, "active", []))
+        return epoch.sample(times), active, [c.sample(np.array([stamp_s])) for c in active]
+
+    @staticmethod
+    def _aggregate(
+        total: Samples, active: Sequence[Contribution], parts: Sequence[Samples], keep: object
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The free state of an epoch starting at ``stamp_s`` whose active contacts are
-        ``keep``: the beam's state there less their trajectories' states."""
-        total = epoch.sample(_relative(np.array([stamp_s]), self._epoch_starts[-1]))
+        """The free state of an epoch whose active contacts are those of ``active`` but
+        ``keep`` excludes (``keep(contribution)``): the beam's state ``total`` less their
+        trajectories' states ``parts``."""
         q, qd = total.q[:, 0].copy(), total.qd[:, 0].copy()
-        for contribution in keep:
-            part = contribution.sample(np.array([stamp_s]))
-            q -= part.q[:, 0]
-            qd -= part.qd[:, 0]
+        for contribution, part in zip(active, parts):
+            if keep(contribution):
+                q -= part.q[:, 0]
+                qd -= part.qd[:, 0]
         return q, qd
 
     def _solve(self, impact: Impact, stamp_s: float) -> ScheduledImpact:
         """Solve ``impact`` at ``stamp_s`` from the beam's velocity as the earlier contacts
         leave it, and start the epoch it opens."""
         self._fold_until(stamp_s)
-        epoch = self._epochs[-1]
-        total = epoch.sample(_relative(np.array([stamp_s]), self._epoch_starts[-1]))
+        total, active, parts = self._state_at(stamp_s)
         qd0 = total.qd[:, 0].copy()
-        active = list(getattr(epoch, "active", []))
-        q, qd = self._aggregate_at(epoch, stamp_s, active)
+        q, qd = self._aggregate(total, active, parts, lambda c: True)
         qd = qd - qd0  # the new trajectory starts from (0, qd0): its free part leaves the base
         problem = build_problem(
             self.support, impact, self.contact_model, self.window_s, self.structure, qd0=qd0
