@@ -188,7 +188,10 @@ class EpochBatch:
     def run(self) -> None:
         """Sample every epoch asked, once."""
         for epoch, parts in self._asked.items():
-            self._results[epoch] = self._epochs[epoch].sample_many(parts)
+            trajectory = self._epochs[epoch]
+            # q and qd are all the sensors read: an epoch that can leave q'' out does
+            states = getattr(trajectory, "sample_states", trajectory.sample_many)
+            self._results[epoch] = states(parts)
 
     def get(self, ticket: tuple[int, int]) -> Samples:
         """The samples of the times a ticket names."""

@@ -106,60 +106,73 @@ class FlowEpoch:
         self.previous = previous
         self.previous_start_s = previous_start_s
 
-    def sample(self, t_s: np.ndarray) -> Samples:
+    def sample(self, t_s: np.ndarray, accelerations: bool = True) -> Samples:
         """The beam's state at times ``t_s`` from the epoch's start (the particle fields hold
         zeros; ``force_n`` is the sum of the contact forces, N); times before the start are
-        the previous epoch's."""
+        the previous epoch's. ``accelerations=False``: q and qd only, ``qdd`` and ``force_n``
+        left NaN (read-only), which is all the sensors of the stream read."""
         times = np.atleast_1d(np.asarray(t_s, dtype=float))
         before = times < 0.0
         if self.previous is None or not before.any():
-            return self._sample_own(times)
+            return self.sample_parts(times, accelerations)[0]
         shift = self.start_s - (
             self.previous_start_s if math.isfinite(self.previous_start_s) else 0
         )
-        early = self.previous.sample(times[before] + shift)
-        late = self._sample_own(times[~before])
-        out = Samples(
-            times,
-            np.empty((self.q.size, times.size)),
-            np.empty((self.q.size, times.size)),
-            np.empty((self.q.size, times.size)),
-            np.empty(times.size),
-            np.zeros(times.size),
-            np.zeros(times.size),
-        )
-        for part, where in ((early, before), (late, ~before)):
-            out.q[:, where], out.qd[:, where], out.qdd[:, where] = part.q, part.qd, part.qdd
-            out.force_n[where] = part.force_n
+        # Every time on this epoch's formula (each time's state does not depend on the others
+        # asked with it), then the few before its start (a period's reach) read there instead.
+        out = self.sample_parts(times, accelerations)[0]
+        where = np.flatnonzero(before)
+        early_times = times[where] + shift
+        if isinstance(self.previous, FlowEpoch):
+            early = self.previous.sample(early_times, accelerations)
+        else:
+            early = self.previous.sample(early_times)
+        out.q[:, where], out.qd[:, where] = early.q, early.qd
+        if accelerations:
+            out.qdd[:, where], out.force_n[where] = early.qdd, early.force_n
         return out
 
-    def _sample_own(self, times: np.ndarray) -> Samples:
-        return self.sample_parts(times)[0]
-
-    def sample_parts(self, times: np.ndarray) -> tuple[Samples, list[Samples]]:
-        """The beam's state at times ``times`` (>= 0, from the epoch's start), and each active
-        contact's trajectory there (their sum less the free part)."""
+    def sample_parts(
+        self, times: np.ndarray, accelerations: bool = True
+    ) -> tuple[Samples, list[Samples]]:
+        """The beam's state at times ``times`` (from the epoch's start, on its own formula),
+        and each active contact's trajectory there (their sum less the free part);
+        ``accelerations`` as for :meth:`sample`."""
         structure = self.problem.structure
         if not self._decomposed:
             self._amplitude = structure.free_amplitude(self.q, self.qd)
             self._decomposed = True
         q, qd = structure.propagate_amplitude(self._amplitude, times)
-        qdd = _free_acceleration(structure, q, qd)
-        force = np.zeros(times.size)
         parts = []
+        if accelerations:
+            qdd = _free_acceleration(structure, q, qd)
+            force = np.zeros(times.size)
         if self.active:
             stamps = times + self.start_s
             for contribution in self.active:
                 part = contribution.sample(stamps)
                 parts.append(part)
-                q, qd, qdd = q + part.q, qd + part.qd, qdd + part.qdd
-                force = force + part.force_n
+                q, qd = q + part.q, qd + part.qd
+                if accelerations:
+                    qdd, force = qdd + part.qdd, force + part.force_n
+        if not accelerations:
+            qdd, force = np.broadcast_to(np.nan, q.shape), np.broadcast_to(np.nan, times.shape)
         zeros = np.zeros(times.size)
         return Samples(times, q, qd, qdd, force, zeros, zeros.copy()), parts
 
-    def sample_many(self, parts: Sequence[np.ndarray]) -> list[Samples]:
-        """:meth:`sample` of several sets of times in one pass."""
-        return Trajectory.sample_many(self, parts)  # type: ignore[arg-type]
+    def sample_many(
+        self, parts: Sequence[np.ndarray], accelerations: bool = True
+    ) -> list[Samples]:
+        """:meth:`sample` of several sets of times in one pass (as
+        :meth:`Trajectory.sample_many`)."""
+        arrays = [np.atleast_1d(np.asarray(t, dtype=float)) for t in parts]
+        edges = np.cumsum([0] + [a.size for a in arrays]).tolist()
+        union = self.sample(np.concatenate(arrays) if arrays else np.empty(0), accelerations)
+        return [union.take(slice(lo, hi)) for lo, hi in zip(edges[:-1], edges[1:])]
+
+    def sample_states(self, parts: Sequence[np.ndarray]) -> list[Samples]:
+        """:meth:`sample_many` of q and qd only (what the stream's sensors read)."""
+        return self.sample_many(parts, accelerations=False)
 
 
 class FlowSimulator(StreamSimulator):
@@ -225,7 +238,7 @@ class FlowSimulator(StreamSimulator):
         epoch = self._epochs[-1]
         times = _relative(np.array([stamp_s]), self._epoch_starts[-1])
         if isinstance(epoch, FlowEpoch) and times[0] >= 0.0:
-            total, parts = epoch.sample_parts(times)
+            total, parts = epoch.sample_parts(times, accelerations=False)
             if times[0] + epoch.start_s == stamp_s:  # the epoch sampled them at stamp_s itself
                 return total, epoch.active, parts
             return total, epoch.active, [c.sample(np.array([stamp_s])) for c in epoch.active]
