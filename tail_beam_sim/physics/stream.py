@@ -604,9 +604,9 @@ class StreamSimulator:
         m = spec.vibration_oversample
         # Every dense value goes through the filter once, in order; sample i is the filter's
         # output at dense index m * i (stamp i / rate).
-        at_sample = dense_index % m == 0
-        filtered = self._antialias(dense)[at_sample]
-        first = int(dense_index[at_sample][0]) // m if filtered.size else 0
+        offset = -int(dense_index[0]) % m if dense_index.size else 0  # the first at a sample
+        filtered = self._antialias(dense)[offset::m]
+        first = (int(dense_index[0]) + offset) // m if filtered.size else 0
         sigma = spec.vibration_noise_mps2
         if filtered.size:
             filtered = filtered + sigma * self._vibration_noise.take(first, filtered.size)[:, 0]

@@ -58,6 +58,14 @@ def _free_acceleration(structure: LinearStructure, q: np.ndarray, qd: np.ndarray
     return -_columnwise(structure.inv_mass, internal)
 
 
+_NAN = np.array([np.nan]).tobytes()  # the buffer of _not_computed's arrays
+
+
+def _not_computed(shape: tuple[int, ...]) -> np.ndarray:
+    """A read-only array of NaN of ``shape`` that holds one value (a field left out)."""
+    return np.ndarray(shape, dtype=float, buffer=_NAN, strides=(0,) * len(shape))
+
+
 @dataclass(frozen=True)
 class Contribution:
     """One contact: its trajectory, solved from velocity ``qd0`` (zero displacement) at
@@ -120,7 +128,9 @@ class FlowEpoch:
         )
         # Every time on this epoch's formula (each time's state does not depend on the others
         # asked with it), then the few before its start (a period's reach) read there instead.
-        out = self.sample_parts(times, accelerations)[0]
+        # (Those sampled at the start instead: a contact starting here is not asked before it.)
+        out = self.sample_parts(np.maximum(times, 0.0), accelerations)[0]
+        out.t_s = times
         where = np.flatnonzero(before)
         early_times = times[where] + shift
         if isinstance(self.previous, FlowEpoch):
@@ -156,7 +166,7 @@ class FlowEpoch:
                 if accelerations:
                     qdd, force = qdd + part.qdd, force + part.force_n
         if not accelerations:
-            qdd, force = np.broadcast_to(np.nan, q.shape), np.broadcast_to(np.nan, times.shape)
+            qdd, force = _not_computed(q.shape), _not_computed(times.shape)
         zeros = np.zeros(times.size)
         return Samples(times, q, qd, qdd, force, zeros, zeros.copy()), parts
 
