@@ -175,20 +175,23 @@ class LinearStructure:
         # exp(sigma t) (a cos(omega t) - b sin(omega t)). Real exp, cos and sin cost a fraction
         # of a complex exp.
         keep, sigma, omega, _ = self._half_spectrum
-        growth = np.exp(np.multiply.outer(sigma, times))
+        growth = np.multiply.outer(sigma, times)
+        np.exp(growth, out=growth)
         angle = np.multiply.outer(omega, times)
+        # exp(sigma t) cos(omega t) and exp(sigma t) sin(omega t), written over their inputs
+        cosine = np.cos(angle)
+        np.multiply(growth, cosine, out=cosine)
+        sine = np.sin(angle, out=angle)
+        np.multiply(growth, sine, out=sine)
         # einsum, not a BLAS product: each time's state then does not depend on how many times
         # are asked for at once (BLAS kernels round the tail of a block differently), so a stream
         # sampled in chunks is bit-identical to one sampled whole.
         if keep.size == 1 and times.ndim == 1:
             # one exponential (the rigid beam's pair): a plain product, the same floats
-            state = amplitude.real * (growth * np.cos(angle)) - amplitude.imag * (
-                growth * np.sin(angle)
-            )
+            state = amplitude.real * cosine - amplitude.imag * sine
         else:
-            state = np.einsum("ik,k...->i...", amplitude.real, growth * np.cos(angle)) - np.einsum(
-                "ik,k...->i...", amplitude.imag, growth * np.sin(angle)
-            )
+            state = np.einsum("ik,k...->i...", amplitude.real, cosine)
+            state -= np.einsum("ik,k...->i...", amplitude.imag, sine)
         n = self.size
         return state[:n], state[n:]
 
