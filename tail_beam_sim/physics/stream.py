@@ -188,10 +188,11 @@ class EpochBatch:
     def run(self) -> None:
         """Sample every epoch asked, once."""
         for epoch, parts in self._asked.items():
-            trajectory = self._epochs[epoch]
-            # q and qd are all the sensors read: an epoch that can leave q'' out does
-            states = getattr(trajectory, "sample_states", trajectory.sample_many)
-            self._results[epoch] = states(parts)
+            self._results[epoch] = self._sample(self._epochs[epoch], parts)
+
+    def _sample(self, trajectory: Trajectory, parts: list[np.ndarray]) -> list[Samples]:
+        """One epoch at several sets of times, in one pass."""
+        return trajectory.sample_many(parts)
 
     def get(self, ticket: tuple[int, int]) -> Samples:
         """The samples of the times a ticket names."""
@@ -451,7 +452,7 @@ class StreamSimulator:
         imu_index = self._grid(self._next_imu_index, until, spec.imu_rate_hz)
         # Every sensor's instants of the span, sampled in one pass per epoch: the sensors ask
         # the same few epochs, and the work per call weighs as much as the work per instant.
-        batch = EpochBatch(self._epochs)
+        batch = self._epoch_batch()
         pressure = self._pressure(pressure_index, batch)
         imu = self._imu(imu_index, batch)
         vibration = self._vibration(until, batch)
@@ -487,6 +488,10 @@ class StreamSimulator:
         self._time_s = until
         self._prune()
         return Chunk(start, until, pressure, imu, vibration, rebounds, truths, started, points)
+
+    def _epoch_batch(self) -> EpochBatch:
+        """A batch of the times the sensors ask of the epochs kept."""
+        return EpochBatch(self._epochs)
 
     @staticmethod
     def _grid(first_index: int, until_s: float, rate_hz: float) -> np.ndarray:

@@ -43,6 +43,7 @@ from tail_beam_sim.physics.solvers.problem import _columnwise
 from tail_beam_sim.physics.stream import (
     CarriedTrajectory,
     Chunk,
+    EpochBatch,
     ScheduledImpact,
     StreamSimulator,
     _relative,
@@ -114,6 +115,14 @@ class FlowEpoch:
         self.previous = previous
         self.previous_start_s = previous_start_s
 
+    @property
+    def shift_s(self) -> float:
+        """This epoch's time less the previous epoch's, s (the rest epoch, from -inf, reads
+        absolute stamps)."""
+        return self.start_s - (
+            self.previous_start_s if math.isfinite(self.previous_start_s) else 0
+        )
+
     def sample(self, t_s: np.ndarray, accelerations: bool = True) -> Samples:
         """The beam's state at times ``t_s`` from the epoch's start (the particle fields hold
         zeros; ``force_n`` is the sum of the contact forces, N); times before the start are
@@ -123,9 +132,7 @@ class FlowEpoch:
         before = times < 0.0
         if self.previous is None or not before.any():
             return self.sample_parts(times, accelerations)[0]
-        shift = self.start_s - (
-            self.previous_start_s if math.isfinite(self.previous_start_s) else 0
-        )
+        shift = self.shift_s
         # Every time on this epoch's formula (each time's state does not depend on the others
         # asked with it), then the few before its start (a period's reach) read there instead.
         # (Those sampled at the start instead: a contact starting here is not asked before it.)
@@ -185,6 +192,49 @@ class FlowEpoch:
         return self.sample_many(parts, accelerations=False)
 
 
+class FlowEpochBatch(EpochBatch):
+    """The sensors' times of a span asked of the flow's epochs: times before an epoch's start
+    asked of the epoch before directly (where :meth:`FlowEpoch.sample` would read them), so
+    that each epoch is sampled once per span; q and qd only (what the sensors read)."""
+
+    def __init__(self, epochs: list[FlowEpoch | Trajectory]) -> None:
+        super().__init__(epochs)  # type: ignore[arg-type]
+        # a ticket's times before its epoch's start: (where, their ticket, the times asked)
+        self._early: dict[tuple[int, int], tuple[np.ndarray, tuple[int, int], np.ndarray]] = {}
+
+    def ask(self, epoch: int, t_s: np.ndarray) -> tuple[int, int]:
+        trajectory = self._epochs[epoch]
+        if (
+            isinstance(trajectory, FlowEpoch)
+            and epoch > 0
+            and trajectory.previous is self._epochs[epoch - 1]
+        ):
+            before = t_s < 0.0
+            if before.any():
+                where = np.flatnonzero(before)
+                early = self.ask(epoch - 1, t_s[where] + trajectory.shift_s)
+                # the others on the epoch's own formula, those before its start at its start
+                ticket = super().ask(epoch, np.maximum(t_s, 0.0))
+                self._early[ticket] = (where, early, t_s)
+                return ticket
+        return super().ask(epoch, t_s)
+
+    def _sample(self, trajectory: Trajectory, parts: list[np.ndarray]) -> list[Samples]:
+        if isinstance(trajectory, FlowEpoch):
+            return trajectory.sample_states(parts)
+        return trajectory.sample_many(parts)
+
+    def get(self, ticket: tuple[int, int]) -> Samples:
+        out = super().get(ticket)
+        early = self._early.pop(ticket, None)
+        if early is not None:
+            where, before, times = early
+            part = self.get(before)
+            out.q[:, where], out.qd[:, where] = part.q, part.qd
+            out.t_s = times
+        return out
+
+
 class FlowSimulator(StreamSimulator):
     """A stream simulator whose contacts may overlap, superposed (module docstring).
 
@@ -227,6 +277,9 @@ class FlowSimulator(StreamSimulator):
             q, qd = self._aggregate(total, active, parts, lambda c: c is not first)
             remaining = [c for c in active if c is not first]
             self._push_epoch(FlowEpoch(self._rest_problem, start, q, qd, remaining))
+
+    def _epoch_batch(self) -> FlowEpochBatch:
+        return FlowEpochBatch(self._epochs)
 
     def _push_epoch(self, epoch: FlowEpoch) -> None:
         """Append ``epoch``, linked to the one before it."""
