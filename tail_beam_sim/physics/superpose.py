@@ -23,7 +23,8 @@ the sum of its responses to each. :class:`FlowSimulator` is a
   costs the free propagation plus the few contacts in progress then, so a run costs in
   proportion to its contacts plus its samples. A sensor value averaged over the period before
   its instant reads the part of the period before its epoch from the epoch before. The sensor
-  stages are the stream simulator's, unchanged.
+  stages are the stream simulator's, unchanged; a span's instants of every sensor are asked of
+  each epoch in one pass (:class:`FlowEpochBatch`).
 """
 
 from __future__ import annotations
