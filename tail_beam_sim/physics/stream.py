@@ -547,14 +547,13 @@ class StreamSimulator:
                 gyro[where], accel[where] = imu_samples(
                     self._epochs[k], times, period, (batch.get(now), batch.get(before))
                 )
-            gyro_, accel_ = gyro, accel
             if self._imu_lowpass is not None:
-                accel_[:, 2], gyro_[:, 1] = self._imu_lowpass(index, self._dense_imu_response)
+                accel[:, 2], gyro[:, 1] = self._imu_lowpass(index, self._dense_imu_response)
             noise = self._suite.noise
             if index.size:
                 unit = self._imu_noise.take(int(index[0]), index.size)
-                gyro_, accel_ = noise.gyro(gyro_, unit[:, :3]), noise.accel(accel_, unit[:, 3:])
-            return ImuStream(stamps, gyro_, accel_, noise.gyro_radps**2, noise.accel_mps2**2)
+                gyro, accel = noise.gyro(gyro, unit[:, :3]), noise.accel(accel, unit[:, 3:])
+            return ImuStream(stamps, gyro, accel, noise.gyro_radps**2, noise.accel_mps2**2)
 
         return finish
 

@@ -30,7 +30,7 @@ the sum of its responses to each. :class:`FlowSimulator` is a
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -311,7 +311,10 @@ class FlowSimulator(StreamSimulator):
 
     @staticmethod
     def _aggregate(
-        total: Samples, active: Sequence[Contribution], parts: Sequence[Samples], keep: object
+        total: Samples,
+        active: Sequence[Contribution],
+        parts: Sequence[Samples],
+        keep: Callable[[Contribution], bool],
     ) -> tuple[np.ndarray, np.ndarray]:
         """The free state of an epoch whose active contacts are those of ``active`` but
         ``keep`` excludes (``keep(contribution)``): the beam's state ``total`` less their
