@@ -138,11 +138,12 @@ class Pipeline:
             material = self.coal
         radius = lump_radius_m(self.flow, float(u[1]))
         low, high = material.restitution_range
+        (h0, h1), (x0, x1) = f.drop_height_m, f.position_m
         command = {
             "material": material.name,
             "radius_m": radius,
-            "drop_height_m": float(f.drop_height_m[0] + u[2] * np.diff(f.drop_height_m)[0]),
-            "position_m": float(f.position_m[0] + u[3] * np.diff(f.position_m)[0]),
+            "drop_height_m": float(h0 + u[2] * (h1 - h0)),
+            "position_m": float(x0 + u[3] * (x1 - x0)),
             "restitution": float(low + u[4] * (high - low)),
             "impact_id": impact_id,
         }

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
@@ -141,6 +141,62 @@ def _relative(stamp_s: np.ndarray, epoch_start_s: float) -> np.ndarray:
     """Stamps as times of an epoch's trajectory (the rest epoch, starting at -inf, has no
     origin)."""
     return stamp_s - epoch_start_s if math.isfinite(epoch_start_s) else stamp_s
+
+
+def _split_by_epoch(
+    epoch_starts: list[float], stamp_s: np.ndarray
+) -> list[tuple[int, np.ndarray | slice]]:
+    """The epochs (index into ``epoch_starts``, s, ascending) that stamps fall in, each with
+    where its stamps are: a slice when the stamps do not decrease (every sensor's grid), else a
+    mask."""
+    if stamp_s.size == 0:
+        return []
+    if len(epoch_starts) == 1:
+        return [(0, slice(None))]
+    which = np.searchsorted(np.array(epoch_starts), stamp_s, side="right") - 1
+    if stamp_s.size < 2 or bool((stamp_s[1:] >= stamp_s[:-1]).all()):
+        first, last = int(which[0]), int(which[-1])
+        if first == last:
+            return [(first, slice(None))]
+        edges = np.searchsorted(which, np.arange(first, last + 2)).tolist()
+        return [
+            (k, slice(lo, hi))
+            for k, lo, hi in zip(range(first, last + 1), edges[:-1], edges[1:])
+            if hi > lo
+        ]
+    return [(int(k), which == k) for k in np.unique(which)]
+
+
+class EpochBatch:
+    """Times asked of the epochs by several sensors, sampled in one pass per epoch.
+
+    :meth:`ask` registers times (an epoch's own time) and returns a ticket; :meth:`run` samples
+    each epoch once at every time asked of it (each time's state does not depend on the others
+    asked with it, :meth:`Trajectory.sample_many`); :meth:`get` gives a ticket's samples."""
+
+    def __init__(self, epochs: list[Trajectory]) -> None:
+        self._epochs = epochs
+        self._asked: dict[int, list[np.ndarray]] = {}
+        self._results: dict[int, list[Samples]] = {}
+
+    def ask(self, epoch: int, t_s: np.ndarray) -> tuple[int, int]:
+        """Register times ``t_s`` of epoch ``epoch``; the ticket names them."""
+        parts = self._asked.setdefault(epoch, [])
+        parts.append(t_s)
+        return epoch, len(parts) - 1
+
+    def run(self) -> None:
+        """Sample every epoch asked, once."""
+        for epoch, parts in self._asked.items():
+            self._results[epoch] = self._sample(self._epochs[epoch], parts)
+
+    def _sample(self, trajectory: Trajectory, parts: list[np.ndarray]) -> list[Samples]:
+        """One epoch at several sets of times, in one pass."""
+        return trajectory.sample_many(parts)
+
+    def get(self, ticket: tuple[int, int]) -> Samples:
+        """The samples of the times a ticket names."""
+        return self._results[ticket[0]][ticket[1]]
 
 
 class BlockNoise:
@@ -394,9 +450,14 @@ class StreamSimulator:
         spec = self.sensors
         pressure_index = self._grid(self._next_pressure_index, until, spec.pressure_rate_hz)
         imu_index = self._grid(self._next_imu_index, until, spec.imu_rate_hz)
-        pressure = self._pressure(pressure_index)
-        imu = self._imu(imu_index)
-        vibration = self._vibration(until)
+        # Every sensor's instants of the span, sampled in one pass per epoch: the sensors ask
+        # the same few epochs, and the work per call weighs as much as the work per instant.
+        batch = self._epoch_batch()
+        pressure = self._pressure(pressure_index, batch)
+        imu = self._imu(imu_index, batch)
+        vibration = self._vibration(until, batch)
+        batch.run()
+        pressure, imu, vibration = pressure(), imu(), vibration()
         self._next_pressure_index += pressure_index.size
         self._next_imu_index += imu_index.size
         started = []
@@ -428,6 +489,10 @@ class StreamSimulator:
         self._prune()
         return Chunk(start, until, pressure, imu, vibration, rebounds, truths, started, points)
 
+    def _epoch_batch(self) -> EpochBatch:
+        """A batch of the times the sensors ask of the epochs kept."""
+        return EpochBatch(self._epochs)
+
     @staticmethod
     def _grid(first_index: int, until_s: float, rate_hz: float) -> np.ndarray:
         last = math.floor(until_s * rate_hz + 1e-9)
@@ -435,39 +500,62 @@ class StreamSimulator:
 
     def _by_epoch(self, stamp_s: np.ndarray) -> list[tuple[Trajectory, float, np.ndarray]]:
         """Split stamps by the epoch (trajectory and its start, s) they fall in."""
-        which = np.searchsorted(np.array(self._epoch_starts), stamp_s, side="right") - 1
-        return [(self._epochs[k], self._epoch_starts[k], which == k) for k in np.unique(which)]
+        return [
+            (self._epochs[k], self._epoch_starts[k], where)
+            for k, where in _split_by_epoch(self._epoch_starts, stamp_s)
+        ]
 
-    def _pressure(self, index: np.ndarray) -> PressureStream:
+    def _pressure(self, index: np.ndarray, batch: EpochBatch) -> Callable[[], PressureStream]:
+        """Ask ``batch`` for the jack's states at samples ``index``; the returned function gives
+        the stream once the batch has run."""
         spec = self.sensors
         stamps = index / spec.pressure_rate_hz
-        clean = np.empty(stamps.size)
-        for trajectory, start, mask in self._by_epoch(stamps):
-            state = trajectory.sample(_relative(stamps[mask], start))
-            clean[mask] = self.structure.pressure_pa(state.q, state.qd)
-        unit = (
-            self._pressure_noise.take(int(index[0]), index.size)[:, 0]
-            if index.size
-            else np.empty(0)
-        )
-        noise = self._suite.noise
-        return PressureStream(stamps, noise.pressure(clean, unit), noise.pressure_pa**2)
+        asked = [
+            (where, batch.ask(k, _relative(stamps[where], self._epoch_starts[k])))
+            for k, where in _split_by_epoch(self._epoch_starts, stamps)
+        ]
 
-    def _imu(self, index: np.ndarray) -> ImuStream:
+        def finish() -> PressureStream:
+            clean = np.empty(stamps.size)
+            for where, ticket in asked:
+                state = batch.get(ticket)
+                clean[where] = self.structure.pressure_pa(state.q, state.qd)
+            unit = (
+                self._pressure_noise.take(int(index[0]), index.size)[:, 0]
+                if index.size
+                else np.empty(0)
+            )
+            noise = self._suite.noise
+            return PressureStream(stamps, noise.pressure(clean, unit), noise.pressure_pa**2)
+
+        return finish
+
+    def _imu(self, index: np.ndarray, batch: EpochBatch) -> Callable[[], ImuStream]:
+        """Ask ``batch`` for the IMU's states at samples ``index`` and a period before; the
+        returned function gives the stream once the batch has run."""
         spec = self.sensors
         stamps = index / spec.imu_rate_hz
-        gyro, accel = np.empty((stamps.size, 3)), np.empty((stamps.size, 3))
-        for trajectory, start, mask in self._by_epoch(stamps):
-            gyro[mask], accel[mask] = imu_samples(
-                trajectory, _relative(stamps[mask], start), 1.0 / spec.imu_rate_hz
-            )
-        if self._imu_lowpass is not None:
-            accel[:, 2], gyro[:, 1] = self._imu_lowpass(index, self._dense_imu_response)
-        noise = self._suite.noise
-        if index.size:
-            unit = self._imu_noise.take(int(index[0]), index.size)
-            gyro, accel = noise.gyro(gyro, unit[:, :3]), noise.accel(accel, unit[:, 3:])
-        return ImuStream(stamps, gyro, accel, noise.gyro_radps**2, noise.accel_mps2**2)
+        period = 1.0 / spec.imu_rate_hz
+        asked = []
+        for k, where in _split_by_epoch(self._epoch_starts, stamps):
+            times = _relative(stamps[where], self._epoch_starts[k])
+            asked.append((k, where, times, batch.ask(k, times), batch.ask(k, times - period)))
+
+        def finish() -> ImuStream:
+            gyro, accel = np.empty((stamps.size, 3)), np.empty((stamps.size, 3))
+            for k, where, times, now, before in asked:
+                gyro[where], accel[where] = imu_samples(
+                    self._epochs[k], times, period, (batch.get(now), batch.get(before))
+                )
+            if self._imu_lowpass is not None:
+                accel[:, 2], gyro[:, 1] = self._imu_lowpass(index, self._dense_imu_response)
+            noise = self._suite.noise
+            if index.size:
+                unit = self._imu_noise.take(int(index[0]), index.size)
+                gyro, accel = noise.gyro(gyro, unit[:, :3]), noise.accel(accel, unit[:, 3:])
+            return ImuStream(stamps, gyro, accel, noise.gyro_radps**2, noise.accel_mps2**2)
+
+        return finish
 
     def _dense_imu_response(self, stamps_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The beam's (specific force z, pitch rate) at the IMU for its low-pass filter, at
@@ -480,34 +568,49 @@ class StreamSimulator:
             )
         return accel, rate
 
-    def _vibration(self, until_s: float) -> VibrationBlocks:
-        """The accelerometer up to ``until_s``: dense response, anti-alias filter, decimation,
-        noise, clipping; returns the blocks completed (block b holds indices b*N .. b*N+N-1)."""
+    def _vibration(self, until_s: float, batch: EpochBatch) -> Callable[[], VibrationBlocks]:
+        """Ask ``batch`` for the accelerometer's dense instants up to ``until_s``; the returned
+        function gives the blocks completed once the batch has run: dense response, anti-alias
+        filter, decimation, noise, clipping (block b holds indices b*N .. b*N+N-1)."""
         spec = self.sensors
         m = spec.vibration_oversample
         dense_rate = m * spec.vibration_rate_hz
         dense_index = self._grid(self._next_dense_index, until_s, dense_rate)
         self._next_dense_index += dense_index.size
         stamps = dense_index / dense_rate
-        dense = np.empty(stamps.size)
-        for trajectory, start, mask in self._by_epoch(stamps):
+        asked = []
+        for k, where in _split_by_epoch(self._epoch_starts, stamps):
             # Each dense value is the mean over the period before its instant, which the
             # instant before bounds: the epoch's instants and the one before the first,
             # evaluated once each (index / rate, as every chunk cuts them).
-            index = dense_index[mask]
+            index = dense_index[where]
             times = np.concatenate([[index[0] - 1], index]) / dense_rate
-            states = trajectory.sample(_relative(times, start))
-            dense[mask] = mean_specific_force_z(
-                trajectory,
-                states.t_s[1:],
-                1.0 / dense_rate,
-                (states.take(slice(1, None)), states.take(slice(None, -1))),
-            )
+            asked.append((k, where, batch.ask(k, _relative(times, self._epoch_starts[k]))))
+
+        def finish() -> VibrationBlocks:
+            dense = np.empty(stamps.size)
+            for k, where, ticket in asked:
+                states = batch.get(ticket)
+                dense[where] = mean_specific_force_z(
+                    self._epochs[k],
+                    states.t_s[1:],
+                    1.0 / dense_rate,
+                    (states.take(slice(1, None)), states.take(slice(None, -1))),
+                )
+            return self._vibration_blocks(dense_index, dense)
+
+        return finish
+
+    def _vibration_blocks(self, dense_index: np.ndarray, dense: np.ndarray) -> VibrationBlocks:
+        """The accelerometer's dense values through its filter, decimation, noise and
+        clipping, cut into the blocks completed."""
+        spec = self.sensors
+        m = spec.vibration_oversample
         # Every dense value goes through the filter once, in order; sample i is the filter's
         # output at dense index m * i (stamp i / rate).
-        at_sample = dense_index % m == 0
-        filtered = self._antialias(dense)[at_sample]
-        first = int(dense_index[at_sample][0]) // m if filtered.size else 0
+        offset = -int(dense_index[0]) % m if dense_index.size else 0  # the first at a sample
+        filtered = self._antialias(dense)[offset::m]
+        first = (int(dense_index[0]) + offset) // m if filtered.size else 0
         sigma = spec.vibration_noise_mps2
         if filtered.size:
             filtered = filtered + sigma * self._vibration_noise.take(first, filtered.size)[:, 0]

@@ -146,10 +146,25 @@ class LinearStructure:
 
         Returns q and qd with shape (n,) for a scalar time, (n, len(dt_s)) for an array.
         """
+        return self.propagate_amplitude(self.free_amplitude(q0, qd0), dt_s)
+
+    def free_amplitude(self, q0: np.ndarray, qd0: np.ndarray) -> np.ndarray | None:
+        """The free response from (q0, qd0) as the complex amplitude of each exponential
+        (one of each conjugate pair, weighted; :meth:`propagate_amplitude`), None at rest: a
+        state propagated many times is decomposed once."""
         _, vectors, inverse = self._eigen
         modal = inverse @ np.concatenate([q0, qd0])
-        times = np.asarray(dt_s, dtype=float)
         if not np.any(modal):
+            return None
+        keep, _, _, weight = self._half_spectrum
+        return vectors[:, keep] * (weight * modal[keep])
+
+    def propagate_amplitude(
+        self, amplitude: np.ndarray | None, dt_s: np.ndarray | float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`propagate` of the state whose :meth:`free_amplitude` is ``amplitude``."""
+        times = np.asarray(dt_s, dtype=float)
+        if amplitude is None:
             # At rest it stays at rest, also backwards in time (samples before the first contact):
             # exp(lambda t) of a strongly damped mode overflows there, and inf * 0 is NaN.
             rest = np.zeros((self.size,) + times.shape)
@@ -159,22 +174,24 @@ class LinearStructure:
         # lambda = sigma + i omega and w V c = a + i b, each term is
         # exp(sigma t) (a cos(omega t) - b sin(omega t)). Real exp, cos and sin cost a fraction
         # of a complex exp.
-        keep, sigma, omega, weight = self._half_spectrum
-        amplitude = vectors[:, keep] * (weight * modal[keep])
-        growth = np.exp(np.multiply.outer(sigma, times))
+        keep, sigma, omega, _ = self._half_spectrum
+        growth = np.multiply.outer(sigma, times)
+        np.exp(growth, out=growth)
         angle = np.multiply.outer(omega, times)
+        # exp(sigma t) cos(omega t) and exp(sigma t) sin(omega t), written over their inputs
+        cosine = np.cos(angle)
+        np.multiply(growth, cosine, out=cosine)
+        sine = np.sin(angle, out=angle)
+        np.multiply(growth, sine, out=sine)
         # einsum, not a BLAS product: each time's state then does not depend on how many times
         # are asked for at once (BLAS kernels round the tail of a block differently), so a stream
         # sampled in chunks is bit-identical to one sampled whole.
         if keep.size == 1 and times.ndim == 1:
             # one exponential (the rigid beam's pair): a plain product, the same floats
-            state = amplitude.real * (growth * np.cos(angle)) - amplitude.imag * (
-                growth * np.sin(angle)
-            )
+            state = amplitude.real * cosine - amplitude.imag * sine
         else:
-            state = np.einsum("ik,k...->i...", amplitude.real, growth * np.cos(angle)) - np.einsum(
-                "ik,k...->i...", amplitude.imag, growth * np.sin(angle)
-            )
+            state = np.einsum("ik,k...->i...", amplitude.real, cosine)
+            state -= np.einsum("ik,k...->i...", amplitude.imag, sine)
         n = self.size
         return state[:n], state[n:]
 

@@ -23,13 +23,14 @@ the sum of its responses to each. :class:`FlowSimulator` is a
   costs the free propagation plus the few contacts in progress then, so a run costs in
   proportion to its contacts plus its samples. A sensor value averaged over the period before
   its instant reads the part of the period before its epoch from the epoch before. The sensor
-  stages are the stream simulator's, unchanged.
+  stages are the stream simulator's, unchanged; a span's instants of every sensor are asked of
+  each epoch in one pass (:class:`FlowEpochBatch`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,6 +44,7 @@ from tail_beam_sim.physics.solvers.problem import _columnwise
 from tail_beam_sim.physics.stream import (
     CarriedTrajectory,
     Chunk,
+    EpochBatch,
     ScheduledImpact,
     StreamSimulator,
     _relative,
@@ -56,6 +58,14 @@ def _free_acceleration(structure: LinearStructure, q: np.ndarray, qd: np.ndarray
     trajectories' own free segments compute it)."""
     internal = _columnwise(structure.damping, qd) + _columnwise(structure.stiffness, q)
     return -_columnwise(structure.inv_mass, internal)
+
+
+_NAN = np.array([np.nan]).tobytes()  # the buffer of _not_computed's arrays
+
+
+def _not_computed(shape: tuple[int, ...]) -> np.ndarray:
+    """A read-only array of NaN of ``shape`` that holds one value (a field left out)."""
+    return np.ndarray(shape, dtype=float, buffer=_NAN, strides=(0,) * len(shape))
 
 
 @dataclass(frozen=True)
@@ -98,54 +108,132 @@ class FlowEpoch:
         self.q = q
         self.qd = qd
         self.active = list(active)
+        # the free state's decomposition (LinearStructure.free_amplitude), made at first use
+        self._amplitude: np.ndarray | None = None
+        self._decomposed = False
         # The epoch before (starting at previous_start_s): a sensor's value is a mean over the
         # period before its instant, and a period reaching back before this epoch is read there.
         self.previous = previous
         self.previous_start_s = previous_start_s
 
-    def sample(self, t_s: np.ndarray) -> Samples:
+    @property
+    def shift_s(self) -> float:
+        """This epoch's time less the previous epoch's, s (the rest epoch, from -inf, reads
+        absolute stamps)."""
+        return self.start_s - (
+            self.previous_start_s if math.isfinite(self.previous_start_s) else 0
+        )
+
+    def sample(self, t_s: np.ndarray, accelerations: bool = True) -> Samples:
         """The beam's state at times ``t_s`` from the epoch's start (the particle fields hold
         zeros; ``force_n`` is the sum of the contact forces, N); times before the start are
-        the previous epoch's."""
+        the previous epoch's. ``accelerations=False``: q and qd only, ``qdd`` and ``force_n``
+        left NaN (read-only), which is all the sensors of the stream read."""
         times = np.atleast_1d(np.asarray(t_s, dtype=float))
         before = times < 0.0
         if self.previous is None or not before.any():
-            return self._sample_own(times)
-        shift = self.start_s - (
-            self.previous_start_s if math.isfinite(self.previous_start_s) else 0
-        )
-        early = self.previous.sample(times[before] + shift)
-        late = self._sample_own(times[~before])
-        out = Samples(
-            times,
-            np.empty((self.q.size, times.size)),
-            np.empty((self.q.size, times.size)),
-            np.empty((self.q.size, times.size)),
-            np.empty(times.size),
-            np.zeros(times.size),
-            np.zeros(times.size),
-        )
-        for part, where in ((early, before), (late, ~before)):
-            out.q[:, where], out.qd[:, where], out.qdd[:, where] = part.q, part.qd, part.qdd
-            out.force_n[where] = part.force_n
+            return self.sample_parts(times, accelerations)[0]
+        shift = self.shift_s
+        # Every time on this epoch's formula (each time's state does not depend on the others
+        # asked with it), then the few before its start (a period's reach) read there instead.
+        # (Those sampled at the start instead: a contact starting here is not asked before it.)
+        out = self.sample_parts(np.maximum(times, 0.0), accelerations)[0]
+        out.t_s = times
+        where = np.flatnonzero(before)
+        early_times = times[where] + shift
+        if isinstance(self.previous, FlowEpoch):
+            early = self.previous.sample(early_times, accelerations)
+        else:
+            early = self.previous.sample(early_times)
+        out.q[:, where], out.qd[:, where] = early.q, early.qd
+        if accelerations:
+            out.qdd[:, where], out.force_n[where] = early.qdd, early.force_n
         return out
 
-    def _sample_own(self, times: np.ndarray) -> Samples:
+    def sample_parts(
+        self, times: np.ndarray, accelerations: bool = True
+    ) -> tuple[Samples, list[Samples]]:
+        """The beam's state at times ``times`` (from the epoch's start, on its own formula),
+        and each active contact's trajectory there (their sum less the free part);
+        ``accelerations`` as for :meth:`sample`."""
         structure = self.problem.structure
-        q, qd = structure.propagate(self.q, self.qd, times)
-        qdd = _free_acceleration(structure, q, qd)
-        force = np.zeros(times.size)
-        stamps = times + self.start_s
-        for contribution in self.active:
-            part = contribution.sample(stamps)
-            q, qd, qdd = q + part.q, qd + part.qd, qdd + part.qdd
-            force = force + part.force_n
+        if not self._decomposed:
+            self._amplitude = structure.free_amplitude(self.q, self.qd)
+            self._decomposed = True
+        q, qd = structure.propagate_amplitude(self._amplitude, times)
+        parts = []
+        if accelerations:
+            qdd = _free_acceleration(structure, q, qd)
+            force = np.zeros(times.size)
+        if self.active:
+            stamps = times + self.start_s
+            for contribution in self.active:
+                part = contribution.sample(stamps)
+                parts.append(part)
+                q, qd = q + part.q, qd + part.qd
+                if accelerations:
+                    qdd, force = qdd + part.qdd, force + part.force_n
+        if not accelerations:
+            qdd, force = _not_computed(q.shape), _not_computed(times.shape)
         zeros = np.zeros(times.size)
-        return Samples(times, q, qd, qdd, force, zeros, zeros.copy())
+        return Samples(times, q, qd, qdd, force, zeros, zeros.copy()), parts
 
-    def sample_many(self, parts: Sequence[np.ndarray]) -> list[Samples]:
-        """:meth:`sample` of several sets of times in one pass."""
-        return Trajectory.sample_many(self, parts)  # type: ignore[arg-type]
+    def sample_many(
+        self, parts: Sequence[np.ndarray], accelerations: bool = True
+    ) -> list[Samples]:
+        """:meth:`sample` of several sets of times in one pass (as
+        :meth:`Trajectory.sample_many`)."""
+        arrays = [np.atleast_1d(np.asarray(t, dtype=float)) for t in parts]
+        edges = np.cumsum([0] + [a.size for a in arrays]).tolist()
+        union = self.sample(np.concatenate(arrays) if arrays else np.empty(0), accelerations)
+        return [union.take(slice(lo, hi)) for lo, hi in zip(edges[:-1], edges[1:])]
+
+    def sample_states(self, parts: Sequence[np.ndarray]) -> list[Samples]:
+        """:meth:`sample_many` of q and qd only (what the stream's sensors read)."""
+        return self.sample_many(parts, accelerations=False)
+
+
+class FlowEpochBatch(EpochBatch):
+    """The sensors' times of a span asked of the flow's epochs: times before an epoch's start
+    asked of the epoch before directly (where :meth:`FlowEpoch.sample` would read them), so
+    that each epoch is sampled once per span; q and qd only (what the sensors read)."""
+
+    def __init__(self, epochs: list[FlowEpoch | Trajectory]) -> None:
+        super().__init__(epochs)  # type: ignore[arg-type]
+        # a ticket's times before its epoch's start: (where, their ticket, the times asked)
+        self._early: dict[tuple[int, int], tuple[np.ndarray, tuple[int, int], np.ndarray]] = {}
+
+    def ask(self, epoch: int, t_s: np.ndarray) -> tuple[int, int]:
+        trajectory = self._epochs[epoch]
+        if (
+            isinstance(trajectory, FlowEpoch)
+            and epoch > 0
+            and trajectory.previous is self._epochs[epoch - 1]
+        ):
+            before = t_s < 0.0
+            if before.any():
+                where = np.flatnonzero(before)
+                early = self.ask(epoch - 1, t_s[where] + trajectory.shift_s)
+                # the others on the epoch's own formula, those before its start at its start
+                ticket = super().ask(epoch, np.maximum(t_s, 0.0))
+                self._early[ticket] = (where, early, t_s)
+                return ticket
+        return super().ask(epoch, t_s)
+
+    def _sample(self, trajectory: Trajectory, parts: list[np.ndarray]) -> list[Samples]:
+        if isinstance(trajectory, FlowEpoch):
+            return trajectory.sample_states(parts)
+        return trajectory.sample_many(parts)
+
+    def get(self, ticket: tuple[int, int]) -> Samples:
+        out = super().get(ticket)
+        early = self._early.pop(ticket, None)
+        if early is not None:
+            where, before, times = early
+            part = self.get(before)
+            out.q[:, where], out.qd[:, where] = part.q, part.qd
+            out.t_s = times
+        return out
 
 
 class FlowSimulator(StreamSimulator):
@@ -186,9 +274,13 @@ class FlowSimulator(StreamSimulator):
                 return
             first = min(ended, key=lambda c: c.until_s)
             start = max(first.until_s, self._epoch_starts[-1])
+            total, active, parts = self._state_at(start)
+            q, qd = self._aggregate(total, active, parts, lambda c: c is not first)
             remaining = [c for c in active if c is not first]
-            q, qd = self._aggregate_at(epoch, start, remaining)
             self._push_epoch(FlowEpoch(self._rest_problem, start, q, qd, remaining))
+
+    def _epoch_batch(self) -> FlowEpochBatch:
+        return FlowEpochBatch(self._epochs)
 
     def _push_epoch(self, epoch: FlowEpoch) -> None:
         """Append ``epoch``, linked to the one before it."""
@@ -204,28 +296,43 @@ class FlowSimulator(StreamSimulator):
         if isinstance(first, FlowEpoch):
             first.previous = None
 
-    def _aggregate_at(
-        self, epoch: FlowEpoch | Trajectory, stamp_s: float, keep: Sequence[Contribution]
+    def _state_at(self, stamp_s: float) -> tuple[Samples, list[Contribution], list[Samples]]:
+        """The latest epoch at ``stamp_s`` (not before its start): the beam's state, the epoch's
+        active contacts and each one's trajectory there."""
+        epoch = self._epochs[-1]
+        times = _relative(np.array([stamp_s]), self._epoch_starts[-1])
+        if isinstance(epoch, FlowEpoch) and times[0] >= 0.0:
+            total, parts = epoch.sample_parts(times, accelerations=False)
+            if times[0] + epoch.start_s == stamp_s:  # the epoch sampled them at stamp_s itself
+                return total, epoch.active, parts
+            return total, epoch.active, [c.sample(np.array([stamp_s])) for c in epoch.active]
+        active = list(getattr(epoch, "active", []))
+        return epoch.sample(times), active, [c.sample(np.array([stamp_s])) for c in active]
+
+    @staticmethod
+    def _aggregate(
+        total: Samples,
+        active: Sequence[Contribution],
+        parts: Sequence[Samples],
+        keep: Callable[[Contribution], bool],
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The free state of an epoch starting at ``stamp_s`` whose active contacts are
-        ``keep``: the beam's state there less their trajectories' states."""
-        total = epoch.sample(_relative(np.array([stamp_s]), self._epoch_starts[-1]))
+        """The free state of an epoch whose active contacts are those of ``active`` but
+        ``keep`` excludes (``keep(contribution)``): the beam's state ``total`` less their
+        trajectories' states ``parts``."""
         q, qd = total.q[:, 0].copy(), total.qd[:, 0].copy()
-        for contribution in keep:
-            part = contribution.sample(np.array([stamp_s]))
-            q -= part.q[:, 0]
-            qd -= part.qd[:, 0]
+        for contribution, part in zip(active, parts):
+            if keep(contribution):
+                q -= part.q[:, 0]
+                qd -= part.qd[:, 0]
         return q, qd
 
     def _solve(self, impact: Impact, stamp_s: float) -> ScheduledImpact:
         """Solve ``impact`` at ``stamp_s`` from the beam's velocity as the earlier contacts
         leave it, and start the epoch it opens."""
         self._fold_until(stamp_s)
-        epoch = self._epochs[-1]
-        total = epoch.sample(_relative(np.array([stamp_s]), self._epoch_starts[-1]))
+        total, active, parts = self._state_at(stamp_s)
         qd0 = total.qd[:, 0].copy()
-        active = list(getattr(epoch, "active", []))
-        q, qd = self._aggregate_at(epoch, stamp_s, active)
+        q, qd = self._aggregate(total, active, parts, lambda c: True)
         qd = qd - qd0  # the new trajectory starts from (0, qd0): its free part leaves the base
         problem = build_problem(
             self.support, impact, self.contact_model, self.window_s, self.structure, qd0=qd0
