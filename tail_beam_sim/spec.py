@@ -1072,6 +1072,15 @@ CAVING = Section(
             1.0,
             low_open=True,
         ),
+        of_kind(
+            "floats",
+            "oracle_curve_levels",
+            "oracle curve (tail-beam caving --oracle-curve): the levels the oracle closes at, "
+            "to draw the best recovery each gangue content allows.",
+            low=0.0,
+            high=1.0,
+            low_open=True,
+        ),
         integer("seeds", "Seeds of the study (intervals are over them).", 1, 1000),
     ),
     file="face.yaml",

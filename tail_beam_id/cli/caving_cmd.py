@@ -15,8 +15,10 @@ from tail_beam_id.study.caving import (
     ALL_SOURCES,
     FIELD_TRIAL,
     SOURCES,
+    Shortfall,
     Summary,
     run_study,
+    shortfalls,
     summarise,
     write_chart,
 )
@@ -59,6 +61,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="identified sources: the lumps of each drawn cell, struck (those striking the beam, "
         "caving.labels.impacts_per_tonne) or drawn (its whole mass) (default: "
         "caving.pipeline.lumps)",
+    )
+    parser.add_argument(
+        "--oracle-curve",
+        action="store_true",
+        help="also run the oracle at each of caving.oracle_curve_levels on the same seeds, "
+        "draw its curve and give each rule's recovery short of it at no more gangue content",
     )
     parser.add_argument(
         "--chart", default=DEFAULT_CHART, help=f"chart to write (default {DEFAULT_CHART}; '' none)"
@@ -127,15 +135,27 @@ def _pct(value: float) -> str:
     return f"{100 * max(value, 0.0):5.1f}"  # above 100: coal of the undrawn margins drawn too
 
 
-def table(summaries: list[Summary]) -> str:
+def _points(value: float) -> str:
+    return f"{100 * value:5.1f}" if value == value else "    -"
+
+
+def table(summaries: list[Summary], short: dict[tuple[str, str], Shortfall] | None = None) -> str:
     """The study's table: per rule and source, recovery and gangue content (%) with their 95 %
-    intervals over seeds, the mean drawing time (s); the field trial last."""
+    intervals over seeds, the mean drawing time (s), and with ``short`` the recovery short of
+    the oracle's curve (points); the field trial last."""
     w = max([9] + [len(s.source) for s in summaries])
     lines = [
         f"{'rule':<15} {'source':<{w}} {'seeds':>5}  {'recovery %':<22} {'gangue content %':<22}"
-        f" {'drawing s':>9}",
+        f" {'drawing s':>9}" + ("  short of oracle curve, pts" if short else ""),
     ]
     for s in summaries:
+        gap = (short or {}).get((s.rule, s.source))
+        tail = ""
+        if gap is not None:
+            low, high = gap.interval
+            tail = f"  {_points(gap.mean)} [{_points(low)}, {_points(high)}]"
+            if gap.seeds < s.seeds:
+                tail += f" ({gap.seeds} of {s.seeds} seeds: less gangue than the curve's least)"
         rec = (
             f"{_pct(s.recovery)} [{_pct(s.recovery_interval[0])}, {_pct(s.recovery_interval[1])}]"
         )
@@ -145,6 +165,7 @@ def table(summaries: list[Summary]) -> str:
         )
         lines.append(
             f"{s.rule:<15} {s.source:<{w}} {s.seeds:>5}  {rec:<22} {gan:<22} {s.drawing_s:>9.0f}"
+            + tail
         )
     name, recovery, gangue = FIELD_TRIAL
     lines.append(f"{name}: recovery {100 * recovery:.2f} %, gangue content {100 * gangue:.2f} %")
@@ -190,6 +211,7 @@ def run(args: argparse.Namespace) -> int:
             physics,
             progress.window,
             require_int("--jobs", args.jobs, 1, 64),
+            args.oracle_curve,
         )
     finally:
         progress.close()
@@ -199,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
         f"caving: {face.supports} supports, {face.sequence} in groups of {face.group_size}, "
         f"{face.top_coal_height_m:g} m top coal; {seeds} seed(s) from {first}"
     )
-    print(table(summaries))
+    print(table(summaries, shortfalls(runs)))
     drawn_s = sum(r.drawing_s for r in runs)
     print(
         f"simulated {drawn_s:.0f} s of drawing in {wall_s:.1f} s of wall time "

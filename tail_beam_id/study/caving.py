@@ -36,7 +36,7 @@ from tail_beam_id.caving.events import (
     ShareEstimate,
 )
 from tail_beam_id.caving.rule_feed import RuleFeed
-from tail_beam_id.caving.rules import Rule, rule_factories
+from tail_beam_id.caving.rules import Oracle, Rule, rule_factories
 from tail_beam_id.study.caving_pipeline import (
     LAYOUTS,
     SOURCE_PREFIX,
@@ -54,7 +54,7 @@ from tail_beam_sim.physics.face import (
     draw_window,
     schedule,
 )
-from tail_beam_sim.spec import CAVING_LABELS, CAVING_PIPELINE
+from tail_beam_sim.spec import CAVING, CAVING_LABELS, CAVING_PIPELINE
 
 __all__ = [
     "FIELD_TRIAL",
@@ -63,9 +63,13 @@ __all__ = [
     "SOURCES",
     "CavingRun",
     "LabelModel",
+    "ORACLE_CURVE",
+    "Shortfall",
     "Summary",
+    "oracle_curve_rules",
     "run_study",
     "run_one",
+    "shortfalls",
     "summarise",
     "write_chart",
 ]
@@ -78,6 +82,7 @@ ALL_SOURCES = SOURCES + IDENTIFIED_SOURCES
 # gangue content, fractions.
 FIELD_TRIAL = ("Tashan 8222 field trial", 0.8053, 0.0400)
 WILSON_Z = 1.959964  # 95 %
+ORACLE_CURVE = "oracle@"  # a rule name: the oracle at one level of its curve, oracle@0.25
 
 
 @dataclass(frozen=True)
@@ -270,6 +275,18 @@ def pipelines_for(
     }
 
 
+def oracle_curve_rules(caving: Mapping[str, Any]) -> dict[str, Callable[[], Rule]]:
+    """The oracle at each of ``caving.oracle_curve_levels``, by name (``oracle@0.25``): drawn
+    over the same seeds, the most top coal any rule recovers at each gangue content."""
+    levels = CAVING.check(caving, only=["oracle_curve_levels"])["oracle_curve_levels"]
+    return {f"{ORACLE_CURVE}{level:g}": (lambda level=level: Oracle(level)) for level in levels}
+
+
+def _is_oracle(rule: str) -> bool:
+    """Whether ``rule`` reads the truth alone (the oracle, at its level or on its curve)."""
+    return rule == "oracle" or rule.startswith(ORACLE_CURVE)
+
+
 def run_study(
     face_params: FaceParams,
     caving: Mapping[str, Any],
@@ -280,19 +297,25 @@ def run_study(
     physics: Mapping[str, Any] | None = None,
     window_progress: Callable[[str, int, float], None] | None = None,
     jobs: int = 1,
+    oracle_curve: bool = False,
 ) -> list[CavingRun]:
     """Every rule (``rules``: a subset by name) under every source for every seed; the oracle
     under the truth only (it reads the truth whatever the source), ``fixed_time`` under the
     truth and the stand-in only (it reads the clock alone). ``progress(done, total)`` after each
     run; ``window_progress(run, windows, clock_s)`` after each window of an identified run;
     ``physics``: the parameters identified sources run on; ``jobs``: worker processes (the
-    runs are independent; per-window progress then is not reported)."""
+    runs are independent; per-window progress then is not reported); ``oracle_curve``: also
+    the oracle at each of ``caving.oracle_curve_levels`` (:func:`oracle_curve_rules`)."""
     makers = rule_factories(caving)
     model = LabelModel.from_params(caving.get("labels") or {})
     chosen = list(makers) if rules is None else list(rules)
     for name in chosen:
         if name not in makers:
             raise InputError("rules", name, f"must be among {', '.join(makers)}")
+    if oracle_curve:
+        curve = oracle_curve_rules(caving)
+        makers.update(curve)
+        chosen += [name for name in curve if name not in chosen]
     for source in sources:
         if source not in ALL_SOURCES:
             layout_of(source)
@@ -301,11 +324,11 @@ def run_study(
         (name, source, seed)
         for seed in seeds
         for name in chosen
-        for source in (("truth",) if name == "oracle" else sources)
+        for source in (("truth",) if _is_oracle(name) else sources)
         if not (name == "fixed_time" and layout_of(source) is not None)
     ]
     if jobs > 1:
-        return _run_in_processes(face_params, caving, plan, physics, jobs, progress)
+        return _run_in_processes(face_params, caving, plan, physics, jobs, progress, oracle_curve)
     pipelines = pipelines_for(sources, physics, caving)
     runs = []
     for done, (name, source, seed) in enumerate(plan, 1):
@@ -344,6 +367,7 @@ def _run_planned(
     source: str,
     seed: int,
     physics: Mapping[str, Any] | None,
+    oracle_curve: bool = False,
 ) -> CavingRun:
     """One planned run in a worker process (its rule and pipeline made there)."""
     layout = layout_of(source)
@@ -353,7 +377,10 @@ def _run_planned(
             _WORKER_PIPELINES.update(pipelines_for([source], physics, caving))
         pipeline = _WORKER_PIPELINES[layout]
     model = LabelModel.from_params(caving.get("labels") or {})
-    maker = rule_factories(caving)[name]
+    makers = rule_factories(caving)
+    if oracle_curve:
+        makers.update(oracle_curve_rules(caving))
+    maker = makers[name]
     return run_one(face_params, maker, name, source, model, seed, pipeline)
 
 
@@ -364,6 +391,7 @@ def _run_in_processes(
     physics: Mapping[str, Any] | None,
     jobs: int,
     progress: Callable[[int, int], None] | None,
+    oracle_curve: bool = False,
 ) -> list[CavingRun]:
     """The plan's runs over ``jobs`` worker processes, in the plan's order (each run seeded on
     its own: the same runs as one process gives, wall times aside)."""
@@ -374,7 +402,9 @@ def _run_in_processes(
     out: list[CavingRun | None] = [None] * len(plan)
     with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
         futures = {
-            pool.submit(_run_planned, face_params, caving, name, source, seed, physics): k
+            pool.submit(
+                _run_planned, face_params, caving, name, source, seed, physics, oracle_curve
+            ): k
             for k, (name, source, seed) in enumerate(plan)
         }
         for done, future in enumerate(as_completed(futures), 1):
@@ -435,18 +465,87 @@ def summarise(runs: Sequence[CavingRun]) -> list[Summary]:
     return out
 
 
+@dataclass(frozen=True)
+class Shortfall:
+    """How far a rule under a source falls below the oracle's curve: per seed, the top coal the
+    oracle recovers at no more gangue content than the rule's (the curve's upper envelope,
+    linear between its levels) minus the rule's recovery; mean and 95 % t-interval over the
+    seeds where the curve reaches that low a gangue content (fractions)."""
+
+    mean: float
+    interval: tuple[float, float]
+    seeds: int
+
+
+def frontier_recovery(points: Sequence[tuple[float, float]], gangue: float) -> float:
+    """The most recovery the (gangue content, recovery) ``points`` of one seed's oracle curve
+    reach at no more than ``gangue``: their upper envelope (each point's recovery raised to the
+    best of those with less gangue), linear between points, flat beyond the last; NaN below the
+    first point's gangue content."""
+    ordered = sorted(points)
+    if not ordered or gangue < ordered[0][0]:
+        return math.nan
+    g = np.array([p[0] for p in ordered])
+    r = np.maximum.accumulate(np.array([p[1] for p in ordered]))
+    return float(np.interp(gangue, g, r))
+
+
+def shortfalls(runs: Sequence[CavingRun]) -> dict[tuple[str, str], Shortfall]:
+    """Each (rule, source)'s :class:`Shortfall` against the oracle curve run on the same seeds
+    (``oracle@<level>`` runs, with ``oracle`` itself a point of it); empty without a curve."""
+    curves: dict[int, list[tuple[float, float]]] = {}
+    for run in runs:
+        if _is_oracle(run.rule):
+            curves.setdefault(run.seed, []).append((run.gangue_content, run.recovery))
+    if not any(run.rule.startswith(ORACLE_CURVE) for run in runs):
+        return {}
+    gaps: dict[tuple[str, str], list[float]] = {}
+    for run in runs:
+        if run.rule.startswith(ORACLE_CURVE) or run.seed not in curves:
+            continue
+        best = frontier_recovery(curves[run.seed], run.gangue_content)
+        gaps.setdefault((run.rule, run.source), [])
+        if math.isfinite(best):
+            gaps[(run.rule, run.source)].append(best - run.recovery)
+    out = {}
+    for key, values in gaps.items():
+        if values:
+            gap = np.array(values)
+            out[key] = Shortfall(float(gap.mean()), _interval(gap), gap.size)
+        else:
+            out[key] = Shortfall(math.nan, (math.nan, math.nan), 0)
+    return out
+
+
 def write_chart(summaries: Sequence[Summary], path: str | Path, title: str = "") -> Path:
     """Top-coal recovery against gangue content, one point per rule and source with its
-    intervals over seeds; the oracle and the field trial marked."""
+    intervals over seeds; the oracle, its curve over its levels when run, and the field trial
+    marked."""
     from tail_beam_sim.plotting import pyplot, save_figure
 
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 5.5))
     markers = {"truth": "o", "stand-in": "s"}
     markers.update(zip(IDENTIFIED_SOURCES, ("D", "^", "v", "P")))
-    rules = list(dict.fromkeys(s.rule for s in summaries if s.rule != "oracle"))
+    curve = sorted(
+        (100 * s.gangue_content, 100 * s.recovery)
+        for s in summaries
+        if s.rule.startswith(ORACLE_CURVE)
+    )
+    if curve:
+        ax.plot(
+            [p[0] for p in curve],
+            [p[1] for p in curve],
+            "--",
+            color="black",
+            linewidth=1,
+            label="oracle at other levels (truth; seeds' means)",
+        )
+    rules = list(dict.fromkeys(s.rule for s in summaries if not _is_oracle(s.rule)))
     colours = {rule: plt.get_cmap("tab10")(k % 10) for k, rule in enumerate(rules)}
     for s in summaries:
+        if s.rule.startswith(ORACLE_CURVE):
+            continue
         x, y = 100 * s.gangue_content, 100 * s.recovery
         xerr = [[x - 100 * s.gangue_interval[0]], [100 * s.gangue_interval[1] - x]]
         yerr = [[y - 100 * s.recovery_interval[0]], [100 * s.recovery_interval[1] - y]]
@@ -472,7 +571,7 @@ def write_chart(summaries: Sequence[Summary], path: str | Path, title: str = "")
     ax.set_ylabel("top-coal recovery, %")
     ax.set_title(
         title
-        or "Closing rules: top-coal recovery against gangue content (open: truth-fed; "
+        or "Closing rules: top-coal recovery against gangue content\n(open: truth-fed; "
         "square: stand-in; diamond, triangles, plus: identified layouts)",
         fontsize=9,
     )

@@ -5,13 +5,23 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import re
 
 import numpy as np
 import pytest
 
 from tail_beam_id.caving.rules import rule_factories
 from tail_beam_id.cli import caving_cmd
-from tail_beam_id.study.caving import LabelModel, run_one, run_study, summarise, wilson
+from tail_beam_id.study.caving import (
+    LabelModel,
+    frontier_recovery,
+    oracle_curve_rules,
+    run_one,
+    run_study,
+    shortfalls,
+    summarise,
+    wilson,
+)
 from tail_beam_sim.physics.face import (
     FaceParams,
     close_at_true_share,
@@ -160,3 +170,85 @@ def test_the_caving_verb_names_bad_options(tmp_path):
     link.symlink_to(tmp_path / "elsewhere.png")
     with pytest.raises(InputError, match="symbolic link"):
         caving_cmd.run(parse(["--chart", str(link)]))
+
+
+def test_the_oracle_curve_envelope_is_the_best_recovery_at_no_more_gangue():
+    """Hand-made curve (gangue, recovery): between points the envelope is linear, a point
+    below a point of less gangue is raised to it, beyond the last it is flat, and below the
+    least gangue there is no comparison."""
+    points = [(0.02, 0.70), (0.04, 0.80), (0.05, 0.78), (0.08, 0.86)]
+    assert frontier_recovery(points, 0.03) == pytest.approx(0.75)
+    assert frontier_recovery(points, 0.05) == pytest.approx(0.80)  # 0.78 raised to 0.80
+    assert frontier_recovery(points, 0.065) == pytest.approx(0.83)
+    assert frontier_recovery(points, 0.20) == pytest.approx(0.86)
+    assert np.isnan(frontier_recovery(points, 0.01))
+
+
+def _run(rule: str, seed: int, gangue: float, recovery: float, source: str = "truth"):
+    from tail_beam_id.study.caving import CavingRun
+
+    return CavingRun(rule, source, seed, recovery, gangue, 100.0, 0.1, 0)
+
+
+def test_shortfall_is_paired_by_seed_against_that_seeds_curve():
+    """A rule 2 points below seed 0's curve and 4 below seed 1's falls 3 points short on
+    average, with both seeds counted; one with less gangue than a seed's curve reaches
+    is left out on that seed; without a curve nothing is compared."""
+    runs = [
+        _run("oracle@0.1", 0, 0.02, 0.70),
+        _run("oracle@0.3", 0, 0.06, 0.80),
+        _run("oracle@0.1", 1, 0.03, 0.60),
+        _run("oracle@0.3", 1, 0.05, 0.90),
+        _run("sprt", 0, 0.04, 0.73, "identified:shipped"),  # curve 0.75 there
+        _run("sprt", 1, 0.04, 0.71, "identified:shipped"),  # curve 0.75 there
+        _run("first_gangue", 0, 0.01, 0.10, "identified:shipped"),
+        _run("first_gangue", 1, 0.04, 0.70, "identified:shipped"),
+    ]
+    short = shortfalls(runs)
+    sprt = short[("sprt", "identified:shipped")]
+    assert sprt.seeds == 2 and sprt.mean == pytest.approx(0.03)
+    assert sprt.interval[0] < 0.03 < sprt.interval[1]
+    first = short[("first_gangue", "identified:shipped")]
+    assert first.seeds == 1 and first.mean == pytest.approx(0.05)
+    assert ("oracle@0.1", "truth") not in short
+    assert shortfalls([r for r in runs if not r.rule.startswith("oracle@")]) == {}
+
+
+def test_the_oracle_curve_runs_on_the_truth_at_each_level():
+    """--oracle-curve adds the oracle at each configured level, on the truth alone, each run
+    the drawing model closed at that true share; a level out of (0, 1] is refused by name."""
+    from tail_beam_sim.errors import InputError
+
+    face, caving = small_face()
+    caving = dict(caving, oracle_curve_levels=[0.2, 0.4])
+    runs = run_study(
+        face, caving, [3], rules=["first_gangue"], sources=("stand-in",), oracle_curve=True
+    )
+    curve = {r.rule: r for r in runs if r.rule.startswith("oracle@")}
+    assert sorted(curve) == ["oracle@0.2", "oracle@0.4"]
+    assert {r.source for r in curve.values()} == {"truth"}
+    for level in (0.2, 0.4):
+        direct = run_face(
+            face.with_changes(seed=3), close_at_true_share(level, face.share_window_kg)
+        )
+        assert curve[f"oracle@{level:g}"].recovery == direct.recovery
+    assert curve["oracle@0.4"].gangue_content >= curve["oracle@0.2"].gangue_content
+    with pytest.raises(InputError, match="oracle_curve_levels"):
+        oracle_curve_rules(dict(caving, oracle_curve_levels=[0.3, 1.5]))
+
+
+def test_the_caving_verb_prints_the_shortfall_with_the_oracle_curve(capsys):
+    """`tail-beam caving --oracle-curve`: a column of each rule's recovery short of the
+    oracle's curve, the curve's rows, and the oracle's own point on it (short by 0)."""
+    args = parse(
+        ["--supports", "3", "--seeds", "2", "--rules", "sprt,oracle", "--oracle-curve"]
+        + ["--chart", ""]
+    )
+    assert caving_cmd.run(args) == 0
+    out = capsys.readouterr().out
+    assert "short of oracle curve, pts" in out and "oracle@0.05" in out
+    oracle_row = next(line for line in out.splitlines() if line.startswith("oracle   "))
+    # oracle@0.3 is the oracle's own run: the curve passes through it (or above, where a lower
+    # level recovered more with less gangue), so it is never short of it
+    short = float(re.findall(r"(-?\d+\.\d) \[", oracle_row)[-1])
+    assert 0.0 <= short < 0.5
