@@ -253,11 +253,16 @@ def sense_group(
 
     rebounds = _rebounds(family, rows, suites, contact)
     out = []
-    for i, (scene, suite, rebound) in enumerate(zip(scenes, suites, rebounds)):
-        trajectory = family.trajectory(int(rows[i]))
-        stamp = float(contact[i])
+    # per scene as Python numbers (the same values), read once each
+    stamps_s, kps, kis = contact.tolist(), pressure_counts.tolist(), imu_counts.tolist()
+    peaks = zip(peak_pressure.tolist(), peak_rate.tolist(), peak_accel.tolist())
+    for i, (scene, suite, rebound, row, peak) in enumerate(
+        zip(scenes, suites, rebounds, rows.tolist(), peaks)
+    ):
+        trajectory = family.trajectory(row)
+        stamp = stamps_s[i]
         point = suite.reported_point(scene.impact.position_m, rebound, scene.support)
-        kp, ki = int(pressure_counts[i]), int(imu_counts[i])
+        kp, ki = kps[i], kis[i]
         noise = suite.noise
         out.append(
             SimulationResult(
@@ -279,9 +284,9 @@ def sense_group(
                 summary=summary_figures(
                     scene,
                     trajectory,
-                    float(peak_pressure[i]) - scene.support.setting_pressure_pa,
-                    float(peak_rate[i]),
-                    float(peak_accel[i]),
+                    peak[0] - scene.support.setting_pressure_pa,
+                    peak[1],
+                    peak[2],
                 ),
                 vibration=blocks[i],
                 point=point,
