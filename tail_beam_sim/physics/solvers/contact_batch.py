@@ -137,10 +137,16 @@ def integrate_contacts(problems: list[ImpactProblem], steps: int) -> BatchContac
     active = np.ones(count, dtype=bool)
     last = np.zeros(count, dtype=np.int64)
     full = _fractions(dt)
+    # with every step positive, every instant is past the first contact's from the first step
+    # on (a frozen impact keeps one): only the first step's test needs t > 0
+    positive_steps = bool((dt > 0.0).all())
     for iteration in range(1, limit + 1):
         y_new = dynamics.step(y, dt, k1, approach, full)
         delta_new, rate_new = dynamics.penetration(y_new)
-        left = active & (delta_new <= 0.0) & (t > 0.0)
+        if iteration > 1 and positive_steps:
+            left = active & (delta_new <= 0.0)
+        else:
+            left = active & (delta_new <= 0.0) & (t > 0.0)
         t_new = t + dt
         crossed = bool(left.any())
         if crossed:
