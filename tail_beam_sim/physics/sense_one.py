@@ -369,20 +369,24 @@ def _contact_readings(
     # the step's ends) and of q''
     coefficients = np.empty((4, 3 * n, steps.size))
     constant, linear, square, cube = coefficients
-    values, slopes = np.concatenate([q, qd]), np.concatenate([qd, qdd])
+    # [q; q'; q''] at the steps: the values [q; q'] are its first rows, their slopes its last
+    stack = np.concatenate([q, qd, qdd])
+    values, slopes = stack[: 2 * n], stack[n:]
     v0, v1 = values[:, :-1], values[:, 1:]
     m0 = np.multiply(slopes[:, :-1], steps, out=linear[: 2 * n])
     m1 = slopes[:, 1:] * steps
-    constant[: 2 * n] = v0
-    constant[2 * n :] = qdd[:, :-1]
+    constant[:] = stack[:, :-1]
     np.subtract(qdd[:, 1:], qdd[:, :-1], out=linear[2 * n :])
-    square[: 2 * n] = 3.0 * (v1 - v0) - 2.0 * m0 - m1
-    cube[: 2 * n] = 2.0 * (v0 - v1) + m0 + m1
+    np.subtract(3.0 * (v1 - v0) - 2.0 * m0, m1, out=square[: 2 * n])
+    np.add(2.0 * (v0 - v1) + m0, m1, out=cube[: 2 * n])
     coefficients[2:, 2 * n :] = 0.0
     k = np.minimum(np.maximum(t.searchsorted(times, side="right") - 1, 0), t.size - 2)
     h = steps[k]
-    positive = h > 0
-    s = np.where(positive, (times - t[k]) / np.where(positive, h, 1.0), 0.0)
+    if steps.min() > 0:  # every step has a length (s below as np.where would give it)
+        s = (times - t[k]) / h
+    else:
+        positive = h > 0
+        s = np.where(positive, (times - t[k]) / np.where(positive, h, 1.0), 0.0)
     c = coefficients[:, :, k]  # (4, 3n, T)
     states = c[0] + s * (c[1] + s * (c[2] + s * c[3]))
     np.dot(_readouts(structure)[3], states, out=out[:LINEAR])
