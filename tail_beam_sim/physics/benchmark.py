@@ -51,6 +51,7 @@ BASELINE = ("Radau", {"rtol": 1e-8})
 METRICS = ("rebound", "peak_force", "peak_pressure", "imu_l2")
 MIN_TIMED_S = 0.3  # time spent timing a fast setting, s
 MAX_RUNS = 2000
+CPU_REPEATS = 5  # runs of simulate_many timed in CPU seconds, at least
 
 # (solver, options) of the default run and the extra settings of --full.
 QUICK_SETTINGS: list[tuple[str, dict[str, Any]]] = [
@@ -460,7 +461,8 @@ def simulate_throughput(
     times, _ = timed(lambda: simulate_many(drawn, settings=settings), repeats, min_time_s)
     out["impacts_per_s"] = impacts / statistics.median(times)
     cpu = []
-    for _ in range(max(repeats, 3)):
+    # at least CPU_REPEATS runs: the median of three moves with one run another process slowed
+    for _ in range(max(repeats, CPU_REPEATS)):
         start = time.process_time()
         simulate_many(drawn, settings=settings)
         cpu.append(time.process_time() - start)

@@ -392,7 +392,7 @@ def model_errors(scene: Scene, needs: Needs, modes: Sequence[BendingMode]) -> di
     width = pulse.width_s
     duration = pulse.duration_s
     gravity = support.gravity_mps2 * duration / impact.impact_speed_mps
-    waveform = needs.outputs & set(WAVEFORM_OUTPUTS)
+    waveform = _waveform_outputs(needs.outputs)
     omega_rigid = 2 * math.pi * rigid.fastest_frequency_hz
     impulse_step = max(gravity, (omega_rigid * width) ** 2 / 2 if waveform else 0.0)
     restitution = max(pulse.separation_mps / impact.impact_speed_mps, 1e-3)
@@ -401,7 +401,7 @@ def model_errors(scene: Scene, needs: Needs, modes: Sequence[BendingMode]) -> di
         / restitution
         * abs(reduced_mass_kg(1.0, mass * c_modal) - reduced_mass_kg(1.0, mass * c_rigid))
     )
-    rigid_step = rebound_step if needs.outputs & {"rebound", "contact"} else 0.0
+    rigid_step = rebound_step if not needs.outputs.isdisjoint(("rebound", "contact")) else 0.0
     if waveform and modes:
         rigid_step = max(
             rigid_step,
@@ -416,11 +416,17 @@ def model_errors(scene: Scene, needs: Needs, modes: Sequence[BendingMode]) -> di
     }
 
 
+@lru_cache(maxsize=64)
+def _waveform_outputs(outputs: frozenset[str]) -> tuple[str, ...]:
+    """The waveform outputs among ``outputs``, sorted (empty: none)."""
+    return tuple(sorted(outputs & set(WAVEFORM_OUTPUTS)))
+
+
 def _sampled_difference(
     scene: Scene,
     rigid: tuple[LinearStructure, np.ndarray],
     modal: tuple[LinearStructure, np.ndarray],
-    outputs: set[str],
+    outputs: tuple[str, ...] | set[str],
 ) -> float:
     """Relative L2 difference of the two structures' impulse responses as the sensors sample them,
     the worst over where the impulse falls within a sample period (PHASES, evaluated together).
@@ -436,7 +442,7 @@ def _sampled_difference(
     gram = _output_grams(
         lower,
         upper,
-        tuple(sorted(outputs)),
+        outputs if isinstance(outputs, tuple) else tuple(sorted(outputs)),
         spec.pressure_rate_hz,
         spec.imu_rate_hz,
         scene.window_s,
@@ -445,7 +451,8 @@ def _sampled_difference(
     # squared L2 norms per phase: of the difference (u b_u - l b_l) and of the reference
     difference = np.maximum((gram @ both) @ both, 0.0)
     reference = (gram[:, :n, :n] @ shape_upper) @ shape_upper
-    ratio = np.where(reference > 0, difference / np.where(reference > 0, reference, 1.0), 0.0)
+    # the ratio where the reference is positive, 0 elsewhere
+    ratio = np.divide(difference, reference, out=np.zeros_like(difference), where=reference > 0)
     return math.sqrt(float(ratio.max()))
 
 

@@ -165,6 +165,12 @@ def children(seeds: Sequence[Any], count: int) -> list[tuple[Any, ...]]:
     return [_KEPT[(seed, count)] for seed in seeds]
 
 
+def children_of(seed: Any, count: int) -> tuple[Any, ...]:
+    """:func:`children` of one seed."""
+    kept = _KEPT.get((seed, count))
+    return kept if kept is not None else children([seed], count)[0]
+
+
 def generator(child: Any) -> np.random.Generator:
     """``np.random.default_rng(child)`` of a child :func:`spawn_many` gave."""
     if isinstance(child, Child):

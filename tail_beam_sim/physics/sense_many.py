@@ -208,9 +208,13 @@ def sense_group(
     for suite, row, k in zip(suites, unit, pressure_counts.tolist()):
         suite._pressure_rng.standard_normal(out=row[:k])
     sigma = np.array([s.noise.pressure_pa for s in suites])[:, None]
-    low = np.array([s.noise.pressure_range_pa[0] for s in suites])[:, None]
-    high = np.array([s.noise.pressure_range_pa[1] for s in suites])[:, None]
-    pressure = np.clip(clean + sigma * unit, low, high)
+    pressure = clean + sigma * unit
+    # a saturated transducer reads its limit (SensorNoise.pressure)
+    np.minimum(
+        np.maximum(pressure, _per_scene(suites, 0), out=pressure),
+        _per_scene(suites, 1),
+        out=pressure,
+    )
 
     # IMU: each reading the mean over the period before its stamp (sensors.imu_samples); the
     # period's start is the stamp before (the first: the beam at rest)
@@ -253,11 +257,16 @@ def sense_group(
 
     rebounds = _rebounds(family, rows, suites, contact)
     out = []
-    for i, (scene, suite, rebound) in enumerate(zip(scenes, suites, rebounds)):
-        trajectory = family.trajectory(int(rows[i]))
-        stamp = float(contact[i])
+    # per scene as Python numbers (the same values), read once each
+    stamps_s, kps, kis = contact.tolist(), pressure_counts.tolist(), imu_counts.tolist()
+    peaks = zip(peak_pressure.tolist(), peak_rate.tolist(), peak_accel.tolist())
+    for i, (scene, suite, rebound, row, peak) in enumerate(
+        zip(scenes, suites, rebounds, rows.tolist(), peaks)
+    ):
+        trajectory = family.trajectory(row)
+        stamp = stamps_s[i]
         point = suite.reported_point(scene.impact.position_m, rebound, scene.support)
-        kp, ki = int(pressure_counts[i]), int(imu_counts[i])
+        kp, ki = kps[i], kis[i]
         noise = suite.noise
         out.append(
             SimulationResult(
@@ -279,15 +288,22 @@ def sense_group(
                 summary=summary_figures(
                     scene,
                     trajectory,
-                    float(peak_pressure[i]) - scene.support.setting_pressure_pa,
-                    float(peak_rate[i]),
-                    float(peak_accel[i]),
+                    peak[0] - scene.support.setting_pressure_pa,
+                    peak[1],
+                    peak[2],
                 ),
                 vibration=blocks[i],
                 point=point,
             )
         )
     return out
+
+
+def _per_scene(suites: Sequence[SensorSuite], bound: int) -> float | np.ndarray:
+    """The pressure transducer's lower (``bound`` 0) or upper (1) limit of each scene, Pa: one
+    number when the scenes share it (a scalar bound costs less than a column), else (S, 1)."""
+    values = [suite.noise.pressure_range_pa[bound] for suite in suites]
+    return values[0] if values.count(values[0]) == len(values) else np.array(values)[:, None]
 
 
 def _grid_peaks(
@@ -451,8 +467,14 @@ class _DenseSpan:
             draws = suite._vibration_rng.standard_normal(out=noise[:k])
             draws *= suite.spec.vibration_noise_mps2
             row[:k] += draws
-        limit = np.array([suite.spec.vibration_range_mps2 for suite in suites])[:, None]
-        samples = np.clip(clean, -limit, limit, out=clean).astype(np.float32)
+        limits = [suite.spec.vibration_range_mps2 for suite in suites]
+        if limits.count(limits[0]) == len(limits):  # one range (a scalar bound is cheaper)
+            limit: float | np.ndarray = limits[0]
+        else:
+            limit = np.array(limits)[:, None]
+        # np.clip, as min(max(x, -limit), limit)
+        np.minimum(np.maximum(clean, -limit, out=clean), limit, out=clean)
+        samples = clean.astype(np.float32)
         size = self.spec.vibration_block_samples
         whole = outputs // size
         starts = size * np.arange(int(whole.max()), dtype=np.int64)

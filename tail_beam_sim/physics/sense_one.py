@@ -114,8 +114,7 @@ def sense_one(scene: Scene, trajectory: Trajectory, vibration: bool = True) -> S
     # and the uniform instants, a repeated one changing no maximum), the IMU's stamps and one
     # period before (and the pressure's, at another rate), the accelerometer's dense ones; the
     # histories' uniform tail and the accelerometer's ring-down outputs on their grids.
-    uniform = _uniform_times(scene.pre_contact_s, scene.window_s)
-    after = int(uniform.searchsorted(0.0))
+    uniform, after = _uniform_and_first(scene.pre_contact_s, scene.window_s)
     tail = max(after, _tail_start(uniform, trajectory.segments[-1]))
     parts = [np.concatenate([*_contact_steps(scene, trajectory), uniform[after:tail]]), now]
     parts.append(now - period)
@@ -348,7 +347,7 @@ def _evaluate(
         else:
             samples = trajectory.sample_segment(index, times[chosen])
             buffer = samples.q.base  # [q; qd; qdd; force; z; zd]
-            np.matmul(_readouts(structure)[3], buffer[: 3 * n], out=block[:LINEAR])
+            np.dot(_readouts(structure)[3], buffer[: 3 * n], out=block[:LINEAR])
             block[RINGDOWN] = 0.0
             block[FORCE:] = buffer[3 * n :]
         out[:, chosen] = block
@@ -370,23 +369,27 @@ def _contact_readings(
     # the step's ends) and of q''
     coefficients = np.empty((4, 3 * n, steps.size))
     constant, linear, square, cube = coefficients
-    values, slopes = np.concatenate([q, qd]), np.concatenate([qd, qdd])
+    # [q; q'; q''] at the steps: the values [q; q'] are its first rows, their slopes its last
+    stack = np.concatenate([q, qd, qdd])
+    values, slopes = stack[: 2 * n], stack[n:]
     v0, v1 = values[:, :-1], values[:, 1:]
     m0 = np.multiply(slopes[:, :-1], steps, out=linear[: 2 * n])
     m1 = slopes[:, 1:] * steps
-    constant[: 2 * n] = v0
-    constant[2 * n :] = qdd[:, :-1]
+    constant[:] = stack[:, :-1]
     np.subtract(qdd[:, 1:], qdd[:, :-1], out=linear[2 * n :])
-    square[: 2 * n] = 3.0 * (v1 - v0) - 2.0 * m0 - m1
-    cube[: 2 * n] = 2.0 * (v0 - v1) + m0 + m1
+    np.subtract(3.0 * (v1 - v0) - 2.0 * m0, m1, out=square[: 2 * n])
+    np.add(2.0 * (v0 - v1) + m0, m1, out=cube[: 2 * n])
     coefficients[2:, 2 * n :] = 0.0
     k = np.minimum(np.maximum(t.searchsorted(times, side="right") - 1, 0), t.size - 2)
     h = steps[k]
-    positive = h > 0
-    s = np.where(positive, (times - t[k]) / np.where(positive, h, 1.0), 0.0)
+    if steps.min() > 0:  # every step has a length (s below as np.where would give it)
+        s = (times - t[k]) / h
+    else:
+        positive = h > 0
+        s = np.where(positive, (times - t[k]) / np.where(positive, h, 1.0), 0.0)
     c = coefficients[:, :, k]  # (4, 3n, T)
     states = c[0] + s * (c[1] + s * (c[2] + s * c[3]))
-    np.matmul(_readouts(structure)[3], states, out=out[:LINEAR])
+    np.dot(_readouts(structure)[3], states, out=out[:LINEAR])
 
 
 def _free_weights(
@@ -399,10 +402,10 @@ def _free_weights(
         return None
     free_rows, modes, inverse, _, _ = _readouts(structure)
     keep, _, _, weight = structure._half_spectrum
-    modal = inverse @ np.concatenate([segment.q, segment.qd])
+    modal = np.dot(inverse, np.concatenate([segment.q, segment.qd]))
     amplitude = modes * (weight * modal)  # (2n, k)
     weights = np.empty((RINGDOWN + 1, keep.size), dtype=complex)
-    np.matmul(free_rows, amplitude, out=weights[:LINEAR])
+    np.dot(free_rows, amplitude, out=weights[:LINEAR])
     weights[RINGDOWN] = 0.0 if gain is None else weights[IMU_VELOCITY] * gain
     return weights
 
@@ -551,6 +554,13 @@ def _history_times(scene: Scene, trajectory: Trajectory) -> np.ndarray:
     keep[0] = True
     np.not_equal(times[1:], times[:-1], out=keep[1:])
     return times[keep]
+
+
+@lru_cache(maxsize=64)
+def _uniform_and_first(pre_contact_s: float, window_s: float) -> tuple[np.ndarray, int]:
+    """:func:`_uniform_times` and the index of its first instant at or after first contact."""
+    uniform = _uniform_times(pre_contact_s, window_s)
+    return uniform, int(uniform.searchsorted(0.0))
 
 
 @lru_cache(maxsize=64)

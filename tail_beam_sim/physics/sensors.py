@@ -99,11 +99,15 @@ class SensorNoise:
 
     @classmethod
     def of(cls, spec: SensorSpec) -> SensorNoise:
-        return cls(
-            pressure_pa=spec.pressure_noise_pa,
-            gyro_radps=spec.imu_gyro_noise_radps * spec.imu_noise_scale,
-            accel_mps2=spec.imu_accel_noise_mps2 * spec.imu_noise_scale,
-            pressure_range_pa=(spec.pressure_range_min_pa, spec.pressure_range_max_pa),
+        """The noise of ``spec``'s settings (one object per setting: it is frozen, and made
+        for every simulated impact)."""
+        return _noise_of(
+            spec.pressure_noise_pa,
+            spec.imu_gyro_noise_radps,
+            spec.imu_accel_noise_mps2,
+            spec.imu_noise_scale,
+            spec.pressure_range_min_pa,
+            spec.pressure_range_max_pa,
         )
 
     def pressure(self, clean_pa: np.ndarray, unit: np.ndarray) -> np.ndarray:
@@ -118,6 +122,25 @@ class SensorNoise:
     def accel(self, clean_mps2: np.ndarray, unit: np.ndarray) -> np.ndarray:
         """Specific force readings, m/s^2."""
         return clean_mps2 + self.accel_mps2 * unit
+
+
+@lru_cache(maxsize=256, typed=True)
+def _noise_of(
+    pressure_pa: float,
+    gyro_radps: float,
+    accel_mps2: float,
+    imu_scale: float,
+    pressure_min_pa: float,
+    pressure_max_pa: float,
+) -> SensorNoise:
+    """:meth:`SensorNoise.of` of these settings (noise levels 1 sigma, the IMU's scale on
+    both of its, the transducer's range in Pa)."""
+    return SensorNoise(
+        pressure_pa=pressure_pa,
+        gyro_radps=gyro_radps * imu_scale,
+        accel_mps2=accel_mps2 * imu_scale,
+        pressure_range_pa=(pressure_min_pa, pressure_max_pa),
+    )
 
 
 def specific_force_z(trajectory: Trajectory, samples: Samples) -> np.ndarray:
@@ -210,7 +233,7 @@ def _seed_children(seed: int) -> tuple[ISeedSequence, ...]:
     """The six children of ``seed``, ``np.random.SeedSequence(seed).spawn(6)``'s (spawning
     costs more than a short stream's noise; a child is only read, never spawned from, so one
     set serves every suite of that seed: :func:`tail_beam_sim.physics.seeds.children`)."""
-    return seeds.children([seed], SEED_CHILDREN)[0]
+    return seeds.children_of(seed, SEED_CHILDREN)
 
 
 @lru_cache(maxsize=1024)
@@ -365,7 +388,7 @@ class SensorSuite:
             return count
         spec = self.spec
         dense_rate = spec.vibration_oversample * spec.vibration_rate_hz
-        sos, _ = _butterworth(
+        settle = _settle_steps(
             spec.vibration_rate_hz,
             spec.vibration_antialias_order,
             spec.vibration_antialias_cutoff_fraction,
@@ -373,7 +396,7 @@ class SensorSuite:
         )
         # each dense value spans (instant - period, instant]: free from this index on
         free_from = math.ceil((contact_stamp_s + last.start_s) * dense_rate - 1e-9) + 1
-        steady = max(free_from, 0) + settle_steps(sos.tobytes())
+        steady = max(free_from, 0) + settle
         first = -(-steady // spec.vibration_oversample) * spec.vibration_oversample
         return min(first, count)
 
@@ -563,6 +586,12 @@ def _butterworth(
     return sos, signal.sosfilt_zi(sos)
 
 
+@lru_cache(maxsize=32)
+def _settle_steps(rate_hz: float, order: int, cutoff_fraction: float, oversample: int) -> int:
+    """``settle_steps`` of the low-pass :func:`_butterworth` designs for this setting."""
+    return settle_steps(_butterworth(rate_hz, order, cutoff_fraction, oversample)[0].tobytes())
+
+
 @dataclass
 class VibrationBlocks:
     """Blocks of accelerometer samples (topic ``vibration``; docs/interface.md).
@@ -702,17 +731,40 @@ def cut_blocks(
     the samples left over (the start of the next block). ``first_index`` is a block's start."""
     n = spec.vibration_block_samples
     whole = samples.size // n * n
-    starts = first_index + n * np.arange(whole // n, dtype=np.int64)
+    starts, lengths, stamps = _block_layout(first_index, whole // n, n, spec.vibration_rate_hz)
     blocks = VibrationBlocks(
         starts,
-        np.full(starts.size, n, dtype=np.int64),
-        starts / spec.vibration_rate_hz,
+        lengths,
+        stamps,
         np.asarray(samples[:whole], dtype=np.float32),
         1.0 / spec.vibration_rate_hz,
         spec.vibration_range_mps2,
         spec.vibration_noise_mps2**2,
     )
     return blocks, np.asarray(samples[whole:], dtype=np.float32)
+
+
+_LAYOUTS: dict[tuple[int, int, int, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+LAYOUT_CACHE_SIZE = 256
+
+
+def _block_layout(
+    first_index: int, count: int, block_samples: int, rate_hz: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``count`` blocks of ``block_samples`` from ``first_index`` at ``rate_hz``: their first
+    indices, lengths and stamps (s), kept per layout and read only (every impact of a setting
+    has the same few)."""
+    key = (first_index, count, block_samples, rate_hz)
+    cached = _LAYOUTS.get(key)
+    if cached is None:
+        starts = first_index + block_samples * np.arange(count, dtype=np.int64)
+        cached = (starts, np.full(starts.size, block_samples, dtype=np.int64), starts / rate_hz)
+        for array in cached:
+            array.flags.writeable = False
+        if len(_LAYOUTS) >= LAYOUT_CACHE_SIZE:
+            _LAYOUTS.clear()
+        _LAYOUTS[key] = cached
+    return cached
 
 
 @dataclass

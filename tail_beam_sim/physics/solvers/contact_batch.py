@@ -52,6 +52,7 @@ class _Dynamics:
         self.gravity = problems[0].gravity_mps2
         # one coordinate: the shape and load as columns, stiffness and damping as numbers
         self._shape0 = np.ascontiguousarray(self.shape[:, 0])
+        self._minus_shape0 = -self._shape0  # -(b y) is (-b) y, exactly
         self._load0 = np.ascontiguousarray(self.load[:, 0])
         self._stiffness0 = float(self.stiffness_t[0, 0])
         self._damping0 = float(self.damping_t[0, 0])
@@ -59,8 +60,8 @@ class _Dynamics:
     def penetration(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = self.n
         if n == 1:  # one coordinate: each sum is its one product
-            shape = self._shape0
-            return -(shape * y[:, 0]) - y[:, 2], -(shape * y[:, 1]) - y[:, 3]
+            shape = self._minus_shape0
+            return shape * y[:, 0] - y[:, 2], shape * y[:, 1] - y[:, 3]
         delta = -(self.shape * y[:, :n]).sum(axis=1) - y[:, 2 * n]
         rate = -(self.shape * y[:, n : 2 * n]).sum(axis=1) - y[:, 2 * n + 1]
         return delta, rate
@@ -83,13 +84,15 @@ class _Dynamics:
         out = np.empty_like(y)
         out[:, :n] = v
         if n == 1:  # the products over one coordinate, element by element
-            out[:, 1] = self._load0 * force - y[:, 0] * self._stiffness0 - y[:, 1] * self._damping0
+            acceleration = self._load0 * force
+            acceleration -= y[:, 0] * self._stiffness0
+            np.subtract(acceleration, y[:, 1] * self._damping0, out=out[:, 1])
         else:
             out[:, n : 2 * n] = (
                 self.load * force[:, None] - q @ self.stiffness_t - v @ self.damping_t
             )
         out[:, 2 * n] = y[:, 2 * n + 1]
-        out[:, 2 * n + 1] = force / self.mass - self.gravity
+        np.subtract(force / self.mass, self.gravity, out=out[:, 2 * n + 1])
         return out, force
 
     def step(
@@ -134,10 +137,16 @@ def integrate_contacts(problems: list[ImpactProblem], steps: int) -> BatchContac
     active = np.ones(count, dtype=bool)
     last = np.zeros(count, dtype=np.int64)
     full = _fractions(dt)
+    # with every step positive, every instant is past the first contact's from the first step
+    # on (a frozen impact keeps one): only the first step's test needs t > 0
+    positive_steps = bool((dt > 0.0).all())
     for iteration in range(1, limit + 1):
         y_new = dynamics.step(y, dt, k1, approach, full)
         delta_new, rate_new = dynamics.penetration(y_new)
-        left = active & (delta_new <= 0.0) & (t > 0.0)
+        if iteration > 1 and positive_steps:
+            left = active & (delta_new <= 0.0)
+        else:
+            left = active & (delta_new <= 0.0) & (t > 0.0)
         t_new = t + dt
         crossed = bool(left.any())
         if crossed:
@@ -162,9 +171,10 @@ def integrate_contacts(problems: list[ImpactProblem], steps: int) -> BatchContac
             y_new, approach, None if crossed else (delta_new, rate_new)
         )
         # impacts that left earlier keep their last state
-        frozen = ~active
-        y_new[frozen], t_new[frozen] = y[frozen], t[frozen]
-        k1_new[frozen], force_new[frozen] = k1[frozen], force[frozen]
+        if not active.all():
+            frozen = ~active
+            y_new[frozen], t_new[frozen] = y[frozen], t[frozen]
+            k1_new[frozen], force_new[frozen] = k1[frozen], force[frozen]
         times.append(t_new)
         states.append(y_new)
         derivatives.append(k1_new)

@@ -128,9 +128,9 @@ def solve(
             z, zd = float(segment.z_m[-1]), float(segment.zd_mps[-1])
         if problem.crushing is not None:
             z = -float(
-                b @ q
+                np.dot(b, q)
             )  # the crushed cap breaks away: the particle's new lowest point is on the surface
-        separating = zd + float(b @ qd)
+        separating = zd + float(np.dot(b, qd))
         if separating < REST_SPEED_MPS or len(contacts) >= MAX_CONTACTS:
             at_rest = True
             segments.append(FreeSegment(t, math.inf, t, q, qd, z, zd))
@@ -143,7 +143,7 @@ def solve(
         dt = next_contact - t
         q, qd = structure.propagate(q, qd, dt)
         z, zd = z + zd * dt - 0.5 * g * dt * dt, zd - g * dt
-        z = -float(b @ q)  # on the surface exactly at the root
+        z = -float(np.dot(b, q))  # on the surface exactly at the root
         t = next_contact
     estimate = max(
         stats["pulse_error_estimate"], RK4_CONTACT_ERROR if stats["rk4_contacts"] else 0.0
@@ -170,28 +170,28 @@ def pulse_contact(
     n = structure.size
     eigenvalues, vectors, inverse = structure._eigen
     reduced_mass = problem.reduced_mass_kg
-    approach = max(-zd0 - float(b @ qd0), 1e-12)
+    approach = max(-zd0 - float(np.dot(b, qd0)), 1e-12)
     pulse = contact_pulse(problem.damping_factor, problem.hertz_stiffness, reduced_mass, approach)
     x0 = np.concatenate([q0, qd0])
-    modal0 = inverse @ x0
-    beta = structure.modal_input @ b
+    modal0 = np.dot(inverse, x0)
+    beta = np.dot(structure.modal_input, b)
     duration = pulse.duration_s
     modal_end = np.exp(eigenvalues * duration) * (modal0 + beta * pulse.spectrum(eigenvalues))
-    x_end = (vectors @ modal_end).real
+    x_end = np.dot(vectors, modal_end).real
     q, qd = x_end[:n], x_end[n:]
-    internal_rows = b @ structure.modal_internal
+    internal_rows = np.dot(b, structure.modal_internal)
     impulse = reduced_mass * (approach + pulse.separation_mps)
     neglected = abs(problem.gravity_mps2) + float(
-        np.abs(internal_rows) @ (np.abs(modal0) + np.abs(beta) * impulse)
+        np.dot(np.abs(internal_rows), np.abs(modal0) + np.abs(beta) * impulse)
     )
     estimate = neglected * max(
         duration / approach, duration * duration / (2.0 * pulse.max_penetration_m)
     )
     t_end = t0 + duration
     segment = PulseSegment(problem, t0, x0, pulse)
-    zd_end = -float(b @ qd) + pulse.separation_mps
+    zd_end = -float(np.dot(b, qd)) + pulse.separation_mps
     record = ContactRecord(t0, t_end, approach, zd_end, pulse.peak_force_n)
-    segment.end_state = (q, qd, -float(b @ q), zd_end)
+    segment.end_state = (q, qd, -float(np.dot(b, q)), zd_end)
     segment.end_modal = modal_end
     return segment, record, estimate
 
@@ -226,8 +226,8 @@ class PulseSegment:
         load = self.problem.contact_load
         x = structure_response(structure._eigen, load, self.x0, self.t_s, self.pulse.force_n)
         q, qd = x[:n], x[n:]
-        qdd = load[:, None] * self.pulse.force_n - structure.inv_mass @ (
-            structure.damping @ qd + structure.stiffness @ q
+        qdd = load[:, None] * self.pulse.force_n - np.dot(
+            structure.inv_mass, np.dot(structure.damping, qd) + np.dot(structure.stiffness, q)
         )
         return q, qd, qdd
 
@@ -237,7 +237,7 @@ class PulseSegment:
         structure's, which sensors read without them."""
         b = self.problem.contact_shape
         q, qd, _ = self._states
-        return -(b @ q) - self.pulse.penetration_m, -(b @ qd) - self.pulse.rate_mps
+        return -np.dot(b, q) - self.pulse.penetration_m, -np.dot(b, qd) - self.pulse.rate_mps
 
     q = property(lambda self: self._states[0])
     qd = property(lambda self: self._states[1])
@@ -400,7 +400,7 @@ def next_contact_time(
     b = problem.contact_shape
     frequencies = structure.natural_frequencies_hz()
     fastest = float(frequencies.max()) if frequencies.size else 1.0
-    separating = max(zd0 + float(b @ qd0), REST_SPEED_MPS)
+    separating = max(zd0 + float(np.dot(b, qd0)), REST_SPEED_MPS)
     # finer than the fastest mode and than the particle's own flight back to the plate (2 u / g)
     spacing = min(1.0 / (32.0 * fastest), (t_end - t0) / 8.0, separating / max(g, 1e-9))
     grid = np.linspace(t0, t_end, int(math.ceil((t_end - t0) / spacing)) + 1)

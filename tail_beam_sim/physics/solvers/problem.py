@@ -60,14 +60,16 @@ class ImpactProblem:
     def contact_load(self) -> np.ndarray:
         """M^-1 b: the structure's acceleration per newton at the contact point (kept: the
         problem is frozen)."""
-        return self.structure.inv_mass @ self.contact_shape
+        return np.dot(self.structure.inv_mass, self.contact_shape)
 
     @lazy
     def reduced_mass_kg(self) -> float:
         """The particle's and the plate's effective mass at the contact point, in series, kg."""
         # Written with the compliance b^T M^-1 b, so that it stays finite over the hinge (a
         # rigid wall: compliance 0, the particle's own mass).
-        return float(reduced_mass_kg(self.mass_kg, float(self.contact_shape @ self.contact_load)))
+        return float(
+            reduced_mass_kg(self.mass_kg, float(np.dot(self.contact_shape, self.contact_load)))
+        )
 
 
 @dataclass(frozen=True)

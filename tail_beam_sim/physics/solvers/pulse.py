@@ -18,8 +18,6 @@ from __future__ import annotations
 import cmath
 import math
 from bisect import bisect_right
-from collections.abc import Iterator
-from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
 from functools import lru_cache
@@ -205,14 +203,19 @@ class Pulse:
     @lazy
     def centroid_s(self) -> float:
         """Force-weighted mean time of the pulse, s."""
-        return float(self.force_n @ self.t_s) / float(self.force_n.sum())
+        return float(np.dot(self.force_n, self.t_s)) / self._force_total
 
     @lazy
     def width_s(self) -> float:
         """Force-weighted RMS spread of the pulse about its centroid, s."""
         return math.sqrt(
-            float(self.force_n @ (self.t_s - self.centroid_s) ** 2) / float(self.force_n.sum())
+            float(np.dot(self.force_n, (self.t_s - self.centroid_s) ** 2)) / self._force_total
         )
+
+    @lazy
+    def _force_total(self) -> float:
+        """The sum of the force samples, N (the centroid's and the width's denominator)."""
+        return float(self.force_n.sum())
 
     @lazy
     def force_n(self) -> np.ndarray:
@@ -233,16 +236,20 @@ _SHARED: ContextVar[dict[tuple[float, float, float, float], Pulse] | None] = Con
 )
 
 
-@contextmanager
-def shared_pulses() -> Iterator[None]:
+class shared_pulses:  # noqa: N801 - used as a function: ``with shared_pulses():``
     """Within it, :func:`contact_pulse` asked again with the same arguments (one impact's
     plan and its solver) returns the same pulse, its samples computed once; forgotten on
-    exit, so that nothing outlives the call that made it."""
-    token = _SHARED.set({})
-    try:
-        yield
-    finally:
-        _SHARED.reset(token)
+    exit, so that nothing outlives the call that made it. (A class rather than a generator
+    context manager: entered once per simulated impact, where the generator's machinery
+    costs more than the pulse lookups it serves.)"""
+
+    __slots__ = ("_token",)
+
+    def __enter__(self) -> None:
+        self._token = _SHARED.set({})
+
+    def __exit__(self, *_: object) -> None:
+        _SHARED.reset(self._token)
 
 
 def contact_pulse(
@@ -322,11 +329,11 @@ def structure_response(
     n = load.size
     h = float(t_s[1] - t_s[0])
     weights = np.array([_segment_weights(complex(lam) * h, h) for lam in eigenvalues.tolist()]).T
-    beta = inverse[:, n:] @ load
+    beta = np.dot(inverse[:, n:], load)
     increments = (beta * weights[0])[:, None] * force_n[:-1] + (beta * weights[1])[
         :, None
     ] * force_n[1:]
     growth = np.exp(eigenvalues[:, None] * (t_s - t_s[0]))
-    modal = growth * (inverse @ x0)[:, None]
+    modal = growth * np.dot(inverse, x0)[:, None]
     modal[:, 1:] += growth[:, 1:] * np.cumsum(increments / growth[:, 1:], axis=1)
-    return (vectors @ modal).real
+    return np.dot(vectors, modal).real
