@@ -54,8 +54,9 @@ CLAMPED_CIRCULAR_PLATE_EIGENVALUE = 10.2158
 ZENER_PREFACTOR = math.pi**0.6 / math.sqrt(3.0)
 
 
-def plate_bending_stiffness_nm(youngs_modulus_pa: float, poisson_ratio: float,
-                               thickness_m: float) -> float:
+def plate_bending_stiffness_nm(
+    youngs_modulus_pa: float, poisson_ratio: float, thickness_m: float
+) -> float:
     """Flexural rigidity D = E h^3 / (12 (1 - nu^2)) of a plate, N m."""
     return youngs_modulus_pa * thickness_m**3 / (12.0 * (1.0 - poisson_ratio**2))
 
@@ -76,16 +77,18 @@ def hertz_scales(mass_kg: float, stiffness: float, speed_mps: float) -> tuple[fl
     return length_m, length_m / speed_mps
 
 
-def zener_parameter(mass_kg: float, stiffness: float, speed_mps: float,
-                    plate_damping_nspm: float) -> float:
+def zener_parameter(
+    mass_kg: float, stiffness: float, speed_mps: float, plate_damping_nspm: float
+) -> float:
     """Zener's inelasticity parameter lambda = m / (c t0), dimensionless: the plate's dashpot
     time m / c over the contact's time unit t0 (0 for a rigid plate)."""
     _, time_s = hertz_scales(mass_kg, stiffness, speed_mps)
     return mass_kg / (plate_damping_nspm * time_s)
 
 
-def zener_parameter_of(particle: Material, plate: Material, radius_m: float, thickness_m: float,
-                       speed_mps: float) -> float:
+def zener_parameter_of(
+    particle: Material, plate: Material, radius_m: float, thickness_m: float, speed_mps: float
+) -> float:
     """Zener's lambda in his closed form, pi^(3/5)/sqrt(3) (R/h)^2 (v/c_p)^(1/5)
     (rho1/rho2)^(3/5) (E* (1 - nu2^2) / E2)^(2/5), with c_p = sqrt(E2 / (rho2 (1 - nu2^2))) the
     plate's longitudinal wave speed: grows as R^2 / h^2 and barely with the speed."""
@@ -126,9 +129,14 @@ class ImpactEnergies:
     spectrum_ns: tuple[float, ...]
 
 
-def sphere_on_plate(mass_kg: float, stiffness: float, speed_mps: float, chi: float = 0.0,
-                    plate_damping_nspm: float = math.inf,
-                    probe_angular_frequencies_radps: Sequence[float] = ()) -> ImpactEnergies:
+def sphere_on_plate(
+    mass_kg: float,
+    stiffness: float,
+    speed_mps: float,
+    chi: float = 0.0,
+    plate_damping_nspm: float = math.inf,
+    probe_angular_frequencies_radps: Sequence[float] = (),
+) -> ImpactEnergies:
     """A sphere of ``mass_kg`` meeting a plate at ``speed_mps`` through the contact
     F = K delta^1.5 (1 + chi delta' / v), never pulling, the plate's load point a dashpot
     (``plate_damping_nspm``; inf: a rigid plate, the suite's contact on a rigid wall).
@@ -151,11 +159,13 @@ def sphere_on_plate(mass_kg: float, stiffness: float, speed_mps: float, chi: flo
         f = force(y[0] - y[2], y[1])
         plate_rate = lam * f
         phase = omegas * s
-        return np.concatenate((
-            [y[1], -f, plate_rate, f * (y[1] - plate_rate), plate_rate * f],
-            f * np.cos(phase),
-            -f * np.sin(phase),
-        ))
+        return np.concatenate(
+            (
+                [y[1], -f, plate_rate, f * (y[1] - plate_rate), plate_rate * f],
+                f * np.cos(phase),
+                -f * np.sin(phase),
+            )
+        )
 
     def separated(s: float, y: np.ndarray) -> float:
         return y[0] - y[2]
@@ -164,8 +174,16 @@ def sphere_on_plate(mass_kg: float, stiffness: float, speed_mps: float, chi: flo
     separated.direction = -1.0
     start = np.zeros(5 + 2 * omegas.size)
     start[1] = 1.0
-    solution = solve_ivp(rates, (0.0, 400.0), start, method="DOP853", rtol=1e-10, atol=1e-12,
-                         events=separated, dense_output=True)
+    solution = solve_ivp(
+        rates,
+        (0.0, 400.0),
+        start,
+        method="DOP853",
+        rtol=1e-10,
+        atol=1e-12,
+        events=separated,
+        dense_output=True,
+    )
     if solution.status != 1:
         raise RuntimeError(f"the contact did not end within 400 time units ({solution.message})")
     end = solution.y[:, -1]
@@ -174,7 +192,7 @@ def sphere_on_plate(mass_kg: float, stiffness: float, speed_mps: float, chi: flo
     peak = max(force(u, v) for u, v in zip(states[0] - states[2], states[1]))
     energy_unit_j = mass_kg * speed_mps**2
     n = omegas.size
-    spectrum = np.hypot(end[5:5 + n], end[5 + n:]) * mass_kg * speed_mps
+    spectrum = np.hypot(end[5 : 5 + n], end[5 + n :]) * mass_kg * speed_mps
     return ImpactEnergies(
         restitution=float(-end[1]),
         impact_energy_j=0.5 * energy_unit_j,
@@ -203,8 +221,10 @@ def panel_mode(plate: Material, thickness_m: float, panel_radius_m: float) -> tu
     rigidity = plate_bending_stiffness_nm(
         plate.youngs_modulus_pa, plate.poisson_ratio, thickness_m
     )
-    omega = CLAMPED_CIRCULAR_PLATE_EIGENVALUE / panel_radius_m**2 * math.sqrt(
-        rigidity / (plate.density_kgpm3 * thickness_m)
+    omega = (
+        CLAMPED_CIRCULAR_PLATE_EIGENVALUE
+        / panel_radius_m**2
+        * math.sqrt(rigidity / (plate.density_kgpm3 * thickness_m))
     )
     return omega, panel_stiffness_npm(plate, thickness_m, panel_radius_m) / omega**2
 
@@ -230,15 +250,22 @@ class RadiusBudget:
     thickness_for_study_m: float
 
 
-def energy_to_remove_j(mass_kg: float, speed_mps: float, suite_restitution: float,
-                       study_restitution: float) -> float:
+def energy_to_remove_j(
+    mass_kg: float, speed_mps: float, suite_restitution: float, study_restitution: float
+) -> float:
     """Kinetic energy the sphere must lose beyond the suite's for the study's restitution:
     (e_suite^2 - e_study^2) m v^2 / 2, J."""
     return 0.5 * mass_kg * speed_mps**2 * (suite_restitution**2 - study_restitution**2)
 
 
-def thickness_for_restitution_m(particle: Material, plate: Material, radius_m: float,
-                                speed_mps: float, chi: float, restitution: float) -> float:
+def thickness_for_restitution_m(
+    particle: Material,
+    plate: Material,
+    radius_m: float,
+    speed_mps: float,
+    chi: float,
+    restitution: float,
+) -> float:
     """The plate thickness at which plate waves plus the suite's hysteresis ``chi`` deliver
     ``restitution``, m (nan if none between 4 mm and 1 m)."""
     mass = sphere_mass_kg(particle.density_kgpm3, radius_m)
@@ -254,9 +281,17 @@ def thickness_for_restitution_m(particle: Material, plate: Material, radius_m: f
     return brentq(miss, low, high, xtol=1e-6)
 
 
-def radius_budget(particle: Material, plate: Material, radius_m: float, speed_mps: float,
-                  suite_restitution: float, study_restitution: float, thickness_m: float,
-                  panel_radius_m: float, crushing_pressure_pa: float) -> RadiusBudget:
+def radius_budget(
+    particle: Material,
+    plate: Material,
+    radius_m: float,
+    speed_mps: float,
+    suite_restitution: float,
+    study_restitution: float,
+    thickness_m: float,
+    panel_radius_m: float,
+    crushing_pressure_pa: float,
+) -> RadiusBudget:
     """The energy budget of a ``particle`` sphere of ``radius_m`` on the support's top plate.
 
     The suite's loss is its calibrated hysteresis (chi delivering ``suite_restitution`` on a
@@ -273,8 +308,9 @@ def radius_budget(particle: Material, plate: Material, radius_m: float, speed_mp
     )
     damping = plate_point_damping_nspm(plate, thickness_m)
     waves = sphere_on_plate(mass, stiffness, speed_mps, chi, damping)
-    crushing = CrushingContact(effective_modulus_pa(particle, plate), radius_m,
-                               crushing_pressure_pa)
+    crushing = CrushingContact(
+        effective_modulus_pa(particle, plate), radius_m, crushing_pressure_pa
+    )
     crushed_ratio = crushing.rebound_energy_ratio(wall.impact_energy_j)
     return RadiusBudget(
         radius_m=radius_m,
