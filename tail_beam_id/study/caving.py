@@ -282,6 +282,14 @@ def oracle_curve_rules(caving: Mapping[str, Any]) -> dict[str, Callable[[], Rule
     return {f"{ORACLE_CURVE}{level:g}": (lambda level=level: Oracle(level)) for level in levels}
 
 
+def _rule_makers(caving: Mapping[str, Any], oracle_curve: bool) -> dict[str, Callable[[], Rule]]:
+    """Every rule of the ``caving`` section by name, with the oracle's curve when asked."""
+    makers = rule_factories(caving)
+    if oracle_curve:
+        makers.update(oracle_curve_rules(caving))
+    return makers
+
+
 def _is_oracle(rule: str) -> bool:
     """Whether ``rule`` reads the truth alone (the oracle, at its level or on its curve)."""
     return rule == "oracle" or rule.startswith(ORACLE_CURVE)
@@ -306,16 +314,14 @@ def run_study(
     ``physics``: the parameters identified sources run on; ``jobs``: worker processes (the
     runs are independent; per-window progress then is not reported); ``oracle_curve``: also
     the oracle at each of ``caving.oracle_curve_levels`` (:func:`oracle_curve_rules`)."""
-    makers = rule_factories(caving)
+    named = rule_factories(caving)
     model = LabelModel.from_params(caving.get("labels") or {})
-    chosen = list(makers) if rules is None else list(rules)
+    chosen = list(named) if rules is None else list(rules)
     for name in chosen:
-        if name not in makers:
-            raise InputError("rules", name, f"must be among {', '.join(makers)}")
-    if oracle_curve:
-        curve = oracle_curve_rules(caving)
-        makers.update(curve)
-        chosen += [name for name in curve if name not in chosen]
+        if name not in named:
+            raise InputError("rules", name, f"must be among {', '.join(named)}")
+    makers = _rule_makers(caving, oracle_curve)
+    chosen += [name for name in makers if name not in named and name not in chosen]
     for source in sources:
         if source not in ALL_SOURCES:
             layout_of(source)
@@ -377,10 +383,7 @@ def _run_planned(
             _WORKER_PIPELINES.update(pipelines_for([source], physics, caving))
         pipeline = _WORKER_PIPELINES[layout]
     model = LabelModel.from_params(caving.get("labels") or {})
-    makers = rule_factories(caving)
-    if oracle_curve:
-        makers.update(oracle_curve_rules(caving))
-    maker = makers[name]
+    maker = _rule_makers(caving, oracle_curve)[name]
     return run_one(face_params, maker, name, source, model, seed, pipeline)
 
 

@@ -22,10 +22,11 @@ def test_twenty_impacts_as_fast_as_possible_are_all_in_the_bag(tmp_path):
         timeout_s=300,
         echo=lambda *a, **k: None,
         namespace="/soak_short",
-        # As fast as possible on a busy machine, one topic's delivery can stall for more than
-        # the shipped 0.5 s of wall time, which id_node takes for a stopped stream (and then
-        # decides without it: docs/limitations.md). This test is of ordering, not of that.
-        id_params=("id_node.stream_idle_s:=2.0",),
+        # As fast as possible on a busy machine (two test workers on two cores), one topic's
+        # delivery can stall for more than the shipped 0.5 s of wall time, and once for 2.1 s,
+        # which id_node takes for a stopped stream (and then decides without it, revising the
+        # label when it comes: docs/limitations.md). This test is of ordering, not of that.
+        id_params=("id_node.stream_idle_s:=5.0",),
     )
     assert result.truths == IMPACTS and result.rebounds == IMPACTS, result.logs
     assert all(sum(mb > 0 for _, mb in samples) >= 3 for samples in result.rss.values()), (
