@@ -22,6 +22,7 @@ from tail_beam_id.study.caving import (
     summarise,
     write_chart,
 )
+from tail_beam_id.study.caving_latency import latency_study, parse_latencies, write_latency_chart
 from tail_beam_id.study.caving_pipeline import LUMP_MODES, layout_of, pipeline_parameters
 from tail_beam_sim.errors import InputError, require_int, require_output_file
 from tail_beam_sim.physics.face import FaceParams, load_face_parameters
@@ -30,6 +31,7 @@ from tail_beam_sim.spec import DRAWING_SEQUENCES, MAX_FACE_SUPPORTS
 __all__ = ["register", "run", "table"]
 
 DEFAULT_CHART = "out/caving/recovery_vs_gangue.png"  # out/ is ignored by git
+DEFAULT_LATENCY_CHART = "out/caving/recovery_vs_latency.png"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -67,6 +69,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="also run the oracle at each of caving.oracle_curve_levels on the same seeds, "
         "draw its curve and give each rule's recovery short of it at no more gangue content",
+    )
+    parser.add_argument(
+        "--latencies",
+        metavar="S,S,...",
+        help="instead: the study on the stand-in labels at each of these label latencies (s), "
+        "and the chart of recovery and gangue content against latency (--latency-chart)",
+    )
+    parser.add_argument(
+        "--latency-chart",
+        default=DEFAULT_LATENCY_CHART,
+        help=f"with --latencies, the chart to write (default {DEFAULT_LATENCY_CHART}; '' none)",
     )
     parser.add_argument(
         "--chart", default=DEFAULT_CHART, help=f"chart to write (default {DEFAULT_CHART}; '' none)"
@@ -135,6 +148,15 @@ def _pct(value: float) -> str:
     return f"{100 * max(value, 0.0):5.1f}"  # above 100: coal of the undrawn margins drawn too
 
 
+def _ranges(s: Summary) -> tuple[str, str]:
+    """Recovery and gangue content (%) of ``s``, each with its interval: ``mean [low, high]``."""
+    rec, gan = s.recovery_interval, s.gangue_interval
+    return (
+        f"{_pct(s.recovery)} [{_pct(rec[0])}, {_pct(rec[1])}]",
+        f"{_pct(s.gangue_content)} [{_pct(gan[0])}, {_pct(gan[1])}]",
+    )
+
+
 def _points(value: float) -> str:
     return f"{100 * value:5.1f}" if value == value else "    -"
 
@@ -156,13 +178,7 @@ def table(summaries: list[Summary], short: dict[tuple[str, str], Shortfall] | No
             tail = f"  {_points(gap.mean)} [{_points(low)}, {_points(high)}]"
             if gap.seeds < s.seeds:
                 tail += f" ({gap.seeds} of {s.seeds} seeds: less gangue than the curve's least)"
-        rec = (
-            f"{_pct(s.recovery)} [{_pct(s.recovery_interval[0])}, {_pct(s.recovery_interval[1])}]"
-        )
-        gan = (
-            f"{_pct(s.gangue_content)} [{_pct(s.gangue_interval[0])}, "
-            f"{_pct(s.gangue_interval[1])}]"
-        )
+        rec, gan = _ranges(s)
         lines.append(
             f"{s.rule:<15} {s.source:<{w}} {s.seeds:>5}  {rec:<22} {gan:<22} {s.drawing_s:>9.0f}"
             + tail
@@ -183,6 +199,8 @@ def run(args: argparse.Namespace) -> int:
     )
     first = face.seed if args.seed is None else require_int("--seed", args.seed, 0)
     rules = None if args.rules is None else _names(args.rules, "--rules")
+    if args.latencies is not None:
+        return _run_latencies(args, face, caving, range(first, first + seeds), rules)
     sources = _names(args.sources, "--sources")
     for source in sources:
         layout_of(source)  # a bad layout refused by name
@@ -245,6 +263,43 @@ def run(args: argparse.Namespace) -> int:
     if chart is not None:
         path = write_chart(summaries, chart)
         print(f"chart: {path}")
+    return 0
+
+
+def _run_latencies(
+    args: argparse.Namespace,
+    face: FaceParams,
+    caving: dict[str, Any],
+    seeds: range,
+    rules: list[str] | None,
+) -> int:
+    """``--latencies``: each rule on the stand-in labels at each latency; a table and chart."""
+    latencies = parse_latencies(args.latencies)
+    chart = _chart_path(args.latency_chart) if args.latency_chart else None
+    progress = Progress(sys.stderr)
+    try:
+        rows = latency_study(
+            face,
+            caving,
+            seeds,
+            latencies,
+            rules,
+            require_int("--jobs", args.jobs, 1, 64),
+            progress.update,
+        )
+    finally:
+        progress.close()
+    print(
+        f"caving: {face.supports} supports, {face.sequence}; stand-in labels at each latency; "
+        f"{len(seeds)} seed(s) from {seeds.start}"
+    )
+    print(f"{'latency s':>9}  {'rule':<15} {'recovery %':<22} {'gangue content %'}")
+    for row in rows:
+        s = row.summary
+        rec, gan = _ranges(s)
+        print(f"{row.latency_s:>9g}  {s.rule:<15} {rec:<22} {gan}")
+    if chart is not None:
+        print(f"chart: {write_latency_chart(rows, chart)}")
     return 0
 
 

@@ -22,6 +22,7 @@ from tail_beam_id.study.caving import (
     summarise,
     wilson,
 )
+from tail_beam_id.study.caving_latency import latency_study
 from tail_beam_sim.physics.face import (
     FaceParams,
     close_at_true_share,
@@ -252,3 +253,35 @@ def test_the_caving_verb_prints_the_shortfall_with_the_oracle_curve(capsys):
     # level recovered more with less gangue), so it is never short of it
     short = float(re.findall(r"(-?\d+\.\d) \[", oracle_row)[-1])
     assert 0.0 <= short < 0.5
+
+
+def test_a_later_label_closes_first_gangue_no_earlier():
+    """One support, the same stand-in labels known 0 or 2 s after their impacts: first gangue
+    closes on the same label, 2 s later, so the window draws at least as much coal and
+    gangue; the oracle reads the truth and runs once, at no latency."""
+    face, caving = small_face()
+    face = face.with_changes(supports=1, group_size=1)
+    rows = latency_study(face, caving, [1, 2], [0.0, 2.0], ["first_gangue", "oracle"])
+    by = {(r.latency_s, r.summary.rule): r.summary for r in rows}
+    assert sorted(by) == [(0.0, "first_gangue"), (0.0, "oracle"), (2.0, "first_gangue")]
+    early, late = by[(0.0, "first_gangue")], by[(2.0, "first_gangue")]
+    assert late.recovery >= early.recovery and late.gangue_content >= early.gangue_content
+    assert late.drawing_s > early.drawing_s
+
+
+def test_the_caving_verb_charts_recovery_against_latency(tmp_path, capsys):
+    """`tail-beam caving --latencies`: a row per latency and rule, the chart written; a latency
+    that is no number, or beyond caving.labels.latency_s's range, refused by name."""
+    from tail_beam_sim.errors import InputError
+
+    pytest.importorskip("matplotlib")
+    chart = tmp_path / "latency.png"
+    argv = ["--supports", "2", "--seeds", "1", "--rules", "sprt", "--latencies", "0,1.5"]
+    assert caving_cmd.run(parse(argv + ["--latency-chart", str(chart)])) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"^\s+0  sprt ", out, re.M) and re.search(r"^\s+1\.5  sprt ", out, re.M)
+    assert chart.stat().st_size > 0
+    with pytest.raises(InputError, match="--latencies = 'soon'"):
+        caving_cmd.run(parse(["--latencies", "0,soon", "--latency-chart", ""]))
+    with pytest.raises(InputError, match="latency_s"):
+        caving_cmd.run(parse(["--latencies", "100", "--latency-chart", ""]))
