@@ -744,27 +744,18 @@ def cut_blocks(
     return blocks, np.asarray(samples[whole:], dtype=np.float32)
 
 
-_LAYOUTS: dict[tuple[int, int, int, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-LAYOUT_CACHE_SIZE = 256
-
-
+@lru_cache(maxsize=256)
 def _block_layout(
     first_index: int, count: int, block_samples: int, rate_hz: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``count`` blocks of ``block_samples`` from ``first_index`` at ``rate_hz``: their first
     indices, lengths and stamps (s), kept per layout and read only (every impact of a setting
     has the same few)."""
-    key = (first_index, count, block_samples, rate_hz)
-    cached = _LAYOUTS.get(key)
-    if cached is None:
-        starts = first_index + block_samples * np.arange(count, dtype=np.int64)
-        cached = (starts, np.full(starts.size, block_samples, dtype=np.int64), starts / rate_hz)
-        for array in cached:
-            array.flags.writeable = False
-        if len(_LAYOUTS) >= LAYOUT_CACHE_SIZE:
-            _LAYOUTS.clear()
-        _LAYOUTS[key] = cached
-    return cached
+    starts = first_index + block_samples * np.arange(count, dtype=np.int64)
+    layout = (starts, np.full(starts.size, block_samples, dtype=np.int64), starts / rate_hz)
+    for array in layout:
+        array.flags.writeable = False
+    return layout
 
 
 @dataclass
