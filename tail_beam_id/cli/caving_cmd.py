@@ -274,6 +274,12 @@ def _run_latencies(
     rules: list[str] | None,
 ) -> int:
     """``--latencies``: each rule on the stand-in labels at each latency; a table and chart."""
+    if args.sources != ",".join(SOURCES) or args.oracle_curve or args.lumps is not None:
+        raise InputError(
+            "--latencies",
+            args.latencies,
+            "runs on the stand-in labels alone: without --sources, --oracle-curve and --lumps",
+        )
     latencies = parse_latencies(args.latencies)
     chart = _chart_path(args.latency_chart) if args.latency_chart else None
     progress = Progress(sys.stderr)

@@ -55,16 +55,23 @@ def latency_study(
         value = CAVING_LABELS.check({**labels, "latency_s": latency}, only=["latency_s"])
         checked.append(float(value["latency_s"]))
     names = list(rule_factories(caving)) if rules is None else list(rules)
+    plans = [[r for r in names if r != "oracle" or k == 0] for k in range(len(checked))]
+    total = len(seeds) * sum(len(chosen) for chosen in plans)  # one run per rule and seed
     rows: list[LatencyRow] = []
-    for k, latency in enumerate(checked):
-        section = {**caving, "labels": {**labels, "latency_s": latency}}
-        chosen = [r for r in names if r != "oracle" or k == 0]
+    done = 0
+    for latency, chosen in zip(checked, plans):
         if not chosen:
             continue
-        runs = run_study(face_params, section, seeds, chosen, (SOURCE,), jobs=jobs)
-        rows += [LatencyRow(0.0 if s.rule == "oracle" else latency, s) for s in summarise(runs)]
+        section = {**caving, "labels": {**labels, "latency_s": latency}}
+        tell = None
         if progress is not None:
-            progress(k + 1, len(checked))
+
+            def tell(runs: int, _: int, before: int = done) -> None:
+                progress(before + runs, total)
+
+        runs = run_study(face_params, section, seeds, chosen, (SOURCE,), tell, jobs=jobs)
+        done += len(runs)
+        rows += [LatencyRow(0.0 if s.rule == "oracle" else latency, s) for s in summarise(runs)]
     return rows
 
 

@@ -285,3 +285,20 @@ def test_the_caving_verb_charts_recovery_against_latency(tmp_path, capsys):
         caving_cmd.run(parse(["--latencies", "0,soon", "--latency-chart", ""]))
     with pytest.raises(InputError, match="latency_s"):
         caving_cmd.run(parse(["--latencies", "100", "--latency-chart", ""]))
+    with pytest.raises(InputError, match="--latencies = '1': runs on the stand-in labels"):
+        caving_cmd.run(parse(["--latencies", "1", "--sources", "truth", "--latency-chart", ""]))
+
+
+def test_the_latency_study_counts_its_runs():
+    """Two seeds, the SPRT at two latencies and the oracle once: 6 runs, counted 1 to 6."""
+    face, caving = small_face()
+    told = []
+    latency_study(
+        face,
+        caving,
+        [0, 1],
+        [0.0, 1.0],
+        ["sprt", "oracle"],
+        progress=lambda done, total: told.append((done, total)),
+    )
+    assert told == [(k, 6) for k in range(1, 7)]
