@@ -808,7 +808,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--point-models",
         action="store_true",
         help="only fit the statistical models that read the impact point and add them to the "
-        "shipped statistical.json (every other model kept as it is)",
+        "shipped statistical.json (every other model kept as it is; a plain run fits them too, "
+        "after the others)",
     )
     parser.add_argument(
         "--jobs",
@@ -839,6 +840,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if cache is not None and cache.is_file():
         records, paper = load_cache(cache)
     else:
+        print(f"simulating the training impacts on {args.jobs} processes", flush=True)
         jobs: list[CollectJob] = [
             (params, "stream", args.count, seed, args.tier, False),
             # Supports other than the nominal one, at IMU rates drawn from 0.8-64 kHz.
@@ -893,7 +895,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         path = MODELS_DIR / f"{name}.json"
         path.write_text(json.dumps(model, indent=1) + "\n", encoding="utf-8")
         print(f"wrote {path} ({path.stat().st_size} bytes)")
-    return 0
+    # The models that read the impact point join statistical.json: written afresh above, it
+    # would otherwise ship without them.
+    return add_point_models(params, args, seed)
+
+
+def point_cache(cache: Path) -> Path:
+    """The file keeping the impact point's training records beside ``cache`` (the others'):
+    ``records.json`` -> ``records.point.json``."""
+    return cache.with_name(f"{cache.stem}.point{cache.suffix}")
 
 
 def add_point_models(params: Mapping[str, Any], args: argparse.Namespace, seed: int) -> int:
@@ -903,13 +913,17 @@ def add_point_models(params: Mapping[str, Any], args: argparse.Namespace, seed: 
     it is."""
     pointed = copy.deepcopy(dict(params))
     pointed["sensors"]["camera_reports_impact_point"] = True
-    cache = Path(args.cache) if args.cache else None
+    cache = point_cache(Path(args.cache)) if args.cache else None
     varied_paper_count = (
         args.varied_count // 5 if args.varied_paper_count is None else args.varied_paper_count
     )
     if cache is not None and cache.is_file():
         records, paper = load_cache(cache)
     else:
+        print(
+            "simulating the training impacts again, the camera reporting the impact point",
+            flush=True,
+        )
         jobs: list[CollectJob] = [(pointed, "stream", args.count, seed, args.tier, False)]
         for scene_set, count, offset in (
             ("varied", args.varied_count, 2),

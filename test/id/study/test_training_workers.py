@@ -3,6 +3,8 @@ the same records, in the same order, as in one."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from tail_beam_id.study.dataset import evaluation_params
@@ -42,3 +44,41 @@ def test_a_worker_count_out_of_range_is_refused_by_name(jobs, capsys):
         main(["--jobs", jobs])
     assert ended.value.code == 2
     assert "--jobs" in capsys.readouterr().err
+
+
+def test_a_plain_run_fits_the_impact_points_models_too(monkeypatch, tmp_path):
+    """The README's one training command writes statistical.json afresh and then adds the
+    models that read the impact point, from impacts simulated with the camera reporting it:
+    without that second step the shipped file would lose them. The simulation and fits are
+    stood in for here (their own tests cover them); what is checked is the sequence and that
+    each cache keeps its own records."""
+    from tail_beam_id.study import training
+
+    simulated: list[bool] = []
+
+    def collect(jobs, workers):
+        simulated.append(all(j[0]["sensors"]["camera_reports_impact_point"] for j in jobs))
+        return [[] for _ in jobs]
+
+    monkeypatch.setattr(training, "MODELS_DIR", tmp_path)
+    monkeypatch.setattr(training, "collect_all", collect)
+    monkeypatch.setattr(training, "train_threshold", lambda paper: {"threshold": 1.0})
+    monkeypatch.setattr(
+        training,
+        "train_statistical",
+        lambda records, seed, hysteresis: {"subsets": {}, "calibrated_subsets": {}},
+    )
+    monkeypatch.setattr(training, "duration_ratio_table", lambda params: [])
+    monkeypatch.setattr(training, "timing_table", lambda records, vibration=False: {})
+    monkeypatch.setattr(
+        training,
+        "train_point_models",
+        lambda records, seed: {"subsets": {"x+point": {}}, "calibrated_subsets": {}},
+    )
+    cache = tmp_path / "records.json"
+    assert main(["--count", "1", "--varied-count", "1", "--jobs", "1", "--cache", str(cache)]) == 0
+    assert simulated == [False, True]
+    model = json.loads((tmp_path / "statistical.json").read_text(encoding="utf-8"))
+    assert "x+point" in model["subsets"] and "point_provenance" in model
+    assert cache.is_file() and training.point_cache(cache).is_file()
+    assert training.point_cache(cache).name == "records.point.json"
