@@ -243,7 +243,9 @@ class _PulseGrid(NamedTuple):
     ``clamped`` that time where after, else 0, s; ``within`` the (duration, start, sample)
     indices inside each pulse; at those, ``w_in`` the pulse's angular frequency pi / d (1/s),
     ``sine`` and ``cosine`` of w_in times the time since the start; ``d`` the durations
-    (D, 1, 1), ``w`` pi / d."""
+    (D, 1, 1), ``w`` pi / d; ``pair`` each inside index's (duration, start) pair, d x S + s,
+    and ``flat_in`` / ``flat_since`` its place in a flattened (D, S, N) / (S, N) array (one
+    flat index is much cheaper to gather and scatter with than three)."""
 
     t: np.ndarray
     durations: np.ndarray
@@ -256,6 +258,9 @@ class _PulseGrid(NamedTuple):
     w_in: np.ndarray
     sine: np.ndarray
     cosine: np.ndarray
+    pair: np.ndarray
+    flat_in: np.ndarray
+    flat_since: np.ndarray
 
 
 # The last grids built, newest first: the coarse search of a fit's second pass reads the same
@@ -276,6 +281,7 @@ def _pulse_grid(t: np.ndarray, durations: np.ndarray, starts: np.ndarray) -> _Pu
     w = math.pi / d
     within = np.nonzero(after[None] & (since[None] < d))  # (D, S, N) indices in the pulse
     t_in, w_in = since[within[1], within[2]], w.ravel()[within[0]]
+    pair = within[0] * starts.size + within[1]
     grid = _PulseGrid(
         t,
         durations,
@@ -288,6 +294,9 @@ def _pulse_grid(t: np.ndarray, durations: np.ndarray, starts: np.ndarray) -> _Pu
         w_in,
         np.sin(w_in * t_in),
         np.cos(w_in * t_in),
+        pair,
+        pair * t.size + within[2],
+        within[1] * t.size + within[2],
     )
     _last_grids[:] = [grid, *_last_grids[: LAST_GRIDS - 1]]
     return grid
@@ -313,15 +322,16 @@ def _best(
     after, w_in = grid.after, grid.w_in
     rows = 1 + 2 * poles.size
     basis = np.zeros((durations.size, starts.size, rows, n))
-    basis[within[0], within[1], 0, within[2]] = sine
+    # the sine's row: at each inside sample's (pair, row 0, sample) of the flattened basis
+    basis.reshape(-1)[grid.pair * (rows * n) + within[2]] = sine
     # Inside the pulse (few samples) the closed form in full; after it the response is the
     # pulse's end value carried by exp(p t), a product of a (D,) and an (S, N) factor.
     for k, pole in enumerate(poles):
         grows = np.where(after, np.exp(pole * grid.clamped), 0.0)  # exp(p t) after start, (S, N)
         value = (w * (1.0 + np.exp(-pole * d)) / (pole * pole + w * w)) * grows[None]
-        value[within] = ((-pole * sine - w_in * cosine) + w_in * grows[within[1], within[2]]) / (
-            pole * pole + w_in * w_in
-        )
+        value.reshape(-1)[grid.flat_in] = (
+            (-pole * sine - w_in * cosine) + w_in * grows.reshape(-1)[grid.flat_since]
+        ) / (pole * pole + w_in * w_in)
         basis[:, :, 1 + 2 * k] = value.real
         basis[:, :, 2 + 2 * k] = value.imag
     basis = basis.reshape(-1, rows, n)
