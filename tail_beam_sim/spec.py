@@ -922,7 +922,8 @@ FACE_HOST = Section(
         flag("record", "Run each support's bag_recorder too (a bag per support)."),
         integer(
             "seed_stride",
-            "Support k (from 0) runs flow.seed, scenario.seed and sensors.seed plus k times this.",
+            "Support k (from 0; NNN - 1 of a namespace ending support_NNN) runs flow.seed, "
+            "scenario.seed and sensors.seed plus k times this.",
             0,
             1_000_000,
         ),

@@ -6,7 +6,9 @@ For each support (``face_host.supports`` of them, as ``/support_001`` ..., or th
 need three processes per support. Every other parameter reaches the nodes as it reaches a lone
 node: ``--ros-args -p`` and ``/**`` files for all of them, ``/support_002/tail_beam_sim:`` keys
 of a ``--params-file`` for one. One seed sets the face: support k (counting from 0) runs with
-``flow.seed``, ``scenario.seed`` and ``sensors.seed`` plus k * ``face_host.seed_stride``. Each
+``flow.seed``, ``scenario.seed`` and ``sensors.seed`` plus k * ``face_host.seed_stride``, k read
+from the namespace's ``support_NNN`` (NNN - 1) so that a face spread over several hosts draws
+as the same face in one host would (:func:`support_index`). Each
 support's sim_node waits for its own readers (id_node, and the recorder) before it starts.
 
 The process stops on SIGINT or SIGTERM, or once every sim_node is done (``exit_after_idle_s``),
@@ -15,6 +17,7 @@ as the lone nodes do; each node closes and says what it lost.
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -52,6 +55,19 @@ def host_namespaces(checked: dict[str, Any]) -> list[str]:
     if len(set(given)) != len(given):
         raise InputError("face_host.namespaces", given, "must name each support once")
     return given
+
+
+SUPPORT_NAME = re.compile(r"support_(\d+)$")  # a namespace's last name that numbers its support
+
+
+def support_index(namespace: str, position: int) -> int:
+    """Which support of the face ``namespace`` is, from 0: NNN - 1 for one ending in
+    ``support_NNN`` (NNN >= 1), so that ``/support_004`` is the fourth on whichever host runs it;
+    else ``position``, its place in this host's list."""
+    found = SUPPORT_NAME.search(namespace.rstrip("/"))
+    if found is not None and int(found.group(1)) >= 1:
+        return int(found.group(1)) - 1
+    return position
 
 
 def shared_defaults() -> dict[str, Any]:
@@ -93,7 +109,7 @@ class FaceHost(Node):
         self.recorders: list[RecorderNode] = []
         try:
             for k, ns in enumerate(self.namespaces):
-                self._add_support(k, ns, seeds, checked["seed_stride"], bag)
+                self._add_support(support_index(ns, k), ns, seeds, checked["seed_stride"], bag)
         except BaseException:
             for node in self.members:
                 node.destroy_node()
