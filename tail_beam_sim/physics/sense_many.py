@@ -205,8 +205,8 @@ def sense_group(
     clean = structure.setting_pressure_pa + family.read(rows, pressure_grid, jack)[0]
     pressure_stamps = pressure_grid.grid
     unit = np.zeros(clean.shape)
-    for suite, row, k in zip(suites, unit, pressure_counts.tolist()):
-        suite._pressure_rng.standard_normal(out=row[:k])
+    for rng, row, k in zip(_generators(suites, PRESSURE), unit, pressure_counts.tolist()):
+        rng.standard_normal(out=row[:k])
     sigma = np.array([s.noise.pressure_pa for s in suites])[:, None]
     pressure = clean + sigma * unit
     # a saturated transducer reads its limit (SensorNoise.pressure)
@@ -242,8 +242,8 @@ def sense_group(
     accel[:, 1:, 2] -= (velocity[:, 1:] - velocity[:, :-1]) / period
     gyro_unit = np.zeros_like(gyro)
     accel_unit = np.zeros_like(gyro)
-    for suite, gyro_row, accel_row, k in zip(suites, gyro_unit, accel_unit, imu_counts.tolist()):
-        rng = suite._imu_rng
+    imu_rngs = _generators(suites, IMU)
+    for rng, gyro_row, accel_row, k in zip(imu_rngs, gyro_unit, accel_unit, imu_counts.tolist()):
         rng.standard_normal(out=gyro_row[:k])
         rng.standard_normal(out=accel_row[:k])
     gyro = gyro + np.array([s.noise.gyro_radps for s in suites])[:, None, None] * gyro_unit
@@ -296,6 +296,22 @@ def sense_group(
                 point=point,
             )
         )
+    return out
+
+
+# which child of a scene's seed each sensor's generator is made from (SensorSuite's)
+PRESSURE, IMU, CAMERA, VIBRATION = 0, 1, 2, 4
+
+
+def _generators(suites: Sequence[SensorSuite], child: int) -> list[np.random.Generator]:
+    """Each suite's generator of its seed's ``child`` (the one ``SensorSuite._pressure_rng``
+    and its siblings make: the same stream), made here in one pass: the group's suites are its
+    own and each generator is read once, so the lazy attributes' calls per suite are spared."""
+    make, bits = np.random.Generator, np.random.PCG64
+    out = []
+    for suite in suites:
+        seed = suite._children[child]
+        out.append(make(bits(seed)) if type(seed) is seeds.Child else seeds.generator(seed))
     return out
 
 
@@ -374,8 +390,8 @@ def _rebounds(
         [spec.camera_velocity_noise_fraction for spec in specs]
     ) * np.abs(true[:, 2])
     draws = np.empty((rows.size, 3))
-    for suite, row, scale in zip(suites, draws, sigma.tolist()):
-        row[:] = suite._camera_rng.normal(0.0, scale, 3)
+    for rng, row, scale in zip(_generators(suites, CAMERA), draws, sigma.tolist()):
+        row[:] = rng.normal(0.0, scale, 3)
     measured = true + draws * np.array([1.0, 0.0, 1.0])
     rate = np.array([spec.camera_frame_rate_hz for spec in specs])
     separation = contact + family.duration_s[rows]
@@ -463,8 +479,10 @@ class _DenseSpan:
         # normal(0, sigma, k) is sigma times standard_normal(k), draw by draw), clipping,
         # float32 and the blocks: as SensorSuite.vibration and cut_blocks make them
         noise = np.empty(clean.shape[1])
-        for suite, row, k in zip(suites, clean, outputs.tolist()):
-            draws = suite._vibration_rng.standard_normal(out=noise[:k])
+        for suite, rng, row, k in zip(
+            suites, _generators(suites, VIBRATION), clean, outputs.tolist()
+        ):
+            draws = rng.standard_normal(out=noise[:k])
             draws *= suite.spec.vibration_noise_mps2
             row[:k] += draws
         limits = [suite.spec.vibration_range_mps2 for suite in suites]
@@ -481,22 +499,18 @@ class _DenseSpan:
         stamps = starts / self.spec.vibration_rate_hz
         lengths = np.full(starts.size, size, dtype=np.int64)
         period = 1.0 / self.spec.vibration_rate_hz
-        blocks = []
-        for i, suite in enumerate(suites):
-            b = int(whole[i])
-            own = suite.spec
-            blocks.append(
-                VibrationBlocks(
-                    starts[:b],
-                    lengths[:b],
-                    stamps[:b],
-                    samples[i, : b * size],
-                    period,
-                    own.vibration_range_mps2,
-                    own.vibration_noise_mps2**2,
-                )
+        return [
+            VibrationBlocks(
+                starts[:b],
+                lengths[:b],
+                stamps[:b],
+                row[: b * size],
+                period,
+                own.vibration_range_mps2,
+                own.vibration_noise_mps2**2,
             )
-        return blocks
+            for b, row, own in zip(whole.tolist(), samples, (suite.spec for suite in suites))
+        ]
 
 
 def _sos_filter_rows(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> np.ndarray:
