@@ -270,52 +270,38 @@ class ContactFamily:
         return len(self.problems)
 
     @cached_property
-    def _contact_nodes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _contact_nodes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every impact's contact samples, padded to the longest: their instants (N, P) (s from
-        contact start, +inf past the last), each step's cubic Hermite coefficients of [q; q']
-        and straight line of q'' (N, P - 1, 4, 3n) (``Trajectory._stacks``), the count of
-        samples (N,) and a nominal step (N,) s."""
+        contact start, +inf past the last), [q; q'] and [q'; q''] at them (N, P, 2n) each (zero
+        past the last), the count of samples (N,) and a nominal step (N,) s. The cubic Hermite
+        of a step (:meth:`_contact_states`) is formed from them where it is read."""
         size, n = self.size, self.n
         pulses = np.flatnonzero(self.pulse)
         integrated = sorted(self.integrated)
         width = max([PULSE_NODES + 1] + [self.integrated[i][0].size for i in integrated])
         nodes = np.full((size, width), np.inf)
-        values = np.zeros((size, 2 * n, width))  # [q; q'] at the samples
-        slopes = np.zeros((size, 2 * n, width))  # [q'; q'']
+        values = np.zeros((size, width, 2 * n))  # [q; q'] at the samples
+        slopes = np.zeros((size, width, 2 * n))  # [q'; q'']
         counts = np.full(size, 2, dtype=np.int64)
         step = np.ones(size)
         if pulses.size:
             times = pulse_table().fractions * self.duration_s[pulses, None]
             nodes[pulses, : PULSE_NODES + 1] = times
             q, qd, qdd = self._pulse_states(pulses, times)
-            values[pulses, :, : PULSE_NODES + 1] = np.concatenate([q, qd], axis=1)
-            slopes[pulses, :, : PULSE_NODES + 1] = np.concatenate([qd, qdd], axis=1)
+            values[pulses, : PULSE_NODES + 1] = np.concatenate([q, qd], axis=1).transpose(0, 2, 1)
+            slopes[pulses, : PULSE_NODES + 1] = np.concatenate([qd, qdd], axis=1).transpose(
+                0, 2, 1
+            )
             counts[pulses] = PULSE_NODES + 1
             step[pulses] = self.duration_s[pulses] / PULSE_NODES
         for i in integrated:
             t, states, derivatives, _ = self.integrated[i]
             nodes[i, : t.size] = t
-            values[i, :, : t.size] = states[:, : 2 * n].T
-            slopes[i, :, : t.size] = derivatives[:, : 2 * n].T
+            values[i, : t.size] = states[:, : 2 * n]
+            slopes[i, : t.size] = derivatives[:, : 2 * n]
             counts[i] = t.size
             step[i] = t[1] - t[0]
-        # past each impact's last sample: a zero-length step (never sampled)
-        last = nodes[np.arange(size), counts - 1]
-        steps = np.diff(np.where(np.isfinite(nodes), nodes, last[:, None]), axis=1)
-        v0, v1 = values[:, :, :-1], values[:, :, 1:]
-        m0, m1 = slopes[:, :, :-1] * steps[:, None], slopes[:, :, 1:] * steps[:, None]
-        a0, a1 = slopes[:, n:, :-1], slopes[:, n:, 1:]  # q'' (straight line)
-        zero = np.zeros_like(a0)
-        coefficients = np.stack(
-            [
-                np.concatenate([v0, a0], axis=1),
-                np.concatenate([m0, a1 - a0], axis=1),
-                np.concatenate([3.0 * (v1 - v0) - 2.0 * m0 - m1, zero], axis=1),
-                np.concatenate([2.0 * (v0 - v1) + m0 + m1, zero], axis=1),
-            ],
-            axis=1,
-        )  # (N, 4, 3n, steps)
-        return nodes, np.ascontiguousarray(coefficients.transpose(0, 3, 1, 2)), counts, step
+        return nodes, values, slopes, counts, step
 
     @property
     def contact_times(self) -> np.ndarray:
@@ -422,15 +408,17 @@ class ContactFamily:
         """(o, S, P): :meth:`read` at each impact's contact samples (``contact_times[rows]``;
         nan past an impact's last). There the cubic Hermite is the sample's own state, taken
         as it is; the last sample, the contact's end, is read from the free response."""
-        nodes, polynomials, counts, _ = self._contact_nodes
+        nodes, values, slopes, counts, _ = self._contact_nodes
         readings = np.atleast_2d(readings)
         n = self.n
         accel = bool(np.any(readings[:, 2 * n :]))
         width = 3 * n if accel else 2 * n
         count = rows.size
         steps = nodes.shape[1] - 1
-        # each step's value at its start: the state at its first sample
-        states = polynomials[rows, :, 0, :width]  # (S, P - 1, width)
+        # each step's value at its start: the state at its first sample ([q; q'] and q'')
+        states = values[rows, :steps]  # (S, P - 1, width)
+        if accel:
+            states = np.concatenate([states, slopes[rows, :steps, n:]], axis=2)
         out = np.full((readings.shape[0], count, steps + 1), np.nan)
         out[:, :, :steps] = (readings[:, :width] @ states.reshape(-1, width).T).reshape(
             -1, count, steps
@@ -507,7 +495,7 @@ class ContactFamily:
         """(2n or 3n, M): [q; q'] (and q'' when ``accel``) of impacts ``rows`` at instants
         ``t_s`` within their contacts: the cubic Hermite through the contact's samples (q''
         the straight line; ``Trajectory._sample_contact``)."""
-        nodes, polynomials, counts, step = self._contact_nodes
+        nodes, values, slopes, counts, step = self._contact_nodes
         last = counts[rows] - 2
         guess = np.minimum(np.maximum((t_s / step[rows]).astype(np.int64), 0), last)
         # the step k with nodes[k] <= t < nodes[k + 1] (searchsorted's, on the same floats)
@@ -518,9 +506,23 @@ class ContactFamily:
         h = nodes[rows, k + 1] - start
         s = np.where(h > 0, (t_s - start) / np.where(h > 0, h, 1.0), 0.0)
         n = self.n
-        c = polynomials[rows, k] if accel else polynomials[rows, k, :, : 2 * n]  # (M, 4, .)
+        # the step's cubic Hermite of [q; q'] (values v, slopes times the step m) and straight
+        # line of q'' (a), as Trajectory._stacks forms them
+        v0, v1 = values[rows, k], values[rows, k + 1]  # (M, 2n)
+        d0, d1 = slopes[rows, k], slopes[rows, k + 1]
+        m0, m1 = d0 * h[:, None], d1 * h[:, None]
+        c0, c1 = v0, m0
+        c2 = 3.0 * (v1 - v0) - 2.0 * m0 - m1
+        c3 = 2.0 * (v0 - v1) + m0 + m1
+        if accel:
+            a0, a1 = d0[:, n:], d1[:, n:]
+            zero = np.zeros_like(a0)
+            c0 = np.concatenate([c0, a0], axis=1)
+            c1 = np.concatenate([c1, a1 - a0], axis=1)
+            c2 = np.concatenate([c2, zero], axis=1)
+            c3 = np.concatenate([c3, zero], axis=1)
         x = s[:, None]
-        return (c[:, 0] + x * (c[:, 1] + x * (c[:, 2] + x * c[:, 3]))).T
+        return (c0 + x * (c1 + x * (c2 + x * c3))).T
 
     def trajectory(self, i: int) -> Trajectory:
         """Impact ``i``'s trajectory, as the hybrid solver gives it (``ok[i]`` must hold); one

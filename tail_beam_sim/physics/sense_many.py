@@ -464,24 +464,26 @@ class _DenseSpan:
         picks = dense[:, ::m]
         outputs = -(-count // m)
         j = np.arange(int(outputs.max()))
-        # the ring-down everywhere (past each scene's last output: unused), then each scene's
-        # rest (g) and filtered span over it
+        # the ring-down everywhere (past each scene's last output: unused), then, row by row,
+        # each scene's rest (g) and filtered span over it, and its noise (its own generator,
+        # through a buffer of one row: normal(0, sigma, k) is sigma times standard_normal(k),
+        # draw by draw); then clipping, float32 and the blocks: as SensorSuite.vibration and
+        # cut_blocks make them
         clean = _filtered_ringdown(
             family, rows, (j * m) / dense_rate, self.contact, dense_period, self.sos
         )
-        clean[j[None, :] < (first // m)[:, None]] = g
-        span = picks.shape[1]
-        if span:
-            within = np.arange(span)[None, :] < ((switch - first) // m)[:, None]
-            pick_rows, pick_cols = np.nonzero(within)
-            clean[pick_rows, pick_cols + (first // m)[pick_rows]] = picks[pick_rows, pick_cols]
-        # noise (each scene's own generator, added row by row through a buffer of one row:
-        # normal(0, sigma, k) is sigma times standard_normal(k), draw by draw), clipping,
-        # float32 and the blocks: as SensorSuite.vibration and cut_blocks make them
         noise = np.empty(clean.shape[1])
-        for suite, rng, row, k in zip(
-            suites, _generators(suites, VIBRATION), clean, outputs.tolist()
+        for suite, rng, row, pick, rest, span, k in zip(
+            suites,
+            _generators(suites, VIBRATION),
+            clean,
+            picks,
+            (first // m).tolist(),
+            ((switch - first) // m).tolist(),
+            outputs.tolist(),
         ):
+            row[:rest] = g
+            row[rest : rest + span] = pick[:span]
             draws = rng.standard_normal(out=noise[:k])
             draws *= suite.spec.vibration_noise_mps2
             row[:k] += draws
