@@ -120,6 +120,12 @@ def _stamp_grid(
     return grid, counts
 
 
+# values per temporary array of the accelerometer's output stage, which works through its scenes
+# in blocks of rows of about this size (128 KiB): temporaries the size of the whole group's
+# output (megabytes) are fresh pages from the system at every call, whose faults cost more than
+# the arithmetic on them
+CHUNK_VALUES = 16384
+
 SMALL_ANGLE_RAD = 1e-3  # below it, cos and sin by their Taylor polynomials (to float rounding)
 
 
@@ -464,37 +470,45 @@ class _DenseSpan:
         picks = dense[:, ::m]
         outputs = -(-count // m)
         j = np.arange(int(outputs.max()))
-        # the ring-down everywhere (past each scene's last output: unused), then, row by row,
-        # each scene's rest (g) and filtered span over it, and its noise (its own generator,
-        # through a buffer of one row: normal(0, sigma, k) is sigma times standard_normal(k),
-        # draw by draw); then clipping, float32 and the blocks: as SensorSuite.vibration and
-        # cut_blocks make them
-        clean = _filtered_ringdown(
+        # by blocks of scenes (CHUNK_VALUES): the ring-down everywhere (past each scene's last
+        # output: unused), then, row by row, each scene's rest (g) and filtered span over it and
+        # its noise (its own generator, through a buffer of one row: normal(0, sigma, k) is
+        # sigma times standard_normal(k), draw by draw); then clipping and float32: as
+        # SensorSuite.vibration and cut_blocks make them
+        ringdown = _filtered_ringdown(
             family, rows, (j * m) / dense_rate, self.contact, dense_period, self.sos
         )
-        noise = np.empty(clean.shape[1])
-        for suite, rng, row, pick, rest, span, k in zip(
-            suites,
-            _generators(suites, VIBRATION),
-            clean,
-            picks,
-            (first // m).tolist(),
-            ((switch - first) // m).tolist(),
-            outputs.tolist(),
-        ):
-            row[:rest] = g
-            row[rest : rest + span] = pick[:span]
-            draws = rng.standard_normal(out=noise[:k])
-            draws *= suite.spec.vibration_noise_mps2
-            row[:k] += draws
         limits = [suite.spec.vibration_range_mps2 for suite in suites]
         if limits.count(limits[0]) == len(limits):  # one range (a scalar bound is cheaper)
             limit: float | np.ndarray = limits[0]
         else:
             limit = np.array(limits)[:, None]
-        # np.clip, as min(max(x, -limit), limit)
-        np.minimum(np.maximum(clean, -limit, out=clean), limit, out=clean)
-        samples = clean.astype(np.float32)
+        scenes = list(
+            zip(
+                [suite.spec.vibration_noise_mps2 for suite in suites],
+                _generators(suites, VIBRATION),
+                picks,
+                (first // m).tolist(),
+                ((switch - first) // m).tolist(),
+                outputs.tolist(),
+            )
+        )
+        samples = np.empty((len(scenes), j.size), dtype=np.float32)
+        noise = np.empty(j.size)
+        step = max(1, CHUNK_VALUES // max(j.size, 1))
+        for lo in range(0, len(scenes), step):
+            hi = min(lo + step, len(scenes))
+            clean = ringdown(lo, hi)
+            for row, (sigma, rng, pick, rest, span, k) in zip(clean, scenes[lo:hi]):
+                row[:rest] = g
+                row[rest : rest + span] = pick[:span]
+                draws = rng.standard_normal(out=noise[:k])
+                draws *= sigma
+                row[:k] += draws
+            bound = limit[lo:hi] if isinstance(limit, np.ndarray) else limit
+            # np.clip, as min(max(x, -limit), limit)
+            np.minimum(np.maximum(clean, -bound, out=clean), bound, out=clean)
+            samples[lo:hi] = clean
         size = self.spec.vibration_block_samples
         whole = outputs // size
         starts = size * np.arange(int(whole.max()), dtype=np.int64)
@@ -535,11 +549,13 @@ def _filtered_ringdown(
     contact_s: np.ndarray,
     dense_period_s: float,
     sos: np.ndarray,
-) -> np.ndarray:
-    """(S, T): ``ringdown_filtering.filtered_ringdown`` of impacts ``rows`` at the instants
-    ``grid_s`` (absolute) of scenes whose contacts start at ``contact_s``: the anti-alias
-    filter's steady output over the free ring-down, each term's exponential split into the
-    grid's and the scene's (:meth:`ContactFamily._free_on_grid`)."""
+) -> Callable[[int, int], np.ndarray]:
+    """Rows ``lo:hi`` (of S) of the (S, T) ``ringdown_filtering.filtered_ringdown`` of impacts
+    ``rows`` at the instants ``grid_s`` (absolute) of scenes whose contacts start at
+    ``contact_s``, as a function of ``(lo, hi)``: the anti-alias filter's steady output over the
+    free ring-down, each term's exponential split into the grid's and the scene's
+    (:meth:`ContactFamily._free_on_grid`). The rows are computed when asked, a block at a time
+    (CHUNK_VALUES)."""
     structure = family.structure
     n = family.n
     keep = structure._half_spectrum[0]
@@ -567,24 +583,28 @@ def _filtered_ringdown(
             a, d = angle_weight[:, k : k + 1], dynamic_weight[:, k : k + 1]
             angle = angle + (a.real * cos - a.imag * sin)
             dynamic = dynamic + (d.real * cos - d.imag * sin)
-        return structure.gravity_mps2 * np.cos(angle) + dynamic
+        full = structure.gravity_mps2 * np.cos(angle) + dynamic
+        return lambda lo, hi: full[lo:hi]
     shifted = np.exp(-np.multiply.outer(offset, eigenvalues))  # (S, k)
     basis = grid_basis(structure, grid_s, ("outputs", dense_period_s, grid_s.size, grid_s[-1]))
-    # angle and dynamic term of every scene in one product: Re(w b) = [w.re, -w.im] . [b.re; b.im]
+    # angle and dynamic term of a block of scenes in one product: Re(w b) = [w.re, -w.im] .
+    # [b.re; b.im]
     weights = np.concatenate([angle_weight * shifted, dynamic_weight * shifted])  # (2S, k)
-    both = _product(
-        np.concatenate([weights.real, -weights.imag], axis=1),
-        np.concatenate([basis.real, basis.imag]),
-    )
+    columns = np.concatenate([weights.real, -weights.imag], axis=1)
+    stacked = np.concatenate([basis.real, basis.imag])
     count = offset.size
-    angle, out = both[:count], both[count:]
     # |angle| <= sum_k |weight| max|basis|: small (the polynomial), unless the bound says not
     bound = float(np.max(np.abs(weights[:count]) @ np.abs(basis).max(axis=1), initial=0.0))
-    if bound < SMALL_ANGLE_RAD:
-        out += structure.gravity_mps2 * _small_cos_in_place(angle)
-    else:
-        out += structure.gravity_mps2 * np.cos(angle)
-    return out
+    g = structure.gravity_mps2
+
+    def block(lo: int, hi: int) -> np.ndarray:
+        pair = np.concatenate([columns[lo:hi], columns[count + lo : count + hi]])
+        both = _product(pair, stacked)
+        angle, dynamic = both[: hi - lo], both[hi - lo :]
+        cos = _small_cos_in_place(angle) if bound < SMALL_ANGLE_RAD else np.cos(angle)
+        return np.add(dynamic, np.multiply(cos, g, out=cos), out=dynamic)
+
+    return block
 
 
 __all__ = ["HISTORY_RATE_HZ", "layout_key", "sense_group", "summary_figures", "supported"]
