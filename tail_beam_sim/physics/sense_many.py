@@ -214,7 +214,8 @@ def sense_group(
     for rng, row, k in zip(_generators(suites, PRESSURE), unit, pressure_counts.tolist()):
         rng.standard_normal(out=row[:k])
     sigma = np.array([s.noise.pressure_pa for s in suites])[:, None]
-    pressure = clean + sigma * unit
+    # clean + sigma * unit, in the draws' memory (no temporaries the size of the group's stream)
+    pressure = np.add(clean, np.multiply(sigma, unit, out=unit), out=unit)
     # a saturated transducer reads its limit (SensorNoise.pressure)
     np.minimum(
         np.maximum(pressure, _per_scene(suites, 0), out=pressure),
@@ -252,8 +253,11 @@ def sense_group(
     for rng, gyro_row, accel_row, k in zip(imu_rngs, gyro_unit, accel_unit, imu_counts.tolist()):
         rng.standard_normal(out=gyro_row[:k])
         rng.standard_normal(out=accel_row[:k])
-    gyro = gyro + np.array([s.noise.gyro_radps for s in suites])[:, None, None] * gyro_unit
-    accel = accel + np.array([s.noise.accel_mps2 for s in suites])[:, None, None] * accel_unit
+    # clean + sigma * unit, in place (as the pressure's)
+    gyro_sigma = np.array([s.noise.gyro_radps for s in suites])[:, None, None]
+    accel_sigma = np.array([s.noise.accel_mps2 for s in suites])[:, None, None]
+    np.add(gyro, np.multiply(gyro_sigma, gyro_unit, out=gyro_unit), out=gyro)
+    np.add(accel, np.multiply(accel_sigma, accel_unit, out=accel_unit), out=accel)
 
     blocks = (
         _DenseSpan(spec0, contact, end, duration).blocks(family, rows, suites)
