@@ -529,18 +529,62 @@ class ContactFamily:
         object per impact, however often asked."""
         known = self._trajectories.get(i)
         if known is None:
-            known = self._trajectories[i] = self._build_trajectory(i)
+            known = self.trajectories([i])[0]
         return known
 
-    def _build_trajectory(self, i: int) -> Trajectory:
+    def trajectories(self, rows: Sequence[int]) -> list[Trajectory]:
+        """:meth:`trajectory` of each of ``rows``; those not yet made are made together, each
+        array of the family read once for all of them (as Python numbers: the same values)."""
+        known = self._trajectories
+        missing = [i for i in dict.fromkeys(rows) if i not in known]
+        if missing:
+            at = np.array(missing, dtype=np.int64)
+            ends = zip(
+                self.end_q[at],
+                self.end_qd[at],
+                self.end_z_m[at].tolist(),
+                self.end_zd_mps[at].tolist(),
+                self.end_modal[at],
+            )
+            numbers = zip(
+                self.duration_s[at].tolist(),
+                self.peak_force_n[at].tolist(),
+                self.estimate[at].tolist(),
+                self.approach_mps[at].tolist(),
+                self.row[at].tolist(),
+                self.weight[at].tolist(),
+                self.length_m[at].tolist(),
+                self.force_scale_n[at].tolist(),
+                self.separation_mps[at].tolist(),
+                self.max_penetration_m[at].tolist(),
+            )
+            for i, end, figures in zip(missing, ends, numbers):
+                known[i] = self._build_trajectory(i, end, figures)
+        return [known[i] for i in rows]
+
+    def _build_trajectory(
+        self, i: int, end: tuple[Any, ...], figures: tuple[Any, ...]
+    ) -> Trajectory:
+        """Impact ``i``'s trajectory from its end state ``end`` (q, q' (n,) each, z, z',
+        modal state) and its contact's ``figures`` (duration, peak force, estimate, approach
+        speed, and the pulse's table row, weight, length, force scale, separation speed and
+        largest penetration)."""
         problem = self.problems[i]
         n = self.n
-        duration = float(self.duration_s[i])
         x0 = np.zeros(2 * n)
-        q, qd = self.end_q[i].copy(), self.end_qd[i].copy()
-        z, zd = float(self.end_z_m[i]), float(self.end_zd_mps[i])
-        peak = float(self.peak_force_n[i])
-        estimate = float(self.estimate[i])
+        q, qd, z, zd, modal = end
+        (
+            duration,
+            peak,
+            estimate,
+            approach,
+            row,
+            weight,
+            length,
+            force_scale,
+            separation,
+            penetration,
+        ) = figures
         if i in self.integrated:
             t, states, derivatives, force = self.integrated[i]
             segment: ContactSegment | PulseSegment = ContactSegment(
@@ -560,16 +604,16 @@ class ContactFamily:
             }
         else:
             pulse = Pulse.__new__(Pulse)
-            pulse.row, pulse.weight = int(self.row[i]), float(self.weight[i])
-            pulse.length_m = float(self.length_m[i])
-            pulse.approach_mps = float(self.approach_mps[i])
-            pulse.force_scale_n = float(self.force_scale_n[i])
-            pulse.duration_s, pulse.separation_mps = duration, float(self.separation_mps[i])
+            pulse.row, pulse.weight = row, weight
+            pulse.length_m = length
+            pulse.approach_mps = approach
+            pulse.force_scale_n = force_scale
+            pulse.duration_s, pulse.separation_mps = duration, separation
             pulse.peak_force_n = peak
-            pulse.max_penetration_m = float(self.max_penetration_m[i])
+            pulse.max_penetration_m = penetration
             segment = PulseSegment(problem, 0.0, x0, pulse)
             segment.end_state = (q, qd, z, zd)
-            segment.end_modal = self.end_modal[i]
+            segment.end_modal = modal
             stats = {
                 "pulse_contacts": 1,
                 "rk4_contacts": 0,
@@ -583,7 +627,7 @@ class ContactFamily:
                 segment,
                 FreeSegment(duration, math.inf, duration, q, qd, z, zd),
             ],
-            [ContactRecord(0.0, duration, float(self.approach_mps[i]), zd, peak)],
+            [ContactRecord(0.0, duration, approach, zd, peak)],
             "hybrid",
             max(0.0, estimate),
             particle_at_rest=False,

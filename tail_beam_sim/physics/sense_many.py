@@ -270,10 +270,10 @@ def sense_group(
     # per scene as Python numbers (the same values), read once each
     stamps_s, kps, kis = contact.tolist(), pressure_counts.tolist(), imu_counts.tolist()
     peaks = zip(peak_pressure.tolist(), peak_rate.tolist(), peak_accel.tolist())
-    for i, (scene, suite, rebound, row, peak) in enumerate(
-        zip(scenes, suites, rebounds, rows.tolist(), peaks)
+    trajectories = family.trajectories(rows.tolist())
+    for i, (scene, suite, rebound, trajectory, peak) in enumerate(
+        zip(scenes, suites, rebounds, trajectories, peaks)
     ):
-        trajectory = family.trajectory(row)
         stamp = stamps_s[i]
         point = suite.reported_point(scene.impact.position_m, rebound, scene.support)
         kp, ki = kps[i], kis[i]
