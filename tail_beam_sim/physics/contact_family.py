@@ -394,14 +394,18 @@ class ContactFamily:
                 out[:, i, k] = self._read_direct(weights[:, i], dt[i, k])
         before = times < 0.0
         if before.any():  # at rest before the contact
-            out[:, before] = 0.0
+            np.copyto(out, 0.0, where=before)
         during = ~before & (dt < 0.0)
         if during.any():
             i, k = np.nonzero(during)
             accel = bool(np.any(readings[:, 2 * n :]))
-            out[:, i, k] = readings[:, : 3 * n if accel else 2 * n] @ self._contact_states(
+            values = readings[:, : 3 * n if accel else 2 * n] @ self._contact_states(
                 rows[i], times[i, k], accel
             )
+            if out.flags.c_contiguous:  # one flat index per pair: a one-axis scatter
+                out.reshape(out.shape[0], -1)[:, i * out.shape[2] + k] = values
+            else:
+                out[:, i, k] = values
         return out
 
     def read_at_samples(self, rows: np.ndarray, readings: np.ndarray) -> np.ndarray:
@@ -496,20 +500,26 @@ class ContactFamily:
         ``t_s`` within their contacts: the cubic Hermite through the contact's samples (q''
         the straight line; ``Trajectory._sample_contact``)."""
         nodes, values, slopes, counts, step = self._contact_nodes
+        width = nodes.shape[1]
+        # (impact, sample) pairs as flat indices into the (N * P) samples: one-axis gathers
+        flat_nodes = nodes.reshape(-1)
+        base = rows * width
         last = counts[rows] - 2
         guess = np.minimum(np.maximum((t_s / step[rows]).astype(np.int64), 0), last)
         # the step k with nodes[k] <= t < nodes[k + 1] (searchsorted's, on the same floats)
-        guess -= (nodes[rows, guess] > t_s) & (guess > 0)
-        guess += (nodes[rows, guess + 1] <= t_s) & (guess < last)
-        k = guess
-        start = nodes[rows, k]
-        h = nodes[rows, k + 1] - start
+        guess -= (flat_nodes.take(base + guess) > t_s) & (guess > 0)
+        guess += (flat_nodes.take(base + guess + 1) <= t_s) & (guess < last)
+        at = base + guess
+        start = flat_nodes.take(at)
+        h = flat_nodes.take(at + 1) - start
         s = np.where(h > 0, (t_s - start) / np.where(h > 0, h, 1.0), 0.0)
         n = self.n
         # the step's cubic Hermite of [q; q'] (values v, slopes times the step m) and straight
         # line of q'' (a), as Trajectory._stacks forms them
-        v0, v1 = values[rows, k], values[rows, k + 1]  # (M, 2n)
-        d0, d1 = slopes[rows, k], slopes[rows, k + 1]
+        flat_values = values.reshape(-1, 2 * n)
+        flat_slopes = slopes.reshape(-1, 2 * n)
+        v0, v1 = flat_values.take(at, axis=0), flat_values.take(at + 1, axis=0)  # (M, 2n)
+        d0, d1 = flat_slopes.take(at, axis=0), flat_slopes.take(at + 1, axis=0)
         m0, m1 = d0 * h[:, None], d1 * h[:, None]
         c0, c1 = v0, m0
         c2 = 3.0 * (v1 - v0) - 2.0 * m0 - m1
