@@ -520,7 +520,10 @@ class ContactFamily:
         flat_slopes = slopes.reshape(-1, 2 * n)
         v0, v1 = flat_values.take(at, axis=0), flat_values.take(at + 1, axis=0)  # (M, 2n)
         d0, d1 = flat_slopes.take(at, axis=0), flat_slopes.take(at + 1, axis=0)
-        m0, m1 = d0 * h[:, None], d1 * h[:, None]
+        # h and s repeated along the 2n columns: operands of one shape run as one loop over
+        # all their values (a broadcast column would loop over 2n at a time)
+        h = np.repeat(h[:, None], 2 * n, axis=1)
+        m0, m1 = d0 * h, d1 * h
         c0, c1 = v0, m0
         c2 = 3.0 * (v1 - v0) - 2.0 * m0 - m1
         c3 = 2.0 * (v0 - v1) + m0 + m1
@@ -531,7 +534,7 @@ class ContactFamily:
             c1 = np.concatenate([c1, a1 - a0], axis=1)
             c2 = np.concatenate([c2, zero], axis=1)
             c3 = np.concatenate([c3, zero], axis=1)
-        x = s[:, None]
+        x = np.repeat(s[:, None], c0.shape[1], axis=1)
         return (c0 + x * (c1 + x * (c2 + x * c3))).T
 
     def trajectory(self, i: int) -> Trajectory:
