@@ -487,9 +487,10 @@ class _DenseSpan:
             limit: float | np.ndarray = limits[0]
         else:
             limit = np.array(limits)[:, None]
+        sigmas = [suite.spec.vibration_noise_mps2 for suite in suites]
         scenes = list(
             zip(
-                [suite.spec.vibration_noise_mps2 for suite in suites],
+                sigmas,
                 _generators(suites, VIBRATION),
                 picks,
                 (first // m).tolist(),
@@ -526,10 +527,10 @@ class _DenseSpan:
                 stamps[:b],
                 row[: b * size],
                 period,
-                own.vibration_range_mps2,
-                own.vibration_noise_mps2**2,
+                own_range,
+                sigma**2,
             )
-            for b, row, own in zip(whole.tolist(), samples, (suite.spec for suite in suites))
+            for b, row, own_range, sigma in zip(whole.tolist(), samples, limits, sigmas)
         ]
 
 
