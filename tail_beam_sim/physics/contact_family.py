@@ -270,52 +270,38 @@ class ContactFamily:
         return len(self.problems)
 
     @cached_property
-    def _contact_nodes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _contact_nodes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every impact's contact samples, padded to the longest: their instants (N, P) (s from
-        contact start, +inf past the last), each step's cubic Hermite coefficients of [q; q']
-        and straight line of q'' (N, P - 1, 4, 3n) (``Trajectory._stacks``), the count of
-        samples (N,) and a nominal step (N,) s."""
+        contact start, +inf past the last), [q; q'] and [q'; q''] at them (N, P, 2n) each (zero
+        past the last), the count of samples (N,) and a nominal step (N,) s. The cubic Hermite
+        of a step (:meth:`_contact_states`) is formed from them where it is read."""
         size, n = self.size, self.n
         pulses = np.flatnonzero(self.pulse)
         integrated = sorted(self.integrated)
         width = max([PULSE_NODES + 1] + [self.integrated[i][0].size for i in integrated])
         nodes = np.full((size, width), np.inf)
-        values = np.zeros((size, 2 * n, width))  # [q; q'] at the samples
-        slopes = np.zeros((size, 2 * n, width))  # [q'; q'']
+        values = np.zeros((size, width, 2 * n))  # [q; q'] at the samples
+        slopes = np.zeros((size, width, 2 * n))  # [q'; q'']
         counts = np.full(size, 2, dtype=np.int64)
         step = np.ones(size)
         if pulses.size:
             times = pulse_table().fractions * self.duration_s[pulses, None]
             nodes[pulses, : PULSE_NODES + 1] = times
             q, qd, qdd = self._pulse_states(pulses, times)
-            values[pulses, :, : PULSE_NODES + 1] = np.concatenate([q, qd], axis=1)
-            slopes[pulses, :, : PULSE_NODES + 1] = np.concatenate([qd, qdd], axis=1)
+            values[pulses, : PULSE_NODES + 1] = np.concatenate([q, qd], axis=1).transpose(0, 2, 1)
+            slopes[pulses, : PULSE_NODES + 1] = np.concatenate([qd, qdd], axis=1).transpose(
+                0, 2, 1
+            )
             counts[pulses] = PULSE_NODES + 1
             step[pulses] = self.duration_s[pulses] / PULSE_NODES
         for i in integrated:
             t, states, derivatives, _ = self.integrated[i]
             nodes[i, : t.size] = t
-            values[i, :, : t.size] = states[:, : 2 * n].T
-            slopes[i, :, : t.size] = derivatives[:, : 2 * n].T
+            values[i, : t.size] = states[:, : 2 * n]
+            slopes[i, : t.size] = derivatives[:, : 2 * n]
             counts[i] = t.size
             step[i] = t[1] - t[0]
-        # past each impact's last sample: a zero-length step (never sampled)
-        last = nodes[np.arange(size), counts - 1]
-        steps = np.diff(np.where(np.isfinite(nodes), nodes, last[:, None]), axis=1)
-        v0, v1 = values[:, :, :-1], values[:, :, 1:]
-        m0, m1 = slopes[:, :, :-1] * steps[:, None], slopes[:, :, 1:] * steps[:, None]
-        a0, a1 = slopes[:, n:, :-1], slopes[:, n:, 1:]  # q'' (straight line)
-        zero = np.zeros_like(a0)
-        coefficients = np.stack(
-            [
-                np.concatenate([v0, a0], axis=1),
-                np.concatenate([m0, a1 - a0], axis=1),
-                np.concatenate([3.0 * (v1 - v0) - 2.0 * m0 - m1, zero], axis=1),
-                np.concatenate([2.0 * (v0 - v1) + m0 + m1, zero], axis=1),
-            ],
-            axis=1,
-        )  # (N, 4, 3n, steps)
-        return nodes, np.ascontiguousarray(coefficients.transpose(0, 3, 1, 2)), counts, step
+        return nodes, values, slopes, counts, step
 
     @property
     def contact_times(self) -> np.ndarray:
@@ -408,29 +394,35 @@ class ContactFamily:
                 out[:, i, k] = self._read_direct(weights[:, i], dt[i, k])
         before = times < 0.0
         if before.any():  # at rest before the contact
-            out[:, before] = 0.0
+            np.copyto(out, 0.0, where=before)
         during = ~before & (dt < 0.0)
         if during.any():
             i, k = np.nonzero(during)
             accel = bool(np.any(readings[:, 2 * n :]))
-            out[:, i, k] = readings[:, : 3 * n if accel else 2 * n] @ self._contact_states(
+            values = readings[:, : 3 * n if accel else 2 * n] @ self._contact_states(
                 rows[i], times[i, k], accel
             )
+            if out.flags.c_contiguous:  # one flat index per pair: a one-axis scatter
+                out.reshape(out.shape[0], -1)[:, i * out.shape[2] + k] = values
+            else:
+                out[:, i, k] = values
         return out
 
     def read_at_samples(self, rows: np.ndarray, readings: np.ndarray) -> np.ndarray:
         """(o, S, P): :meth:`read` at each impact's contact samples (``contact_times[rows]``;
         nan past an impact's last). There the cubic Hermite is the sample's own state, taken
         as it is; the last sample, the contact's end, is read from the free response."""
-        nodes, polynomials, counts, _ = self._contact_nodes
+        nodes, values, slopes, counts, _ = self._contact_nodes
         readings = np.atleast_2d(readings)
         n = self.n
         accel = bool(np.any(readings[:, 2 * n :]))
         width = 3 * n if accel else 2 * n
         count = rows.size
         steps = nodes.shape[1] - 1
-        # each step's value at its start: the state at its first sample
-        states = polynomials[rows, :, 0, :width]  # (S, P - 1, width)
+        # each step's value at its start: the state at its first sample ([q; q'] and q'')
+        states = values[rows, :steps]  # (S, P - 1, width)
+        if accel:
+            states = np.concatenate([states, slopes[rows, :steps, n:]], axis=2)
         out = np.full((readings.shape[0], count, steps + 1), np.nan)
         out[:, :, :steps] = (readings[:, :width] @ states.reshape(-1, width).T).reshape(
             -1, count, steps
@@ -507,38 +499,105 @@ class ContactFamily:
         """(2n or 3n, M): [q; q'] (and q'' when ``accel``) of impacts ``rows`` at instants
         ``t_s`` within their contacts: the cubic Hermite through the contact's samples (q''
         the straight line; ``Trajectory._sample_contact``)."""
-        nodes, polynomials, counts, step = self._contact_nodes
+        nodes, values, slopes, counts, step = self._contact_nodes
+        width = nodes.shape[1]
+        # (impact, sample) pairs as flat indices into the (N * P) samples: one-axis gathers
+        flat_nodes = nodes.reshape(-1)
+        base = rows * width
         last = counts[rows] - 2
         guess = np.minimum(np.maximum((t_s / step[rows]).astype(np.int64), 0), last)
         # the step k with nodes[k] <= t < nodes[k + 1] (searchsorted's, on the same floats)
-        guess -= (nodes[rows, guess] > t_s) & (guess > 0)
-        guess += (nodes[rows, guess + 1] <= t_s) & (guess < last)
-        k = guess
-        start = nodes[rows, k]
-        h = nodes[rows, k + 1] - start
+        guess -= (flat_nodes.take(base + guess) > t_s) & (guess > 0)
+        guess += (flat_nodes.take(base + guess + 1) <= t_s) & (guess < last)
+        at = base + guess
+        start = flat_nodes.take(at)
+        h = flat_nodes.take(at + 1) - start
         s = np.where(h > 0, (t_s - start) / np.where(h > 0, h, 1.0), 0.0)
         n = self.n
-        c = polynomials[rows, k] if accel else polynomials[rows, k, :, : 2 * n]  # (M, 4, .)
-        x = s[:, None]
-        return (c[:, 0] + x * (c[:, 1] + x * (c[:, 2] + x * c[:, 3]))).T
+        # the step's cubic Hermite of [q; q'] (values v, slopes times the step m) and straight
+        # line of q'' (a), as Trajectory._stacks forms them
+        flat_values = values.reshape(-1, 2 * n)
+        flat_slopes = slopes.reshape(-1, 2 * n)
+        v0, v1 = flat_values.take(at, axis=0), flat_values.take(at + 1, axis=0)  # (M, 2n)
+        d0, d1 = flat_slopes.take(at, axis=0), flat_slopes.take(at + 1, axis=0)
+        # h and s repeated along the 2n columns: operands of one shape run as one loop over
+        # all their values (a broadcast column would loop over 2n at a time)
+        h = np.repeat(h[:, None], 2 * n, axis=1)
+        m0, m1 = d0 * h, d1 * h
+        c0, c1 = v0, m0
+        c2 = 3.0 * (v1 - v0) - 2.0 * m0 - m1
+        c3 = 2.0 * (v0 - v1) + m0 + m1
+        if accel:
+            a0, a1 = d0[:, n:], d1[:, n:]
+            zero = np.zeros_like(a0)
+            c0 = np.concatenate([c0, a0], axis=1)
+            c1 = np.concatenate([c1, a1 - a0], axis=1)
+            c2 = np.concatenate([c2, zero], axis=1)
+            c3 = np.concatenate([c3, zero], axis=1)
+        x = np.repeat(s[:, None], c0.shape[1], axis=1)
+        return (c0 + x * (c1 + x * (c2 + x * c3))).T
 
     def trajectory(self, i: int) -> Trajectory:
         """Impact ``i``'s trajectory, as the hybrid solver gives it (``ok[i]`` must hold); one
         object per impact, however often asked."""
         known = self._trajectories.get(i)
         if known is None:
-            known = self._trajectories[i] = self._build_trajectory(i)
+            known = self.trajectories([i])[0]
         return known
 
-    def _build_trajectory(self, i: int) -> Trajectory:
+    def trajectories(self, rows: Sequence[int]) -> list[Trajectory]:
+        """:meth:`trajectory` of each of ``rows``; those not yet made are made together, each
+        array of the family read once for all of them (as Python numbers: the same values)."""
+        known = self._trajectories
+        missing = [i for i in dict.fromkeys(rows) if i not in known]
+        if missing:
+            at = np.array(missing, dtype=np.int64)
+            ends = zip(
+                self.end_q[at],
+                self.end_qd[at],
+                self.end_z_m[at].tolist(),
+                self.end_zd_mps[at].tolist(),
+                self.end_modal[at],
+            )
+            numbers = zip(
+                self.duration_s[at].tolist(),
+                self.peak_force_n[at].tolist(),
+                self.estimate[at].tolist(),
+                self.approach_mps[at].tolist(),
+                self.row[at].tolist(),
+                self.weight[at].tolist(),
+                self.length_m[at].tolist(),
+                self.force_scale_n[at].tolist(),
+                self.separation_mps[at].tolist(),
+                self.max_penetration_m[at].tolist(),
+            )
+            for i, end, figures in zip(missing, ends, numbers):
+                known[i] = self._build_trajectory(i, end, figures)
+        return [known[i] for i in rows]
+
+    def _build_trajectory(
+        self, i: int, end: tuple[Any, ...], figures: tuple[Any, ...]
+    ) -> Trajectory:
+        """Impact ``i``'s trajectory from its end state ``end`` (q, q' (n,) each, z, z',
+        modal state) and its contact's ``figures`` (duration, peak force, estimate, approach
+        speed, and the pulse's table row, weight, length, force scale, separation speed and
+        largest penetration)."""
         problem = self.problems[i]
         n = self.n
-        duration = float(self.duration_s[i])
         x0 = np.zeros(2 * n)
-        q, qd = self.end_q[i].copy(), self.end_qd[i].copy()
-        z, zd = float(self.end_z_m[i]), float(self.end_zd_mps[i])
-        peak = float(self.peak_force_n[i])
-        estimate = float(self.estimate[i])
+        q, qd, z, zd, modal = end
+        (
+            duration,
+            peak,
+            estimate,
+            approach,
+            row,
+            weight,
+            length,
+            force_scale,
+            separation,
+            penetration,
+        ) = figures
         if i in self.integrated:
             t, states, derivatives, force = self.integrated[i]
             segment: ContactSegment | PulseSegment = ContactSegment(
@@ -558,16 +617,16 @@ class ContactFamily:
             }
         else:
             pulse = Pulse.__new__(Pulse)
-            pulse.row, pulse.weight = int(self.row[i]), float(self.weight[i])
-            pulse.length_m = float(self.length_m[i])
-            pulse.approach_mps = float(self.approach_mps[i])
-            pulse.force_scale_n = float(self.force_scale_n[i])
-            pulse.duration_s, pulse.separation_mps = duration, float(self.separation_mps[i])
+            pulse.row, pulse.weight = row, weight
+            pulse.length_m = length
+            pulse.approach_mps = approach
+            pulse.force_scale_n = force_scale
+            pulse.duration_s, pulse.separation_mps = duration, separation
             pulse.peak_force_n = peak
-            pulse.max_penetration_m = float(self.max_penetration_m[i])
+            pulse.max_penetration_m = penetration
             segment = PulseSegment(problem, 0.0, x0, pulse)
             segment.end_state = (q, qd, z, zd)
-            segment.end_modal = self.end_modal[i]
+            segment.end_modal = modal
             stats = {
                 "pulse_contacts": 1,
                 "rk4_contacts": 0,
@@ -581,7 +640,7 @@ class ContactFamily:
                 segment,
                 FreeSegment(duration, math.inf, duration, q, qd, z, zd),
             ],
-            [ContactRecord(0.0, duration, float(self.approach_mps[i]), zd, peak)],
+            [ContactRecord(0.0, duration, approach, zd, peak)],
             "hybrid",
             max(0.0, estimate),
             particle_at_rest=False,

@@ -120,6 +120,12 @@ def _stamp_grid(
     return grid, counts
 
 
+# values per temporary array of the accelerometer's output stage, which works through its scenes
+# in blocks of rows of about this size (128 KiB): temporaries the size of the whole group's
+# output (megabytes) are fresh pages from the system at every call, whose faults cost more than
+# the arithmetic on them
+CHUNK_VALUES = 16384
+
 SMALL_ANGLE_RAD = 1e-3  # below it, cos and sin by their Taylor polynomials (to float rounding)
 
 
@@ -205,10 +211,11 @@ def sense_group(
     clean = structure.setting_pressure_pa + family.read(rows, pressure_grid, jack)[0]
     pressure_stamps = pressure_grid.grid
     unit = np.zeros(clean.shape)
-    for suite, row, k in zip(suites, unit, pressure_counts.tolist()):
-        suite._pressure_rng.standard_normal(out=row[:k])
+    for rng, row, k in zip(_generators(suites, PRESSURE), unit, pressure_counts.tolist()):
+        rng.standard_normal(out=row[:k])
     sigma = np.array([s.noise.pressure_pa for s in suites])[:, None]
-    pressure = clean + sigma * unit
+    # clean + sigma * unit, in the draws' memory (no temporaries the size of the group's stream)
+    pressure = np.add(clean, np.multiply(sigma, unit, out=unit), out=unit)
     # a saturated transducer reads its limit (SensorNoise.pressure)
     np.minimum(
         np.maximum(pressure, _per_scene(suites, 0), out=pressure),
@@ -242,12 +249,15 @@ def sense_group(
     accel[:, 1:, 2] -= (velocity[:, 1:] - velocity[:, :-1]) / period
     gyro_unit = np.zeros_like(gyro)
     accel_unit = np.zeros_like(gyro)
-    for suite, gyro_row, accel_row, k in zip(suites, gyro_unit, accel_unit, imu_counts.tolist()):
-        rng = suite._imu_rng
+    imu_rngs = _generators(suites, IMU)
+    for rng, gyro_row, accel_row, k in zip(imu_rngs, gyro_unit, accel_unit, imu_counts.tolist()):
         rng.standard_normal(out=gyro_row[:k])
         rng.standard_normal(out=accel_row[:k])
-    gyro = gyro + np.array([s.noise.gyro_radps for s in suites])[:, None, None] * gyro_unit
-    accel = accel + np.array([s.noise.accel_mps2 for s in suites])[:, None, None] * accel_unit
+    # clean + sigma * unit, in place (as the pressure's)
+    gyro_sigma = np.array([s.noise.gyro_radps for s in suites])[:, None, None]
+    accel_sigma = np.array([s.noise.accel_mps2 for s in suites])[:, None, None]
+    np.add(gyro, np.multiply(gyro_sigma, gyro_unit, out=gyro_unit), out=gyro)
+    np.add(accel, np.multiply(accel_sigma, accel_unit, out=accel_unit), out=accel)
 
     blocks = (
         _DenseSpan(spec0, contact, end, duration).blocks(family, rows, suites)
@@ -260,10 +270,10 @@ def sense_group(
     # per scene as Python numbers (the same values), read once each
     stamps_s, kps, kis = contact.tolist(), pressure_counts.tolist(), imu_counts.tolist()
     peaks = zip(peak_pressure.tolist(), peak_rate.tolist(), peak_accel.tolist())
-    for i, (scene, suite, rebound, row, peak) in enumerate(
-        zip(scenes, suites, rebounds, rows.tolist(), peaks)
+    trajectories = family.trajectories(rows.tolist())
+    for i, (scene, suite, rebound, trajectory, peak) in enumerate(
+        zip(scenes, suites, rebounds, trajectories, peaks)
     ):
-        trajectory = family.trajectory(row)
         stamp = stamps_s[i]
         point = suite.reported_point(scene.impact.position_m, rebound, scene.support)
         kp, ki = kps[i], kis[i]
@@ -296,6 +306,22 @@ def sense_group(
                 point=point,
             )
         )
+    return out
+
+
+# which child of a scene's seed each sensor's generator is made from (SensorSuite's)
+PRESSURE, IMU, CAMERA, VIBRATION = 0, 1, 2, 4
+
+
+def _generators(suites: Sequence[SensorSuite], child: int) -> list[np.random.Generator]:
+    """Each suite's generator of its seed's ``child`` (the one ``SensorSuite._pressure_rng``
+    and its siblings make: the same stream), made here in one pass: the group's suites are its
+    own and each generator is read once, so the lazy attributes' calls per suite are spared."""
+    make, bits = np.random.Generator, np.random.PCG64
+    out = []
+    for suite in suites:
+        seed = suite._children[child]
+        out.append(make(bits(seed)) if type(seed) is seeds.Child else seeds.generator(seed))
     return out
 
 
@@ -374,8 +400,8 @@ def _rebounds(
         [spec.camera_velocity_noise_fraction for spec in specs]
     ) * np.abs(true[:, 2])
     draws = np.empty((rows.size, 3))
-    for suite, row, scale in zip(suites, draws, sigma.tolist()):
-        row[:] = suite._camera_rng.normal(0.0, scale, 3)
+    for rng, row, scale in zip(_generators(suites, CAMERA), draws, sigma.tolist()):
+        row[:] = rng.normal(0.0, scale, 3)
     measured = true + draws * np.array([1.0, 0.0, 1.0])
     rate = np.array([spec.camera_frame_rate_hz for spec in specs])
     separation = contact + family.duration_s[rows]
@@ -448,55 +474,64 @@ class _DenseSpan:
         picks = dense[:, ::m]
         outputs = -(-count // m)
         j = np.arange(int(outputs.max()))
-        # the ring-down everywhere (past each scene's last output: unused), then each scene's
-        # rest (g) and filtered span over it
-        clean = _filtered_ringdown(
+        # by blocks of scenes (CHUNK_VALUES): the ring-down everywhere (past each scene's last
+        # output: unused), then, row by row, each scene's rest (g) and filtered span over it and
+        # its noise (its own generator, through a buffer of one row: normal(0, sigma, k) is
+        # sigma times standard_normal(k), draw by draw); then clipping and float32: as
+        # SensorSuite.vibration and cut_blocks make them
+        ringdown = _filtered_ringdown(
             family, rows, (j * m) / dense_rate, self.contact, dense_period, self.sos
         )
-        clean[j[None, :] < (first // m)[:, None]] = g
-        span = picks.shape[1]
-        if span:
-            within = np.arange(span)[None, :] < ((switch - first) // m)[:, None]
-            pick_rows, pick_cols = np.nonzero(within)
-            clean[pick_rows, pick_cols + (first // m)[pick_rows]] = picks[pick_rows, pick_cols]
-        # noise (each scene's own generator, added row by row through a buffer of one row:
-        # normal(0, sigma, k) is sigma times standard_normal(k), draw by draw), clipping,
-        # float32 and the blocks: as SensorSuite.vibration and cut_blocks make them
-        noise = np.empty(clean.shape[1])
-        for suite, row, k in zip(suites, clean, outputs.tolist()):
-            draws = suite._vibration_rng.standard_normal(out=noise[:k])
-            draws *= suite.spec.vibration_noise_mps2
-            row[:k] += draws
         limits = [suite.spec.vibration_range_mps2 for suite in suites]
         if limits.count(limits[0]) == len(limits):  # one range (a scalar bound is cheaper)
             limit: float | np.ndarray = limits[0]
         else:
             limit = np.array(limits)[:, None]
-        # np.clip, as min(max(x, -limit), limit)
-        np.minimum(np.maximum(clean, -limit, out=clean), limit, out=clean)
-        samples = clean.astype(np.float32)
+        sigmas = [suite.spec.vibration_noise_mps2 for suite in suites]
+        scenes = list(
+            zip(
+                sigmas,
+                _generators(suites, VIBRATION),
+                picks,
+                (first // m).tolist(),
+                ((switch - first) // m).tolist(),
+                outputs.tolist(),
+            )
+        )
+        samples = np.empty((len(scenes), j.size), dtype=np.float32)
+        noise = np.empty(j.size)
+        step = max(1, CHUNK_VALUES // max(j.size, 1))
+        for lo in range(0, len(scenes), step):
+            hi = min(lo + step, len(scenes))
+            clean = ringdown(lo, hi)
+            for row, (sigma, rng, pick, rest, span, k) in zip(clean, scenes[lo:hi]):
+                row[:rest] = g
+                row[rest : rest + span] = pick[:span]
+                draws = rng.standard_normal(out=noise[:k])
+                draws *= sigma
+                row[:k] += draws
+            bound = limit[lo:hi] if isinstance(limit, np.ndarray) else limit
+            # np.clip, as min(max(x, -limit), limit)
+            np.minimum(np.maximum(clean, -bound, out=clean), bound, out=clean)
+            samples[lo:hi] = clean
         size = self.spec.vibration_block_samples
         whole = outputs // size
         starts = size * np.arange(int(whole.max()), dtype=np.int64)
         stamps = starts / self.spec.vibration_rate_hz
         lengths = np.full(starts.size, size, dtype=np.int64)
         period = 1.0 / self.spec.vibration_rate_hz
-        blocks = []
-        for i, suite in enumerate(suites):
-            b = int(whole[i])
-            own = suite.spec
-            blocks.append(
-                VibrationBlocks(
-                    starts[:b],
-                    lengths[:b],
-                    stamps[:b],
-                    samples[i, : b * size],
-                    period,
-                    own.vibration_range_mps2,
-                    own.vibration_noise_mps2**2,
-                )
+        return [
+            VibrationBlocks(
+                starts[:b],
+                lengths[:b],
+                stamps[:b],
+                row[: b * size],
+                period,
+                own_range,
+                sigma**2,
             )
-        return blocks
+            for b, row, own_range, sigma in zip(whole.tolist(), samples, limits, sigmas)
+        ]
 
 
 def _sos_filter_rows(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> np.ndarray:
@@ -519,11 +554,13 @@ def _filtered_ringdown(
     contact_s: np.ndarray,
     dense_period_s: float,
     sos: np.ndarray,
-) -> np.ndarray:
-    """(S, T): ``ringdown_filtering.filtered_ringdown`` of impacts ``rows`` at the instants
-    ``grid_s`` (absolute) of scenes whose contacts start at ``contact_s``: the anti-alias
-    filter's steady output over the free ring-down, each term's exponential split into the
-    grid's and the scene's (:meth:`ContactFamily._free_on_grid`)."""
+) -> Callable[[int, int], np.ndarray]:
+    """Rows ``lo:hi`` (of S) of the (S, T) ``ringdown_filtering.filtered_ringdown`` of impacts
+    ``rows`` at the instants ``grid_s`` (absolute) of scenes whose contacts start at
+    ``contact_s``, as a function of ``(lo, hi)``: the anti-alias filter's steady output over the
+    free ring-down, each term's exponential split into the grid's and the scene's
+    (:meth:`ContactFamily._free_on_grid`). The rows are computed when asked, a block at a time
+    (CHUNK_VALUES)."""
     structure = family.structure
     n = family.n
     keep = structure._half_spectrum[0]
@@ -551,24 +588,28 @@ def _filtered_ringdown(
             a, d = angle_weight[:, k : k + 1], dynamic_weight[:, k : k + 1]
             angle = angle + (a.real * cos - a.imag * sin)
             dynamic = dynamic + (d.real * cos - d.imag * sin)
-        return structure.gravity_mps2 * np.cos(angle) + dynamic
+        full = structure.gravity_mps2 * np.cos(angle) + dynamic
+        return lambda lo, hi: full[lo:hi]
     shifted = np.exp(-np.multiply.outer(offset, eigenvalues))  # (S, k)
     basis = grid_basis(structure, grid_s, ("outputs", dense_period_s, grid_s.size, grid_s[-1]))
-    # angle and dynamic term of every scene in one product: Re(w b) = [w.re, -w.im] . [b.re; b.im]
+    # angle and dynamic term of a block of scenes in one product: Re(w b) = [w.re, -w.im] .
+    # [b.re; b.im]
     weights = np.concatenate([angle_weight * shifted, dynamic_weight * shifted])  # (2S, k)
-    both = _product(
-        np.concatenate([weights.real, -weights.imag], axis=1),
-        np.concatenate([basis.real, basis.imag]),
-    )
+    columns = np.concatenate([weights.real, -weights.imag], axis=1)
+    stacked = np.concatenate([basis.real, basis.imag])
     count = offset.size
-    angle, out = both[:count], both[count:]
     # |angle| <= sum_k |weight| max|basis|: small (the polynomial), unless the bound says not
     bound = float(np.max(np.abs(weights[:count]) @ np.abs(basis).max(axis=1), initial=0.0))
-    if bound < SMALL_ANGLE_RAD:
-        out += structure.gravity_mps2 * _small_cos_in_place(angle)
-    else:
-        out += structure.gravity_mps2 * np.cos(angle)
-    return out
+    g = structure.gravity_mps2
+
+    def block(lo: int, hi: int) -> np.ndarray:
+        pair = np.concatenate([columns[lo:hi], columns[count + lo : count + hi]])
+        both = _product(pair, stacked)
+        angle, dynamic = both[: hi - lo], both[hi - lo :]
+        cos = _small_cos_in_place(angle) if bound < SMALL_ANGLE_RAD else np.cos(angle)
+        return np.add(dynamic, np.multiply(cos, g, out=cos), out=dynamic)
+
+    return block
 
 
 __all__ = ["HISTORY_RATE_HZ", "layout_key", "sense_group", "summary_figures", "supported"]
