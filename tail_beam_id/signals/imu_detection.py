@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any
 
@@ -71,6 +71,12 @@ DETECTION = Section(
         ),
         positive(
             "ring_fraction", "Threshold over the ringing's envelope after a pulse.", high=100.0
+        ),
+        positive(
+            "vibration_ring_fraction",
+            "The same in the tail-beam accelerometer's stream.",
+            high=100.0,
+            default=None,
         ),
         positive("ring_decay_s", "Decay time of that envelope.", "s", high=10.0),
         positive("ring_window_s", "How long the raised threshold lasts.", "s", high=10.0),
@@ -140,11 +146,23 @@ class DetectionConfig:
     rebound_frame_allowance_s: float = 0.0005
     pressure_drift_confirm_sigma: float = 2.5
     late_rebound_max_s: float = 0.025
+    # The accelerometer's ring_fraction (None: ring_fraction's): :meth:`for_vibration`.
+    vibration_ring_fraction: float | None = None
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> DetectionConfig:
         """Validate the ``identification.detection`` section."""
         return cls(**DETECTION.check(params or {}))
+
+    def for_vibration(self) -> DetectionConfig:
+        """The settings of the tail-beam accelerometer's detector: its own ring_fraction. At
+        10-50 kHz the one-step prediction follows a bending mode's ringing closely, so what it
+        leaves of the ringing is small and a pulse standing a little above the envelope is an
+        impact; an IMU at 2 kHz aliases the same modes, and its ringing residual needs the
+        wider margin or the ringing itself reads as impacts."""
+        if self.vibration_ring_fraction is None:
+            return self
+        return replace(self, ring_fraction=self.vibration_ring_fraction)
 
 
 @dataclass(frozen=True)
