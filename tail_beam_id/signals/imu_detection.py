@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
@@ -74,9 +74,16 @@ DETECTION = Section(
         ),
         positive(
             "vibration_ring_fraction",
-            "The same in the tail-beam accelerometer's stream.",
+            "The same in an accelerometer stream of vibration_ring_min_rate_hz or faster.",
             high=100.0,
             default=None,
+        ),
+        positive(
+            "vibration_ring_min_rate_hz",
+            "Slowest accelerometer that vibration_ring_fraction applies to.",
+            "Hz",
+            high=1e6,
+            default=20000.0,
         ),
         positive("ring_decay_s", "Decay time of that envelope.", "s", high=10.0),
         positive("ring_window_s", "How long the raised threshold lasts.", "s", high=10.0),
@@ -146,23 +153,15 @@ class DetectionConfig:
     rebound_frame_allowance_s: float = 0.0005
     pressure_drift_confirm_sigma: float = 2.5
     late_rebound_max_s: float = 0.025
-    # The accelerometer's ring_fraction (None: ring_fraction's): :meth:`for_vibration`.
+    # The tail-beam accelerometer's ring_fraction when it samples at vibration_ring_min_rate_hz
+    # or faster (None: ring_fraction's): PulseDetector's ``fast_ring_fraction``.
     vibration_ring_fraction: float | None = None
+    vibration_ring_min_rate_hz: float = 20000.0
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> DetectionConfig:
         """Validate the ``identification.detection`` section."""
         return cls(**DETECTION.check(params or {}))
-
-    def for_vibration(self) -> DetectionConfig:
-        """The settings of the tail-beam accelerometer's detector: its own ring_fraction. At
-        10-50 kHz the one-step prediction follows a bending mode's ringing closely, so what it
-        leaves of the ringing is small and a pulse standing a little above the envelope is an
-        impact; an IMU at 2 kHz aliases the same modes, and its ringing residual needs the
-        wider margin or the ringing itself reads as impacts."""
-        if self.vibration_ring_fraction is None:
-            return self
-        return replace(self, ring_fraction=self.vibration_ring_fraction)
 
 
 @dataclass(frozen=True)
@@ -278,11 +277,20 @@ class PulseDetector:
     returns the pulses whose first sample it has now decided on.
     """
 
-    def __init__(self, config: DetectionConfig, sway_frequency_hz: float | None = None) -> None:
+    def __init__(
+        self,
+        config: DetectionConfig,
+        sway_frequency_hz: float | None = None,
+        fast_ring_fraction: float | None = None,
+    ) -> None:
+        """``fast_ring_fraction``: the threshold over the ringing's envelope instead of
+        ``ring_fraction`` once the stream shows itself sampled at ``vibration_ring_min_rate_hz``
+        or faster (the tail-beam accelerometer's detector: :attr:`ring_fraction`)."""
         self.config = config
         self.sway_frequency_hz = (
             sway_frequency_hz  # the beam's free sway (the identifier's beam model), Hz
         )
+        self.fast_ring_fraction = fast_ring_fraction
         self.cursor = 0  # next sample index (absolute) to examine
         self.spans: list[tuple[int, int]] = []  # absolute (first, last) sample of each pulse found
         self.period_s: float | None = None  # the IMU sample period, s, read from the stamps
@@ -290,6 +298,23 @@ class PulseDetector:
         self._sigma_cache: dict[
             int, float
         ] = {}  # noise RMS per block, by its first absolute index
+
+    @property
+    def ring_fraction(self) -> float:
+        """The threshold over the ringing's envelope, x: ``fast_ring_fraction`` on a stream
+        sampled at ``vibration_ring_min_rate_hz`` or faster, else ``ring_fraction``. There the
+        one-step prediction follows a bending mode's ringing closely, so what it leaves of the
+        ringing is small and a pulse standing a little out of the envelope is an impact; a
+        slower stream (an IMU at 2 kHz, or an accelerometer as slow) aliases the same modes, and
+        its ringing residual needs the wider margin or the ringing itself reads as impacts."""
+        c = self.config
+        if (
+            self.fast_ring_fraction is not None
+            and self.period_s is not None
+            and self.period_s * c.vibration_ring_min_rate_hz <= 1.0 + 1e-9
+        ):
+            return self.fast_ring_fraction
+        return c.ring_fraction
 
     def lookback_s(self) -> float:
         """How far before the sample that sets it off a pulse's onset may lie, s
@@ -501,10 +526,10 @@ class PulseDetector:
         )  # since the envelope was last raised, s
         noise = sigma[k - start : end - start]
         ringing = (since < c.ring_window_s) | (
-            c.ring_fraction * before > c.accel_threshold_sigma * noise
+            self.ring_fraction * before > c.accel_threshold_sigma * noise
         )
         over = (noise > 0.0) & (
-            magnitude > np.maximum(c.accel_threshold_sigma * noise, c.ring_fraction * before)
+            magnitude > np.maximum(c.accel_threshold_sigma * noise, self.ring_fraction * before)
         )
         halt = np.flatnonzero(over | ~ringing)
         r = int(halt[0]) if halt.size else end - k
@@ -527,7 +552,7 @@ class PulseDetector:
         if stamp_s - stamp < self.config.ring_window_s:
             return True
         decayed = level * math.exp(-(stamp_s - stamp) / self.config.ring_decay_s)
-        return self.config.ring_fraction * decayed > self.config.accel_threshold_sigma * sigma
+        return self.ring_fraction * decayed > self.config.accel_threshold_sigma * sigma
 
     def _threshold(self, stamp_s: float, sigma: float) -> float:
         """Detection threshold (m/s^2): the noise's, raised while the beam's bending modes
@@ -538,7 +563,8 @@ class PulseDetector:
         if self.ring is not None:
             stamp, level = self.ring
             threshold = max(
-                threshold, c.ring_fraction * level * math.exp(-(stamp_s - stamp) / c.ring_decay_s)
+                threshold,
+                self.ring_fraction * level * math.exp(-(stamp_s - stamp) / c.ring_decay_s),
             )
         return threshold
 

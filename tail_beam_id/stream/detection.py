@@ -56,7 +56,9 @@ class ImpactFinder:
         self.camera = camera
         sway_hz = model.support.rigid_mode_frequency_hz
         self.imu_detector = PulseDetector(config.detection, sway_hz)
-        self.vibration_detector = PulseDetector(config.detection.for_vibration(), sway_hz)
+        self.vibration_detector = PulseDetector(
+            config.detection, sway_hz, config.detection.vibration_ring_fraction
+        )
         self.pressure_detector = PressureDetector(
             model,
             config.detection.pressure_threshold_sigma,

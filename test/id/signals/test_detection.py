@@ -254,7 +254,7 @@ def test_a_ringing_beam_is_followed_and_only_an_impact_that_stands_out_of_it_is_
         t > 0.2003, 3.0 * np.exp(-after / 0.01) * np.sin(2 * np.pi * 700.0 * after), 0.0
     )
     accel += contact(0.212, second_mps2)
-    detector = PulseDetector(config.for_vibration())
+    detector = PulseDetector(config, None, config.vibration_ring_fraction)
     if chunk is None:
         pulses = detector.scan(t, accel, 0, final=True)
     else:
@@ -338,3 +338,23 @@ def test_a_500_hz_imu_beside_the_accelerometer_on_a_ringing_support_does_not_cra
         vibration=recorded.vibration,
     )
     assert not match(recorded.truths, labels, 0.005).missed
+
+
+@pytest.mark.parametrize("rate_hz, fast", [(25600.0, True), (20000.0, True), (5000.0, False)])
+def test_the_accelerometers_ring_margin_holds_only_where_its_samples_follow_the_ringing(
+    params, rate_hz, fast
+):
+    """The accelerometer's detector takes vibration_ring_fraction (1.2) over the ringing's
+    envelope only once its stamps show vibration_ring_min_rate_hz (20 kHz) or faster; a slower
+    stream aliases the modes like the 2 kHz IMU and keeps ring_fraction (2.5). Before any
+    sample the rate is unknown: ring_fraction."""
+    config = DetectionConfig.from_params(params["identification"]["detection"])
+    assert (config.ring_fraction, config.vibration_ring_fraction) == (2.5, 1.2)
+    detector = PulseDetector(config, None, config.vibration_ring_fraction)
+    assert detector.ring_fraction == config.ring_fraction
+    t = np.arange(1, int(0.2 * rate_hz)) / rate_hz
+    accel = 9.81 + np.random.default_rng(5).normal(0.0, 0.05, t.size)
+    detector.scan(t, accel, 0, final=True)
+    expected = config.vibration_ring_fraction if fast else config.ring_fraction
+    assert detector.ring_fraction == expected
+    assert PulseDetector(config).ring_fraction == config.ring_fraction
