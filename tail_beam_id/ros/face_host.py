@@ -70,6 +70,22 @@ def support_index(namespace: str, position: int) -> int:
     return position
 
 
+def support_indices(namespaces: list[str]) -> list[int]:
+    """Each namespace's :func:`support_index`; InputError naming ``face_host.namespaces`` when
+    two of them would be the same support of the face (``/support_002`` and a second name in
+    second place): they would draw the same impacts."""
+    indices = [support_index(ns, k) for k, ns in enumerate(namespaces)]
+    for k, index in enumerate(indices):
+        if index in indices[:k]:
+            raise InputError(
+                "face_host.namespaces",
+                namespaces,
+                f"{namespaces[indices.index(index)]} and {namespaces[k]} would both be support "
+                f"{index + 1} of the face (the same seeds): number them /support_NNN apart",
+            )
+    return indices
+
+
 def shared_defaults() -> dict[str, Any]:
     """The shipped values of :data:`SEEDS` and ``recorder.bag_path``, nested: the host reads
     them as the supports' nodes would."""
@@ -92,6 +108,7 @@ class FaceHost(Node):
         )
         checked = FACE_HOST.check(params["face_host"])
         self.namespaces = host_namespaces(checked)
+        indices = support_indices(self.namespaces)
         seeds = {d: params[d.split(".")[0]][d.split(".")[1]] for d in SEEDS}
         for dotted, value in seeds.items():
             if isinstance(value, bool) or not float(value).is_integer() or float(value) < 0:
@@ -108,8 +125,8 @@ class FaceHost(Node):
         self.identifiers: list[IdNode] = []
         self.recorders: list[RecorderNode] = []
         try:
-            for k, ns in enumerate(self.namespaces):
-                self._add_support(support_index(ns, k), ns, seeds, checked["seed_stride"], bag)
+            for index, ns in zip(indices, self.namespaces):
+                self._add_support(index, ns, seeds, checked["seed_stride"], bag)
         except BaseException:
             for node in self.members:
                 node.destroy_node()

@@ -89,11 +89,12 @@ def test_two_supports_in_one_process_publish_under_their_own_namespaces(tmp_path
         ("face_host.supports:=65", "face_host.supports = 65"),
         ("face_host.namespaces:=[/support_001, /support_001]", "face_host.namespaces"),
         ("face_host.namespaces:=[support_001]", "face_host.namespaces[0]"),
+        ("face_host.namespaces:=[/support_002, /left]", "face_host.namespaces"),
     ],
 )
 def test_a_bad_host_parameter_is_refused_by_name(param, named):
-    """0 or too many supports, a namespace twice or a relative one: exit 2 before any node,
-    one line naming the parameter."""
+    """0 or too many supports, a namespace twice, a relative one, or two that would be the same
+    support of the face: exit 2 before any node, one line naming the parameter."""
     proc = subprocess.run(host_command(param), capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2, proc.stderr[-1500:]
     line = proc.stderr.strip().splitlines()[-1]

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from tail_beam_id.ros.face_host import support_index
+from tail_beam_id.ros.face_host import support_index, support_indices
+from tail_beam_sim.errors import InputError
 
 
 @pytest.mark.parametrize(
@@ -27,3 +28,14 @@ def test_a_numbered_namespace_sets_the_support_it_is(namespace, position, index)
 def test_another_namespace_takes_its_place_in_the_list(namespace):
     """A namespace that numbers no support (or numbers it 0) is counted by its place."""
     assert support_index(namespace, 2) == 2
+
+
+def test_two_namespaces_that_would_be_one_support_are_refused_by_name():
+    """/support_002 and a name in second place would both run support 2's seeds (the same
+    impacts): refused, naming face_host.namespaces and both namespaces; numbered ones pass."""
+    with pytest.raises(InputError) as refused:
+        support_indices(["/support_002", "/left"])
+    assert "face_host.namespaces" in str(refused.value)
+    assert "/support_002" in str(refused.value) and "/left" in str(refused.value)
+    assert support_indices(["/support_004", "/support_005"]) == [3, 4]
+    assert support_indices(["/left", "/right"]) == [0, 1]
