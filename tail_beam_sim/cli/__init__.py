@@ -74,8 +74,11 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full ``tail-beam`` parser with every installed subcommand."""
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The ``tail-beam`` parser: with only the subcommand that ``argv`` names when it names an
+    installed one (each verb's module imports what its work needs, scipy and the models among
+    it: a second or more for all of them, on every run), else with every installed one (help,
+    or an unknown verb: argparse lists them all)."""
     parser = OneLineParser(
         prog="tail-beam",
         description=(
@@ -96,10 +99,20 @@ def build_parser() -> argparse.ArgumentParser:
             f"tail-beam: error: no verbs installed in entry-point group {VERB_GROUP!r}: reinstall "
             "the package (pip install -e .)\n",
         )
+    named = _named_verb(sys.argv[1:] if argv is None else argv)
+    if named in verbs:
+        verbs[named].load()(sub)
+        return parser
     rank = {name: i for i, name in enumerate(PREFERRED_ORDER)}
     for name in sorted(verbs, key=lambda n: (rank.get(n, len(rank)), n)):
         verbs[name].load()(sub)
     return parser
+
+
+def _named_verb(argv: Sequence[str]) -> str | None:
+    """The subcommand ``argv`` names: its first argument when that is no option (the top-level
+    parser has no option but ``--help``, which takes no value)."""
+    return argv[0] if argv and not argv[0].startswith("-") else None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -120,7 +133,7 @@ def _run(argv: Sequence[str] | None) -> int:
     try:
         from tail_beam_sim.physics.solvers import SolverError
 
-        args = build_parser().parse_args(argv)
+        args = build_parser(argv).parse_args(argv)
         command = args.command
         if _Interrupt.received:
             # a Ctrl-C during the imports that an optional import's ``except ImportError`` took
