@@ -84,6 +84,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="with --face: a parameter file applied to every node (flow, caving, ...); repeatable",
     )
     parser.add_argument(
+        "--processes",
+        type=int,
+        default=1,
+        metavar="P",
+        help="with --face: run the supports' sim_node and id_node over P processes (default 1); "
+        "the first also runs the controller and every recorder",
+    )
+    parser.add_argument(
         "--check-offline",
         action="store_true",
         help="with --face: afterwards, identify each support's bag offline and feed the same rule "

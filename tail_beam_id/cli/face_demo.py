@@ -3,7 +3,9 @@
 N supports under their own namespaces (``/support_001`` ...), each with its sim_node (the flow
 source: its window opened and closed on ``window_cmd``, its own seed), its id_node and its
 bag_recorder, and one caving_node that serves them all: it opens the first window, closes each
-on its rule and opens the next. All real ROS 2 nodes in one process. At the end it prints, per
+on its rule and opens the next. All real ROS 2 nodes, in one process, or with ``--processes P``
+the supports' simulators and identifiers spread over P (:mod:`tail_beam_id.cli.face_hosts`:
+one process holds one core at most). At the end it prints, per
 window, what was drawn (the flow's lumps between the window's opening and closing, drawn again
 from the flow's seed: tail_beam_id.caving.drawn) against what the oracle rule would have drawn
 from the same flow, and the round's totals.
@@ -12,18 +14,26 @@ from the same flow, and the round's totals.
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 from typing import Any
 
-from tail_beam_id.caving.drawn import Drawn, drawn_between, oracle_close_s
+from tail_beam_id.caving.drawn import Drawn
+from tail_beam_id.cli.face_hosts import (
+    SupportHost,
+    SupportSummary,
+    Windows,
+    progress,
+    split_supports,
+    summarise,
+)
 from tail_beam_sim.config import flatten, read_parameter_file
 from tail_beam_sim.errors import InputError, require_new_path
 
 MAX_FACE_DEMO = 12  # supports one process runs live
 LAND_S = 1.5  # simulation s after a window's closing by which its last lumps have landed
 SETTLE_S = 2.0  # wall s the identifiers and recorders get after the last window closed
-ORACLE_LIMIT_S = 600.0  # the oracle's window is searched this long after its opening, s
 IDLE_S = 5.0  # wall s without data before id_node takes a stream for stopped (or data ended)
 
 
@@ -41,7 +51,6 @@ def face_overrides(paths: list[str]) -> dict[str, Any]:
 def run_face(args: argparse.Namespace) -> int:
     from tail_beam_id.ros.caving_node import CavingNode
     from tail_beam_id.ros.id_node import IdNode
-    from tail_beam_sim.physics.lumps import LumpSource
     from tail_beam_sim.ros.recorder_node import RecorderNode, default_bag_path
     from tail_beam_sim.ros.sim_node import SimNode
     from tail_beam_sim.ros.spin import NodeGroup, overrides
@@ -49,20 +58,39 @@ def run_face(args: argparse.Namespace) -> int:
     count = args.face
     if not 1 <= count <= MAX_FACE_DEMO:
         raise InputError("--face", count, f"must be in [1, {MAX_FACE_DEMO}] supports")
+    namespaces = [f"/support_{k:03d}" for k in range(1, count + 1)]
+    blocks = split_supports(namespaces, args.processes)
     bag = require_new_path("--bag", args.bag or default_bag_path("face"))
     extra = face_overrides(args.config or [])
-    namespaces = [f"/support_{k:03d}" for k in range(1, count + 1)]
     caving_values = {
         k: v for k, v in extra.items() if k.startswith(("caving.", "caving_node."))
     } | {"caving_node.supports": namespaces}
     if args.rule:
         caving_values["caving_node.rule"] = args.rule
     node_values = {k: v for k, v in extra.items() if k not in caving_values}
+    # Nodes held up behind others for a moment (one process, or a busy machine): a stream late,
+    # not stopped (labels then wait for it, as offline).
+    id_values = {
+        "id_node.flush_after_idle_s": IDLE_S,
+        "id_node.stream_idle_s": IDLE_S,
+    } | ({"method": args.method} if args.method else {})
+
+    def sim_values(k: int) -> dict[str, Any]:
+        return node_values | {
+            "scenario.source": "flow",
+            "flow.seed": args.seed + k,
+            "flow.open_at_s": -1.0,
+            "sim_node.realtime_factor": float(args.realtime_factor),
+            "sim_node.exit_after_idle_s": 0.0,
+            "sim_node.wait_for_subscribers": 2,
+        }
 
     group = NodeGroup()
-    sims: list[SimNode] = []
-    recorders: list[RecorderNode] = []
-    identifiers: list[IdNode] = []
+    sims: dict[str, SimNode] = {}
+    identifiers: dict[str, IdNode] = {}
+    recorders: dict[str, RecorderNode] = {}
+    hosts: list[SupportHost] = []
+    summaries: dict[str, SupportSummary] = {}
     try:
         # The controller first: a rule or parameter it refuses stops the demo before any bag.
         caving = group.add(
@@ -70,39 +98,37 @@ def run_face(args: argparse.Namespace) -> int:
         )
         for k, ns in enumerate(namespaces):
             common = {"context": group.context, "namespace": ns}
-            recorders.append(
-                group.add(
-                    RecorderNode(
-                        **common,
-                        parameter_overrides=overrides(
-                            {"recorder.bag_path": str(bag / ns.strip("/"))}
-                        ),
-                    )
+            recorders[ns] = group.add(
+                RecorderNode(
+                    **common,
+                    parameter_overrides=overrides({"recorder.bag_path": str(bag / ns.strip("/"))}),
                 )
             )
-            # Every node shares one process: a stream held up behind the others for a moment
-            # is late, not stopped (labels then wait for it, as offline).
-            id_values = {
-                "id_node.flush_after_idle_s": IDLE_S,
-                "id_node.stream_idle_s": IDLE_S,
-            } | ({"method": args.method} if args.method else {})
-            identifiers.append(
-                group.add(IdNode(**common, parameter_overrides=overrides(id_values)))
-            )
-            sim_values = node_values | {
-                "scenario.source": "flow",
-                "flow.seed": args.seed + k,
-                "flow.open_at_s": -1.0,
-                "sim_node.realtime_factor": float(args.realtime_factor),
-                "sim_node.exit_after_idle_s": 0.0,
-                "sim_node.wait_for_subscribers": 2,
-            }
-            sims.append(group.add(SimNode(**common, parameter_overrides=overrides(sim_values))))
+            if ns in blocks[0]:
+                identifiers[ns] = group.add(
+                    IdNode(**common, parameter_overrides=overrides(id_values))
+                )
+                sims[ns] = group.add(
+                    SimNode(**common, parameter_overrides=overrides(sim_values(k)))
+                )
+        # The other processes' supports, once this one's nodes took the same parameters.
+        for block in blocks[1:]:
+            values = [sim_values(namespaces.index(ns)) for ns in block]
+            hosts.append(SupportHost(block, values, id_values, caving.oracle_level))
+        for host in hosts:
+            host.wait_ready()
+        method = next(iter(identifiers.values())).identifier.method.name
         print(
             f"face: {count} supports {namespaces[0]} .. {namespaces[-1]}, drawn one after "
-            f"another; closing rule {caving.rule_name}; identifying with "
-            f"{identifiers[0].identifier.method.name}; realtime factor "
-            f"{args.realtime_factor:g}; recording to {bag}/support_NNN",
+            f"another; closing rule {caving.rule_name}; identifying with {method}; realtime "
+            f"factor {args.realtime_factor:g}; "
+            + (
+                f"{args.processes} processes ({' + '.join(str(len(b)) for b in blocks)} supports, "
+                "the controller and the recorders in the first); "
+                if args.processes > 1
+                else ""
+            )
+            + f"recording to {bag}/support_NNN",
             flush=True,
         )
         started = time.monotonic()
@@ -110,33 +136,58 @@ def run_face(args: argparse.Namespace) -> int:
         said = 0
         while done_at is None or time.monotonic() - done_at < SETTLE_S:
             group.spin_once(0.05)
+            for host in hosts:
+                host.poll()
             said = _say_states(caving, said)
-            if done_at is None and caving.round_done and _landed(caving, sims):
+            if done_at is None and caving.round_done and _landed(_progress(sims, hosts)):
                 done_at = time.monotonic()
         wall_s = time.monotonic() - started
+        simulated_s = min(time_s for time_s, _ in _progress(sims, hosts).values())
     finally:
+        for host in hosts:
+            summaries.update({s.namespace: s for s in host.stop()})
         group.close()
     level = caving.oracle_level
+    for ns, sim in sims.items():
+        summaries[ns] = summarise(ns, sim, identifiers[ns], level)
+    _print_round([summaries[ns] for ns in namespaces if ns in summaries], level)
+    for w in caving.windows:
+        ns = w.namespace
+        rec, summary = recorders[ns], summaries.get(ns)
+        print(
+            f"{ns}: {summary.simulated_s if summary else math.nan:.1f} s simulated; recorder lost "
+            f"{rec.vibration_lost_samples} vibration samples, {rec.lost_events} messages; "
+            f"identifier lost {summary.identifier_lost if summary else '?'} samples; "
+            f"{sum(w.refused.values())} controller input(s) set aside"
+        )
+    print(
+        f"wall time {wall_s:.1f} s from the nodes' start; {simulated_s:.1f} s simulated "
+        f"({simulated_s / max(wall_s, 1e-9):.2f} x real time, start-up and the last "
+        f"{SETTLE_S:g} s included); bags: {bag}/support_NNN"
+    )
+    if args.check_offline:
+        agree = check_offline(caving, bag, args.method)
+        if not agree:
+            return 1
+    print(f"  offline: tail-beam identify {bag}/{namespaces[0].strip('/')}")
+    return 0
+
+
+def _print_round(summaries: list[SupportSummary], level: float) -> None:
+    """Per window what was drawn against the oracle's draw from the same flow; the round's
+    totals."""
     print()
     print(
         f"{'support':<13} {'rule closed at':>15} {'drawn t':>8} {'gangue %':>9} "
         f"{'oracle t':>9} {'oracle gangue %':>16} {'coal vs oracle %':>17}"
     )
     totals: list[tuple[Drawn, Drawn]] = []
-    for w, sim in zip(caving.windows, sims):
-        flow = sim.flow
-        windows = flow.source.windows if flow is not None else []
-        if flow is None or not windows or windows[0][1] == float("inf"):
-            print(f"{w.namespace:<13} window not closed")
+    for summary in summaries:
+        drawn, oracle = summary.drawn, summary.oracle
+        if drawn is None:
+            print(f"{summary.namespace:<13} window not closed")
             continue
-        opened, closed = windows[0]
-
-        def fresh(sim=sim) -> LumpSource:
-            return LumpSource(sim.flow.flow, sim.flow.sim.materials)
-
-        drawn = drawn_between(fresh(), opened, closed)
-        oracle_s = oracle_close_s(fresh(), opened, flow.flow.interval_s, level, ORACLE_LIMIT_S)
-        oracle = drawn_between(fresh(), opened, oracle_s) if oracle_s is not None else None
+        closed = summary.windows[0][1]
         totals += [(drawn, oracle)] if oracle is not None else []
         ratio = (
             f"{100.0 * drawn.coal_kg / oracle.coal_kg:17.1f}"
@@ -144,7 +195,7 @@ def run_face(args: argparse.Namespace) -> int:
             else f"{'-':>17}"
         )
         print(
-            f"{w.namespace:<13} {closed:14.2f}s {drawn.mass_kg / 1e3:8.2f} "
+            f"{summary.namespace:<13} {closed:14.2f}s {drawn.mass_kg / 1e3:8.2f} "
             f"{100.0 * drawn.gangue_content:9.1f} "
             + (
                 f"{oracle.mass_kg / 1e3:9.2f} {100.0 * oracle.gangue_content:16.1f}"
@@ -163,23 +214,18 @@ def run_face(args: argparse.Namespace) -> int:
             f"round: {mass / 1e3:.2f} t drawn at {100.0 * gangue / max(mass, 1e-9):.1f} % gangue, "
             f"the oracle's {o_mass / 1e3:.2f} t at {100.0 * o_gangue / max(o_mass, 1e-9):.1f} %; "
             f"coal drawn {100.0 * coal / max(o_coal, 1e-9):.1f} % of the oracle's "
-            f"(oracle: true share by mass of a {sims[0].flow.flow.interval_s:g} s interval "
+            f"(oracle: true share by mass of a {summaries[0].interval_s:g} s interval "
             f">= {level:g})"
         )
-    for w, sim, rec, ident in zip(caving.windows, sims, recorders, identifiers):
-        print(
-            f"{w.namespace}: {sim.stream.time_s:.1f} s simulated; recorder lost "
-            f"{rec.vibration_lost_samples} vibration samples, {rec.lost_events} messages; "
-            f"identifier lost {ident.vibration_lost_samples} samples; "
-            f"{sum(w.refused.values())} controller input(s) set aside"
-        )
-    print(f"wall time {wall_s:.1f} s; bags: {bag}/support_NNN")
-    if args.check_offline:
-        agree = check_offline(caving, bag, args.method)
-        if not agree:
-            return 1
-    print(f"  offline: tail-beam identify {bag}/{namespaces[0].strip('/')}")
-    return 0
+
+
+def _progress(sims: dict[str, Any], hosts: list[SupportHost]) -> dict[str, tuple[float, Windows]]:
+    """Each support's simulated time (s) and window stamps, here and in the other processes
+    (a support of another process not yet heard from: not started)."""
+    out = {ns: progress(sim) for ns, sim in sims.items()}
+    for host in hosts:
+        out.update({ns: host.status.get(ns, (0.0, [])) for ns in host.namespaces})
+    return out
 
 
 def check_offline(caving: Any, bag: Path, method: str | None) -> bool:
@@ -244,12 +290,11 @@ def _say_states(caving: Any, said: int) -> int:
     return len(caving.decisions)
 
 
-def _landed(caving: Any, sims: list[Any]) -> bool:
+def _landed(progress: dict[str, tuple[float, Windows]]) -> bool:
     """Every window closed and its simulation LAND_S past the closing."""
-    for sim in sims:
-        windows = sim.flow.source.windows if sim.flow is not None else []
+    for time_s, windows in progress.values():
         if not windows or windows[-1][1] == float("inf"):
             return False
-        if sim.stream.time_s < windows[-1][1] + LAND_S:
+        if time_s < windows[-1][1] + LAND_S:
             return False
     return True
