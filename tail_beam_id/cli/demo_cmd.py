@@ -86,10 +86,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--processes",
         type=int,
-        default=1,
         metavar="P",
-        help="with --face: run the supports' sim_node and id_node over P processes (default 1); "
-        "the first also runs the controller and every recorder",
+        help="with --face: run the supports' sim_node and id_node over P processes (default: "
+        "one per core, at most one per support); the first also runs the controller and every "
+        "recorder",
     )
     parser.add_argument(
         "--check-offline",

@@ -3,8 +3,8 @@
 N supports under their own namespaces (``/support_001`` ...), each with its sim_node (the flow
 source: its window opened and closed on ``window_cmd``, its own seed), its id_node and its
 bag_recorder, and one caving_node that serves them all: it opens the first window, closes each
-on its rule and opens the next. All real ROS 2 nodes, in one process, or with ``--processes P``
-the supports' simulators and identifiers spread over P (:mod:`tail_beam_id.cli.face_hosts`:
+on its rule and opens the next. All real ROS 2 nodes, the supports' simulators and identifiers
+spread over one process per core (``--processes P`` to choose; :mod:`tail_beam_id.cli.face_hosts`:
 one process holds one core at most). At the end it prints, per
 window, what was drawn (the flow's lumps between the window's opening and closing, drawn again
 from the flow's seed: tail_beam_id.caving.drawn) against what the oracle rule would have drawn
@@ -24,6 +24,7 @@ from tail_beam_id.cli.face_hosts import (
     SupportHost,
     SupportSummary,
     Windows,
+    default_processes,
     progress,
     split_supports,
     summarise,
@@ -59,7 +60,8 @@ def run_face(args: argparse.Namespace) -> int:
     if not 1 <= count <= MAX_FACE_DEMO:
         raise InputError("--face", count, f"must be in [1, {MAX_FACE_DEMO}] supports")
     namespaces = [f"/support_{k:03d}" for k in range(1, count + 1)]
-    blocks = split_supports(namespaces, args.processes)
+    processes = args.processes if args.processes is not None else default_processes(count)
+    blocks = split_supports(namespaces, processes)
     bag = require_new_path("--bag", args.bag or default_bag_path("face"))
     extra = face_overrides(args.config or [])
     caving_values = {
@@ -123,9 +125,9 @@ def run_face(args: argparse.Namespace) -> int:
             f"another; closing rule {caving.rule_name}; identifying with {method}; realtime "
             f"factor {args.realtime_factor:g}; "
             + (
-                f"{args.processes} processes ({' + '.join(str(len(b)) for b in blocks)} supports, "
+                f"{processes} processes ({' + '.join(str(len(b)) for b in blocks)} supports, "
                 "the controller and the recorders in the first); "
-                if args.processes > 1
+                if processes > 1
                 else ""
             )
             + f"recording to {bag}/support_NNN",

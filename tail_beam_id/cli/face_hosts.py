@@ -1,13 +1,13 @@
-"""The supports of ``tail-beam demo --face N --processes P`` that run in other processes.
+"""The supports of ``tail-beam demo --face N`` that run in other processes.
 
 One process holds one interpreter lock, so one core at most: at the shipped layout a support's
 sim_node and id_node take about a third of a core and its bag_recorder more, and three
-supports with their recorders do not keep real time in one process. With ``--processes P`` the
-demo's process keeps the controller, every recorder and ``len // P`` supports' sim_node and
-id_node; the others run in P - 1 child processes (:func:`split_supports`), each a
-:class:`SupportHost`: real nodes on their own executor and context, talking to the demo's over
-the middleware as separate hosts would. Every support gets the parameters it would get in one
-process.
+supports with their recorders do not keep real time in one process. Over P processes (one per
+core by default, ``--processes P`` to choose) the demo's process keeps the controller, every
+recorder and ``len // P`` supports' sim_node and id_node; the others run in P - 1 child
+processes (:func:`split_supports`), each a :class:`SupportHost`: real nodes on their own
+executor and context, talking to the demo's over the middleware as separate hosts would. Every
+support gets the parameters it would get in one process.
 
 A child says over a pipe when its nodes are built, then every :data:`STATUS_PERIOD_S` how far
 each of its simulators has come (simulated s, window openings and closings); told to stop, it
@@ -17,6 +17,7 @@ closes its nodes and sends each support's :class:`SupportSummary`.
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
@@ -47,6 +48,12 @@ class SupportSummary:
     oracle: Drawn | None
     interval_s: float
     identifier_lost: int
+
+
+def default_processes(supports: int) -> int:
+    """One process per core this process may run on, at most one per support."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, min(supports, cores or 1))
 
 
 def split_supports(namespaces: list[str], processes: int) -> list[list[str]]:

@@ -3,6 +3,7 @@ with ``--processes`` the supports spread over processes, talking over the middle
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -10,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from tail_beam_id.cli.face_hosts import split_supports
+from tail_beam_id.cli.face_hosts import default_processes, split_supports
 from tail_beam_sim.errors import InputError
 
 TAIL_BEAM = str(Path(sys.executable).parent / "tail-beam")
@@ -34,6 +35,15 @@ def test_the_demos_process_keeps_the_fewest_supports_and_the_rest_split_evenly()
     assert split_supports(names[:3], 3) == [[n] for n in names[:3]]
     blocks = split_supports(names, 3)
     assert [n for b in blocks for n in b] == names and [len(b) for b in blocks] == [1, 2, 2]
+
+
+def test_one_process_per_core_by_default_and_never_more_than_supports():
+    """The default spreads a face over the cores this process may use, one support at least
+    per process."""
+    cores = len(os.sched_getaffinity(0))
+    assert default_processes(1) == 1
+    assert default_processes(12) == min(12, cores)
+    assert default_processes(2) == min(2, cores)
 
 
 @pytest.mark.parametrize("processes", [0, 4])
