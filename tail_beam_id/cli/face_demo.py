@@ -15,12 +15,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from pathlib import Path
 from typing import Any
 
 from tail_beam_id.caving.drawn import Drawn
 from tail_beam_id.cli.face_hosts import (
+    HostLost,
     SupportHost,
     SupportSummary,
     Windows,
@@ -29,6 +31,7 @@ from tail_beam_id.cli.face_hosts import (
     split_supports,
     summarise,
 )
+from tail_beam_sim.cli import EXIT_TIMEOUT
 from tail_beam_sim.config import flatten, read_parameter_file
 from tail_beam_sim.errors import InputError, require_new_path
 
@@ -145,10 +148,21 @@ def run_face(args: argparse.Namespace) -> int:
                 done_at = time.monotonic()
         wall_s = time.monotonic() - started
         simulated_s = min(time_s for time_s, _ in _progress(sims, hosts).values())
+    except HostLost as exc:
+        lost = exc
+    else:
+        lost = None
     finally:
         for host in hosts:
             summaries.update({s.namespace: s for s in host.stop()})
         group.close()
+    if lost is not None:
+        print(
+            f"tail-beam demo: error: {lost}; the round stopped there (bags so far: "
+            f"{bag}/support_NNN)",
+            file=sys.stderr,
+        )
+        return EXIT_TIMEOUT  # a peer (the supports' process) did not answer
     level = caving.oracle_level
     for ns, sim in sims.items():
         summaries[ns] = summarise(ns, sim, identifiers[ns], level)

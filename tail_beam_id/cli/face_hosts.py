@@ -34,6 +34,10 @@ ORACLE_LIMIT_S = 600.0  # the oracle's window is searched this long after its op
 Windows = list[tuple[float, float]]  # (opened, closed) stamps, s; closed inf while open
 
 
+class HostLost(RuntimeError):
+    """A child process exited or fell silent: its supports stopped, the round cannot end."""
+
+
 @dataclass(frozen=True)
 class SupportSummary:
     """One support's round: simulated time (s), its window's (opened, closed) stamps (s), what
@@ -188,19 +192,19 @@ class SupportHost:
         self.ready = False
 
     def poll(self) -> None:
-        """Take what the child said since the last call; InputError with its one line when it
-        failed, RuntimeError when it died without a word."""
+        """Take what the child said since the last call; InputError with its one line when a
+        parameter failed there, HostLost when it died without a word."""
         while self.conn.poll():
             try:
                 kind, body = self.conn.recv()
-            except EOFError:
-                raise RuntimeError(
-                    f"the process of {', '.join(self.namespaces)} exited ({self.process.exitcode})"
-                ) from None
+            except (EOFError, ConnectionResetError):
+                raise HostLost(f"the process of {', '.join(self.namespaces)} exited") from None
             if kind == "ready":
                 self.ready = True
             elif kind == "status":
                 self.status = body
+            elif kind == "error" and len(body) == 3 and body[0].startswith("/"):
+                raise HostLost(f"the process of {body[0]} failed: {body[1]}: {body[2]}")
             elif kind == "error":
                 raise InputError(*body)
 
@@ -209,12 +213,12 @@ class SupportHost:
         deadline = time.monotonic() + timeout_s
         while not self.ready:
             if not self.process.is_alive() and not self.conn.poll():
-                raise RuntimeError(
+                raise HostLost(
                     f"the process of {', '.join(self.namespaces)} exited "
-                    f"({self.process.exitcode}) before its nodes were built"
+                    f"(status {self.process.exitcode}) before its nodes were built"
                 )
             if time.monotonic() > deadline:
-                raise RuntimeError(
+                raise HostLost(
                     f"the process of {', '.join(self.namespaces)} built no node in {timeout_s:g} s"
                 )
             self.conn.poll(0.1)

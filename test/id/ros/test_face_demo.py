@@ -5,13 +5,15 @@ from __future__ import annotations
 
 import os
 import re
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
-from tail_beam_id.cli.face_hosts import default_processes, split_supports
+from tail_beam_id.cli.face_hosts import HostLost, SupportHost, default_processes, split_supports
 from tail_beam_sim.errors import InputError
 
 TAIL_BEAM = str(Path(sys.executable).parent / "tail-beam")
@@ -94,3 +96,28 @@ def test_two_supports_over_two_processes_close_as_offline_and_lose_nothing(tmp_p
         ), out[-3000:]
         assert re.search(rf"^{ns}: offline decision .*: same;", out, re.M), out[-3000:]
         assert (tmp_path / "bags" / ns.strip("/") / "metadata.yaml").exists()
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_a_supports_process_killed_is_said_as_lost_not_waited_for(tmp_path):
+    """The demo's side of a child process: ready once its nodes are built, then, killed,
+    HostLost naming its supports at the next look (the demo then stops with one line)."""
+    values = {
+        "scenario.source": "flow",
+        "flow.open_at_s": -1.0,
+        "sim_node.exit_after_idle_s": 0.0,
+        "sim_node.wait_for_subscribers": 1,
+    }
+    host = SupportHost(["/support_009"], [values], {}, 0.3)
+    try:
+        host.wait_ready()
+        host.poll()
+        os.kill(host.process.pid, signal.SIGKILL)
+        host.process.join(10.0)
+        with pytest.raises(HostLost, match="/support_009 exited"):
+            for _ in range(100):
+                host.poll()
+                time.sleep(0.05)
+    finally:
+        assert host.stop() == []
