@@ -44,7 +44,7 @@ from tail_beam_id.calibration.modes import RingingMode, ring_decay_s, ringing_mo
 from tail_beam_id.methods import hysteresis, load_model
 from tail_beam_id.methods.statistical import HYSTERESIS
 from tail_beam_id.signals.camera import GRIDLESS_PERIOD_S, MIN_REBOUNDS, measured_period_s
-from tail_beam_id.signals.timing import UNUSUAL
+from tail_beam_id.signals.timing import UNUSUAL, TimingConfig
 from tail_beam_id.stream.label import Label
 from tail_beam_sim.config import deep_merge
 from tail_beam_sim.errors import InputError
@@ -270,7 +270,16 @@ def calibrate(
         calibrated = copy.deepcopy(dict(params))
         calibrated["support"]["oil_bulk_modulus_pa"] = bulk
         labels = identify(calibrated)
-        checks = [label.features[UNUSUAL] for label in labels if UNUSUAL in label.features]
+        section = params["identification"]
+        checks = [
+            label.features[UNUSUAL]
+            for label in isolated(
+                labels,
+                TimingConfig.from_params(section["sensor_timing"]).clean_gap_s,
+                float(section["overlap_window_s"]),
+            )
+            if UNUSUAL in label.features
+        ]
         if checks:
             checked, unusual = len(checks), int(sum(value > 0.5 for value in checks))
         fitted = imu_gain([label.features for label in labels])
@@ -410,3 +419,17 @@ def with_profile(params: Mapping[str, Any], profile: SupportProfile) -> dict[str
     merged = copy.deepcopy(dict(params))
     deep_merge(merged, profile.parameters()["/**"]["ros__parameters"])
     return merged
+
+
+def isolated(labels: Sequence[Label], before_s: float, after_s: float) -> list[Label]:
+    """The labels whose impact has no other within ``before_s`` (s) before it nor ``after_s``
+    after it: the ones the sensor-timing check counts (``identification.sensor_timing.
+    clean_gap_s`` before, the overlap window after, as the identifier counts them)."""
+    stamps = np.sort([label.impact_stamp_s for label in labels])
+    out = []
+    for label in labels:
+        at = label.impact_stamp_s
+        near = np.searchsorted(stamps, [at - before_s, at + after_s])
+        if near[1] - near[0] <= 1:
+            out.append(label)
+    return out

@@ -66,6 +66,14 @@ SENSOR_TIMING = Section(
             1.0,
             default=0.6,
         ),
+        number(
+            "clean_gap_s",
+            "Only impacts with no other this long before (nor overlapping) are checked.",
+            "s",
+            0.0,
+            10.0,
+            default=0.25,
+        ),
     ),
     file="identification.yaml",
 )
@@ -76,12 +84,17 @@ class TimingConfig:
     """``identification.sensor_timing``: how many impacts with a delay check a recording needs
     before it is judged (``min_impacts``); the share of unusual delays agreeing clocks may give
     (``agreeing_rate``) and how rarely a recording with agreeing clocks may be called suspect
-    (``false_alarm``); the confidence its labels that used the delay are then capped at."""
+    (``false_alarm``); the confidence its labels that used the delay are then capped at; and
+    how long (s) after the impact before it an impact must come to count (``clean_gap_s``; nor
+    may another overlap it): in a dense flow an onset and a delay read in another impact's
+    response are unusual more often whatever the clocks, and a clock offset shows in the
+    isolated impacts as well."""
 
     min_impacts: int
     agreeing_rate: float
     false_alarm: float
     confidence_cap: float
+    clean_gap_s: float = 0.25  # an impact with another this soon before it (s) is no evidence
 
     @classmethod
     def from_params(cls, section: Mapping[str, Any]) -> TimingConfig:

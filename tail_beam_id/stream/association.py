@@ -171,7 +171,8 @@ class ImpactAssociation:
     def known_onsets(self, impact: PendingImpact, before_s: float) -> list[float]:
         """Onsets (s) of the other impacts, pending or decided, from ``before_s`` before this
         one's up to the end of its overlap window: those its decision may rest on, known
-        whatever the chunking once it is ready (:mod:`tail_beam_id.stream.readiness`)."""
+        whatever the chunking once it is ready (:mod:`tail_beam_id.stream.readiness`; decided
+        onsets are kept IdentifierConfig.kept_s before the oldest pending one)."""
         lo = impact.onset_s - before_s
         hi = impact.onset_s + self.windows(impact)[2]
         pending = [o.onset_s for o in self.pending if o is not impact]

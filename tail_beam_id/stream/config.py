@@ -14,6 +14,8 @@ from tail_beam_sim.config import fingerprint
 from tail_beam_sim.errors import InputError, require_section
 from tail_beam_sim.spec import Field, Section, choice, flag, integer, number, of_kind, positive
 
+LOOK_BACKS_KEPT = 4.0  # how many of the longest look-back (s) are kept before what is needed
+
 _WINDOW = dict(unit="s", high=10.0)
 
 IDENTIFICATION = Section(
@@ -282,7 +284,7 @@ class IdentifierConfig:
             )
         if checked["vibration_window_s"] is None:
             checked["vibration_window_s"] = window
-        return cls(
+        config = cls(
             **checked,
             detection=DetectionConfig.from_params(
                 require_section("identification.detection", params.get("detection"))
@@ -293,6 +295,23 @@ class IdentifierConfig:
             contact_fit=ContactFitConfig.from_params(
                 require_section("identification.contact_fit", params.get("contact_fit"))
             ),
+        )
+        if config.timing.clean_gap_s > config.kept_s:
+            raise InputError(
+                "identification.sensor_timing.clean_gap_s",
+                config.timing.clean_gap_s,
+                f"must be <= {config.kept_s:g} s (the identifier keeps the onsets of "
+                f"{LOOK_BACKS_KEPT:g} x max(detection.noise_block_s, pressure_pre_s + window_s) "
+                "before the oldest it still needs)",
+            )
+        return config
+
+    @property
+    def kept_s(self) -> float:
+        """How far before the oldest stamp a pending decision needs the identifier keeps data
+        and decided onsets, s (:mod:`tail_beam_id.stream.retention`)."""
+        return LOOK_BACKS_KEPT * max(
+            self.detection.noise_block_s, self.pressure_pre_s + self.window_s
         )
 
 

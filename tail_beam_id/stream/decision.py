@@ -227,7 +227,9 @@ class ImpactDecider:
         decision: Decision = self.method.decide(features)
         timing_suspect = False
         if UNUSUAL in decision.estimates:
-            self.timing.add(decision.estimates[UNUSUAL] > UNUSUAL_DELAY_PROBABILITY)
+            if not association.known_onsets(impact, cfg.timing.clean_gap_s):
+                # none in the gap before it, none overlapping it: evidence on the clocks
+                self.timing.add(decision.estimates[UNUSUAL] > UNUSUAL_DELAY_PROBABILITY)
             timing_suspect = self.timing.suspect
             if timing_suspect:
                 decision = self._decide_without_the_delay(features, decision)

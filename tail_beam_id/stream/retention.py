@@ -17,8 +17,6 @@ from tail_beam_id.stream.channels import SensorChannels
 from tail_beam_id.stream.config import IdentifierConfig
 from tail_beam_id.stream.detection import ImpactFinder, scanned_s
 
-LOOK_BACKS_KEPT = 4.0  # how many of the longest look-back (s) are kept before what is needed
-
 
 class DataRetention:
     """Trims the identifier's buffers to what its decisions can still need (module docstring)."""
@@ -41,9 +39,7 @@ class DataRetention:
 
     def keep_s(self) -> float:
         """How far before the oldest needed stamp data are kept, s."""
-        return LOOK_BACKS_KEPT * max(
-            self.config.detection.noise_block_s, self.config.pressure_pre_s + self.config.window_s
-        )
+        return self.config.kept_s
 
     def trim(self) -> None:
         """Drop what no pending or future decision can need (module docstring)."""

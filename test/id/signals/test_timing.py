@@ -200,3 +200,53 @@ def test_a_suspect_recording_is_decided_without_the_delay_and_keeps_its_accuracy
         assert identifier.method.decide(moved).confidence == pytest.approx(
             identifier.method.decide(features).confidence, abs=1e-12
         )
+
+
+def _with_clean_gap(params, gap_s):
+    changed = copy.deepcopy(params)
+    changed["identification"]["sensor_timing"]["clean_gap_s"] = gap_s
+    return changed
+
+
+def test_only_impacts_clear_of_others_are_evidence_on_the_clocks(params, face):
+    """At the shipped clean_gap_s (0.25 s) every impact of the stream (0.3 s apart or more) is
+    checked; with the gap as wide as the identifier allows (0.4 s) only those with none that
+    long before, as the impacts' spacing says (in a dense flow, onsets and delays read in
+    another impact's response are unusual more often whatever the clocks)."""
+    identifier, labels = _labels(params, face)
+    assert identifier.timing.checked == len(labels) == 20
+    onsets = sorted(label.impact_stamp_s for label in labels)
+    alone = [t for t in onsets if not any(0.0 < t - u < 0.4 for u in onsets)]
+    assert 0 < len(alone) < 20
+    identifier, labels = _labels(_with_clean_gap(params, 0.4), face)
+    assert identifier.timing.checked == len(alone)
+
+
+def test_a_clean_gap_wider_than_the_onsets_kept_is_refused_by_name(params):
+    """The identifier keeps decided onsets 0.4 s (at config/'s values): a longer gap could not
+    be judged alike live and offline."""
+    from tail_beam_id.stream.config import IdentifierConfig
+
+    with pytest.raises(InputError, match=r"sensor_timing.clean_gap_s = 0.5: must be <= 0.4 s"):
+        IdentifierConfig.from_params(_with_clean_gap(params, 0.5)["identification"])
+
+
+def test_self_calibration_counts_the_isolated_labels_only():
+    """The calibration pass's count (its profile's delay_checked_impacts) takes the labels with
+    none within the gap before nor the overlap window after: the pair 0.1 s apart goes with the
+    gap after as long as the one before, only its second with a short one after."""
+    from tail_beam_id.calibration.offline import isolated
+    from tail_beam_id.stream.label import Label
+
+    labels = [
+        Label(impact_stamp_s=t, material="coal", confidence=0.9, method="statistical")
+        for t in (1.0, 1.1, 2.0, 3.0)
+    ]
+    assert [label.impact_stamp_s for label in isolated(labels, 0.25, 0.25)] == [2.0, 3.0]
+    assert [label.impact_stamp_s for label in isolated(labels, 0.25, 0.01)] == [1.0, 2.0, 3.0]
+    assert [label.impact_stamp_s for label in isolated(labels, 0.05, 0.01)] == [
+        1.0,
+        1.1,
+        2.0,
+        3.0,
+    ]

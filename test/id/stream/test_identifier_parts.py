@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from tail_beam_id.signals.timing import TimingConfig
+from tail_beam_id.stream.config import LOOK_BACKS_KEPT
 from tail_beam_id.stream.decision import profile_says_timing_suspect
 from tail_beam_id.stream.detection import scanned_s
 from tail_beam_id.stream.identifier import StreamIdentifier
-from tail_beam_id.stream.retention import LOOK_BACKS_KEPT
 
 
 def test_the_attributes_callers_read_are_the_parts_state(params):

@@ -227,7 +227,10 @@ def test_a_later_decision_for_a_labelled_impact_is_a_revision_never_a_new_impact
     rule = Revisions(0.005)
     partial = Label(2.0, "coal", 0.6, "statistical", signals=("vibration",))
     full = Label(
-        2.003, "gangue", 0.9, "statistical",
+        2.003,
+        "gangue",
+        0.9,
+        "statistical",
         signals=("jack_pressure", "imu", "vibration", "rebound_velocity"),
     )
     other = Label(2.3, "coal", 0.9, "statistical")
