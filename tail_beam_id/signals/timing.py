@@ -85,10 +85,10 @@ class TimingConfig:
     before it is judged (``min_impacts``); the share of unusual delays agreeing clocks may give
     (``agreeing_rate``) and how rarely a recording with agreeing clocks may be called suspect
     (``false_alarm``); the confidence its labels that used the delay are then capped at; and
-    how long (s) after the impact before it an impact must come to count (``clean_gap_s``; nor
-    may another overlap it): in a dense flow an onset and a delay read in another impact's
-    response are unusual more often whatever the clocks, and a clock offset shows in the
-    isolated impacts as well."""
+    how long (s) an impact must come after any other to count (``clean_gap_s``; nor may another
+    overlap it): in a dense flow an onset and a delay read in another impact's response are
+    unusual more often whatever the clocks, and a clock offset shows in the isolated impacts
+    as well."""
 
     min_impacts: int
     agreeing_rate: float
