@@ -154,7 +154,7 @@ def host_supports(
     except InputError as exc:
         conn.send(("error", (exc.field, exc.value, exc.allowed)))
     except Exception as exc:  # noqa: BLE001 - said once by the demo, never a child's traceback
-        conn.send(("error", (", ".join(namespaces), type(exc).__name__, str(exc))))
+        conn.send(("failed", f"{type(exc).__name__}: {exc}"))
     finally:
         group.close()
     try:
@@ -193,7 +193,7 @@ class SupportHost:
 
     def poll(self) -> None:
         """Take what the child said since the last call; InputError with its one line when a
-        parameter failed there, HostLost when it died without a word."""
+        parameter was refused there, HostLost when it failed otherwise or died."""
         while self.conn.poll():
             try:
                 kind, body = self.conn.recv()
@@ -203,8 +203,8 @@ class SupportHost:
                 self.ready = True
             elif kind == "status":
                 self.status = body
-            elif kind == "error" and len(body) == 3 and body[0].startswith("/"):
-                raise HostLost(f"the process of {body[0]} failed: {body[1]}: {body[2]}")
+            elif kind == "failed":
+                raise HostLost(f"the process of {', '.join(self.namespaces)} failed: {body}")
             elif kind == "error":
                 raise InputError(*body)
 
