@@ -22,8 +22,8 @@ QUICK_FLOW = """\
 /**:
   ros__parameters:
     flow:
-      lumps_per_s: 15.0
-      share_drawn_mass_kg: [0.0, 10.0, 30.0]
+      lumps_per_s: 30.0
+      share_drawn_mass_kg: [0.0, 4.0, 12.0]
       share_gangue: [0.0, 0.0, 0.8]
 """
 
