@@ -424,7 +424,8 @@ def with_profile(params: Mapping[str, Any], profile: SupportProfile) -> dict[str
 def isolated(labels: Sequence[Label], before_s: float, after_s: float) -> list[Label]:
     """The labels whose impact has no other within ``before_s`` (s) before it nor ``after_s``
     after it: the ones the sensor-timing check counts (``identification.sensor_timing.
-    clean_gap_s`` before, the overlap window after, as the identifier counts them)."""
+    clean_gap_s`` before, the overlap window after). The identifier counts from every impact
+    it found, labelled or not; this pass has the labels only."""
     stamps = np.sort([label.impact_stamp_s for label in labels])
     out = []
     for label in labels:

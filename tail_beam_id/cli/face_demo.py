@@ -26,6 +26,7 @@ from tail_beam_id.cli.face_hosts import (
     SupportHost,
     SupportSummary,
     Windows,
+    add_support,
     default_processes,
     progress,
     split_supports,
@@ -110,12 +111,7 @@ def run_face(args: argparse.Namespace) -> int:
                 )
             )
             if ns in blocks[0]:
-                identifiers[ns] = group.add(
-                    IdNode(**common, parameter_overrides=overrides(id_values))
-                )
-                sims[ns] = group.add(
-                    SimNode(**common, parameter_overrides=overrides(sim_values(k)))
-                )
+                identifiers[ns], sims[ns] = add_support(group, ns, sim_values(k), id_values)
         # The other processes' supports, once this one's nodes took the same parameters.
         for block in blocks[1:]:
             values = [sim_values(namespaces.index(ns)) for ns in block]

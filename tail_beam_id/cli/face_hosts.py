@@ -113,6 +113,22 @@ def summarise(namespace: str, sim: Any, identifier: Any, level: float) -> Suppor
     )
 
 
+def add_support(
+    group: Any, namespace: str, sim_values: dict[str, Any], id_values: dict[str, Any]
+) -> tuple[Any, Any]:
+    """One support's id_node, then its sim_node (which waits for its readers), under
+    ``namespace`` in ``group`` (a :class:`~tail_beam_sim.ros.spin.NodeGroup`): (id_node,
+    sim_node). The demo's process and its children build their supports alike."""
+    from tail_beam_id.ros.id_node import IdNode
+    from tail_beam_sim.ros.sim_node import SimNode
+    from tail_beam_sim.ros.spin import overrides
+
+    common = {"context": group.context, "namespace": namespace}
+    identifier = group.add(IdNode(**common, parameter_overrides=overrides(id_values)))
+    sim = group.add(SimNode(**common, parameter_overrides=overrides(sim_values)))
+    return identifier, sim
+
+
 def host_supports(
     namespaces: list[str],
     sim_values: list[dict[str, Any]],
@@ -124,23 +140,18 @@ def host_supports(
     demo says stop, then their summaries (``level``: the oracle's). Errors go back as one
     line: the demo says it and stops."""
     try:
-        from tail_beam_id.ros.id_node import IdNode
-        from tail_beam_sim.ros.sim_node import SimNode
-        from tail_beam_sim.ros.spin import NodeGroup, overrides
+        from tail_beam_sim.ros.spin import NodeGroup
 
         group = NodeGroup()
     except KeyboardInterrupt:
         return
     sims: list[Any] = []
     identifiers: list[Any] = []
-    summaries: list[SupportSummary] = []
     try:
         for ns, values in zip(namespaces, sim_values):
-            common = {"context": group.context, "namespace": ns}
-            identifiers.append(
-                group.add(IdNode(**common, parameter_overrides=overrides(id_values)))
-            )
-            sims.append(group.add(SimNode(**common, parameter_overrides=overrides(values))))
+            identifier, sim = add_support(group, ns, values, id_values)
+            identifiers.append(identifier)
+            sims.append(sim)
         conn.send(("ready", None))
         said = time.monotonic()
         while not conn.poll():
