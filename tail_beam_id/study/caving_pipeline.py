@@ -26,7 +26,8 @@ fed to the rule in the order they become known, as the ``truth`` and ``stand-in`
 Layouts (:data:`LAYOUTS`): ``shipped`` (jack pressure, IMU, the tail-beam accelerometer, the
 rebound camera), ``imu`` (the same without the accelerometer), ``pressure`` (jack pressure and
 the rebound camera: no sensor of the beam's vibration), ``impact_point`` (shipped, the camera
-also reporting where each lump struck).
+also reporting where each lump struck). A layout's simulator samples only the sensors the layout
+has (:data:`LAYOUT_CHANNELS`).
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ from tail_beam_sim.topics import FRAME_PLATE
 
 __all__ = [
     "LAYOUTS",
+    "LAYOUT_CHANNELS",
     "LUMP_MODES",
     "SOURCE_PREFIX",
     "IdentifiedWindowFeed",
@@ -68,6 +70,14 @@ __all__ = [
 ]
 
 LAYOUTS = ("shipped", "imu", "pressure", "impact_point")
+# The sampled sensors of each layout (the rebound camera besides): its simulator leaves the
+# others out, and its identifier gets these.
+LAYOUT_CHANNELS: dict[str, tuple[str, ...]] = {
+    "shipped": ("pressure", "imu", "vibration"),
+    "imu": ("pressure", "imu"),
+    "pressure": ("pressure",),
+    "impact_point": ("pressure", "imu", "vibration"),
+}
 LUMP_MODES = ("struck", "drawn")
 SOURCE_PREFIX = "identified:"  # a source name: identified:<layout>
 LEAD_S = 0.25  # quiet beam before a window's first lump (the detectors learn the noise), s
@@ -153,7 +163,7 @@ class Pipeline:
         """A fresh support for one window: the flow simulator, its sensors' noise seeded."""
         params = dict(self.params)
         params["sensors"] = {**params["sensors"], "seed": int(sensor_seed) % (2**31)}
-        sim = FlowSimulator.from_params(params)
+        sim = FlowSimulator.from_params(params, channels=LAYOUT_CHANNELS[self.layout])
         if sim.solver == "hybrid":
             sim.solver_options = {"contact": self.flow.contact}
         return sim
@@ -205,8 +215,6 @@ class IdentifiedWindowFeed(RuleFeed):
         self.identifier = pipeline.identifier()
         self.window = window
         self.tally = WindowTally()
-        self.vibration = pipeline.layout in ("shipped", "impact_point")
-        self.imu = pipeline.layout != "pressure"
         super().__init__(rule, opened_s)
         self._deliver(self.sim.advance(LEAD_S - 1e-9))
 
@@ -245,16 +253,16 @@ class IdentifiedWindowFeed(RuleFeed):
     def _deliver(self, chunk: Chunk) -> None:
         """The chunk's samples of the layout's sensors to the identifier; labels and shares out
         as events on the face's clock."""
-        ident = self.identifier
+        ident = self.identifier  # the simulator samples the layout's channels alone
         if chunk.pressure.stamp_s.size:
             ident.add_pressure(chunk.pressure.stamp_s, chunk.pressure.pressure_pa)
-        if self.imu and chunk.imu.stamp_s.size:
+        if chunk.imu.stamp_s.size:
             ident.add_imu(
                 chunk.imu.stamp_s,
                 chunk.imu.angular_velocity_radps,
                 chunk.imu.linear_acceleration_mps2,
             )
-        if self.vibration and chunk.vibration.count:
+        if chunk.vibration.count:
             ident.add_vibration(
                 chunk.vibration.sample_stamps_s(), chunk.vibration.accel_mps2.astype(float)
             )

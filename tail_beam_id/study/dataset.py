@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -24,7 +24,7 @@ from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.fidelity import FidelitySettings
 from tail_beam_sim.physics.scene import Scene, SensorSpec
 from tail_beam_sim.physics.simulate import SimulationResult, simulate, simulate_many
-from tail_beam_sim.physics.stream import StreamSimulator
+from tail_beam_sim.physics.stream import CHANNELS, StreamSimulator
 
 # Evaluation scene sets. ``foreign`` records drawn supports as continuous streams of stream-scene
 # impacts, ``foreign_paper`` the same supports with the paper scene's (support_streams;
@@ -377,10 +377,12 @@ def support_streams(
         yield record_support(params, draw, draw.apply(params), commands, rng, tier)
 
 
-def study_simulator(varied: dict[str, Any], tier: str, impacts: int) -> StreamSimulator:
+def study_simulator(
+    varied: dict[str, Any], tier: str, impacts: int, channels: Collection[str] = CHANNELS
+) -> StreamSimulator:
     """A stream simulator of the support ``varied`` describes (its ``stream`` section set in
     place) for a study's recording: ``impacts`` commands queued at once with their own contact
-    stamps, however close, solved at ``tier``."""
+    stamps, however close, solved at ``tier``, sampling the sensors ``channels`` alone."""
     varied["stream"] = {
         **varied.get("stream", {}),
         "tier": tier,
@@ -388,7 +390,7 @@ def study_simulator(varied: dict[str, Any], tier: str, impacts: int) -> StreamSi
         "command_lead_s": 0.001,
         "max_queued_impacts": impacts + 1,
     }
-    return StreamSimulator.from_params(varied)
+    return StreamSimulator.from_params(varied, channels=channels)
 
 
 def record_support(
@@ -404,7 +406,9 @@ def record_support(
     after the one before (``rng`` draws the gaps and the sensors' noise seed)."""
     ev = evaluation_params(params)
     varied["sensors"]["seed"] = int(rng.integers(2**31))
-    simulator = study_simulator(varied, tier or ev["tier"], len(commands))
+    # a support without the accelerometer: its samples are not simulated at all
+    channels = CHANNELS if draw.vibration_rate_hz > 0.0 else ("pressure", "imu")
+    simulator = study_simulator(varied, tier or ev["tier"], len(commands), channels)
     gap_s = float(ev["stream_gap_s"])
     stamp = float(ev["pre_contact_s"]) * 2.0
     for command in commands:

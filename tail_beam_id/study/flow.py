@@ -26,6 +26,7 @@ from tail_beam_sim.errors import InputError, require_range
 from tail_beam_sim.physics.flow import ShareCurve as MassShareCurve
 from tail_beam_sim.physics.flow import simulate_flow
 from tail_beam_sim.physics.materials import material_table
+from tail_beam_sim.physics.stream import CHANNELS
 
 LEAD_S = 0.25  # quiet beam before the first lump (the detectors learn the noise there), s
 TAIL_S = 0.2  # quiet beam after the last lump, s
@@ -144,7 +145,9 @@ def record_flow(
     varied = support.apply(params) if support is not None else {k: v for k, v in params.items()}
     commands = flow_commands(params, rate_per_s, duration_s, curve, seed)
     varied["sensors"] = {**varied["sensors"], "seed": int(seed) % (2**31)}
-    simulator = study_simulator(varied, tier or ev["tier"], len(commands))
+    # a support without the accelerometer: its samples are not simulated at all
+    channels = CHANNELS if vibration else ("pressure", "imu")
+    simulator = study_simulator(varied, tier or ev["tier"], len(commands), channels)
     for t, command in commands:
         simulator.submit(command, contact_stamp_s=LEAD_S + t)
     chunk = simulator.advance(LEAD_S + duration_s + TAIL_S)

@@ -21,13 +21,16 @@ decays over about half a second), and its data acquisition samples noise between
   and truths whose stamps fall in the span. Noise is drawn per fixed block of sample indices, so
   the output depends only on the seed and the impacts, never on how the time was chunked
   (a real-time run and an as-fast-as-possible run give identical data).
+* A caller that reads only some sensors names them (``channels``): the others are not
+  simulated (the 25.6 kHz accelerometer is most of a chunk's sampling), and the channels kept
+  are the same samples, bit for bit, as with every channel on.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
@@ -66,6 +69,9 @@ _PRESSURE_NOISE_STREAM, _IMU_NOISE_STREAM, _VIBRATION_NOISE_STREAM = (
     1,
     2,
 )  # keys of the noise streams under one seed
+# The sampled sensors a simulator may leave out (the rebound camera is always on: it carries
+# the impacts' truth with it).
+CHANNELS = ("pressure", "imu", "vibration")
 
 
 class QueueFull(InputError):
@@ -295,7 +301,14 @@ class StreamSimulator:
         structure: LinearStructure | None = None,
         solver: str = DEFAULT_SOLVER,
         id_prefix: str = "sim",
+        channels: Collection[str] = CHANNELS,
     ) -> None:
+        """``channels``: the sampled sensors simulated (:data:`CHANNELS`); a chunk holds no
+        samples of the others."""
+        unknown = sorted(set(channels) - set(CHANNELS))
+        if unknown:
+            raise InputError("channels", unknown, f"must be among {', '.join(CHANNELS)}")
+        self.channels = frozenset(channels)
         self.support = support
         self.materials = materials
         self.sensors = sensors
@@ -447,15 +460,15 @@ class StreamSimulator:
         """Produce every sample, rebound and truth in (time_s, until_s]; the clock moves on."""
         start = self._time_s
         until = max(float(until_s), start)
-        spec = self.sensors
+        spec, on = self.sensors, self.channels
         pressure_index = self._grid(self._next_pressure_index, until, spec.pressure_rate_hz)
         imu_index = self._grid(self._next_imu_index, until, spec.imu_rate_hz)
         # Every sensor's instants of the span, sampled in one pass per epoch: the sensors ask
         # the same few epochs, and the work per call weighs as much as the work per instant.
         batch = self._epoch_batch()
-        pressure = self._pressure(pressure_index, batch)
-        imu = self._imu(imu_index, batch)
-        vibration = self._vibration(until, batch)
+        pressure = self._pressure(pressure_index, batch) if "pressure" in on else self._no_pressure
+        imu = self._imu(imu_index, batch) if "imu" in on else self._no_imu
+        vibration = self._vibration(until, batch) if "vibration" in on else self._no_vibration
         batch.run()
         pressure, imu, vibration = pressure(), imu(), vibration()
         self._next_pressure_index += pressure_index.size
@@ -492,6 +505,26 @@ class StreamSimulator:
     def _epoch_batch(self) -> EpochBatch:
         """A batch of the times the sensors ask of the epochs kept."""
         return EpochBatch(self._epochs)
+
+    def _no_pressure(self) -> PressureStream:
+        """A chunk's jack pressure with the channel off: no sample."""
+        return PressureStream(np.empty(0), np.empty(0), self._suite.noise.pressure_pa**2)
+
+    def _no_imu(self) -> ImuStream:
+        """A chunk's IMU with the channel off: no sample."""
+        noise = self._suite.noise
+        return ImuStream(
+            np.empty(0),
+            np.empty((0, 3)),
+            np.empty((0, 3)),
+            noise.gyro_radps**2,
+            noise.accel_mps2**2,
+        )
+
+    def _no_vibration(self) -> VibrationBlocks:
+        """A chunk's accelerometer blocks with the channel off: none."""
+        spec = self.sensors
+        return VibrationBlocks.empty(1.0 / spec.vibration_rate_hz, spec.vibration_range_mps2)
 
     @staticmethod
     def _grid(first_index: int, until_s: float, rate_hz: float) -> np.ndarray:

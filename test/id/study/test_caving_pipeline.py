@@ -187,3 +187,28 @@ def test_the_caving_verb_runs_an_identified_source(tmp_path, capsys):
     assert "sprt            identified:imu     1" in captured.out
     assert "identified:imu (struck lumps):" in captured.out
     assert "caving: run 1/1 sprt identified:imu seed 0: 1 window(s)" in captured.err
+
+
+def test_each_layouts_simulator_samples_its_sensors_alone(setup):
+    """A layout's simulator samples the sensors the layout has and no other (the accelerometer
+    at 25.6 kHz is most of the sampling cost: the IMU layout does not pay for it)."""
+    _, _, pipeline, _ = setup
+    for layout, present in (
+        ("shipped", {"pressure", "imu", "vibration"}),
+        ("imu", {"pressure", "imu"}),
+        ("pressure", {"pressure"}),
+    ):
+        sim = Pipeline(pipeline.params, layout).simulator(1)
+        sim.submit(dict(pipeline.command(True, np.full(5, 0.5), "g")[0]), 0.1)
+        chunk = sim.advance(0.3)
+        sampled = {
+            name
+            for name, count in (
+                ("pressure", chunk.pressure.stamp_s.size),
+                ("imu", chunk.imu.stamp_s.size),
+                ("vibration", chunk.vibration.count),
+            )
+            if count
+        }
+        assert sampled == present, layout
+        assert len(chunk.rebounds) == 1  # the camera whatever the layout

@@ -8,6 +8,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from tail_beam_sim.config import deep_merge, default_config_dir, load_parameters
+from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.scene import Impact
 from tail_beam_sim.physics.simulate import build_problem
 from tail_beam_sim.physics.stream import StreamSimulator
@@ -165,3 +166,39 @@ def test_two_contacts_against_a_coupled_reference(offset_s, contact, tolerance):
         flight = end - s.free_after_s
         at_end = s.trajectory.rebound_velocity_mps - sim.support.gravity_mps2 * flight
         assert at_end == pytest.approx(v, rel=tolerance)
+
+
+@pytest.mark.parametrize("channels", [("pressure", "imu"), ("pressure",), ("imu", "vibration")])
+def test_channels_left_out_leave_the_others_bit_for_bit(channels):
+    """A simulator told to sample only some sensors gives no sample of the others and the very
+    samples (values and stamps) of those it keeps: a caller reading fewer sensors pays for fewer
+    without changing what it reads. Two spans, so the chunking is exercised too."""
+    chunks = {}
+    for name, kept in (("all", None), ("some", channels)):
+        options = {} if kept is None else {"channels": kept}
+        sim = FlowSimulator.from_params(_params(), **options)
+        for k, stamp in enumerate([0.1, 0.1004, 0.25]):  # the first two overlap
+            sim.submit({**LUMPS[k % 2], "restitution": 0.4, "impact_id": f"l{k}"}, stamp)
+        chunks[name] = [sim.advance(0.2), sim.advance(0.4)]
+    for full, part in zip(chunks["all"], chunks["some"]):
+        streams = {
+            "pressure": (full.pressure.pressure_pa, part.pressure.pressure_pa),
+            "imu": (full.imu.linear_acceleration_mps2, part.imu.linear_acceleration_mps2),
+            "vibration": (full.vibration.accel_mps2, part.vibration.accel_mps2),
+        }
+        for channel, (everything, kept) in streams.items():
+            if channel in channels:
+                assert everything.size and np.array_equal(everything, kept), channel
+            else:
+                assert kept.size == 0, channel
+        assert [r.stamp_s for _, r in full.rebounds] == [r.stamp_s for _, r in part.rebounds]
+        if "imu" in channels:
+            assert np.array_equal(full.imu.angular_velocity_radps, part.imu.angular_velocity_radps)
+            assert np.array_equal(full.imu.stamp_s, part.imu.stamp_s)
+        if "vibration" in channels:
+            assert np.array_equal(full.vibration.stamp_s, part.vibration.stamp_s)
+
+
+def test_an_unknown_channel_is_refused_by_name():
+    with pytest.raises(InputError, match="channels.*camera.*must be among pressure, imu"):
+        FlowSimulator.from_params(_params(), channels=("pressure", "camera"))
