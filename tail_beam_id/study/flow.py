@@ -1,13 +1,13 @@
-"""Flow recordings for the gangue-share evaluation: a drawing opening's stream of coal and
-gangue lumps at a given rate, pure coal until the coal-gangue boundary arrives and the gangue
-share then rising, on one support, with the truth of every lump and of the share per interval.
+"""Flow recordings for the gangue-share evaluation and training: a drawing opening's stream of
+coal and gangue lumps at a given rate, pure coal until the coal-gangue boundary arrives and the
+gangue share then rising, on one support, with the truth of every lump and of the share per
+interval.
 
-The lumps strike the beam as a Poisson process at ``rate_per_s`` (so at tens of lumps per second
-and more the beam's responses overlap), sized and dropped as the ``stream`` scene's particles
-(``identification.evaluation.stream``), each one coal or one of the gangue materials with the
-probability the share curve gives at its stamp. The simulator is the continuous stream
-simulator (:class:`tail_beam_sim.physics.stream.StreamSimulator`): the beam's motion is carried
-from lump to lump, so every response rings on under the next ones.
+The flow is the suite's own (:func:`tail_beam_sim.physics.flow.simulate_flow`, the ``flow``
+section of config/flow.yaml: lumps of its size distribution, drop heights and strike positions,
+their contacts superposed on the linear support), run at ``rate_per_s`` lumps a second with the
+share curve placed in time (:func:`record_sim_flow`), so at tens of lumps a second and more the
+beam's responses overlap and every response rings on under the next ones.
 """
 
 from __future__ import annotations
@@ -19,18 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.study.dataset import evaluation_params, study_simulator
 from tail_beam_id.study.supports import SupportDraw
 from tail_beam_sim.config import default_config_dir, load_parameters
-from tail_beam_sim.errors import InputError, require_range
+from tail_beam_sim.errors import require_range
 from tail_beam_sim.physics.flow import ShareCurve as MassShareCurve
 from tail_beam_sim.physics.flow import simulate_flow
 from tail_beam_sim.physics.materials import material_table
-from tail_beam_sim.physics.stream import CHANNELS
-
-LEAD_S = 0.25  # quiet beam before the first lump (the detectors learn the noise there), s
-TAIL_S = 0.2  # quiet beam after the last lump, s
-MAX_RATE_PER_S = 400.0  # lumps per second the flow scene accepts
 
 
 @dataclass(frozen=True)
@@ -46,19 +40,6 @@ class ShareCurve:
         require_range("boundary_s", self.boundary_s, 0.0, 3600.0)
         require_range("ramp_s", self.ramp_s, 0.0, 3600.0)
         require_range("final_share", self.final_share, 0.0, 1.0)
-
-    def at(self, t_s: np.ndarray | float) -> np.ndarray:
-        """The share (0..1) at ``t_s`` (s since the window opened)."""
-        t = np.asarray(t_s, dtype=float)
-        if self.ramp_s == 0.0:
-            return np.where(t >= self.boundary_s, self.final_share, 0.0)
-        return self.final_share * np.clip((t - self.boundary_s) / self.ramp_s, 0.0, 1.0)
-
-    def crossing_s(self, level: float) -> float:
-        """When the share first reaches ``level`` (s since opening); inf if it never does."""
-        if level > self.final_share or self.final_share == 0.0:
-            return math.inf
-        return self.boundary_s + self.ramp_s * level / self.final_share
 
 
 @dataclass
@@ -84,86 +65,6 @@ class FlowRecording:
 
     def gangue(self) -> np.ndarray:
         return np.array([t["label"] == "gangue" for t in self.truths])
-
-
-def flow_commands(
-    params: Mapping[str, Any],
-    rate_per_s: float,
-    duration_s: float,
-    curve: ShareCurve,
-    seed: int,
-) -> list[tuple[float, dict[str, Any]]]:
-    """(contact stamp s since opening, impact command) of every lump of the flow."""
-    require_range("rate_per_s", rate_per_s, 0.0, MAX_RATE_PER_S, low_open=True)
-    require_range("duration_s", duration_s, 0.0, 3600.0, low_open=True)
-    ev = evaluation_params(params)
-    ranges = ev["stream"]
-    mix = {k: float(v) for k, v in ev["material_mix"].items()}
-    materials = params["materials"]
-    gangue = sorted(n for n in mix if materials[n]["class"] != "coal")
-    coal = sorted(n for n in mix if materials[n]["class"] == "coal")
-    if not coal or not gangue:
-        raise InputError("material_mix", sorted(mix), "must name a coal and a gangue material")
-    weights = np.array([mix[n] for n in gangue])
-    rng = np.random.default_rng(seed)
-    out: list[tuple[float, dict[str, Any]]] = []
-    t = float(rng.exponential(1.0 / rate_per_s))
-    while t < duration_s:
-        is_gangue = rng.uniform() < float(curve.at(t))
-        names = gangue if is_gangue else coal
-        material = (
-            names[int(rng.choice(len(names), p=weights / weights.sum()))] if is_gangue else coal[0]
-        )
-        low_r, high_r = ranges["radius_m"]
-        command: dict[str, Any] = {
-            "material": material,
-            "radius_m": float(math.exp(rng.uniform(math.log(low_r), math.log(high_r)))),
-            "drop_height_m": float(rng.uniform(*ranges["drop_height_m"])),
-            "position_m": float(rng.uniform(*ranges["position_m"])),
-        }
-        if ranges["restitution"] == "range":
-            command["restitution"] = float(rng.uniform(*materials[material]["restitution_range"]))
-        out.append((t, command))
-        t += float(rng.exponential(1.0 / rate_per_s))
-    return out
-
-
-def record_flow(
-    params: Mapping[str, Any],
-    rate_per_s: float,
-    duration_s: float,
-    curve: ShareCurve,
-    seed: int,
-    tier: str | None = None,
-    support: SupportDraw | None = None,
-    vibration: bool = True,
-) -> FlowRecording:
-    """Simulate one flow on the support ``params`` describe (or ``support`` drawn from it) and
-    return its recording; ``vibration``: keep the accelerometer's blocks (the shipped layout)
-    or not (the IMU alone)."""
-    ev = evaluation_params(params)
-    varied = support.apply(params) if support is not None else {k: v for k, v in params.items()}
-    commands = flow_commands(params, rate_per_s, duration_s, curve, seed)
-    varied["sensors"] = {**varied["sensors"], "seed": int(seed) % (2**31)}
-    # a support without the accelerometer: its samples are not simulated at all
-    channels = CHANNELS if vibration else ("pressure", "imu")
-    simulator = study_simulator(varied, tier or ev["tier"], len(commands), channels)
-    for t, command in commands:
-        simulator.submit(command, contact_stamp_s=LEAD_S + t)
-    chunk = simulator.advance(LEAD_S + duration_s + TAIL_S)
-    return FlowRecording(
-        varied,
-        rate_per_s,
-        LEAD_S,
-        duration_s,
-        curve,
-        chunk.pressure,
-        chunk.imu,
-        [r for _, r in chunk.rebounds],
-        [t for _, t in chunk.truths],
-        chunk.vibration if vibration and chunk.vibration.count else None,
-        support,
-    )
 
 
 def true_shares(
