@@ -25,6 +25,7 @@ from tail_beam_sim.errors import require_range
 from tail_beam_sim.physics.flow import ShareCurve as MassShareCurve
 from tail_beam_sim.physics.flow import simulate_flow
 from tail_beam_sim.physics.materials import material_table
+from tail_beam_sim.physics.stream import CHANNELS
 
 
 @dataclass(frozen=True)
@@ -145,7 +146,11 @@ def record_sim_flow(
     varied["flow"] = flow
     varied["sensors"] = {**varied["sensors"], "seed": int(seed) % (2**31)}
     record = simulate_flow(
-        varied, duration_s, seed=int(seed), share=MassShareCurve.of(masses, shares)
+        varied,
+        duration_s,
+        seed=int(seed),
+        share=MassShareCurve.of(masses, shares),
+        channels=CHANNELS if vibration else ("pressure", "imu"),  # the accelerometer's or not
     )
     truths = [t for _, t in record.truths]
     gangue_count = (

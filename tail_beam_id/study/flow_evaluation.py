@@ -343,6 +343,7 @@ def run_flow_set(
 ) -> Iterator[FlowCase]:
     """Every case of the flow set, support by support, rate by rate, layout by layout, each
     support known to the identifier by ``profile`` (:func:`reading_params`)."""
+    accelerometer = "shipped" in layouts  # the IMU layout alone: not simulated at all
     for s_index, (name, draw) in enumerate(flow_supports(params, foreign, seed)):
         for r_index, rate in enumerate(rates_per_s):
             case_seed = seed + 100 * s_index + r_index
@@ -355,8 +356,11 @@ def run_flow_set(
                 scene.final_share_by_mass,
                 case_seed,
                 draw,
+                vibration=accelerometer,
             )
-            coal = record_sim_flow(params, rate, scene.coal_s, 0.0, 0.0, 0.0, case_seed + 50, draw)
+            coal = record_sim_flow(
+                params, rate, scene.coal_s, 0.0, 0.0, 0.0, case_seed + 50, draw, accelerometer
+            )
             config = ShareConfig.from_params(flow.params["identification"].get("gangue_share"))
             for layout in layouts:
                 case = FlowCase(name, layout, float(rate))

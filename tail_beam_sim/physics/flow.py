@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -31,7 +31,7 @@ from tail_beam_sim.physics.lumps import FlowParams, Lump, LumpSource, WindowStat
 from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, VibrationBlocks
 from tail_beam_sim.physics.share_curve import ShareCurve
 from tail_beam_sim.physics.solvers import SolverError
-from tail_beam_sim.physics.stream import Chunk
+from tail_beam_sim.physics.stream import CHANNELS, Chunk
 from tail_beam_sim.physics.superpose import FlowSimulator
 
 __all__ = [
@@ -247,8 +247,10 @@ def simulate_flow(
     share: ShareCurve | None = None,
     windows: Sequence[tuple[float, float]] | None = None,
     step_s: float = 0.05,
+    channels: Collection[str] = CHANNELS,
 ) -> FlowRecord:
-    """Run a flow offline for ``duration_s`` of simulation time.
+    """Run a flow offline for ``duration_s`` of simulation time, sampling the sensors
+    ``channels`` (:data:`tail_beam_sim.physics.stream.CHANNELS`; the others left out).
 
     ``windows``: (open s, close s) pairs (close may be inf); by default one window from
     ``flow.open_at_s`` (0 when -1) lasting ``flow.duration_s`` (0: to the end). ``seed``
@@ -257,7 +259,8 @@ def simulate_flow(
     """
     if not (isinstance(duration_s, (int, float)) and 0.0 < duration_s <= 1e5):
         raise InputError("duration_s", duration_s, "must be in (0, 1e5] s")
-    run = FlowRun(params, seed=seed, share=share)
+    simulator = FlowSimulator.from_params(params, id_prefix="flow", channels=channels)
+    run = FlowRun(params, seed=seed, share=share, simulator=simulator)
     if windows is None:
         opening = max(run.flow.open_at_s, 0.0)
         closing = opening + run.flow.duration_s if run.flow.duration_s > 0 else math.inf

@@ -317,6 +317,16 @@ def test_same_seed_same_record_whatever_the_step(record):
     ]
 
 
+def test_a_flow_without_the_accelerometer_keeps_the_other_samples(record):
+    """``channels`` without the accelerometer: no vibration block, and the same jack pressure,
+    IMU samples and truths as the run with every sensor (same seed, same step)."""
+    lean = simulate_flow(params(**FAST_RISE), 4.0, seed=5, channels=("pressure", "imu"))
+    assert lean.vibration.count == 0 and record.vibration.count > 0
+    assert np.array_equal(lean.pressure.pressure_pa, record.pressure.pressure_pa)
+    assert np.array_equal(lean.imu.linear_acceleration_mps2, record.imu.linear_acceleration_mps2)
+    assert [t for _, t in lean.truths] == [t for _, t in record.truths]
+
+
 def test_closed_window_brings_quiet_and_no_share_intervals():
     """No lump strikes after a window closes (plus the fall), and no interval is reported after."""
     run = simulate_flow(params(**FAST_RISE), 3.0, seed=1, windows=[(0.5, 1.2)])
