@@ -101,7 +101,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="self-calibrated",
         help="flow set: how the identifier knows each support: self-calibrated (on its own "
         "flow, as tail-beam identify does; default), nominal (config/, --no-calibrate), true "
-        "(the drawn support itself: the ceiling)",
+        "(the drawn support's own parameters, without what calibration reads from the "
+        "recording: no upper bound)",
     )
     parser.add_argument("--methods", default=None, help="methods, comma-separated (default: all)")
     parser.add_argument(
@@ -129,7 +130,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         help=(
             "foreign set: how the identifier knows each support: nominal (config/), "
             "self-calibrated "
-            "(tail-beam calibrate on its own stream), true (the drawn support itself: the ceiling)"
+            "(tail-beam calibrate on its own stream), true (the drawn support's own parameters, "
+            "without what calibration reads from the recording such as its ringing's decay: "
+            "no upper bound)"
         ),
     )
     parser.add_argument("--tier", default=None, help="simulation tier (default: config, modal)")

@@ -231,7 +231,9 @@ def reading_params(
     """What the identifier knows of the recorded support under ``profile`` (FLOW_PROFILES):
     ``nominal`` config/ (``tail-beam identify --no-calibrate``), ``self-calibrated`` a profile
     calibrated on the recording itself with the layout's signals (``tail-beam identify``'s
-    default), ``true`` the drawn support itself (the ceiling)."""
+    default), ``true`` the drawn support's own parameters (:func:`tail_beam_id.study.runs.
+    true_profile_section`: not what a calibration reads from a recording besides them, such
+    as the ringing's decay, so no upper bound)."""
     if profile == "true":
         return {**recording.params, "calibration": true_profile_section(recording.params)}
     if profile == "nominal":

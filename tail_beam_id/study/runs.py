@@ -23,8 +23,10 @@ from tail_beam_sim.physics.scene import Scene
 
 
 def true_profile_section(params: Mapping[str, Any]) -> dict[str, float]:
-    """The profile section a perfect calibration of the support in ``params`` would give: its
-    true sway frequency, which marks the parameters as measured on that support."""
+    """The profile section of the support in ``params`` known from its design: its true sway
+    frequency, which marks the parameters as that support's. It holds nothing a calibration
+    reads from a recording besides (the ringing's decay the detectors follow, the contact's
+    hysteresis, the delays), so it is no upper bound (docs/results/structures.md)."""
     return {"rigid_mode_frequency_hz": Scene.from_params(params).support.rigid_mode_frequency_hz}
 
 
