@@ -200,5 +200,6 @@ def test_channels_left_out_leave_the_others_bit_for_bit(channels):
 
 
 def test_an_unknown_channel_is_refused_by_name():
+    """A channel that is no sampled sensor is refused naming the field and the allowed ones."""
     with pytest.raises(InputError, match="channels.*camera.*must be among pressure, imu"):
         FlowSimulator.from_params(_params(), channels=("pressure", "camera"))
