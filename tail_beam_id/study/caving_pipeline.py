@@ -54,7 +54,7 @@ from tail_beam_sim.physics.face import DrawnCell, ShareMeter
 from tail_beam_sim.physics.lumps import FlowParams, lump_radius_m
 from tail_beam_sim.physics.materials import material_table, sphere_mass_kg
 from tail_beam_sim.physics.solvers import SolverError
-from tail_beam_sim.physics.stream import Chunk
+from tail_beam_sim.physics.stream import CHANNELS, WITHOUT_ACCELEROMETER, Chunk
 from tail_beam_sim.physics.superpose import FlowSimulator
 from tail_beam_sim.topics import FRAME_PLATE
 
@@ -73,10 +73,10 @@ LAYOUTS = ("shipped", "imu", "pressure", "impact_point")
 # The sampled sensors of each layout (the rebound camera besides): its simulator leaves the
 # others out, and its identifier gets these.
 LAYOUT_CHANNELS: dict[str, tuple[str, ...]] = {
-    "shipped": ("pressure", "imu", "vibration"),
-    "imu": ("pressure", "imu"),
+    "shipped": CHANNELS,
+    "imu": WITHOUT_ACCELEROMETER,
     "pressure": ("pressure",),
-    "impact_point": ("pressure", "imu", "vibration"),
+    "impact_point": CHANNELS,
 }
 LUMP_MODES = ("struck", "drawn")
 SOURCE_PREFIX = "identified:"  # a source name: identified:<layout>

@@ -24,7 +24,7 @@ from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.fidelity import FidelitySettings
 from tail_beam_sim.physics.scene import Scene, SensorSpec
 from tail_beam_sim.physics.simulate import SimulationResult, simulate, simulate_many
-from tail_beam_sim.physics.stream import CHANNELS, StreamSimulator
+from tail_beam_sim.physics.stream import CHANNELS, WITHOUT_ACCELEROMETER, StreamSimulator
 
 # Evaluation scene sets. ``foreign`` records drawn supports as continuous streams of stream-scene
 # impacts, ``foreign_paper`` the same supports with the paper scene's (support_streams;
@@ -407,7 +407,7 @@ def record_support(
     ev = evaluation_params(params)
     varied["sensors"]["seed"] = int(rng.integers(2**31))
     # a support without the accelerometer: its samples are not simulated at all
-    channels = CHANNELS if draw.vibration_rate_hz > 0.0 else ("pressure", "imu")
+    channels = CHANNELS if draw.vibration_rate_hz > 0.0 else WITHOUT_ACCELEROMETER
     simulator = study_simulator(varied, tier or ev["tier"], len(commands), channels)
     gap_s = float(ev["stream_gap_s"])
     stamp = float(ev["pre_contact_s"]) * 2.0

@@ -25,7 +25,7 @@ from tail_beam_sim.errors import require_range
 from tail_beam_sim.physics.flow import ShareCurve as MassShareCurve
 from tail_beam_sim.physics.flow import simulate_flow
 from tail_beam_sim.physics.materials import material_table
-from tail_beam_sim.physics.stream import CHANNELS
+from tail_beam_sim.physics.stream import CHANNELS, WITHOUT_ACCELEROMETER
 
 
 @dataclass(frozen=True)
@@ -124,7 +124,8 @@ def record_sim_flow(
     simulate_flow`, ``flow`` section of config/flow.yaml): the window open from 0, ``rate_per_s``
     lumps a second, pure coal until about ``boundary_s`` (s of simulation time) and the share
     by mass then rising linearly to ``final_share_by_mass`` over about ``ramp_s``: the curve is
-    given against drawn mass, placed in time with the mean coal lump's mass."""
+    given against drawn mass, placed in time with the mean coal lump's mass. ``vibration``:
+    simulate and keep the accelerometer (the shipped layout), or leave it out (the IMU alone)."""
     base = flow_parameters(params)
     varied = support.apply(base) if support is not None else {k: v for k, v in base.items()}
     flow = dict(varied["flow"])
@@ -150,7 +151,7 @@ def record_sim_flow(
         duration_s,
         seed=int(seed),
         share=MassShareCurve.of(masses, shares),
-        channels=CHANNELS if vibration else ("pressure", "imu"),  # the accelerometer's or not
+        channels=CHANNELS if vibration else WITHOUT_ACCELEROMETER,
     )
     truths = [t for _, t in record.truths]
     gangue_count = (

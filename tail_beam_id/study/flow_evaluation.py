@@ -361,7 +361,15 @@ def run_flow_set(
                 vibration=accelerometer,
             )
             coal = record_sim_flow(
-                params, rate, scene.coal_s, 0.0, 0.0, 0.0, case_seed + 50, draw, accelerometer
+                params,
+                rate,
+                scene.coal_s,
+                0.0,
+                0.0,
+                0.0,
+                case_seed + 50,
+                draw,
+                vibration=accelerometer,
             )
             config = ShareConfig.from_params(flow.params["identification"].get("gangue_share"))
             for layout in layouts:

@@ -72,6 +72,7 @@ _PRESSURE_NOISE_STREAM, _IMU_NOISE_STREAM, _VIBRATION_NOISE_STREAM = (
 # The sampled sensors a simulator may leave out (the rebound camera is always on: it carries
 # the impacts' truth with it).
 CHANNELS = ("pressure", "imu", "vibration")
+WITHOUT_ACCELEROMETER = ("pressure", "imu")  # a layout with no tail-beam accelerometer
 
 
 class QueueFull(InputError):
