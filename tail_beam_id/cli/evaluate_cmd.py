@@ -91,6 +91,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="flow set: the pure-coal flow's length per case, s (false crossings; default 12)",
     )
     parser.add_argument(
+        "--flow-seed",
+        type=int,
+        default=None,
+        help="flow set: the seed of its foreign supports and its flows (default: the set's "
+        "own); another seed draws other flows and supports, to see how the figures move",
+    )
+    parser.add_argument(
         "--flow-layouts",
         default="shipped,imu",
         help="flow set: sensor layouts, comma-separated: shipped (with the accelerometer), imu "
@@ -260,6 +267,7 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
     the chart)."""
     from tail_beam_id.study.flow_evaluation import (
         FLOW_PROFILES,
+        FLOW_SEED,
         LAYOUTS,
         LEVELS,
         FlowScene,
@@ -273,6 +281,9 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
     duration = require_range("--flow-duration-s", args.flow_duration_s, 2.0, 600.0)
     coal = require_range("--flow-coal-s", args.flow_coal_s, 1.0, 600.0)
     scene = FlowScene(duration, duration / 2.0, 2.0, 0.7, coal)
+    seed = FLOW_SEED if args.flow_seed is None else args.flow_seed
+    if not 0 <= seed < 2**31:
+        raise InputError("--flow-seed", seed, f"must be in [0, {2**31 - 1}]")
     layouts = _names(args.flow_layouts, LAYOUTS, "--flow-layouts")
     if not layouts:
         raise InputError("--flow-layouts", args.flow_layouts, f"must name one of {LAYOUTS}")
@@ -295,6 +306,7 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
             args.flow_foreign,
             scene,
             layouts=layouts,
+            seed=seed,
             method=method,
             profile=args.flow_profile,
         )
@@ -304,7 +316,7 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
         f"{duration:g} s flows (pure coal to about {duration / 2:g} s, then the share by mass "
         f"rising to 0.7 over about 2 s) and {coal:g} s of pure coal each, method "
         f"{method or params['identification']['method']}, supports {args.flow_profile}, "
-        f"{time.monotonic() - started:.0f} s"
+        f"seed {seed}, {time.monotonic() - started:.0f} s"
     )
     print(format_flow_table(cases))
     print("\ntargets (flow; shipped layout):")

@@ -131,6 +131,8 @@ def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
             "4",
             "--flow-coal-s",
             "2",
+            "--flow-seed",
+            "7",
             "--out",
             str(tmp_path),
         ]
@@ -138,6 +140,7 @@ def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
     out = capsys.readouterr().out
     assert code == 0
     assert "targets (flow; shipped layout):" in out and "foreign-1" in out
+    assert "seed 7," in out
     assert "crossing rule (share_alarm)" in out
     cases = json.loads((tmp_path / "flow.json").read_text())
     assert {(c["support"], c["layout"]) for c in cases} == {
@@ -156,6 +159,7 @@ def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
         (["evaluate", "--sets", "flow", "--flow-duration-s", "0.5"], "--flow-duration-s"),
         (["evaluate", "--sets", "flow", "--flow-foreign", "-1"], "--flow-foreign"),
         (["evaluate", "--sets", "flow", "--flow-layouts", "camera"], "--flow-layouts"),
+        (["evaluate", "--sets", "flow", "--flow-seed", "-1"], "--flow-seed"),
     ],
 )
 def test_bad_flow_options_are_refused_in_one_line(capsys, argv, field):
