@@ -22,10 +22,16 @@ RATES_HZ = (1000.0, 2000.0, 4000.0, 5000.0, 8000.0, 10000.0, 16000.0, 20000.0, 2
 VIBRATION_RATES_HZ = (12800.0, 25600.0, 51200.0)
 
 
-def identify(params, result, method="statistical", imu=None):
+def identify(params, result, method="statistical", imu=None, vibration=None):
+    """The labels of one simulated impact (``imu`` in place of its IMU samples when given;
+    ``vibration``: the accelerometer's blocks to feed, none by default)."""
     identifier = StreamIdentifier(method, params["identification"], params)
     return replay(
-        identifier, result.pressure, imu if imu is not None else result.imu, [result.rebound]
+        identifier,
+        result.pressure,
+        imu if imu is not None else result.imu,
+        [result.rebound],
+        vibration=vibration,
     )
 
 
@@ -64,14 +70,7 @@ def test_any_accelerometer_rate_labels_the_paper_scene(params, rate_hz):
             result = impact(
                 params, material=material, seed=seed, sensors={"vibration_rate_hz": rate_hz}
             )
-            identifier = StreamIdentifier("statistical", params["identification"], params)
-            labels = replay(
-                identifier,
-                result.pressure,
-                result.imu,
-                [result.rebound],
-                vibration=result.vibration,
-            )
+            labels = identify(params, result, vibration=result.vibration)
             assert len(labels) == 1, labels
             assert "vibration" in labels[0].signals
             assert labels[0].features["imu_period_s"] == pytest.approx(1.0 / rate_hz, rel=1e-6)
@@ -125,13 +124,8 @@ def test_accelerometer_bolted_upside_down_gives_the_same_label(params):
     assert vibration.count, "the shipped layout has the accelerometer"
 
     def labels(accel):
-        identifier = StreamIdentifier("statistical", params["identification"], params)
-        return replay(
-            identifier,
-            result.pressure,
-            result.imu,
-            [result.rebound],
-            vibration=replace(vibration, accel_mps2=accel.astype(np.float32)),
+        return identify(
+            params, result, vibration=replace(vibration, accel_mps2=accel.astype(np.float32))
         )
 
     accel = np.asarray(vibration.accel_mps2, dtype=float)
