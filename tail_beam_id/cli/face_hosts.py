@@ -147,6 +147,7 @@ def host_supports(
         return
     sims: list[Any] = []
     identifiers: list[Any] = []
+    failed = False  # said as one line: no summaries of a round that did not run
     try:
         for ns, values in zip(namespaces, sim_values):
             identifier, sim = add_support(group, ns, values, id_values)
@@ -163,11 +164,15 @@ def host_supports(
     except KeyboardInterrupt:  # the demo's Ctrl-C reaches its children too: the demo says it
         pass
     except InputError as exc:
+        failed = True
         conn.send(("error", (exc.field, exc.value, exc.allowed)))
     except Exception as exc:  # noqa: BLE001 - said once by the demo, never a child's traceback
+        failed = True
         conn.send(("failed", f"{type(exc).__name__}: {exc}"))
     finally:
         group.close()
+    if failed:
+        return
     try:
         summaries = [summarise(ns, s, i, level) for ns, s, i in zip(namespaces, sims, identifiers)]
         conn.send(("done", summaries))

@@ -121,3 +121,22 @@ def test_a_supports_process_killed_is_said_as_lost_not_waited_for(tmp_path):
                 time.sleep(0.05)
     finally:
         assert host.stop() == []
+
+
+@pytest.mark.ros
+def test_a_parameter_a_supports_process_refuses_is_one_error_and_no_round(tmp_path):
+    """A child whose support refuses a parameter says so once, as the InputError the demo prints
+    in one line, and sends no summary of a round that never ran."""
+    from multiprocessing import Pipe
+
+    from tail_beam_id.cli.face_hosts import host_supports
+
+    bad = {"scenario.source": "flow", "sim_node.realtime_factor": -1.0}
+    ours, theirs = Pipe()
+    host_supports(["/support_010"], [bad], {}, 0.3, theirs)
+    said = []
+    while ours.poll(0.5):
+        said.append(ours.recv())
+    assert [kind for kind, _ in said] == ["error"], said
+    field, value, _ = said[0][1]
+    assert field.endswith("realtime_factor") and value == -1.0
