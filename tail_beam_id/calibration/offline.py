@@ -426,11 +426,7 @@ def isolated(labels: Sequence[Label], before_s: float, after_s: float) -> list[L
     after it: the ones the sensor-timing check counts (``identification.sensor_timing.
     clean_gap_s`` before, the overlap window after). The identifier counts from every impact
     it found, labelled or not; this pass has the labels only."""
-    stamps = np.sort([label.impact_stamp_s for label in labels])
-    out = []
-    for label in labels:
-        at = label.impact_stamp_s
-        near = np.searchsorted(stamps, [at - before_s, at + after_s])
-        if near[1] - near[0] <= 1:
-            out.append(label)
-    return out
+    at = np.array([label.impact_stamp_s for label in labels], dtype=float)
+    stamps = np.sort(at)
+    near = np.searchsorted(stamps, at + after_s) - np.searchsorted(stamps, at - before_s)
+    return [label for label, count in zip(labels, near) if count <= 1]
