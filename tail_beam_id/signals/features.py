@@ -135,6 +135,25 @@ def separable_onsets(
     return kept, unresolved
 
 
+def background_s(
+    onset_s: float,
+    other_onsets_s: Sequence[float],
+    least_s: float,
+    most_s: float,
+    after_onset_s: float,
+) -> float:
+    """How long before ``onset_s`` (s) a read-out fits the background (the beam's free sway):
+    up to ``most_s``, ending ``after_onset_s`` after the latest of ``other_onsets_s`` before the
+    onset (an impact's kink is no free sway), and never shorter than ``least_s`` (an onset that
+    close is in the stretch as it always was). The sway's phase is what a short stretch leaves
+    uncertain: a tenth of a second pins it where 20 ms, half a period of a 40 Hz sway, does
+    not."""
+    earlier = [t for t in other_onsets_s if t < onset_s]
+    if earlier:
+        most_s = min(most_s, onset_s - max(earlier) - after_onset_s)
+    return max(least_s, most_s)
+
+
 def fit_pressure(
     model: BeamModel,
     stamp_s: np.ndarray,
@@ -219,27 +238,31 @@ def imu_impulse(
     pre_s: float,
     skip_s: float,
     post_s: float,
+    sway_drift: bool = False,
 ) -> ImuImpulse | None:
     """The pulse's velocity change, fitted in the velocity domain so the bending modes' ringing
     averages out: the specific force before the pulse gives the background (constant plus the
-    beam's free sway); the plate velocity after it, integrated from the samples, is fitted with
-    the rigid beam's response to an impulse at the onset, from ``skip_s`` (the contact is
-    over) to ``post_s`` after the onset."""
+    beam's free sway; with ``sway_drift`` also its first-order drift in frequency and decay,
+    t cos and t sin, which a stretch of several periods shows against the nominal sway); the
+    plate velocity after it, integrated from the samples, is fitted with the rigid beam's
+    response to an impulse at the onset, from ``skip_s`` (the contact is over) to ``post_s``
+    after the onset."""
     period = pulse.period_s
     before = (stamp_s >= pulse.onset_s - pre_s) & (stamp_s < pulse.onset_s)
     after = (stamp_s >= pulse.onset_s) & (stamp_s <= pulse.onset_s + post_s)
     if before.sum() < 4 or after.sum() < 2:
         return None
     omega = model.sway_omega_radps
+
+    def sway(t: np.ndarray) -> np.ndarray:
+        columns = [np.ones_like(t), np.cos(omega * t), np.sin(omega * t)]
+        if sway_drift:
+            columns += [t * columns[1], t * columns[2]]
+        return np.vstack(columns).T
+
     t_before = stamp_s[before] - pulse.onset_s
-    basis = np.vstack(
-        [np.ones_like(t_before), np.cos(omega * t_before), np.sin(omega * t_before)]
-    ).T
-    coeffs, *_ = np.linalg.lstsq(basis, accel_z[before], rcond=None)
-    t_after = stamp_s[after] - pulse.onset_s
-    background = (
-        coeffs[0] + coeffs[1] * np.cos(omega * t_after) + coeffs[2] * np.sin(omega * t_after)
-    )
+    coeffs, *_ = np.linalg.lstsq(sway(t_before), accel_z[before], rcond=None)
+    background = sway(stamp_s[after] - pulse.onset_s) @ coeffs
     # Plate velocity change at the end of each sample: specific force = g - plate acceleration.
     velocity = -np.cumsum(accel_z[after] - background) * period
     response = model.imu_velocity_response(stamp_s[after] - pulse.onset_s)

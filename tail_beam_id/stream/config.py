@@ -45,6 +45,29 @@ IDENTIFICATION = Section(
             "impulse_pre_s", "IMU background fitted over this much before the pulse.", **_WINDOW
         ),
         positive(
+            "pressure_background_s",
+            "Pressure background fitted over up to this much while no earlier onset is in the"
+            " way (>= pressure_pre_s; absent: pressure_pre_s).",
+            "s",
+            high=1.0,
+            default=None,
+        ),
+        positive(
+            "impulse_background_s",
+            "IMU background fitted over up to this much while no earlier onset is in the way"
+            " (>= impulse_pre_s; absent: impulse_pre_s).",
+            "s",
+            high=1.0,
+            default=None,
+        ),
+        positive(
+            "background_after_onset_s",
+            "A background stretch starts at least this long after an earlier onset.",
+            "s",
+            high=0.1,
+            default=0.005,
+        ),
+        positive(
             "impulse_skip_s", "Plate velocity fitted from this long after the onset.", **_WINDOW
         ),
         positive("impulse_post_s", "... up to this long after it (<= window_s).", **_WINDOW),
@@ -100,6 +123,9 @@ CHECKED = (
     "vibration_window_s",
     "pressure_pre_s",
     "impulse_pre_s",
+    "pressure_background_s",
+    "impulse_background_s",
+    "background_after_onset_s",
     "impulse_skip_s",
     "impulse_post_s",
     "stream_timeout_s",
@@ -237,6 +263,11 @@ class IdentifierConfig:
     vibration_window_s: float  # the data window of an impact the accelerometer found (s)
     pressure_pre_s: float
     impulse_pre_s: float
+    # The background stretches (s) while no earlier onset is in the way (tail_beam_id.signals.
+    # features.background_s); absent in the parameters: pressure_pre_s and impulse_pre_s.
+    pressure_background_s: float
+    impulse_background_s: float
+    background_after_onset_s: float
     impulse_skip_s: float
     impulse_post_s: float
     stream_timeout_s: float
@@ -284,6 +315,18 @@ class IdentifierConfig:
             )
         if checked["vibration_window_s"] is None:
             checked["vibration_window_s"] = window
+        for stretch, least in (
+            ("pressure_background_s", "pressure_pre_s"),
+            ("impulse_background_s", "impulse_pre_s"),
+        ):
+            if checked[stretch] is None:
+                checked[stretch] = checked[least]
+            elif checked[stretch] < checked[least]:
+                raise InputError(
+                    f"identification.{stretch}",
+                    checked[stretch],
+                    f"must be >= {least} ({checked[least]:g} s)",
+                )
         config = cls(
             **checked,
             detection=DetectionConfig.from_params(
@@ -301,8 +344,8 @@ class IdentifierConfig:
                 "identification.sensor_timing.clean_gap_s",
                 config.timing.clean_gap_s,
                 f"must be <= {config.kept_s:g} s (the identifier keeps the onsets of "
-                f"{LOOK_BACKS_KEPT:g} x max(detection.noise_block_s, pressure_pre_s + window_s) "
-                "before the oldest it still needs)",
+                f"{LOOK_BACKS_KEPT:g} x max(detection.noise_block_s, the longest background "
+                "stretch + window_s) before the oldest it still needs)",
             )
         return config
 
@@ -310,9 +353,8 @@ class IdentifierConfig:
     def kept_s(self) -> float:
         """How far before the oldest stamp a pending decision needs the identifier keeps data
         and decided onsets, s (:mod:`tail_beam_id.stream.retention`)."""
-        return LOOK_BACKS_KEPT * max(
-            self.detection.noise_block_s, self.pressure_pre_s + self.window_s
-        )
+        longest = max(self.pressure_background_s, self.impulse_background_s)
+        return LOOK_BACKS_KEPT * max(self.detection.noise_block_s, longest + self.window_s)
 
 
 __all__ = ["PROFILE", "IdentifierConfig", "check_profile"]

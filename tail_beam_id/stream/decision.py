@@ -26,6 +26,7 @@ from tail_beam_id.signals.features import (
     VIBRATION_CHANNEL,
     BeamModel,
     PressureFit,
+    background_s,
     fit_pressure,
     impact_features,
     imu_impulse,
@@ -125,14 +126,24 @@ class ImpactDecider:
             onset_s = max(onset_s, impact.rebound[0] - before_s)
         window_s, post_s, _ = association.windows(impact)
         fit: PressureFit | None = None
+        earlier = association.known_onsets(impact, cfg.kept_s)
         if channels.pressure.stamp_s.size:
+            pre_s = background_s(
+                onset_s,
+                earlier,
+                cfg.pressure_pre_s,
+                cfg.pressure_background_s,
+                cfg.background_after_onset_s,
+            )
             fit = fit_pressure(
                 self.model,
                 channels.pressure.stamp_s,
                 channels.pressure.values[:, 0],
                 onset_s,
-                cfg.pressure_pre_s,
+                pre_s,
                 window_s,
+                # over a stretch longer than the least the sway drifts against the nominal one
+                sway_drift=pre_s > cfg.pressure_pre_s,
                 other_onsets_s=(
                     association.known_onsets(impact, cfg.pressure_pre_s)
                     if cfg.neighbour_fit
@@ -158,11 +169,18 @@ class ImpactDecider:
                 if impact.channel == "vibration"
                 else (channels.imu, self.acceleration.imu_z())
             )
+            pre_s = background_s(
+                impact.pulse.onset_s,
+                earlier,
+                cfg.impulse_pre_s,
+                cfg.impulse_background_s,
+                cfg.background_after_onset_s,
+            )
             stamps, values = around(
                 series.stamp_s,
                 values,
                 impact.pulse.onset_s,
-                max(cfg.impulse_pre_s, cfg.contact_fit.before_s),
+                max(pre_s, cfg.contact_fit.before_s),
                 max(post_s, cfg.contact_fit.after_s, cfg.contact_fit.ring_end_s),
             )
             impulse = imu_impulse(
@@ -170,9 +188,10 @@ class ImpactDecider:
                 stamps,
                 values,
                 impact.pulse,
-                cfg.impulse_pre_s,
+                pre_s,
                 cfg.impulse_skip_s,
                 post_s,
+                sway_drift=pre_s > cfg.impulse_pre_s,
             )
             contact = fit_contact(
                 stamps,

@@ -223,11 +223,12 @@ def test_only_impacts_clear_of_others_are_evidence_on_the_clocks(params, face):
 
 
 def test_a_clean_gap_wider_than_the_onsets_kept_is_refused_by_name(params):
-    """The identifier keeps decided onsets 0.4 s (at config/'s values): a longer gap could not
-    be judged alike live and offline."""
+    """The identifier keeps decided onsets 0.448 s (at config/'s values: 4 x the pressure's
+    0.1 s background and 12 ms window): a longer gap could not be judged alike live and
+    offline."""
     from tail_beam_id.stream.config import IdentifierConfig
 
-    with pytest.raises(InputError, match=r"sensor_timing.clean_gap_s = 0.5: must be <= 0.4 s"):
+    with pytest.raises(InputError, match=r"sensor_timing.clean_gap_s = 0.5: must be <= 0.448 s"):
         IdentifierConfig.from_params(_with_clean_gap(params, 0.5)["identification"])
 
 

@@ -70,12 +70,11 @@ def test_a_profile_counts_timing_suspect_only_from_whole_counts():
 
 def test_a_fresh_detector_has_scanned_nothing_and_retention_keeps_four_look_backs(params):
     """scanned_s is -inf before the detector has looked at a sample; retention keeps
-    LOOK_BACKS_KEPT times the longest look-back (noise block, pressure fit) before what is
-    needed."""
+    LOOK_BACKS_KEPT times the longest look-back (noise block, the longest background stretch
+    with the data window) before what is needed."""
     identifier = StreamIdentifier("statistical", params["identification"], params)
     assert scanned_s(identifier.imu, identifier.detector) == float("-inf")
     config = identifier.config
-    expected_s = LOOK_BACKS_KEPT * max(
-        config.detection.noise_block_s, config.pressure_pre_s + config.window_s
-    )
+    longest_s = max(config.pressure_background_s, config.impulse_background_s)
+    expected_s = LOOK_BACKS_KEPT * max(config.detection.noise_block_s, longest_s + config.window_s)
     assert identifier.retention.keep_s() == pytest.approx(expected_s)
