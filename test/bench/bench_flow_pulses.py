@@ -1,0 +1,129 @@
+"""How many of a dense flow's contacts the accelerometer's pulse detector finds, against what a
+detector of the ringing's innovations could: the flow set's flows (tail_beam_id.study.
+flow_evaluation: the nominal support and foreign ones, shipped layout) identified as
+``tail-beam evaluate --sets flow`` reads them (self-calibrated), and the share of the lumps
+whose contact start lies within 0.6 ms of a label resting on the accelerometer; beside it, the
+share found by a linear predictor of the accelerometer's samples (an autoregression of order p,
+fitted by least squares on the recording itself, refitted without the samples it predicts worst:
+the free ringing of every mode is predicted from the samples before, a new contact is not), each
+run of samples whose prediction error exceeds k times its robust RMS (runs 0.5 ms apart) taken
+for one contact. Prints a table (recall, and events a second against lumps a second: a detector
+finding more events than lumps would be finding ringing), asserts nothing.
+
+The predictor is fitted on the whole recording here (offline, with hindsight): a measure of what
+the signal holds, not a detector the identifier runs.
+
+    python test/bench/bench_flow_pulses.py                          # 50, 200 lumps/s, ~1 min
+    python test/bench/bench_flow_pulses.py --rates 20,50,100,200 --seed 47001
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from tail_beam_id.study.flow import record_sim_flow
+from tail_beam_id.study.flow_evaluation import (
+    FLOW_SEED,
+    FlowScene,
+    flow_supports,
+    identify_flow,
+    reading_params,
+)
+from tail_beam_sim.config import load_parameters
+
+# The rates of the flow set's documented command (docs/results/gangue_share.md), whose order
+# its case seeds follow: the flows here are that command's.
+SET_RATES = (3.3, 5.0, 20.0, 50.0, 100.0, 200.0)
+TOLERANCE_S = 0.0006  # a detection this close to a contact start finds it
+RUN_GAP_S = 0.0005  # exceedances further apart start another event
+
+
+def found_share(starts: np.ndarray, found: np.ndarray) -> float:
+    """The share of ``starts`` (s) with a detection of ``found`` (s, sorted) within TOLERANCE_S."""
+    if not found.size:
+        return 0.0
+    index = np.clip(np.searchsorted(found, starts), 1, found.size - 1)
+    nearest = np.minimum(np.abs(found[index] - starts), np.abs(found[index - 1] - starts))
+    return float(np.mean(nearest < TOLERANCE_S))
+
+
+def innovation_events(stamp_s: np.ndarray, accel: np.ndarray, order: int, k: float) -> np.ndarray:
+    """Stamps (s) of the runs of samples whose one-step prediction error by an autoregression of
+    ``order`` (fitted on the samples, then refitted on those within 4 robust RMS) exceeds ``k``
+    robust RMS."""
+    x = np.asarray(accel, dtype=float)
+    lagged = np.stack([x[order - j - 1 : x.size - j - 1] for j in range(order)], axis=1)
+    target = x[order:]
+
+    def errors(rows: np.ndarray) -> tuple[np.ndarray, float]:
+        a, *_ = np.linalg.lstsq(lagged[rows], target[rows], rcond=None)
+        e = target - lagged @ a
+        return e, 1.4826 * float(np.median(np.abs(e - np.median(e))))
+
+    e, sigma = errors(slice(None))
+    e, sigma = errors(np.abs(e) < 4.0 * sigma)
+    over = stamp_s[order:][np.abs(e) > k * sigma]
+    if not over.size:
+        return over
+    return np.concatenate([over[:1], over[1:][np.diff(over) > RUN_GAP_S]])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--rates", default="50,200", help="lumps/s, of the flow set's rates")
+    parser.add_argument("--foreign", type=int, default=2, help="foreign supports")
+    parser.add_argument("--seed", type=int, default=FLOW_SEED, help="the flow set's seed")
+    parser.add_argument("--order", type=int, default=8, help="the autoregression's order")
+    parser.add_argument("--duration-s", type=float, default=10.0, help="each flow's length, s")
+    args = parser.parse_args()
+    params = load_parameters([])
+    # as `tail-beam evaluate --sets flow --flow-duration-s 10` runs them: the boundary halfway
+    scene = FlowScene(args.duration_s, args.duration_s / 2.0)
+    rates = [float(r) for r in args.rates.split(",")]
+    started = time.perf_counter()
+    print(
+        f"flows of {scene.duration_s:g} s, seed {args.seed}, shipped layout, self-calibrated; "
+        f"AR({args.order})"
+    )
+    print(
+        "support     lumps/s  lumps  identifier's pulses  innovations > 6 sigma (events/s)"
+        "  > 8 sigma"
+    )
+    for s_index, (name, draw) in enumerate(flow_supports(params, args.foreign, args.seed)):
+        for rate in rates:
+            case_seed = args.seed + 100 * s_index + SET_RATES.index(rate)
+            flow = record_sim_flow(
+                params,
+                rate,
+                scene.duration_s,
+                scene.boundary_s,
+                scene.ramp_s,
+                scene.final_share_by_mass,
+                case_seed,
+                draw,
+            )
+            model = reading_params(params, flow, "self-calibrated", "shipped")
+            labels, _ = identify_flow(flow, "shipped", None, model)
+            starts = np.sort([t["contact_start_stamp"] for t in flow.truths])
+            pulsed = np.sort(
+                [label.impact_stamp_s for label in labels if "vibration" in (label.signals or ())]
+            )
+            stamp_s = flow.vibration.sample_stamps_s()
+            cells = []
+            for k in (6.0, 8.0):
+                events = innovation_events(stamp_s, flow.vibration.accel_mps2, args.order, k)
+                cells.append(
+                    f"{found_share(starts, events):5.0%} ({events.size / scene.duration_s:4.0f})"
+                )
+            print(
+                f"{name:11s} {rate:7g} {starts.size:6d}  {found_share(starts, pulsed):19.0%}"
+                f"  {cells[0]:>32s}  {cells[1]:>9s}"
+            )
+    print(f"{time.perf_counter() - started:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
