@@ -333,6 +333,29 @@ def score_coal(
     case.false_alarms += sum(alarm_states(shares, LEVELS[0], config))
 
 
+def scene_flow(
+    params: Mapping[str, Any],
+    scene: FlowScene,
+    rate_per_s: float,
+    seed: int,
+    draw: SupportDraw | None,
+    vibration: bool = True,
+) -> FlowRecording:
+    """The flow of ``scene`` at ``rate_per_s`` lumps a second on ``draw`` (None: the nominal
+    support), as the flow set records it (its pure-coal flow aside)."""
+    return record_sim_flow(
+        params,
+        rate_per_s,
+        scene.duration_s,
+        scene.boundary_s,
+        scene.ramp_s,
+        scene.final_share_by_mass,
+        seed,
+        draw,
+        vibration=vibration,
+    )
+
+
 def run_flow_set(
     params: Mapping[str, Any],
     rates_per_s: Sequence[float],
@@ -349,17 +372,7 @@ def run_flow_set(
     for s_index, (name, draw) in enumerate(flow_supports(params, foreign, seed)):
         for r_index, rate in enumerate(rates_per_s):
             case_seed = seed + 100 * s_index + r_index
-            flow = record_sim_flow(
-                params,
-                rate,
-                scene.duration_s,
-                scene.boundary_s,
-                scene.ramp_s,
-                scene.final_share_by_mass,
-                case_seed,
-                draw,
-                vibration=accelerometer,
-            )
+            flow = scene_flow(params, scene, rate, case_seed, draw, accelerometer)
             coal = record_sim_flow(
                 params,
                 rate,

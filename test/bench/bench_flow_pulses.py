@@ -24,13 +24,13 @@ import time
 
 import numpy as np
 
-from tail_beam_id.study.flow import record_sim_flow
 from tail_beam_id.study.flow_evaluation import (
     FLOW_SEED,
     FlowScene,
     flow_supports,
     identify_flow,
     reading_params,
+    scene_flow,
 )
 from tail_beam_sim.config import load_parameters
 
@@ -95,16 +95,7 @@ def main() -> None:
     for s_index, (name, draw) in enumerate(flow_supports(params, args.foreign, args.seed)):
         for rate in rates:
             case_seed = args.seed + 100 * s_index + SET_RATES.index(rate)
-            flow = record_sim_flow(
-                params,
-                rate,
-                scene.duration_s,
-                scene.boundary_s,
-                scene.ramp_s,
-                scene.final_share_by_mass,
-                case_seed,
-                draw,
-            )
+            flow = scene_flow(params, scene, rate, case_seed, draw)
             model = reading_params(params, flow, "self-calibrated", "shipped")
             labels, _ = identify_flow(flow, "shipped", None, model)
             starts = np.sort([t["contact_start_stamp"] for t in flow.truths])
