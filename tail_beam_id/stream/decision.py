@@ -126,11 +126,13 @@ class ImpactDecider:
             onset_s = max(onset_s, impact.rebound[0] - before_s)
         window_s, post_s, _ = association.windows(impact)
         fit: PressureFit | None = None
-        earlier = association.known_onsets(impact, cfg.kept_s)
+        # every other onset the identifier still knows (decided ones are kept kept_s before the
+        # oldest pending impact): the background stretches end after the latest earlier one
+        known = association.known_onsets(impact, cfg.kept_s)
         if channels.pressure.stamp_s.size:
             pre_s = background_s(
                 onset_s,
-                earlier,
+                known,
                 cfg.pressure_pre_s,
                 cfg.pressure_background_s,
                 cfg.background_after_onset_s,
@@ -145,7 +147,7 @@ class ImpactDecider:
                 # over a stretch longer than the least the sway drifts against the nominal one
                 sway_drift=pre_s > cfg.pressure_pre_s,
                 other_onsets_s=(
-                    association.known_onsets(impact, cfg.pressure_pre_s)
+                    [t for t in known if t >= impact.onset_s - cfg.pressure_pre_s]
                     if cfg.neighbour_fit
                     else ()
                 ),
@@ -171,7 +173,7 @@ class ImpactDecider:
             )
             pre_s = background_s(
                 impact.pulse.onset_s,
-                earlier,
+                known,
                 cfg.impulse_pre_s,
                 cfg.impulse_background_s,
                 cfg.background_after_onset_s,
