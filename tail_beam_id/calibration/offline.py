@@ -44,6 +44,7 @@ from tail_beam_id.calibration.modes import RingingMode, ring_decay_s, ringing_mo
 from tail_beam_id.methods import hysteresis, load_model
 from tail_beam_id.methods.statistical import HYSTERESIS
 from tail_beam_id.signals.camera import GRIDLESS_PERIOD_S, MIN_REBOUNDS, measured_period_s
+from tail_beam_id.signals.innovations import fit_predictor
 from tail_beam_id.signals.timing import UNUSUAL, TimingConfig
 from tail_beam_id.stream.label import Label
 from tail_beam_sim.config import deep_merge
@@ -93,6 +94,10 @@ class SupportProfile:
     hysteresis_weights: list[float] | None = None
     hysteresis_impacts: int | None = None
     hysteresis_bin_edges: list[float] | None = None  # the bins the weights are of (the model's)
+    # The accelerometer's one-step ringing predictor (tail_beam_id.signals.innovations) and the
+    # rate it was fitted at, Hz; None unless identification.detection.vibration_innovations.
+    vibration_predictor: list[float] | None = None
+    vibration_predictor_rate_hz: float | None = None
 
     @property
     def ring_decay_s(self) -> float | None:
@@ -320,7 +325,40 @@ def calibrate(
         hysteresis_weights=weights,
         hysteresis_impacts=weighed,
         hysteresis_bin_edges=edges if weights is not None else None,
+        **ringing_predictor(params, ringing),
     )
+
+
+def ringing_predictor(
+    params: Mapping[str, Any], ringing: tuple[np.ndarray, np.ndarray] | None
+) -> dict[str, Any]:
+    """The profile's ``vibration_predictor`` and its rate fitted on the accelerometer's
+    recording (``ringing``: stamps s, m/s^2) where identification.detection.
+    vibration_innovations asks for it (empty otherwise, or when the fit fails)."""
+    detection = (params.get("identification") or {}).get("detection") or {}
+    if ringing is None or not detection.get("vibration_innovations", False):
+        return {}
+    stamp, accel = _finite(*ringing)
+    if stamp.size < 2:
+        return {}
+    run = _unbroken_run(stamp)
+    coefficients = fit_predictor(accel[run])
+    if coefficients is None:
+        return {}
+    return {
+        "vibration_predictor": [float(a) for a in coefficients],
+        "vibration_predictor_rate_hz": float(1.0 / np.median(np.diff(stamp[run]))),
+    }
+
+
+def _unbroken_run(stamp_s: np.ndarray) -> slice:
+    """The longest run of samples evenly spaced (no lost sample between them): a predictor
+    fitted across a gap would take the gap for ringing."""
+    period = float(np.median(np.diff(stamp_s)))
+    breaks = np.flatnonzero(np.diff(stamp_s) > 1.5 * period) + 1
+    edges = np.concatenate([[0], breaks, [stamp_s.size]])
+    longest = int(np.argmax(np.diff(edges)))
+    return slice(int(edges[longest]), int(edges[longest + 1]))
 
 
 def imu_gain(features: Sequence[Mapping[str, float]]) -> tuple[float, int, float] | None:

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_sim.spec import Section, number, positive
+from tail_beam_sim.spec import Section, flag, number, positive
 
 MAD_TO_SIGMA = 1.4826  # median absolute deviation of a Gaussian times this = its RMS
 PERIOD_SAMPLES = 64  # the sample period is read from the first this many stamps
@@ -84,6 +84,12 @@ DETECTION = Section(
             "Hz",
             high=1e6,
             default=20000.0,
+        ),
+        flag(
+            "vibration_innovations",
+            "Calibration fits the accelerometer's ringing predictor; its detector scans the "
+            "prediction errors.",
+            default=False,
         ),
         positive("ring_decay_s", "Decay time of that envelope.", "s", high=10.0),
         positive("ring_window_s", "How long the raised threshold lasts.", "s", high=10.0),
@@ -157,6 +163,9 @@ class DetectionConfig:
     # or faster (None: ring_fraction's): PulseDetector's ``fast_ring_fraction``.
     vibration_ring_fraction: float | None = None
     vibration_ring_min_rate_hz: float = 20000.0
+    # Self-calibration fits a one-step predictor of the accelerometer's ringing
+    # (tail_beam_id.signals.innovations) and its detector scans what the predictor leaves.
+    vibration_innovations: bool = False
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> DetectionConfig:

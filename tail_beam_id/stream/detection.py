@@ -13,10 +13,15 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import replace
+from typing import Any
+
+import numpy as np
 
 from tail_beam_id.signals.features import BeamModel
 from tail_beam_id.signals.imu_detection import Pulse, PulseDetector
+from tail_beam_id.signals.innovations import prediction_errors
 from tail_beam_id.signals.pressure_detection import PressureDetector
 from tail_beam_id.stream.acceleration import PlateNormalAcceleration
 from tail_beam_id.stream.association import ImpactAssociation, PendingImpact
@@ -68,12 +73,83 @@ class ImpactFinder:
             config.detection.pressure_drift_confirm_sigma,
         )
         self.held: list[Pulse] = []  # IMU pulses the vibration stream may yet cover
+        # The profile's one-step predictor of the accelerometer's ringing and its rate (Hz):
+        # a second detector then scans what it leaves (signals.innovations) for the contacts
+        # the vibration detector loses in ringing; its pulses wait in innovation_held, beside
+        # the vibration detector's recent onsets.
+        self.predictor: tuple[np.ndarray, float] | None = None
+        self.innovation_detector = PulseDetector(
+            config.detection, sway_hz, config.detection.vibration_ring_fraction
+        )
+        self.innovation_held: list[Pulse] = []
+        self.found_onsets: list[float] = []
+
+    def follow_profile(self, profile: Mapping[str, Any]) -> None:
+        """Take the accelerometer's ringing predictor from a checked ``calibration`` section
+        (config.check_profile), when it has one."""
+        coefficients = profile.get("vibration_predictor")
+        rate_hz = profile.get("vibration_predictor_rate_hz")
+        self.predictor = (
+            (np.asarray(coefficients, dtype=float), float(rate_hz))
+            if coefficients and rate_hz
+            else None
+        )
+
+    def _predicts(self, stamp_s: np.ndarray) -> bool:
+        """The profile has a ringing predictor fitted at this stream's rate (within 1 %)."""
+        if self.predictor is None or stamp_s.size < 2:
+            return False
+        period_s = self.vibration_detector.period_s or float(np.median(np.diff(stamp_s)))
+        return abs(period_s * self.predictor[1] - 1.0) <= 0.01
+
+    def _innovation_pulses(
+        self, vibration_z: np.ndarray, found: list[Pulse], ended: bool
+    ) -> None:
+        """Pulses of what the ringing predictor leaves of the accelerometer's samples that the
+        vibration detector did not find (no pulse of its onset within max_contact_s): the
+        contacts inside another impact's ringing. Each waits until the vibration detector has
+        scanned past it, so that whether it found the same contact is known whatever the
+        chunking; then it becomes an impact of its own."""
+        vibration = self.channels.vibration
+        if not self._predicts(vibration.stamp_s):
+            return
+        tolerance_s = self.config.detection.max_contact_s
+        self.found_onsets += [p.onset_s for p in found]
+        self.innovation_held += self.innovation_detector.scan(
+            vibration.stamp_s,
+            prediction_errors(vibration_z, self.predictor[0]),  # type: ignore[index]
+            vibration.base_index,
+            ended,
+        )
+        known_s = (
+            math.inf
+            if ended
+            else scanned_s(vibration, self.vibration_detector)
+            - self.vibration_detector.lookback_s()
+        )
+        waiting = []
+        for pulse in self.innovation_held:
+            if pulse.onset_s + tolerance_s > known_s:
+                waiting.append(pulse)
+            elif not any(abs(t - pulse.onset_s) <= tolerance_s for t in self.found_onsets):
+                if not within_outage(self.channels.vibration_outages, pulse.onset_s):
+                    self.association.pending.append(
+                        PendingImpact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration")
+                    )
+        self.innovation_held = waiting
+        oldest = min([p.onset_s for p in waiting], default=known_s) - tolerance_s
+        self.found_onsets = [t for t in self.found_onsets if t >= oldest]
+
+    def waiting_pulses(self) -> list[Pulse]:
+        """Pulses found but not yet made impacts: the IMU's the vibration stream may yet cover,
+        and the predictor's the vibration detector has not yet scanned past."""
+        return self.held + self.innovation_held
 
     def recalibrate(self, model: BeamModel, ring_decay_s: float | None) -> None:
         """Follow a support measured on this support: its model (sway frequency, moment arm)
         and, when the profile measured it, how long the beam rings after an impact, s."""
         self.pressure_detector.model = model
-        for detector in (self.imu_detector, self.vibration_detector):
+        for detector in (self.imu_detector, self.vibration_detector, self.innovation_detector):
             detector.sway_frequency_hz = model.support.rigid_mode_frequency_hz
             if ring_decay_s is not None:
                 detector.config = replace(detector.config, ring_decay_s=float(ring_decay_s))
@@ -97,7 +173,17 @@ class ImpactFinder:
         found, s: the scan's progress less how far before its trigger a pulse's onset may lie
         (:meth:`tail_beam_id.signals.imu_detection.PulseDetector.lookback_s`)."""
         if self.channels.vibration_in_use():
-            return self.accel_scanned_s() - self.vibration_detector.lookback_s()
+            known_s = self.accel_scanned_s() - self.vibration_detector.lookback_s()
+            if self._predicts(self.channels.vibration.stamp_s):
+                # the second detector's pulses become impacts too: its progress bounds as well
+                # and a pulse of it still waiting is not known yet
+                known_s = min(
+                    known_s,
+                    scanned_s(self.channels.vibration, self.innovation_detector)
+                    - self.innovation_detector.lookback_s(),
+                    *(math.nextafter(p.onset_s, -math.inf) for p in self.innovation_held),
+                )
+            return known_s
         return self.accel_scanned_s() - self.imu_detector.lookback_s()
 
     def _pulse_impacts(self, final: bool) -> None:
@@ -113,13 +199,15 @@ class ImpactFinder:
             self.acceleration.vibration_z(vibration_ended) if vibration.stamp_s.size else None
         )
         if vibration_z is not None:
-            for pulse in self.vibration_detector.scan(
+            found = self.vibration_detector.scan(
                 vibration.stamp_s, vibration_z, vibration.base_index, vibration_ended
-            ):
+            )
+            for pulse in found:
                 if not within_outage(channels.vibration_outages, pulse.onset_s):
                     association.pending.append(
                         PendingImpact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration")
                     )
+            self._innovation_pulses(vibration_z, found, vibration_ended)
         if vibration.seen:
             # IMU pulses already waiting from before the vibration stream was first seen.
             covered = [

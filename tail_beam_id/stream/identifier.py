@@ -98,7 +98,7 @@ class StreamIdentifier:
         merged["identification"] = section
         # A profile's section (tail-beam calibrate), read by the methods and here: refused by
         # name unless each of its fields is a plausible measurement.
-        check_profile(merged)
+        profile = check_profile(merged)
         if prebuilt is not None and prebuilt.name == self.config.method:
             built = prebuilt
         else:
@@ -112,6 +112,7 @@ class StreamIdentifier:
         self.finder = ImpactFinder(
             self.config, model, self.channels, self.acceleration, self.impacts, self.camera_frame
         )
+        self.finder.follow_profile(profile)
         self.readiness = Readiness(
             self.config, self.channels, self.finder, self.impacts, self.camera_frame
         )
@@ -154,6 +155,7 @@ class StreamIdentifier:
             "ring_decay_s"
         )
         self.finder.recalibrate(model, ring_decay_s)
+        self.finder.follow_profile(check_profile(merged))
         self.acceleration.gravity_mps2 = model.support.gravity_mps2
         self.decider.model = model
         if method is not None:

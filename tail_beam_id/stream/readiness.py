@@ -51,7 +51,7 @@ class Readiness:
             impact.onset_s + overlap_s
         ):
             return False
-        if any(p.onset_s < impact.onset_s + overlap_s for p in self.finder.held):
+        if any(p.onset_s < impact.onset_s + overlap_s for p in self.finder.waiting_pulses()):
             return False
         if self._late_rebound_undecided(impact):
             return False

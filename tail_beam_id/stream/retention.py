@@ -50,9 +50,14 @@ class DataRetention:
             horizon_s = min(horizon_s, scanned_s(channels.imu, finder.imu_detector))
         if channels.vibration_in_use():
             horizon_s = min(horizon_s, scanned_s(channels.vibration, finder.vibration_detector))
+            if finder.predictor is not None:
+                horizon_s = min(
+                    horizon_s, scanned_s(channels.vibration, finder.innovation_detector)
+                )
         oldest_needed_s = (
             min(
-                [i.onset_s for i in self.association.pending] + [p.onset_s for p in finder.held],
+                [i.onset_s for i in self.association.pending]
+                + [p.onset_s for p in finder.waiting_pulses()],
                 default=horizon_s,
             )
             - keep_s

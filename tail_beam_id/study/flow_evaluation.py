@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from tail_beam_id.calibration.offline import calibrate, with_profile
+from tail_beam_id.calibration.offline import calibrate, ringing_predictor, with_profile
 from tail_beam_id.stream.label import match_stamps, match_tolerance_s
 from tail_beam_id.stream.replay import replay
 from tail_beam_id.stream.share import Z_95, GangueShare, ShareConfig, label_score
@@ -235,7 +235,16 @@ def reading_params(
     true_profile_section`: not what a calibration reads from a recording besides them, such
     as the ringing's decay, so no upper bound)."""
     if profile == "true":
-        return {**recording.params, "calibration": true_profile_section(recording.params)}
+        section = true_profile_section(recording.params)
+        if layout == "shipped" and recording.vibration is not None:
+            # what a calibration would also read from the recording: the ringing's predictor
+            section.update(
+                ringing_predictor(
+                    recording.params,
+                    (recording.vibration.sample_stamps_s(), recording.vibration.accel_mps2),
+                )
+            )
+        return {**recording.params, "calibration": section}
     if profile == "nominal":
         return params
     vibration = recording.vibration if layout == "shipped" else None

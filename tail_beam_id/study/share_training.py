@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from tail_beam_id.calibration.offline import ringing_predictor
 from tail_beam_id.stream.label import Label, match_stamps, match_tolerance_s
 from tail_beam_id.stream.share import (
     MODEL_PATH,
@@ -100,6 +101,14 @@ def identified(
     flow_evaluation.reading_params`), as the training keeps it: its rate, its labels (JSON),
     the lumps' stamps and materials."""
     model = None if params is None else reading_params(params, recording, profile, layout)
+    if model is None and layout == "shipped" and recording.vibration is not None:
+        # the recorded support's own parameters, with the ringing's predictor a calibration
+        # would read from the recording (tail_beam_id.signals.innovations)
+        predictor = ringing_predictor(
+            recording.params,
+            (recording.vibration.sample_stamps_s(), recording.vibration.accel_mps2),
+        )
+        model = {**recording.params, "calibration": predictor} if predictor else None
     labels, _ = identify_flow(recording, layout, None, model)
     return {
         "rate_per_s": recording.rate_per_s,

@@ -1,17 +1,15 @@
-"""How many of a dense flow's contacts the accelerometer's pulse detector finds, against what a
-detector of the ringing's innovations could: the flow set's flows (tail_beam_id.study.
-flow_evaluation: the nominal support and foreign ones, shipped layout) identified as
-``tail-beam evaluate --sets flow`` reads them (self-calibrated), and the share of the lumps
-whose contact start lies within 0.6 ms of a label resting on the accelerometer; beside it, the
-share found by a linear predictor of the accelerometer's samples (an autoregression of order p,
-fitted by least squares on the recording itself, refitted without the samples it predicts worst:
-the free ringing of every mode is predicted from the samples before, a new contact is not), each
-run of samples whose prediction error exceeds k times its robust RMS (runs 0.5 ms apart) taken
-for one contact. Prints a table (recall, and events a second against lumps a second: a detector
-finding more events than lumps would be finding ringing), asserts nothing.
-
-The predictor is fitted on the whole recording here (offline, with hindsight): a measure of what
-the signal holds, not a detector the identifier runs.
+"""How many of a dense flow's contacts the accelerometer's pulse detector finds, without and
+with the second detector that scans what the ringing's predictor leaves, against what the
+prediction errors hold. The flow set's flows (tail_beam_id.study.flow_evaluation: the nominal
+support and foreign ones, shipped layout) are identified as ``tail-beam evaluate --sets flow``
+reads them (self-calibrated), with ``identification.detection.vibration_innovations`` off and on;
+for each, the share of the lumps whose contact start lies within 0.6 ms of a label resting on
+the accelerometer. Beside them, the share found by the predictor alone (an autoregression of
+order p fitted on the whole recording, refitted without the samples it predicts worst, as
+calibration fits it): each run of samples whose prediction error exceeds k times its robust RMS
+(runs 0.5 ms apart) taken for one contact, with no detector's rules. Prints a table (and events
+a second against lumps a second: a detector finding more events than lumps would be finding
+ringing), asserts nothing.
 
     python test/bench/bench_flow_pulses.py                          # 50, 200 lumps/s, ~1 min
     python test/bench/bench_flow_pulses.py --rates 20,50,100,200 --seed 47001
@@ -80,6 +78,19 @@ def main() -> None:
     parser.add_argument("--duration-s", type=float, default=10.0, help="each flow's length, s")
     args = parser.parse_args()
     params = load_parameters([])
+    off, on = (
+        {
+            **params,
+            "identification": {
+                **params["identification"],
+                "detection": {
+                    **params["identification"]["detection"],
+                    "vibration_innovations": flag,
+                },
+            },
+        }
+        for flag in (False, True)
+    )
     # as `tail-beam evaluate --sets flow --flow-duration-s 10` runs them: the boundary halfway
     scene = FlowScene(args.duration_s, args.duration_s / 2.0)
     rates = [float(r) for r in args.rates.split(",")]
@@ -89,19 +100,22 @@ def main() -> None:
         f"AR({args.order})"
     )
     print(
-        "support     lumps/s  lumps  identifier's pulses  innovations > 6 sigma (events/s)"
-        "  > 8 sigma"
+        "support     lumps/s  lumps  identifier's pulses  with predictor  innovations > 6 sigma"
+        " (events/s)  > 8 sigma"
     )
     for s_index, (name, draw) in enumerate(flow_supports(params, args.foreign, args.seed)):
         for rate in rates:
             case_seed = args.seed + 100 * s_index + SET_RATES.index(rate)
             flow = scene_flow(params, scene, rate, case_seed, draw)
-            model = reading_params(params, flow, "self-calibrated", "shipped")
-            labels, _ = identify_flow(flow, "shipped", None, model)
             starts = np.sort([t["contact_start_stamp"] for t in flow.truths])
-            pulsed = np.sort(
-                [label.impact_stamp_s for label in labels if "vibration" in (label.signals or ())]
-            )
+            shares = []
+            for setting in (off, on):
+                model = reading_params(setting, flow, "self-calibrated", "shipped")
+                labels, _ = identify_flow(flow, "shipped", None, model)
+                pulsed = np.sort(
+                    [lab.impact_stamp_s for lab in labels if "vibration" in (lab.signals or ())]
+                )
+                shares.append(found_share(starts, pulsed))
             stamp_s = flow.vibration.sample_stamps_s()
             cells = []
             for k in (6.0, 8.0):
@@ -110,7 +124,7 @@ def main() -> None:
                     f"{found_share(starts, events):5.0%} ({events.size / scene.duration_s:4.0f})"
                 )
             print(
-                f"{name:11s} {rate:7g} {starts.size:6d}  {found_share(starts, pulsed):19.0%}"
+                f"{name:11s} {rate:7g} {starts.size:6d}  {shares[0]:19.0%}  {shares[1]:14.0%}"
                 f"  {cells[0]:>32s}  {cells[1]:>9s}"
             )
     print(f"{time.perf_counter() - started:.0f} s")
