@@ -137,7 +137,12 @@ class ImpactFinder:
                         PendingImpact(onset_s=pulse.onset_s, pulse=pulse, channel="vibration")
                     )
         self.innovation_held = waiting
-        oldest = min([p.onset_s for p in waiting], default=known_s) - tolerance_s
+        # the first detector's onsets a pulse still waiting, or one the second detector is yet
+        # to find (its onset no earlier than its scan's progress less its look-back), may meet
+        coming_s = (
+            scanned_s(vibration, self.innovation_detector) - self.innovation_detector.lookback_s()
+        )
+        oldest = min([p.onset_s for p in waiting] + [coming_s]) - tolerance_s
         self.found_onsets = [t for t in self.found_onsets if t >= oldest]
 
     def waiting_pulses(self) -> list[Pulse]:
