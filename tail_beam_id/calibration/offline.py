@@ -44,6 +44,7 @@ from tail_beam_id.calibration.modes import RingingMode, ring_decay_s, ringing_mo
 from tail_beam_id.methods import hysteresis, load_model
 from tail_beam_id.methods.statistical import HYSTERESIS
 from tail_beam_id.signals.camera import GRIDLESS_PERIOD_S, MIN_REBOUNDS, measured_period_s
+from tail_beam_id.signals.contact_fit import unbroken
 from tail_beam_id.signals.innovations import fit_predictor
 from tail_beam_id.signals.timing import UNUSUAL, TimingConfig
 from tail_beam_id.stream.label import Label
@@ -341,24 +342,17 @@ def ringing_predictor(
     stamp, accel = _finite(*ringing)
     if stamp.size < 2:
         return {}
-    run = _unbroken_run(stamp)
+    # the longest evenly spaced run: fitted across a lost sample, it would take the gap for
+    # ringing
+    period_s = float(np.median(np.diff(stamp)))
+    run = unbroken(np.arange(stamp.size), stamp, period_s)
     coefficients = fit_predictor(accel[run])
     if coefficients is None:
         return {}
     return {
         "vibration_predictor": [float(a) for a in coefficients],
-        "vibration_predictor_rate_hz": float(1.0 / np.median(np.diff(stamp[run]))),
+        "vibration_predictor_rate_hz": 1.0 / period_s,
     }
-
-
-def _unbroken_run(stamp_s: np.ndarray) -> slice:
-    """The longest run of samples evenly spaced (no lost sample between them): a predictor
-    fitted across a gap would take the gap for ringing."""
-    period = float(np.median(np.diff(stamp_s)))
-    breaks = np.flatnonzero(np.diff(stamp_s) > 1.5 * period) + 1
-    edges = np.concatenate([[0], breaks, [stamp_s.size]])
-    longest = int(np.argmax(np.diff(edges)))
-    return slice(int(edges[longest]), int(edges[longest + 1]))
 
 
 def imu_gain(features: Sequence[Mapping[str, float]]) -> tuple[float, int, float] | None:

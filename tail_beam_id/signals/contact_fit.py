@@ -466,7 +466,7 @@ def unreliable(fit: ContactFit | None, config: ContactFitConfig) -> tuple[str, .
     return tuple(reasons)
 
 
-def _unbroken(where: np.ndarray, stamp_s: np.ndarray, period_s: float) -> np.ndarray:
+def unbroken(where: np.ndarray, stamp_s: np.ndarray, period_s: float) -> np.ndarray:
     """The longest run of ``where`` whose stamps step by one ``period_s``: the matrix pencil
     needs evenly spaced samples, and a sample left out (not finite, lost with its block) would
     shift every one after it by a period (one such gap at 1 ms turned a 323 us reading into
@@ -554,7 +554,7 @@ def fit_contact(
             & (stamp_s <= onset_s + config.ring_end_s)
             & np.isfinite(accel)
         )
-        return _unbroken(
+        return unbroken(
             where[where > clipped.max()] if clipped.size else where, stamp_s, period_s
         )
 

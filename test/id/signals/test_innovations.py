@@ -149,3 +149,26 @@ def test_a_bad_predictor_in_a_profile_is_refused_by_name():
 
     with pytest.raises(InputError, match="vibration_predictor"):
         check_profile({"calibration": {"vibration_predictor": [1.0, 1e9]}})
+
+
+def test_calibration_fits_the_predictor_on_the_longest_unbroken_run(params):
+    """ringing_predictor: off unless identification.detection.vibration_innovations; on, it
+    fits the longest evenly spaced run of a recording with a lost block and reports the rate
+    it holds for; the predictor is that run's own fit."""
+    from tail_beam_id.calibration.offline import ringing_predictor
+
+    _, measured = ringing(1.0, 0.25, 3)
+    stamp = np.arange(measured.size) / RATE_HZ
+    stamp[10000:] += 0.05  # a lost block: 50 ms missing after the first 10,000 samples
+    section = dict(params["identification"])
+
+    def with_flag(flag: bool) -> dict:
+        detection = {**section["detection"], "vibration_innovations": flag}
+        return {**params, "identification": {**section, "detection": detection}}
+
+    assert ringing_predictor(with_flag(False), (stamp, measured)) == {}
+    found = ringing_predictor(with_flag(True), (stamp, measured))
+    assert found["vibration_predictor_rate_hz"] == pytest.approx(RATE_HZ, rel=1e-9)
+    assert found["vibration_predictor"] == pytest.approx(
+        list(fit_predictor(measured[10000:])), rel=1e-12, abs=1e-12
+    )
