@@ -131,6 +131,15 @@ class SupportProfile:
             self.hysteresis_weights, self.hysteresis_impacts, self.hysteresis_bin_edges or []
         )
 
+    def describe_predictor(self) -> str:
+        """The accelerometer's ringing predictor, in a few words."""
+        if self.vibration_predictor is None:
+            return "no ringing predictor (no accelerometer, or vibration_innovations off)"
+        return (
+            f"ringing predictor of order {len(self.vibration_predictor)} at "
+            f"{self.vibration_predictor_rate_hz:.0f} Hz"
+        )
+
     def describe_camera(self) -> str:
         """The camera's frame as read from the rebound stamps, in a few words."""
         if self.camera_frame_rate_hz is None:

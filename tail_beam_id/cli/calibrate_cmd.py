@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
             f"calibrate: sway {c.rigid_mode_frequency_hz:.2f} Hz, {c.impacts_used} impacts for "
             "the IMU gain, "
             f"mount sign {c.imu_mount_sign}, {c.describe_modes()}, {c.describe_camera()}, "
-            f"{c.describe_hysteresis()}",
+            f"{c.describe_hysteresis()}, {c.describe_predictor()}",
             file=sys.stderr,
         )
     return 0
