@@ -86,14 +86,25 @@ class ImpactFinder:
 
     def follow_profile(self, profile: Mapping[str, Any]) -> None:
         """Take the accelerometer's ringing predictor from a checked ``calibration`` section
-        (config.check_profile), when it has one."""
+        (config.check_profile), when it has one. A predictor taken mid-stream (a profile
+        learnt online) starts where the vibration detector has got to: the impacts before are
+        decided, and a second look at their samples would label them again."""
         coefficients = profile.get("vibration_predictor")
         rate_hz = profile.get("vibration_predictor_rate_hz")
-        self.predictor = (
+        predictor = (
             (np.asarray(coefficients, dtype=float), float(rate_hz))
             if coefficients and rate_hz
             else None
         )
+        if predictor is None and self.predictor is None:
+            return
+        self.predictor = predictor
+        detector = self.vibration_detector
+        self.innovation_detector = PulseDetector(
+            detector.config, detector.sway_frequency_hz, detector.fast_ring_fraction
+        )
+        self.innovation_detector.cursor = detector.cursor
+        self.innovation_held, self.found_onsets = [], []
 
     def _predicts(self, stamp_s: np.ndarray) -> bool:
         """The profile has a ringing predictor fitted at this stream's rate (within 1 %)."""

@@ -172,3 +172,48 @@ def test_calibration_fits_the_predictor_on_the_longest_unbroken_run(params):
     assert found["vibration_predictor"] == pytest.approx(
         list(fit_predictor(measured[10000:])), rel=1e-12, abs=1e-12
     )
+
+
+def test_a_predictor_taken_mid_stream_labels_no_impact_twice(ringing_flow):
+    """A profile with the predictor taken half way through the flow (as a profile learnt
+    online would be): the second detector starts where the first has got to, so the impacts
+    already decided get no second label (a look back over the buffered half second would add
+    about twenty): the labels number within 3 of the lumps."""
+    params, recording = ringing_flow
+    section = dict(params["identification"])
+    section["detection"] = {**section["detection"], "vibration_innovations": True}
+    params = {**params, "identification": section}
+    vibration = recording.vibration
+    profile = calibrate(
+        params,
+        (recording.pressure.stamp_s, recording.pressure.pressure_pa),
+        (recording.imu.stamp_s, recording.imu.linear_acceleration_mps2[:, 2]),
+        lambda model_params: replay(
+            SharingIdentifier(None, params=section, model_params=model_params),
+            recording.pressure,
+            recording.imu,
+            recording.rebounds,
+            vibration=vibration,
+        ),
+        (vibration.sample_stamps_s(), vibration.accel_mps2),
+        [r.stamp_s for r in recording.rebounds],
+    )
+    assert profile.vibration_predictor is not None
+    identifier = SharingIdentifier(None, params=section, model_params=params)
+    switched = []
+
+    def halfway(done_s: float, total_s: float) -> None:
+        if not switched and done_s >= 0.5 * total_s:
+            identifier.recalibrate(with_profile(params, profile))
+            switched.append(done_s)
+
+    labels = replay(
+        identifier,
+        recording.pressure,
+        recording.imu,
+        recording.rebounds,
+        vibration=vibration,
+        progress=halfway,
+    )
+    assert switched
+    assert abs(len(labels) - len(recording.truths)) <= 3
