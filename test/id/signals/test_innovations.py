@@ -76,37 +76,55 @@ def ringing_flow():
     return params, record_sim_flow(params, 50.0, 2.0, 1.0, 0.5, 0.7, seed=9301, support=draw)
 
 
+def with_innovations(params, innovations: bool) -> dict:
+    """``params`` with identification.detection.vibration_innovations as given."""
+    section = dict(params["identification"])
+    section["detection"] = {**section["detection"], "vibration_innovations": innovations}
+    return {**params, "identification": section}
+
+
+def run(recording, model_params, identifier=None, chunk_s: float = 0.01, progress=None):
+    """The recording's labels, replayed in ``chunk_s`` chunks into ``identifier`` (default: a
+    fresh one reading ``model_params``)."""
+    if identifier is None:
+        identifier = SharingIdentifier(
+            None, params=model_params["identification"], model_params=model_params
+        )
+    return replay(
+        identifier,
+        recording.pressure,
+        recording.imu,
+        recording.rebounds,
+        chunk_s=chunk_s,
+        vibration=recording.vibration,
+        progress=progress,
+    )
+
+
+def profile_of(params, recording):
+    """The recording's self-calibrated profile under ``params``."""
+    vibration = recording.vibration
+    return calibrate(
+        params,
+        (recording.pressure.stamp_s, recording.pressure.pressure_pa),
+        (recording.imu.stamp_s, recording.imu.linear_acceleration_mps2[:, 2]),
+        lambda model_params: run(recording, model_params),
+        (vibration.sample_stamps_s(), vibration.accel_mps2),
+        [r.stamp_s for r in recording.rebounds],
+    )
+
+
 def identify(
     params, recording, innovations: bool, chunks_s: tuple[float, ...] = (0.01,)
 ) -> list[list[Label]]:
     """The flow's labels replayed in each of ``chunks_s`` (s), self-calibrated (10 ms chunks)
     with identification.detection.vibration_innovations as given."""
-    section = dict(params["identification"])
-    section["detection"] = {**section["detection"], "vibration_innovations": innovations}
-    params = {**params, "identification": section}
-
-    def run(model_params, chunk_s=0.01):
-        identifier = SharingIdentifier(None, params=section, model_params=model_params)
-        return replay(
-            identifier,
-            recording.pressure,
-            recording.imu,
-            recording.rebounds,
-            chunk_s=chunk_s,
-            vibration=recording.vibration,
-        )
-
-    vibration = recording.vibration
-    profile = calibrate(
-        params,
-        (recording.pressure.stamp_s, recording.pressure.pressure_pa),
-        (recording.imu.stamp_s, recording.imu.linear_acceleration_mps2[:, 2]),
-        run,
-        (vibration.sample_stamps_s(), vibration.accel_mps2),
-        [r.stamp_s for r in recording.rebounds],
-    )
+    params = with_innovations(params, innovations)
+    profile = profile_of(params, recording)
     assert (profile.vibration_predictor is not None) == innovations
-    return [run(with_profile(params, profile), chunk_s) for chunk_s in chunks_s]
+    return [
+        run(recording, with_profile(params, profile), chunk_s=chunk_s) for chunk_s in chunks_s
+    ]
 
 
 def resting_on_accelerometer(labels: list[Label]) -> int:
@@ -180,26 +198,10 @@ def test_a_predictor_taken_mid_stream_labels_no_impact_twice(ringing_flow):
     already decided get no second label (a look back over the buffered half second would add
     about twenty): the labels number within 3 of the lumps."""
     params, recording = ringing_flow
-    section = dict(params["identification"])
-    section["detection"] = {**section["detection"], "vibration_innovations": True}
-    params = {**params, "identification": section}
-    vibration = recording.vibration
-    profile = calibrate(
-        params,
-        (recording.pressure.stamp_s, recording.pressure.pressure_pa),
-        (recording.imu.stamp_s, recording.imu.linear_acceleration_mps2[:, 2]),
-        lambda model_params: replay(
-            SharingIdentifier(None, params=section, model_params=model_params),
-            recording.pressure,
-            recording.imu,
-            recording.rebounds,
-            vibration=vibration,
-        ),
-        (vibration.sample_stamps_s(), vibration.accel_mps2),
-        [r.stamp_s for r in recording.rebounds],
-    )
+    params = with_innovations(params, True)
+    profile = profile_of(params, recording)
     assert profile.vibration_predictor is not None
-    identifier = SharingIdentifier(None, params=section, model_params=params)
+    identifier = SharingIdentifier(None, params=params["identification"], model_params=params)
     switched = []
 
     def halfway(done_s: float, total_s: float) -> None:
@@ -207,13 +209,6 @@ def test_a_predictor_taken_mid_stream_labels_no_impact_twice(ringing_flow):
             identifier.recalibrate(with_profile(params, profile))
             switched.append(done_s)
 
-    labels = replay(
-        identifier,
-        recording.pressure,
-        recording.imu,
-        recording.rebounds,
-        vibration=vibration,
-        progress=halfway,
-    )
+    labels = run(recording, params, identifier, progress=halfway)
     assert switched
     assert abs(len(labels) - len(recording.truths)) <= 3
