@@ -52,8 +52,10 @@ def fit_predictor(accel: np.ndarray, order: int = ORDER) -> np.ndarray | None:
 
 def prediction_errors(accel: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
     """x[n] - sum_k a_k x[n - k] for every sample of ``accel`` (m/s^2); the first ``order``
-    samples, whose history is not all there, take the first full one's error (a flat start,
-    the same however the stream was cut before them)."""
+    samples, whose history is not in ``accel``, take the first full one's error (a flat start
+    instead of a transient). Every later sample's error is the same wherever ``accel`` was cut
+    before it; the detector looks at no sample that near a trimmed buffer's start (retention
+    keeps IdentifierConfig.kept_s before what it needs)."""
     x = np.asarray(accel, dtype=float)
     a = np.asarray(coefficients, dtype=float)
     errors = lfilter(np.concatenate([[1.0], -a]), [1.0], x)

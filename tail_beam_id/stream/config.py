@@ -257,13 +257,25 @@ PROFILE = Section(
 )
 
 
+MAX_PREDICTOR_ORDER = 64  # the most coefficients a profile's ringing predictor may hold
+
+
 def check_profile(merged: Mapping[str, Any]) -> dict[str, Any]:
     """The ``calibration`` section of ``merged`` validated field by field ({} when absent)."""
     section = merged.get("calibration")
     if section is None:
         return {}
     given = {k: v for k, v in require_section("calibration", section).items() if v is not None}
-    return {k: v for k, v in PROFILE.check(given).items() if v is not None}
+    checked = {k: v for k, v in PROFILE.check(given).items() if v is not None}
+    predictor = checked.get("vibration_predictor")
+    if predictor is not None and len(predictor) > MAX_PREDICTOR_ORDER:
+        # each coefficient costs a multiply per sample of every buffered accelerometer sample
+        raise InputError(
+            "calibration.vibration_predictor",
+            f"{len(predictor)} coefficients",
+            f"must hold at most {MAX_PREDICTOR_ORDER}",
+        )
+    return checked
 
 
 CONFIG_CACHE_SIZE = 64

@@ -88,7 +88,9 @@ class ImpactFinder:
         """Take the accelerometer's ringing predictor from a checked ``calibration`` section
         (config.check_profile), when it has one. A predictor taken mid-stream (a profile
         learnt online) starts where the vibration detector has got to: the impacts before are
-        decided, and a second look at their samples would label them again."""
+        decided, and a second look at their samples would label them again. Pulses the old
+        predictor found and that still wait are released as before; the same predictor again
+        changes nothing."""
         coefficients = profile.get("vibration_predictor")
         rate_hz = profile.get("vibration_predictor_rate_hz")
         predictor = (
@@ -96,15 +98,23 @@ class ImpactFinder:
             if coefficients and rate_hz
             else None
         )
-        if predictor is None and self.predictor is None:
-            return
+        same = (predictor is None and self.predictor is None) or (
+            predictor is not None
+            and self.predictor is not None
+            and predictor[1] == self.predictor[1]
+            and np.array_equal(predictor[0], self.predictor[0])
+        )
+        if same:
+            return  # the same profile again: the second detector carries on as it was
         self.predictor = predictor
         detector = self.vibration_detector
         self.innovation_detector = PulseDetector(
             detector.config, detector.sway_frequency_hz, detector.fast_ring_fraction
         )
         self.innovation_detector.cursor = detector.cursor
-        self.innovation_held, self.found_onsets = [], []
+        if predictor is None:
+            # nothing releases them any more: they go with the predictor that found them
+            self.innovation_held, self.found_onsets = [], []
 
     def _predicts(self, stamp_s: np.ndarray) -> bool:
         """The profile has a ringing predictor fitted at this stream's rate (within 1 %)."""

@@ -212,3 +212,43 @@ def test_a_predictor_taken_mid_stream_labels_no_impact_twice(ringing_flow):
     labels = run(recording, params, identifier, progress=halfway)
     assert switched
     assert abs(len(labels) - len(recording.truths)) <= 3
+
+
+def test_the_same_profile_again_mid_stream_changes_no_label(ringing_flow):
+    """A profile with the predictor given from the start and then again half way (as a node
+    taking the same profile twice would): the second detector carries on, so every label is
+    the one the uninterrupted replay gives."""
+    params, recording = ringing_flow
+    params = with_innovations(params, True)
+    calibrated = with_profile(params, profile_of(params, recording))
+    identifier = SharingIdentifier(
+        None, params=calibrated["identification"], model_params=calibrated
+    )
+    switched = []
+
+    def halfway(done_s: float, total_s: float) -> None:
+        if not switched and done_s >= 0.5 * total_s:
+            identifier.recalibrate(calibrated)
+            switched.append(done_s)
+
+    again = run(recording, calibrated, identifier, progress=halfway)
+    assert switched
+    once = run(recording, calibrated)
+    assert [label_record(lab) for lab in again] == [label_record(lab) for lab in once]
+
+
+def test_a_predictor_of_too_many_coefficients_is_refused_by_name():
+    """A profile whose predictor holds more than MAX_PREDICTOR_ORDER coefficients (each costs
+    a multiply per buffered sample at every delivery) is refused naming the field and the
+    bound."""
+    from tail_beam_id.stream.config import MAX_PREDICTOR_ORDER, check_profile
+
+    with pytest.raises(InputError, match=f"vibration_predictor.*at most {MAX_PREDICTOR_ORDER}"):
+        check_profile(
+            {
+                "calibration": {
+                    "vibration_predictor": [0.01] * (MAX_PREDICTOR_ORDER + 1),
+                    "vibration_predictor_rate_hz": RATE_HZ,
+                }
+            }
+        )
