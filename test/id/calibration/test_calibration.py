@@ -22,6 +22,8 @@ from tail_beam_id.calibration.offline import (
     with_profile,
 )
 from tail_beam_id.signals.camera import GRIDLESS_PERIOD_S
+from tail_beam_id.signals.timing import UNUSUAL
+from tail_beam_id.stream.decision import profile_says_timing_suspect
 from tail_beam_id.stream.identifier import StreamIdentifier
 from tail_beam_id.stream.label import Label
 from tail_beam_id.stream.replay import replay
@@ -574,6 +576,54 @@ def test_an_implausible_imu_gain_keeps_the_configured_beam_and_its_oil(params, r
     assert profile.oil_bulk_modulus_pa == pytest.approx(
         bulk_modulus_for(params, profile.rigid_mode_frequency_hz), rel=1e-12
     )
+
+
+def _marked_unusual(identify, unusual_in):
+    """``identify`` whose labels' delay checks say unusual where ``unusual_in(model_params)``."""
+
+    def marked(model_params):
+        value = 1.0 if unusual_in(model_params) else 0.0
+        return [
+            replace(label, features={**label.features, UNUSUAL: value})
+            for label in identify(model_params)
+        ]
+
+    return marked
+
+
+def test_a_clock_verdict_from_configs_beam_is_taken_again_with_the_profile(params, recordings):
+    """The calibration pass runs with config/'s beam and camera; where its delay checks say the
+    clocks are offset, they are counted again on a pass with the profile itself, and that count
+    is the profile's. Delays unusual only under config/'s beam: the profile does not start the
+    identifier suspecting the clocks. Unusual under both: it does (offset clocks)."""
+    from tail_beam_id.signals.timing import TimingConfig
+
+    recorded = recordings[0]
+    plain = _identify(params, recorded)
+    timing = TimingConfig.from_params(params["identification"]["sensor_timing"])
+    signals = (
+        (recorded.pressure.stamp_s, recorded.pressure.pressure_pa),
+        (recorded.imu.stamp_s, recorded.imu.linear_acceleration_mps2[:, 2]),
+    )
+    passes = []
+
+    def first_pass_only(model_params):
+        passes.append("calibration" in model_params)
+        return "calibration" not in model_params
+
+    profile = calibrate(params, *signals, _marked_unusual(plain, first_pass_only))
+    assert passes == [False, True]  # the calibration pass, then the one with the profile
+    assert profile.delay_checked_impacts >= timing.min_impacts
+    assert profile.delay_unusual_impacts == 0
+    assert not profile_says_timing_suspect(with_profile(params, profile), timing)
+
+    offset = calibrate(params, *signals, _marked_unusual(plain, lambda _: True))
+    assert offset.delay_unusual_impacts == offset.delay_checked_impacts >= timing.min_impacts
+    assert profile_says_timing_suspect(with_profile(params, offset), timing)
+
+    agreeing = []
+    calibrate(params, *signals, lambda p: agreeing.append(p) or plain(p))
+    assert len(agreeing) == 1  # clocks that agree at the first pass cost no second one
 
 
 @pytest.mark.parametrize(
