@@ -286,7 +286,7 @@ def calibrate(
         calibrated["support"]["oil_bulk_modulus_pa"] = bulk
         labels = identify(calibrated)
         checked, unusual = delay_checks(params, labels)
-        fitted = imu_gain([label.features for label in labels])
+        fitted = imu_gain([label.features for label in gain_impacts(params, labels)])
         r_stamp, r_accel = _finite(*ringing) if ringing is not None else (i_stamp, i_accel)
         modes = ringing_modes(
             r_stamp,
@@ -327,6 +327,17 @@ def calibrate(
         **ringing_predictor(params, ringing),
     )
     return _timing_rechecked(params, profile, identify)
+
+
+def gain_impacts(params: Mapping[str, Any], labels: Sequence[Label]) -> list[Label]:
+    """The labels whose impacts the IMU gain is read from: no other onset within the pressure
+    fit's and the impulse's own background before them (``pressure_pre_s`` +
+    ``background_after_onset_s``) nor the overlap window after. In a dense flow the others'
+    responses and ringing are in both reads: on a lightly damped support every impact of a flow
+    of 20 and 50 lumps/s read the beam's inertia 52 % and 80 % low, these 0.4 % and 15 %."""
+    section = params["identification"]
+    before_s = float(section["pressure_pre_s"]) + float(section["background_after_onset_s"])
+    return isolated(labels, before_s, float(section["overlap_window_s"]))
 
 
 def delay_checks(

@@ -626,6 +626,49 @@ def test_a_clock_verdict_from_configs_beam_is_taken_again_with_the_profile(param
     assert len(agreeing) == 1  # clocks that agree at the first pass cost no second one
 
 
+def test_a_dense_flows_imu_gain_is_read_from_the_impacts_no_other_crowds(params):
+    """On a lightly damped support (the flow set's foreign-1: first mode 178 Hz, 0.8 %) a flow of
+    20 lumps/s rings under every impact, and the IMU's velocity steps and the jack's moments of
+    crowded impacts disagree: read from every impact the gain put the beam's inertia about half
+    the support's. Read from the impacts with no other onset in their own reads' windows
+    (gain_impacts) it is within 10 %."""
+    from tail_beam_id.calibration.offline import gain_impacts
+    from tail_beam_id.study.flow import record_sim_flow
+    from tail_beam_id.study.flow_evaluation import FLOW_SEED, flow_supports, identify_flow
+
+    name, draw = flow_supports(params, 1, FLOW_SEED)[1]
+    assert name == "foreign-1" and draw.values["damping_ratio"] < 0.01
+    flow = record_sim_flow(params, 20.0, 5.0, 0.0, 0.0, 0.0, seed=4711, support=draw)
+    support = flow.params["support"]
+    # the inertia a gain gives at config/'s IMU distance (calibrate's convention)
+    target = (
+        support["beam_inertia_about_hinge_kgm2"]
+        / support["imu_from_hinge_m"]
+        * params["support"]["imu_from_hinge_m"]
+    )
+    passes = []
+
+    def identify(model_params):
+        labels = identify_flow(flow, "shipped", "statistical", model_params)[0]
+        passes.append(labels)
+        return labels
+
+    profile = calibrate(
+        params,
+        (flow.pressure.stamp_s, flow.pressure.pressure_pa),
+        (flow.imu.stamp_s, flow.imu.linear_acceleration_mps2[:, 2]),
+        identify,
+        (flow.vibration.sample_stamps_s(), flow.vibration.accel_mps2),
+        [r.stamp_s for r in flow.rebounds],
+    )
+    assert profile.beam_inertia_about_hinge_kgm2 == pytest.approx(target, rel=0.1)
+    chosen = gain_impacts(params, passes[0])
+    assert profile.impacts_used <= len(chosen) < len(passes[0])
+    crowded = imu_gain([label.features for label in passes[0]])
+    assert crowded is not None
+    assert crowded[0] * params["support"]["imu_from_hinge_m"] < 0.75 * target
+
+
 @pytest.mark.parametrize(
     ("field", "value", "allowed"),
     [
