@@ -44,6 +44,10 @@ from tail_beam_sim.ros.sim_node import REFUSAL_PREFIX, refusal_tag
 from tail_beam_sim.ros.spin import ACK_TIMEOUT_S, PublishBacklog, SubscriberGate, drain
 
 SPIN_SLICE_S = 0.05  # longest wait between two looks at the graph and the clock, s
+# The name the graph gives a subscription's node before discovery has brought the node itself.
+UNKNOWN_NODE_NAME = "_NODE_NAME_UNKNOWN_"
+UNNAMED_LISTENER = "a node not yet named on the graph"
+NAMING_S = 2.0  # after the timeout, how long discovery may take to name a listener, s
 KEEP_ALL = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 ROSOUT_QOS = QoSProfile(
     depth=1000, reliability=ReliabilityPolicy.RELIABLE
@@ -131,13 +135,20 @@ class SendClient(Node):
         )
 
     def listeners(self) -> list[str]:
-        """Every node subscribing to impact_cmd (for the message when none is a simulator)."""
+        """Every node subscribing to impact_cmd (for the message when none is a simulator); one
+        whose name discovery has not brought yet is "a node not yet named on the graph"."""
         return sorted(
             {
-                f"{i.node_namespace.rstrip('/')}/{i.node_name}"
+                UNNAMED_LISTENER
+                if i.node_name == UNKNOWN_NODE_NAME
+                else f"{i.node_namespace.rstrip('/')}/{i.node_name}"
                 for i in self.get_subscriptions_info_by_topic(self.command_topic)
             }
         )
+
+    def listeners_named(self) -> bool:
+        """Whether discovery has named every node subscribing to impact_cmd."""
+        return UNNAMED_LISTENER not in self.listeners()
 
     def ready(self) -> bool:
         """A simulator is on the graph and, when truths are wanted, its truth writer has matched
@@ -197,6 +208,8 @@ def send_commands(
         gate = SubscriberGate((client.command_pub,), 1, settle_s, ready=client.ready)
         start = time.monotonic()
         if not _spin_until(executor, context, gate.open, start + timeout_s) and not gate.seen:
+            # A subscription's endpoint can come before its node's name: wait a little for it.
+            _spin_until(executor, context, client.listeners_named, time.monotonic() + NAMING_S)
             listeners = client.listeners()
             verbs = (
                 "subscribes to it but publishes"
