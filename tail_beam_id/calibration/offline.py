@@ -10,8 +10,9 @@ read off its own signals:
   sway frequency shows as the peak of the pressure's spectrum, so the jack stiffness that
   gives it is solved for (the geometry d, S as configured);
 - the IMU's moment-per-velocity gain (beam inertia over the IMU's distance from the hinge): the
-  weighted least-squares ratio, over all the recording's impacts, of the moment the calibrated
-  jack pressure saw to the velocity step the IMU saw (:func:`imu_gain`);
+  weighted least-squares ratio, over the recording's impacts that no other crowds
+  (:func:`gain_impacts`), of the moment the calibrated jack pressure saw to the velocity step
+  the IMU saw (:func:`imu_gain`);
 - the beam's bending modes as the acceleration channel sees them ring after each impact (their
   frequencies and damping, tail_beam_id.calibration.modes): the slowest one's decay time becomes
   the detector's ``ring_decay_s``, so that a lightly damped beam's ringing is followed for as long
