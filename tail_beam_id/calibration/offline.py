@@ -306,7 +306,9 @@ def calibrate(
                 # The sway frequency must still come out: the oil column follows the new inertia.
                 calibrated["support"]["beam_inertia_about_hinge_kgm2"] = inertia
                 bulk = bulk_modulus_for(calibrated, frequency) or bulk
-        weights, weighed, edges = _hysteresis_weights(params, labels, inertia, hysteresis_model)
+        weights, weighed, edges = _hysteresis_weights(
+            params, gain_impacts(params, labels), inertia, hysteresis_model
+        )
     profile = SupportProfile(
         duration_s=duration,
         impacts_used=used,
@@ -331,12 +333,12 @@ def calibrate(
 
 
 def gain_impacts(params: Mapping[str, Any], labels: Sequence[Label]) -> list[Label]:
-    """The labels whose impacts the IMU gain is read from: no other onset within the pressure
-    fit's and the impulse's own background before them (``pressure_pre_s`` +
-    ``background_after_onset_s``) nor the overlap window after. In a dense flow the others'
-    responses and ringing are in both reads: on a lightly damped support every impact of a flow
-    of 20 and 50 lumps/s read the beam's inertia 52 % and 80 % low, these 3 % and 23 %
-    (docs/results/gangue_share.md)."""
+    """The labels whose impacts the IMU gain and the hysteresis are read from: no other onset
+    within the pressure fit's and the impulse's own background before them
+    (``pressure_pre_s`` + ``background_after_onset_s``) nor the overlap window after. In a
+    dense flow the others' responses and ringing are in both reads: on a lightly damped support
+    every impact of a flow of 20 and 50 lumps/s read the beam's inertia 52 % and 80 % low, these
+    3 % and 23 % (docs/results/gangue_share.md)."""
     section = params["identification"]
     before_s = float(section["pressure_pre_s"]) + float(section["background_after_onset_s"])
     return isolated(labels, before_s, float(section["overlap_window_s"]))

@@ -631,8 +631,8 @@ def test_a_dense_flows_imu_gain_is_read_from_the_impacts_no_other_crowds(params)
     20 lumps/s rings under every impact, and the IMU's velocity steps and the jack's moments of
     crowded impacts disagree: read from every impact the gain put the beam's inertia about half
     the support's. Read from the impacts with no other onset in their own reads' windows
-    (gain_impacts) it is within 10 %."""
-    from tail_beam_id.calibration.offline import gain_impacts
+    (gain_impacts) it is within 10 %; the hysteresis is read from those impacts too."""
+    from tail_beam_id.calibration.offline import _hysteresis_weights, gain_impacts
     from tail_beam_id.study.flow import record_sim_flow
     from tail_beam_id.study.flow_evaluation import FLOW_SEED, flow_supports, identify_flow
 
@@ -664,6 +664,11 @@ def test_a_dense_flows_imu_gain_is_read_from_the_impacts_no_other_crowds(params)
     assert profile.beam_inertia_about_hinge_kgm2 == pytest.approx(target, rel=0.1)
     chosen = gain_impacts(params, passes[0])
     assert profile.impacts_used <= len(chosen) < len(passes[0])
+    # the support's hysteresis is read from the same impacts (every one would give 18 here)
+    _, weighed, _ = _hysteresis_weights(
+        params, chosen, profile.beam_inertia_about_hinge_kgm2, None
+    )
+    assert profile.hysteresis_impacts == weighed
     crowded = imu_gain([label.features for label in passes[0]])
     assert crowded is not None
     assert crowded[0] * params["support"]["imu_from_hinge_m"] < 0.75 * target
