@@ -46,6 +46,7 @@ from tail_beam_id.methods import hysteresis, load_model
 from tail_beam_id.methods.statistical import HYSTERESIS
 from tail_beam_id.signals.camera import GRIDLESS_PERIOD_S, MIN_REBOUNDS, measured_period_s
 from tail_beam_id.signals.contact_fit import unbroken
+from tail_beam_id.signals.features import IMU_MOMENT_READ
 from tail_beam_id.signals.innovations import fit_predictor
 from tail_beam_id.signals.timing import UNUSUAL, TimingConfig, judge
 from tail_beam_id.stream.label import Label
@@ -481,7 +482,8 @@ def _hysteresis_weights(
     features = []
     for label in labels:
         f = dict(label.features)
-        if "moment_impulse_imu_nms" in f:
+        if "moment_impulse_imu_nms" in f and IMU_MOMENT_READ not in f:
+            # (where the jack's moment stood for the channel's, it does not scale with the beam)
             f["moment_impulse_imu_nms"] *= factor
         features.append(f)
     weights, used = hysteresis.recording_weights(model, features, min_impacts)

@@ -29,6 +29,11 @@ SIGNALS = ("jack_pressure", "imu", "rebound_velocity")
 # rebound delay) came from the tail-beam accelerometer's ``vibration`` stream, not the IMU.
 VIBRATION_CHANNEL = "vibration_channel"
 FORCE_DURATION = "contact_force_duration_s"  # the contact force's duration above 5 % of its peak
+# The acceleration channel's own moment impulse (N m s) where it said the beam turned against
+# the jack's clear moment and the jack's stands for it (:func:`impact_features`).
+IMU_MOMENT_READ = "moment_impulse_imu_read_nms"
+# The jack's moment impulse is clear when it is this many of its standard errors above zero.
+CLEAR_MOMENT_SIGMA = 3.0
 
 
 MODEL_CACHE_SIZE = 64
@@ -333,6 +338,25 @@ def impact_features(
         if pressure.unresolved:
             features["pressure_unresolved"] = float(pressure.unresolved)
         estimates.append((pressure.moment_impulse_nms, pressure.sigma_nms))
+    if (
+        pressure is not None
+        and not pressure.saturated
+        and not pressure.neighbours
+        and not pressure.unresolved
+        and "moment_impulse_imu_nms" in features
+        and features["moment_impulse_imu_nms"] <= 0.0
+        and pressure.moment_impulse_nms > CLEAR_MOMENT_SIGMA * pressure.sigma_nms
+    ):
+        # A strike pushes the beam down about the hinge; an acceleration channel whose velocity
+        # step says it turned the other way, while the jack's moment is clear, saw a bending
+        # mode's motion (a sensor where a slow mode's shape is large), not the rigid beam's. The
+        # jack's moment stands for it, and the combined estimate rests on the jack alone: a
+        # moment at the log floor beside a clear jack moment is what no training support gave.
+        # Only for an impact alone in the jack's fit: in a dense flow the others' responses are
+        # in both reads, and the gangue-share model learnt such impacts' scores as read.
+        features[IMU_MOMENT_READ] = features["moment_impulse_imu_nms"]
+        features["moment_impulse_imu_nms"] = pressure.moment_impulse_nms
+        estimates = estimates[1:]  # the acceleration channel's, appended first
     if estimates:
         weights = np.array([1.0 / max(s, 1e-12) ** 2 for _, s in estimates])
         values = np.array([m for m, _ in estimates])
