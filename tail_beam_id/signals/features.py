@@ -290,10 +290,13 @@ def impact_features(
     rebound: tuple[float, np.ndarray] | None,
     contact: ContactFit | None = None,
     contact_half_periods: float | None = None,
+    calibrated: bool = False,
 ) -> dict[str, float]:
     """The feature dict of one impact from whatever signals there are (missing ones absent);
     ``contact_half_periods``: how many half periods of the slowest mode the contact force lasts
-    (:func:`tail_beam_id.signals.contact_fit.half_periods`)."""
+    (:func:`tail_beam_id.signals.contact_fit.half_periods`); ``calibrated``: the support's jack
+    gain was read from its own recording (a profile), so that its moment may stand for an
+    acceleration channel's that turned against it."""
     features: dict[str, float] = {}
     estimates = []
     if pulse is not None and impulse is not None:
@@ -339,7 +342,8 @@ def impact_features(
             features["pressure_unresolved"] = float(pressure.unresolved)
         estimates.append((pressure.moment_impulse_nms, pressure.sigma_nms))
     if (
-        pressure is not None
+        calibrated
+        and pressure is not None
         and not pressure.saturated
         and not pressure.neighbours
         and not pressure.unresolved
@@ -352,8 +356,10 @@ def impact_features(
         # mode's motion (a sensor where a slow mode's shape is large), not the rigid beam's. The
         # jack's moment stands for it, and the combined estimate rests on the jack alone: a
         # moment at the log floor beside a clear jack moment is what no training support gave.
-        # Only for an impact alone in the jack's fit: in a dense flow the others' responses are
-        # in both reads, and the gangue-share model learnt such impacts' scores as read.
+        # Only for an impact alone in the jack's fit (in a dense flow the others' responses are
+        # in both reads, and the gangue-share model learnt such impacts' scores as read), and on
+        # a calibrated support: a bag too short to read the sway gave both reads far off (a
+        # 30 mm coal's jack moment 3 times the truth).
         features[IMU_MOMENT_READ] = features["moment_impulse_imu_nms"]
         features["moment_impulse_imu_nms"] = pressure.moment_impulse_nms
         estimates = estimates[1:]  # the acceleration channel's, appended first

@@ -214,6 +214,7 @@ class ImpactDecider:
             impact.rebound,
             contact,
             half_periods(contact, cfg.contact_fit),
+            self.calibrated,
         )
         signals = []
         if fit is not None and not fit.saturated:

@@ -18,16 +18,22 @@ PULSE = Pulse(1.0, 1.0, 1, 1e-4, 30.0, 0.25, 1.0 / 25600.0, 100, 110)
 
 
 def features(
-    model: BeamModel, velocity_mps: float, moment_nms: float, sigma_nms: float, neighbours: int = 0
+    model: BeamModel,
+    velocity_mps: float,
+    moment_nms: float,
+    sigma_nms: float,
+    neighbours: int = 0,
+    calibrated: bool = True,
 ) -> dict:
     """The features of one impact with this IMU velocity step and jack moment (read with
-    ``neighbours`` other impacts in the jack's fit)."""
+    ``neighbours`` other impacts in the jack's fit), on a calibrated support or not."""
     return impact_features(
         model,
         PULSE,
         ImuImpulse(velocity_mps, 1e-4, 1e-4),
         PressureFit(moment_nms, sigma_nms, 1e4, 3e4, False, neighbours),
         None,
+        calibrated=calibrated,
     )
 
 
@@ -51,12 +57,14 @@ def test_a_step_against_a_clear_jack_moment_is_replaced_by_it(model):
 def test_a_step_kept_where_the_jack_says_nothing_clear_or_agrees(model):
     """The channel's own moment stays where the jack's is within noise of zero (no evidence
     against the step), where the jack read other impacts with it (a dense flow: both reads hold
-    the others'), and where the step is positive (the beam turned the way the jack says), and
-    the combined estimate then weighs both."""
+    the others'), on a support no profile calibrated, and where the step is positive (the beam
+    turned the way the jack says); the combined estimate then weighs both."""
     unclear = features(model, -0.01, 2.0, 1.0)
     assert unclear["moment_impulse_imu_nms"] < 0.0 and IMU_MOMENT_READ not in unclear
     crowded = features(model, -0.01, 5.0, 1.0, neighbours=1)
     assert crowded["moment_impulse_imu_nms"] < 0.0 and IMU_MOMENT_READ not in crowded
+    uncalibrated = features(model, -0.01, 5.0, 1.0, calibrated=False)
+    assert IMU_MOMENT_READ not in uncalibrated
     agreeing = features(model, 0.004, 5.0, 1.0)
     assert IMU_MOMENT_READ not in agreeing
     assert agreeing["moment_impulse_imu_nms"] == pytest.approx(
