@@ -354,12 +354,12 @@ def impact_features(
         # A strike pushes the beam down about the hinge; an acceleration channel whose velocity
         # step says it turned the other way, while the jack's moment is clear, saw a bending
         # mode's motion (a sensor where a slow mode's shape is large), not the rigid beam's. The
-        # jack's moment stands for it, and the combined estimate rests on the jack alone: a
-        # moment at the log floor beside a clear jack moment is what no training support gave.
+        # jack's moment stands for it, and the combined estimate rests on the jack alone: read
+        # at the models' log floor, the step would tell them of a tiny impact the jack denies.
         # Only for an impact alone in the jack's fit (in a dense flow the others' responses are
         # in both reads, and the gangue-share model learnt such impacts' scores as read), and on
-        # a calibrated support: a bag too short to read the sway gave both reads far off (a
-        # 30 mm coal's jack moment 3 times the truth).
+        # a calibrated support (a single-impact bag too short to read the sway gave both reads
+        # far off).
         features[IMU_MOMENT_READ] = features["moment_impulse_imu_nms"]
         features["moment_impulse_imu_nms"] = pressure.moment_impulse_nms
         estimates = estimates[1:]  # the acceleration channel's, appended first
