@@ -282,6 +282,22 @@ def imu_impulse(
     return ImuImpulse(fitted, sigma, ring)
 
 
+def jack_denies_step(imu_moment_nms: float, pressure: PressureFit) -> bool:
+    """Whether the jack's fit says an acceleration channel's moment impulse (N m s) is not the
+    rigid beam's: a strike pushes the beam down about the hinge, and a velocity step that says
+    it turned the other way while the jack's moment stands CLEAR_MOMENT_SIGMA standard errors
+    above zero saw a bending mode's motion (a sensor where a slow mode's shape is large). Only
+    for an impact alone in the jack's fit: in a dense flow the others' responses are in both
+    reads (and the gangue-share model learnt such impacts' scores as read)."""
+    return (
+        imu_moment_nms <= 0.0
+        and not pressure.saturated
+        and not pressure.neighbours
+        and not pressure.unresolved
+        and pressure.moment_impulse_nms > CLEAR_MOMENT_SIGMA * pressure.sigma_nms
+    )
+
+
 def impact_features(
     model: BeamModel,
     pulse: Pulse | None,
@@ -298,7 +314,7 @@ def impact_features(
     gain was read from its own recording (a profile), so that its moment may stand for an
     acceleration channel's that turned against it."""
     features: dict[str, float] = {}
-    estimates = []
+    imu_estimate = pressure_estimate = None  # (moment impulse, its standard error), N m s
     if pulse is not None and impulse is not None:
         moment = impulse.velocity_mps * model.imu_moment_per_velocity
         features["moment_impulse_imu_nms"] = moment
@@ -326,8 +342,9 @@ def impact_features(
                 features["contact_force_unexplained"] = contact.force.unexplained
                 if contact_half_periods is not None:
                     features["contact_force_half_periods"] = contact_half_periods
-        estimates.append(
-            (moment, max(impulse.sigma_mps, impulse.ring_mps) * model.imu_moment_per_velocity)
+        imu_estimate = (
+            moment,
+            max(impulse.sigma_mps, impulse.ring_mps) * model.imu_moment_per_velocity,
         )
     if pressure is not None and not pressure.saturated:
         features["moment_impulse_pressure_nms"] = pressure.moment_impulse_nms
@@ -340,29 +357,20 @@ def impact_features(
             features["pressure_neighbours"] = float(pressure.neighbours)
         if pressure.unresolved:
             features["pressure_unresolved"] = float(pressure.unresolved)
-        estimates.append((pressure.moment_impulse_nms, pressure.sigma_nms))
-    if (
-        calibrated
-        and pressure is not None
-        and not pressure.saturated
-        and not pressure.neighbours
-        and not pressure.unresolved
-        and "moment_impulse_imu_nms" in features
-        and features["moment_impulse_imu_nms"] <= 0.0
-        and pressure.moment_impulse_nms > CLEAR_MOMENT_SIGMA * pressure.sigma_nms
-    ):
-        # A strike pushes the beam down about the hinge; an acceleration channel whose velocity
-        # step says it turned the other way, while the jack's moment is clear, saw a bending
-        # mode's motion (a sensor where a slow mode's shape is large), not the rigid beam's. The
-        # jack's moment stands for it, and the combined estimate rests on the jack alone: read
-        # at the models' log floor, the step would tell them of a tiny impact the jack denies.
-        # Only for an impact alone in the jack's fit (in a dense flow the others' responses are
-        # in both reads, and the gangue-share model learnt such impacts' scores as read), and on
-        # a calibrated support (a single-impact bag too short to read the sway gave both reads
-        # far off).
-        features[IMU_MOMENT_READ] = features["moment_impulse_imu_nms"]
-        features["moment_impulse_imu_nms"] = pressure.moment_impulse_nms
-        estimates = estimates[1:]  # the acceleration channel's, appended first
+        pressure_estimate = (pressure.moment_impulse_nms, pressure.sigma_nms)
+        if (
+            calibrated
+            and imu_estimate is not None
+            and jack_denies_step(imu_estimate[0], pressure)
+        ):
+            # The jack's moment stands for the channel's, and the combined estimate rests on the
+            # jack alone: read at the models' log floor, the step would tell them of a tiny
+            # impact the jack denies. Only on a calibrated support (a single-impact bag too
+            # short to read the sway gave both reads far off).
+            features[IMU_MOMENT_READ] = imu_estimate[0]
+            features["moment_impulse_imu_nms"] = pressure.moment_impulse_nms
+            imu_estimate = None
+    estimates = [e for e in (imu_estimate, pressure_estimate) if e is not None]
     if estimates:
         weights = np.array([1.0 / max(s, 1e-12) ** 2 for _, s in estimates])
         values = np.array([m for m, _ in estimates])
