@@ -84,15 +84,33 @@ GANGUE_SHARE = Section(
             "",
             0.0,
             10.0,
-            default=1.5,
+            default=0.5,
         ),
         integer(
             "alarm_intervals",
             "A share alarm needs that evidence in this many consecutive intervals; it clears "
-            "once the estimate falls below the level.",
+            "once the estimate falls below the level (measured from the reference).",
             1,
             100,
             default=2,
+        ),
+        number(
+            "alarm_reference_s",
+            "The intervals ending this long after the first one starts are the window's top "
+            "coal: the alarm's reference, during which it cannot rise (0: no reference).",
+            "s",
+            0.0,
+            600.0,
+            default=3.0,
+        ),
+        number(
+            "alarm_margin",
+            "With a reference, a share alarm needs the estimate this far above the level "
+            "measured from the reference.",
+            "",
+            0.0,
+            1.0,
+            default=0.05,
         ),
     ),
 )
@@ -108,8 +126,10 @@ class ShareConfig:
     max_labels_per_s: float = 15.0
     max_overlap_fraction: float = 0.25
     min_labels: int = 1
-    alarm_z: float = 1.5
+    alarm_z: float = 0.5
     alarm_intervals: int = 2
+    alarm_reference_s: float = 3.0
+    alarm_margin: float = 0.05
 
     @classmethod
     def from_params(cls, section: Mapping[str, Any] | None) -> ShareConfig:

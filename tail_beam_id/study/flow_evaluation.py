@@ -47,6 +47,10 @@ from tail_beam_id.study.supports import SupportDraw, draw_support, support_range
 
 FLOW_SEED = 46001  # the flow set's seed (training flows use share_training.TRAINING_SEED + n)
 LEVELS = (0.2, 1.0 / 3.0)  # the shares whose crossing is timed
+# A read should cross a level within this of the truth, s. Where the truth reached it less than
+# this before the flow's last interval ended and the read had not yet, how long the read would
+# have taken is unknown: that delay is not judged (nan), nor counted against the target.
+CROSSING_WITHIN_S = 2.0
 LAYOUTS = ("shipped", "imu")  # the shipped sensors; the same without the accelerometer
 FLOW_PROFILES = ("nominal", "self-calibrated", "true")  # how the identifier knows the support
 SENSOR_RATES = ("pressure_rate_hz", "imu_rate_hz", "camera_frame_rate_hz")
@@ -78,7 +82,9 @@ class FlowCase:
     # Each label matched to a lump: (its score, the lump is gangue, the label used the
     # accelerometer): how much a single label says of its lump.
     scored: list[tuple[float, bool, bool]] = field(default_factory=list)
-    delays_s: dict[float, float] = field(default_factory=dict)  # level -> delay, s (nan: none)
+    # level -> delay, s; nan: the truth never reached the level, or too late to judge
+    # (CROSSING_WITHIN_S); inf: the read never did while the truth did.
+    delays_s: dict[float, float] = field(default_factory=dict)
     # The same with the estimate's lower 95 % bound reaching the level (a cautious alarm).
     low_delays_s: dict[float, float] = field(default_factory=dict)
     coal_intervals: int = 0
@@ -87,6 +93,8 @@ class FlowCase:
     # The crossing rule (share_alarm): level -> delay, s, and pure-coal intervals raised at 1/5.
     alarm_delays_s: dict[float, float] = field(default_factory=dict)
     false_alarms: int = 0
+    # Levels the truth reached less than CROSSING_WITHIN_S before the flow's last interval end.
+    late_truth: set[float] = field(default_factory=set)
     methods: dict[str, int] = field(default_factory=dict)  # interval basis -> count
     correct: int = 0
     impacts: int = 0  # lumps, plus labels matching none
@@ -156,6 +164,7 @@ class FlowCase:
             "false_low_crossings": self.false_low_crossings,
             "alarm_delay_s": {f"{level:.3f}": d for level, d in self.alarm_delays_s.items()},
             "false_alarms": self.false_alarms,
+            "late_truth": sorted(self.late_truth),
             "coal_intervals": self.coal_intervals,
             "false_crossings": self.false_crossings,
             "methods": self.methods,
@@ -272,6 +281,19 @@ def first_reaching(
     return math.nan
 
 
+def crossing_delay(true_at_s: float, seen_at_s: float, last_end_s: float) -> float:
+    """How long after the truth (at ``true_at_s``) a read reached a level (at ``seen_at_s``), s,
+    in a flow whose last interval ends at ``last_end_s``; either stamp nan where it never did.
+    nan: the truth never reached the level, or did less than CROSSING_WITHIN_S before the end
+    while the read had not (how long it would have taken is unknown); inf: the read never did,
+    though the flow ran CROSSING_WITHIN_S or more past the truth's crossing."""
+    if math.isnan(true_at_s):
+        return math.nan
+    if math.isnan(seen_at_s):
+        return math.nan if true_at_s > last_end_s - CROSSING_WITHIN_S else math.inf
+    return seen_at_s - true_at_s
+
+
 def alarm_values(shares: Sequence[GangueShare], level: float, config: ShareConfig) -> list:
     """1 after each interval the crossing rule at ``level`` is raised, else 0."""
     return [1.0 if on else 0.0 for on in alarm_states(shares, level, config)]
@@ -299,21 +321,18 @@ def score_case(
     # The boundary arrives with the first gangue lump.
     gangue_at = recording.lump_stamps_s()[recording.gangue()]
     boundary = float(gangue_at.min()) if gangue_at.size else math.inf
+    last_end = ends[-1] if ends else math.nan
     for level in LEVELS:
         true_at = first_reaching(ends, [t for t, _ in truth], level, boundary)
-        # nan: the truth never reached the level; inf: the estimate never did while it did.
+        if true_at > last_end - CROSSING_WITHIN_S:
+            case.late_truth.add(level)
         for delays, values, reach in (
             (case.delays_s, [s.share for s in shares], level),
             (case.low_delays_s, [None if s.share is None else s.low for s in shares], level),
             (case.alarm_delays_s, alarm_values(shares, level, config), 1.0),
         ):
-            seen_at = first_reaching(ends, values, reach, boundary)
-            delays[level] = (
-                math.nan
-                if math.isnan(true_at)
-                else math.inf
-                if math.isnan(seen_at)
-                else seen_at - true_at
+            delays[level] = crossing_delay(
+                true_at, first_reaching(ends, values, reach, boundary), last_end
             )
     tolerance = match_tolerance_s(recording.params["identification"])
     stamps = list(recording.lump_stamps_s())

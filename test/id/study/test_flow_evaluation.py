@@ -9,10 +9,12 @@ import math
 import pytest
 
 from tail_beam_id.stream.label import Label
-from tail_beam_id.stream.share import GangueShare
+from tail_beam_id.stream.share import GangueShare, ShareConfig
 from tail_beam_id.study.flow import record_sim_flow
 from tail_beam_id.study.flow_evaluation import (
+    CROSSING_WITHIN_S,
     FlowCase,
+    crossing_delay,
     first_reaching,
     identify_flow,
     rank_auc,
@@ -34,12 +36,29 @@ def test_crossings_and_false_alarms_are_read_from_the_interval_ends():
     assert first_reaching(ends, [0.0, 0.3, 0.1, 0.5], 0.2, 1.8) == 2.5
     assert math.isnan(first_reaching(ends, [None, 0.1, 0.1, 0.1], 0.2, 0.0))
     case = FlowCase("nominal", "shipped", 5.0)
-    score_coal(case, [share(1.0, 0.0), share(1.5, 0.25), share(2.0, None)])
+    # The crossing rule without a reference needs two consecutive intervals over the level.
+    config = ShareConfig(alarm_z=1.5, alarm_intervals=2, alarm_reference_s=0.0)
+    score_coal(case, [share(1.0, 0.0), share(1.5, 0.25), share(2.0, None)], config)
     assert (case.coal_intervals, case.false_crossings) == (3, 1)
-    # The crossing rule needs two consecutive intervals over the level: one is no alarm.
     assert case.false_alarms == 0
+    score_coal(case, [share(3.0, 0.25), share(3.5, 0.3), share(4.0, 0.0)], config)
+    assert case.false_alarms == 1
+    # config/'s reference: a flow's first 3 s are its top coal, where no alarm rises.
     score_coal(case, [share(3.0, 0.25), share(3.5, 0.3), share(4.0, 0.0)])
     assert case.false_alarms == 1
+
+
+def test_a_crossing_too_late_in_the_flow_to_judge_is_not_counted_as_missed():
+    """A read that never reached the level counts as missed (inf) only where the flow ran
+    CROSSING_WITHIN_S past the truth's crossing; nearer the end it is not judged (nan), while
+    a read that did reach it keeps its delay however late."""
+    end = 10.0
+    assert crossing_delay(5.0, math.nan, end) == math.inf
+    assert crossing_delay(end - CROSSING_WITHIN_S, math.nan, end) == math.inf
+    assert math.isnan(crossing_delay(end - 0.5, math.nan, end))
+    assert crossing_delay(end - 0.5, end, end) == pytest.approx(0.5)
+    assert crossing_delay(5.0, 4.5, end) == pytest.approx(-0.5)
+    assert math.isnan(crossing_delay(math.nan, 6.0, end))
 
 
 def test_the_score_auc_is_the_mann_whitney_statistic():
