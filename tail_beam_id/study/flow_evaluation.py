@@ -13,11 +13,13 @@ streams), the support known to it by a profile: calibrated on its own flow by de
   lumps that struck in it; intervals where none struck or nothing was estimated are left out);
 * the detection delay at 1/5 and 1/3: when the estimate first reaches the level (at or after the
   first gangue lump) minus when the true interval share first does, s (the interval ends; nan
-  when the truth never reaches it, inf when the estimate never does);
+  when the truth never reaches it, or reaches it less than ``CROSSING_WITHIN_S`` before the
+  flow ends while the estimate has not yet; inf when the estimate never does);
 * false crossings: intervals of the pure-coal flow whose estimate reaches 1/5;
-* the same for the crossing rule (:mod:`tail_beam_id.stream.share_alarm`: the share
-  ``alarm_z`` standard errors above the level in ``alarm_intervals`` consecutive intervals):
-  its delay at 1/5 and 1/3, and the pure-coal intervals it is raised after;
+* the same for the crossing rule (:mod:`tail_beam_id.stream.share_alarm`: the level measured
+  from each flow's first ``alarm_reference_s`` of top coal, reached in ``alarm_intervals``
+  consecutive intervals): its delay at 1/5 and 1/3, and the pure-coal intervals it is raised
+  after;
 * per-impact accuracy (Wilson 95 %) of the labels, extra and missed labels counting as wrong;
 * what one label says of its lump: the area under the ROC curve of the matched labels' scores
   (:func:`tail_beam_id.stream.share.label_score`) for gangue, and the fraction of them resting
