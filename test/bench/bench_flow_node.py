@@ -12,9 +12,14 @@ process (console scripts). Reported per rate, from /proc and the recorded bag:
 * real-time ratio: simulation time the vibration stamps span over the recorder's log (wall)
   time of the same messages (1.0: real time kept);
 * loss: vibration samples missing from the running index, pressure and IMU samples missing from
-  their k / rate grids, lumps without a truth or a rebound in the bag.
+  their k / rate grids, lumps without a truth or a rebound in the bag;
+* with ``--identify``, id_node (config/'s parameters, as shipped) runs beside them: its CPU share,
+  the labels it published against the lumps, and each label's lag, from the moment the
+  recorder logged the vibration at the label's impact stamp to the moment it logged the label
+  (median, 95th percentile, and the median over the first and the last quarter of the run:
+  growing when id_node falls behind).
 
-Usage: python test/bench/bench_flow_node.py [--rates 5 50 200] [--seconds 20]
+Usage: python test/bench/bench_flow_node.py [--rates 5 50 200] [--seconds 20] [--identify]
 """
 
 from __future__ import annotations
@@ -48,7 +53,39 @@ def ros_args(params: dict[str, object]) -> list[str]:
     return ["--ros-args"] + [a for k, v in params.items() for a in ("-p", f"{k}:={v}")]
 
 
-def run(rate: float, seconds: float, workdir: Path) -> dict[str, object]:
+def label_lags_s(bag: Path) -> list[tuple[float, float]]:
+    """(log time s, lag s) of every label in ``bag``: the recorder's log time of the label less
+    its log time of the vibration block holding the label's impact stamp (interpolated)."""
+    import json
+
+    import numpy as np
+
+    from tail_beam_id.stream.label import LABEL_STAMP
+    from tail_beam_sim.bags.records import TYPESTORE
+
+    with AnyReader([bag], default_typestore=TYPESTORE) as reader:
+        vib = [c for c in reader.connections if c.topic.endswith("/vibration")]
+        blocks = [
+            (m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec, ns * 1e-9)
+            for c, ns, raw in reader.messages(connections=vib)
+            for m in [reader.deserialize(raw, c.msgtype)]
+        ]
+        lab = [c for c in reader.connections if c.topic.endswith("/label")]
+        labels = [
+            (ns * 1e-9, json.loads(reader.deserialize(raw, c.msgtype).data))
+            for c, ns, raw in reader.messages(connections=lab)
+        ]
+    if not blocks:
+        return []
+    stamps, logged = (np.array(v) for v in zip(*sorted(blocks)))
+    return [
+        (t, t - float(np.interp(float(label[LABEL_STAMP]), stamps, logged)))
+        for t, label in labels
+        if LABEL_STAMP in label
+    ]
+
+
+def run(rate: float, seconds: float, workdir: Path, identify: bool) -> dict[str, object]:
     from tail_beam_sim.bags.read import read_sensors
     from tail_beam_sim.bags.records import TYPESTORE
 
@@ -77,14 +114,23 @@ def run(rate: float, seconds: float, workdir: Path) -> dict[str, object]:
         stderr=sim_log,
     )
     procs = {"sim_node": sim, "bag_recorder": recorder}
+    if identify:
+        id_log = (workdir / f"id_{rate:g}.log").open("w")
+        procs["id_node"] = subprocess.Popen(
+            [str(BIN / "id_node")], stdout=subprocess.DEVNULL, stderr=id_log
+        )
     samples = []
     while sim.poll() is None:
         samples.append((time.monotonic(), {n: cpu_s(p.pid) for n, p in procs.items()}))
         time.sleep(0.5)
-    time.sleep(1.0)
-    recorder.send_signal(signal.SIGINT)
-    recorder.communicate(timeout=60)
+    time.sleep(3.0 if identify else 1.0)  # the last impacts' labels
+    for name in ("id_node", "bag_recorder"):
+        if name in procs:
+            procs[name].send_signal(signal.SIGINT)
+            procs[name].communicate(timeout=60)
     sim_log.close()
+    if identify:
+        id_log.close()
     steady = [
         s
         for s in samples
@@ -120,18 +166,39 @@ def run(rate: float, seconds: float, workdir: Path) -> dict[str, object]:
         "shares": len(data.json_topics["gangue_share_truth"]),
         "sim_line": lumps.split("]: ")[-1],
         "exit": sim.returncode,
+        "lags": label_lags_s(bag) if identify else [],
     }
+
+
+def identify_line(r: dict[str, object], cpu: dict[str, float]) -> str:
+    """id_node's figures of one run: CPU share, labels against lumps, lag."""
+    import numpy as np
+
+    lags = r["lags"]
+    if not lags:
+        return f"id_node {cpu.get('id_node', float('nan')):5.1f} % CPU, no label recorded"
+    t, lag = (np.array(v) for v in zip(*lags))
+    quarter = (t.max() - t.min()) / 4.0
+    first = np.median(lag[t <= t.min() + quarter])
+    last = np.median(lag[t >= t.max() - quarter])
+    return (
+        f"id_node {cpu.get('id_node', float('nan')):5.1f} % CPU, {lag.size} labels for "
+        f"{r['truths']} lumps, lag median {1e3 * np.median(lag):.0f} ms, p95 "
+        f"{1e3 * np.percentile(lag, 95):.0f} ms (first quarter {1e3 * first:.0f} ms, last "
+        f"{1e3 * last:.0f} ms)"
+    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rates", nargs="+", type=float, default=[5.0, 50.0, 200.0])
     parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--identify", action="store_true", help="run id_node beside them")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         for rate in args.rates:
             load = os.getloadavg()[0]
-            r = run(rate, args.seconds, Path(tmp))
+            r = run(rate, args.seconds, Path(tmp), args.identify)
             cpu = r["cpu"]
             per_sim_s = cpu.get("sim_node", float("nan")) / 100.0 / r["realtime"]
             print(
@@ -144,6 +211,8 @@ def main() -> None:
                 f"load average {load:.1f}, exit {r['exit']}",
                 flush=True,
             )
+            if args.identify:
+                print(f"      {identify_line(r, cpu)}", flush=True)
 
 
 if __name__ == "__main__":
