@@ -96,7 +96,7 @@ GANGUE_SHARE = Section(
         ),
         number(
             "alarm_reference_s",
-            "The intervals ending this long after the first one starts are the window's top "
+            "The intervals ending within this of the first one's start are the window's top "
             "coal: the alarm's reference, during which it cannot rise (0: no reference).",
             "s",
             0.0,
