@@ -1059,7 +1059,8 @@ CAVING = Section(
         ),
         number(
             "estimate_level",
-            "share_estimate: level the gangue_share interval's lower bound crosses.",
+            "share_estimate: level the gangue_share interval's lower bound crosses; "
+            "share_alarm: the level of the share's crossing rule.",
             "",
             0.0,
             1.0,

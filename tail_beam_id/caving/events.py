@@ -89,6 +89,7 @@ class ShareEstimate:
     high: float
     interval_s: float = 0.0
     arrival_s: float | None = None
+    standard_error: float | None = None  # the estimator's (None: not stated)
 
     def __post_init__(self) -> None:
         for name in ("share", "low", "high"):

@@ -69,6 +69,7 @@ def share_event(share: GangueShare) -> ShareEstimate | None:
         float(share.low),
         float(share.high),
         share.end_stamp_s - share.start_stamp_s,
+        standard_error=share.standard_error,
     )
 
 

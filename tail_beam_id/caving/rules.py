@@ -21,6 +21,9 @@ The rules (docs/caving.md):
   CUSUM in spirit).
 - :class:`ShareEstimateLevel`: close when a ``gangue_share`` estimate's interval lies above a
   level (its lower bound reaches it).
+- :class:`ShareCrossing`: close when the share's crossing rule
+  (:mod:`tail_beam_id.stream.share_alarm`) rises at that level: measured from the window's
+  first seconds of top coal, over consecutive estimates.
 - :class:`Oracle`: close when the true instantaneous share reaches a level: the upper bound,
   fed by the simulation's truth.
 
@@ -43,6 +46,8 @@ from tail_beam_id.caving.events import (
     ShareEstimate,
     TrueShare,
 )
+from tail_beam_id.stream.share import ShareConfig
+from tail_beam_id.stream.share_alarm import ShareAlarm
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.spec import CAVING
 
@@ -51,6 +56,7 @@ __all__ = [
     "FixedTime",
     "Oracle",
     "Rule",
+    "ShareCrossing",
     "ShareEstimateLevel",
     "ShareOfLastLabels",
     "Sprt",
@@ -226,6 +232,37 @@ class ShareEstimateLevel(Rule):
         return None
 
 
+class ShareCrossing(Rule):
+    """Close when the share's crossing rule at ``level`` rises (``config``: the
+    ``identification.gangue_share`` section's alarm fields): its reference is the window's
+    first ``alarm_reference_s`` from the opening, and estimates without a standard error count
+    as exact."""
+
+    name = "share_alarm"
+
+    def __init__(self, level: float, config: ShareConfig) -> None:
+        super().__init__()
+        self.level = _check("estimate_level", level)
+        self.alarm = ShareAlarm.of(self.level, config)
+        self._alarm_opened = False
+
+    def _consider(self, event: Event) -> Decision | None:
+        if not isinstance(event, ShareEstimate):
+            return None
+        if not self._alarm_opened and math.isfinite(self.opened_s):
+            self.alarm.open(self.opened_s)  # else from the first estimate's interval
+        self._alarm_opened = True
+        start = event.stamp_s - event.interval_s
+        if self.alarm.observe(start, event.stamp_s, event.share, event.standard_error):
+            return self._decide(
+                event,
+                f"gangue share {event.share:.2f}, {self.level:g} measured from the window's top "
+                f"coal at {self.alarm.measured_level():.2f}",
+                (event,),
+            )
+        return None
+
+
 class Oracle(Rule):
     """Close when the true instantaneous gangue share reaches ``level`` (the upper bound)."""
 
@@ -241,10 +278,14 @@ class Oracle(Rule):
         return None
 
 
-def rule_factories(caving: Mapping[str, Any]) -> dict[str, Callable[[], Rule]]:
+def rule_factories(
+    caving: Mapping[str, Any], gangue_share: Mapping[str, Any] | None = None
+) -> dict[str, Callable[[], Rule]]:
     """Every rule of a ``caving`` section (checked whole first), by name, as a maker of a fresh
-    rule for each window."""
+    rule for each window; ``gangue_share``: the ``identification.gangue_share`` section whose
+    crossing rule ``share_alarm`` runs (None: its built-in defaults, config/'s values)."""
     c = CAVING.check(caving)
+    alarm = ShareConfig.from_params(gangue_share)
     makers: dict[str, Callable[[], Rule]] = {
         "fixed_time": lambda: FixedTime(c["fixed_time_s"]),
         "first_gangue": lambda: FirstGangue(c["first_gangue_min_confidence"]),
@@ -256,5 +297,6 @@ def rule_factories(caving: Mapping[str, Any]) -> dict[str, Callable[[], Rule]]:
         c["sprt_share_low"], c["sprt_share_high"], c["sprt_alpha"], c["sprt_beta"]
     )
     makers["share_estimate"] = lambda: ShareEstimateLevel(c["estimate_level"])
+    makers["share_alarm"] = lambda: ShareCrossing(c["estimate_level"], alarm)
     makers["oracle"] = lambda: Oracle(c["oracle_level"])
     return makers

@@ -27,9 +27,11 @@ from tail_beam_sim.errors import InputError
 def evidence_above(share: GangueShare, level: float, z: float) -> bool:
     """The interval puts the share at least ``z`` standard errors above ``level`` (an interval
     with no standard error, none of its labels disagreeing: the share itself reaches it)."""
-    if share.share is None:
-        return False
-    return share.share - z * (share.standard_error or 0.0) >= level
+    return share.share is not None and _above(share.share, share.standard_error, level, z)
+
+
+def _above(share: float, standard_error: float | None, level: float, z: float) -> bool:
+    return share - z * (standard_error or 0.0) >= level
 
 
 @dataclass
@@ -75,26 +77,44 @@ class ShareAlarm:
         base = sum(self._reference) / len(self._reference)
         return base + self.level * (1.0 - base)
 
+    def open(self, stamp_s: float) -> None:
+        """The window opened at ``stamp_s`` (s): the reference is counted from it (without this
+        call, from the first interval's start)."""
+        self._opened_s = stamp_s
+
     def update(self, share: GangueShare) -> bool:
         """Take the next interval; whether the alarm is raised after it."""
+        return self.observe(
+            share.start_stamp_s, share.end_stamp_s, share.share, share.standard_error
+        )
+
+    def observe(
+        self,
+        start_s: float,
+        end_s: float,
+        share: float | None,
+        standard_error: float | None,
+    ) -> bool:
+        """Take the next interval, [``start_s``, ``end_s``) (s), its estimated ``share`` (None:
+        no estimate) and standard error; whether the alarm is raised after it."""
         if self._opened_s is None:
-            self._opened_s = share.start_stamp_s
-        if share.end_stamp_s <= self._opened_s + self.reference_s:
-            if share.share is not None:
-                self._reference.append(share.share)
+            self._opened_s = start_s
+        if end_s <= self._opened_s + self.reference_s:
+            if share is not None:
+                self._reference.append(share)
             return self.raised
-        if share.share is None:
+        if share is None:
             self._run = 0
             return self.raised
         level = self.measured_level()
         margin = self.margin if self.reference_s > 0.0 else 0.0
-        if share.share >= level + margin and evidence_above(share, self.level, self.z):
+        if share >= level + margin and _above(share, standard_error, self.level, self.z):
             self._run += 1
             if self._run >= self.intervals:
                 self.raised = True
         else:
             self._run = 0
-            if share.share < level:
+            if share < level:
                 self.raised = False
         return self.raised
 

@@ -296,6 +296,7 @@ class IdentifiedWindowFeed(RuleFeed):
                     estimate.low,
                     estimate.high,
                     estimate.interval_s,
+                    standard_error=estimate.standard_error,
                 )
             )
 

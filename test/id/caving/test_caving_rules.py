@@ -18,12 +18,14 @@ from tail_beam_id.caving.rules import (
     FirstGangue,
     FixedTime,
     Oracle,
+    ShareCrossing,
     ShareEstimateLevel,
     ShareOfLastLabels,
     Sprt,
     rule_factories,
 )
 from tail_beam_id.stream.label import Label
+from tail_beam_id.stream.share import ShareConfig
 from tail_beam_sim.config import default_config_dir, read_parameter_file
 from tail_beam_sim.errors import InputError
 
@@ -155,6 +157,37 @@ def test_the_estimate_rule_waits_for_the_lower_bound():
     assert decision is not None and decision.stamp_s == 2.4
 
 
+def estimates(opened_s: float, shares: list[float], se: float = 0.05) -> list[ShareEstimate]:
+    """1 s estimates every 0.5 s, the first ending 1 s after ``opened_s``."""
+    return [
+        ShareEstimate(
+            opened_s + 1.0 + 0.5 * k,
+            v,
+            max(v - 0.1, 0.0),
+            min(v + 0.1, 1.0),
+            1.0,
+            standard_error=se,
+        )
+        for k, v in enumerate(shares)
+    ]
+
+
+def test_the_crossing_rule_measures_its_level_from_the_windows_opening():
+    """A window opened at 100 s whose top coal reads 0.3 (a support's own bias): its first 3 s
+    of estimates are the reference, 0.2 measured from it is 0.44 (+ 0.05 margin), so 0.45 does
+    not close it and the second of two estimates at 0.55 does, naming the measured level."""
+    rule = ShareCrossing(0.2, ShareConfig())
+    rule.feed(Opened(100.0))
+    events = estimates(100.0, [0.3] * 5 + [0.45, 0.45, 0.55, 0.55])
+    decisions = [rule.feed(e) for e in events]
+    assert decisions[:-1] == [None] * 8
+    assert decisions[-1] is not None and decisions[-1].stamp_s == events[-1].stamp_s
+    assert "0.44" in decisions[-1].reason
+    # Without the window's opening the reference starts at the first estimate's interval.
+    late = ShareCrossing(0.2, ShareConfig())
+    assert all(late.feed(e) is None for e in estimates(100.0, [0.3] * 5 + [0.45] * 4))
+
+
 def test_the_oracle_closes_on_the_true_share_only():
     """Labels do not move the oracle; the first true share at its level does."""
     rule = Oracle(0.3)
@@ -186,7 +219,7 @@ def test_rule_parameters_out_of_range_are_named():
 
 
 def test_the_shipped_rules_and_an_identifier_label():
-    """config/face.yaml makes the seven rules; an identifier's Label becomes an event."""
+    """config/face.yaml makes the eight rules; an identifier's Label becomes an event."""
     caving = read_parameter_file(default_config_dir() / "face.yaml")["caving"]
     assert list(rule_factories(caving)) == [
         "fixed_time",
@@ -195,6 +228,7 @@ def test_the_shipped_rules_and_an_identifier_label():
         "share_0.2",
         "sprt",
         "share_estimate",
+        "share_alarm",
         "oracle",
     ]
     label = Label(12.5, "gangue", 0.8, "statistical")
