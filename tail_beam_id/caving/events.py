@@ -100,6 +100,12 @@ class ShareEstimate:
             raise InputError(
                 "gangue_share.share", self.share, f"must lie in [{self.low:g}, {self.high:g}]"
             )
+        if self.standard_error is not None and not (
+            math.isfinite(self.standard_error) and self.standard_error >= 0.0
+        ):
+            raise InputError(
+                "gangue_share.standard_error", self.standard_error, "must be >= 0 or null"
+            )
 
     @property
     def known_s(self) -> float:

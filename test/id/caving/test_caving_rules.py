@@ -216,6 +216,10 @@ def test_rule_parameters_out_of_range_are_named():
         LabelEvent(1.0, "rock", 0.9)
     with pytest.raises(InputError, match=r"gangue_share\.low = -0\.1"):
         ShareEstimate(1.0, 0.1, -0.1, 0.2)
+    # A negative or undefined standard error would count as evidence it is not.
+    for bad in (-0.1, math.nan):
+        with pytest.raises(InputError, match=r"gangue_share\.standard_error"):
+            ShareEstimate(1.0, 0.1, 0.0, 0.2, standard_error=bad)
 
 
 def test_the_shipped_rules_and_an_identifier_label():
