@@ -244,14 +244,15 @@ class ShareCrossing(Rule):
         super().__init__()
         self.level = _check("estimate_level", level)
         self.alarm = ShareAlarm.of(self.level, config)
-        self._alarm_opened = False
+
+    def feed(self, event: Event) -> Decision | None:
+        if isinstance(event, Opened):
+            self.alarm.open(event.stamp_s)  # unopened, from the first estimate's interval
+        return super().feed(event)
 
     def _consider(self, event: Event) -> Decision | None:
         if not isinstance(event, ShareEstimate):
             return None
-        if not self._alarm_opened and math.isfinite(self.opened_s):
-            self.alarm.open(self.opened_s)  # else from the first estimate's interval
-        self._alarm_opened = True
         start = event.stamp_s - event.interval_s
         if self.alarm.observe(start, event.stamp_s, event.share, event.standard_error):
             return self._decide(

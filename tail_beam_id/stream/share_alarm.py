@@ -2,8 +2,9 @@
 share as having reached a level (1/5, 1/3), with a minimum of evidence and hysteresis, so that
 one noisy interval in pure coal does not close a window.
 
-A caving window opens on top coal. The intervals ending within ``alarm_reference_s`` of the
-first one's start are the window's reference: what the estimator reads of pure coal on this
+A caving window opens on top coal. The intervals ending within ``alarm_reference_s`` of its
+opening (:meth:`ShareAlarm.open`; without it, the first interval's start) are the window's
+reference: what the estimator reads of pure coal on this
 support (its mean ``b``, where another support's labels err more or less than training's).
 The level ``L`` is then measured from it, ``b + L (1 - b)``: the reading a share of ``L`` gives
 if the support's error shifts every reading alike. The alarm cannot rise during the reference;
