@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -60,6 +60,8 @@ class FlowRecording:
     truths: list[dict[str, Any]]
     vibration: Any = None  # VibrationBlocks; None when the support has no accelerometer
     support: SupportDraw | None = None
+    # The camera's impact points (ImpactPoint, stamped as their rebounds) when it reports them
+    points: list[Any] = field(default_factory=list)
 
     def lump_stamps_s(self) -> np.ndarray:
         return np.array([t["contact_start_stamp"] for t in self.truths])
@@ -172,6 +174,7 @@ def record_sim_flow(
         truths,
         record.vibration if vibration and record.vibration.count else None,
         support,
+        [p for _, p in record.points],
     )
 
 

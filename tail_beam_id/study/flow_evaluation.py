@@ -37,7 +37,7 @@ import numpy as np
 
 from tail_beam_id.calibration.offline import calibrate, ringing_predictor, with_profile
 from tail_beam_id.stream.label import match_stamps, match_tolerance_s
-from tail_beam_id.stream.replay import replay
+from tail_beam_id.stream.replay import point_tuples, replay
 from tail_beam_id.stream.share import Z_95, GangueShare, ShareConfig, label_score
 from tail_beam_id.stream.share_alarm import alarm_states
 from tail_beam_id.stream.share_reader import SharingIdentifier
@@ -232,6 +232,7 @@ def identify_flow(
         recording.imu,
         recording.rebounds,
         vibration=recording.vibration if layout == "shipped" else None,
+        points=point_tuples(recording.points),
     )
     return labels, identifier.take_shares()
 

@@ -1,6 +1,7 @@
 """A simulated flow (:class:`tail_beam_sim.physics.flow.FlowRecord`) as a rosbag2 bag: the sensor
-topics, ``rebound_velocity``, ``impact_truth``, ``gangue_share_truth`` and ``window_cmd``,
-stamped as sim_node publishes them, so a bag of an offline flow reads like a recorded one."""
+topics, ``rebound_velocity``, ``impact_point`` (when the camera reports it), ``impact_truth``,
+``gangue_share_truth`` and ``window_cmd``, stamped as sim_node publishes them, so a bag of an
+offline flow reads like a recorded one."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from typing import Any
 from tail_beam_sim import topics
 from tail_beam_sim.bags.records import (
     BagRecord,
+    point_msg,
     rebound_msg,
     stream_records,
     string_msg,
@@ -20,10 +22,11 @@ from tail_beam_sim.physics.flow import FlowRecord
 
 def flow_records(record: FlowRecord) -> list[BagRecord]:
     """Every bag record of ``record``: a window command at its stamp, a share interval at its
-    end, a truth at its publishing stamp, a rebound at its camera frame."""
+    end, a truth at its publishing stamp, a rebound and its impact point at its camera frame."""
     out: list[BagRecord] = []
     out.extend(stream_records(record.pressure, record.imu, record.vibration))
     out.extend(rebound_msg(r.stamp_s, r.velocity_mps) for _, r in record.rebounds)
+    out.extend(point_msg(p.stamp_s, p.point_m) for _, p in record.points)
     out.extend(
         (topics.IMPACT_TRUTH, topics.stamp_ns(stamp), string_msg(truth))
         for stamp, truth in record.truths

@@ -28,7 +28,13 @@ import numpy as np
 from tail_beam_sim.config import section
 from tail_beam_sim.errors import InputError
 from tail_beam_sim.physics.lumps import FlowParams, Lump, LumpSource, WindowStateError
-from tail_beam_sim.physics.sensors import ImuStream, PressureStream, Rebound, VibrationBlocks
+from tail_beam_sim.physics.sensors import (
+    ImpactPoint,
+    ImuStream,
+    PressureStream,
+    Rebound,
+    VibrationBlocks,
+)
 from tail_beam_sim.physics.share_curve import ShareCurve
 from tail_beam_sim.physics.solvers import SolverError
 from tail_beam_sim.physics.stream import CHANNELS, Chunk
@@ -221,8 +227,8 @@ class FlowRun:
 @dataclass
 class FlowRecord:
     """An offline flow run: the sensor streams as the stream simulator gives them (absolute
-    simulation time), the rebounds, each lump's ``impact_truth``, the share intervals and the
-    window commands."""
+    simulation time), the rebounds (with the camera's impact points when it reports them), each
+    lump's ``impact_truth``, the share intervals and the window commands."""
 
     pressure: PressureStream
     imu: ImuStream
@@ -234,6 +240,9 @@ class FlowRecord:
     windows: list[tuple[float, str]]  # (stamp s, "open" | "close")
     duration_s: float
     params: dict[str, Any] = field(default_factory=dict)  # the flow parameters used
+    # (impact_id, point) in stamp order, each stamped as its rebound
+    # (sensors.camera_reports_impact_point; empty otherwise)
+    points: list[tuple[str, ImpactPoint]] = field(default_factory=list)
 
     @property
     def lumps_per_s(self) -> float:
@@ -280,11 +289,13 @@ def simulate_flow(
         if math.isfinite(closing):
             done_events.append((run.command("close", closing), "close"))
     pressure, imu, vibration, rebounds, truths, shares, lumps = [], [], [], [], [], [], []
+    points: list[tuple[str, ImpactPoint]] = []
     t = 0.0
     while t < duration_s:
         step_end = min(t + step_s, duration_s)
         part = run.advance(step_end)
         _collect(part, pressure, imu, vibration, rebounds, truths, shares, lumps)
+        points.extend(part.chunk.points)
         t = step_end
     spec = run.sim.sensors
     return FlowRecord(
@@ -310,6 +321,7 @@ def simulate_flow(
         windows=[e for e in done_events if e[0] <= duration_s],
         duration_s=float(duration_s),
         params={**dict(section(params, "flow")), **({"seed": seed} if seed is not None else {})},
+        points=points,
     )
 
 

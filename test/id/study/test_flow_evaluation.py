@@ -3,6 +3,7 @@ the gangue share of a simulated pure-coal flow."""
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 
@@ -233,3 +234,26 @@ def test_a_dense_flows_labels_and_shares_do_not_depend_on_how_the_streams_were_c
     assert len(runs[0][0]) >= 0.5 * rate_per_s * duration_s and len(runs[0][1]) >= 3
     assert any(lab["overlap"] for lab in runs[0][0])
     assert runs[1] == runs[0] and runs[2] == runs[0]
+
+
+def test_a_flow_whose_camera_reports_the_impact_point_is_read_with_it():
+    """The flow set's recordings keep the camera's impact points, and identify_flow hands them
+    to the identifier: with sensors.camera_reports_impact_point every label of a sparse flow
+    rests on a point (feature impact_x_m, within 0.06 m of where its lump struck); the same flow
+    without it gives labels without one."""
+    params = copy.deepcopy(dict(load_parameters([])))
+    params["sensors"]["camera_reports_impact_point"] = True
+    pointed = record_sim_flow(params, 3.0, 4.0, 0.0, 0.0, 0.0, seed=9005)
+    assert len(pointed.points) == len(pointed.rebounds) >= 6
+    labels, _ = identify_flow(pointed, "shipped")
+    struck = {round(t["contact_start_stamp"], 3): t["position_m"] for t in pointed.truths}
+    read = [lab for lab in labels if isinstance(lab, Label)]
+    assert len(read) >= 6
+    for lab in read:
+        assert "impact_x_m" in lab.features
+        nearest = min(struck, key=lambda stamp: abs(stamp - lab.impact_stamp_s))
+        assert abs(lab.features["impact_x_m"] - struck[nearest]) < 0.06
+    params["sensors"]["camera_reports_impact_point"] = False
+    plain = record_sim_flow(params, 3.0, 4.0, 0.0, 0.0, 0.0, seed=9005)
+    assert plain.points == []
+    assert not any("impact_x_m" in lab.features for lab in identify_flow(plain, "shipped")[0])

@@ -58,3 +58,29 @@ def test_flow_bag_round_trip(record, tmp_path, storage):
         + len(record.shares)
         + len(record.windows)
     )
+
+
+def test_a_flow_whose_camera_reports_the_impact_point_records_one_point_per_rebound(tmp_path):
+    """With sensors.camera_reports_impact_point, the offline flow keeps the camera's point of
+    every lump, stamped as its rebound and within a few noise sigmas (0.01 m) of where the lump
+    struck; the bag carries them on impact_point and reads them back. Without it, none."""
+    params = load_parameters(
+        [default_config_dir() / "sim_node.yaml", default_config_dir() / "flow.yaml"]
+    )
+    params["flow"].update(lumps_per_s=20.0, onset_delay_s=0.05)
+    params["sensors"]["camera_reports_impact_point"] = True
+    pointed = simulate_flow(params, 1.5, seed=9, windows=[(0.1, 1.5)])
+    assert len(pointed.rebounds) >= 10
+    assert len(pointed.points) == len(pointed.rebounds)
+    rebound_at = {impact_id: r.stamp_s for impact_id, r in pointed.rebounds}
+    struck_at = {t["impact_id"]: t["position_m"] for _, t in pointed.truths}
+    for impact_id, point in pointed.points:
+        assert point.stamp_s == rebound_at[impact_id]
+        assert abs(point.point_m[0] - struck_at[impact_id]) < 0.06
+        assert point.point_m[2] == 0.0
+    bag = tmp_path / "pointed"
+    write_flow_bag(pointed, bag)
+    back = read_sensors(bag)
+    assert [p[0] for p in back.points] == pytest.approx([p.stamp_s for _, p in pointed.points])
+    params["sensors"]["camera_reports_impact_point"] = False
+    assert simulate_flow(params, 1.5, seed=9, windows=[(0.1, 1.5)]).points == []
