@@ -37,6 +37,8 @@ BASIS = "count"  # the share is the fraction of lumps that are gangue, by number
 Z_95 = 1.959963984540054  # two-sided 95 % normal quantile
 MODEL_PATH = Path(__file__).resolve().parent.parent / "models" / "gangue_share.json"
 SCORE_LIMIT = 12.0  # label scores (logits of gangue) are clipped to +-this
+POINT_SIGNAL = "impact_point"  # in a label's signals when its decision read the camera's point
+LOGIT_WITHOUT_POINT = "logit_without_point"  # that label's logit had the point been left aside
 # Flow density classes of the score model: labels per second below, between and above these.
 RATE_CLASS_EDGES_PER_S = (15.0, 40.0, 80.0, 150.0)
 SHARE_GRID = 1000  # the mixture estimate's share grid: steps from 0 to 1
@@ -229,11 +231,11 @@ class GangueShare:
             raise InputError("gangue_share", str(text)[:60], f"a field of the wrong type ({exc})")
 
 
-def label_score(label: Label) -> float:
+def label_score(label: Label, logit_name: str = "logit") -> float:
     """How gangue-like a label's impact is: the method's logit of gangue (its ``logit``
-    estimate, which no confidence cap has touched), else the logit of the probability its
-    material and confidence state; clipped to the score range."""
-    logit = label.features.get("logit") if label.features else None
+    estimate, or ``logit_name``, which no confidence cap has touched), else the logit of the
+    probability its material and confidence state; clipped to the score range."""
+    logit = label.features.get(logit_name) if label.features else None
     if logit is not None and math.isfinite(float(logit)):
         value = -float(logit)  # the methods' logit is of coal
     else:
@@ -250,6 +252,23 @@ def regime_of(label: Label, labels_per_s: float) -> str:
     ``jack_pressure+rebound_velocity/overlap/2``."""
     overlap = "overlap" if label.overlap else "alone"
     return f"{'+'.join(sorted(label.signals))}/{overlap}/{rate_class(labels_per_s)}"
+
+
+def scored(label: Label, labels_per_s: float, model: ScoreModel) -> tuple[float, str]:
+    """The score and regime ``model`` reads a label with: its own; or, for a label that read
+    the camera's impact point in a regime the model does not know (one learnt on flows without
+    the point), the score its method gave without the point, in the regime of its signals
+    without it. Turning the camera's point on then never leaves a dense flow without a model."""
+    regime = regime_of(label, labels_per_s)
+    features = label.features or {}
+    if (
+        POINT_SIGNAL in label.signals
+        and LOGIT_WITHOUT_POINT in features
+        and model.density_of(regime) is None
+    ):
+        signals = "+".join(sorted(s for s in label.signals if s != POINT_SIGNAL))
+        return label_score(label, LOGIT_WITHOUT_POINT), f"{signals}/{regime.split('/', 1)[1]}"
+    return label_score(label), regime
 
 
 def rate_class(labels_per_s: float) -> int:
@@ -400,9 +419,11 @@ def estimate_share(
     )
     likelihoods = None
     if not separable and model is not None:
-        scores = np.array([label_score(lab) for lab in inside])
         rate = n / (end_s - start_s)
-        likelihoods = model.likelihoods(scores, [regime_of(lab, rate) for lab in inside])
+        pairs = [scored(lab, rate, model) for lab in inside]
+        likelihoods = model.likelihoods(
+            np.array([score for score, _ in pairs]), [regime for _, regime in pairs]
+        )
     if likelihoods is None:
         low, high = wilson_interval(k, n)
         p = k / n

@@ -131,6 +131,39 @@ def test_labels_whose_signals_the_model_does_not_know_are_counted():
     assert share.basis_method == "mixture" and share.share == pytest.approx(0.5, abs=1e-9)
 
 
+def test_labels_that_read_the_impact_point_are_scored_without_it_where_the_model_lacks_it():
+    """A camera reporting the impact point adds ``impact_point`` to a label's signals; a score
+    model learnt without the point reads such labels with the logit they would have had without
+    it, in the regime of their signals without it: the share is the one the same lumps give
+    without the point, not the count. A model that knows the point's regime reads the logit
+    that used it."""
+    truth = [k % 10 < 3 for k in range(100)]
+    plain = [scored(0.01 * k, g) for k, g in enumerate(truth)]
+    # With the point, the decision turned (logit +3 <-> -3): only the logit without it agrees
+    # with the model's coal-like / gangue-like sides.
+    pointed = [
+        Label(
+            lab.impact_stamp_s,
+            lab.material,
+            lab.confidence,
+            lab.method,
+            signals=("impact_point", "vibration"),
+            overlap=True,
+            features={
+                "logit": -lab.features["logit"],
+                "logit_without_point": lab.features["logit"],
+            },
+        )
+        for lab in plain
+    ]
+    without = estimate_share(plain, 0.0, 1.0, CONFIG, two_bin_model())
+    read = estimate_share(pointed, 0.0, 1.0, CONFIG, two_bin_model())
+    assert read.basis_method == "mixture" and read.share == pytest.approx(without.share)
+    assert read.share == pytest.approx(0.3, abs=1e-9)
+    knows_point = two_bin_model("impact_point+vibration/overlap")
+    assert estimate_share(pointed, 0.0, 1.0, CONFIG, knows_point).share == pytest.approx(0.7)
+
+
 def test_the_systematic_error_adds_to_the_statistical_one_in_quadrature():
     """A model stating a systematic error of 0.1 at this density: the standard error is the
     binomial one and 0.1 in quadrature, and the interval widens by at least 1.96 x 0.1 below
