@@ -294,8 +294,7 @@ def simulate_flow(
     while t < duration_s:
         step_end = min(t + step_s, duration_s)
         part = run.advance(step_end)
-        _collect(part, pressure, imu, vibration, rebounds, truths, shares, lumps)
-        points.extend(part.chunk.points)
+        _collect(part, pressure, imu, vibration, rebounds, truths, shares, lumps, points)
         t = step_end
     spec = run.sim.sensors
     return FlowRecord(
@@ -334,6 +333,7 @@ def _collect(
     truths: list,
     shares: list,
     lumps: list,
+    points: list,
 ) -> None:
     chunk = part.chunk
     pressure.append(chunk.pressure)
@@ -343,6 +343,7 @@ def _collect(
     truths.extend(chunk.truths)
     shares.extend(part.shares)
     lumps.extend(part.lumps)
+    points.extend(chunk.points)
 
 
 MAX_WINDOW_CMD_CHARS = 1024  # a window command is about 20 characters
