@@ -112,6 +112,10 @@ def main() -> int:
     if not all(0.0 < r <= 200.0 for r in rates):
         print(f"--rates = {args.rates!r}: each must be in (0, 200] lumps/s", file=sys.stderr)
         return 2
+    for name, value in (("--flow-s", args.flow_s), ("--training-s", args.training_s)):
+        if not 1.0 <= value <= 3600.0:
+            print(f"{name} = {value:g}: must be in [1, 3600] s", file=sys.stderr)
+            return 2
     single_blas_thread()
     params = load_parameters([])
     # The flow set's scene stretched to --flow-s: pure coal for its first half, then the share by
