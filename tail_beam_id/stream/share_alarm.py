@@ -25,14 +25,12 @@ from tail_beam_id.stream.share import GangueShare, ShareConfig
 from tail_beam_sim.errors import InputError
 
 
-def evidence_above(share: GangueShare, level: float, z: float) -> bool:
-    """The interval puts the share at least ``z`` standard errors above ``level`` (an interval
-    with no standard error, none of its labels disagreeing: the share itself reaches it)."""
-    return share.share is not None and _above(share.share, share.standard_error, level, z)
-
-
-def _above(share: float, standard_error: float | None, level: float, z: float) -> bool:
-    return share - z * (standard_error or 0.0) >= level
+def evidence_above(
+    share: float | None, standard_error: float | None, level: float, z: float
+) -> bool:
+    """An interval's ``share`` lies at least ``z`` standard errors above ``level`` (no standard
+    error, none of its labels disagreeing: the share itself reaches it; no share: no evidence)."""
+    return share is not None and share - z * (standard_error or 0.0) >= level
 
 
 @dataclass
@@ -109,7 +107,7 @@ class ShareAlarm:
             return self.raised
         level = self.measured_level()
         margin = self.margin if self.reference_s > 0.0 else 0.0
-        if share >= level + margin and _above(share, standard_error, self.level, self.z):
+        if share >= level + margin and evidence_above(share, standard_error, self.level, self.z):
             self._run += 1
             if self._run >= self.intervals:
                 self.raised = True

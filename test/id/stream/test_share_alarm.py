@@ -43,9 +43,9 @@ def test_two_intervals_with_evidence_raise_and_a_fall_below_clears():
 def test_a_share_within_its_error_of_the_level_is_no_evidence():
     """0.24 with a standard error of 0.05 is not one error above 0.2; with 0.03 it is; an
     interval with no estimate is none and breaks a run."""
-    assert not evidence_above(share(0.24, 0.05), 0.2, 1.0)
-    assert evidence_above(share(0.24, 0.03), 0.2, 1.0)
-    assert not evidence_above(share(None, None), 0.2, 1.0)
+    assert not evidence_above(0.24, 0.05, 0.2, 1.0)
+    assert evidence_above(0.24, 0.03, 0.2, 1.0)
+    assert not evidence_above(None, None, 0.2, 1.0)
     states = alarm_states([share(0.5), share(None, None), share(0.5), share(0.5)], 0.2, CONFIG)
     assert states == [False, False, False, True]
 
