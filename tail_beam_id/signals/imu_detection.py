@@ -134,6 +134,7 @@ DETECTION = Section(
 
 
 @dataclass(frozen=True)
+
 class DetectionConfig:
     """Detection thresholds (in noise RMS, sigma) and windows (s); see
     config/identification.yaml."""
@@ -468,7 +469,7 @@ class PulseDetector:
                     )  # its pulse is not all in yet: look again from here
                     return pulses
                 pulse = self._grow(
-                    stamp_s, accel_z, mask, k, baseline, span, noise, period, base_index
+                    stamp_s, accel_z, mask, k, baseline, span, noise, period, base_index, ringing
                 )
                 pulses.append(pulse)
                 mask[pulse.first_index - base_index : pulse.last_index - base_index + 1] = True
@@ -631,8 +632,11 @@ class PulseDetector:
         sigma: float,
         period: float,
         base_index: int,
+        ringing: bool = False,
     ) -> Pulse:
-        """The whole deviating run of samples from its first over-threshold sample ``k``."""
+        """The whole deviating run of samples from its first over-threshold sample ``k``; while
+        the beam still ``ringing`` from an earlier pulse, its onset is read past that ringing
+        (:func:`onset_after_ringing`)."""
         c = self.config
         # The contact may have begun earlier, below the detection threshold (the bending modes
         # can build the response up over several samples): look back ``onset_lookback_s``
@@ -646,6 +650,8 @@ class PulseDetector:
         before = accel_z[lo : k + 1] - background(np.arange(lo, k + 1))
         past = np.abs(before) > c.onset_threshold_sigma * sigma
         first = lo + int(np.argmax(past)) if past.any() else k
+        if ringing:
+            first = onset_after_ringing(before, past, first - lo) + lo
         # At least up to k: at a slow rate (1 kHz and under) the look-back can reach further
         # back than a contact spans, and a run cut off before k sent the walk backwards.
         end = min(max(first + span, k + 1), accel_z.size)
@@ -677,3 +683,22 @@ class PulseDetector:
             first_index=base_index + first,
             last_index=base_index + last,
         )
+
+
+def onset_after_ringing(before: np.ndarray, past: np.ndarray, first: int) -> int:
+    """The onset's index in the look-back (``before``: deviations from the background up to
+    the sample that set the detection off, its last; ``past``: those beyond the onset
+    threshold) given the first beyond it, ``first``, for a pulse found while the beam rings
+    from an earlier one. When samples beyond the threshold on the other side than the
+    detection's lie before it, that ringing, not this contact, crosses the threshold there:
+    the onset is then the start of the last run of samples beyond the threshold on the
+    detection's side, the run that reaches the detection, not the ringing's first lobe in the
+    look-back. (On a quiet beam the look-back is left as it is: where the accelerometer sits
+    near a node of the rigid response, a contact's response may open to the other side.)"""
+    side = np.sign(before[-1])
+    other = past & (np.sign(before) == -side)
+    if not other.any():
+        return first
+    same = past & (np.sign(before) == side)
+    outside = np.flatnonzero(~same)
+    return max(first, int(outside[-1]) + 1 if outside.size else 0)
