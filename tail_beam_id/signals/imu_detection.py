@@ -29,6 +29,11 @@ PERIOD_SAMPLES = 64  # the sample period is read from the first this many stamps
 # The onset look-back spans at least this many samples: at low rates the bending modes can
 # take a few samples to build the response past the detection threshold.
 ONSET_LOOKBACK_MIN_SAMPLES = 4
+# A pulse found in the ringing of an earlier one has its onset moved past that ringing only
+# when the move is this long, s: a shorter one is the contact's own response opening on the
+# other side (a node of the rigid response), not a ringing lobe (3 samples at 25.6 kHz, at
+# least 2 at any rate).
+ONSET_PAST_RINGING_MIN_S = 1.0e-4
 # The look-back's sway background needs at least this many samples (else a straight line).
 SWAY_FIT_MIN_SAMPLES = 6
 
@@ -651,7 +656,8 @@ class PulseDetector:
         past = np.abs(before) > c.onset_threshold_sigma * sigma
         first = lo + int(np.argmax(past)) if past.any() else k
         if ringing:
-            first = onset_after_ringing(before, past, first - lo) + lo
+            least = max(2, math.ceil(ONSET_PAST_RINGING_MIN_S / period - 1e-9))
+            first = onset_after_ringing(before, past, first - lo, least) + lo
         # At least up to k: at a slow rate (1 kHz and under) the look-back can reach further
         # back than a contact spans, and a run cut off before k sent the walk backwards.
         end = min(max(first + span, k + 1), accel_z.size)
@@ -685,7 +691,9 @@ class PulseDetector:
         )
 
 
-def onset_after_ringing(before: np.ndarray, past: np.ndarray, first: int) -> int:
+def onset_after_ringing(
+    before: np.ndarray, past: np.ndarray, first: int, least: int = 1
+) -> int:
     """The onset's index in the look-back (``before``: deviations from the background up to
     the sample that set the detection off, its last; ``past``: those beyond the onset
     threshold) given the first beyond it, ``first``, for a pulse found while the beam rings
@@ -693,12 +701,15 @@ def onset_after_ringing(before: np.ndarray, past: np.ndarray, first: int) -> int
     detection's lie before it, that ringing, not this contact, crosses the threshold there:
     the onset is then the start of the last run of samples beyond the threshold on the
     detection's side, the run that reaches the detection, not the ringing's first lobe in the
-    look-back. (On a quiet beam the look-back is left as it is: where the accelerometer sits
-    near a node of the rigid response, a contact's response may open to the other side.)"""
+    look-back, if that is at least ``least`` samples later. (A sample or two on the other side
+    just before the run is the contact's own response opening there, as it may where the
+    accelerometer sits near a node of the rigid response; and on a quiet beam the look-back is
+    left as it is.)"""
     side = np.sign(before[-1])
     other = past & (np.sign(before) == -side)
     if not other.any():
         return first
     same = past & (np.sign(before) == side)
     outside = np.flatnonzero(~same)
-    return max(first, int(outside[-1]) + 1 if outside.size else 0)
+    run_start = int(outside[-1]) + 1 if outside.size else 0
+    return run_start if run_start - first >= least else first

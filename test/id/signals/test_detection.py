@@ -365,10 +365,16 @@ def test_an_onset_moves_past_ringing_only_when_the_look_back_crosses_the_thresho
     one side keeps the first sample past the threshold as its onset, even where it dips back
     under it once on the way (modes shaping the rise); when samples past it on the other side
     come first, they are an earlier impact's ringing, and the onset is the start of the last
-    run past it on the contact's side."""
+    run past it on the contact's side, unless that is fewer than ``least`` samples later (a
+    contact's response opening on the other side for a sample before its run)."""
     rising = np.array([0.0, 0.5, -4.5, -1.0, -5.0, -3.0, -6.0, -9.0, -12.0])
     past = np.abs(rising) > 4.0
     assert onset_after_ringing(rising, past, int(np.argmax(past))) == 2
     ringing = np.array([6.0, 8.0, 2.0, -7.0, -9.0, -1.0, 5.0, 7.0, -5.0, -8.0, -12.0])
     past = np.abs(ringing) > 4.0
     assert onset_after_ringing(ringing, past, int(np.argmax(past))) == 8
+    assert onset_after_ringing(ringing, past, int(np.argmax(past)), least=9) == 0
+    opening = np.array([0.0, 0.5, 4.5, -6.0, -9.0, -12.0])
+    past = np.abs(opening) > 4.0
+    assert onset_after_ringing(opening, past, 2, least=3) == 2
+    assert onset_after_ringing(opening, past, 2, least=1) == 3
