@@ -59,3 +59,17 @@ def stream(params, commands, until_s, **stream_options):
     """A continuous stream of impacts at given contact stamps: pressure, imu, rebounds, truths."""
     chunk = stream_chunk(params, commands, until_s, **stream_options)
     return chunk.pressure, chunk.imu, [r for _, r in chunk.rebounds], [t for _, t in chunk.truths]
+
+
+def replay_chunk(identifier, chunk):
+    """Every label ``identifier`` gives for a simulated chunk's streams (pressure, IMU,
+    rebounds and the accelerometer's blocks), as tail-beam identify replays a bag."""
+    from tail_beam_id.stream.replay import replay
+
+    return replay(
+        identifier,
+        chunk.pressure,
+        chunk.imu,
+        [r for _, r in chunk.rebounds],
+        vibration=chunk.vibration,
+    )

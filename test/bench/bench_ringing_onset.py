@@ -27,18 +27,6 @@ from collections.abc import Sequence
 import numpy as np
 
 GAPS_S = ((0.0, 0.003, "< 3 ms"), (0.003, 0.02, "3-20 ms"), (0.02, math.inf, ">= 20 ms"))
-Z_95 = 1.959963984540054
-
-
-def wilson(k: int, n: int) -> tuple[float, float]:
-    """Wilson 95 % interval of k successes in n."""
-    if n == 0:
-        return math.nan, math.nan
-    p = k / n
-    d = 1 + Z_95**2 / n
-    c = (p + Z_95**2 / (2 * n)) / d
-    h = Z_95 * math.sqrt(p * (1 - p) / n + Z_95**2 / (4 * n * n)) / d
-    return max(0.0, c - h), min(1.0, c + h)
 
 
 def paired_rows(flow, labels: Sequence) -> list[tuple[float, float, float, bool]]:
@@ -73,6 +61,8 @@ def paired_rows(flow, labels: Sequence) -> list[tuple[float, float, float, bool]
 
 def describe(rows: list[tuple[float, float, float, bool]]) -> list[str]:
     """One line per gap class."""
+    from tail_beam_id.study.evaluation import wilson
+
     out = []
     for low, high, name in GAPS_S:
         inside = [r for r in rows if low <= r[0] < high]

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-from id_helpers import stream_chunk
+from id_helpers import replay_chunk, stream_chunk
 
 from tail_beam_id.ros.arrival import ArrivalGate, GateConfig, GatedIdentifier
 from tail_beam_id.stream.identifier import StreamIdentifier
@@ -453,13 +453,7 @@ def test_rebounds_ahead_of_a_lagging_reader_wait_for_the_streams(params, chunk, 
     runner = gated(params, gate_config)
     live = drive(runner, [run])
     identifier = StreamIdentifier(params=params["identification"], model_params=params)
-    offline = replay(
-        identifier,
-        chunk.pressure,
-        chunk.imu,
-        [r for _, r in chunk.rebounds],
-        vibration=chunk.vibration,
-    )
+    offline = replay_chunk(identifier, chunk)
     assert keys(live) == keys(offline) and len(live) == len(STAMPS)
     assert all("rebound_velocity" in label.signals for label in live)
     assert runner.count_totals()[3] == 1  # the stray one alone

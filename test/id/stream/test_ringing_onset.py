@@ -4,10 +4,9 @@ duration read as if it had struck alone (the dense flows of docs/gangue_share.md
 from __future__ import annotations
 
 import pytest
-from id_helpers import stream_chunk
+from id_helpers import replay_chunk, stream_chunk
 
 from tail_beam_id.stream.identifier import StreamIdentifier
-from tail_beam_id.stream.replay import replay
 
 FIRST = {"material": "coal", "radius_m": 0.07, "drop_height_m": 3.0, "position_m": 1.3}
 SECOND = {"material": "sandstone", "radius_m": 0.035, "drop_height_m": 2.0, "position_m": 0.9}
@@ -20,13 +19,7 @@ def _label_near(params, commands, at_s):
     accelerometer fed."""
     chunk = stream_chunk(params, commands, CONTACT_S + 0.3)
     identifier = StreamIdentifier("statistical", params["identification"], params)
-    labels = replay(
-        identifier,
-        chunk.pressure,
-        chunk.imu,
-        [r for _, r in chunk.rebounds],
-        vibration=chunk.vibration,
-    )
+    labels = replay_chunk(identifier, chunk)
     near = [lab for lab in labels if abs(lab.impact_stamp_s - at_s) < 0.005]
     assert len(near) == 1, [lab.impact_stamp_s for lab in labels]
     return near[0]

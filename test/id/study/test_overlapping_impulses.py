@@ -6,9 +6,9 @@ mixture of both."""
 from __future__ import annotations
 
 import pytest
+from id_helpers import replay_chunk
 
 from tail_beam_id.stream.identifier import StreamIdentifier
-from tail_beam_id.stream.replay import replay
 from tail_beam_id.study.dataset import evaluation_params, study_simulator
 
 LUMPS = (
@@ -28,13 +28,7 @@ def read_moments(params, gap_s: float, neighbour_fit: bool) -> tuple[list, list,
     chunk = simulator.advance(0.6)
     section = {**varied["identification"], "neighbour_fit": neighbour_fit}
     identifier = StreamIdentifier(None, params=section, model_params=varied)
-    labels = replay(
-        identifier,
-        chunk.pressure,
-        chunk.imu,
-        [r for _, r in chunk.rebounds],
-        vibration=chunk.vibration,
-    )
+    labels = replay_chunk(identifier, chunk)
     truths = [t for _, t in chunk.truths]
     true = [
         t["mass_kg"] * (t["impact_speed_mps"] + t["rebound_speed_mps"]) * t["position_m"]
