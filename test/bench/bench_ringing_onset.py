@@ -83,6 +83,12 @@ def describe(rows: list[tuple[float, float, float, bool]]) -> list[str]:
     return out
 
 
+def first_past_threshold(before: np.ndarray, past: np.ndarray, first: int, least: int = 1) -> int:
+    """The onset as the detector read it before it read it past the ringing: the first sample
+    past the onset threshold in the look-back, always."""
+    return first
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rates", default="20", help="lumps per second, comma separated")
@@ -114,7 +120,7 @@ def main() -> None:
             flow = scene_flow(params, scene, rate, args.seed + 100 * s_index + r_index + 7, draw)
             readers = [("onset past the ringing", past_ringing)]
             if args.compare:
-                readers.append(("first sample past the threshold", lambda b, p, first: first))
+                readers.append(("first sample past the threshold", first_past_threshold))
             for reader, rule in readers:
                 detection.onset_after_ringing = rule
                 try:
