@@ -96,6 +96,12 @@ DETECTION = Section(
             "prediction errors.",
             default=False,
         ),
+        flag(
+            "onset_past_ringing",
+            "A pulse found in an earlier one's ringing takes its onset past that ringing "
+            "(onset_after_ringing); the shipped models learnt without it.",
+            default=False,
+        ),
         positive("ring_decay_s", "Decay time of that envelope.", "s", high=10.0),
         positive("ring_window_s", "How long the raised threshold lasts.", "s", high=10.0),
         positive(
@@ -139,7 +145,6 @@ DETECTION = Section(
 
 
 @dataclass(frozen=True)
-
 class DetectionConfig:
     """Detection thresholds (in noise RMS, sigma) and windows (s); see
     config/identification.yaml."""
@@ -172,6 +177,7 @@ class DetectionConfig:
     # Self-calibration fits a one-step predictor of the accelerometer's ringing
     # (tail_beam_id.signals.innovations) and its detector scans what the predictor leaves.
     vibration_innovations: bool = False
+    onset_past_ringing: bool = False  # the onset read past an earlier pulse's ringing
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> DetectionConfig:
@@ -640,8 +646,8 @@ class PulseDetector:
         ringing: bool = False,
     ) -> Pulse:
         """The whole deviating run of samples from its first over-threshold sample ``k``; while
-        the beam still ``ringing`` from an earlier pulse, its onset is read past that ringing
-        (:func:`onset_after_ringing`)."""
+        the beam still ``ringing`` from an earlier pulse, with ``onset_past_ringing``, its onset
+        is read past that ringing (:func:`onset_after_ringing`)."""
         c = self.config
         # The contact may have begun earlier, below the detection threshold (the bending modes
         # can build the response up over several samples): look back ``onset_lookback_s``
@@ -655,7 +661,7 @@ class PulseDetector:
         before = accel_z[lo : k + 1] - background(np.arange(lo, k + 1))
         past = np.abs(before) > c.onset_threshold_sigma * sigma
         first = lo + int(np.argmax(past)) if past.any() else k
-        if ringing:
+        if ringing and c.onset_past_ringing:
             least = max(2, math.ceil(ONSET_PAST_RINGING_MIN_S / period - 1e-9))
             first = onset_after_ringing(before, past, first - lo, least) + lo
         # At least up to k: at a slow rate (1 kHz and under) the look-back can reach further

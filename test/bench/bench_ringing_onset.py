@@ -8,10 +8,11 @@ more) it prints the onset's error (the label's onset less the contact's start, m
 and 90th percentiles), the read contact duration over the true one (median, and the robust
 spread of its logarithm, IQR / 1.35) and the labels' accuracy (Wilson 95 %).
 
-``--compare`` reads each flow a second time with a pulse's onset taken at the first sample past
-the onset threshold in the look-back whether the beam rings or not (what the detector did before
-it read the onset past the ringing: tail_beam_id.signals.imu_detection.onset_after_ringing), the
-models and everything else the same. Asserts nothing, ships nothing.
+Each flow is read with ``identification.detection.onset_past_ringing`` on (the onset past the
+ringing: tail_beam_id.signals.imu_detection.onset_after_ringing); ``--compare`` reads it a
+second time with it off, as shipped (the onset at the first sample past the onset threshold in
+the look-back whether the beam rings or not), the models and everything else the same. Asserts
+nothing, ships nothing.
 
     python test/bench/bench_ringing_onset.py                       # nominal, 20 lumps/s, ~1 min
     python test/bench/bench_ringing_onset.py --rates 5,20 --foreign 2 --flow-s 60 --compare
@@ -83,12 +84,6 @@ def describe(rows: list[tuple[float, float, float, bool]]) -> list[str]:
     return out
 
 
-def first_past_threshold(before: np.ndarray, past: np.ndarray, first: int, least: int = 1) -> int:
-    """The onset as the detector read it before it read it past the ringing: the first sample
-    past the onset threshold in the look-back, always."""
-    return first
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rates", default="20", help="lumps per second, comma separated")
@@ -98,7 +93,6 @@ def main() -> None:
     parser.add_argument("--compare", action="store_true", help="also the onset of before")
     args = parser.parse_args()
 
-    import tail_beam_id.signals.imu_detection as detection
     from tail_beam_id.study.blas_threads import single_blas_thread
     from tail_beam_id.study.flow_evaluation import (
         FlowScene,
@@ -114,20 +108,18 @@ def main() -> None:
     params = load_parameters([])
     scene = FlowScene(duration_s=args.flow_s, boundary_s=args.flow_s / 2, coal_s=0.0)
     rates = [float(r) for r in args.rates.split(",")]
-    past_ringing = detection.onset_after_ringing
     for s_index, (name, draw) in enumerate(flow_supports(params, args.foreign, args.seed)):
         for r_index, rate in enumerate(rates):
             flow = scene_flow(params, scene, rate, args.seed + 100 * s_index + r_index + 7, draw)
-            readers = [("onset past the ringing", past_ringing)]
+            readers = [("onset past the ringing", True)]
             if args.compare:
-                readers.append(("first sample past the threshold", first_past_threshold))
-            for reader, rule in readers:
-                detection.onset_after_ringing = rule
-                try:
-                    model = reading_params(params, flow, "self-calibrated", "shipped")
-                    labels, _ = identify_flow(flow, "shipped", None, model)
-                finally:
-                    detection.onset_after_ringing = past_ringing
+                readers.append(("first sample past the threshold", False))
+            for reader, on in readers:
+                # the recording's section and the reading profile's (merged over it) alike
+                for section in (params, flow.params):
+                    section["identification"]["detection"]["onset_past_ringing"] = on
+                model = reading_params(params, flow, "self-calibrated", "shipped")
+                labels, _ = identify_flow(flow, "shipped", None, model)
                 print(f"{name}, {rate:g} lumps/s, {len(flow.truths)} lumps: {reader}")
                 print("\n".join(describe(paired_rows(flow, labels))))
     print(f"({time.perf_counter() - started:.0f} s)")

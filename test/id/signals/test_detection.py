@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from id_helpers import impact
@@ -235,11 +237,12 @@ def test_a_ringing_beam_is_followed_and_only_an_impact_that_stands_out_of_it_is_
     (the largest deviation so far, decaying over ring_decay_s): a 40 m/s^2 one does, and a
     10 m/s^2 one, which the IMU's 2.5 x the envelope would take for ringing; a 1.5 m/s^2 one, 30
     noise RMS but under the raised threshold, is taken for ringing. The same whatever the
-    chunking. The second contact's onset is its own, within a sample: the ringing crosses the
-    onset threshold on both sides all through the look-back (1 ms), and taking its first lobe
-    there for the contact's start put the onset up to 1 ms early, which the contact's duration
-    read-out, fitted from the onset, then read several times too long."""
+    chunking. The second contact's onset: by default the first sample past the onset threshold
+    in the look-back (1 ms), which the ringing crosses on both sides, so up to 1 ms early; with
+    onset_past_ringing its own, within a sample (the contact's duration read-out is fitted from
+    it)."""
     config = DetectionConfig.from_params(params["identification"]["detection"])
+    past_ringing = replace(config, onset_past_ringing=True)
     rate_hz = 25600.0
     t = np.arange(1, int(0.35 * rate_hz)) / rate_hz
     rng = np.random.default_rng(3)
@@ -254,17 +257,22 @@ def test_a_ringing_beam_is_followed_and_only_an_impact_that_stands_out_of_it_is_
         t > 0.2003, 3.0 * np.exp(-after / 0.01) * np.sin(2 * np.pi * 700.0 * after), 0.0
     )
     accel += contact(0.212, second_mps2)
-    detector = PulseDetector(config, None, config.vibration_ring_fraction)
-    if chunk is None:
-        pulses = detector.scan(t, accel, 0, final=True)
-    else:
+
+    def scan(with_config: DetectionConfig) -> list:
+        detector = PulseDetector(with_config, None, with_config.vibration_ring_fraction)
+        if chunk is None:
+            return detector.scan(t, accel, 0, final=True)
         pulses = []
         for end in range(chunk, t.size + chunk, chunk):
             pulses += detector.scan(t[:end], accel[:end], 0, final=end >= t.size)
-    assert len(pulses) == expected
-    assert abs(pulses[0].onset_s - 0.2) < 1e-4
+        return pulses
+
+    pulses, own = scan(config), scan(past_ringing)
+    assert len(pulses) == len(own) == expected
+    assert abs(pulses[0].onset_s - 0.2) < 1e-4 and own[0].onset_s == pulses[0].onset_s
     if expected == 2:
-        assert abs(pulses[1].onset_s - 0.212) < 1e-4
+        assert 0.212 - config.onset_lookback_s - 1e-4 <= pulses[1].onset_s <= 0.212 + 1e-4
+        assert abs(own[1].onset_s - 0.212) < 1e-4
 
 
 @pytest.mark.parametrize("imu_rate_hz", [500.0, 1000.0])
