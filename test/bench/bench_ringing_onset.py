@@ -5,8 +5,9 @@ shipped layout, self-calibrated) each carry one flow of ``--flow-s`` seconds at 
 label resting on the accelerometer is paired with its lump (the suite's matching rule), and per
 time since the lump before (under 3 ms: the contacts overlap; 3-20 ms: in the ringing; 20 ms or
 more) it prints the onset's error (the label's onset less the contact's start, ms: median, 10th
-and 90th percentiles), the read contact duration over the true one (median, and the robust
-spread of its logarithm, IQR / 1.35) and the labels' accuracy (Wilson 95 %).
+and 90th percentiles), the read contact duration over the true one and the read moment impulse
+over the true one, m (v_in + v_out) x (each: median, and the robust spread of its logarithm,
+IQR / 1.35), and the labels' accuracy (Wilson 95 %).
 
 Each flow is read with ``identification.detection.onset_past_ringing`` on (the onset past the
 ringing: tail_beam_id.signals.imu_detection.onset_after_ringing); ``--compare`` reads it a
@@ -30,9 +31,9 @@ import numpy as np
 GAPS_S = ((0.0, 0.003, "< 3 ms"), (0.003, 0.02, "3-20 ms"), (0.02, math.inf, ">= 20 ms"))
 
 
-def paired_rows(flow, labels: Sequence) -> list[tuple[float, float, float, bool]]:
-    """(time since the lump before s, onset error s, log read/true duration, label right) for
-    every label on the accelerometer paired with a lump."""
+def paired_rows(flow, labels: Sequence) -> list[tuple[float, float, float, float, bool]]:
+    """(time since the lump before s, onset error s, log read/true duration, log read/true
+    moment impulse, label right) for every label on the accelerometer paired with a lump."""
     from tail_beam_id.stream.label import match_stamps, match_tolerance_s
 
     stamps = flow.lump_stamps_s()
@@ -49,18 +50,31 @@ def paired_rows(flow, labels: Sequence) -> list[tuple[float, float, float, bool]
         k = int(np.searchsorted(order, stamps[i]))
         since = stamps[i] - order[k - 1] if k > 0 else math.inf
         truth = flow.truths[i]
+        moment = truth["mass_kg"] * truth["position_m"]
+        moment *= truth["impact_speed_mps"] + truth["rebound_speed_mps"]
+        read_moment = label.features.get("moment_impulse_nms", math.nan)
         rows.append(
             (
                 float(since),
                 float(label.impact_stamp_s - truth["contact_start_stamp"]),
                 math.log(float(read) / float(truth["contact_duration_s"])),
+                math.log(read_moment / moment) if read_moment > 0.0 else math.nan,
                 (label.material == "gangue") == bool(gangue[i]),
             )
         )
     return rows
 
 
-def describe(rows: list[tuple[float, float, float, bool]]) -> list[str]:
+def log_summary(values: np.ndarray) -> str:
+    """The median ratio and the robust spread (IQR / 1.35) of logs of ratios, finite ones."""
+    values = values[np.isfinite(values)]
+    if not values.size:
+        return "   -  spread    -"
+    spread = (np.percentile(values, 75) - np.percentile(values, 25)) / 1.35
+    return f"{math.exp(np.median(values)):4.2f} spread {spread:4.2f}"
+
+
+def describe(rows: list[tuple[float, float, float, float, bool]]) -> list[str]:
     """One line per gap class."""
     from tail_beam_id.study.evaluation import wilson
 
@@ -71,14 +85,13 @@ def describe(rows: list[tuple[float, float, float, bool]]) -> list[str]:
             out.append(f"  {name:9s} no label on the accelerometer")
             continue
         onset_ms = 1e3 * np.array([r[1] for r in inside])
-        ratio = np.array([r[2] for r in inside])
-        right = sum(r[3] for r in inside)
+        right = sum(r[4] for r in inside)
         lo, hi = wilson(right, len(inside))
-        spread = (np.percentile(ratio, 75) - np.percentile(ratio, 25)) / 1.35
         out.append(
             f"  {name:9s} n {len(inside):4d}  onset error ms {np.median(onset_ms):+6.3f} "
             f"({np.percentile(onset_ms, 10):+6.3f} .. {np.percentile(onset_ms, 90):+6.3f})  "
-            f"duration read/true {math.exp(np.median(ratio)):4.2f} spread {spread:4.2f}  "
+            f"duration read/true {log_summary(np.array([r[2] for r in inside]))}  "
+            f"moment read/true {log_summary(np.array([r[3] for r in inside]))}  "
             f"accuracy {100 * right / len(inside):5.1f} % ({100 * lo:4.1f}-{100 * hi:5.1f})"
         )
     return out
