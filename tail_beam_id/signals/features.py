@@ -282,6 +282,61 @@ def imu_impulse(
     return ImuImpulse(fitted, sigma, ring)
 
 
+def imu_impulse_among(
+    model: BeamModel,
+    stamp_s: np.ndarray,
+    accel_z: np.ndarray,
+    pulse: Pulse,
+    pre_s: float,
+    skip_s: float,
+    post_s: float,
+    other_onsets_s: Sequence[float],
+    sway_drift: bool = False,
+) -> ImuImpulse | None:
+    """:func:`imu_impulse` for a pulse with other impacts' onsets (``other_onsets_s``, s) in its
+    window, from ``pre_s`` before its onset to ``post_s`` after: the plate velocity over the
+    whole window, integrated from the samples, is fitted at once with the background (a
+    constant, a steady acceleration, the beam's free sway, with ``sway_drift`` its drift) and
+    the rigid beam's response to an impulse at every onset, each contact's first ``skip_s``
+    left out. The support is linear, so the other impacts' velocity steps and the sway they set
+    going are columns of their own, not part of a background fitted across an earlier impact's
+    kick (docs/identification.md, Features)."""
+    period = pulse.period_s
+    onset = pulse.onset_s
+    window = (stamp_s >= onset - pre_s) & (stamp_s <= onset + post_s)
+    t = stamp_s[window] - onset
+    if np.count_nonzero(t < 0.0) < 4 or np.count_nonzero(t >= skip_s) < 2:
+        return None
+    velocity = -np.cumsum(accel_z[window]) * period
+    omega = model.sway_omega_radps
+    onsets = sorted({0.0, *(o - onset for o in other_onsets_s if -pre_s < o - onset < post_s)})
+    responses = [model.imu_velocity_response(t - o) for o in onsets]
+    # The background's velocity: a constant, a steady acceleration (gravity, the sensor's
+    # offset) and the free sway, with its drift over a long stretch.
+    background = [np.ones_like(t), t, np.cos(omega * t), np.sin(omega * t)]
+    if sway_drift:
+        background += [t * background[2], t * background[3]]
+    basis = np.vstack([*background, *responses]).T
+    use = np.ones(t.size, dtype=bool)
+    for o in onsets:
+        use &= ~((t >= o) & (t < o + skip_s))
+    if use.sum() <= basis.shape[1]:
+        return None
+    # Least squares by the normal equations of the unit-norm columns (an SVD of the whole
+    # window costs ten times more; the small system's own least squares copes with columns
+    # that nearly coincide).
+    fitted = basis[use]
+    scale = 1.0 / np.maximum(np.linalg.norm(fitted, axis=0), 1e-300)
+    fitted = fitted * scale
+    coeffs = np.linalg.lstsq(fitted.T @ fitted, fitted.T @ velocity[use], rcond=None)[0] * scale
+    own = len(background) + onsets.index(0.0)
+    after = use & (t >= skip_s)
+    residual = velocity[after] - basis[after] @ coeffs
+    ring = float(math.sqrt(np.mean(residual**2)))
+    sigma = pulse.noise_mps2 * period * math.sqrt(max(np.count_nonzero(t >= 0.0), 1) / 2.0)
+    return ImuImpulse(float(coeffs[own]), sigma, ring)
+
+
 def jack_denies_step(imu_moment_nms: float, pressure: PressureFit) -> bool:
     """Whether the jack's fit says an acceleration channel's moment impulse (N m s) is not the
     rigid beam's: a strike pushes the beam down about the hinge, and a velocity step that says

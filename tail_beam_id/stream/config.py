@@ -81,6 +81,12 @@ IDENTIFICATION = Section(
             "The pressure fit reads known neighbouring impacts' impulses with the impact's.",
             default=True,
         ),
+        flag(
+            "impulse_neighbour_fit",
+            "The acceleration's velocity step reads other impacts in its window with the "
+            "impact's.",
+            default=True,
+        ),
         number(
             "neighbour_min_separation_s",
             "Neighbouring onsets closer than this are read together.",
@@ -132,6 +138,7 @@ CHECKED = (
     "camera_timeout_s",
     "overlap_window_s",
     "neighbour_fit",
+    "impulse_neighbour_fit",
     "neighbour_min_separation_s",
     "overlap_confidence_cap",
 )
@@ -302,6 +309,7 @@ class IdentifierConfig:
     camera_timeout_s: float
     overlap_window_s: float
     neighbour_fit: bool  # the pressure fit reads neighbouring onsets' impulses jointly
+    impulse_neighbour_fit: bool  # ... and the acceleration's velocity step (signals.features)
     neighbour_min_separation_s: float  # closer neighbouring onsets are read together (s)
     overlap_confidence_cap: float
     detection: DetectionConfig

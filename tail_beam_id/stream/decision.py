@@ -12,7 +12,7 @@ where the method can.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -30,6 +30,7 @@ from tail_beam_id.signals.features import (
     fit_pressure,
     impact_features,
     imu_impulse,
+    imu_impulse_among,
 )
 from tail_beam_id.signals.timing import (
     DELAY_UNTRUSTED,
@@ -60,6 +61,38 @@ def around(
     low = max(int(np.searchsorted(stamp_s, onset_s - before_s, side="left")) - 1, 0)
     high = int(np.searchsorted(stamp_s, onset_s + after_s, side="right")) + 1
     return stamp_s[low:high], values[low:high]
+
+
+def impulse_neighbours(
+    onset_s: float, known: Sequence[float], pre_s: float, post_s: float, cfg: IdentifierConfig
+) -> tuple[list[float], float]:
+    """The other onsets (s) whose impacts are in a pulse's velocity-step window, and how far
+    back (s) the joint fit then reads (:func:`tail_beam_id.signals.features.imu_impulse_among`):
+    at least ``impulse_pre_s`` before the earliest of them, so that the background is seen
+    before every kick, up to ``impulse_background_s``. An earlier onset counts up to
+    ``background_after_onset_s`` before the window's start (its kick and first ringing are no
+    background either). None: ([], pre_s), the lone read-out."""
+    if not cfg.impulse_neighbour_fit:
+        return [], pre_s
+    window_s = pre_s
+    among: list[float] = []
+    for _ in range(4):
+        reach_s = window_s + cfg.background_after_onset_s
+        among = [
+            t
+            for t in known
+            if abs(t - onset_s) >= cfg.impulse_skip_s and -reach_s < t - onset_s < post_s
+        ]
+        earlier = [t for t in among if t < onset_s]
+        wanted_s = (
+            min(onset_s - min(earlier) + cfg.impulse_pre_s, cfg.impulse_background_s)
+            if earlier
+            else pre_s
+        )
+        if wanted_s <= window_s:
+            break
+        window_s = wanted_s
+    return among, window_s
 
 
 def profile_says_timing_suspect(merged: Mapping[str, Any], config: TimingConfig) -> bool:
@@ -178,23 +211,39 @@ class ImpactDecider:
                 cfg.impulse_background_s,
                 cfg.background_after_onset_s,
             )
+            among, among_pre_s = impulse_neighbours(
+                impact.pulse.onset_s, known, pre_s, post_s, cfg
+            )
             stamps, values = around(
                 series.stamp_s,
                 values,
                 impact.pulse.onset_s,
-                max(pre_s, cfg.contact_fit.before_s),
+                max(pre_s, among_pre_s, cfg.contact_fit.before_s),
                 max(post_s, cfg.contact_fit.after_s, cfg.contact_fit.ring_end_s),
             )
-            impulse = imu_impulse(
-                self.model,
-                stamps,
-                values,
-                impact.pulse,
-                pre_s,
-                cfg.impulse_skip_s,
-                post_s,
-                sway_drift=pre_s > cfg.impulse_pre_s,
-            )
+            if among:
+                impulse = imu_impulse_among(
+                    self.model,
+                    stamps,
+                    values,
+                    impact.pulse,
+                    among_pre_s,
+                    cfg.impulse_skip_s,
+                    post_s,
+                    among,
+                    sway_drift=among_pre_s > cfg.impulse_pre_s,
+                )
+            else:
+                impulse = imu_impulse(
+                    self.model,
+                    stamps,
+                    values,
+                    impact.pulse,
+                    pre_s,
+                    cfg.impulse_skip_s,
+                    post_s,
+                    sway_drift=pre_s > cfg.impulse_pre_s,
+                )
             contact = fit_contact(
                 stamps,
                 values,

@@ -3,16 +3,17 @@ flows of the suite's flow simulator on the nominal support, identified with the 
 layout, every label paired with its lump (the suite's matching rule) and its read moment
 impulses (the jack pressure's, the acceleration pulse's where there is one) compared with the
 lump's true moment impulse about the hinge, m (v_in + v_out) x, by the distance from its
-contact to the nearest other lump's. Run with the pressure fit's neighbour columns on and off
-(``identification.neighbour_fit``) to see what the joint fit does. Seeds: the training flows'
-range (``TRAINING_SEED`` + 90 onwards), never the evaluation's.
+contact to the nearest other lump's. Run with a joint fit's neighbour columns on and off to see
+what it does: the pressure fit's (``--fit pressure``, ``identification.neighbour_fit``) or the
+acceleration's velocity step's (``--fit impulse``, ``identification.impulse_neighbour_fit``).
+Seeds: the training flows' range (``TRAINING_SEED`` + 90 onwards), never the evaluation's.
 
 What a better impulse can buy at most: on a sparse flow's labels that rest on a pulse, the
 statistical method's score separates the materials (its AUC) with every signal, with the
 jack pressure and the camera alone (the pulse's features removed: what a dense flow's labels
 mostly rest on), and with those two and the true moment impulse in place of the read one.
 
-    python -m tail_beam_id.study.overlap_impulses --rates 20,50,200 --duration-s 4
+    python -m tail_beam_id.study.overlap_impulses --rates 20,50,200 --duration-s 4 [--fit impulse]
 """
 
 from __future__ import annotations
@@ -37,14 +38,18 @@ SEED = TRAINING_SEED + 90  # these flows' seeds: this + n
 # Nearest-neighbour distance bins, s.
 BINS_S = ((0.0, 0.001), (0.001, 0.002), (0.002, 0.005), (0.005, 0.01), (0.01, 0.02), (0.02, 0.032))
 BIG_NMS = 3.0  # relative errors are taken over lumps above this true moment impulse, N m s
+# The identification parameter each --fit toggles.
+FITS = {"pressure": "neighbour_fit", "impulse": "impulse_neighbour_fit"}
 
 
-def read_impulses(recording: FlowRecording, neighbour_fit: bool) -> dict[str, Any]:
+def read_impulses(
+    recording: FlowRecording, neighbour_fit: bool, fit: str = "pressure"
+) -> dict[str, Any]:
     """Per matched label: the true moment impulse (N m s), the pressure's and the pulse's read
     (nan where absent), the nearest other lump's distance (s), whether the label is right, and
-    the flow's score AUC."""
+    the flow's score AUC; with the ``fit``'s (FITS) neighbour columns on or off."""
     params = dict(recording.params)
-    params["identification"] = {**params["identification"], "neighbour_fit": neighbour_fit}
+    params["identification"] = {**params["identification"], FITS[fit]: neighbour_fit}
     recording = FlowRecording(**{**recording.__dict__, "params": params})
     labels, _ = identify_flow(recording, "shipped")
     stamps = recording.lump_stamps_s()
@@ -122,13 +127,13 @@ def _median(values: np.ndarray) -> float:
 def format_table(rate: float, off: Mapping[str, Any], on: Mapping[str, Any]) -> str:
     """One rate's table: per nearest-neighbour bin the lumps, the pressure read's median
     absolute error (N m s) and median relative error above BIG_NMS, without and with the
-    neighbour columns; the pulse read's where there is one."""
+    neighbour columns; the pulse read's median relative error where there is one, likewise."""
     lines = [
         f"{rate:g} lumps/s: {len(on['rows'])} labels matched; score AUC "
         f"{off['auc']:.3f} -> {on['auc']:.3f}; accuracy {off['rows'][:, 4].mean():.3f} -> "
         f"{on['rows'][:, 4].mean():.3f}",
         "nearest lump      n | pressure, abs. error N m s: single  joint | rel. error, true >"
-        " 3 N m s: single  joint (   n) | pulse read: n  rel. error",
+        " 3 N m s: single  joint (   n) | pulse read: n  rel. error: single  joint",
     ]
     for lo, hi in BINS_S:
         cells = []
@@ -146,10 +151,10 @@ def format_table(rate: float, off: Mapping[str, Any], on: Mapping[str, Any]) -> 
                     _median(np.abs(pulse[inside] / true[inside] - 1.0)),
                 )
             )
-        (n, a_off, r_off, big_n, pulses, pulse_err), (_, a_on, r_on, *_rest) = cells
+        (n, a_off, r_off, big_n, pulses, p_off), (_, a_on, r_on, _, _, p_on) = cells
         lines.append(
             f"{lo * 1e3:4.0f}-{hi * 1e3:3.0f} ms {n:6d} | {a_off:33.2f} {a_on:6.2f} |"
-            f" {r_off:32.3f} {r_on:6.3f} ({big_n:4d}) | {pulses:13d} {pulse_err:11.3f}"
+            f" {r_off:32.3f} {r_on:6.3f} ({big_n:4d}) | {pulses:13d} {p_off:19.3f} {p_on:6.3f}"
         )
     return "\n".join(lines)
 
@@ -159,6 +164,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--rates", default="20,50,200", help="lumps/s, comma separated")
     parser.add_argument("--duration-s", type=float, default=4.0)
     parser.add_argument("--sparse-s", type=float, default=40.0, help="the sparse flow's length")
+    parser.add_argument(
+        "--fit",
+        choices=sorted(FITS),
+        default="pressure",
+        help="whose neighbour columns are compared off and on: the jack pressure's fit or the "
+        "acceleration's velocity step's",
+    )
     args = parser.parse_args(argv)
     params = load_parameters([])
     for n, rate in enumerate(float(r) for r in args.rates.split(",")):
@@ -166,8 +178,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         recording = record_sim_flow(
             params, rate, duration, 0.3 * duration, 0.2 * duration, 0.6, SEED + n
         )
-        off = read_impulses(recording, False)
-        on = read_impulses(recording, True)
+        off = read_impulses(recording, False, args.fit)
+        on = read_impulses(recording, True, args.fit)
         print(format_table(rate, off, on))
         print()
     sparse = record_sim_flow(
