@@ -66,33 +66,27 @@ def around(
 def impulse_neighbours(
     onset_s: float, known: Sequence[float], pre_s: float, post_s: float, cfg: IdentifierConfig
 ) -> tuple[list[float], float]:
-    """The other onsets (s) whose impacts are in a pulse's velocity-step window, and how far
-    back (s) the joint fit then reads (:func:`tail_beam_id.signals.features.imu_impulse_among`):
-    at least ``impulse_pre_s`` before the earliest of them, so that the background is seen
-    before every kick, up to ``impulse_background_s``. An earlier onset counts up to
-    ``background_after_onset_s`` before the window's start (its kick and first ringing are no
-    background either). None: ([], pre_s), the lone read-out."""
+    """The other onsets (s) near a pulse's velocity-step window, and how far back (s) the joint
+    fit then reads (:func:`tail_beam_id.signals.features.imu_impulse_among`). Any onset that
+    would cut the lone read-out's background (up to ``impulse_background_s`` before the onset,
+    ending ``background_after_onset_s`` after an earlier one) or falls in its data window
+    counts; the fit then reads from ``impulse_pre_s`` before the earliest (at most
+    ``impulse_background_s``), so that the background is seen before every kick. Onsets closer
+    than ``impulse_skip_s`` are read with the impact's. None: ([], pre_s), the lone
+    read-out."""
     if not cfg.impulse_neighbour_fit:
         return [], pre_s
-    window_s = pre_s
-    among: list[float] = []
-    for _ in range(4):
-        reach_s = window_s + cfg.background_after_onset_s
-        among = [
-            t
-            for t in known
-            if abs(t - onset_s) >= cfg.impulse_skip_s and -reach_s < t - onset_s < post_s
-        ]
-        earlier = [t for t in among if t < onset_s]
-        wanted_s = (
-            min(onset_s - min(earlier) + cfg.impulse_pre_s, cfg.impulse_background_s)
-            if earlier
-            else pre_s
-        )
-        if wanted_s <= window_s:
-            break
-        window_s = wanted_s
-    return among, window_s
+    reach_s = cfg.impulse_background_s + cfg.background_after_onset_s
+    among = [
+        t
+        for t in known
+        if abs(t - onset_s) >= cfg.impulse_skip_s and -reach_s < t - onset_s < post_s
+    ]
+    earlier = [t for t in among if t < onset_s]
+    if not earlier:
+        return among, pre_s
+    window_s = min(onset_s - min(earlier) + cfg.impulse_pre_s, cfg.impulse_background_s)
+    return among, max(window_s, pre_s)
 
 
 def profile_says_timing_suspect(merged: Mapping[str, Any], config: TimingConfig) -> bool:

@@ -85,10 +85,11 @@ def test_each_overlapping_lump_reads_its_own_velocity_step(params, gap_s):
 
 
 def test_the_velocity_steps_window_takes_in_the_impacts_that_reach_it(params):
-    """impulse_neighbours: no other onset near, the lone read-out; one within the window or
-    its kick just before it (background_after_onset_s), a joint fit reaching impulse_pre_s
-    before the earliest, never beyond impulse_background_s; one closer than impulse_skip_s
-    is read with the impact's; later ones within the window count too; off, never joint."""
+    """impulse_neighbours: no other onset within the lone background's reach (50 ms and the
+    5 ms after an earlier onset) or the data window, the lone read-out; one there, a joint fit
+    reaching impulse_pre_s before the earliest, never beyond impulse_background_s; one closer
+    than impulse_skip_s is read with the impact's; later ones within the window count too;
+    off, never joint."""
     from tail_beam_id.stream.config import IdentifierConfig
     from tail_beam_id.stream.decision import impulse_neighbours
 
@@ -98,6 +99,10 @@ def test_the_velocity_steps_window_takes_in_the_impacts_that_reach_it(params):
     assert impulse_neighbours(1.0, [0.9, 1.2], pre, post, cfg) == ([], pre)
     among, reach = impulse_neighbours(1.0, [0.988], pre, post, cfg)
     assert among == [0.988] and reach == pytest.approx(0.012 + least)
+    among, reach = impulse_neighbours(1.0, [0.97], pre, post, cfg)
+    assert among == [0.97] and reach == pytest.approx(0.03 + least)
+    among, reach = impulse_neighbours(1.0, [0.947], pre, post, cfg)
+    assert among == [0.947] and reach == pytest.approx(cfg.impulse_background_s)
     among, reach = impulse_neighbours(1.0, [0.975, 0.985, 0.99], pre, post, cfg)
     assert among == [0.975, 0.985, 0.99] and reach == pytest.approx(0.025 + least)
     capped = IdentifierConfig.from_params({**section, "impulse_background_s": 0.02})
