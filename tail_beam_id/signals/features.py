@@ -244,6 +244,7 @@ def imu_impulse(
     skip_s: float,
     post_s: float,
     sway_drift: bool = False,
+    other_onsets_s: Sequence[float] = (),
 ) -> ImuImpulse | None:
     """The pulse's velocity change, fitted in the velocity domain so the bending modes' ringing
     averages out: the specific force before the pulse gives the background (constant plus the
@@ -251,7 +252,12 @@ def imu_impulse(
     t cos and t sin, which a stretch of several periods shows against the nominal sway); the
     plate velocity after it, integrated from the samples, is fitted with the rigid beam's
     response to an impulse at the onset, from ``skip_s`` (the contact is over) to ``post_s``
-    after the onset."""
+    after the onset. With other impacts' onsets (``other_onsets_s``, s) in or near the window,
+    the steps are read jointly (:func:`_joint_step`)."""
+    if other_onsets_s:
+        return _joint_step(
+            model, stamp_s, accel_z, pulse, (pre_s, skip_s, post_s), other_onsets_s, sway_drift
+        )
     period = pulse.period_s
     before = (stamp_s >= pulse.onset_s - pre_s) & (stamp_s < pulse.onset_s)
     after = (stamp_s >= pulse.onset_s) & (stamp_s <= pulse.onset_s + post_s)
@@ -282,25 +288,24 @@ def imu_impulse(
     return ImuImpulse(fitted, sigma, ring)
 
 
-def imu_impulse_among(
+def _joint_step(
     model: BeamModel,
     stamp_s: np.ndarray,
     accel_z: np.ndarray,
     pulse: Pulse,
-    pre_s: float,
-    skip_s: float,
-    post_s: float,
+    span_s: tuple[float, float, float],
     other_onsets_s: Sequence[float],
-    sway_drift: bool = False,
+    sway_drift: bool,
 ) -> ImuImpulse | None:
-    """:func:`imu_impulse` for a pulse with other impacts' onsets (``other_onsets_s``, s) in its
-    window, from ``pre_s`` before its onset to ``post_s`` after: the plate velocity over the
-    whole window, integrated from the samples, is fitted at once with the background (a
-    constant, a steady acceleration, the beam's free sway, with ``sway_drift`` its drift) and
-    the rigid beam's response to an impulse at every onset, each contact's first ``skip_s``
+    """:func:`imu_impulse` among other impacts' onsets (s), over ``span_s`` = (pre_s, skip_s,
+    post_s): the plate velocity over the whole window, from pre_s before the onset to post_s
+    after, integrated from the samples, is fitted at once with the background (a constant, a
+    steady acceleration, the beam's free sway, with ``sway_drift`` its drift) and the rigid
+    beam's response to an impulse at every onset in the window, each contact's first skip_s
     left out. The support is linear, so the other impacts' velocity steps and the sway they set
     going are columns of their own, not part of a background fitted across an earlier impact's
     kick (docs/identification.md, Features)."""
+    pre_s, skip_s, post_s = span_s
     period = pulse.period_s
     onset = pulse.onset_s
     window = (stamp_s >= onset - pre_s) & (stamp_s <= onset + post_s)

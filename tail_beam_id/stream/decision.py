@@ -30,7 +30,6 @@ from tail_beam_id.signals.features import (
     fit_pressure,
     impact_features,
     imu_impulse,
-    imu_impulse_among,
 )
 from tail_beam_id.signals.timing import (
     DELAY_UNTRUSTED,
@@ -67,7 +66,7 @@ def impulse_neighbours(
     onset_s: float, known: Sequence[float], pre_s: float, post_s: float, cfg: IdentifierConfig
 ) -> tuple[list[float], float]:
     """The other onsets (s) near a pulse's velocity-step window, and how far back (s) the joint
-    fit then reads (:func:`tail_beam_id.signals.features.imu_impulse_among`). Any onset that
+    fit then reads (:func:`tail_beam_id.signals.features.imu_impulse`). Any onset that
     would cut the lone read-out's background (up to ``impulse_background_s`` before the onset,
     ending ``background_after_onset_s`` after an earlier one) or falls in its data window
     counts; the fit then reads from ``impulse_pre_s`` before the earliest (at most
@@ -215,29 +214,17 @@ class ImpactDecider:
                 max(pre_s, among_pre_s, cfg.contact_fit.before_s),
                 max(post_s, cfg.contact_fit.after_s, cfg.contact_fit.ring_end_s),
             )
-            if among:
-                impulse = imu_impulse_among(
-                    self.model,
-                    stamps,
-                    values,
-                    impact.pulse,
-                    among_pre_s,
-                    cfg.impulse_skip_s,
-                    post_s,
-                    among,
-                    sway_drift=among_pre_s > cfg.impulse_pre_s,
-                )
-            else:
-                impulse = imu_impulse(
-                    self.model,
-                    stamps,
-                    values,
-                    impact.pulse,
-                    pre_s,
-                    cfg.impulse_skip_s,
-                    post_s,
-                    sway_drift=pre_s > cfg.impulse_pre_s,
-                )
+            impulse = imu_impulse(
+                self.model,
+                stamps,
+                values,
+                impact.pulse,
+                among_pre_s,
+                cfg.impulse_skip_s,
+                post_s,
+                sway_drift=among_pre_s > cfg.impulse_pre_s,
+                other_onsets_s=among,
+            )
             contact = fit_contact(
                 stamps,
                 values,
