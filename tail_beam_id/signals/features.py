@@ -325,8 +325,8 @@ def _joint_step(
     use = np.ones(t.size, dtype=bool)
     for o in onsets:
         use &= ~((t >= o) & (t < o + skip_s))
-    if use.sum() <= basis.shape[1]:
-        return None
+    if use.sum() <= basis.shape[1] or not np.all(np.isfinite(velocity[use])):
+        return None  # too few samples, or a sample that is no number: nothing known of the step
     # Least squares by the normal equations of the unit-norm columns (an SVD of the whole
     # window costs ten times more; the small system's own least squares copes with columns
     # that nearly coincide).

@@ -211,7 +211,7 @@ class ImpactDecider:
                 series.stamp_s,
                 values,
                 impact.pulse.onset_s,
-                max(pre_s, among_pre_s, cfg.contact_fit.before_s),
+                max(among_pre_s, cfg.contact_fit.before_s),
                 max(post_s, cfg.contact_fit.after_s, cfg.contact_fit.ring_end_s),
             )
             impulse = imu_impulse(

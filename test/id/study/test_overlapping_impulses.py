@@ -112,3 +112,21 @@ def test_the_velocity_steps_window_takes_in_the_impacts_that_reach_it(params):
     assert impulse_neighbours(1.0, [1.004], pre, post, cfg) == ([1.004], pre)
     off = IdentifierConfig.from_params({**section, "impulse_neighbour_fit": False})
     assert impulse_neighbours(1.0, [0.995], pre, post, off) == ([], pre)
+
+
+def test_a_sample_that_is_no_number_leaves_the_joint_step_unread(params):
+    """A non-finite sample inside the joint fit's window: no velocity step (None, the models
+    then decide without it), never a traceback or a NaN read as a moment."""
+    import numpy as np
+
+    from tail_beam_id.signals.features import BeamModel, imu_impulse
+    from tail_beam_id.signals.imu_detection import Pulse
+
+    model = BeamModel.from_params(params)
+    period = 1.0 / 25600.0
+    stamps = np.arange(0.0, 0.2, period)
+    accel = np.random.default_rng(1).normal(9.81, 0.3, stamps.size)
+    pulse = Pulse(0.1, 0.1, 1, period, 10.0, 0.1, period, 0, 0)
+    assert imu_impulse(model, stamps, accel, pulse, 0.02, 0.0015, 0.006, False, (0.095,))
+    accel[np.searchsorted(stamps, 0.097)] = np.nan
+    assert imu_impulse(model, stamps, accel, pulse, 0.02, 0.0015, 0.006, False, (0.095,)) is None
