@@ -61,6 +61,8 @@ try:
         executor.spin_once(timeout_sec=0.05)
 except (KeyboardInterrupt, ExternalShutdownException):
     pass
+except RuntimeError as stopped:  # the stop signal while the executor handed over a message
+    print(f"stopped inside a callback: {stopped}", file=sys.stderr)
 print(json.dumps(got), flush=True)
 """
 BUSY_LOOP = "import time\nend = time.monotonic() + 120\nwhile time.monotonic() < end: pass"
