@@ -35,6 +35,7 @@ def paired_rows(flow, labels: Sequence) -> list[tuple[float, float, float, float
     """(time since the lump before s, onset error s, log read/true duration, log read/true
     moment impulse, label right) for every label on the accelerometer paired with a lump."""
     from tail_beam_id.stream.label import match_stamps, match_tolerance_s
+    from tail_beam_id.study.overlap_impulses import true_moment_nms
 
     stamps = flow.lump_stamps_s()
     order = np.sort(stamps)
@@ -50,8 +51,7 @@ def paired_rows(flow, labels: Sequence) -> list[tuple[float, float, float, float
         k = int(np.searchsorted(order, stamps[i]))
         since = stamps[i] - order[k - 1] if k > 0 else math.inf
         truth = flow.truths[i]
-        moment = truth["mass_kg"] * truth["position_m"]
-        moment *= truth["impact_speed_mps"] + truth["rebound_speed_mps"]
+        moment = true_moment_nms(truth)
         read_moment = label.features.get("moment_impulse_nms", math.nan)
         rows.append(
             (

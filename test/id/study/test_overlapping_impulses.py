@@ -127,6 +127,7 @@ def test_a_sample_that_is_no_number_leaves_the_joint_step_unread(params):
     stamps = np.arange(0.0, 0.2, period)
     accel = np.random.default_rng(1).normal(9.81, 0.3, stamps.size)
     pulse = Pulse(0.1, 0.1, 1, period, 10.0, 0.1, period, 0, 0)
-    assert imu_impulse(model, stamps, accel, pulse, 0.02, 0.0015, 0.006, False, (0.095,))
+    clean = imu_impulse(model, stamps, accel, pulse, 0.02, 0.0015, 0.006, False, (0.095,))
+    assert clean is not None and np.isfinite(clean.velocity_mps)
     accel[np.searchsorted(stamps, 0.097)] = np.nan
     assert imu_impulse(model, stamps, accel, pulse, 0.02, 0.0015, 0.006, False, (0.095,)) is None
