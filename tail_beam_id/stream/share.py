@@ -4,7 +4,9 @@ beam is rock, read from the impacts' labels (docs/gangue_share.md).
 Basis: the share by count, the fraction of the lumps striking in the interval that are gangue.
 
 * Separable impacts (a sparse flow: few labels per second, few of them overlapping another
-  impact): the share is the fraction of labels that say gangue, with its Wilson 95 % interval
+  impact): the share is the fraction of labels that say gangue; its 95 % interval is that of
+  the true count given each label's confidence (a Poisson-binomial: each lump is gangue with
+  the probability its label states), so a label that may be wrong widens it
   (``method: labels``).
 * Dense flow (responses overlap and per-impact labels are often wrong): the share is the
   mixture proportion that makes the labels' scores (their logits of gangue) likeliest, given
@@ -146,19 +148,38 @@ class ShareConfig:
         return checked
 
 
-def wilson_interval(successes: int, total: int, z: float = Z_95) -> tuple[float, float]:
-    """Wilson score interval of a binomial proportion (two-sided, ``z`` normal quantiles)."""
-    if total < 0 or not 0 <= successes <= total:
-        raise InputError("successes", successes, f"must be in [0, total = {total}]")
-    if total == 0:
-        return 0.0, 1.0
-    p = successes / total
-    denom = 1.0 + z * z / total
-    centre = (p + z * z / (2 * total)) / denom
-    half = z * math.sqrt(p * (1 - p) / total + z * z / (4 * total * total)) / denom
-    low = 0.0 if successes == 0 else max(0.0, centre - half)  # exact ends: no rounding residue
-    high = 1.0 if successes == total else min(1.0, centre + half)
-    return low, high
+def gangue_probability(label: Label) -> float:
+    """The probability that a label's lump is gangue, as its material and confidence state it
+    (a non-finite confidence says nothing: 0.5)."""
+    confidence = float(label.confidence)
+    if not math.isfinite(confidence):
+        return 0.5
+    confidence = min(max(confidence, 0.0), 1.0)
+    return confidence if label.material == "gangue" else 1.0 - confidence
+
+
+def count_interval(
+    gangue_probabilities: Sequence[float], level: float = 0.95
+) -> tuple[float, float, float]:
+    """The share of gangue among n lumps, each gangue with its own probability (the count is
+    Poisson-binomial): its central ``level`` interval (low, high; whole counts over n, each
+    tail at most (1 - level) / 2) and its standard deviation. n > 0."""
+    p = np.clip(np.asarray(gangue_probabilities, dtype=float), 0.0, 1.0)
+    n = p.size
+    if n == 0:
+        raise InputError("gangue_probabilities", "[]", "must hold one lump at least")
+    pmf = np.zeros(n + 1)
+    pmf[0] = 1.0
+    for k, q in enumerate(p):  # add one lump at a time: P(count) after k + 1 lumps
+        pmf[1 : k + 2] = pmf[1 : k + 2] * (1.0 - q) + pmf[: k + 1] * q
+        pmf[0] *= 1.0 - q
+    cdf = np.cumsum(pmf)
+    tail = 0.5 * (1.0 - level)
+    tiny = 1e-12  # rounding in the sums: a tail of exactly ``tail`` is kept out
+    low = int(np.searchsorted(cdf, tail - tiny, side="right"))
+    high = int(np.searchsorted(cdf, 1.0 - tail - tiny, side="left"))
+    sd = math.sqrt(float(np.sum(p * (1.0 - p)))) / n
+    return low / n, min(high, n) / n, sd
 
 
 @dataclass(frozen=True)
@@ -425,9 +446,13 @@ def estimate_share(
             np.array([score for score, _ in pairs]), [regime for _, regime in pairs]
         )
     if likelihoods is None:
-        low, high = wilson_interval(k, n)
+        # The labels' own count, within the interval of the true count their confidences give
+        # (widened to hold it, should confident labels disagree with their own count).
         p = k / n
-        se = math.sqrt(p * (1 - p) / n)
+        low, high, labels_sd = count_interval([gangue_probability(lab) for lab in inside])
+        low, high = min(low, p), max(high, p)
+        # The flow's share: the lumps a sample of it (binomial), their labels each may be wrong.
+        se = math.sqrt(p * (1 - p) / n + labels_sd * labels_sd)
         return GangueShare(start_s, end_s, p, low, high, se, n, k, overlapping, "labels", signals)
     p, low, high, se = mixture_share(likelihoods)
     # The systematic error (a support or flow unlike training's) adds to the statistical one

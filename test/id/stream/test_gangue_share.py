@@ -1,8 +1,10 @@
-"""The gangue-share estimator's core (tail_beam_id.stream.share): analytic cases, the Wilson
-interval, the mixture estimate of a dense flow's scores, and bad input refused by name."""
+"""The gangue-share estimator's core (tail_beam_id.stream.share): analytic cases, the interval
+of a sparse flow's true count given its labels' confidences, the mixture estimate of a dense
+flow's scores, and bad input refused by name."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -13,11 +15,12 @@ from tail_beam_id.stream.share import (
     GangueShare,
     ScoreModel,
     ShareConfig,
+    count_interval,
     estimate_share,
+    gangue_probability,
     interval_ends,
     label_score,
     regime_of,
-    wilson_interval,
 )
 from tail_beam_sim.errors import InputError
 
@@ -28,38 +31,79 @@ def label(stamp_s: float, material: str, overlap: bool = False) -> Label:
     return Label(stamp_s, material, 0.9, "statistical", signals=("vibration",), overlap=overlap)
 
 
-def test_all_coal_gives_zero_with_an_interval_holding_zero():
-    """All-coal labels give a share of 0, a Wilson interval from 0 to z^2 / (n + z^2), by count."""
+def enumerated_interval(probabilities: list[float], level: float = 0.95) -> tuple[float, float]:
+    """The central interval of the share of gangue among lumps each gangue with its own
+    probability, by enumerating every assignment of materials (an independent reference for
+    count_interval)."""
+    n = len(probabilities)
+    pmf = np.zeros(n + 1)
+    for materials in itertools.product((0, 1), repeat=n):
+        chance = math.prod(q if m else 1 - q for q, m in zip(probabilities, materials))
+        pmf[sum(materials)] += chance
+    cdf = np.cumsum(pmf)
+    tail = (1 - level) / 2
+    low = min(k for k in range(n + 1) if cdf[k] > tail - 1e-12)
+    high = min(k for k in range(n + 1) if cdf[k] >= 1 - tail - 1e-12)
+    return low / n, high / n
+
+
+def test_all_coal_gives_zero_with_the_interval_the_labels_confidences_give():
+    """Ten coal labels each 0.9 sure give a share of 0 by count; its interval is that of the
+    true count when each lump is gangue with probability 0.1 (enumerated: 0 to 0.3), and the
+    standard error is the labels' own (sqrt(10 x 0.1 x 0.9) / 10): no sampling error at 0."""
     labels = [label(0.1 * k, "coal") for k in range(12)]
     share = estimate_share(labels, 0.0, 1.0, CONFIG)
-    assert share.share == 0.0 and share.low == 0.0
-    # Wilson at 0 of 10 (the labels in [0, 1)): z^2 / (n + z^2) = 0.2775
-    assert share.lumps == 10 and share.high == pytest.approx(1.96**2 / (10 + 1.96**2), abs=1e-3)
+    assert share.share == 0.0 and share.lumps == 10
+    assert (share.low, share.high) == pytest.approx(enumerated_interval([0.1] * 10))
+    assert (share.low, share.high) == pytest.approx((0.0, 0.3))
+    assert share.standard_error == pytest.approx(math.sqrt(10 * 0.1 * 0.9) / 10)
     assert share.basis == "count" and share.basis_method == "labels"
     assert share.signals == ("vibration",)
 
 
-def test_a_known_mix_gives_the_binomial_share_and_its_wilson_interval():
-    """3 gangue labels of 10 give 0.3, the textbook Wilson interval 0.108-0.603 and the binomial
-    standard error."""
+def test_a_known_mix_gives_the_count_share_and_the_interval_of_its_true_count():
+    """3 gangue labels of 10, each 0.9 sure: the share is 0.3; the interval is the enumerated
+    one of lumps gangue with probability 0.9 (three) and 0.1 (seven); the standard error adds
+    the flow's binomial sampling and the labels' own in quadrature."""
     materials = ["gangue"] * 3 + ["coal"] * 7
     labels = [label(0.05 + 0.09 * k, m) for k, m in enumerate(materials)]
     share = estimate_share(labels, 0.0, 1.0, CONFIG)
     assert share.share == pytest.approx(0.3) and share.gangue_lumps == 3
-    # The published Wilson 95 % interval of 3/10: 0.108 - 0.603.
-    assert share.low == pytest.approx(0.1078, abs=5e-4)
-    assert share.high == pytest.approx(0.6032, abs=5e-4)
-    assert share.standard_error == pytest.approx(math.sqrt(0.3 * 0.7 / 10))
+    assert (share.low, share.high) == pytest.approx(enumerated_interval([0.9] * 3 + [0.1] * 7))
+    labels_variance = (3 * 0.09 + 7 * 0.09) / 100
+    assert share.standard_error == pytest.approx(math.sqrt(0.3 * 0.7 / 10 + labels_variance))
 
 
-def test_wilson_interval_limits():
-    """The Wilson interval of nothing is [0, 1], of 50/100 symmetric; more successes than trials
-    are refused."""
-    assert wilson_interval(0, 0) == (0.0, 1.0)
-    low, high = wilson_interval(50, 100)
-    assert low == pytest.approx(1 - high) and low == pytest.approx(0.4038, abs=5e-4)
-    with pytest.raises(InputError, match="successes"):
-        wilson_interval(5, 3)
+def test_certain_labels_give_a_point_and_unsure_ones_a_wide_interval():
+    """Labels sure of themselves (confidence 1) leave the count exact: the interval is the
+    count share itself. Lumps each gangue with probability 1/2 give the binomial's central 95 %
+    interval of 10 trials, 2 to 8, and its standard deviation sqrt(10 / 4) / 10."""
+    assert count_interval([1.0] * 3 + [0.0] * 7) == pytest.approx((0.3, 0.3, 0.0))
+    assert count_interval([0.5] * 10) == pytest.approx((0.2, 0.8, math.sqrt(2.5) / 10))
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        probabilities = list(rng.uniform(size=9))
+        assert count_interval(probabilities)[:2] == pytest.approx(
+            enumerated_interval(probabilities)
+        )
+    with pytest.raises(InputError, match="gangue_probabilities"):
+        count_interval([])
+
+
+def test_the_interval_holds_the_labels_own_count():
+    """Ten gangue labels each only 0.55 sure: the true count's interval alone would end below
+    10 of 10, the count the labels give; the interval is widened to hold it. A non-finite
+    confidence says nothing: the lump is gangue with probability 1/2."""
+    labels = [
+        Label(0.05 + 0.09 * k, "gangue", 0.55, "statistical", signals=("vibration",))
+        for k in range(10)
+    ]
+    assert enumerated_interval([0.55] * 10)[1] < 1.0
+    share = estimate_share(labels, 0.0, 1.0, CONFIG)
+    assert share.share == 1.0 and share.high == 1.0
+    assert share.low == pytest.approx(enumerated_interval([0.55] * 10)[0])
+    unsure = Label(0.0, "coal", math.nan, "statistical")
+    assert gangue_probability(unsure) == 0.5
 
 
 def two_bin_model(regime: str = "vibration/overlap", wrong: float = 0.0) -> ScoreModel:
