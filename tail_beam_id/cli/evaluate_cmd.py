@@ -301,6 +301,7 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
         LAYOUTS,
         LEVELS,
         FlowScene,
+        coverage_line,
         format_flow_table,
         run_flow_set,
     )
@@ -392,6 +393,7 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
         f"{_reference_note(params)}: "
         f"{'met' if false_alarms == 0 else 'NOT met'}"
     )
+    print(f"  ({coverage_line(within)} at 5-200 lumps/s: no target)")
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)

@@ -98,6 +98,8 @@ class FlowCase:
     # Levels the truth reached less than CROSSING_WITHIN_S before the flow's last interval end.
     late_truth: set[float] = field(default_factory=set)
     methods: dict[str, int] = field(default_factory=dict)  # interval basis -> count
+    # interval basis -> [intervals whose 95 % interval holds the truth, intervals scored]
+    covered_by_method: dict[str, list[int]] = field(default_factory=dict)
     correct: int = 0
     impacts: int = 0  # lumps, plus labels matching none
     series: list[tuple[float, float, float | None]] = field(default_factory=list)
@@ -158,6 +160,7 @@ class FlowCase:
             "bias": self.bias,
             "stated_se": self.stated_se,
             "coverage": self.coverage,
+            "coverage_by_method": {k: list(v) for k, v in sorted(self.covered_by_method.items())},
             "score_auc": self.score_auc,
             "accelerometer_fraction": self.accelerometer_fraction,
             "intervals": len(self.errors),
@@ -319,7 +322,11 @@ def score_case(
             case.errors.append(abs(share.share - true))
             case.signed.append(share.share - true)
             case.standard_errors.append(float(share.standard_error or 0.0))
-            case.covered += share.low - 1e-9 <= true <= share.high + 1e-9
+            holds = share.low - 1e-9 <= true <= share.high + 1e-9
+            case.covered += holds
+            tally = case.covered_by_method.setdefault(share.basis_method, [0, 0])
+            tally[0] += holds
+            tally[1] += 1
     case.series = [(s.end_stamp_s, t, s.share) for s, (t, _) in zip(shares, truth)]
     # The boundary arrives with the first gangue lump.
     gangue_at = recording.lump_stamps_s()[recording.gangue()]
@@ -428,6 +435,28 @@ def run_flow_set(
 
 def describe_support(draw: SupportDraw | None) -> str:
     return "config/" if draw is None else draw.describe()
+
+
+def coverage_line(cases: Sequence[FlowCase]) -> str:
+    """How often the stated 95 % intervals held the true share, over ``cases``, in all and by
+    the method that read the interval: whether the intervals are honest."""
+    totals: dict[str, list[int]] = {}
+    for case in cases:
+        for method, (held, scored) in case.covered_by_method.items():
+            tally = totals.setdefault(method, [0, 0])
+            tally[0] += held
+            tally[1] += scored
+    held = sum(t[0] for t in totals.values())
+    scored = sum(t[1] for t in totals.values())
+    if not scored:
+        return "95 % intervals holding the true share: none scored"
+    parts = ", ".join(
+        f"{method} {h} of {n} ({100 * h / n:.0f} %)" for method, (h, n) in sorted(totals.items())
+    )
+    return (
+        f"95 % intervals holding the true share: {held} of {scored} "
+        f"({100 * held / scored:.0f} %; {parts})"
+    )
 
 
 def format_flow_table(cases: Sequence[FlowCase]) -> str:

@@ -15,6 +15,7 @@ from tail_beam_id.study.flow import record_sim_flow
 from tail_beam_id.study.flow_evaluation import (
     CROSSING_WITHIN_S,
     FlowCase,
+    coverage_line,
     crossing_delay,
     first_reaching,
     identify_flow,
@@ -166,10 +167,26 @@ def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
     assert {(c["support"], c["layout"]) for c in cases} == {
         (s, layout) for s in ("nominal", "foreign-1") for layout in ("shipped", "imu")
     }
+    assert "95 % intervals holding the true share:" in out
     for case in cases:
         assert case["intervals"] >= 3 and 0.0 <= case["mae"] <= 1.0
         assert 0.0 <= case["coverage"] <= 1.0 and case["false_alarms"] >= 0
         assert case["coal_intervals"] >= 1 and case["impacts"] >= 10
+        # Each scored interval is tallied under the method that read it, once.
+        tallies = case["coverage_by_method"].values()
+        assert sum(n for _, n in tallies) == case["intervals"]
+        assert sum(h for h, _ in tallies) == round(case["coverage"] * case["intervals"])
+
+
+def test_the_coverage_line_sums_the_intervals_holding_the_truth_by_method():
+    """Two cases' tallies add up per method and in all; no scored interval says so."""
+    first, second = FlowCase("nominal", "shipped", 5.0), FlowCase("foreign-1", "shipped", 50.0)
+    first.covered_by_method = {"labels": [18, 19], "mixture": [1, 1]}
+    second.covered_by_method = {"mixture": [15, 20]}
+    line = coverage_line([first, second])
+    assert line.startswith("95 % intervals holding the true share: 34 of 40 (85 %;")
+    assert "labels 18 of 19 (95 %)" in line and "mixture 16 of 21 (76 %)" in line
+    assert coverage_line([FlowCase("nominal", "shipped", 5.0)]).endswith("none scored")
 
 
 @pytest.mark.parametrize(
