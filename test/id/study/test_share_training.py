@@ -3,13 +3,18 @@ labelled flows and the systematic error measured across flows held out of the fi
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
+import pytest
 
 from tail_beam_id.stream.label import Label
 from tail_beam_id.stream.share import ScoreModel
 from tail_beam_id.study.share_training import (
     fit_densities,
+    held_out_se,
     interval_errors,
+    main,
     regime_rows,
     scored_labels,
     systematic_se,
@@ -73,3 +78,46 @@ def test_flows_unlike_each_other_show_a_systematic_error():
     flows = [synthetic_flow(n, 300 + n, 0.2 if n % 2 else 0.4) for n in range(4)]
     systematic = systematic_se(flows, [0, 1, 0, 1])
     assert systematic[3] > 0.1 and systematic[0] == 0.0
+
+
+def test_held_out_flows_unlike_the_training_ones_show_their_systematic_error():
+    """Densities fitted on flows of one kind state no systematic error on held-out flows like
+    them, and a large one (at 100 labels/s: the class 80-150) on flows whose coal scores on the
+    gangue side twice as often: the error of the densities themselves, not of a fold."""
+    training = [synthetic_flow(n, 400 + n, 0.2) for n in range(4)]
+    model = ScoreModel.from_dict(fit_densities(regime_rows(
+        [r for f in training for r in scored_labels(f)]
+    )))
+    alike = held_out_se(model, [synthetic_flow(10 + n, 500 + n, 0.2) for n in range(2)])
+    unlike = held_out_se(model, [synthetic_flow(20 + n, 600 + n, 0.4) for n in range(2)])
+    assert alike[3] < 0.05  # the class of the flows' 100 labels a second
+    assert unlike[3] > 0.1 and unlike[0] == 0.0
+
+
+def test_training_refuses_a_cache_holding_fewer_flows_than_asked(tmp_path):
+    """A refit from a cache of 3 flows asked for 2 training and 2 held-out flows stops with one
+    line naming both options, before anything is written."""
+    cache = tmp_path / "flows.json"
+    cache.write_text(json.dumps([synthetic_flow(n, 700 + n, 0.2) for n in range(3)]))
+    out = tmp_path / "model.json"
+    argv = ["--flows", "2", "--held-out-flows", "2", "--cache", str(cache), "--out", str(out)]
+    with pytest.raises(SystemExit, match="--flows \\+ --held-out-flows = 4"):
+        main(argv)
+    assert not out.exists()
+    with pytest.raises(SystemExit, match="--held-out-flows must be >= 0"):
+        main(["--held-out-flows", "-1", "--cache", str(cache), "--out", str(out)])
+
+
+def test_a_refit_from_a_cache_fits_the_first_flows_and_measures_on_the_rest(tmp_path):
+    """From a cache of 4 flows, 2 train the densities and 2 unlike them give the systematic
+    error; the model file says how many of each."""
+    flows = [synthetic_flow(n, 800 + n, 0.2 if n < 2 else 0.4) for n in range(4)]
+    cache = tmp_path / "flows.json"
+    cache.write_text(json.dumps(flows))
+    out = tmp_path / "model.json"
+    main(["--flows", "2", "--held-out-flows", "2", "--cache", str(cache), "--out", str(out)])
+    model = json.loads(out.read_text())
+    assert model["training"]["flows"] == 2 and model["training"]["held_out_flows"] == 2
+    assert model["systematic_se"][3] > 0.1
+    fitted = fit_densities(regime_rows([r for f in flows[:2] for r in scored_labels(f)]))
+    assert model["densities"] == fitted["densities"]
