@@ -102,6 +102,23 @@ IDENTIFICATION = Section(
             0.5,
             1.0,
         ),
+        number(
+            "ringing_window_s",
+            "An impact this long or less after another known onset strikes the beam still "
+            "ringing from it (0: never).",
+            "s",
+            0.0,
+            0.1,
+            default=0.02,
+        ),
+        number(
+            "ringing_confidence_cap",
+            "Most confidence of such an impact's label.",
+            "",
+            0.5,
+            1.0,
+            default=0.8,
+        ),
         positive(
             "match_tolerance_s",
             "Scoring: a label's onset within this of the contact start.",
@@ -141,6 +158,8 @@ CHECKED = (
     "impulse_neighbour_fit",
     "neighbour_min_separation_s",
     "overlap_confidence_cap",
+    "ringing_window_s",
+    "ringing_confidence_cap",
 )
 
 EVALUATION = Section(
@@ -312,6 +331,9 @@ class IdentifierConfig:
     impulse_neighbour_fit: bool  # ... and the acceleration's velocity step (signals.features)
     neighbour_min_separation_s: float  # closer neighbouring onsets are read together (s)
     overlap_confidence_cap: float
+    # An impact at most ringing_window_s after another known onset: its label's cap (s, 0..1).
+    ringing_window_s: float
+    ringing_confidence_cap: float
     detection: DetectionConfig
     timing: TimingConfig
     contact_fit: ContactFitConfig

@@ -4,7 +4,8 @@ rebound), the method's decision on them, and what the label says of how far to t
 
 An IMU pulse nothing else confirms (no rebound, no pressure impulse) while the beam still rings
 from an earlier impact, or too weak to stand alone, gives no label. A label's confidence is
-capped when another impact overlaps it, or once the recording's sensor timing is found suspect
+capped when another impact overlaps it, when it struck the beam still ringing from an earlier
+one (``ringing_window_s`` after it), or once the recording's sensor timing is found suspect
 (:mod:`tail_beam_id.signals.timing`); then the decision is made without the rebound delay
 where the method can.
 """
@@ -48,6 +49,8 @@ from tail_beam_id.stream.impact_point import ImpactPoints
 from tail_beam_id.stream.label import Label, make_label
 
 UNUSUAL_DELAY_PROBABILITY = 0.5  # above it, the delay check counts an impact's delay unusual
+# In a label's outside_training: it struck within ringing_window_s of an earlier known onset.
+RINGING_NAME = "earlier_impact_ringing"
 
 
 def around(
@@ -60,6 +63,12 @@ def around(
     low = max(int(np.searchsorted(stamp_s, onset_s - before_s, side="left")) - 1, 0)
     high = int(np.searchsorted(stamp_s, onset_s + after_s, side="right")) + 1
     return stamp_s[low:high], values[low:high]
+
+
+def in_ringing(onset_s: float, known: Sequence[float], window_s: float) -> bool:
+    """Another known onset lies at most ``window_s`` before ``onset_s`` (s): the impact struck
+    the beam still ringing from it."""
+    return any(0.0 < onset_s - t <= window_s for t in known)
 
 
 def impulse_neighbours(
@@ -298,6 +307,13 @@ class ImpactDecider:
         confidence = decision.confidence
         if overlap:
             confidence = min(confidence, cfg.overlap_confidence_cap)
+        elif in_ringing(impact.onset_s, known, cfg.ringing_window_s):
+            # Struck while the beam still rang from the impact before: every read-out holds
+            # some of that impact's response, which no training impact had.
+            confidence = min(confidence, cfg.ringing_confidence_cap)
+            decision = replace(
+                decision, outside_training=(*decision.outside_training, RINGING_NAME)
+            )
         doubtful = unreliable(contact, cfg.contact_fit)
         used = decision.signals is None or "imu" in decision.signals
         if doubtful and used and "contact_duration_s" in features:

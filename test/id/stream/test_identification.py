@@ -189,6 +189,38 @@ def test_two_impacts_3_ms_apart_are_flagged_and_not_trusted(params):
     assert all(lab.confidence <= cap for lab in labels)
 
 
+def test_an_impact_in_the_ringing_of_the_one_before_is_capped_and_says_why(params):
+    """A lump 15 ms after another (past the overlap window, within the ringing window) is
+    labelled with at most the ringing cap and names earlier_impact_ringing; the first lump,
+    and one 40 ms after it, are not capped."""
+    commands = [
+        (0.300, {"material": "coal", "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 1.2}),
+        (0.315, {"material": "marble", "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 0.5}),
+        (0.355, {"material": "marble", "radius_m": 0.05, "drop_height_m": 3.0, "position_m": 0.9}),
+    ]
+    pressure, imu, rebounds, _ = stream(params, commands, 0.6)
+    labels = identify(params, "statistical", pressure, imu, rebounds)
+    section = params["identification"]
+    assert section["overlap_window_s"] < 0.015 <= section["ringing_window_s"] < 0.04
+    assert len(labels) == 3 and not any(lab.overlap for lab in labels)
+    first, second, third = labels
+    assert "earlier_impact_ringing" in second.outside_training
+    assert second.confidence <= section["ringing_confidence_cap"]
+    for lab in (first, third):
+        assert "earlier_impact_ringing" not in lab.outside_training
+    # Without the window the second lump keeps the method's own confidence.
+    uncapped = identify(
+        {**params, "identification": {**section, "ringing_window_s": 0.0}},
+        "statistical",
+        pressure,
+        imu,
+        rebounds,
+    )
+    assert "earlier_impact_ringing" not in uncapped[1].outside_training
+    assert uncapped[1].material == second.material
+    assert uncapped[1].confidence >= second.confidence
+
+
 def test_physics_caps_confidence_when_no_particle_explains_the_impact(params):
     """Observations no prior particle can give are called an outlier and capped at the
     configured confidence."""
@@ -236,6 +268,8 @@ def test_physics_estimates_the_particle(params, paper):
         ({"window_s": -1.0}, "identification.window_s"),
         ({"overlap_window_s": 0.5}, "identification.overlap_window_s"),
         ({"overlap_confidence_cap": 0.2}, "identification.overlap_confidence_cap"),
+        ({"ringing_confidence_cap": 1.5}, "identification.ringing_confidence_cap"),
+        ({"ringing_window_s": -0.01}, "identification.ringing_window_s"),
     ],
 )
 def test_bad_parameters_name_the_field(params, change, field):
