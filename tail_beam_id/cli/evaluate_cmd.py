@@ -301,6 +301,7 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
         LAYOUTS,
         LEVELS,
         FlowScene,
+        confident_wrong_line,
         coverage_line,
         format_flow_table,
         run_flow_set,
@@ -394,6 +395,7 @@ def run_flow(args: argparse.Namespace, params: dict) -> None:
         f"{'met' if false_alarms == 0 else 'NOT met'}"
     )
     print(f"  ({coverage_line(within)} at 5-200 lumps/s: no target)")
+    print(f"  ({confident_wrong_line(shipped)}: no target)")
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)

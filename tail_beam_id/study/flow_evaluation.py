@@ -42,7 +42,7 @@ from tail_beam_id.stream.share import Z_95, GangueShare, ShareConfig, label_scor
 from tail_beam_id.stream.share_alarm import alarm_states
 from tail_beam_id.stream.share_reader import SharingIdentifier
 from tail_beam_id.study.dataset import evaluation_params
-from tail_beam_id.study.evaluation import wilson
+from tail_beam_id.study.evaluation import CONFIDENT, wilson
 from tail_beam_id.study.flow import FlowRecording, record_sim_flow, true_shares
 from tail_beam_id.study.runs import true_profile_section
 from tail_beam_id.study.supports import SupportDraw, draw_support, support_ranges
@@ -101,6 +101,7 @@ class FlowCase:
     # interval basis -> [intervals whose 95 % interval holds the truth, intervals scored]
     covered_by_method: dict[str, list[int]] = field(default_factory=dict)
     correct: int = 0
+    confident_wrong: int = 0  # matched labels wrong at confidence >= CONFIDENT
     impacts: int = 0  # lumps, plus labels matching none
     series: list[tuple[float, float, float | None]] = field(default_factory=list)
 
@@ -174,6 +175,7 @@ class FlowCase:
             "false_crossings": self.false_crossings,
             "methods": self.methods,
             "accuracy": self.accuracy,
+            "confident_wrong": self.confident_wrong,
             "accuracy_ci": [low, high],
             "impacts": self.impacts,
         }
@@ -348,7 +350,11 @@ def score_case(
     stamps = list(recording.lump_stamps_s())
     matching = match_stamps(stamps, [lab.impact_stamp_s for lab in labels], tolerance)
     gangue = recording.gangue()
-    case.correct += sum((labels[j].material == "gangue") == gangue[i] for i, j in matching.pairs)
+    right = [(labels[j].material == "gangue") == gangue[i] for i, j in matching.pairs]
+    case.correct += sum(right)
+    case.confident_wrong += sum(
+        not ok and labels[j].confidence >= CONFIDENT for ok, (_, j) in zip(right, matching.pairs)
+    )
     case.scored += [
         (
             label_score(labels[j]),
@@ -456,6 +462,18 @@ def coverage_line(cases: Sequence[FlowCase]) -> str:
     return (
         f"95 % intervals holding the true share: {held} of {scored} "
         f"({100 * held / scored:.0f} %; {parts})"
+    )
+
+
+def confident_wrong_line(cases: Sequence[FlowCase]) -> str:
+    """How many of ``cases``' lumps got a wrong label at confidence CONFIDENT or more (a
+    confident wrong label is worse than an unsure one)."""
+    wrong = sum(c.confident_wrong for c in cases)
+    impacts = sum(c.impacts for c in cases)
+    share = f" ({100 * wrong / impacts:.1f} %)" if impacts else ""
+    return (
+        f"wrong labels at confidence >= {CONFIDENT:g}: {wrong} of {impacts} impacts{share}, "
+        "impacts being the lumps and any extra labels"
     )
 
 

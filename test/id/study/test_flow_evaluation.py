@@ -15,6 +15,7 @@ from tail_beam_id.study.flow import record_sim_flow
 from tail_beam_id.study.flow_evaluation import (
     CROSSING_WITHIN_S,
     FlowCase,
+    confident_wrong_line,
     coverage_line,
     crossing_delay,
     first_reaching,
@@ -168,10 +169,14 @@ def test_evaluate_flow_set_on_a_small_size(capsys, tmp_path):
         (s, layout) for s in ("nominal", "foreign-1") for layout in ("shipped", "imu")
     }
     assert "95 % intervals holding the true share:" in out
+    assert "wrong labels at confidence >= 0.9:" in out
     for case in cases:
         assert case["intervals"] >= 3 and 0.0 <= case["mae"] <= 1.0
         assert 0.0 <= case["coverage"] <= 1.0 and case["false_alarms"] >= 0
         assert case["coal_intervals"] >= 1 and case["impacts"] >= 10
+        # Confident wrong labels are among the wrong ones.
+        wrong = case["impacts"] - round(case["accuracy"] * case["impacts"])
+        assert 0 <= case["confident_wrong"] <= wrong
         # Each scored interval is tallied under the method that read it, once.
         tallies = case["coverage_by_method"].values()
         assert sum(n for _, n in tallies) == case["intervals"]
@@ -187,6 +192,16 @@ def test_the_coverage_line_sums_the_intervals_holding_the_truth_by_method():
     assert line.startswith("95 % intervals holding the true share: 34 of 40 (85 %;")
     assert "labels 18 of 19 (95 %)" in line and "mixture 16 of 21 (76 %)" in line
     assert coverage_line([FlowCase("nominal", "shipped", 5.0)]).endswith("none scored")
+
+
+def test_the_confident_wrong_line_counts_over_every_impact():
+    """Two cases' confident wrong labels over their impacts (lumps and extra labels)."""
+    first, second = FlowCase("nominal", "shipped", 5.0), FlowCase("foreign-1", "shipped", 50.0)
+    first.confident_wrong, first.impacts = 1, 40
+    second.confident_wrong, second.impacts = 3, 160
+    line = confident_wrong_line([first, second])
+    assert line.startswith("wrong labels at confidence >= 0.9: 4 of 200 impacts (2.0 %)")
+    assert confident_wrong_line([]).startswith("wrong labels at confidence >= 0.9: 0 of 0")
 
 
 @pytest.mark.parametrize(
