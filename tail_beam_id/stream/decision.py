@@ -189,9 +189,7 @@ class ImpactDecider:
                 min_separation_s=cfg.neighbour_min_separation_s,
             )
         if impact.pulse is not None and impact.rebound is None:
-            ringing = any(
-                0.0 < impact.onset_s - t < cfg.detection.ring_window_s for t in association.decided
-            )
+            ringing = in_ringing(impact.onset_s, association.decided, cfg.detection.ring_window_s)
             weak = (
                 impact.pulse.peak_sigma < cfg.detection.unconfirmed_pulse_sigma
                 and not self._pressure_confirms(fit)

@@ -80,7 +80,6 @@ class FlowCase:
     errors: list[float] = field(default_factory=list)  # |estimate - truth| per interval
     signed: list[float] = field(default_factory=list)  # estimate - truth per interval
     standard_errors: list[float] = field(default_factory=list)  # the stated ones, per interval
-    covered: int = 0  # intervals whose 95 % interval holds the truth
     # Each label matched to a lump: (its score, the lump is gangue, the label used the
     # accelerometer): how much a single label says of its lump.
     scored: list[tuple[float, bool, bool]] = field(default_factory=list)
@@ -132,7 +131,8 @@ class FlowCase:
     @property
     def coverage(self) -> float:
         """The fraction of intervals whose 95 % interval holds the true share."""
-        return self.covered / len(self.errors) if self.errors else math.nan
+        held = sum(h for h, _ in self.covered_by_method.values())
+        return held / len(self.errors) if self.errors else math.nan
 
     @property
     def score_auc(self) -> float:
@@ -325,7 +325,6 @@ def score_case(
             case.signed.append(share.share - true)
             case.standard_errors.append(float(share.standard_error or 0.0))
             holds = share.low - 1e-9 <= true <= share.high + 1e-9
-            case.covered += holds
             tally = case.covered_by_method.setdefault(share.basis_method, [0, 0])
             tally[0] += holds
             tally[1] += 1
