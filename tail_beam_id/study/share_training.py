@@ -285,10 +285,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     params = load_parameters([])
     wanted = args.flows + args.held_out_flows
     if args.cache and Path(args.cache).exists():
-        flows = json.loads(Path(args.cache).read_text())
-        if len({f["flow"] for f in flows}) < wanted:
+        try:
+            flows = json.loads(Path(args.cache).read_text())
+            cached = len({int(f["flow"]) for f in flows})
+        except (OSError, ValueError, TypeError, KeyError) as exc:
             raise SystemExit(
-                f"share_training: the cache {args.cache} holds {len({f['flow'] for f in flows})}"
+                f"share_training: the cache {args.cache} is no list of identified flows "
+                f"({type(exc).__name__}: {exc})"
+            ) from None
+        if cached < wanted:
+            raise SystemExit(
+                f"share_training: the cache {args.cache} holds {cached}"
                 f" flows, fewer than --flows + --held-out-flows = {wanted}: give another --cache"
                 " (or --held-out-flows 0: the systematic error by cross-validation)"
             )

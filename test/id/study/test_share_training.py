@@ -106,6 +106,10 @@ def test_training_refuses_a_cache_holding_fewer_flows_than_asked(tmp_path):
     assert not out.exists()
     with pytest.raises(SystemExit, match="--held-out-flows must be >= 0"):
         main(["--held-out-flows", "-1", "--cache", str(cache), "--out", str(out)])
+    cache.write_text('{"not": "flows"}')
+    with pytest.raises(SystemExit, match="is no list of identified flows"):
+        main(["--cache", str(cache), "--out", str(out)])
+    assert not out.exists()
 
 
 def test_a_refit_from_a_cache_fits_the_first_flows_and_measures_on_the_rest(tmp_path):
