@@ -15,9 +15,9 @@ Nothing here reads the sensor streams; the identifier asks with the stamps it ha
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -61,6 +61,22 @@ class ImpactAssociation:
         self.used_rebounds: set[float] = set()  # stamps of rebounds given to an impact
         # Onsets of recently decided impacts (overlap and ringing checks), s.
         self.decided: list[float] = []
+        # The data window of an impact the accelerometer found, s (follow_profile).
+        self.vibration_window_s = config.vibration_window_s
+
+    def follow_profile(self, profile: Mapping[str, Any]) -> None:
+        """Take the accelerometer-found impacts' data window from a checked ``calibration``
+        section (config.check_profile): ``vibration_window_mode_periods`` periods of the
+        slowest bending mode it measured (``ringing_modes_hz``) when that is longer than
+        ``vibration_window_s``, at most ``window_s``. A velocity step or pressure fit over less
+        than a period of a slow mode reads that mode's swing as the impact's: on a support whose
+        first bending mode rings at 100-200 Hz, 6 ms is about one period."""
+        cfg = self.config
+        modes = [float(f) for f in profile.get("ringing_modes_hz") or () if f > 0.0]
+        window = cfg.vibration_window_s
+        if modes and cfg.vibration_window_mode_periods > 0.0:
+            window = max(window, min(cfg.window_s, cfg.vibration_window_mode_periods / min(modes)))
+        self.vibration_window_s = window
 
     def add_rebound(self, stamp_s: float, velocity_mps: np.ndarray) -> None:
         """One rebound: the camera's stamp (s) and the particle's velocity (3,) in the plate frame.
@@ -77,11 +93,12 @@ class ImpactAssociation:
 
     def windows(self, impact: PendingImpact) -> tuple[float, float, float]:
         """(data window, end of the impulse fit, overlap window) after this impact's onset, s.
-        An impact the accelerometer found needs less data (``vibration_window_s``): its pulse
-        pins the onset to a 39 us sample and its velocity step to a few milliseconds."""
+        An impact the accelerometer found needs less data (``vibration_window_s``, or longer on a
+        support with a slow bending mode: :meth:`follow_profile`): its pulse pins the onset to a
+        39 us sample and its velocity step to a few milliseconds."""
         cfg = self.config
         if impact.channel == "vibration":
-            window = cfg.vibration_window_s
+            window = self.vibration_window_s
             return window, min(cfg.impulse_post_s, window), min(cfg.overlap_window_s, window)
         return cfg.window_s, cfg.impulse_post_s, cfg.overlap_window_s
 

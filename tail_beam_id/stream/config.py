@@ -36,6 +36,15 @@ IDENTIFICATION = Section(
             high="window_s",
             default=None,
         ),
+        number(
+            "vibration_window_mode_periods",
+            "... or, on a support whose profile measured its bending modes, this many periods "
+            "of the slowest, if longer (at most window_s; 0: never).",
+            "",
+            0.0,
+            10.0,
+            default=1.5,
+        ),
         positive(
             "pressure_pre_s",
             "Pressure before the onset the fit learns the background from.",
@@ -144,6 +153,7 @@ CHECKED = (
     "method",
     "window_s",
     "vibration_window_s",
+    "vibration_window_mode_periods",
     "pressure_pre_s",
     "impulse_pre_s",
     "pressure_background_s",
@@ -315,6 +325,8 @@ class IdentifierConfig:
     method: str
     window_s: float
     vibration_window_s: float  # the data window of an impact the accelerometer found (s)
+    # ... at least this many periods of the support's slowest measured bending mode
+    vibration_window_mode_periods: float
     pressure_pre_s: float
     impulse_pre_s: float
     # The background stretches (s) while no earlier onset is in the way (tail_beam_id.signals.

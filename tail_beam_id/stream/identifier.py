@@ -113,6 +113,7 @@ class StreamIdentifier:
             self.config, model, self.channels, self.acceleration, self.impacts, self.camera_frame
         )
         self.finder.follow_profile(profile)
+        self.impacts.follow_profile(profile)
         self.readiness = Readiness(
             self.config, self.channels, self.finder, self.impacts, self.camera_frame
         )
@@ -155,7 +156,9 @@ class StreamIdentifier:
             "ring_decay_s"
         )
         self.finder.recalibrate(model, ring_decay_s)
-        self.finder.follow_profile(check_profile(merged))
+        profile = check_profile(merged)
+        self.finder.follow_profile(profile)
+        self.impacts.follow_profile(profile)
         self.acceleration.gravity_mps2 = model.support.gravity_mps2
         self.decider.model = model
         if method is not None:

@@ -179,3 +179,43 @@ def test_late_rebounds_can_be_switched_off(params):
     book = ImpactAssociation(IdentifierConfig.from_params(section))
     book.pending.append(pulse_impact(1.0))
     assert book.late_claimant(1.008) is None
+
+
+def mode_book(params, periods: float = 1.5) -> ImpactAssociation:
+    import copy
+
+    section = copy.deepcopy(params["identification"])
+    section["vibration_window_mode_periods"] = periods
+    return ImpactAssociation(IdentifierConfig.from_params(section))
+
+
+def test_a_slow_bending_mode_lengthens_the_accelerometers_window_to_its_periods(params):
+    """An accelerometer-found impact's data window holds vibration_window_mode_periods periods
+    of the slowest mode the profile measured: 1.5 / 150 Hz = 10 ms; the velocity step's end and
+    the overlap window are what they are in a window that long (at most impulse_post_s,
+    overlap_window_s); an IMU-found impact keeps window_s."""
+    section = params["identification"]
+    book = mode_book(params)
+    book.follow_profile({"ringing_modes_hz": [900.0, 150.0]})
+    window, post, overlap = book.windows(pulse_impact(1.0))
+    assert window == pytest.approx(0.01)
+    assert post == pytest.approx(min(section["impulse_post_s"], 0.01))
+    assert overlap == pytest.approx(min(section["overlap_window_s"], 0.01))
+    assert book.windows(pulse_impact(1.0, channel="imu"))[0] == section["window_s"]
+
+
+def test_the_accelerometers_window_stays_short_on_fast_modes_and_never_passes_window_s(params):
+    """Modes fast enough that vibration_window_s holds 1.5 periods (700 Hz: 2.1 ms), no measured
+    mode, or the rule off (0) keep vibration_window_s; a mode so slow that 1.5 periods pass
+    window_s (80 Hz: 19 ms) gives window_s."""
+    section = params["identification"]
+    short = section["vibration_window_s"]
+    for profile, periods, expected in (
+        ({"ringing_modes_hz": [700.0]}, 1.5, short),
+        ({}, 1.5, short),
+        ({"ringing_modes_hz": [150.0]}, 0.0, short),
+        ({"ringing_modes_hz": [80.0]}, 1.5, section["window_s"]),
+    ):
+        book = mode_book(params, periods)
+        book.follow_profile(profile)
+        assert book.windows(pulse_impact(1.0))[0] == pytest.approx(expected), profile

@@ -37,14 +37,19 @@ def test_the_attributes_callers_read_are_the_parts_state(params):
 
 
 def test_recalibrate_reaches_every_part_that_reads_the_support(params):
-    """A profile with another gravity, ring decay and camera frame: the detectors, the pressure
-    detector, the decider, the mounting and the camera knowledge all take it, and the
-    identifier then says calibrated."""
+    """A profile with another gravity, ring decay, camera frame and a slow bending mode: the
+    detectors, the pressure detector, the decider, the mounting, the camera knowledge and the
+    accelerometer's data window all take it, and the identifier then says calibrated."""
     identifier = StreamIdentifier("statistical", params["identification"], params)
     assert not identifier.calibrated and identifier.profile_frame_s is None
     merged = copy.deepcopy(params)
     merged["support"]["gravity_mps2"] = 9.79
-    merged["calibration"] = {"rigid_mode_frequency_hz": 3.0, "camera_frame_rate_hz": 2000.0}
+    merged["calibration"] = {
+        "rigid_mode_frequency_hz": 3.0,
+        "camera_frame_rate_hz": 2000.0,
+        "ringing_modes_hz": [150.0],
+        "ringing_damping_ratios": [0.02],
+    }
     ring_decay_s = 0.123
     merged["identification"]["detection"]["ring_decay_s"] = ring_decay_s
     identifier.recalibrate(merged)
@@ -55,6 +60,9 @@ def test_recalibrate_reaches_every_part_that_reads_the_support(params):
         assert detector.sway_frequency_hz == identifier.model.support.rigid_mode_frequency_hz
     assert identifier.pressure_detector.model is identifier.model is identifier.decider.model
     assert identifier.model.support.gravity_mps2 == identifier.acceleration.gravity_mps2 == 9.79
+    # the accelerometer's window: 1.5 periods of the profile's 150 Hz mode
+    periods = params["identification"]["vibration_window_mode_periods"]
+    assert identifier.impacts.vibration_window_s == pytest.approx(periods / 150.0)
 
 
 def test_a_profile_counts_timing_suspect_only_from_whole_counts():
