@@ -36,4 +36,4 @@ def test_twenty_impacts_as_fast_as_possible_are_all_in_the_bag(tmp_path):
         result.rss
     )  # sampled while running
     assert result.matched == IMPACTS and result.extra == 0, result.logs["id_node"]
-    assert result.live_matches_offline
+    assert result.live_matches_offline, result.logs["id_node"]  # its labels and warnings
