@@ -72,7 +72,7 @@ class ImpactAssociation:
         than a period of a slow mode reads that mode's swing as the impact's: on a support whose
         first bending mode rings at 100-200 Hz, 6 ms is about one period."""
         cfg = self.config
-        modes = [float(f) for f in profile.get("ringing_modes_hz") or () if f > 0.0]
+        modes = profile.get("ringing_modes_hz") or ()  # checked: 1 Hz and up
         window = cfg.vibration_window_s
         if modes and cfg.vibration_window_mode_periods > 0.0:
             window = max(window, min(cfg.window_s, cfg.vibration_window_mode_periods / min(modes)))

@@ -60,9 +60,13 @@ def test_recalibrate_reaches_every_part_that_reads_the_support(params):
         assert detector.sway_frequency_hz == identifier.model.support.rigid_mode_frequency_hz
     assert identifier.pressure_detector.model is identifier.model is identifier.decider.model
     assert identifier.model.support.gravity_mps2 == identifier.acceleration.gravity_mps2 == 9.79
-    # the accelerometer's window: 1.5 periods of the profile's 150 Hz mode
-    periods = params["identification"]["vibration_window_mode_periods"]
-    assert identifier.impacts.vibration_window_s == pytest.approx(periods / 150.0)
+    # the accelerometer's window: the configured periods of the profile's 150 Hz mode, within
+    # vibration_window_s .. window_s
+    section = params["identification"]
+    periods_s = section["vibration_window_mode_periods"] / 150.0
+    expected = min(section["window_s"], max(section["vibration_window_s"], periods_s))
+    assert expected > section["vibration_window_s"]  # the profile's mode is what moved it
+    assert identifier.impacts.vibration_window_s == pytest.approx(expected)
 
 
 def test_a_profile_counts_timing_suspect_only_from_whole_counts():
