@@ -338,8 +338,9 @@ def gain_impacts(params: Mapping[str, Any], labels: Sequence[Label]) -> list[Lab
     within the pressure fit's and the impulse's own background before them
     (``pressure_pre_s`` + ``background_after_onset_s``) nor the overlap window after. In a
     dense flow the others' responses and ringing are in both reads: on a lightly damped support
-    every impact of a flow of 20 and 50 lumps/s read the beam's inertia 52 % and 80 % low, these
-    3 % and 23 % (docs/results/gangue_share.md)."""
+    a flow's impacts read the beam's inertia far too low when all are taken, much nearer it when
+    only these are (measured: docs/results/archive.md, "The IMU's gain read from the impacts no
+    other crowds")."""
     section = params["identification"]
     before_s = float(section["pressure_pre_s"]) + float(section["background_after_onset_s"])
     return isolated(labels, before_s, float(section["overlap_window_s"]))
@@ -375,9 +376,9 @@ def _timing_rechecked(
     the first pass's counts say the sensors' clocks are offset. That pass ran with config/'s
     beam and camera: a support whose inertia differs gives moment impulses, and a camera that
     stamps the separation itself gives delays, unlike what the check expects of config/'s, and
-    the profile then started the identifier suspecting the clocks, deciding every impact without
-    its delay (on five supports of 40 of the structures set's paper scene, with such a camera,
-    every label). Offset clocks show in the second pass as well."""
+    counted on that pass alone the profile could start the identifier suspecting the clocks,
+    deciding every impact without its delay (measured: docs/results/archive.md, "The clock
+    verdict counted with the calibrated beam"). Offset clocks show in the second pass as well."""
     if profile.delay_checked_impacts is None or not judge(
         profile.delay_checked_impacts,
         profile.delay_unusual_impacts or 0,
@@ -422,11 +423,10 @@ def imu_gain(features: Sequence[Mapping[str, float]]) -> tuple[float, int, float
 
     A weighted least-squares line through the origin, moment = gain x impulse, each impact
     weighted by the inverse variance of its pressure moment (``moment_impulse_sigma_nms``).
-    Every impact counts, however small: the median gain of only the impacts whose pressure
-    moment stood 5 sigma clear picked those that noise had pushed up, and on the paper scene's
-    25 mm spheres, where 3 to 12 of 20 impacts stood clear, that read the beam's inertia 1.2 to
-    2.7 times too high (foreign supports, seed 41004: README, Supports other than the shipped
-    one)."""
+    Every impact counts, however small: a median gain of only the impacts whose pressure moment
+    stands well clear of the noise picks those that noise has pushed up, and where few stand
+    clear (small particles, such as the paper scene's 25 mm spheres) that reads the beam's
+    inertia too high."""
     rows = [
         (
             f["moment_impulse_pressure_nms"],

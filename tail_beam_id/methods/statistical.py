@@ -451,9 +451,9 @@ class StatisticalMethod:
     def _camera_too_slow_for_the_delay(self, features: Mapping[str, float]) -> bool:
         """Whether to decide without the delay: the impact's camera frame is longer than any the
         training drew, so its lag, up to a frame, is more than the contact durations the delay
-        tells apart (averaged over their lags, a 1 kHz camera's foreign impacts scored 77.5 %
-        with decisions near 0.6; without the delay 86.0 %, against 90.0 % with a 5 kHz camera:
-        bench_robustness.py), and the pulse gave the contact's duration (duration_read)."""
+        tells apart (averaged over its lags, such a delay leaves decisions unsure, and less often
+        right than without it; slow cameras' figures: docs/results/robustness.md), and the pulse
+        gave the contact's duration (duration_read)."""
         return self._slower_than_trained(features) and duration_read(features)
 
     def _slower_than_trained(self, features: Mapping[str, float]) -> bool:
@@ -505,10 +505,9 @@ def duration_read(features: Mapping[str, float]) -> bool:
     """Whether the impact's contact duration was read from its pulse: a channel too slow for
     that gives exactly its sample period (tail_beam_id.signals.contact_fit.fit_contact). Without
     it the delay is the only timing the impact has, and even a slow camera's, averaged over its
-    lag, tells more than none: on 200 foreign impacts with a 1 kHz camera, a 2 kHz IMU alone scored
-    65.0 % averaged against 59.0 % without the delay, a 5 kHz one 67.0 against 56.5 %; where the
-    duration is read the delay adds little and a slow camera's blurs it (a 10 kHz IMU 73.0
-    against 77.0 %, the tail-beam accelerometer 78.0 against 86.5 %)."""
+    lag, tells more than none (measured: docs/results/archive.md, "A camera of 1 kHz with a
+    slow IMU alone"); where the duration is read the delay adds little and a slow camera's
+    blurs it."""
     duration, period = features.get("contact_duration_s"), features.get("imu_period_s")
     return duration is not None and period is not None and duration != period
 

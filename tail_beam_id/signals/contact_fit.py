@@ -41,8 +41,9 @@ from tail_beam_sim.spec import Section, flag, integer, number, positive
 
 PENCIL_WIDTH = 24  # columns of the ring-down's Hankel matrix: 3 x the most poles (8) read from it
 # Durations of the first, coarse search (a log grid from min_duration_s to max_duration_s, each
-# 1.25 x the one before at the defaults). With 12 (1.46 x) the search could stop in a local
-# minimum: one particle read 69 or 122 us by the support it struck (README, Identification).
+# 1.25 x the one before at the defaults). A coarser grid can stop the search in a local minimum,
+# so that one particle reads differently by the support it struck (measured: the read durations
+# of one 25 mm particle in docs/results/archive.md).
 COARSE_DURATIONS = 20
 
 
@@ -574,8 +575,8 @@ def fit_contact(
     refine = _refine_grid(duration, start, period_s, config)
     # A second pass whose ring-down starts soon after the contact the first pass read (not
     # before early_ring_start_s): on a stiff beam the modes that shape the pulse ring out
-    # within a millisecond, before ring_start_s, and without them the reading split between
-    # two minima (one 25 mm coal read 113 or 289 us on one support; README, Identification).
+    # within a millisecond, before ring_start_s, and without them the reading can split between
+    # two minima, far apart for the same particle.
     # When every pair the refinement could pick starts that ring-down at the same samples and
     # it is read, the first pass is not refined: its reading is then used for nothing else.
     early = _early_ring_start_s(refine[0][:, None], refine[1][None, :], config)

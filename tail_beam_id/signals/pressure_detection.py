@@ -104,7 +104,7 @@ class PressureDetector:
         above zero when the free sway may drift in frequency and decay across the window. A
         beam swaying from an earlier impact at a frequency a little off the nominal one (the
         model's is the rigid beam's; a real support's differs) otherwise reads as a new impact
-        every ring window: on streams of the nominal support 157 extra labels for 60 impacts."""
+        every ring window, each an extra label."""
         fit = fit_pressure(
             self.model, stamp_s, pressure_pa, onset_s, self.pre_s, self.window_s, sway_drift=True
         )

@@ -408,8 +408,8 @@ def train_statistical(
     with the nominal config/, ``calibrated_subsets`` from those identified on a known profile:
     the drawn supports' records identified knowing their support, and the nominal support's
     own records (its profile is config/, so they are what a perfect calibration gives there).
-    Without the latter the calibrated models knew only drawn supports and lost 3 points on
-    streams of the nominal support at the shipped layout (88.7 against 91.7 %, 240 impacts)."""
+    Without the latter the calibrated models would know only drawn supports, and label streams
+    of the nominal support less well at the shipped layout."""
     return {
         "subsets": train_family(
             [r for r in records if not r.calibrated and not stamps_separation(r)], seed
@@ -441,9 +441,7 @@ def train_family(records: Sequence[Record], seed: int, frame: bool = False) -> d
 
     Impacts whose acceleration features came from the accelerometer are fitted too: its
     anti-alias filter shapes the pulse that ``contact_duration_s`` is read from
-    (tail_beam_id.signals.contact_fit) otherwise than an IMU's sample-period mean does. (Before
-    that feature they were left out: then they scored no better at the shipped layout, the 5 kHz
-    camera's frame limiting the contact duration, and cost a 20 kHz IMU 0.5-2 points.)
+    (tail_beam_id.signals.contact_fit) otherwise than an IMU's sample-period mean does.
     """
     every = list(records)
     held = held_out(records, seed)
@@ -848,7 +846,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             # The same impacts as a calibrated identifier sees them (the support's profile known).
             (params, "varied", varied_count, seed + 2, args.tier, True),
             # The paper scene's impacts on drawn supports, both ways: without them the models
-            # knew that scene on config/'s support alone (foreign_paper 93.7 % against 99.8 %).
+            # would know that scene on config/'s support alone, and label it less well on others.
             (params, "varied_paper", varied_paper_count, seed + 3, args.tier, False),
             (params, "varied_paper", varied_paper_count, seed + 3, args.tier, True),
             # The threshold is the study's idea for the study's scene: tuned on paper-scene
