@@ -1,5 +1,5 @@
-"""``id_node`` calibrating itself on its own first minutes of data (docs: README "Supports other
-than the shipped one").
+"""``id_node`` calibrating itself on its own first minutes of data (docs/calibration.md, online
+calibration).
 
 What ``tail-beam calibrate BAG`` does offline (tail_beam_id.calibration.offline: the beam's sway in
 the
