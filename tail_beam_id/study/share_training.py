@@ -50,6 +50,7 @@ from tail_beam_id.stream.share import (
 from tail_beam_id.study.dataset import evaluation_params
 from tail_beam_id.study.flow import FlowRecording, record_sim_flow
 from tail_beam_id.study.flow_evaluation import FLOW_PROFILES, identify_flow, reading_params
+from tail_beam_id.study.provenance import source_revision
 from tail_beam_id.study.supports import draw_support, support_ranges
 from tail_beam_sim.config import load_parameters
 
@@ -327,6 +328,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "seed": TRAINING_SEED,
         "rates_per_s": list(RATES_PER_S),
         "profile": args.profile or "recorded",
+        "source_revision": source_revision(),
     }
     with open(args.out, "w") as handle:
         json.dump(model, handle, indent=1)

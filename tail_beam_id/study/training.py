@@ -55,6 +55,7 @@ from tail_beam_id.signals.features import VIBRATION_CHANNEL
 from tail_beam_id.stream.label import Label
 from tail_beam_id.study.blas_threads import single_blas_thread
 from tail_beam_id.study.dataset import DRAWN_SETS, evaluation_params, settings
+from tail_beam_id.study.provenance import source_revision
 from tail_beam_id.study.runs import WHOLE_STREAM_CHUNK_S, Record, run_set
 from tail_beam_sim.config import load_parameters
 from tail_beam_sim.errors import InputError
@@ -867,6 +868,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "records": len(records),
         "vibration_records": sum(1 for r in records if r.label.features.get(VIBRATION_CHANNEL)),
         "scene_set": "stream+varied+varied_paper",
+        "source_revision": source_revision(),
     }
     paper_provenance = {
         "training_seed": seed + 1,
@@ -951,6 +953,7 @@ def add_point_models(params: Mapping[str, Any], args: argparse.Namespace, seed: 
         "records": len(records),
         "with_point": sum(1 for r in records if IMPACT_X in r.label.features),
         "scene_set": "stream+varied+varied_paper+paper",
+        "source_revision": source_revision(),
     }
     path.write_text(json.dumps(model, indent=1) + "\n", encoding="utf-8")
     print(f"wrote {path} ({path.stat().st_size} bytes): the impact point's models added")
