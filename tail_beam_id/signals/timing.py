@@ -131,8 +131,8 @@ class SensorTiming:
             f"{self.unusual} of {self.checked} impacts{where} have a delay from onset to camera "
             "stamp unlike the training's "
             "for their size and speed: the camera's and the acceleration channel's clocks may be "
-            "offset (docs/identification.md, Supports other than the shipped one); labels that "
-            "used the delay are decided without it, "
+            "offset (docs/identification.md, Sensor clocks that disagree); labels that used the "
+            "delay are decided without it, "
             f"capped at {self.config.confidence_cap:g} and list {OUTSIDE_NAME} in outside_training"
         )
 
