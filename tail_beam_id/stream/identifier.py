@@ -112,8 +112,7 @@ class StreamIdentifier:
         self.finder = ImpactFinder(
             self.config, model, self.channels, self.acceleration, self.impacts, self.camera_frame
         )
-        self.finder.follow_profile(profile)
-        self.impacts.follow_profile(profile)
+        self._follow_profile(profile)
         self.readiness = Readiness(
             self.config, self.channels, self.finder, self.impacts, self.camera_frame
         )
@@ -136,6 +135,12 @@ class StreamIdentifier:
         self.points = ImpactPoints(self._plate_m, self.config.camera_timeout_s)
         self.decider.points = self.points
 
+    def _follow_profile(self, profile: Mapping[str, Any]) -> None:
+        """What a checked ``calibration`` section sets: the detectors' ringing and the
+        accelerometer-found impacts' data window."""
+        self.finder.follow_profile(profile)
+        self.impacts.follow_profile(profile)
+
     def _plate_m(self) -> tuple[float, float]:
         """The plate's (length from the hinge, width), m."""
         support = self.decider.model.support
@@ -156,9 +161,7 @@ class StreamIdentifier:
             "ring_decay_s"
         )
         self.finder.recalibrate(model, ring_decay_s)
-        profile = check_profile(merged)
-        self.finder.follow_profile(profile)
-        self.impacts.follow_profile(profile)
+        self._follow_profile(check_profile(merged))
         self.acceleration.gravity_mps2 = model.support.gravity_mps2
         self.decider.model = model
         if method is not None:
