@@ -64,6 +64,7 @@ MIN_LABELS = 40  # a regime with fewer coal or gangue labels is left out (its la
 # drawn supports): cross-validation over the training flows' 10 drawn supports stated too
 # little of it (docs/results/gangue_share.md).
 HELD_OUT_FLOWS = 40
+MAX_DURATION_S = 600.0  # a training flow longer than this, s, is surely a mistake
 
 
 def training_flows(
@@ -264,7 +265,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="flows after those (other seeds, other drawn supports) on which the systematic "
         "error is measured; 0: by two-fold cross-validation over the training flows",
     )
-    parser.add_argument("--duration-s", type=float, default=10.0)
+    parser.add_argument(
+        "--duration-s", type=float, default=10.0, help="each flow's length, s of simulation"
+    )
     parser.add_argument("--out", default=str(MODEL_PATH))
     parser.add_argument(
         "--cache", help="JSON file keeping the flows' labels: read when it exists (a refit)"
@@ -283,6 +286,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ):
         if value < least:
             raise SystemExit(f"share_training: {option} must be >= {least}, not {value}")
+    if not 0.0 < args.duration_s <= MAX_DURATION_S:  # NaN fails too
+        raise SystemExit(
+            f"share_training: --duration-s must be in (0, {MAX_DURATION_S:g}] s, "
+            f"not {args.duration_s:g}"
+        )
     params = load_parameters([])
     wanted = args.flows + args.held_out_flows
     if args.cache and Path(args.cache).exists():
@@ -311,7 +319,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             for layout in ("shipped", "imu")
         ]
         if args.cache:
-            Path(args.cache).write_text(json.dumps(flows))
+            try:
+                Path(args.cache).write_text(json.dumps(flows))
+            except OSError as exc:
+                raise SystemExit(
+                    f"share_training: --cache {args.cache}: cannot be written ({exc})"
+                ) from None
     held_out = [f for f in flows if args.flows <= f["flow"] < wanted]
     flows = [f for f in flows if f["flow"] < args.flows]
     rows = [r for flow in flows for r in scored_labels(flow)]
@@ -330,9 +343,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         "profile": args.profile or "recorded",
         "source_revision": source_revision(),
     }
-    with open(args.out, "w") as handle:
-        json.dump(model, handle, indent=1)
-        handle.write("\n")
+    try:
+        Path(args.out).write_text(json.dumps(model, indent=1) + "\n", encoding="utf-8")
+    except OSError as exc:
+        raise SystemExit(f"share_training: --out {args.out}: cannot be written ({exc})") from None
     for regime, entry in model["densities"].items():
         print(f"{regime}: {entry['coal_labels']} coal, {entry['gangue_labels']} gangue labels")
     print(f"systematic standard error per flow-density class: {model['systematic_se']}")

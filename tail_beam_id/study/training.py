@@ -71,6 +71,7 @@ HOLDOUT_FRACTION = 0.25  # share of training impacts kept aside to fit the tempe
 MIN_UNSEEN_IMPACTS = (
     50  # held-out drawn-support impacts needed to fit the temperature on them alone
 )
+MAX_TRAINING_IMPACTS = 1_000_000  # per --count option: more would not fit in memory here
 ENVELOPE_PERCENTILES = (0.1, 99.9)  # a model's training envelope: these percentiles of each input
 THRESHOLD_FEATURES = ("rebound_speed_mps", "moment_impulse_nms", "pressure_swing_pa")
 
@@ -818,6 +819,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         "and models are the same for any number)",
     )
     args = parser.parse_args(argv)
+    for option, value in (
+        ("--count", args.count),
+        ("--varied-count", args.varied_count),
+        ("--varied-paper-count", args.varied_paper_count),
+    ):
+        if value is not None and not 1 <= value <= MAX_TRAINING_IMPACTS:
+            parser.error(f"{option} {value}: must be 1-{MAX_TRAINING_IMPACTS}")
     if args.jobs is None:
         args.jobs = default_workers()
     elif not 1 <= args.jobs <= 64:

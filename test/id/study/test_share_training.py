@@ -112,6 +112,26 @@ def test_training_refuses_a_cache_holding_fewer_flows_than_asked(tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("duration", ["-1", "0", "nan", "1e9"])
+def test_a_flow_length_out_of_range_is_refused_by_name(duration, tmp_path):
+    """A training flow's length that is not a positive number of at most 600 s stops with one
+    line naming --duration-s, before any flow is simulated or anything written."""
+    out = tmp_path / "model.json"
+    with pytest.raises(SystemExit, match="--duration-s must be in"):
+        main(["--duration-s", duration, "--out", str(out)])
+    assert not out.exists()
+
+
+def test_an_output_that_cannot_be_written_is_one_line(tmp_path):
+    """--out into a directory that does not exist ends with one line naming --out, not a
+    traceback, after the fit (from a cache)."""
+    cache = tmp_path / "flows.json"
+    cache.write_text(json.dumps([synthetic_flow(n, 900 + n, 0.2) for n in range(2)]))
+    out = tmp_path / "missing" / "model.json"
+    with pytest.raises(SystemExit, match="--out .*cannot be written"):
+        main(["--flows", "1", "--held-out-flows", "1", "--cache", str(cache), "--out", str(out)])
+
+
 def test_a_refit_from_a_cache_fits_the_first_flows_and_measures_on_the_rest(tmp_path):
     """From a cache of 4 flows, 2 train the densities and 2 unlike them give the systematic
     error; the model file says how many of each."""

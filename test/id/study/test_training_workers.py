@@ -46,6 +46,19 @@ def test_a_worker_count_out_of_range_is_refused_by_name(jobs, capsys):
     assert "--jobs" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    "option, value",
+    [("--count", "0"), ("--varied-count", "-5"), ("--varied-paper-count", "-1")],
+)
+def test_an_impact_count_out_of_range_is_refused_by_name(option, value, capsys):
+    """A count of training impacts below 1 ends with a usage error naming the option, before
+    any simulation."""
+    with pytest.raises(SystemExit) as ended:
+        main([option, value])
+    assert ended.value.code == 2
+    assert option in capsys.readouterr().err
+
+
 def test_a_plain_run_fits_the_impact_points_models_too(monkeypatch, tmp_path):
     """The README's one training command writes statistical.json afresh and then adds the
     models that read the impact point, from impacts simulated with the camera reporting it:
